@@ -1,0 +1,126 @@
+//! Location-indexed association and per-layer residual combination (DESIGN §1.4).
+//!
+//! Scan and map vertices sit on the same world lattice, so vertex `j` of a scan layer pairs
+//! with vertex `j` of a map layer of the same axis in the same cell or, with cross-cell reach
+//! `L`, in the cells `c ± i·e_axis` (`i ≤ L`); the candidate with the smallest `|Δd|` wins.
+//! A pair counts when both variances are below `variance_register` and the map vertex has a
+//! normal. The pairs of one scan layer are averaged (mean scan point, mean map point, mean
+//! normal) into one residual. No k-d tree, no heap: the output is the caller's bounded buffer.
+
+use crate::bounded::BoundedVec;
+use crate::lattice::VERTICES;
+use crate::lm::Residual;
+use crate::map::MeshMap;
+use crate::math::Vec3;
+use crate::reconstruct::ScanLayer;
+
+/// What association found for one scan.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AssociateStats {
+    /// Vertex pairs used.
+    pub pairs: usize,
+    /// Combined residuals written.
+    pub residuals: usize,
+}
+
+/// Writes one combined residual per scan layer that has map pairs into `out` (cleared first).
+pub fn associate(
+    scan: &[ScanLayer],
+    map: &MeshMap,
+    reach: u32,
+    variance_register: f64,
+    out: &mut BoundedVec<Residual>,
+) -> AssociateStats {
+    out.clear();
+    let lattice = *map.lattice();
+    let max_var = variance_register as f32;
+    let reach = reach.min(i32::MAX as u32) as i32;
+    let mut stats = AssociateStats::default();
+    for s in scan {
+        let (mut sum_p, mut sum_q, mut sum_n, mut count) = (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), 0usize);
+        for j in 0..VERTICES {
+            if !(s.layer.var[j] < max_var) {
+                continue;
+            }
+            let d_scan = f64::from(s.layer.pred[j]);
+            // (|Δd|, key, layer) of the nearest usable map vertex along the axis.
+            let mut best = None;
+            for i in -reach..=reach {
+                let Some(key) = s.key.offset(s.axis, i) else { continue };
+                let Some(m) = map.layer(&key, s.axis) else { continue };
+                if !(m.var[j] < max_var) {
+                    continue;
+                }
+                let dd = libm::fabs(f64::from(i) * lattice.cell_size + f64::from(m.pred[j]) - d_scan);
+                if best.is_none_or(|(b, _, _)| dd < b) {
+                    best = Some((dd, key, m));
+                }
+            }
+            let Some((_, key, m)) = best else { continue };
+            let Some(n) = m.normal(&lattice, &key, s.axis, j, max_var) else { continue };
+            sum_p += s.layer.vertex(&lattice, &s.key, s.axis, j);
+            sum_q += m.vertex(&lattice, &key, s.axis, j);
+            sum_n += n;
+            count += 1;
+        }
+        if count == 0 {
+            continue;
+        }
+        let norm = sum_n.norm();
+        if !(norm > 1e-9) {
+            continue;
+        }
+        let c = count as f64;
+        let r = Residual { p: sum_p / c, q: sum_q / c, n: sum_n / norm, weight: 1.0 };
+        if out.push(r).is_err() {
+            break;
+        }
+        stats.pairs += count;
+    }
+    stats.residuals = out.len();
+    stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cell::{Axis, CellKey};
+    use crate::lattice::Lattice;
+    use crate::layer::Layer;
+
+    const LAT: Lattice = Lattice { cell_size: 1.6, full_cover: false };
+
+    fn flat(d: f32) -> Layer {
+        Layer { pred: [d; VERTICES], var: [0.05; VERTICES] }
+    }
+
+    #[test]
+    fn pairs_same_cell_and_reaches_across_cells() {
+        let mut map = MeshMap::with_capacity(8, 8, LAT);
+        map.insert_layer(CellKey::new(0, 0, 1), Axis::Z, flat(0.2), 0).unwrap();
+        // The scan sees the same ground 0.3 m lower: one cell down, near its top face.
+        let scan = [ScanLayer { key: CellKey::new(0, 0, 0), axis: Axis::Z, layer: flat(1.5) }];
+        let mut out = BoundedVec::with_capacity(4);
+        assert_eq!(associate(&scan, &map, 0, 0.6, &mut out).residuals, 0);
+        let s = associate(&scan, &map, 1, 0.6, &mut out);
+        assert_eq!((s.pairs, s.residuals), (36, 1));
+        let r = out[0];
+        assert!((r.n - Vec3::z()).norm() < 1e-9);
+        // e = nᵀ(p - q) = 1.5 - (1.6 + 0.2) = -0.3.
+        assert!((r.error(&crate::Pose::identity()) + 0.3).abs() < 1e-6);
+    }
+
+    #[test]
+    fn uncertain_vertices_are_not_paired() {
+        let mut map = MeshMap::with_capacity(8, 8, LAT);
+        let mut m = flat(0.4);
+        for v in m.var.iter_mut().take(18) {
+            *v = 0.9;
+        }
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, m, 0).unwrap();
+        let scan = [ScanLayer { key: CellKey::new(0, 0, 0), axis: Axis::Z, layer: flat(0.5) }];
+        let mut out = BoundedVec::with_capacity(4);
+        assert_eq!(associate(&scan, &map, 0, 0.6, &mut out).pairs, 18);
+    }
+}

@@ -1,0 +1,68 @@
+//! Compile-time capacities and the memory they cost.
+//!
+//! A [`Capacity`] type fixes, at compile time, how much a [`Pipeline`](crate::Pipeline) can
+//! hold. Every buffer is allocated once, when the pipeline is built, and never grows; when one
+//! is full the owning stage drops by the rule it documents and counts the drop in
+//! [`ScanStats`](crate::ScanStats), or, for the map, returns an error. The memory bound of an
+//! instance is [`Capacity::memory_bytes`].
+
+use crate::bucket::CellSpan;
+use crate::cell::CellKey;
+use crate::lm::Residual;
+use crate::map::{MapCell, MAP_TABLE_FACTOR};
+use crate::math::Point;
+use crate::layer::Layer;
+use crate::reconstruct::ScanLayer;
+use core::mem::size_of;
+
+/// How much one pipeline can hold. Implement it for your sensor, or use a provided one.
+pub trait Capacity {
+    /// Points of one scan kept after the range filter (the rest are dropped in input order).
+    const POINTS: usize;
+    /// Cells of one scan that are reconstructed (further cells are dropped in key order).
+    const SCAN_CELLS: usize;
+    /// Layers of one scan (at most three per cell; further layers are dropped).
+    const SCAN_LAYERS: usize;
+    /// Cells in the map (a new cell past this is not inserted and is counted).
+    const MAP_CELLS: usize;
+    /// Layers in the map (a new layer past this is not inserted and is counted).
+    const MAP_LAYERS: usize;
+
+    /// Upper bound on the heap bytes of one pipeline with these capacities: the scan buffers,
+    /// the map's layer pool, and its hash table at [`MAP_TABLE_FACTOR`] times the cell count
+    /// (hashbrown control bytes and power-of-two rounding included).
+    fn memory_bytes() -> usize {
+        let scan = Self::POINTS * (size_of::<Point>() + size_of::<(CellKey, Point)>())
+            + Self::SCAN_CELLS * size_of::<CellSpan>()
+            + Self::SCAN_LAYERS * (size_of::<ScanLayer>() + size_of::<Residual>());
+        let buckets = (Self::MAP_CELLS * MAP_TABLE_FACTOR * 8 / 7).next_power_of_two();
+        let table = buckets * (size_of::<(CellKey, MapCell)>() + 1);
+        let pool = Self::MAP_LAYERS * (size_of::<Layer>() + size_of::<u32>());
+        scan + table + pool
+    }
+}
+
+/// KITTI HDL-64E scans (about 125 000 points, 100 m range) and runs of a few kilometres
+/// without eviction. About 190 MB of address space, touched only as the map fills.
+#[derive(Debug, Clone, Copy)]
+pub struct KittiCapacity;
+
+impl Capacity for KittiCapacity {
+    const POINTS: usize = 140_000;
+    const SCAN_CELLS: usize = 16_384;
+    const SCAN_LAYERS: usize = 24_576;
+    const MAP_CELLS: usize = 262_144;
+    const MAP_LAYERS: usize = 393_216;
+}
+
+/// A sparse 16-beam sensor on a microcontroller-class board: a few hundred cells.
+#[derive(Debug, Clone, Copy)]
+pub struct SmallCapacity;
+
+impl Capacity for SmallCapacity {
+    const POINTS: usize = 2_048;
+    const SCAN_CELLS: usize = 160;
+    const SCAN_LAYERS: usize = 240;
+    const MAP_CELLS: usize = 384;
+    const MAP_LAYERS: usize = 512;
+}

@@ -1,0 +1,294 @@
+//! The one [`Config`], made of one struct per stage, with presets and validation.
+//!
+//! Defaults are the KITTI values of the original SLAMesh (DESIGN §1.7) unless a field says
+//! otherwise. [`Config::validate`] names the first bad field; the pipeline refuses an invalid
+//! configuration at construction.
+
+use crate::lattice::{Lattice, N};
+use core::fmt;
+
+/// Range filter and down-sampling (DESIGN §1.1 step 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FilterConfig {
+    /// Points closer to the sensor than this are dropped (metres). Default 1.2.
+    pub range_min_m: f64,
+    /// Points farther than this are dropped (metres). Default 100.
+    pub range_max_m: f64,
+    /// KITTI's vertical-angle calibration error: each point is rotated up by this angle about
+    /// the horizontal axis perpendicular to its azimuth (DESIGN §1.8). Default 0 (off);
+    /// [`Config::kitti`] sets 0.22.
+    pub vertical_correction_deg: f64,
+}
+
+/// The world grid of cells and their lattice (DESIGN §1, §1.3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GridConfig {
+    /// Cell edge (metres). Default 1.6. The voxel down-sampling leaf is `cell_size_m / 6`.
+    pub cell_size_m: f64,
+    /// Points a cell needs to be reconstructed. Default 11 (5 for meshing).
+    pub min_points: usize,
+    /// Lattice on the cell faces (`true`, gap-free meshes) or at interval centres (`false`).
+    /// Default `false` (`true` for meshing).
+    pub full_cover: bool,
+}
+
+/// Gaussian-process reconstruction (DESIGN §1.3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GpConfig {
+    /// κ of the exponential kernel `exp(-κ |u - v|)`, per metre. Default 1.2.
+    pub kappa_per_m: f64,
+    /// Measurement noise standard deviation σ_n (metres). Default 0.02.
+    pub sensor_noise_m: f64,
+}
+
+/// Levenberg-Marquardt on SE(3) (DESIGN §1.4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LmConfig {
+    /// Iterations per solve. Default 10.
+    pub max_iterations: usize,
+    /// Stop when the update's norm falls below this. Default 1e-5.
+    pub tolerance: f64,
+    /// Huber loss threshold (metres). Default 0.1.
+    pub huber_delta_m: f64,
+    /// The normal equations are degenerate when their smallest eigenvalue is below this share
+    /// of the largest. Default 1e-6.
+    pub degenerate_ratio: f64,
+    /// Fewer combined residuals than this is [`TooFewResiduals`](crate::lm::LmError). Default 10.
+    pub min_residuals: usize,
+}
+
+/// Scan-to-map registration (DESIGN §1.1 step 5, §1.4, §1.8).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RegisterConfig {
+    /// Registration rounds per scan (re-bucket and re-reconstruct after each). Default 2.
+    pub iterations: usize,
+    /// Cross-cell search reach `L` during all but the last round. Default 1 (2 for meshing).
+    pub cross_cell_overlap: u32,
+    /// Rounds used while the motion is still unknown (the second scan). Default 6.
+    pub initial_iterations: usize,
+    /// Cross-cell reach while the motion is still unknown. Default 2.
+    pub initial_cross_cell_overlap: u32,
+    /// Vertices with a variance at or above this are not used for registration. Default 0.6.
+    pub variance_register: f64,
+    /// The solver.
+    pub lm: LmConfig,
+}
+
+/// Map update (DESIGN §1.5).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MapConfig {
+    /// Vertices are fused when both variances are below this; otherwise the one with the
+    /// smaller variance is kept. Default 0.5.
+    pub variance_update: f64,
+    /// Add a layer that a known cell lacks (the original never does). Default `true`.
+    pub add_missing_layers: bool,
+}
+
+/// Mesh export (DESIGN §1.6).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MeshConfig {
+    /// Triangles whose mean vertex variance is at or above this are hidden. Default 1.0
+    /// (0.3 for meshing).
+    pub variance_show: f64,
+}
+
+/// Everything the pipeline can be told, grouped by stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Config {
+    /// Range filter.
+    pub filter: FilterConfig,
+    /// Cells and lattice.
+    pub grid: GridConfig,
+    /// GP reconstruction.
+    pub gp: GpConfig,
+    /// Registration.
+    pub register: RegisterConfig,
+    /// Map update.
+    pub map: MapConfig,
+    /// Mesh export.
+    pub mesh: MeshConfig,
+}
+
+impl Default for Config {
+    /// The original's KITTI values (DESIGN §1.7), without the KITTI calibration correction.
+    fn default() -> Self {
+        Self {
+            filter: FilterConfig {
+                range_min_m: 1.2,
+                range_max_m: 100.0,
+                vertical_correction_deg: 0.0,
+            },
+            grid: GridConfig {
+                cell_size_m: 1.6,
+                min_points: 11,
+                full_cover: false,
+            },
+            gp: GpConfig {
+                kappa_per_m: 1.2,
+                sensor_noise_m: 0.02,
+            },
+            register: RegisterConfig {
+                iterations: 2,
+                cross_cell_overlap: 1,
+                initial_iterations: 6,
+                initial_cross_cell_overlap: 2,
+                variance_register: 0.6,
+                lm: LmConfig {
+                    max_iterations: 10,
+                    tolerance: 1e-5,
+                    huber_delta_m: 0.1,
+                    degenerate_ratio: 1e-6,
+                    min_residuals: 10,
+                },
+            },
+            map: MapConfig {
+                variance_update: 0.5,
+                add_missing_layers: true,
+            },
+            mesh: MeshConfig { variance_show: 1.0 },
+        }
+    }
+}
+
+impl Config {
+    /// Odometry on KITTI HDL-64E scans: the defaults plus the 0.22° vertical-angle correction.
+    pub fn kitti() -> Self {
+        let mut c = Self::default();
+        c.filter.vertical_correction_deg = 0.22;
+        c
+    }
+
+    /// Meshing: lattice on the cell faces (no gaps), lower point threshold, wider cross-cell
+    /// reach, only confident triangles shown (DESIGN §1.7).
+    pub fn meshing() -> Self {
+        let mut c = Self::default();
+        c.grid.min_points = 5;
+        c.grid.full_cover = true;
+        c.register.cross_cell_overlap = 2;
+        c.mesh.variance_show = 0.3;
+        c
+    }
+
+    /// The lattice this configuration places vertices on.
+    pub fn lattice(&self) -> Lattice {
+        Lattice {
+            cell_size: self.grid.cell_size_m,
+            full_cover: self.grid.full_cover,
+        }
+    }
+
+    /// The voxel down-sampling leaf: one lattice spacing, `cell_size / 6`.
+    pub fn voxel_leaf_m(&self) -> f64 {
+        self.grid.cell_size_m / N as f64
+    }
+
+    /// Checks every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let positive = |name: &'static str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ConfigError { field: name, reason: "must be a finite number above 0" })
+            }
+        };
+        let f = &self.filter;
+        if !(f.range_min_m.is_finite() && f.range_min_m >= 0.0) {
+            return Err(ConfigError { field: "filter.range_min_m", reason: "must be finite and at least 0" });
+        }
+        positive("filter.range_max_m", f.range_max_m)?;
+        if f.range_max_m <= f.range_min_m {
+            return Err(ConfigError { field: "filter.range_max_m", reason: "must exceed filter.range_min_m" });
+        }
+        if !(f.vertical_correction_deg.is_finite() && libm::fabs(f.vertical_correction_deg) <= 5.0) {
+            return Err(ConfigError { field: "filter.vertical_correction_deg", reason: "must be within ±5 degrees" });
+        }
+        positive("grid.cell_size_m", self.grid.cell_size_m)?;
+        if self.grid.cell_size_m < 0.05 || self.grid.cell_size_m > 100.0 {
+            return Err(ConfigError { field: "grid.cell_size_m", reason: "must be between 0.05 and 100 metres" });
+        }
+        if self.grid.min_points < 3 {
+            return Err(ConfigError { field: "grid.min_points", reason: "must be at least 3" });
+        }
+        positive("gp.kappa_per_m", self.gp.kappa_per_m)?;
+        positive("gp.sensor_noise_m", self.gp.sensor_noise_m)?;
+        let r = &self.register;
+        if r.iterations == 0 || r.iterations > 50 {
+            return Err(ConfigError { field: "register.iterations", reason: "must be 1 to 50" });
+        }
+        if r.initial_iterations == 0 || r.initial_iterations > 50 {
+            return Err(ConfigError { field: "register.initial_iterations", reason: "must be 1 to 50" });
+        }
+        if r.cross_cell_overlap > 8 {
+            return Err(ConfigError { field: "register.cross_cell_overlap", reason: "must be 0 to 8" });
+        }
+        if r.initial_cross_cell_overlap > 8 {
+            return Err(ConfigError { field: "register.initial_cross_cell_overlap", reason: "must be 0 to 8" });
+        }
+        positive("register.variance_register", r.variance_register)?;
+        if r.lm.max_iterations == 0 || r.lm.max_iterations > 100 {
+            return Err(ConfigError { field: "register.lm.max_iterations", reason: "must be 1 to 100" });
+        }
+        positive("register.lm.tolerance", r.lm.tolerance)?;
+        positive("register.lm.huber_delta_m", r.lm.huber_delta_m)?;
+        if !(r.lm.degenerate_ratio.is_finite() && (0.0..1.0).contains(&r.lm.degenerate_ratio)) {
+            return Err(ConfigError { field: "register.lm.degenerate_ratio", reason: "must be in [0, 1)" });
+        }
+        if r.lm.min_residuals < 6 {
+            return Err(ConfigError { field: "register.lm.min_residuals", reason: "must be at least 6 (six unknowns)" });
+        }
+        positive("map.variance_update", self.map.variance_update)?;
+        positive("mesh.variance_show", self.mesh.variance_show)?;
+        Ok(())
+    }
+}
+
+/// A configuration field and why its value is refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ConfigError {
+    /// The dotted field name, as in a config file (`register.iterations`).
+    pub field: &'static str,
+    /// What the value must be.
+    pub reason: &'static str,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "invalid configuration: {} {}", self.field, self.reason)
+    }
+}
+
+impl core::error::Error for ConfigError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid() {
+        Config::default().validate().unwrap();
+        Config::kitti().validate().unwrap();
+        Config::meshing().validate().unwrap();
+    }
+
+    #[test]
+    fn bad_fields_are_named() {
+        let mut c = Config::default();
+        c.filter.range_max_m = 1.0;
+        assert_eq!(c.validate().unwrap_err().field, "filter.range_max_m");
+        let mut c = Config::default();
+        c.gp.sensor_noise_m = f64::NAN;
+        assert_eq!(c.validate().unwrap_err().field, "gp.sensor_noise_m");
+        let mut c = Config::default();
+        c.register.iterations = 0;
+        assert_eq!(c.validate().unwrap_err().field, "register.iterations");
+    }
+}

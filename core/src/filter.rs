@@ -1,0 +1,144 @@
+//! Range filter, KITTI vertical-angle correction and voxel down-sampling (DESIGN §1.1 step 1).
+//!
+//! Owns no memory: it fills the caller's buffers. Drop rules: non-finite points and points
+//! outside `[range_min, range_max]` are dropped; when the work buffer is full, further input
+//! points are dropped in input order. Everything dropped is counted in [`FilterStats`].
+
+use crate::bounded::BoundedVec;
+use crate::cell::CellKey;
+use crate::config::FilterConfig;
+use crate::math::{to_point, to_vec3, Point, Vec3};
+
+/// What the filter kept and dropped from one scan.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FilterStats {
+    /// Points given.
+    pub input: usize,
+    /// Dropped: a coordinate was NaN or infinite.
+    pub non_finite: usize,
+    /// Dropped: range outside `[range_min, range_max]`.
+    pub out_of_range: usize,
+    /// Dropped: the work buffer was full.
+    pub over_capacity: usize,
+    /// Points after down-sampling.
+    pub kept: usize,
+}
+
+/// Rotates `p` up by `angle_rad` about the horizontal axis perpendicular to its azimuth
+/// (the KITTI correction of IMLS-SLAM and CT-ICP, DESIGN §1.8).
+pub fn correct_vertical_angle(p: &Vec3, angle_rad: f64) -> Vec3 {
+    // u = p × z / |p × z| is horizontal and perpendicular to the azimuth; Rodrigues with
+    // u ⟂ p reduces to p cos α + (u × p) sin α.
+    let axis = Vec3::new(p.y, -p.x, 0.0);
+    let norm = axis.norm();
+    if norm < 1e-9 {
+        return *p;
+    }
+    let u = axis / norm;
+    p * libm::cos(angle_rad) + u.cross(p) * libm::sin(angle_rad)
+}
+
+/// Filters `raw` (sensor frame) and down-samples it to one centroid per voxel of edge `leaf_m`,
+/// written to `out` in voxel-key order. `work` is scratch space.
+pub fn filter_and_downsample(
+    raw: &[Point],
+    cfg: &FilterConfig,
+    leaf_m: f64,
+    work: &mut BoundedVec<(CellKey, Point)>,
+    out: &mut BoundedVec<Point>,
+) -> FilterStats {
+    work.clear();
+    out.clear();
+    let mut stats = FilterStats { input: raw.len(), ..FilterStats::default() };
+    let correction = cfg.vertical_correction_deg.to_radians();
+    let (r2_min, r2_max) = (cfg.range_min_m * cfg.range_min_m, cfg.range_max_m * cfg.range_max_m);
+    for p in raw {
+        if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()) {
+            stats.non_finite += 1;
+            continue;
+        }
+        let mut v = to_vec3(p);
+        let r2 = v.norm_squared();
+        if r2 < r2_min || r2 > r2_max {
+            stats.out_of_range += 1;
+            continue;
+        }
+        if correction != 0.0 {
+            v = correct_vertical_angle(&v, correction);
+        }
+        let Some(key) = CellKey::containing(&v, leaf_m) else {
+            stats.out_of_range += 1;
+            continue;
+        };
+        if work.push((key, to_point(&v))).is_err() {
+            stats.over_capacity += 1;
+        }
+    }
+    work.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    let mut i = 0;
+    while let Some(&(key, _)) = work.get(i) {
+        let mut sum = Vec3::zeros();
+        let mut count = 0usize;
+        while let Some((k, p)) = work.get(i) {
+            if *k != key {
+                break;
+            }
+            sum += to_vec3(p);
+            count += 1;
+            i += 1;
+        }
+        // `out` has the capacity of `work`, and there are no more voxels than points.
+        let _ = out.push(to_point(&(sum / count as f64)));
+    }
+    stats.kept = out.len();
+    stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg() -> FilterConfig {
+        FilterConfig { range_min_m: 1.0, range_max_m: 50.0, vertical_correction_deg: 0.0 }
+    }
+
+    #[test]
+    fn drops_bad_points_and_merges_voxels() {
+        let raw = [
+            [f32::NAN, 0.0, 0.0],
+            [f32::INFINITY, 1.0, 1.0],
+            [0.1, 0.1, 0.1],      // too close
+            [100.0, 0.0, 0.0],    // too far
+            [10.05, 0.05, 0.05],  // voxel (50, 0, 0) at 0.2 m
+            [10.15, 0.15, 0.15],  // same voxel
+            [20.1, 0.1, 0.1],     // another voxel
+        ];
+        let mut work = BoundedVec::with_capacity(16);
+        let mut out = BoundedVec::with_capacity(16);
+        let s = filter_and_downsample(&raw, &cfg(), 0.2, &mut work, &mut out);
+        assert_eq!((s.non_finite, s.out_of_range, s.over_capacity, s.kept), (2, 2, 0, 2));
+        assert!((out[0][0] - 10.1).abs() < 1e-5 && (out[0][1] - 0.1).abs() < 1e-5);
+        assert!((out[1][0] - 20.1).abs() < 1e-5);
+    }
+
+    #[test]
+    fn over_capacity_points_are_dropped_in_input_order() {
+        let raw: [Point; 5] = core::array::from_fn(|i| [2.0 + i as f32, 0.0, 0.0]);
+        let mut work = BoundedVec::with_capacity(3);
+        let mut out = BoundedVec::with_capacity(3);
+        let s = filter_and_downsample(&raw, &cfg(), 0.2, &mut work, &mut out);
+        assert_eq!((s.over_capacity, s.kept), (2, 3));
+        assert!((out[2][0] - 4.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn vertical_correction_lifts_points_by_the_angle() {
+        let p = Vec3::new(30.0, 40.0, 0.0);
+        let q = correct_vertical_angle(&p, 0.22f64.to_radians());
+        assert!((q.norm() - p.norm()).abs() < 1e-9);
+        let elevation = libm::atan2(q.z, libm::hypot(q.x, q.y));
+        assert!((elevation - 0.22f64.to_radians()).abs() < 1e-12);
+        assert!((libm::atan2(q.y, q.x) - libm::atan2(p.y, p.x)).abs() < 1e-12);
+    }
+}

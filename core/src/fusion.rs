@@ -1,0 +1,89 @@
+//! Map update by inverse-variance fusion of 1-D predictions (DESIGN §1.5).
+//!
+//! Vertex locations are fixed, so fusing a scan into the map is fusing, per vertex, two
+//! scalar estimates. New cells are inserted; a layer a known cell lacks is added when
+//! [`MapConfig::add_missing_layers`] is set. Map-capacity refusals are counted, never fatal.
+
+use crate::config::MapConfig;
+use crate::map::MeshMap;
+use crate::reconstruct::ScanLayer;
+
+/// Fuses map estimate `(u, var_u)` with observation `(o, var_o)`: inverse-variance weighting
+/// when both variances are below `variance_update`, else the one with the smaller variance.
+#[inline]
+pub fn fuse_vertex(u: f32, var_u: f32, o: f32, var_o: f32, variance_update: f32) -> (f32, f32) {
+    if var_u < variance_update && var_o < variance_update {
+        let sum = var_u + var_o;
+        if sum > 0.0 {
+            return ((u * var_o + o * var_u) / sum, var_u * var_o / sum);
+        }
+        return ((u + o) * 0.5, 0.0);
+    }
+    if var_o < var_u {
+        (o, var_o)
+    } else {
+        (u, var_u)
+    }
+}
+
+/// What one map update did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FusionStats {
+    /// Layers fused into existing map layers.
+    pub fused: usize,
+    /// Layers added to the map.
+    pub added: usize,
+    /// Layers not added because the map was full.
+    pub refused: usize,
+}
+
+/// Fuses the scan's layers into `map`, marking their cells seen at `frame`.
+pub fn integrate(map: &mut MeshMap, scan: &[ScanLayer], cfg: &MapConfig, frame: u32) -> FusionStats {
+    let threshold = cfg.variance_update as f32;
+    let mut stats = FusionStats::default();
+    for s in scan {
+        if let Some(m) = map.layer_mut(&s.key, s.axis, frame) {
+            for j in 0..m.pred.len() {
+                let (u, v) = fuse_vertex(m.pred[j], m.var[j], s.layer.pred[j], s.layer.var[j], threshold);
+                m.pred[j] = u;
+                m.var[j] = v;
+            }
+            stats.fused += 1;
+            continue;
+        }
+        if map.cell(&s.key).is_some() && !cfg.add_missing_layers {
+            continue;
+        }
+        match map.insert_layer(s.key, s.axis, s.layer, frame) {
+            Ok(()) => stats.added += 1,
+            Err(_) => stats.refused += 1,
+        }
+    }
+    stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inverse_variance_fusion() {
+        // u = 1 (var 0.1), o = 2 (var 0.3): u' = (1·0.3 + 2·0.1)/0.4 = 1.25, var' = 0.03/0.4.
+        let (u, v) = fuse_vertex(1.0, 0.1, 2.0, 0.3, 0.5);
+        assert!((u - 1.25).abs() < 1e-6);
+        assert!((v - 0.075).abs() < 1e-7);
+        // Fusion never increases the variance and lands between the two estimates.
+        for (a, b) in [(0.01f32, 0.4f32), (0.2, 0.2), (0.49, 0.001)] {
+            let (u, v) = fuse_vertex(0.0, a, 1.0, b, 0.5);
+            assert!(v <= a.min(b) && (0.0..=1.0).contains(&u));
+        }
+    }
+
+    #[test]
+    fn keep_the_better_when_either_is_uncertain() {
+        assert_eq!(fuse_vertex(1.0, 0.9, 2.0, 0.1, 0.5), (2.0, 0.1));
+        assert_eq!(fuse_vertex(1.0, 0.1, 2.0, 0.7, 0.5), (1.0, 0.1));
+        assert_eq!(fuse_vertex(1.0, 0.8, 2.0, 0.9, 0.5), (1.0, 0.8));
+    }
+}

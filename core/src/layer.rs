@@ -1,0 +1,123 @@
+//! [`Layer`]: the estimated state of one surface patch, and its lattice geometry.
+//!
+//! A layer stores, per lattice vertex, the prediction (metres from the cell's minimum face
+//! along the layer's axis) and its GP variance. The same type is a scan's reconstruction and
+//! the map's fused estimate. 288 bytes, no heap.
+
+use crate::cell::{Axis, CellKey};
+use crate::lattice::{neighbours, Lattice, N, VERTICES};
+use crate::math::Vec3;
+
+/// Predictions and variances at the `6 x 6` lattice of one layer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Layer {
+    /// Prediction of vertex `j`, cell-local along the layer's axis (metres).
+    pub pred: [f32; VERTICES],
+    /// GP variance of vertex `j` (unit signal variance, so about 0 to 2).
+    pub var: [f32; VERTICES],
+}
+
+impl Layer {
+    /// A layer whose every vertex is unknown (variance `f32::INFINITY`).
+    pub const UNKNOWN: Layer = Layer { pred: [0.0; VERTICES], var: [f32::INFINITY; VERTICES] };
+
+    /// The world position of vertex `j` of this layer, placed in cell `key` along `axis`.
+    #[inline]
+    pub fn vertex(&self, lattice: &Lattice, key: &CellKey, axis: Axis, j: usize) -> Vec3 {
+        let d = self.pred.get(j).copied().unwrap_or(0.0);
+        lattice.vertex_world(key, axis, j, f64::from(d))
+    }
+
+    /// The surface normal at vertex `j`: the mean of the cross products of consecutive edges
+    /// to its usable 4-neighbours (variance below `max_var`, edge shorter than a cell),
+    /// normalised, oriented along `+axis` (DESIGN §1.4). `None` when no pair of edges is usable.
+    pub fn normal(&self, lattice: &Lattice, key: &CellKey, axis: Axis, j: usize, max_var: f32) -> Option<Vec3> {
+        let centre = self.vertex(lattice, key, axis, j);
+        let edge = |n: Option<usize>| -> Option<Vec3> {
+            let n = n?;
+            if !(*self.var.get(n)? < max_var) {
+                return None;
+            }
+            let e = self.vertex(lattice, key, axis, n) - centre;
+            (e.norm() < lattice.cell_size).then_some(e)
+        };
+        let nb = neighbours(j);
+        let edges = nb.map(edge);
+        let mut sum = Vec3::zeros();
+        for k in 0..4 {
+            if let (Some(Some(e0)), Some(Some(e1))) = (edges.get(k), edges.get((k + 1) % 4)) {
+                sum += e0.cross(e1);
+            }
+        }
+        let norm = sum.norm();
+        (norm > 1e-12).then(|| sum / norm)
+    }
+
+    /// The lattice's triangles as vertex-index triples, counter-clockwise seen from `+axis`:
+    /// 5 x 5 quads, two triangles each, kept when the mean variance of their vertices is below
+    /// `variance_show` (DESIGN §1.6).
+    pub fn triangles(&self, variance_show: f32) -> impl Iterator<Item = [usize; 3]> + '_ {
+        (0..(N - 1) * (N - 1)).flat_map(move |q| {
+            let (ia, ib) = (q / (N - 1), q % (N - 1));
+            let v00 = ia * N + ib;
+            let (v10, v01, v11) = (v00 + N, v00 + 1, v00 + N + 1);
+            [[v00, v10, v11], [v00, v11, v01]]
+                .into_iter()
+                .filter(move |t| self.mean_variance(t) < variance_show)
+        })
+    }
+
+    /// Mean variance of three vertices (`INFINITY` for an index out of range).
+    #[inline]
+    pub fn mean_variance(&self, t: &[usize; 3]) -> f32 {
+        t.iter().map(|&j| self.var.get(j).copied().unwrap_or(f32::INFINITY)).sum::<f32>() / 3.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plane(axis: Axis, f: impl Fn(f64, f64) -> f64) -> (Layer, Lattice) {
+        let lattice = Lattice { cell_size: 1.6, full_cover: false };
+        let mut l = Layer::UNKNOWN;
+        for j in 0..VERTICES {
+            let (a, b) = lattice.location(j);
+            l.pred[j] = f(a, b) as f32;
+            l.var[j] = 0.01;
+        }
+        let _ = axis;
+        (l, lattice)
+    }
+
+    #[test]
+    fn normal_of_a_tilted_plane() {
+        // d = 0.2 + 0.5 a: normal ∝ (-0.5, 0, 1) in (a, b, d).
+        for axis in Axis::ALL {
+            let (l, lat) = plane(axis, |a, _| 0.2 + 0.5 * a);
+            let n = l.normal(&lat, &CellKey::new(3, -2, 1), axis, 14, 0.5).unwrap();
+            let (ia, ib) = axis.locations();
+            let want = Vec3::new(-0.5, 0.0, 1.0).normalize();
+            assert!((n[ia] - want.x).abs() < 1e-6 && (n[ib] - want.y).abs() < 1e-6);
+            assert!((n[axis.index()] - want.z).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn corner_vertex_normal_uses_the_one_edge_pair_and_uncertain_vertices_are_skipped() {
+        let (mut l, lat) = plane(Axis::Z, |_, _| 0.4);
+        let n = l.normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5).unwrap();
+        assert!((n - Vec3::z()).norm() < 1e-9);
+        l.var[1] = 0.9;
+        assert!(l.normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5).is_none());
+    }
+
+    #[test]
+    fn triangles_follow_the_variance_threshold() {
+        let (mut l, _) = plane(Axis::Z, |_, _| 0.4);
+        assert_eq!(l.triangles(1.0).count(), 50);
+        l.var[0] = 3.0; // in 1 triangle of quad (0, 0)... and the other one too
+        assert_eq!(l.triangles(1.0).count(), 48);
+    }
+}

@@ -1,0 +1,62 @@
+//! # slamesh-core
+//!
+//! The `no_std` heart of slamesh, a Rust implementation of SLAMesh (Ruan et al., ICRA 2023):
+//! LiDAR odometry that localizes against the triangle mesh it builds.
+//!
+//! A scan goes through the stages below, one module each; [`pipeline`] composes them and holds
+//! no math of its own (DESIGN §1.1):
+//!
+//! | stage | module |
+//! |---|---|
+//! | range filter, voxel down-sampling | [`filter`] |
+//! | constant-velocity prediction | [`motion`] |
+//! | bucketing points into world-fixed cells | [`bucket`] (keys in [`cell`]) |
+//! | layer choice by PCA | [`pca`] |
+//! | Gaussian-process reconstruction of a layer | [`gp`] on the [`lattice`] |
+//! | location-indexed association, residual combination | [`associate`] |
+//! | Levenberg-Marquardt on SE(3) | [`lm`] (SE(3) helpers in [`math`]) |
+//! | inverse-variance map fusion | [`fusion`] into the [`map`] |
+//! | triangles | [`mesh`] |
+//!
+//! ## Guarantees
+//! - No panics on input data: bad points are dropped and counted, a full container returns an
+//!   error or drops by the rule its module documents.
+//! - Bounded memory: every buffer is allocated once, when a [`Pipeline`] is built, with the
+//!   capacities of its [`Capacity`] type, and never grows ([`bounded`]). The map's hash table
+//!   is sized so that it never reallocates ([`map`]). The footprint is [`Capacity::memory_bytes`].
+//! - No clock, file, thread or randomness: the same scans give the same poses and mesh.
+//!
+//! The crate needs `alloc` (for the one-time allocation of its buffers) but not `std`.
+#![no_std]
+#![deny(missing_docs)]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
+)]
+
+extern crate alloc;
+
+pub mod associate;
+pub mod bounded;
+pub mod bucket;
+pub mod capacity;
+pub mod cell;
+pub mod config;
+pub mod filter;
+pub mod fusion;
+pub mod gp;
+pub mod lattice;
+pub mod layer;
+pub mod lm;
+pub mod map;
+pub mod math;
+pub mod mesh;
+pub mod motion;
+pub mod pca;
+pub mod pipeline;
+pub mod reconstruct;
+
+pub use capacity::{Capacity, KittiCapacity, SmallCapacity};
+pub use config::{Config, ConfigError};
+pub use math::{Point, Pose};
+pub use pipeline::{Pipeline, RegistrationStatus, ScanError, ScanOutcome, ScanStats};

@@ -1,0 +1,101 @@
+//! Math types and the one copy of the SE(3) helpers.
+//!
+//! Poses are [`Pose`] (`Isometry3<f64>`), named by frames: `t_world_sensor` maps sensor-frame
+//! points into the world. Points are stored as `f32` ([`Point`]); all estimation math is `f64`.
+//! Tangent vectors of SE(3) are ordered `(ω, ρ)`: rotation first, as in DESIGN §1.4.
+
+use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6};
+
+/// A 3-D point as stored in buffers (metres, `f32`).
+pub type Point = [f32; 3];
+/// A 3-vector for estimation math.
+pub type Vec3 = Vector3<f64>;
+/// A 3x3 matrix.
+pub type Mat3 = Matrix3<f64>;
+/// A rigid transform, named by frames (`t_world_sensor`).
+pub type Pose = Isometry3<f64>;
+/// An SE(3) tangent vector `(ω, ρ)`.
+pub type Twist = Vector6<f64>;
+
+/// Widens a stored point to an estimation vector.
+#[inline]
+pub fn to_vec3(p: &Point) -> Vec3 {
+    Vec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))
+}
+
+/// Narrows an estimation vector to a stored point.
+#[inline]
+pub fn to_point(v: &Vec3) -> Point {
+    [v.x as f32, v.y as f32, v.z as f32]
+}
+
+/// The skew-symmetric matrix `v^` with `v^ w = v × w`.
+#[inline]
+pub fn skew(v: &Vec3) -> Mat3 {
+    Mat3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+/// The exponential map of SE(3): the transform `exp(ξ)` for `ξ = (ω, ρ)`.
+///
+/// Rotation by Rodrigues' formula, translation `V ρ` with
+/// `V = I + (1 - cos θ)/θ² ω^ + (θ - sin θ)/θ³ ω^²` (series near θ = 0).
+pub fn se3_exp(xi: &Twist) -> Pose {
+    let omega = Vec3::new(xi[0], xi[1], xi[2]);
+    let rho = Vec3::new(xi[3], xi[4], xi[5]);
+    let theta2 = omega.norm_squared();
+    let theta = libm::sqrt(theta2);
+    let w = skew(&omega);
+    let (b, c) = if theta < 1e-6 {
+        (0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0)
+    } else {
+        (
+            (1.0 - libm::cos(theta)) / theta2,
+            (theta - libm::sin(theta)) / (theta2 * theta),
+        )
+    };
+    let v = Mat3::identity() + w * b + w * w * c;
+    Isometry3::from_parts(
+        Translation3::from(v * rho),
+        UnitQuaternion::from_scaled_axis(omega),
+    )
+}
+
+/// Rotation angle of a pose in radians, in `[0, π]`.
+#[inline]
+pub fn rotation_angle(pose: &Pose) -> f64 {
+    pose.rotation.angle()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exp_of_pure_translation_and_rotation() {
+        let t = se3_exp(&Twist::new(0.0, 0.0, 0.0, 1.0, 2.0, 3.0));
+        assert!((t.translation.vector - Vec3::new(1.0, 2.0, 3.0)).norm() < 1e-12);
+        let r = se3_exp(&Twist::new(0.0, 0.0, core::f64::consts::FRAC_PI_2, 0.0, 0.0, 0.0));
+        let x = r * nalgebra::Point3::new(1.0, 0.0, 0.0);
+        assert!((x.coords - Vec3::new(0.0, 1.0, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn exp_matches_screw_motion() {
+        // Rotating by π/2 about z while moving ρ = (0, 0, 1): the screw axis is z, so the
+        // translation is exactly (0, 0, 1) (V maps the axis onto itself).
+        let t = se3_exp(&Twist::new(0.0, 0.0, core::f64::consts::FRAC_PI_2, 0.0, 0.0, 1.0));
+        assert!((t.translation.vector - Vec3::new(0.0, 0.0, 1.0)).norm() < 1e-12);
+        // ρ = (1, 0, 0), θ = π/2 about z: V ρ = (sin θ/θ, (1 - cos θ)/θ, 0).
+        let th = core::f64::consts::FRAC_PI_2;
+        let t = se3_exp(&Twist::new(0.0, 0.0, th, 1.0, 0.0, 0.0));
+        let want = Vec3::new(libm::sin(th) / th, (1.0 - libm::cos(th)) / th, 0.0);
+        assert!((t.translation.vector - want).norm() < 1e-12);
+    }
+
+    #[test]
+    fn skew_is_cross_product() {
+        let a = Vec3::new(0.3, -1.0, 2.0);
+        let b = Vec3::new(-0.5, 0.25, 4.0);
+        assert!((skew(&a) * b - a.cross(&b)).norm() < 1e-12);
+    }
+}

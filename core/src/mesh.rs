@@ -1,0 +1,70 @@
+//! Triangles of the map, without allocation (DESIGN §1.6).
+//!
+//! Each layer's lattice gives 5 x 5 quads, two triangles each, kept when the mean variance of
+//! their vertices is below `variance_show`. Iterate with [`triangles`] or fill a caller's
+//! buffer with [`triangles_into`]. For an indexed mesh (shared vertices), walk
+//! [`MeshMap::layers`] and use [`Layer::triangles`](crate::layer::Layer::triangles) per layer.
+
+use crate::map::MeshMap;
+use crate::math::to_point;
+use crate::math::Point;
+
+/// One triangle in world coordinates, counter-clockwise seen from its layer's `+axis`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Triangle {
+    /// Corner positions (metres, world frame).
+    pub vertices: [Point; 3],
+    /// Mean variance of the corners.
+    pub variance: f32,
+}
+
+/// Every shown triangle of `map`, in the map's deterministic order.
+pub fn triangles(map: &MeshMap, variance_show: f64) -> impl Iterator<Item = Triangle> + '_ {
+    let lattice = *map.lattice();
+    let show = variance_show as f32;
+    map.layers().flat_map(move |l| {
+        l.layer.triangles(show).map(move |t| Triangle {
+            vertices: t.map(|j| to_point(&l.layer.vertex(&lattice, &l.key, l.axis, j))),
+            variance: l.layer.mean_variance(&t),
+        })
+    })
+}
+
+/// Fills `buf` with shown triangles; returns how many were written (at most `buf.len()`; call
+/// [`triangles`]`(..).count()` for the total).
+pub fn triangles_into(map: &MeshMap, variance_show: f64, buf: &mut [Triangle]) -> usize {
+    buf.iter_mut().zip(triangles(map, variance_show)).map(|(slot, t)| *slot = t).count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cell::{Axis, CellKey};
+    use crate::lattice::{Lattice, VERTICES};
+    use crate::layer::Layer;
+
+    #[test]
+    fn a_flat_layer_gives_fifty_triangles_on_its_plane() {
+        let lat = Lattice { cell_size: 1.6, full_cover: true };
+        let mut map = MeshMap::with_capacity(4, 4, lat);
+        let layer = Layer { pred: [0.5; VERTICES], var: [0.1; VERTICES] };
+        map.insert_layer(CellKey::new(1, 2, 3), Axis::Z, layer, 0).unwrap();
+        assert_eq!(triangles(&map, 0.3).count(), 50);
+        assert_eq!(triangles(&map, 0.05).count(), 0);
+        let mut buf = [Triangle::default(); 10];
+        assert_eq!(triangles_into(&map, 0.3, &mut buf), 10);
+        let mut area = 0.0;
+        for t in triangles(&map, 0.3) {
+            for v in t.vertices {
+                assert!((v[2] - (3.0 * 1.6 + 0.5)).abs() < 1e-5);
+                assert!(v[0] >= 1.6 - 1e-5 && v[0] <= 3.2 + 1e-5);
+            }
+            let [a, b, c] = t.vertices.map(|v| crate::math::to_vec3(&v));
+            let n = (b - a).cross(&(c - a));
+            assert!(n.z > 0.0, "counter-clockwise seen from +z");
+            area += n.norm() / 2.0;
+        }
+        assert!((area - 1.6 * 1.6).abs() < 1e-4, "full cover tiles the whole face: {area}");
+    }
+}

@@ -1,0 +1,66 @@
+//! Constant-velocity pose prediction (DESIGN §1.1 step 2).
+//!
+//! Predicts `T_k = T_{k-1} · (T_{k-2}⁻¹ · T_{k-1})`: the last motion, expressed in the sensor
+//! frame, repeated (constant body velocity, right for a turning vehicle). With fewer than two
+//! poses the increment is the identity.
+
+use crate::math::Pose;
+
+/// The last two poses.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ConstantVelocity {
+    last: Option<Pose>,
+    before: Option<Pose>,
+}
+
+impl ConstantVelocity {
+    /// No history.
+    pub const fn new() -> Self {
+        Self { last: None, before: None }
+    }
+
+    /// Records the pose of the newest scan.
+    pub fn push(&mut self, t_world_sensor: Pose) {
+        self.before = self.last;
+        self.last = Some(t_world_sensor);
+    }
+
+    /// Whether two poses are known, so the velocity is.
+    pub fn velocity_known(&self) -> bool {
+        self.before.is_some()
+    }
+
+    /// The newest pose.
+    pub fn last(&self) -> Option<Pose> {
+        self.last
+    }
+
+    /// The predicted pose of the next scan.
+    pub fn predict(&self) -> Pose {
+        match (self.before, self.last) {
+            (Some(b), Some(l)) => l * (b.inverse() * l),
+            (None, Some(l)) => l,
+            _ => Pose::identity(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    #[test]
+    fn repeats_the_last_body_frame_motion() {
+        let step = Pose::from_parts(Translation3::new(1.0, 0.0, 0.0), UnitQuaternion::from_euler_angles(0.0, 0.0, 0.1));
+        let mut cv = ConstantVelocity::new();
+        assert_eq!(cv.predict(), Pose::identity());
+        cv.push(Pose::identity());
+        assert_eq!(cv.predict(), Pose::identity());
+        cv.push(step);
+        let want = step * step;
+        let got = cv.predict();
+        assert!((got.translation.vector - want.translation.vector).norm() < 1e-12);
+        assert!(got.rotation.angle_to(&want.rotation) < 1e-12);
+    }
+}

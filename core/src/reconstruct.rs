@@ -1,0 +1,93 @@
+//! Reconstruction of one cell: layer choice, then a GP per layer (DESIGN §1.1 step 4).
+//!
+//! [`reconstruct_cell`] is the per-cell unit of work: pure, reading the map only to give a
+//! line-like cell the layers the map already has there. The serial loop lives in the pipeline;
+//! a parallel one (std adapters) calls the same function per cell and must give the same result.
+
+use crate::cell::{Axis, CellKey};
+use crate::config::Config;
+use crate::gp;
+use crate::layer::Layer;
+use crate::map::MeshMap;
+use crate::math::Point;
+use crate::pca::{choose_layers, Shape};
+
+/// A layer reconstructed from the current scan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ScanLayer {
+    /// Its cell.
+    pub key: CellKey,
+    /// Its axis.
+    pub axis: Axis,
+    /// Its predictions and variances.
+    pub layer: Layer,
+}
+
+/// Reconstructs the layers of cell `key` from its cell-local `points` (at most three layers;
+/// a layer whose GP fails is left out).
+pub fn reconstruct_cell(points: &[(CellKey, Point)], key: CellKey, map: &MeshMap, cfg: &Config) -> heapless::Vec<ScanLayer, 3> {
+    let mut axes = heapless::Vec::<Axis, 3>::new();
+    match choose_layers(points) {
+        Shape::Surface(a) => axes = a,
+        Shape::LineLike => {
+            if let Some(cell) = map.cell(&key) {
+                for a in cell.axes() {
+                    let _ = axes.push(a);
+                }
+            }
+        }
+        Shape::Unclear => {}
+    }
+    let lattice = cfg.lattice();
+    let mut out = heapless::Vec::new();
+    for axis in axes {
+        let samples = gp::select_training(points, axis, lattice.cell_size);
+        if let Ok(layer) = gp::predict(&samples, &lattice, &cfg.gp) {
+            // At most three axes: cannot overflow.
+            let _ = out.push(ScanLayer { key, axis, layer });
+        }
+    }
+    out
+}
+
+/// The loop that reconstructs every cell of a scan. The pipeline's only pluggable part: a
+/// parallel implementation (std adapters) must produce the same layers in the same order.
+pub trait CellLoop {
+    /// Reconstructs `cells` (spans into `bucketed`) and appends their layers to `out` in cell
+    /// order via [`append_layers`]; returns how many layers did not fit.
+    fn run(
+        &self,
+        cells: &[crate::bucket::CellSpan],
+        bucketed: &[(CellKey, Point)],
+        map: &MeshMap,
+        cfg: &Config,
+        out: &mut crate::bounded::BoundedVec<ScanLayer>,
+    ) -> usize;
+}
+
+/// The serial cell loop.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Serial;
+
+impl CellLoop for Serial {
+    fn run(
+        &self,
+        cells: &[crate::bucket::CellSpan],
+        bucketed: &[(CellKey, Point)],
+        map: &MeshMap,
+        cfg: &Config,
+        out: &mut crate::bounded::BoundedVec<ScanLayer>,
+    ) -> usize {
+        cells
+            .iter()
+            .map(|c| append_layers(out, reconstruct_cell(c.points(bucketed), c.key, map, cfg)))
+            .sum()
+    }
+}
+
+/// Appends one cell's layers to `out`; layers that do not fit are dropped (the scan keeps its
+/// first cells in key order) and counted in the return value.
+pub fn append_layers(out: &mut crate::bounded::BoundedVec<ScanLayer>, layers: heapless::Vec<ScanLayer, 3>) -> usize {
+    layers.into_iter().filter(|l| out.push(*l).is_err()).count()
+}

@@ -1,0 +1,13 @@
+//! # slamesh
+//!
+//! The std side of slamesh: file readers and evaluation around the `no_std`
+//! [`slamesh_core`] pipeline.
+//!
+//! - [`kitti`]: KITTI odometry `.bin` scans, `poses.txt` and `calib.txt`.
+//! - [`eval`]: odometry error metrics against reference poses.
+#![deny(missing_docs)]
+
+pub mod eval;
+pub mod kitti;
+
+pub use slamesh_core as core;
