@@ -273,3 +273,103 @@ impl<C: Capacity> Pipeline<C> {
         self.motion.push(pose);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use alloc::vec::Vec;
+
+    /// Deliberately small capacities, to hit every limit.
+    #[derive(Debug)]
+    struct Tiny;
+    impl Capacity for Tiny {
+        const POINTS: usize = 600;
+        const SCAN_CELLS: usize = 6;
+        const SCAN_LAYERS: usize = 8;
+        const MAP_CELLS: usize = 4;
+        const MAP_LAYERS: usize = 6;
+    }
+
+    /// A dense horizontal patch of `side x side` metres at height `z`, starting at `x0`.
+    fn patch(x0: f32, side: f32, z: f32, step: f32) -> Vec<Point> {
+        let n = (side / step) as usize;
+        (0..n * n).map(|i| [x0 + step * (i / n) as f32, 2.0 + step * (i % n) as f32, z]).collect()
+    }
+
+    #[test]
+    fn empty_and_all_non_finite_scans_are_errors_that_leave_the_map_alone() {
+        let mut p = Pipeline::<Tiny>::new(Config::default()).unwrap();
+        assert!(matches!(p.process_scan(&[]), Err(ScanError::EmptyScan(_))));
+        let bad = [[f32::NAN, 0.0, 0.0], [f32::INFINITY, 1.0, 2.0], [0.0, f32::NEG_INFINITY, 0.0], [1e30, 1e30, 1e30]];
+        let Err(ScanError::EmptyScan(s)) = p.process_scan(&bad) else { panic!("expected EmptyScan") };
+        assert_eq!((s.non_finite, s.out_of_range), (3, 1));
+        assert!(p.map().is_empty() && p.pose().is_none());
+        assert_eq!(p.frames(), 2);
+    }
+
+    #[test]
+    fn nan_points_among_good_ones_are_dropped_and_counted() {
+        let mut p = Pipeline::<Tiny>::new(Config::default()).unwrap();
+        let mut scan = patch(3.2, 1.5, -1.0, 0.1);
+        scan.truncate(200);
+        scan.extend([[f32::NAN; 3]; 7]);
+        let out = p.process_scan(&scan).unwrap();
+        assert_eq!(out.stats.filter.non_finite, 7);
+        assert_eq!(out.status, RegistrationStatus::FirstScan);
+        assert!(p.map().layer_count() > 0);
+    }
+
+    #[test]
+    fn all_points_in_one_cell_give_too_few_residuals_and_keep_the_prediction() {
+        let mut p = Pipeline::<Tiny>::new(Config::default()).unwrap();
+        let scan: Vec<Point> = patch(3.3, 1.2, -1.0, 0.1);
+        p.process_scan(&scan).unwrap();
+        let out = p.process_scan(&scan).unwrap();
+        assert_eq!(out.status, RegistrationStatus::TooFewResiduals);
+        assert_eq!(out.t_world_sensor, Pose::identity());
+        assert!(out.t_world_sensor.translation.vector.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn more_points_cells_and_layers_than_capacity_are_dropped_by_rule() {
+        let mut p = Pipeline::<Tiny>::new(Config::default()).unwrap();
+        // 40 x 40 points over 4 m x 4 m: 1600 points (> 600), then many cells.
+        let scan = patch(2.0, 4.0, -1.0, 0.1);
+        let out = p.process_scan(&scan).unwrap();
+        assert_eq!(out.stats.filter.over_capacity, 1600 - 600);
+        let spread: Vec<Point> = (0..600).map(|i| [2.0 + (i % 30) as f32 * 1.7, 2.0 + (i / 30) as f32 * 1.7, -1.0]).collect();
+        // Every point in a cell of its own: all cells sparse.
+        let out = p.process_scan(&spread).unwrap();
+        assert_eq!(out.stats.bucket.cells, 0);
+        assert!(out.stats.bucket.sparse_cells > 0);
+        // Ten dense cells against a list of six: four dropped, in key order.
+        let mut many = Vec::new();
+        for c in 0..10 {
+            many.extend(patch(2.0 + 1.6 * c as f32, 1.5, -1.0, 0.3).into_iter().take(30));
+        }
+        let mut p = Pipeline::<Tiny>::new(Config::default()).unwrap();
+        let out = p.process_scan(&many).unwrap();
+        assert_eq!(out.stats.bucket.dropped_cells, 10 - Tiny::SCAN_CELLS);
+        // The map holds four cells: the others are refused, not inserted.
+        assert_eq!(p.map().cell_count(), Tiny::MAP_CELLS);
+        assert!(out.stats.fusion.refused > 0);
+    }
+
+    #[test]
+    fn a_non_finite_given_pose_is_refused() {
+        let mut p = Pipeline::<Tiny>::new(Config::meshing()).unwrap();
+        let mut pose = Pose::identity();
+        pose.translation.vector.x = f64::NAN;
+        assert_eq!(p.integrate_scan(&patch(3.0, 1.0, -1.0, 0.1), &pose), Err(ScanError::BadPose));
+        let out = p.integrate_scan(&patch(3.0, 1.0, -1.0, 0.1), &Pose::translation(100.0, 0.0, 0.0)).unwrap();
+        assert_eq!(out.status, RegistrationStatus::Given);
+        assert_eq!(p.pose(), Some(Pose::translation(100.0, 0.0, 0.0)));
+    }
+
+    #[test]
+    fn an_invalid_config_is_refused() {
+        let mut c = Config::default();
+        c.grid.cell_size_m = -1.0;
+        assert_eq!(Pipeline::<Tiny>::new(c).unwrap_err().field, "grid.cell_size_m");
+    }
+}
