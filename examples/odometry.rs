@@ -15,10 +15,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         std::process::exit(2);
     }
     let (mut t_all, mut r_all) = (0.0, 0.0);
-    println!("{:<28} {:>8} {:>8} {:>9} {:>10}", "sequence", "t [cm]", "max [cm]", "r [deg]", "ms/scan");
+    println!(
+        "{:<28} {:>8} {:>8} {:>9} {:>10}",
+        "sequence", "t [cm]", "max [cm]", "r [deg]", "ms/scan"
+    );
     for dir in &dirs {
         let dir = Path::new(dir);
-        let reference = kitti::lidar_poses(&kitti::read_poses(&dir.join("poses.txt"))?, &kitti::read_calib_tr(&dir.join("calib.txt"))?);
+        let reference = kitti::lidar_poses(
+            &kitti::read_poses(&dir.join("poses.txt"))?,
+            &kitti::read_calib_tr(&dir.join("calib.txt"))?,
+        );
         let mut pipeline = Pipeline::<slamesh_core::KittiCapacity>::new(Config::kitti())?;
         let mut poses = Vec::new();
         let mut ms = Vec::new();
@@ -28,7 +34,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let out = pipeline.process_scan(&scan)?;
             ms.push(start.elapsed().as_secs_f64() * 1e3);
             if std::env::var_os("VERBOSE").is_some() {
-                eprintln!("{:?} {:?} cells {} layers {} residuals {} pairs {} lm {} cond {:.2e}", path.file_name().unwrap(), out.status, out.stats.bucket.cells, out.stats.scan_layers, out.stats.associate.residuals, out.stats.associate.pairs, out.stats.lm_iterations, out.stats.conditioning);
+                eprintln!(
+                    "{:?} {:?} cells {} layers {} residuals {} pairs {} lm {} cond {:.2e}",
+                    path.file_name().unwrap(),
+                    out.status,
+                    out.stats.bucket.cells,
+                    out.stats.scan_layers,
+                    out.stats.associate.residuals,
+                    out.stats.associate.pairs,
+                    out.stats.lm_iterations,
+                    out.stats.conditioning
+                );
             }
             poses.push(out.t_world_sensor);
         }
@@ -46,6 +62,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         r_all += e.mean_rotation_deg;
     }
     let n = dirs.len() as f64;
-    println!("{:<28} {:>8.2} {:>8} {:>9.4}", "mean", t_all / n * 100.0, "", r_all / n);
+    println!(
+        "{:<28} {:>8.2} {:>8} {:>9.4}",
+        "mean",
+        t_all / n * 100.0,
+        "",
+        r_all / n
+    );
     Ok(())
 }

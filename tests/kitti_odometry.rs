@@ -18,7 +18,11 @@ fn data_dir() -> Option<PathBuf> {
     match std::env::var_os("SLAMESH_DATA") {
         Some(d) => {
             let d = PathBuf::from(d);
-            let d = if d.is_relative() { PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(d) } else { d };
+            let d = if d.is_relative() {
+                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(d)
+            } else {
+                d
+            };
             Some(d.join("kitti-mini"))
         }
         None => {
@@ -36,7 +40,10 @@ fn run_sequence(dir: &std::path::Path) -> Vec<Pose> {
         .iter()
         .map(|p| {
             let scan = kitti::read_bin(p).unwrap();
-            pipeline.process_scan(&scan).unwrap_or_else(|e| panic!("{}: {e}", p.display())).t_world_sensor
+            pipeline
+                .process_scan(&scan)
+                .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+                .t_world_sensor
         })
         .collect()
 }
@@ -51,20 +58,38 @@ fn kitti_mini_consecutive_frame_errors() {
     for seq in SEQUENCES {
         let dir = root.join(seq);
         let tr = kitti::read_calib_tr(&dir.join("calib.txt")).unwrap();
-        let reference = kitti::lidar_poses(&kitti::read_poses(&dir.join("poses.txt")).unwrap(), &tr);
+        let reference =
+            kitti::lidar_poses(&kitti::read_poses(&dir.join("poses.txt")).unwrap(), &tr);
         let estimate = run_sequence(&dir);
         let e = consecutive_errors(&estimate, &reference);
         assert_eq!(e.pairs, 9);
-        println!("| {seq} | {:.2} | {:.2} | {:.4} |", e.mean_translation_m * 100.0, e.max_translation_m * 100.0, e.mean_rotation_deg);
+        println!(
+            "| {seq} | {:.2} | {:.2} | {:.4} |",
+            e.mean_translation_m * 100.0,
+            e.max_translation_m * 100.0,
+            e.mean_rotation_deg
+        );
         t_sum += e.mean_translation_m;
         r_sum += e.mean_rotation_deg;
         worst_sequence = worst_sequence.max(e.mean_translation_m);
     }
     let n = SEQUENCES.len() as f64;
     println!("| mean | {:.2} | | {:.4} |", t_sum / n * 100.0, r_sum / n);
-    assert!(t_sum / n <= 0.030, "mean translation error {:.2} cm > 3.0 cm", t_sum / n * 100.0);
-    assert!(worst_sequence <= 0.050, "a sequence averages {:.2} cm > 5 cm", worst_sequence * 100.0);
-    assert!(r_sum / n <= 0.07, "mean rotation error {:.4} deg > 0.07 deg", r_sum / n);
+    assert!(
+        t_sum / n <= 0.030,
+        "mean translation error {:.2} cm > 3.0 cm",
+        t_sum / n * 100.0
+    );
+    assert!(
+        worst_sequence <= 0.050,
+        "a sequence averages {:.2} cm > 5 cm",
+        worst_sequence * 100.0
+    );
+    assert!(
+        r_sum / n <= 0.07,
+        "mean rotation error {:.4} deg > 0.07 deg",
+        r_sum / n
+    );
 }
 
 #[test]

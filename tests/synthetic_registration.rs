@@ -5,7 +5,10 @@ use slamesh::sim::{Lidar, Scene};
 use slamesh_core::{Config, Pipeline, Pose, RegistrationStatus};
 
 fn pose(x: f64, y: f64, z: f64, yaw_deg: f64) -> Pose {
-    Pose::from_parts(Translation3::new(x, y, z), UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()))
+    Pose::from_parts(
+        Translation3::new(x, y, z),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()),
+    )
 }
 
 /// Registers the scan from `second` against the map of the scan from `first` and returns the
@@ -20,7 +23,11 @@ fn register_pair(first: Pose, second: Pose) -> (f64, f64, RegistrationStatus) {
     let estimated = a.t_world_sensor.inverse() * b.t_world_sensor;
     let truth = first.inverse() * second;
     let e = truth.inverse() * estimated;
-    (e.translation.vector.norm(), e.rotation.angle().to_degrees(), b.status)
+    (
+        e.translation.vector.norm(),
+        e.rotation.angle().to_degrees(),
+        b.status,
+    )
 }
 
 #[test]
@@ -34,7 +41,13 @@ fn two_views_half_a_metre_to_one_and_a_half_apart_register_within_2cm_and_a_tent
     ];
     for second in seconds {
         let (t, r, status) = register_pair(first, second);
-        println!("motion {:.2} m: error {:.2} cm, {:.4} deg, {:?}", (first.inverse() * second).translation.vector.norm(), t * 100.0, r, status);
+        println!(
+            "motion {:.2} m: error {:.2} cm, {:.4} deg, {:?}",
+            (first.inverse() * second).translation.vector.norm(),
+            t * 100.0,
+            r,
+            status
+        );
         assert_eq!(status, RegistrationStatus::Converged);
         assert!(t < 0.02, "translation error {:.3} m", t);
         assert!(r < 0.1, "rotation error {:.3} deg", r);
@@ -45,10 +58,20 @@ fn two_views_half_a_metre_to_one_and_a_half_apart_register_within_2cm_and_a_tent
 fn the_same_scans_give_bitwise_identical_poses_and_meshes() {
     let scene = Scene::street();
     let lidar = Lidar::hdl64(512);
-    let scans: Vec<_> = (0..4).map(|i| lidar.scan(&scene, &pose(0.8 * i as f64, 0.1 * i as f64, 1.73, i as f64))).collect();
+    let scans: Vec<_> = (0..4)
+        .map(|i| {
+            lidar.scan(
+                &scene,
+                &pose(0.8 * i as f64, 0.1 * i as f64, 1.73, i as f64),
+            )
+        })
+        .collect();
     let run = || {
         let mut p = Pipeline::<slamesh_core::KittiCapacity>::new(Config::default()).unwrap();
-        let poses: Vec<Pose> = scans.iter().map(|s| p.process_scan(s).unwrap().t_world_sensor).collect();
+        let poses: Vec<Pose> = scans
+            .iter()
+            .map(|s| p.process_scan(s).unwrap().t_world_sensor)
+            .collect();
         let tris: Vec<_> = p.triangles().collect();
         (poses, tris)
     };

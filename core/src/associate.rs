@@ -38,7 +38,8 @@ pub fn associate(
     let reach = reach.min(i32::MAX as u32) as i32;
     let mut stats = AssociateStats::default();
     for s in scan {
-        let (mut sum_p, mut sum_q, mut sum_n, mut count) = (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), 0usize);
+        let (mut sum_p, mut sum_q, mut sum_n, mut count) =
+            (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), 0usize);
         for j in 0..VERTICES {
             if !(s.layer.var[j] < max_var) {
                 continue;
@@ -47,18 +48,25 @@ pub fn associate(
             // (|Δd|, key, layer) of the nearest usable map vertex along the axis.
             let mut best = None;
             for i in -reach..=reach {
-                let Some(key) = s.key.offset(s.axis, i) else { continue };
-                let Some(m) = map.layer(&key, s.axis) else { continue };
+                let Some(key) = s.key.offset(s.axis, i) else {
+                    continue;
+                };
+                let Some(m) = map.layer(&key, s.axis) else {
+                    continue;
+                };
                 if !(m.var[j] < max_var) {
                     continue;
                 }
-                let dd = libm::fabs(f64::from(i) * lattice.cell_size + f64::from(m.pred[j]) - d_scan);
+                let dd =
+                    libm::fabs(f64::from(i) * lattice.cell_size + f64::from(m.pred[j]) - d_scan);
                 if best.is_none_or(|(b, _, _)| dd < b) {
                     best = Some((dd, key, m));
                 }
             }
             let Some((_, key, m)) = best else { continue };
-            let Some(n) = m.normal(&lattice, &key, s.axis, j, max_var) else { continue };
+            let Some(n) = m.normal(&lattice, &key, s.axis, j, max_var) else {
+                continue;
+            };
             sum_p += s.layer.vertex(&lattice, &s.key, s.axis, j);
             sum_q += m.vertex(&lattice, &key, s.axis, j);
             sum_n += n;
@@ -72,7 +80,12 @@ pub fn associate(
             continue;
         }
         let c = count as f64;
-        let r = Residual { p: sum_p / c, q: sum_q / c, n: sum_n / norm, weight: 1.0 };
+        let r = Residual {
+            p: sum_p / c,
+            q: sum_q / c,
+            n: sum_n / norm,
+            weight: 1.0,
+        };
         if out.push(r).is_err() {
             break;
         }
@@ -89,18 +102,29 @@ mod tests {
     use crate::lattice::Lattice;
     use crate::layer::Layer;
 
-    const LAT: Lattice = Lattice { cell_size: 1.6, full_cover: false };
+    const LAT: Lattice = Lattice {
+        cell_size: 1.6,
+        full_cover: false,
+    };
 
     fn flat(d: f32) -> Layer {
-        Layer { pred: [d; VERTICES], var: [0.05; VERTICES] }
+        Layer {
+            pred: [d; VERTICES],
+            var: [0.05; VERTICES],
+        }
     }
 
     #[test]
     fn pairs_same_cell_and_reaches_across_cells() {
         let mut map = MeshMap::with_capacity(8, 8, LAT);
-        map.insert_layer(CellKey::new(0, 0, 1), Axis::Z, flat(0.2), 0).unwrap();
+        map.insert_layer(CellKey::new(0, 0, 1), Axis::Z, flat(0.2), 0)
+            .unwrap();
         // The scan sees the same ground 0.3 m lower: one cell down, near its top face.
-        let scan = [ScanLayer { key: CellKey::new(0, 0, 0), axis: Axis::Z, layer: flat(1.5) }];
+        let scan = [ScanLayer {
+            key: CellKey::new(0, 0, 0),
+            axis: Axis::Z,
+            layer: flat(1.5),
+        }];
         let mut out = BoundedVec::with_capacity(4);
         assert_eq!(associate(&scan, &map, 0, 0.6, &mut out).residuals, 0);
         let s = associate(&scan, &map, 1, 0.6, &mut out);
@@ -118,8 +142,13 @@ mod tests {
         for v in m.var.iter_mut().take(18) {
             *v = 0.9;
         }
-        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, m, 0).unwrap();
-        let scan = [ScanLayer { key: CellKey::new(0, 0, 0), axis: Axis::Z, layer: flat(0.5) }];
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, m, 0)
+            .unwrap();
+        let scan = [ScanLayer {
+            key: CellKey::new(0, 0, 0),
+            axis: Axis::Z,
+            layer: flat(0.5),
+        }];
         let mut out = BoundedVec::with_capacity(4);
         assert_eq!(associate(&scan, &map, 0, 0.6, &mut out).pairs, 18);
     }

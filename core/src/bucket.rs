@@ -27,7 +27,9 @@ impl CellSpan {
     /// spans made by [`bucket`] on that buffer).
     pub fn points<'a>(&self, bucketed: &'a [(CellKey, Point)]) -> &'a [(CellKey, Point)] {
         let start = self.start as usize;
-        bucketed.get(start..start + self.len as usize).unwrap_or(&[])
+        bucketed
+            .get(start..start + self.len as usize)
+            .unwrap_or(&[])
     }
 }
 
@@ -62,14 +64,23 @@ pub fn bucket(
             let _ = bucketed.push((key, to_point(&local)));
         }
     }
-    bucketed.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    bucketed.sort_unstable_by_key(|e| e.0);
     let mut stats = BucketStats::default();
     let mut start = 0usize;
     while let Some(&(key, _)) = bucketed.get(start) {
-        let len = bucketed.get(start..).map_or(0, |rest| rest.iter().take_while(|(k, _)| *k == key).count());
+        let len = bucketed
+            .get(start..)
+            .map_or(0, |rest| rest.iter().take_while(|(k, _)| *k == key).count());
         if len < min_points {
             stats.sparse_cells += 1;
-        } else if cells.push(CellSpan { key, start: start as u32, len: len as u32 }).is_err() {
+        } else if cells
+            .push(CellSpan {
+                key,
+                start: start as u32,
+                len: len as u32,
+            })
+            .is_err()
+        {
             stats.dropped_cells += 1;
         }
         start += len.max(1);
@@ -100,7 +111,10 @@ mod tests {
         assert_eq!(c[0].key, CellKey::new(0, 0, 0));
         assert_eq!(c[0].len, 5);
         let local = c[1].points(&b)[0].1;
-        assert!((local[0] - 0.1).abs() < 1e-5, "stored relative to the cell corner");
+        assert!(
+            (local[0] - 0.1).abs() < 1e-5,
+            "stored relative to the cell corner"
+        );
     }
 
     #[test]

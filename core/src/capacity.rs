@@ -8,10 +8,10 @@
 
 use crate::bucket::CellSpan;
 use crate::cell::CellKey;
+use crate::layer::Layer;
 use crate::lm::Residual;
 use crate::map::{MapCell, MAP_TABLE_FACTOR};
 use crate::math::Point;
-use crate::layer::Layer;
 use crate::reconstruct::ScanLayer;
 use core::mem::size_of;
 

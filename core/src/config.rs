@@ -196,53 +196,93 @@ impl Config {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err(ConfigError { field: name, reason: "must be a finite number above 0" })
+                Err(ConfigError {
+                    field: name,
+                    reason: "must be a finite number above 0",
+                })
             }
         };
         let f = &self.filter;
         if !(f.range_min_m.is_finite() && f.range_min_m >= 0.0) {
-            return Err(ConfigError { field: "filter.range_min_m", reason: "must be finite and at least 0" });
+            return Err(ConfigError {
+                field: "filter.range_min_m",
+                reason: "must be finite and at least 0",
+            });
         }
         positive("filter.range_max_m", f.range_max_m)?;
         if f.range_max_m <= f.range_min_m {
-            return Err(ConfigError { field: "filter.range_max_m", reason: "must exceed filter.range_min_m" });
+            return Err(ConfigError {
+                field: "filter.range_max_m",
+                reason: "must exceed filter.range_min_m",
+            });
         }
-        if !(f.vertical_correction_deg.is_finite() && libm::fabs(f.vertical_correction_deg) <= 5.0) {
-            return Err(ConfigError { field: "filter.vertical_correction_deg", reason: "must be within ±5 degrees" });
+        if !(f.vertical_correction_deg.is_finite() && libm::fabs(f.vertical_correction_deg) <= 5.0)
+        {
+            return Err(ConfigError {
+                field: "filter.vertical_correction_deg",
+                reason: "must be within ±5 degrees",
+            });
         }
         positive("grid.cell_size_m", self.grid.cell_size_m)?;
         if self.grid.cell_size_m < 0.05 || self.grid.cell_size_m > 100.0 {
-            return Err(ConfigError { field: "grid.cell_size_m", reason: "must be between 0.05 and 100 metres" });
+            return Err(ConfigError {
+                field: "grid.cell_size_m",
+                reason: "must be between 0.05 and 100 metres",
+            });
         }
         if self.grid.min_points < 3 {
-            return Err(ConfigError { field: "grid.min_points", reason: "must be at least 3" });
+            return Err(ConfigError {
+                field: "grid.min_points",
+                reason: "must be at least 3",
+            });
         }
         positive("gp.kappa_per_m", self.gp.kappa_per_m)?;
         positive("gp.sensor_noise_m", self.gp.sensor_noise_m)?;
         let r = &self.register;
         if r.iterations == 0 || r.iterations > 50 {
-            return Err(ConfigError { field: "register.iterations", reason: "must be 1 to 50" });
+            return Err(ConfigError {
+                field: "register.iterations",
+                reason: "must be 1 to 50",
+            });
         }
         if r.initial_iterations == 0 || r.initial_iterations > 50 {
-            return Err(ConfigError { field: "register.initial_iterations", reason: "must be 1 to 50" });
+            return Err(ConfigError {
+                field: "register.initial_iterations",
+                reason: "must be 1 to 50",
+            });
         }
         if r.cross_cell_overlap > 8 {
-            return Err(ConfigError { field: "register.cross_cell_overlap", reason: "must be 0 to 8" });
+            return Err(ConfigError {
+                field: "register.cross_cell_overlap",
+                reason: "must be 0 to 8",
+            });
         }
         if r.initial_cross_cell_overlap > 8 {
-            return Err(ConfigError { field: "register.initial_cross_cell_overlap", reason: "must be 0 to 8" });
+            return Err(ConfigError {
+                field: "register.initial_cross_cell_overlap",
+                reason: "must be 0 to 8",
+            });
         }
         positive("register.variance_register", r.variance_register)?;
         if r.lm.max_iterations == 0 || r.lm.max_iterations > 100 {
-            return Err(ConfigError { field: "register.lm.max_iterations", reason: "must be 1 to 100" });
+            return Err(ConfigError {
+                field: "register.lm.max_iterations",
+                reason: "must be 1 to 100",
+            });
         }
         positive("register.lm.tolerance", r.lm.tolerance)?;
         positive("register.lm.huber_delta_m", r.lm.huber_delta_m)?;
         if !(r.lm.degenerate_ratio.is_finite() && (0.0..1.0).contains(&r.lm.degenerate_ratio)) {
-            return Err(ConfigError { field: "register.lm.degenerate_ratio", reason: "must be in [0, 1)" });
+            return Err(ConfigError {
+                field: "register.lm.degenerate_ratio",
+                reason: "must be in [0, 1)",
+            });
         }
         if r.lm.min_residuals < 6 {
-            return Err(ConfigError { field: "register.lm.min_residuals", reason: "must be at least 6 (six unknowns)" });
+            return Err(ConfigError {
+                field: "register.lm.min_residuals",
+                reason: "must be at least 6 (six unknowns)",
+            });
         }
         positive("map.variance_update", self.map.variance_update)?;
         positive("mesh.variance_show", self.mesh.variance_show)?;

@@ -50,9 +50,15 @@ pub fn filter_and_downsample(
 ) -> FilterStats {
     work.clear();
     out.clear();
-    let mut stats = FilterStats { input: raw.len(), ..FilterStats::default() };
+    let mut stats = FilterStats {
+        input: raw.len(),
+        ..FilterStats::default()
+    };
     let correction = cfg.vertical_correction_deg.to_radians();
-    let (r2_min, r2_max) = (cfg.range_min_m * cfg.range_min_m, cfg.range_max_m * cfg.range_max_m);
+    let (r2_min, r2_max) = (
+        cfg.range_min_m * cfg.range_min_m,
+        cfg.range_max_m * cfg.range_max_m,
+    );
     for p in raw {
         if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()) {
             stats.non_finite += 1;
@@ -75,7 +81,7 @@ pub fn filter_and_downsample(
             stats.over_capacity += 1;
         }
     }
-    work.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    work.sort_unstable_by_key(|e| e.0);
     let mut i = 0;
     while let Some(&(key, _)) = work.get(i) {
         let mut sum = Vec3::zeros();
@@ -100,7 +106,11 @@ mod tests {
     use super::*;
 
     fn cfg() -> FilterConfig {
-        FilterConfig { range_min_m: 1.0, range_max_m: 50.0, vertical_correction_deg: 0.0 }
+        FilterConfig {
+            range_min_m: 1.0,
+            range_max_m: 50.0,
+            vertical_correction_deg: 0.0,
+        }
     }
 
     #[test]
@@ -108,16 +118,19 @@ mod tests {
         let raw = [
             [f32::NAN, 0.0, 0.0],
             [f32::INFINITY, 1.0, 1.0],
-            [0.1, 0.1, 0.1],      // too close
-            [100.0, 0.0, 0.0],    // too far
-            [10.05, 0.05, 0.05],  // voxel (50, 0, 0) at 0.2 m
-            [10.15, 0.15, 0.15],  // same voxel
-            [20.1, 0.1, 0.1],     // another voxel
+            [0.1, 0.1, 0.1],     // too close
+            [100.0, 0.0, 0.0],   // too far
+            [10.05, 0.05, 0.05], // voxel (50, 0, 0) at 0.2 m
+            [10.15, 0.15, 0.15], // same voxel
+            [20.1, 0.1, 0.1],    // another voxel
         ];
         let mut work = BoundedVec::with_capacity(16);
         let mut out = BoundedVec::with_capacity(16);
         let s = filter_and_downsample(&raw, &cfg(), 0.2, &mut work, &mut out);
-        assert_eq!((s.non_finite, s.out_of_range, s.over_capacity, s.kept), (2, 2, 0, 2));
+        assert_eq!(
+            (s.non_finite, s.out_of_range, s.over_capacity, s.kept),
+            (2, 2, 0, 2)
+        );
         assert!((out[0][0] - 10.1).abs() < 1e-5 && (out[0][1] - 0.1).abs() < 1e-5);
         assert!((out[1][0] - 20.1).abs() < 1e-5);
     }

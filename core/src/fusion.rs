@@ -39,13 +39,24 @@ pub struct FusionStats {
 }
 
 /// Fuses the scan's layers into `map`, marking their cells seen at `frame`.
-pub fn integrate(map: &mut MeshMap, scan: &[ScanLayer], cfg: &MapConfig, frame: u32) -> FusionStats {
+pub fn integrate(
+    map: &mut MeshMap,
+    scan: &[ScanLayer],
+    cfg: &MapConfig,
+    frame: u32,
+) -> FusionStats {
     let threshold = cfg.variance_update as f32;
     let mut stats = FusionStats::default();
     for s in scan {
         if let Some(m) = map.layer_mut(&s.key, s.axis, frame) {
             for j in 0..m.pred.len() {
-                let (u, v) = fuse_vertex(m.pred[j], m.var[j], s.layer.pred[j], s.layer.var[j], threshold);
+                let (u, v) = fuse_vertex(
+                    m.pred[j],
+                    m.var[j],
+                    s.layer.pred[j],
+                    s.layer.var[j],
+                    threshold,
+                );
                 m.pred[j] = u;
                 m.var[j] = v;
             }

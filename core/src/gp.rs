@@ -14,6 +14,9 @@
 //! A 36 x 36 Cholesky factor on the stack (about 10 KB), no heap. Predictions are clamped into
 //! the cell; a vertex outside the training inputs' bounding box gets twice its variance.
 
+// The triangular factorization and solves read best with explicit indices.
+#![allow(clippy::needless_range_loop)]
+
 use crate::cell::{Axis, CellKey};
 use crate::config::GpConfig;
 use crate::lattice::{Lattice, N, VERTICES};
@@ -42,7 +45,9 @@ pub enum GpError {
 impl fmt::Display for GpError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            GpError::TooFewSamples => write!(f, "fewer than {MIN_TRAINING} lattice bins hold points"),
+            GpError::TooFewSamples => {
+                write!(f, "fewer than {MIN_TRAINING} lattice bins hold points")
+            }
             GpError::NotPositiveDefinite => write!(f, "kernel matrix is not positive definite"),
         }
     }
@@ -52,7 +57,11 @@ impl core::error::Error for GpError {}
 
 /// Bins cell-local `points` on the lattice grid of `axis` and keeps, per bin, the point closest
 /// to the bin centre.
-pub fn select_training(points: &[(CellKey, Point)], axis: Axis, cell_size: f64) -> heapless::Vec<Sample, MAX_TRAINING> {
+pub fn select_training(
+    points: &[(CellKey, Point)],
+    axis: Axis,
+    cell_size: f64,
+) -> heapless::Vec<Sample, MAX_TRAINING> {
     let (ia, ib) = axis.locations();
     let bin = cell_size / N as f64;
     let mut best: [Option<(f64, Sample)>; VERTICES] = [None; VERTICES];
@@ -188,7 +197,12 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
         }
         alpha[i] = v / l[i][i];
     }
-    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
     for s in samples {
         lo_a = lo_a.min(s[0]);
         hi_a = hi_a.max(s[0]);
@@ -220,22 +234,34 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
 mod tests {
     use super::*;
 
-    const CFG: GpConfig = GpConfig { kappa_per_m: 1.2, sensor_noise_m: 0.02 };
+    type Surface = (&'static str, fn(f64, f64) -> f64);
+
+    const CFG: GpConfig = GpConfig {
+        kappa_per_m: 1.2,
+        sensor_noise_m: 0.02,
+    };
 
     /// Samples `d = f(a, b)` on a dense grid (cell-local z layer), as a scan would.
     fn cloud(f: impl Fn(f64, f64) -> f64, extent: f64) -> heapless::Vec<(CellKey, Point), 1024> {
         let mut v = heapless::Vec::new();
         for i in 0..30 {
             for j in 0..30 {
-                let (a, b) = (extent * (i as f64 + 0.5) / 30.0, extent * (j as f64 + 0.5) / 30.0);
-                v.push((CellKey::default(), [a as f32, b as f32, f(a, b) as f32])).unwrap();
+                let (a, b) = (
+                    extent * (i as f64 + 0.5) / 30.0,
+                    extent * (j as f64 + 0.5) / 30.0,
+                );
+                v.push((CellKey::default(), [a as f32, b as f32, f(a, b) as f32]))
+                    .unwrap();
             }
         }
         v
     }
 
     fn max_error(f: impl Fn(f64, f64) -> f64 + Copy, full_cover: bool) -> f64 {
-        let lat = Lattice { cell_size: 1.6, full_cover };
+        let lat = Lattice {
+            cell_size: 1.6,
+            full_cover,
+        };
         let samples = select_training(&cloud(f, 1.6), Axis::Z, 1.6);
         assert_eq!(samples.len(), 36);
         let layer = predict(&samples, &lat, &CFG).unwrap();
@@ -249,10 +275,12 @@ mod tests {
 
     #[test]
     fn reproduces_plane_slope_and_curved_surface_within_5mm() {
-        let surfaces: [(&str, fn(f64, f64) -> f64); 3] = [
+        let surfaces: [Surface; 3] = [
             ("plane", |_, _| 0.7),
             ("slope", |a, b| 0.3 + 0.25 * a + 0.1 * b),
-            ("curved", |a, b| 0.6 + 0.08 * ((a - 0.8) * (a - 0.8) + (b - 0.8) * (b - 0.8))),
+            ("curved", |a, b| {
+                0.6 + 0.08 * ((a - 0.8) * (a - 0.8) + (b - 0.8) * (b - 0.8))
+            }),
         ];
         for (name, f) in surfaces {
             let e = max_error(f, false);
@@ -271,7 +299,10 @@ mod tests {
     #[test]
     fn variance_grows_away_from_the_data() {
         // Points only in the lower-left quarter of the cell.
-        let lat = Lattice { cell_size: 1.6, full_cover: false };
+        let lat = Lattice {
+            cell_size: 1.6,
+            full_cover: false,
+        };
         let samples = select_training(&cloud(|_, _| 0.5, 0.8), Axis::Z, 1.6);
         let layer = predict(&samples, &lat, &CFG).unwrap();
         let var = |ia: usize, ib: usize| layer.var[ia * N + ib];
@@ -279,7 +310,12 @@ mod tests {
         assert!(var(0, 0) < 0.15, "on the data: {}", var(0, 0));
         // Moving diagonally away from the data, the variance rises strictly.
         for k in 2..N - 1 {
-            assert!(var(k + 1, k + 1) > var(k, k), "at {k}: {} <= {}", var(k + 1, k + 1), var(k, k));
+            assert!(
+                var(k + 1, k + 1) > var(k, k),
+                "at {k}: {} <= {}",
+                var(k + 1, k + 1),
+                var(k, k)
+            );
         }
         // Outside the training box the variance is doubled, so it exceeds the prior 1.
         assert!(var(5, 5) > 1.0 && var(5, 5) <= 2.0);
@@ -300,8 +336,14 @@ mod tests {
 
     #[test]
     fn rejects_too_few_and_non_finite_samples() {
-        let lat = Lattice { cell_size: 1.6, full_cover: false };
-        assert_eq!(predict(&[[0.1, 0.1, 0.1]; 2], &lat, &CFG), Err(GpError::TooFewSamples));
+        let lat = Lattice {
+            cell_size: 1.6,
+            full_cover: false,
+        };
+        assert_eq!(
+            predict(&[[0.1, 0.1, 0.1]; 2], &lat, &CFG),
+            Err(GpError::TooFewSamples)
+        );
         let bad = [[0.1, 0.1, 0.1], [f64::NAN, 0.5, 0.1], [0.9, 0.9, 0.1]];
         assert_eq!(predict(&bad, &lat, &CFG), Err(GpError::NotPositiveDefinite));
     }

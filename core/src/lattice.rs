@@ -75,17 +75,26 @@ mod tests {
 
     #[test]
     fn placements() {
-        let l = Lattice { cell_size: 1.2, full_cover: false };
+        let l = Lattice {
+            cell_size: 1.2,
+            full_cover: false,
+        };
         assert!((l.coordinate(0) - 0.1).abs() < 1e-12);
         assert!((l.coordinate(5) - 1.1).abs() < 1e-12);
-        let l = Lattice { cell_size: 1.2, full_cover: true };
+        let l = Lattice {
+            cell_size: 1.2,
+            full_cover: true,
+        };
         assert_eq!(l.coordinate(0), 0.0);
         assert!((l.coordinate(5) - 1.2).abs() < 1e-12);
     }
 
     #[test]
     fn full_cover_border_vertices_coincide_across_cells() {
-        let l = Lattice { cell_size: 1.6, full_cover: true };
+        let l = Lattice {
+            cell_size: 1.6,
+            full_cover: true,
+        };
         // Vertex (i_a = 5) of cell y = 0 and vertex (i_a = 0) of cell y = 1 for a z layer... the
         // a axis of a z layer is x, so step the key along x.
         let left = l.vertex_world(&CellKey::new(0, 0, 0), Axis::Z, 5 * N + 2, 0.3);
@@ -96,6 +105,9 @@ mod tests {
     #[test]
     fn neighbour_table_stays_inside() {
         assert_eq!(neighbours(0), [Some(N), Some(1), None, None]);
-        assert_eq!(neighbours(VERTICES - 1), [None, None, Some(VERTICES - 1 - N), Some(VERTICES - 2)]);
+        assert_eq!(
+            neighbours(VERTICES - 1),
+            [None, None, Some(VERTICES - 1 - N), Some(VERTICES - 2)]
+        );
     }
 }

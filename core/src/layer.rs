@@ -20,7 +20,10 @@ pub struct Layer {
 
 impl Layer {
     /// A layer whose every vertex is unknown (variance `f32::INFINITY`).
-    pub const UNKNOWN: Layer = Layer { pred: [0.0; VERTICES], var: [f32::INFINITY; VERTICES] };
+    pub const UNKNOWN: Layer = Layer {
+        pred: [0.0; VERTICES],
+        var: [f32::INFINITY; VERTICES],
+    };
 
     /// The world position of vertex `j` of this layer, placed in cell `key` along `axis`.
     #[inline]
@@ -32,7 +35,14 @@ impl Layer {
     /// The surface normal at vertex `j`: the mean of the cross products of consecutive edges
     /// to its usable 4-neighbours (variance below `max_var`, edge shorter than a cell),
     /// normalised, oriented along `+axis` (DESIGN §1.4). `None` when no pair of edges is usable.
-    pub fn normal(&self, lattice: &Lattice, key: &CellKey, axis: Axis, j: usize, max_var: f32) -> Option<Vec3> {
+    pub fn normal(
+        &self,
+        lattice: &Lattice,
+        key: &CellKey,
+        axis: Axis,
+        j: usize,
+        max_var: f32,
+    ) -> Option<Vec3> {
         let centre = self.vertex(lattice, key, axis, j);
         let edge = |n: Option<usize>| -> Option<Vec3> {
             let n = n?;
@@ -71,7 +81,10 @@ impl Layer {
     /// Mean variance of three vertices (`INFINITY` for an index out of range).
     #[inline]
     pub fn mean_variance(&self, t: &[usize; 3]) -> f32 {
-        t.iter().map(|&j| self.var.get(j).copied().unwrap_or(f32::INFINITY)).sum::<f32>() / 3.0
+        t.iter()
+            .map(|&j| self.var.get(j).copied().unwrap_or(f32::INFINITY))
+            .sum::<f32>()
+            / 3.0
     }
 }
 
@@ -80,7 +93,10 @@ mod tests {
     use super::*;
 
     fn plane(axis: Axis, f: impl Fn(f64, f64) -> f64) -> (Layer, Lattice) {
-        let lattice = Lattice { cell_size: 1.6, full_cover: false };
+        let lattice = Lattice {
+            cell_size: 1.6,
+            full_cover: false,
+        };
         let mut l = Layer::UNKNOWN;
         for j in 0..VERTICES {
             let (a, b) = lattice.location(j);
@@ -96,7 +112,9 @@ mod tests {
         // d = 0.2 + 0.5 a: normal ∝ (-0.5, 0, 1) in (a, b, d).
         for axis in Axis::ALL {
             let (l, lat) = plane(axis, |a, _| 0.2 + 0.5 * a);
-            let n = l.normal(&lat, &CellKey::new(3, -2, 1), axis, 14, 0.5).unwrap();
+            let n = l
+                .normal(&lat, &CellKey::new(3, -2, 1), axis, 14, 0.5)
+                .unwrap();
             let (ia, ib) = axis.locations();
             let want = Vec3::new(-0.5, 0.0, 1.0).normalize();
             assert!((n[ia] - want.x).abs() < 1e-6 && (n[ib] - want.y).abs() < 1e-6);
@@ -107,10 +125,14 @@ mod tests {
     #[test]
     fn corner_vertex_normal_uses_the_one_edge_pair_and_uncertain_vertices_are_skipped() {
         let (mut l, lat) = plane(Axis::Z, |_, _| 0.4);
-        let n = l.normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5).unwrap();
+        let n = l
+            .normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5)
+            .unwrap();
         assert!((n - Vec3::z()).norm() < 1e-9);
         l.var[1] = 0.9;
-        assert!(l.normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5).is_none());
+        assert!(l
+            .normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5)
+            .is_none());
     }
 
     #[test]

@@ -28,7 +28,10 @@
 //!
 //! The crate needs `alloc` (for the one-time allocation of its buffers) but not `std`.
 #![no_std]
+#![forbid(unsafe_code)]
 #![deny(missing_docs)]
+// `!(v < limit)` is how the core rejects NaN together with large values: keep it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 #![cfg_attr(
     not(test),
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)

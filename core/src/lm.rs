@@ -13,7 +13,6 @@ use nalgebra::{Matrix6, SymmetricEigen};
 
 /// One combined point-to-plane residual.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Residual {
     /// Scan point (world frame, before the correction).
     pub p: Vec3,
@@ -29,13 +28,13 @@ impl Residual {
     /// The signed distance `nᵀ (T p - q)`.
     #[inline]
     pub fn error(&self, t: &Pose) -> f64 {
-        self.n.dot(&((t * nalgebra::Point3::from(self.p)).coords - self.q))
+        self.n
+            .dot(&((t * nalgebra::Point3::from(self.p)).coords - self.q))
     }
 }
 
 /// A converged (or iteration-capped) solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Solution {
     /// The correction to apply on the left of the current pose.
     pub correction: Pose,
@@ -69,7 +68,9 @@ impl fmt::Display for LmError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             LmError::TooFewResiduals { found } => write!(f, "too few residuals ({found})"),
-            LmError::Degenerate { conditioning } => write!(f, "degenerate geometry (conditioning {conditioning:.2e})"),
+            LmError::Degenerate { conditioning } => {
+                write!(f, "degenerate geometry (conditioning {conditioning:.2e})")
+            }
             LmError::NotFinite => write!(f, "non-finite residuals"),
         }
     }
@@ -86,7 +87,11 @@ fn linearize(residuals: &[Residual], t: &Pose, huber: f64) -> (Matrix6<f64>, Twi
         let tp = (t * nalgebra::Point3::from(r.p)).coords;
         let e = r.n.dot(&(tp - r.q));
         let ae = libm::fabs(e);
-        let (w, c) = if ae <= huber { (1.0, 0.5 * e * e) } else { (huber / ae, huber * (ae - 0.5 * huber)) };
+        let (w, c) = if ae <= huber {
+            (1.0, 0.5 * e * e)
+        } else {
+            (huber / ae, huber * (ae - 0.5 * huber))
+        };
         let rot = tp.cross(&r.n);
         let j = Twist::new(rot.x, rot.y, rot.z, r.n.x, r.n.y, r.n.z);
         let ww = w * r.weight;
@@ -102,7 +107,11 @@ fn robust_cost(residuals: &[Residual], t: &Pose, huber: f64) -> f64 {
         .iter()
         .map(|r| {
             let ae = libm::fabs(r.error(t));
-            let c = if ae <= huber { 0.5 * ae * ae } else { huber * (ae - 0.5 * huber) };
+            let c = if ae <= huber {
+                0.5 * ae * ae
+            } else {
+                huber * (ae - 0.5 * huber)
+            };
             c * r.weight
         })
         .sum()
@@ -129,9 +138,18 @@ pub fn conditioning(h: &Matrix6<f64>) -> f64 {
 /// Finds the correction `T` minimising the Huber cost of `residuals`.
 pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError> {
     if residuals.len() < cfg.min_residuals {
-        return Err(LmError::TooFewResiduals { found: residuals.len() });
+        return Err(LmError::TooFewResiduals {
+            found: residuals.len(),
+        });
     }
-    if residuals.iter().any(|r| !(r.p.iter().chain(r.q.iter()).chain(r.n.iter()).all(|v| v.is_finite()) && r.weight.is_finite())) {
+    if residuals.iter().any(|r| {
+        !(r.p
+            .iter()
+            .chain(r.q.iter())
+            .chain(r.n.iter())
+            .all(|v| v.is_finite())
+            && r.weight.is_finite())
+    }) {
         return Err(LmError::NotFinite);
     }
     let huber = cfg.huber_delta_m;
@@ -174,7 +192,12 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
             }
         }
     }
-    Ok(Solution { correction: t, iterations, cost: (initial_cost, cost), conditioning: cond })
+    Ok(Solution {
+        correction: t,
+        iterations,
+        cost: (initial_cost, cost),
+        conditioning: cond,
+    })
 }
 
 #[cfg(test)]
@@ -195,17 +218,34 @@ mod tests {
     fn residuals(truth: &Pose) -> heapless::Vec<Residual, 128> {
         let mut v = heapless::Vec::new();
         let normals = [
-            Vec3::x(), -Vec3::x(), Vec3::y(), -Vec3::y(), Vec3::z(), -Vec3::z(),
-            Vec3::new(1.0, 1.0, 0.2).normalize(), Vec3::new(-0.3, 1.0, 0.5).normalize(),
+            Vec3::x(),
+            -Vec3::x(),
+            Vec3::y(),
+            -Vec3::y(),
+            Vec3::z(),
+            -Vec3::z(),
+            Vec3::new(1.0, 1.0, 0.2).normalize(),
+            Vec3::new(-0.3, 1.0, 0.5).normalize(),
         ];
         for (k, n) in normals.iter().enumerate() {
             for s in 0..12 {
                 let (u, w) = (s as f64 * 0.9 - 5.0, (s * 7 % 12) as f64 * 0.6 - 3.0);
-                let tangent = if n.x.abs() < 0.9 { n.cross(&Vec3::x()) } else { n.cross(&Vec3::y()) }.normalize();
+                let tangent = if n.x.abs() < 0.9 {
+                    n.cross(&Vec3::x())
+                } else {
+                    n.cross(&Vec3::y())
+                }
+                .normalize();
                 let bitangent = n.cross(&tangent);
                 let q = n * (8.0 + k as f64) + tangent * u + bitangent * w;
                 let p = truth.inverse() * Point3::from(q);
-                v.push(Residual { p: p.coords, q, n: *n, weight: 1.0 }).unwrap();
+                v.push(Residual {
+                    p: p.coords,
+                    q,
+                    n: *n,
+                    weight: 1.0,
+                })
+                .unwrap();
             }
         }
         v
@@ -217,11 +257,21 @@ mod tests {
             Translation3::new(0.6, -0.4, 0.15),
             UnitQuaternion::from_euler_angles(0.03, -0.05, 0.09), // 6.0 degrees in all
         );
-        assert!(truth.translation.vector.norm() >= 0.5 && truth.rotation.angle().to_degrees() >= 5.0);
+        assert!(
+            truth.translation.vector.norm() >= 0.5 && truth.rotation.angle().to_degrees() >= 5.0
+        );
         let sol = solve(&residuals(&truth), &cfg()).unwrap();
         let err = sol.correction * truth.inverse();
-        assert!(err.translation.vector.norm() < 1e-4, "translation error {}", err.translation.vector.norm());
-        assert!(err.rotation.angle() < 1e-4, "rotation error {}", err.rotation.angle());
+        assert!(
+            err.translation.vector.norm() < 1e-4,
+            "translation error {}",
+            err.translation.vector.norm()
+        );
+        assert!(
+            err.rotation.angle() < 1e-4,
+            "rotation error {}",
+            err.rotation.angle()
+        );
         assert!(sol.cost.1 < 1e-12);
     }
 
@@ -233,7 +283,11 @@ mod tests {
         r[0].q += n0 * 3.0;
         let sol = solve(&r, &cfg()).unwrap();
         let err = sol.correction * truth.inverse();
-        assert!(err.translation.vector.norm() < 0.02, "{}", err.translation.vector.norm());
+        assert!(
+            err.translation.vector.norm() < 0.02,
+            "{}",
+            err.translation.vector.norm()
+        );
     }
 
     #[test]
@@ -241,16 +295,27 @@ mod tests {
         let plane: heapless::Vec<Residual, 64> = (0..64)
             .map(|i| {
                 let q = Vec3::new((i % 8) as f64 - 4.0, (i / 8) as f64 - 4.0, 0.0);
-                Residual { p: q + Vec3::new(0.0, 0.0, 0.3), q, n: Vec3::z(), weight: 1.0 }
+                Residual {
+                    p: q + Vec3::new(0.0, 0.0, 0.3),
+                    q,
+                    n: Vec3::z(),
+                    weight: 1.0,
+                }
             })
             .collect();
-        assert!(matches!(solve(&plane, &cfg()), Err(LmError::Degenerate { .. })));
+        assert!(matches!(
+            solve(&plane, &cfg()),
+            Err(LmError::Degenerate { .. })
+        ));
     }
 
     #[test]
     fn too_few_and_non_finite() {
         let r = residuals(&Pose::identity());
-        assert_eq!(solve(&r[..3], &cfg()), Err(LmError::TooFewResiduals { found: 3 }));
+        assert_eq!(
+            solve(&r[..3], &cfg()),
+            Err(LmError::TooFewResiduals { found: 3 })
+        );
         let mut bad = r.clone();
         bad[5].p.x = f64::NAN;
         assert_eq!(solve(&bad, &cfg()), Err(LmError::NotFinite));

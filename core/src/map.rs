@@ -33,7 +33,9 @@ impl MapCell {
     /// Whether the cell has a layer along `axis`.
     #[inline]
     pub fn has(&self, axis: Axis) -> bool {
-        self.layers.get(axis.index()).is_some_and(|&i| i != NO_LAYER)
+        self.layers
+            .get(axis.index())
+            .is_some_and(|&i| i != NO_LAYER)
     }
 
     /// The axes of the cell's layers.
@@ -89,7 +91,10 @@ impl MeshMap {
     pub fn with_capacity(max_cells: usize, max_layers: usize, lattice: Lattice) -> Self {
         let max_layers = max_layers.min(NO_LAYER as usize);
         Self {
-            cells: HashMap::with_capacity_and_hasher(max_cells.saturating_mul(MAP_TABLE_FACTOR), BuildCellHasher::default()),
+            cells: HashMap::with_capacity_and_hasher(
+                max_cells.saturating_mul(MAP_TABLE_FACTOR),
+                BuildCellHasher::default(),
+            ),
             pool: BoundedVec::with_capacity(max_layers),
             free: BoundedVec::with_capacity(max_layers),
             max_cells,
@@ -144,7 +149,13 @@ impl MeshMap {
 
     /// Stores `layer` along `axis` in cell `key` (creating the cell), replacing any layer
     /// there, and marks the cell seen at `frame`.
-    pub fn insert_layer(&mut self, key: CellKey, axis: Axis, layer: Layer, frame: u32) -> Result<(), MapError> {
+    pub fn insert_layer(
+        &mut self,
+        key: CellKey,
+        axis: Axis,
+        layer: Layer,
+        frame: u32,
+    ) -> Result<(), MapError> {
         if let Some(existing) = self.layer_mut(&key, axis, frame) {
             *existing = layer;
             return Ok(());
@@ -163,7 +174,10 @@ impl MeshMap {
             self.pool.push(layer).map_err(|_| MapError::LayersFull)?;
             slot
         };
-        let cell = self.cells.entry(key).or_insert(MapCell { layers: [NO_LAYER; 3], last_seen: frame });
+        let cell = self.cells.entry(key).or_insert(MapCell {
+            layers: [NO_LAYER; 3],
+            last_seen: frame,
+        });
         cell.last_seen = cell.last_seen.max(frame);
         if let Some(s) = cell.layers.get_mut(axis.index()) {
             *s = slot;
@@ -176,7 +190,11 @@ impl MeshMap {
         self.cells.iter().flat_map(move |(key, cell)| {
             Axis::ALL.into_iter().filter_map(move |axis| {
                 let slot = *cell.layers.get(axis.index())?;
-                Some(LayerRef { key: *key, axis, layer: self.pool.get(slot as usize)? })
+                Some(LayerRef {
+                    key: *key,
+                    axis,
+                    layer: self.pool.get(slot as usize)?,
+                })
             })
         })
     }
@@ -196,9 +214,15 @@ impl MeshMap {
                 return true;
             }
             for axis in Axis::ALL {
-                let Some(&slot) = cell.layers.get(axis.index()) else { continue };
+                let Some(&slot) = cell.layers.get(axis.index()) else {
+                    continue;
+                };
                 if let Some(layer) = pool.get(slot as usize) {
-                    on_evicted(LayerRef { key: *key, axis, layer });
+                    on_evicted(LayerRef {
+                        key: *key,
+                        axis,
+                        layer,
+                    });
                     // The free list has the pool's capacity: it cannot be full.
                     let _ = free.push(slot);
                 }
@@ -213,24 +237,38 @@ impl MeshMap {
 mod tests {
     use super::*;
 
-    const LAT: Lattice = Lattice { cell_size: 1.6, full_cover: false };
+    const LAT: Lattice = Lattice {
+        cell_size: 1.6,
+        full_cover: false,
+    };
 
     #[test]
     fn capacity_is_enforced_and_slots_are_reused() {
         let mut m = MeshMap::with_capacity(2, 3, LAT);
-        m.insert_layer(CellKey::new(0, 0, 0), Axis::Z, Layer::UNKNOWN, 0).unwrap();
-        m.insert_layer(CellKey::new(0, 0, 0), Axis::X, Layer::UNKNOWN, 0).unwrap();
-        m.insert_layer(CellKey::new(1, 0, 0), Axis::Z, Layer::UNKNOWN, 1).unwrap();
-        assert_eq!(m.insert_layer(CellKey::new(2, 0, 0), Axis::Z, Layer::UNKNOWN, 1), Err(MapError::CellsFull));
-        assert_eq!(m.insert_layer(CellKey::new(1, 0, 0), Axis::Y, Layer::UNKNOWN, 1), Err(MapError::LayersFull));
+        m.insert_layer(CellKey::new(0, 0, 0), Axis::Z, Layer::UNKNOWN, 0)
+            .unwrap();
+        m.insert_layer(CellKey::new(0, 0, 0), Axis::X, Layer::UNKNOWN, 0)
+            .unwrap();
+        m.insert_layer(CellKey::new(1, 0, 0), Axis::Z, Layer::UNKNOWN, 1)
+            .unwrap();
+        assert_eq!(
+            m.insert_layer(CellKey::new(2, 0, 0), Axis::Z, Layer::UNKNOWN, 1),
+            Err(MapError::CellsFull)
+        );
+        assert_eq!(
+            m.insert_layer(CellKey::new(1, 0, 0), Axis::Y, Layer::UNKNOWN, 1),
+            Err(MapError::LayersFull)
+        );
         assert_eq!((m.cell_count(), m.layer_count()), (2, 3));
 
         let mut seen = 0;
         let gone = m.evict_where(|_, c| c.last_seen == 0, |_| seen += 1);
         assert_eq!((gone, seen), (1, 2));
         assert_eq!((m.cell_count(), m.layer_count()), (1, 1));
-        m.insert_layer(CellKey::new(5, 5, 5), Axis::Y, Layer::UNKNOWN, 2).unwrap();
-        m.insert_layer(CellKey::new(5, 5, 5), Axis::Z, Layer::UNKNOWN, 2).unwrap();
+        m.insert_layer(CellKey::new(5, 5, 5), Axis::Y, Layer::UNKNOWN, 2)
+            .unwrap();
+        m.insert_layer(CellKey::new(5, 5, 5), Axis::Z, Layer::UNKNOWN, 2)
+            .unwrap();
         assert_eq!(m.layer_count(), 3);
         assert!(m.cell(&CellKey::new(5, 5, 5)).unwrap().has(Axis::Y));
     }

@@ -74,7 +74,14 @@ mod tests {
     fn exp_of_pure_translation_and_rotation() {
         let t = se3_exp(&Twist::new(0.0, 0.0, 0.0, 1.0, 2.0, 3.0));
         assert!((t.translation.vector - Vec3::new(1.0, 2.0, 3.0)).norm() < 1e-12);
-        let r = se3_exp(&Twist::new(0.0, 0.0, core::f64::consts::FRAC_PI_2, 0.0, 0.0, 0.0));
+        let r = se3_exp(&Twist::new(
+            0.0,
+            0.0,
+            core::f64::consts::FRAC_PI_2,
+            0.0,
+            0.0,
+            0.0,
+        ));
         let x = r * nalgebra::Point3::new(1.0, 0.0, 0.0);
         assert!((x.coords - Vec3::new(0.0, 1.0, 0.0)).norm() < 1e-12);
     }
@@ -83,7 +90,14 @@ mod tests {
     fn exp_matches_screw_motion() {
         // Rotating by π/2 about z while moving ρ = (0, 0, 1): the screw axis is z, so the
         // translation is exactly (0, 0, 1) (V maps the axis onto itself).
-        let t = se3_exp(&Twist::new(0.0, 0.0, core::f64::consts::FRAC_PI_2, 0.0, 0.0, 1.0));
+        let t = se3_exp(&Twist::new(
+            0.0,
+            0.0,
+            core::f64::consts::FRAC_PI_2,
+            0.0,
+            0.0,
+            1.0,
+        ));
         assert!((t.translation.vector - Vec3::new(0.0, 0.0, 1.0)).norm() < 1e-12);
         // ρ = (1, 0, 0), θ = π/2 about z: V ρ = (sin θ/θ, (1 - cos θ)/θ, 0).
         let th = core::f64::consts::FRAC_PI_2;

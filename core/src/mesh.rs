@@ -34,7 +34,10 @@ pub fn triangles(map: &MeshMap, variance_show: f64) -> impl Iterator<Item = Tria
 /// Fills `buf` with shown triangles; returns how many were written (at most `buf.len()`; call
 /// [`triangles`]`(..).count()` for the total).
 pub fn triangles_into(map: &MeshMap, variance_show: f64, buf: &mut [Triangle]) -> usize {
-    buf.iter_mut().zip(triangles(map, variance_show)).map(|(slot, t)| *slot = t).count()
+    buf.iter_mut()
+        .zip(triangles(map, variance_show))
+        .map(|(slot, t)| *slot = t)
+        .count()
 }
 
 #[cfg(test)]
@@ -46,10 +49,17 @@ mod tests {
 
     #[test]
     fn a_flat_layer_gives_fifty_triangles_on_its_plane() {
-        let lat = Lattice { cell_size: 1.6, full_cover: true };
+        let lat = Lattice {
+            cell_size: 1.6,
+            full_cover: true,
+        };
         let mut map = MeshMap::with_capacity(4, 4, lat);
-        let layer = Layer { pred: [0.5; VERTICES], var: [0.1; VERTICES] };
-        map.insert_layer(CellKey::new(1, 2, 3), Axis::Z, layer, 0).unwrap();
+        let layer = Layer {
+            pred: [0.5; VERTICES],
+            var: [0.1; VERTICES],
+        };
+        map.insert_layer(CellKey::new(1, 2, 3), Axis::Z, layer, 0)
+            .unwrap();
         assert_eq!(triangles(&map, 0.3).count(), 50);
         assert_eq!(triangles(&map, 0.05).count(), 0);
         let mut buf = [Triangle::default(); 10];
@@ -65,6 +75,9 @@ mod tests {
             assert!(n.z > 0.0, "counter-clockwise seen from +z");
             area += n.norm() / 2.0;
         }
-        assert!((area - 1.6 * 1.6).abs() < 1e-4, "full cover tiles the whole face: {area}");
+        assert!(
+            (area - 1.6 * 1.6).abs() < 1e-4,
+            "full cover tiles the whole face: {area}"
+        );
     }
 }

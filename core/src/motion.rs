@@ -16,7 +16,10 @@ pub struct ConstantVelocity {
 impl ConstantVelocity {
     /// No history.
     pub const fn new() -> Self {
-        Self { last: None, before: None }
+        Self {
+            last: None,
+            before: None,
+        }
     }
 
     /// Records the pose of the newest scan.
@@ -52,7 +55,10 @@ mod tests {
 
     #[test]
     fn repeats_the_last_body_frame_motion() {
-        let step = Pose::from_parts(Translation3::new(1.0, 0.0, 0.0), UnitQuaternion::from_euler_angles(0.0, 0.0, 0.1));
+        let step = Pose::from_parts(
+            Translation3::new(1.0, 0.0, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.1),
+        );
         let mut cv = ConstantVelocity::new();
         assert_eq!(cv.predict(), Pose::identity());
         cv.push(Pose::identity());

@@ -32,7 +32,10 @@ pub fn choose_layers(points: &[(CellKey, Point)]) -> Shape {
         return Shape::Unclear;
     }
     let n = points.len() as f64;
-    let mean = points.iter().fold(Vec3::zeros(), |s, (_, p)| s + to_vec3(p)) / n;
+    let mean = points
+        .iter()
+        .fold(Vec3::zeros(), |s, (_, p)| s + to_vec3(p))
+        / n;
     let cov = points.iter().fold(Mat3::zeros(), |s, (_, p)| {
         let d = to_vec3(p) - mean;
         s + d * d.transpose()
@@ -41,7 +44,11 @@ pub fn choose_layers(points: &[(CellKey, Point)]) -> Shape {
         return Shape::Unclear;
     };
     let mut order = [0usize, 1, 2];
-    order.sort_unstable_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]).then(i.cmp(&j)));
+    order.sort_unstable_by(|&i, &j| {
+        eig.eigenvalues[i]
+            .total_cmp(&eig.eigenvalues[j])
+            .then(i.cmp(&j))
+    });
     let [i1, i2, i3] = order;
     let (l2, l3) = (eig.eigenvalues[i2], eig.eigenvalues[i3]);
     if !(l3 > 1e-12) {
@@ -52,8 +59,12 @@ pub fn choose_layers(points: &[(CellKey, Point)]) -> Shape {
     }
     let normal = eig.eigenvectors.column(i1);
     // Angle of the normal to each axis, folded into [0, π/2], sorted with a real sort.
-    let mut angles: [(f64, Axis); 3] =
-        core::array::from_fn(|k| (libm::acos(libm::fabs(normal[k]).min(1.0)), Axis::from_index(k)));
+    let mut angles: [(f64, Axis); 3] = core::array::from_fn(|k| {
+        (
+            libm::acos(libm::fabs(normal[k]).min(1.0)),
+            Axis::from_index(k),
+        )
+    });
     angles.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let [(a1, x1), (a2, x2), (a3, x3)] = angles;
     let mut axes = HVec::new();
@@ -76,7 +87,11 @@ mod tests {
         let mut v = heapless::Vec::new();
         for i in 0..8 {
             for j in 0..8 {
-                v.push((CellKey::default(), f(0.1 + 0.2 * i as f32, 0.1 + 0.2 * j as f32))).unwrap();
+                v.push((
+                    CellKey::default(),
+                    f(0.1 + 0.2 * i as f32, 0.1 + 0.2 * j as f32),
+                ))
+                .unwrap();
             }
         }
         v
@@ -84,15 +99,23 @@ mod tests {
 
     #[test]
     fn ground_gets_a_z_layer_and_a_wall_an_x_layer() {
-        assert_eq!(choose_layers(&grid(|a, b| [a, b, 0.3])), Shape::Surface(HVec::from_slice(&[Axis::Z]).unwrap()));
-        assert_eq!(choose_layers(&grid(|a, b| [0.7, a, b])), Shape::Surface(HVec::from_slice(&[Axis::X]).unwrap()));
+        assert_eq!(
+            choose_layers(&grid(|a, b| [a, b, 0.3])),
+            Shape::Surface(HVec::from_slice(&[Axis::Z]).unwrap())
+        );
+        assert_eq!(
+            choose_layers(&grid(|a, b| [0.7, a, b])),
+            Shape::Surface(HVec::from_slice(&[Axis::X]).unwrap())
+        );
     }
 
     #[test]
     fn diagonal_surfaces_get_more_layers() {
         // Normal (1, 1, 0)/√2: angles π/4, π/4, π/2 → two layers (x, y).
         // The two angles tie, so either may come first.
-        let Shape::Surface(mut axes) = choose_layers(&grid(|a, b| [a, 1.6 - a, b])) else { panic!() };
+        let Shape::Surface(mut axes) = choose_layers(&grid(|a, b| [a, 1.6 - a, b])) else {
+            panic!()
+        };
         axes.sort_unstable();
         assert_eq!(&axes[..], &[Axis::X, Axis::Y]);
         // Normal (1, 1, 1)/√3: all angles equal → three layers.
@@ -104,10 +127,17 @@ mod tests {
     fn poles_are_line_like_and_points_unclear() {
         let mut pole = heapless::Vec::<(CellKey, Point), 16>::new();
         for i in 0..16 {
-            pole.push((CellKey::default(), [0.8 + 0.001 * (i % 2) as f32, 0.8, 0.1 * i as f32])).unwrap();
+            pole.push((
+                CellKey::default(),
+                [0.8 + 0.001 * (i % 2) as f32, 0.8, 0.1 * i as f32],
+            ))
+            .unwrap();
         }
         assert_eq!(choose_layers(&pole), Shape::LineLike);
-        assert_eq!(choose_layers(&[(CellKey::default(), [0.5; 3]); 5]), Shape::Unclear);
+        assert_eq!(
+            choose_layers(&[(CellKey::default(), [0.5; 3]); 5]),
+            Shape::Unclear
+        );
         assert_eq!(choose_layers(&[]), Shape::Unclear);
     }
 }

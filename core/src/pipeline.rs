@@ -94,7 +94,6 @@ pub struct ScanStats {
 
 /// The result of [`Pipeline::process_scan`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ScanOutcome {
     /// The estimated sensor pose in the world (the first scan's frame).
     pub t_world_sensor: Pose,
@@ -173,7 +172,11 @@ impl<C: Capacity> Pipeline<C> {
     }
 
     /// [`process_scan`](Self::process_scan) with a given cell loop (e.g. a parallel one).
-    pub fn process_scan_with(&mut self, points_sensor: &[Point], cells: &impl CellLoop) -> Result<ScanOutcome, ScanError> {
+    pub fn process_scan_with(
+        &mut self,
+        points_sensor: &[Point],
+        cells: &impl CellLoop,
+    ) -> Result<ScanOutcome, ScanError> {
         let mut stats = self.begin(points_sensor)?;
         let mut pose = self.motion.predict();
         let mut status = RegistrationStatus::FirstScan;
@@ -188,7 +191,13 @@ impl<C: Capacity> Pipeline<C> {
             for round in 0..rounds {
                 let reach = if round + 1 == rounds { 0 } else { reach };
                 stats.dropped_layers += self.reconstruct(&pose, cells).1;
-                stats.associate = associate(&self.scan, &self.map, reach, r.variance_register, &mut self.residuals);
+                stats.associate = associate(
+                    &self.scan,
+                    &self.map,
+                    reach,
+                    r.variance_register,
+                    &mut self.residuals,
+                );
                 stats.rounds += 1;
                 match lm::solve(&self.residuals, &r.lm) {
                     Ok(sol) => {
@@ -211,13 +220,26 @@ impl<C: Capacity> Pipeline<C> {
             }
         }
         self.finish(pose, cells, &mut stats);
-        Ok(ScanOutcome { t_world_sensor: pose, status, stats })
+        Ok(ScanOutcome {
+            t_world_sensor: pose,
+            status,
+            stats,
+        })
     }
 
     /// Meshing only: fuses a scan into the map at a pose the caller knows (ground truth, an
     /// external odometry). Later [`process_scan`](Self::process_scan) calls continue from it.
-    pub fn integrate_scan(&mut self, points_sensor: &[Point], t_world_sensor: &Pose) -> Result<ScanOutcome, ScanError> {
-        let finite = t_world_sensor.translation.vector.iter().chain(t_world_sensor.rotation.coords.iter()).all(|v| v.is_finite());
+    pub fn integrate_scan(
+        &mut self,
+        points_sensor: &[Point],
+        t_world_sensor: &Pose,
+    ) -> Result<ScanOutcome, ScanError> {
+        let finite = t_world_sensor
+            .translation
+            .vector
+            .iter()
+            .chain(t_world_sensor.rotation.coords.iter())
+            .all(|v| v.is_finite());
         if !finite {
             self.frame = self.frame.saturating_add(1);
             return Err(ScanError::BadPose);
@@ -234,7 +256,11 @@ impl<C: Capacity> Pipeline<C> {
     ) -> Result<ScanOutcome, ScanError> {
         let mut stats = self.begin(points_sensor)?;
         self.finish(*t_world_sensor, cells, &mut stats);
-        Ok(ScanOutcome { t_world_sensor: *t_world_sensor, status: RegistrationStatus::Given, stats })
+        Ok(ScanOutcome {
+            t_world_sensor: *t_world_sensor,
+            status: RegistrationStatus::Given,
+            stats,
+        })
     }
 
     /// Counts the frame and filters the scan into `points`.
@@ -251,15 +277,32 @@ impl<C: Capacity> Pipeline<C> {
         if filter.kept == 0 {
             return Err(ScanError::EmptyScan(filter));
         }
-        Ok(ScanStats { frame, filter, ..ScanStats::default() })
+        Ok(ScanStats {
+            frame,
+            filter,
+            ..ScanStats::default()
+        })
     }
 
     /// Buckets the scan at `pose` and reconstructs its cells into `scan`.
     fn reconstruct(&mut self, pose: &Pose, cells: &impl CellLoop) -> (BucketStats, usize) {
         let g = &self.config.grid;
-        let b = bucket(&self.points, pose, g.cell_size_m, g.min_points, &mut self.work, &mut self.cells);
+        let b = bucket(
+            &self.points,
+            pose,
+            g.cell_size_m,
+            g.min_points,
+            &mut self.work,
+            &mut self.cells,
+        );
         self.scan.clear();
-        let dropped = cells.run(&self.cells, &self.work, &self.map, &self.config, &mut self.scan);
+        let dropped = cells.run(
+            &self.cells,
+            &self.work,
+            &self.map,
+            &self.config,
+            &mut self.scan,
+        );
         (b, dropped)
     }
 
@@ -293,15 +336,24 @@ mod tests {
     /// A dense horizontal patch of `side x side` metres at height `z`, starting at `x0`.
     fn patch(x0: f32, side: f32, z: f32, step: f32) -> Vec<Point> {
         let n = (side / step) as usize;
-        (0..n * n).map(|i| [x0 + step * (i / n) as f32, 2.0 + step * (i % n) as f32, z]).collect()
+        (0..n * n)
+            .map(|i| [x0 + step * (i / n) as f32, 2.0 + step * (i % n) as f32, z])
+            .collect()
     }
 
     #[test]
     fn empty_and_all_non_finite_scans_are_errors_that_leave_the_map_alone() {
         let mut p = Pipeline::<Tiny>::new(Config::default()).unwrap();
         assert!(matches!(p.process_scan(&[]), Err(ScanError::EmptyScan(_))));
-        let bad = [[f32::NAN, 0.0, 0.0], [f32::INFINITY, 1.0, 2.0], [0.0, f32::NEG_INFINITY, 0.0], [1e30, 1e30, 1e30]];
-        let Err(ScanError::EmptyScan(s)) = p.process_scan(&bad) else { panic!("expected EmptyScan") };
+        let bad = [
+            [f32::NAN, 0.0, 0.0],
+            [f32::INFINITY, 1.0, 2.0],
+            [0.0, f32::NEG_INFINITY, 0.0],
+            [1e30, 1e30, 1e30],
+        ];
+        let Err(ScanError::EmptyScan(s)) = p.process_scan(&bad) else {
+            panic!("expected EmptyScan")
+        };
         assert_eq!((s.non_finite, s.out_of_range), (3, 1));
         assert!(p.map().is_empty() && p.pose().is_none());
         assert_eq!(p.frames(), 2);
@@ -327,7 +379,12 @@ mod tests {
         let out = p.process_scan(&scan).unwrap();
         assert_eq!(out.status, RegistrationStatus::TooFewResiduals);
         assert_eq!(out.t_world_sensor, Pose::identity());
-        assert!(out.t_world_sensor.translation.vector.iter().all(|v| v.is_finite()));
+        assert!(out
+            .t_world_sensor
+            .translation
+            .vector
+            .iter()
+            .all(|v| v.is_finite()));
     }
 
     #[test]
@@ -337,7 +394,15 @@ mod tests {
         let scan = patch(2.0, 4.0, -1.0, 0.1);
         let out = p.process_scan(&scan).unwrap();
         assert_eq!(out.stats.filter.over_capacity, 1600 - 600);
-        let spread: Vec<Point> = (0..600).map(|i| [2.0 + (i % 30) as f32 * 1.7, 2.0 + (i / 30) as f32 * 1.7, -1.0]).collect();
+        let spread: Vec<Point> = (0..600)
+            .map(|i| {
+                [
+                    2.0 + (i % 30) as f32 * 1.7,
+                    2.0 + (i / 30) as f32 * 1.7,
+                    -1.0,
+                ]
+            })
+            .collect();
         // Every point in a cell of its own: all cells sparse.
         let out = p.process_scan(&spread).unwrap();
         assert_eq!(out.stats.bucket.cells, 0);
@@ -345,7 +410,11 @@ mod tests {
         // Ten dense cells against a list of six: four dropped, in key order.
         let mut many = Vec::new();
         for c in 0..10 {
-            many.extend(patch(2.0 + 1.6 * c as f32, 1.5, -1.0, 0.3).into_iter().take(30));
+            many.extend(
+                patch(2.0 + 1.6 * c as f32, 1.5, -1.0, 0.3)
+                    .into_iter()
+                    .take(30),
+            );
         }
         let mut p = Pipeline::<Tiny>::new(Config::default()).unwrap();
         let out = p.process_scan(&many).unwrap();
@@ -360,8 +429,16 @@ mod tests {
         let mut p = Pipeline::<Tiny>::new(Config::meshing()).unwrap();
         let mut pose = Pose::identity();
         pose.translation.vector.x = f64::NAN;
-        assert_eq!(p.integrate_scan(&patch(3.0, 1.0, -1.0, 0.1), &pose), Err(ScanError::BadPose));
-        let out = p.integrate_scan(&patch(3.0, 1.0, -1.0, 0.1), &Pose::translation(100.0, 0.0, 0.0)).unwrap();
+        assert_eq!(
+            p.integrate_scan(&patch(3.0, 1.0, -1.0, 0.1), &pose),
+            Err(ScanError::BadPose)
+        );
+        let out = p
+            .integrate_scan(
+                &patch(3.0, 1.0, -1.0, 0.1),
+                &Pose::translation(100.0, 0.0, 0.0),
+            )
+            .unwrap();
         assert_eq!(out.status, RegistrationStatus::Given);
         assert_eq!(p.pose(), Some(Pose::translation(100.0, 0.0, 0.0)));
     }
@@ -370,6 +447,9 @@ mod tests {
     fn an_invalid_config_is_refused() {
         let mut c = Config::default();
         c.grid.cell_size_m = -1.0;
-        assert_eq!(Pipeline::<Tiny>::new(c).unwrap_err().field, "grid.cell_size_m");
+        assert_eq!(
+            Pipeline::<Tiny>::new(c).unwrap_err().field,
+            "grid.cell_size_m"
+        );
     }
 }

@@ -26,7 +26,12 @@ pub struct ScanLayer {
 
 /// Reconstructs the layers of cell `key` from its cell-local `points` (at most three layers;
 /// a layer whose GP fails is left out).
-pub fn reconstruct_cell(points: &[(CellKey, Point)], key: CellKey, map: &MeshMap, cfg: &Config) -> heapless::Vec<ScanLayer, 3> {
+pub fn reconstruct_cell(
+    points: &[(CellKey, Point)],
+    key: CellKey,
+    map: &MeshMap,
+    cfg: &Config,
+) -> heapless::Vec<ScanLayer, 3> {
     let mut axes = heapless::Vec::<Axis, 3>::new();
     match choose_layers(points) {
         Shape::Surface(a) => axes = a,
@@ -88,6 +93,9 @@ impl CellLoop for Serial {
 
 /// Appends one cell's layers to `out`; layers that do not fit are dropped (the scan keeps its
 /// first cells in key order) and counted in the return value.
-pub fn append_layers(out: &mut crate::bounded::BoundedVec<ScanLayer>, layers: heapless::Vec<ScanLayer, 3>) -> usize {
+pub fn append_layers(
+    out: &mut crate::bounded::BoundedVec<ScanLayer>,
+    layers: heapless::Vec<ScanLayer, 3>,
+) -> usize {
     layers.into_iter().filter(|l| out.push(*l).is_err()).count()
 }

@@ -31,7 +31,12 @@ pub fn consecutive_errors(estimate: &[Pose], reference: &[Pose]) -> ConsecutiveE
     }
     let pairs = n.saturating_sub(1);
     let d = pairs.max(1) as f64;
-    ConsecutiveErrors { mean_translation_m: t_sum / d, mean_rotation_deg: r_sum / d, max_translation_m: t_max, pairs }
+    ConsecutiveErrors {
+        mean_translation_m: t_sum / d,
+        mean_rotation_deg: r_sum / d,
+        max_translation_m: t_max,
+        pairs,
+    }
 }
 
 #[cfg(test)]
@@ -42,7 +47,12 @@ mod tests {
     #[test]
     fn identical_trajectories_give_zero_and_a_known_offset_its_size() {
         let traj: Vec<Pose> = (0..5)
-            .map(|i| Pose::from_parts(Translation3::new(i as f64, 0.0, 0.0), UnitQuaternion::from_euler_angles(0.0, 0.0, 0.05 * i as f64)))
+            .map(|i| {
+                Pose::from_parts(
+                    Translation3::new(i as f64, 0.0, 0.0),
+                    UnitQuaternion::from_euler_angles(0.0, 0.0, 0.05 * i as f64),
+                )
+            })
             .collect();
         let e = consecutive_errors(&traj, &traj);
         assert!(e.mean_translation_m < 1e-12 && e.mean_rotation_deg < 1e-9 && e.pairs == 4);
@@ -53,6 +63,10 @@ mod tests {
             est.push(est[i - 1] * Translation3::new(0.02, 0.0, 0.0) * step);
         }
         let e = consecutive_errors(&est, &traj);
-        assert!((e.mean_translation_m - 0.02).abs() < 1e-9, "{}", e.mean_translation_m);
+        assert!(
+            (e.mean_translation_m - 0.02).abs() < 1e-9,
+            "{}",
+            e.mean_translation_m
+        );
     }
 }

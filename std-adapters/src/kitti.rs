@@ -30,7 +30,11 @@ impl fmt::Display for ReadError {
 impl std::error::Error for ReadError {}
 
 fn err(path: &Path, line: Option<usize>, reason: impl Into<String>) -> ReadError {
-    ReadError { path: path.to_path_buf(), line, reason: reason.into() }
+    ReadError {
+        path: path.to_path_buf(),
+        line,
+        reason: reason.into(),
+    }
 }
 
 /// Reads a Velodyne scan: little-endian `f32` x, y, z, reflectance per point.
@@ -40,16 +44,30 @@ pub fn read_bin(path: &Path) -> Result<Vec<Point>, ReadError> {
         return Err(err(path, None, "empty file"));
     }
     if bytes.len() % 16 != 0 {
-        return Err(err(path, None, format!("truncated: {} bytes is not a whole number of 16-byte points", bytes.len())));
+        return Err(err(
+            path,
+            None,
+            format!(
+                "truncated: {} bytes is not a whole number of 16-byte points",
+                bytes.len()
+            ),
+        ));
     }
     let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-    Ok(bytes.chunks_exact(16).map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])]).collect())
+    Ok(bytes
+        .chunks_exact(16)
+        .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
+        .collect())
 }
 
 /// The `.bin` files of a sequence folder (or of its `velodyne/` folder), in name order.
 pub fn scan_paths(dir: &Path) -> Result<Vec<PathBuf>, ReadError> {
     let velodyne = dir.join("velodyne");
-    let dir = if velodyne.is_dir() { velodyne } else { dir.to_path_buf() };
+    let dir = if velodyne.is_dir() {
+        velodyne
+    } else {
+        dir.to_path_buf()
+    };
     let entries = std::fs::read_dir(&dir).map_err(|e| err(&dir, None, e.to_string()))?;
     let mut paths: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -67,12 +85,19 @@ fn pose_from_row(v: &[f64]) -> Option<Pose> {
     let r = Rotation3::from_matrix_eps(&m, 1e-12, 100, Rotation3::identity());
     let t = Translation3::new(v[3], v[7], v[11]);
     let pose = Pose::from_parts(t, UnitQuaternion::from_rotation_matrix(&r));
-    pose.translation.vector.iter().all(|x| x.is_finite()).then_some(pose)
+    pose.translation
+        .vector
+        .iter()
+        .all(|x| x.is_finite())
+        .then_some(pose)
 }
 
 fn parse_numbers(path: &Path, line_no: usize, text: &str) -> Result<Vec<f64>, ReadError> {
     text.split_whitespace()
-        .map(|w| w.parse::<f64>().map_err(|_| err(path, Some(line_no), format!("not a number: {w:?}"))))
+        .map(|w| {
+            w.parse::<f64>()
+                .map_err(|_| err(path, Some(line_no), format!("not a number: {w:?}")))
+        })
         .collect()
 }
 
@@ -86,7 +111,11 @@ pub fn read_poses(path: &Path) -> Result<Vec<Pose>, ReadError> {
         }
         let v = parse_numbers(path, i + 1, line)?;
         if v.len() != 12 {
-            return Err(err(path, Some(i + 1), format!("expected 12 numbers, found {}", v.len())));
+            return Err(err(
+                path,
+                Some(i + 1),
+                format!("expected 12 numbers, found {}", v.len()),
+            ));
         }
         poses.push(pose_from_row(&v).ok_or_else(|| err(path, Some(i + 1), "not a finite pose"))?);
     }
@@ -100,9 +129,14 @@ pub fn read_calib_tr(path: &Path) -> Result<Pose, ReadError> {
         if let Some(rest) = line.strip_prefix("Tr:") {
             let v = parse_numbers(path, i + 1, rest)?;
             if v.len() != 12 {
-                return Err(err(path, Some(i + 1), format!("Tr: expected 12 numbers, found {}", v.len())));
+                return Err(err(
+                    path,
+                    Some(i + 1),
+                    format!("Tr: expected 12 numbers, found {}", v.len()),
+                ));
             }
-            return pose_from_row(&v).ok_or_else(|| err(path, Some(i + 1), "Tr is not a finite transform"));
+            return pose_from_row(&v)
+                .ok_or_else(|| err(path, Some(i + 1), "Tr is not a finite transform"));
         }
     }
     Err(err(path, None, "no line starting with Tr:"))
@@ -136,8 +170,14 @@ mod tests {
 
     #[test]
     fn pose_lines_round_trip() {
-        let p = Pose::from_parts(Translation3::new(1.0, -2.0, 3.5), UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3));
-        let v: Vec<f64> = format_pose(&p).split_whitespace().map(|w| w.parse().unwrap()).collect();
+        let p = Pose::from_parts(
+            Translation3::new(1.0, -2.0, 3.5),
+            UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
+        );
+        let v: Vec<f64> = format_pose(&p)
+            .split_whitespace()
+            .map(|w| w.parse().unwrap())
+            .collect();
         let q = pose_from_row(&v).unwrap();
         assert!((q.translation.vector - p.translation.vector).norm() < 1e-9);
         assert!(q.rotation.angle_to(&p.rotation) < 1e-9);

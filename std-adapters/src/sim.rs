@@ -30,20 +30,24 @@ impl Scene {
     /// A structured street corner: ground, facades in three directions, boxes (parked cars,
     /// kiosks) and poles; well constrained in all six degrees of freedom.
     pub fn street() -> Self {
-        let b = |c: [f64; 3], h: [f64; 3], yaw: f64| OrientedBox { centre: c, half: h, yaw };
+        let b = |c: [f64; 3], h: [f64; 3], yaw: f64| OrientedBox {
+            centre: c,
+            half: h,
+            yaw,
+        };
         Scene {
             ground_z: 0.0,
             boxes: vec![
-                b([0.0, 14.0, 5.0], [30.0, 0.5, 5.0], 0.0),    // facade north
-                b([0.0, -12.0, 4.0], [30.0, 0.5, 4.0], 0.0),   // facade south
-                b([32.0, 0.0, 6.0], [0.5, 14.0, 6.0], 0.0),    // facade east, end of street
-                b([-20.0, 6.0, 3.0], [4.0, 3.0, 3.0], 0.5),    // a rotated building
-                b([8.0, 8.0, 0.8], [2.2, 0.9, 0.8], 0.0),      // parked car
-                b([16.0, -7.0, 0.8], [2.2, 0.9, 0.8], 0.1),    // parked car
-                b([-6.0, -6.5, 1.2], [1.5, 1.5, 1.2], 0.8),    // kiosk
-                b([4.0, -3.5, 2.5], [0.12, 0.12, 2.5], 0.0),   // pole
-                b([12.0, 3.5, 2.5], [0.12, 0.12, 2.5], 0.0),   // pole
-                b([22.0, 9.0, 1.0], [3.0, 3.0, 1.0], -0.3),    // low block
+                b([0.0, 14.0, 5.0], [30.0, 0.5, 5.0], 0.0), // facade north
+                b([0.0, -12.0, 4.0], [30.0, 0.5, 4.0], 0.0), // facade south
+                b([32.0, 0.0, 6.0], [0.5, 14.0, 6.0], 0.0), // facade east, end of street
+                b([-20.0, 6.0, 3.0], [4.0, 3.0, 3.0], 0.5), // a rotated building
+                b([8.0, 8.0, 0.8], [2.2, 0.9, 0.8], 0.0),   // parked car
+                b([16.0, -7.0, 0.8], [2.2, 0.9, 0.8], 0.1), // parked car
+                b([-6.0, -6.5, 1.2], [1.5, 1.5, 1.2], 0.8), // kiosk
+                b([4.0, -3.5, 2.5], [0.12, 0.12, 2.5], 0.0), // pole
+                b([12.0, 3.5, 2.5], [0.12, 0.12, 2.5], 0.0), // pole
+                b([22.0, 9.0, 1.0], [3.0, 3.0, 1.0], -0.3), // low block
             ],
         }
     }
@@ -102,7 +106,13 @@ pub struct Lidar {
 impl Lidar {
     /// An HDL-64E-like scanner: 64 beams from -24.8 to +2 degrees.
     pub fn hdl64(azimuth_steps: usize) -> Self {
-        Lidar { beams: 64, elevation_min_deg: -24.8, elevation_max_deg: 2.0, azimuth_steps, max_range_m: 100.0 }
+        Lidar {
+            beams: 64,
+            elevation_min_deg: -24.8,
+            elevation_max_deg: 2.0,
+            azimuth_steps,
+            max_range_m: 100.0,
+        }
     }
 
     /// One noise-free scan of `scene` from `t_world_sensor`, in the sensor frame.
@@ -110,8 +120,14 @@ impl Lidar {
         let origin = t_world_sensor.translation.vector;
         let mut out = Vec::with_capacity(self.beams * self.azimuth_steps);
         for beam in 0..self.beams {
-            let f = if self.beams > 1 { beam as f64 / (self.beams - 1) as f64 } else { 0.0 };
-            let el = (self.elevation_min_deg + f * (self.elevation_max_deg - self.elevation_min_deg)).to_radians();
+            let f = if self.beams > 1 {
+                beam as f64 / (self.beams - 1) as f64
+            } else {
+                0.0
+            };
+            let el = (self.elevation_min_deg
+                + f * (self.elevation_max_deg - self.elevation_min_deg))
+                .to_radians();
             for step in 0..self.azimuth_steps {
                 let az = std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
                 let dir_s = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
@@ -132,7 +148,14 @@ mod tests {
 
     #[test]
     fn rays_hit_ground_and_boxes_at_the_right_range() {
-        let scene = Scene { ground_z: 0.0, boxes: vec![OrientedBox { centre: [10.0, 0.0, 1.0], half: [1.0, 5.0, 1.0], yaw: 0.0 }] };
+        let scene = Scene {
+            ground_z: 0.0,
+            boxes: vec![OrientedBox {
+                centre: [10.0, 0.0, 1.0],
+                half: [1.0, 5.0, 1.0],
+                yaw: 0.0,
+            }],
+        };
         let o = Vector3::new(0.0, 0.0, 1.0);
         assert!((scene.cast(&o, &Vector3::x(), 100.0).unwrap() - 9.0).abs() < 1e-12);
         let down = Vector3::new(1.0, 0.0, -1.0).normalize();
