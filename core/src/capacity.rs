@@ -43,7 +43,8 @@ pub trait Capacity {
 }
 
 /// KITTI HDL-64E scans (about 125 000 points, 100 m range) and runs of a few kilometres
-/// without eviction. About 190 MB of address space, touched only as the map fills.
+/// without eviction. [`Capacity::memory_bytes`]: 160 MB of address space, most of it the map's
+/// layer pool, touched (resident) only as the map fills.
 #[derive(Debug, Clone, Copy)]
 pub struct KittiCapacity;
 
@@ -55,7 +56,7 @@ impl Capacity for KittiCapacity {
     const MAP_LAYERS: usize = 393_216;
 }
 
-/// A sparse 16-beam sensor on a microcontroller-class board: a few hundred cells.
+/// A sparse 16-beam sensor on a microcontroller-class board: a few hundred cells, 348 KB.
 #[derive(Debug, Clone, Copy)]
 pub struct SmallCapacity;
 
@@ -65,4 +66,25 @@ impl Capacity for SmallCapacity {
     const SCAN_LAYERS: usize = 240;
     const MAP_CELLS: usize = 384;
     const MAP_LAYERS: usize = 512;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn footprints_stay_what_the_docs_say() {
+        assert_eq!(size_of::<Layer>(), 288);
+        // The documented figures, with 1 % slack for platform layout.
+        let kitti = KittiCapacity::memory_bytes() as f64;
+        assert!(
+            (kitti - 160.0e6).abs() < 1.6e6,
+            "KittiCapacity: {kitti} bytes"
+        );
+        let small = SmallCapacity::memory_bytes() as f64;
+        assert!(
+            (small - 348.0e3).abs() < 3.5e3,
+            "SmallCapacity: {small} bytes"
+        );
+    }
 }
