@@ -86,12 +86,7 @@ fn linearize(residuals: &[Residual], t: &Pose, huber: f64) -> (Matrix6<f64>, Twi
     for r in residuals {
         let tp = (t * nalgebra::Point3::from(r.p)).coords;
         let e = r.n.dot(&(tp - r.q));
-        let ae = libm::fabs(e);
-        let (w, c) = if ae <= huber {
-            (1.0, 0.5 * e * e)
-        } else {
-            (huber / ae, huber * (ae - 0.5 * huber))
-        };
+        let (w, c) = huber_loss(e, huber);
         let rot = tp.cross(&r.n);
         let j = Twist::new(rot.x, rot.y, rot.z, r.n.x, r.n.y, r.n.z);
         let ww = w * r.weight;
@@ -105,16 +100,19 @@ fn linearize(residuals: &[Residual], t: &Pose, huber: f64) -> (Matrix6<f64>, Twi
 fn robust_cost(residuals: &[Residual], t: &Pose, huber: f64) -> f64 {
     residuals
         .iter()
-        .map(|r| {
-            let ae = libm::fabs(r.error(t));
-            let c = if ae <= huber {
-                0.5 * ae * ae
-            } else {
-                huber * (ae - 0.5 * huber)
-            };
-            c * r.weight
-        })
+        .map(|r| huber_loss(r.error(t), huber).1 * r.weight)
         .sum()
+}
+
+/// Huber loss of residual `e`: `(IRLS weight ρ'(e)/e, cost ρ(e))`, quadratic up to `delta`.
+#[inline]
+fn huber_loss(e: f64, delta: f64) -> (f64, f64) {
+    let ae = libm::fabs(e);
+    if ae <= delta {
+        (1.0, 0.5 * e * e)
+    } else {
+        (delta / ae, delta * (ae - 0.5 * delta))
+    }
 }
 
 /// Smallest eigenvalue of `h` scaled to unit diagonal (0 if a diagonal entry vanishes).
