@@ -1,19 +1,31 @@
 //! Runs the core pipeline over KITTI sequences and prints consecutive-frame errors.
 //!
-//! `cargo run --release --example odometry -- ../shared/data/kitti-mini/00 [more sequences]`
+//! `cargo run --release --example odometry -- [--threads N] ../shared/data/kitti-mini/00 [more]`
+//!
+//! Without `--threads` the core's serial loop runs; with it, the rayon loop on N threads.
 
 use slamesh::eval::consecutive_errors;
 use slamesh::kitti;
+use slamesh::parallel::Rayon;
 use slamesh_core::{Config, Pipeline};
 use std::path::Path;
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let dirs: Vec<String> = std::env::args().skip(1).collect();
+    let mut dirs: Vec<String> = std::env::args().skip(1).collect();
+    let threads = match dirs.iter().position(|a| a == "--threads") {
+        Some(i) if i + 1 < dirs.len() => {
+            let n: usize = dirs[i + 1].parse()?;
+            dirs.drain(i..i + 2);
+            Some(n)
+        }
+        _ => None,
+    };
     if dirs.is_empty() {
-        eprintln!("usage: odometry <KITTI sequence folder>...");
+        eprintln!("usage: odometry [--threads N] <KITTI sequence folder>...");
         std::process::exit(2);
     }
+    let rayon = threads.map(Rayon::new).transpose()?;
     let (mut t_all, mut r_all) = (0.0, 0.0);
     println!(
         "{:<28} {:>8} {:>8} {:>9} {:>10}",
@@ -31,7 +43,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for path in kitti::scan_paths(dir)? {
             let scan = kitti::read_bin(&path)?;
             let start = Instant::now();
-            let out = pipeline.process_scan(&scan)?;
+            let out = match &rayon {
+                Some(r) => pipeline.process_scan_with(&scan, r)?,
+                None => pipeline.process_scan(&scan)?,
+            };
             ms.push(start.elapsed().as_secs_f64() * 1e3);
             if std::env::var_os("VERBOSE").is_some() {
                 eprintln!(

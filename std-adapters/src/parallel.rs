@@ -1,0 +1,56 @@
+//! Parallel reconstruction: the per-cell loop on a rayon thread pool.
+//!
+//! Only the loop differs from the core's serial [`Serial`](slamesh_core::reconstruct::Serial):
+//! each cell goes through the same [`reconstruct_cell`], and the layers are appended in cell
+//! order by the same [`append_layers`], so both give bit-identical results (tested).
+
+use rayon::prelude::*;
+use slamesh_core::bounded::BoundedVec;
+use slamesh_core::bucket::CellSpan;
+use slamesh_core::cell::CellKey;
+use slamesh_core::map::MeshMap;
+use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, ScanLayer};
+use slamesh_core::{Config, Point};
+
+/// Reconstructs cells on a dedicated rayon pool.
+#[derive(Debug)]
+pub struct Rayon {
+    pool: rayon::ThreadPool,
+}
+
+impl Rayon {
+    /// A pool of `threads` threads (0: one per core).
+    pub fn new(threads: usize) -> Result<Self, rayon::ThreadPoolBuildError> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()?;
+        Ok(Self { pool })
+    }
+
+    /// Number of threads in the pool.
+    pub fn threads(&self) -> usize {
+        self.pool.current_num_threads()
+    }
+}
+
+impl CellLoop for Rayon {
+    fn run(
+        &self,
+        cells: &[CellSpan],
+        bucketed: &[(CellKey, Point)],
+        map: &MeshMap,
+        cfg: &Config,
+        out: &mut BoundedVec<ScanLayer>,
+    ) -> usize {
+        let per_cell: Vec<_> = self.pool.install(|| {
+            cells
+                .par_iter()
+                .map(|c| reconstruct_cell(c.points(bucketed), c.key, map, cfg))
+                .collect()
+        });
+        per_cell
+            .into_iter()
+            .map(|layers| append_layers(out, layers))
+            .sum()
+    }
+}
