@@ -25,18 +25,36 @@ pub struct FilterStats {
     pub kept: usize,
 }
 
-/// Rotates `p` up by `angle_rad` about the horizontal axis perpendicular to its azimuth
-/// (the KITTI correction of IMLS-SLAM and CT-ICP, DESIGN §1.8).
-pub fn correct_vertical_angle(p: &Vec3, angle_rad: f64) -> Vec3 {
-    // u = p × z / |p × z| is horizontal and perpendicular to the azimuth; Rodrigues with
-    // u ⟂ p reduces to p cos α + (u × p) sin α.
-    let axis = Vec3::new(p.y, -p.x, 0.0);
-    let norm = axis.norm();
-    if norm < 1e-9 {
-        return *p;
+/// KITTI's vertical-angle correction (IMLS-SLAM, CT-ICP; DESIGN §1.8): each point is rotated
+/// up by a fixed angle about the horizontal axis perpendicular to its azimuth. The angle's
+/// sine and cosine are computed once, not per point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VerticalCorrection {
+    cos: f64,
+    sin: f64,
+}
+
+impl VerticalCorrection {
+    /// The correction by `angle_rad` (positive lifts points).
+    pub fn new(angle_rad: f64) -> Self {
+        Self {
+            cos: libm::cos(angle_rad),
+            sin: libm::sin(angle_rad),
+        }
     }
-    let u = axis / norm;
-    p * libm::cos(angle_rad) + u.cross(p) * libm::sin(angle_rad)
+
+    /// The corrected point.
+    #[inline]
+    pub fn apply(&self, p: &Vec3) -> Vec3 {
+        // u = p × z / |p × z| is horizontal and perpendicular to the azimuth; Rodrigues with
+        // u ⟂ p reduces to p cos α + (u × p) sin α.
+        let axis = Vec3::new(p.y, -p.x, 0.0);
+        let norm = axis.norm();
+        if norm < 1e-9 {
+            return *p;
+        }
+        p * self.cos + (axis / norm).cross(p) * self.sin
+    }
 }
 
 /// Filters `raw` (sensor frame) and down-samples it to one centroid per voxel of edge `leaf_m`,
@@ -54,7 +72,8 @@ pub fn filter_and_downsample(
         input: raw.len(),
         ..FilterStats::default()
     };
-    let correction = cfg.vertical_correction_deg.to_radians();
+    let correction = (cfg.vertical_correction_deg != 0.0)
+        .then(|| VerticalCorrection::new(cfg.vertical_correction_deg.to_radians()));
     let (r2_min, r2_max) = (
         cfg.range_min_m * cfg.range_min_m,
         cfg.range_max_m * cfg.range_max_m,
@@ -70,8 +89,8 @@ pub fn filter_and_downsample(
             stats.out_of_range += 1;
             continue;
         }
-        if correction != 0.0 {
-            v = correct_vertical_angle(&v, correction);
+        if let Some(c) = &correction {
+            v = c.apply(&v);
         }
         let Some(key) = CellKey::containing(&v, leaf_m) else {
             stats.out_of_range += 1;
@@ -148,7 +167,7 @@ mod tests {
     #[test]
     fn vertical_correction_lifts_points_by_the_angle() {
         let p = Vec3::new(30.0, 40.0, 0.0);
-        let q = correct_vertical_angle(&p, 0.22f64.to_radians());
+        let q = VerticalCorrection::new(0.22f64.to_radians()).apply(&p);
         assert!((q.norm() - p.norm()).abs() < 1e-9);
         let elevation = libm::atan2(q.z, libm::hypot(q.x, q.y));
         assert!((elevation - 0.22f64.to_radians()).abs() < 1e-12);
