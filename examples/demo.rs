@@ -3,10 +3,9 @@
 //!
 //! `cargo run --release --example demo`
 
-use nalgebra::{Translation3, UnitQuaternion};
 use slamesh::eval::consecutive_errors;
-use slamesh::sim::{Lidar, Scene};
-use slamesh_core::{Config, KittiCapacity, Pipeline, Pose};
+use slamesh::sim::{sensor_pose, Lidar, Scene};
+use slamesh_core::{Config, KittiCapacity, Pipeline};
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -16,10 +15,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut truth = Vec::new();
     let (mut x, mut y, mut yaw) = (-18.0f64, 0.0f64, 0.0f64);
     for i in 0..30 {
-        truth.push(Pose::from_parts(
-            Translation3::new(x, y, 1.73),
-            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw),
-        ));
+        truth.push(sensor_pose(x, y, 1.73, yaw.to_degrees()));
         let speed = (0.1 * i as f64).min(1.0);
         yaw = 0.08 * (i as f64 / 30.0 * std::f64::consts::PI).sin();
         x += speed * yaw.cos();

@@ -3,8 +3,7 @@
 //! the mesh allocate nothing (counted by a global allocator). One test per binary, so no other
 //! test's allocations are counted.
 
-use nalgebra::{Translation3, UnitQuaternion};
-use slamesh::sim::{Lidar, Scene};
+use slamesh::sim::{sensor_pose, Lidar, Scene};
 use slamesh_core::{Config, KittiCapacity, Pipeline, Pose};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -34,12 +33,7 @@ fn processing_scans_allocates_nothing_after_construction() {
     let scene = Scene::street();
     let lidar = Lidar::hdl64(512);
     let poses: Vec<Pose> = (0..5)
-        .map(|i| {
-            Pose::from_parts(
-                Translation3::new(0.7 * i as f64, 0.0, 1.73),
-                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.01 * i as f64),
-            )
-        })
+        .map(|i| sensor_pose(0.7 * i as f64, 0.0, 1.73, (0.01 * i as f64).to_degrees()))
         .collect();
     let scans: Vec<_> = poses.iter().map(|p| lidar.scan(&scene, p)).collect();
     let mut bad = scans[0].clone();

@@ -1,8 +1,7 @@
 //! The serial and parallel cell loops give bit-identical poses and meshes.
 
-use nalgebra::{Translation3, UnitQuaternion};
 use slamesh::parallel::Rayon;
-use slamesh::sim::{Lidar, Scene};
+use slamesh::sim::{sensor_pose, Lidar, Scene};
 use slamesh_core::reconstruct::{CellLoop, Serial};
 use slamesh_core::{Config, KittiCapacity, Pipeline, Pose};
 
@@ -25,9 +24,11 @@ fn serial_and_parallel_agree_bit_for_bit() {
     let lidar = Lidar::hdl64(900);
     let scans: Vec<_> = (0..5)
         .map(|i| {
-            let t = Pose::from_parts(
-                Translation3::new(0.9 * i as f64, 0.05 * i as f64, 1.73),
-                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.02 * i as f64),
+            let t = sensor_pose(
+                0.9 * i as f64,
+                0.05 * i as f64,
+                1.73,
+                (0.02 * i as f64).to_degrees(),
             );
             lidar.scan(&scene, &t)
         })

@@ -1,15 +1,7 @@
 //! Registration against ground truth: a structured synthetic street seen from two poses.
 
-use nalgebra::{Translation3, UnitQuaternion};
-use slamesh::sim::{Lidar, Scene};
+use slamesh::sim::{sensor_pose as pose, Lidar, Scene};
 use slamesh_core::{Config, Pipeline, Pose, RegistrationStatus};
-
-fn pose(x: f64, y: f64, z: f64, yaw_deg: f64) -> Pose {
-    Pose::from_parts(
-        Translation3::new(x, y, z),
-        UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()),
-    )
-}
 
 /// Registers the scan from `second` against the map of the scan from `first` and returns the
 /// translation (m) and rotation (deg) error of the estimated relative pose.

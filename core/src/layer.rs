@@ -92,7 +92,7 @@ impl Layer {
 mod tests {
     use super::*;
 
-    fn plane(axis: Axis, f: impl Fn(f64, f64) -> f64) -> (Layer, Lattice) {
+    fn plane(f: impl Fn(f64, f64) -> f64) -> (Layer, Lattice) {
         let lattice = Lattice {
             cell_size: 1.6,
             full_cover: false,
@@ -103,7 +103,6 @@ mod tests {
             l.pred[j] = f(a, b) as f32;
             l.var[j] = 0.01;
         }
-        let _ = axis;
         (l, lattice)
     }
 
@@ -111,7 +110,7 @@ mod tests {
     fn normal_of_a_tilted_plane() {
         // d = 0.2 + 0.5 a: normal ∝ (-0.5, 0, 1) in (a, b, d).
         for axis in Axis::ALL {
-            let (l, lat) = plane(axis, |a, _| 0.2 + 0.5 * a);
+            let (l, lat) = plane(|a, _| 0.2 + 0.5 * a);
             let n = l
                 .normal(&lat, &CellKey::new(3, -2, 1), axis, 14, 0.5)
                 .unwrap();
@@ -124,7 +123,7 @@ mod tests {
 
     #[test]
     fn corner_vertex_normal_uses_the_one_edge_pair_and_uncertain_vertices_are_skipped() {
-        let (mut l, lat) = plane(Axis::Z, |_, _| 0.4);
+        let (mut l, lat) = plane(|_, _| 0.4);
         let n = l
             .normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5)
             .unwrap();
@@ -137,7 +136,7 @@ mod tests {
 
     #[test]
     fn triangles_follow_the_variance_threshold() {
-        let (mut l, _) = plane(Axis::Z, |_, _| 0.4);
+        let (mut l, _) = plane(|_, _| 0.4);
         assert_eq!(l.triangles(1.0).count(), 50);
         l.var[0] = 3.0; // in 1 triangle of quad (0, 0)... and the other one too
         assert_eq!(l.triangles(1.0).count(), 48);

@@ -3,8 +3,16 @@
 //!
 //! Used by tests with ground truth: the true sensor pose of every scan is known exactly.
 
-use nalgebra::{Point3, Rotation3, Vector3};
+use nalgebra::{Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use slamesh_core::{Point, Pose};
+
+/// A level sensor pose: position (metres) and heading about z (degrees).
+pub fn sensor_pose(x: f64, y: f64, z: f64, yaw_deg: f64) -> Pose {
+    Pose::from_parts(
+        Translation3::new(x, y, z),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()),
+    )
+}
 
 /// A box with a yaw about z: centre, half extents along its own axes, yaw in radians.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -161,8 +169,7 @@ mod tests {
         let down = Vector3::new(1.0, 0.0, -1.0).normalize();
         assert!((scene.cast(&o, &down, 100.0).unwrap() - 2f64.sqrt()).abs() < 1e-12);
         assert!(scene.cast(&o, &Vector3::z(), 100.0).is_none());
-        // Rotated by 90 degrees the box is 5 m deep along x: its face is at x = 9 still? No:
-        // the half extent along x becomes 5, so the face is at x = 5.
+        // Turned by 90 degrees, the 5 m half extent lies along x: the face is at x = 5.
         let mut turned = scene.clone();
         turned.boxes[0].yaw = std::f64::consts::FRAC_PI_2;
         assert!((turned.cast(&o, &Vector3::x(), 100.0).unwrap() - 5.0).abs() < 1e-9);
