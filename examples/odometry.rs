@@ -1,8 +1,9 @@
 //! Runs the core pipeline over KITTI sequences and prints consecutive-frame errors.
 //!
-//! `cargo run --release --example odometry -- [--threads N] ../shared/data/kitti-mini/00 [more]`
+//! `cargo run --release --example odometry -- [--threads N] [--steps] ../shared/data/kitti-mini/00 [more]`
 //!
 //! Without `--threads` the core's serial loop runs; with it, the rayon loop on N threads.
+//! `--steps` also prints, per step, the reference step length and the step's error.
 
 use slamesh::eval::consecutive_errors;
 use slamesh::kitti;
@@ -13,6 +14,8 @@ use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut dirs: Vec<String> = std::env::args().skip(1).collect();
+    let steps = dirs.iter().any(|a| a == "--steps");
+    dirs.retain(|a| a != "--steps");
     let threads = match dirs.iter().position(|a| a == "--threads") {
         Some(i) if i + 1 < dirs.len() => {
             let n: usize = dirs[i + 1].parse()?;
@@ -22,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         _ => None,
     };
     if dirs.is_empty() {
-        eprintln!("usage: odometry [--threads N] <KITTI sequence folder>...");
+        eprintln!("usage: odometry [--threads N] [--steps] <KITTI sequence folder>...");
         std::process::exit(2);
     }
     let rayon = threads.map(Rayon::new).transpose()?;
@@ -64,6 +67,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             poses.push(out.t_world_sensor);
         }
         let e = consecutive_errors(&poses, &reference);
+        if steps {
+            for i in 1..poses.len().min(reference.len()) {
+                let length = (reference[i - 1].inverse() * reference[i])
+                    .translation
+                    .vector
+                    .norm();
+                let step = consecutive_errors(&poses[i - 1..=i], &reference[i - 1..=i]);
+                println!(
+                    "  step {i}: reference {length:.3} m, error {:.2} cm",
+                    step.mean_translation_m * 100.0
+                );
+            }
+        }
         ms.sort_by(f64::total_cmp);
         println!(
             "{:<28} {:>8.2} {:>8.2} {:>9.4} {:>10.1}",
