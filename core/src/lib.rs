@@ -18,6 +18,8 @@
 //! | inverse-variance map fusion | [`fusion`] into the [`map`] |
 //! | triangles | [`mesh`] |
 //!
+//! A caller can observe stage boundaries (to time them) through a [`stage::Probe`].
+//!
 //! ## Guarantees
 //! - No panics on input data: bad points are dropped and counted, a full container returns an
 //!   error or drops by the rule its module documents.
@@ -58,8 +60,10 @@ pub mod motion;
 pub mod pca;
 pub mod pipeline;
 pub mod reconstruct;
+pub mod stage;
 
 pub use capacity::{Capacity, KittiCapacity, SmallCapacity};
 pub use config::{Config, ConfigError};
 pub use math::{Point, Pose};
 pub use pipeline::{Pipeline, RegistrationStatus, ScanError, ScanOutcome, ScanStats};
+pub use stage::{NoProbe, Probe, Stage};

@@ -199,6 +199,11 @@ impl MeshMap {
         })
     }
 
+    /// Every cell with its key, in the map's deterministic order.
+    pub fn cells(&self) -> impl Iterator<Item = (&CellKey, &MapCell)> + '_ {
+        self.cells.iter()
+    }
+
     /// Removes every cell for which `evict(key, cell)` is true, first showing each of its
     /// layers to `on_evicted` (to save them), and returns how many cells left. Their layer
     /// slots are reused.

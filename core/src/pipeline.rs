@@ -19,6 +19,7 @@ use crate::math::{Point, Pose};
 use crate::mesh::{self, Triangle};
 use crate::motion::ConstantVelocity;
 use crate::reconstruct::{CellLoop, ScanLayer, Serial};
+use crate::stage::{NoProbe, Probe, Stage};
 use core::fmt;
 use core::marker::PhantomData;
 
@@ -168,16 +169,18 @@ impl<C: Capacity> Pipeline<C> {
 
     /// Estimates the pose of a scan (sensor-frame points) and fuses it into the map.
     pub fn process_scan(&mut self, points_sensor: &[Point]) -> Result<ScanOutcome, ScanError> {
-        self.process_scan_with(points_sensor, &Serial)
+        self.process_scan_with(points_sensor, &Serial, &mut NoProbe)
     }
 
-    /// [`process_scan`](Self::process_scan) with a given cell loop (e.g. a parallel one).
+    /// [`process_scan`](Self::process_scan) with a given cell loop (e.g. a parallel one),
+    /// telling `probe` the stage boundaries.
     pub fn process_scan_with(
         &mut self,
         points_sensor: &[Point],
         cells: &impl CellLoop,
+        probe: &mut impl Probe,
     ) -> Result<ScanOutcome, ScanError> {
-        let mut stats = self.begin(points_sensor)?;
+        let mut stats = self.begin(points_sensor, probe)?;
         let mut pose = self.motion.predict();
         let mut status = RegistrationStatus::FirstScan;
         if !self.map.is_empty() {
@@ -190,7 +193,8 @@ impl<C: Capacity> Pipeline<C> {
             status = RegistrationStatus::Converged;
             for round in 0..rounds {
                 let reach = if round + 1 == rounds { 0 } else { reach };
-                stats.dropped_layers += self.reconstruct(&pose, cells).1;
+                stats.dropped_layers += self.reconstruct(&pose, cells, probe).1;
+                probe.enter(Stage::Associate);
                 stats.associate = associate(
                     &self.scan,
                     &self.map,
@@ -199,6 +203,7 @@ impl<C: Capacity> Pipeline<C> {
                     &mut self.residuals,
                 );
                 stats.rounds += 1;
+                probe.enter(Stage::Solve);
                 match lm::solve(&self.residuals, &r.lm) {
                     Ok(sol) => {
                         pose = sol.correction * pose;
@@ -219,7 +224,7 @@ impl<C: Capacity> Pipeline<C> {
                 }
             }
         }
-        self.finish(pose, cells, &mut stats);
+        self.finish(pose, cells, probe, &mut stats);
         Ok(ScanOutcome {
             t_world_sensor: pose,
             status,
@@ -234,28 +239,23 @@ impl<C: Capacity> Pipeline<C> {
         points_sensor: &[Point],
         t_world_sensor: &Pose,
     ) -> Result<ScanOutcome, ScanError> {
-        let finite = t_world_sensor
-            .translation
-            .vector
-            .iter()
-            .chain(t_world_sensor.rotation.coords.iter())
-            .all(|v| v.is_finite());
-        if !finite {
-            self.frame = self.frame.saturating_add(1);
-            return Err(ScanError::BadPose);
-        }
-        self.integrate_scan_with(points_sensor, t_world_sensor, &Serial)
+        self.integrate_scan_with(points_sensor, t_world_sensor, &Serial, &mut NoProbe)
     }
 
-    /// [`integrate_scan`](Self::integrate_scan) with a given cell loop.
+    /// [`integrate_scan`](Self::integrate_scan) with a given cell loop and probe.
     pub fn integrate_scan_with(
         &mut self,
         points_sensor: &[Point],
         t_world_sensor: &Pose,
         cells: &impl CellLoop,
+        probe: &mut impl Probe,
     ) -> Result<ScanOutcome, ScanError> {
-        let mut stats = self.begin(points_sensor)?;
-        self.finish(*t_world_sensor, cells, &mut stats);
+        if !pose_is_finite(t_world_sensor) {
+            self.frame = self.frame.saturating_add(1);
+            return Err(ScanError::BadPose);
+        }
+        let mut stats = self.begin(points_sensor, probe)?;
+        self.finish(*t_world_sensor, cells, probe, &mut stats);
         Ok(ScanOutcome {
             t_world_sensor: *t_world_sensor,
             status: RegistrationStatus::Given,
@@ -264,7 +264,12 @@ impl<C: Capacity> Pipeline<C> {
     }
 
     /// Counts the frame and filters the scan into `points`.
-    fn begin(&mut self, points_sensor: &[Point]) -> Result<ScanStats, ScanError> {
+    fn begin(
+        &mut self,
+        points_sensor: &[Point],
+        probe: &mut impl Probe,
+    ) -> Result<ScanStats, ScanError> {
+        probe.enter(Stage::Filter);
         let frame = self.frame;
         self.frame = self.frame.saturating_add(1);
         let filter = filter_and_downsample(
@@ -275,6 +280,7 @@ impl<C: Capacity> Pipeline<C> {
             &mut self.points,
         );
         if filter.kept == 0 {
+            probe.enter(Stage::Done);
             return Err(ScanError::EmptyScan(filter));
         }
         Ok(ScanStats {
@@ -285,7 +291,13 @@ impl<C: Capacity> Pipeline<C> {
     }
 
     /// Buckets the scan at `pose` and reconstructs its cells into `scan`.
-    fn reconstruct(&mut self, pose: &Pose, cells: &impl CellLoop) -> (BucketStats, usize) {
+    fn reconstruct(
+        &mut self,
+        pose: &Pose,
+        cells: &impl CellLoop,
+        probe: &mut impl Probe,
+    ) -> (BucketStats, usize) {
+        probe.enter(Stage::Bucket);
         let g = &self.config.grid;
         let b = bucket(
             &self.points,
@@ -296,6 +308,7 @@ impl<C: Capacity> Pipeline<C> {
             &mut self.cells,
         );
         self.scan.clear();
+        probe.enter(Stage::Reconstruct);
         let dropped = cells.run(
             &self.cells,
             &self.work,
@@ -307,14 +320,31 @@ impl<C: Capacity> Pipeline<C> {
     }
 
     /// Final reconstruction at `pose`, map update, motion update.
-    fn finish(&mut self, pose: Pose, cells: &impl CellLoop, stats: &mut ScanStats) {
-        let (b, dropped) = self.reconstruct(&pose, cells);
+    fn finish(
+        &mut self,
+        pose: Pose,
+        cells: &impl CellLoop,
+        probe: &mut impl Probe,
+        stats: &mut ScanStats,
+    ) {
+        let (b, dropped) = self.reconstruct(&pose, cells, probe);
         stats.bucket = b;
         stats.dropped_layers += dropped;
         stats.scan_layers = self.scan.len();
+        probe.enter(Stage::Update);
         stats.fusion = integrate(&mut self.map, &self.scan, &self.config.map, stats.frame);
         self.motion.push(pose);
+        probe.enter(Stage::Done);
     }
+}
+
+/// True when every number of `pose` is finite.
+fn pose_is_finite(pose: &Pose) -> bool {
+    pose.translation
+        .vector
+        .iter()
+        .chain(pose.rotation.coords.iter())
+        .all(|v| v.is_finite())
 }
 
 #[cfg(test)]

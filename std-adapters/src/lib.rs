@@ -1,17 +1,42 @@
 //! # slamesh
 //!
-//! The std side of slamesh: file readers and evaluation around the `no_std`
-//! [`slamesh_core`] pipeline.
+//! The std side of slamesh around the `no_std` [`slamesh_core`] pipeline: file formats, the
+//! parallel cell loop, sliding-window eviction, runs with their outputs, evaluation, a
+//! simulator, and the `slamesh` command (`src/main.rs`).
 //!
-//! - [`kitti`]: KITTI odometry `.bin` scans, `poses.txt` and `calib.txt`.
-//! - [`eval`]: odometry error metrics against reference poses.
-//! - [`parallel`]: the reconstruction loop on a rayon pool.
-//! - [`sim`]: a ray-casting LiDAR simulator for tests with ground truth.
+//! | concern | module |
+//! |---|---|
+//! | errors naming the file, line and reason | [`file_error`] |
+//! | scan inputs: folders of `.bin`/`.pcd`/`.ply`, natural order | [`scans`] ([`kitti`], [`pcd`] with [`lzf`], [`ply`]) |
+//! | trajectories (KITTI, TUM) | [`trajectory`] |
+//! | the mesh on disk (PLY, OBJ) | [`mesh_file`] |
+//! | write-then-rename | [`atomic`] |
+//! | TOML configuration | [`config_file`] |
+//! | reconstruction on several threads | [`parallel`] |
+//! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
+//! | time per stage | [`timing`] |
+//! | a run and its outputs | [`session`] |
+//! | odometry metrics | [`eval`] |
+//! | a ray-casting LiDAR simulator | [`sim`] |
 #![deny(missing_docs)]
 
+pub mod atomic;
+pub mod config_file;
 pub mod eval;
+pub mod file_error;
 pub mod kitti;
+pub mod lzf;
+pub mod memory;
+pub mod mesh_file;
 pub mod parallel;
+pub mod pcd;
+pub mod ply;
+pub mod scans;
+pub mod session;
 pub mod sim;
+pub mod timing;
+pub mod trajectory;
+pub mod window;
 
+pub use file_error::FileError;
 pub use slamesh_core as core;

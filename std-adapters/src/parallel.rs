@@ -54,3 +54,47 @@ impl CellLoop for Rayon {
             .sum()
     }
 }
+
+/// The cell loop for a thread count: the core's serial loop for one thread, a rayon pool for
+/// more (0: one thread per core).
+#[derive(Debug)]
+pub enum Workers {
+    /// The core's serial loop.
+    Serial,
+    /// A rayon pool.
+    Pool(Rayon),
+}
+
+impl Workers {
+    /// Workers for `threads` threads.
+    pub fn new(threads: usize) -> Result<Self, rayon::ThreadPoolBuildError> {
+        Ok(match threads {
+            1 => Workers::Serial,
+            n => Workers::Pool(Rayon::new(n)?),
+        })
+    }
+
+    /// Number of threads.
+    pub fn threads(&self) -> usize {
+        match self {
+            Workers::Serial => 1,
+            Workers::Pool(r) => r.threads(),
+        }
+    }
+}
+
+impl CellLoop for Workers {
+    fn run(
+        &self,
+        cells: &[CellSpan],
+        bucketed: &[(CellKey, Point)],
+        map: &MeshMap,
+        cfg: &Config,
+        out: &mut BoundedVec<ScanLayer>,
+    ) -> usize {
+        match self {
+            Workers::Serial => slamesh_core::reconstruct::Serial.run(cells, bucketed, map, cfg, out),
+            Workers::Pool(r) => r.run(cells, bucketed, map, cfg, out),
+        }
+    }
+}

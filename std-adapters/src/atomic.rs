@@ -1,0 +1,59 @@
+//! Writing a file so that a reader never sees it half written: write a temporary file beside
+//! it, flush it to disk, then rename it over the target. A failed or interrupted write leaves
+//! the previous file (if any) in place and removes the temporary.
+
+use crate::file_error::FileError;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// The temporary name used for `path` while it is written: hidden, in the same folder (so the
+/// rename cannot cross file systems), tagged with the process id.
+pub fn temporary_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
+}
+
+/// Writes `path` through `fill`, atomically (see the module docs).
+pub fn write_atomic(
+    path: &Path,
+    fill: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
+) -> Result<(), FileError> {
+    let tmp = temporary_path(path);
+    let result = (|| {
+        let mut w = BufWriter::new(File::create(&tmp)?);
+        fill(&mut w)?;
+        w.flush()?;
+        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        FileError::at(path, format!("cannot write: {e}"))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failed_write_keeps_the_old_file_and_leaves_no_temporary() {
+        let dir = std::env::temp_dir().join(format!("slamesh-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("out.txt");
+        write_atomic(&p, |w| w.write_all(b"first")).unwrap();
+        let e = write_atomic(&p, |w| {
+            w.write_all(b"half")?;
+            Err(std::io::Error::other("disk full"))
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("out.txt") && e.reason.contains("disk full"));
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "first");
+        assert!(!temporary_path(&p).exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,332 @@
+//! Configuration files in TOML: a preset, then any parameter by section and name, then the
+//! sliding window. Every parameter is listed once, in [`PARAMETERS`], with its documentation;
+//! [`documented_toml`] prints a complete, commented file for any configuration.
+//!
+//! ```toml
+//! preset = "kitti"          # default | kitti | meshing
+//! [grid]
+//! cell_size_m = 1.6
+//! [register.lm]
+//! huber_delta_m = 0.1
+//! [window]
+//! max_age_frames = 300
+//! ```
+//!
+//! Errors name the file, and the line or the parameter, and the reason; the assembled
+//! configuration is checked with [`Config::validate`].
+
+use crate::file_error::FileError;
+use crate::window::Window;
+use slamesh_core::Config;
+use std::fmt::Write as _;
+use std::path::Path;
+use toml::Value;
+
+/// The named presets.
+pub const PRESETS: [&str; 3] = ["default", "kitti", "meshing"];
+
+/// The configuration of a named preset.
+pub fn preset(name: &str) -> Option<Config> {
+    match name {
+        "default" => Some(Config::default()),
+        "kitti" => Some(Config::kitti()),
+        "meshing" => Some(Config::meshing()),
+        _ => None,
+    }
+}
+
+/// One tunable parameter: where it lives, what it means, how to read and write it.
+pub struct Parameter {
+    /// TOML section (`register.lm` for nested ones).
+    pub section: &'static str,
+    /// Name within the section (the core field's name).
+    pub name: &'static str,
+    /// What it does.
+    pub doc: &'static str,
+    get: fn(&Config) -> Value,
+    set: fn(&mut Config, &Value) -> Result<(), String>,
+}
+
+fn float(v: &Value) -> Result<f64, String> {
+    match v {
+        Value::Float(f) => Ok(*f),
+        Value::Integer(i) => Ok(*i as f64),
+        _ => Err(format!("expected a number, found {}", v.type_str())),
+    }
+}
+
+fn count<T: TryFrom<i64>>(v: &Value) -> Result<T, String> {
+    match v {
+        Value::Integer(i) => T::try_from(*i).map_err(|_| format!("{i} is out of range")),
+        _ => Err(format!("expected a whole number, found {}", v.type_str())),
+    }
+}
+
+fn boolean(v: &Value) -> Result<bool, String> {
+    v.as_bool()
+        .ok_or_else(|| format!("expected true or false, found {}", v.type_str()))
+}
+
+macro_rules! parameters {
+    ($( $section:literal $($field:ident).+ : $read:ident as $to:expr, $doc:literal; )*) => {
+        /// Every parameter of [`Config`], in file order.
+        pub const PARAMETERS: &[Parameter] = &[$(
+            Parameter {
+                section: $section,
+                name: parameters!(@last $($field).+),
+                doc: $doc,
+                get: |c| $to(c.$($field).+),
+                set: |c, v| {
+                    c.$($field).+ = $read(v)?;
+                    Ok(())
+                },
+            },
+        )*];
+    };
+    (@last $first:ident) => { stringify!($first) };
+    (@last $first:ident . $($rest:ident).+) => { parameters!(@last $($rest).+) };
+}
+
+fn fv(x: f64) -> Value {
+    Value::Float(x)
+}
+fn iv<T: Into<i64>>(x: T) -> Value {
+    Value::Integer(x.into())
+}
+fn uv(x: usize) -> Value {
+    Value::Integer(x as i64)
+}
+
+parameters! {
+    "filter" filter.range_min_m: float as fv, "Points closer to the sensor are dropped (metres).";
+    "filter" filter.range_max_m: float as fv, "Points farther from the sensor are dropped (metres).";
+    "filter" filter.vertical_correction_deg: float as fv, "KITTI's vertical-angle calibration correction (degrees; 0 = off, 0.22 for KITTI).";
+    "grid" grid.cell_size_m: float as fv, "Cell edge (metres); the down-sampling leaf is a sixth of it.";
+    "grid" grid.min_points: count as uv, "Points a cell needs to be reconstructed.";
+    "grid" grid.full_cover: boolean as Value::Boolean, "Lattice on the cell faces (gap-free meshes) instead of at interval centres.";
+    "gp" gp.kappa_per_m: float as fv, "Kernel exp(-kappa |u - v|): kappa per metre.";
+    "gp" gp.sensor_noise_m: float as fv, "Range noise standard deviation (metres).";
+    "register" register.iterations: count as uv, "Registration rounds per scan.";
+    "register" register.cross_cell_overlap: count as iv, "Cross-cell search reach (cells) in all but the last round.";
+    "register" register.initial_iterations: count as uv, "Rounds while the motion is still unknown (the second scan).";
+    "register" register.initial_cross_cell_overlap: count as iv, "Cross-cell reach while the motion is still unknown.";
+    "register" register.variance_register: float as fv, "Vertices with a variance at or above this are not registered against.";
+    "register.lm" register.lm.max_iterations: count as uv, "Levenberg-Marquardt iterations per round.";
+    "register.lm" register.lm.tolerance: float as fv, "Stop when the update's norm is below this.";
+    "register.lm" register.lm.huber_delta_m: float as fv, "Huber loss threshold (metres).";
+    "register.lm" register.lm.degenerate_ratio: float as fv, "Degenerate when the smallest eigenvalue of the scaled normal equations is below this.";
+    "register.lm" register.lm.min_residuals: count as uv, "Fewer residuals than this and the scan keeps the motion prediction.";
+    "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
+    "map" map.add_missing_layers: boolean as Value::Boolean, "Add a layer that a known cell lacks.";
+    "mesh" mesh.variance_show: float as fv, "Triangles whose mean vertex variance is at or above this are not shown.";
+}
+
+/// What a configuration file sets: the pipeline configuration and the sliding window.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    /// The pipeline configuration (validated).
+    pub config: Config,
+    /// The preset it started from.
+    pub preset: &'static str,
+    /// Sliding-window rules (the memory cap as megabytes in `memory_cap_mb`).
+    pub window: WindowSettings,
+}
+
+/// The `[window]` section.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct WindowSettings {
+    /// Evict cells not seen for this many frames.
+    pub max_age_frames: Option<u32>,
+    /// Evict cells farther than this from the sensor (metres).
+    pub radius_m: Option<f64>,
+    /// Keep the process under this many megabytes by evicting the oldest cells.
+    pub memory_cap_mb: Option<f64>,
+    /// Append evicted cells to the output mesh.
+    pub save_evicted: bool,
+}
+
+impl WindowSettings {
+    /// The window rules without the memory cap (which needs the capacity to become a budget).
+    pub fn rules(&self) -> Window {
+        Window {
+            max_age_frames: self.max_age_frames,
+            radius_m: self.radius_m,
+            max_layers: None,
+        }
+    }
+}
+
+const WINDOW_DOCS: [(&str, &str); 4] = [
+    ("max_age_frames", "Evict cells not seen for more than this many frames."),
+    ("radius_m", "Evict cells whose centre is farther than this from the sensor (metres)."),
+    ("memory_cap_mb", "Evict the oldest cells so that the process stays under this many MB."),
+    ("save_evicted", "Append evicted cells to the output mesh, so nothing is lost."),
+];
+
+/// Reads a configuration file.
+pub fn read(path: &Path) -> Result<Settings, FileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    parse(&text).map_err(|reason| FileError::at(path, reason))
+}
+
+/// Parses configuration text (see the module docs).
+pub fn parse(text: &str) -> Result<Settings, String> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
+    let preset_name = match table.get("preset") {
+        None => "default",
+        Some(Value::String(s)) => PRESETS
+            .into_iter()
+            .find(|p| p == s)
+            .ok_or_else(|| format!("preset {s:?} is not one of {}", PRESETS.join(", ")))?,
+        Some(v) => return Err(format!("preset: expected a name, found {}", v.type_str())),
+    };
+    let mut config = preset(preset_name).unwrap_or_default();
+    let mut window = WindowSettings::default();
+    for (key, value) in &table {
+        match (key.as_str(), value) {
+            ("preset", _) => {}
+            ("window", Value::Table(t)) => window = read_window(t)?,
+            (section, Value::Table(t)) => set_section(&mut config, section, t)?,
+            _ => return Err(format!("{key}: unknown top-level key")),
+        }
+    }
+    config
+        .validate()
+        .map_err(|e| format!("{}: {}", e.field, e.reason))?;
+    Ok(Settings {
+        config,
+        preset: preset_name,
+        window,
+    })
+}
+
+fn set_section(config: &mut Config, section: &str, t: &toml::Table) -> Result<(), String> {
+    for (name, v) in t {
+        if let Value::Table(inner) = v {
+            set_section(config, &format!("{section}.{name}"), inner)?;
+            continue;
+        }
+        let p = PARAMETERS
+            .iter()
+            .find(|p| p.section == section && p.name == name)
+            .ok_or_else(|| {
+                let known: Vec<&str> = PARAMETERS
+                    .iter()
+                    .filter(|p| p.section == section)
+                    .map(|p| p.name)
+                    .collect();
+                if known.is_empty() {
+                    format!("[{section}]: unknown section")
+                } else {
+                    format!("[{section}] {name}: unknown parameter (known: {})", known.join(", "))
+                }
+            })?;
+        (p.set)(config, v).map_err(|e| format!("[{section}] {name}: {e}"))?;
+    }
+    Ok(())
+}
+
+fn read_window(t: &toml::Table) -> Result<WindowSettings, String> {
+    let mut w = WindowSettings::default();
+    for (name, v) in t {
+        let e = |m: String| format!("[window] {name}: {m}");
+        match name.as_str() {
+            "max_age_frames" => w.max_age_frames = Some(count(v).map_err(e)?),
+            "radius_m" => w.radius_m = Some(positive(v).map_err(e)?),
+            "memory_cap_mb" => w.memory_cap_mb = Some(positive(v).map_err(e)?),
+            "save_evicted" => w.save_evicted = boolean(v).map_err(e)?,
+            _ => {
+                let known: Vec<&str> = WINDOW_DOCS.iter().map(|d| d.0).collect();
+                return Err(format!("[window] {name}: unknown parameter (known: {})", known.join(", ")));
+            }
+        }
+    }
+    Ok(w)
+}
+
+fn positive(v: &Value) -> Result<f64, String> {
+    let x = float(v)?;
+    if x > 0.0 && x.is_finite() {
+        Ok(x)
+    } else {
+        Err(format!("must be a positive number, found {x}"))
+    }
+}
+
+/// A complete configuration file for `config` (from `preset`), every parameter with its
+/// documentation; reading it back gives `config`.
+pub fn documented_toml(config: &Config, preset: &str) -> String {
+    let mut s = format!(
+        "# slamesh configuration. Every parameter is optional; missing ones come from the preset.\n\
+         preset = \"{preset}\"  # one of: {}\n",
+        PRESETS.join(", ")
+    );
+    let mut section = "";
+    for p in PARAMETERS {
+        if p.section != section {
+            section = p.section;
+            let _ = writeln!(s, "\n[{section}]");
+        }
+        let _ = writeln!(s, "# {}\n{} = {}", p.doc, p.name, (p.get)(config));
+    }
+    s.push_str("\n# Sliding-window eviction for long runs (all off unless set).\n[window]\n");
+    for (name, doc) in WINDOW_DOCS {
+        let example = if name == "save_evicted" { "true" } else { "..." };
+        let _ = writeln!(s, "# {doc}\n# {name} = {example}");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_preset_round_trips_through_its_documented_file() {
+        for name in PRESETS {
+            let c = preset(name).unwrap();
+            let mut changed = c;
+            changed.register.lm.huber_delta_m = 0.25;
+            changed.grid.min_points = 7;
+            let text = documented_toml(&changed, name);
+            let s = parse(&text).unwrap_or_else(|e| panic!("{name}: {e}\n{text}"));
+            assert_eq!(s.config, changed, "{name}");
+            assert_eq!(s.preset, name);
+        }
+        assert_eq!(PARAMETERS.len(), 21);
+    }
+
+    #[test]
+    fn sections_override_the_preset_and_the_window_is_read() {
+        let s = parse(
+            "preset = \"meshing\"\n[grid]\ncell_size_m = 2\n[register.lm]\nmax_iterations = 4\n\
+             [window]\nmax_age_frames = 50\nmemory_cap_mb = 120\nsave_evicted = true\n",
+        )
+        .unwrap();
+        let mut want = Config::meshing();
+        want.grid.cell_size_m = 2.0;
+        want.register.lm.max_iterations = 4;
+        assert_eq!(s.config, want);
+        assert_eq!(s.window.max_age_frames, Some(50));
+        assert_eq!(s.window.memory_cap_mb, Some(120.0));
+        assert!(s.window.save_evicted);
+    }
+
+    #[test]
+    fn mistakes_get_messages_that_name_them() {
+        let cases = [
+            ("[grid]\ncell_sise_m = 2\n", "[grid] cell_sise_m: unknown parameter"),
+            ("[grid]\nmin_points = -3\n", "[grid] min_points: -3 is out of range"),
+            ("[grid]\nfull_cover = 1\n", "expected true or false"),
+            ("[gird]\nx = 1\n", "[gird]: unknown section"),
+            ("preset = \"fast\"\n", "preset \"fast\" is not one of"),
+            ("[grid]\ncell_size_m = -1.6\n", "cell_size_m"),
+            ("[window]\nradius_m = 0\n", "[window] radius_m: must be a positive"),
+            ("[grid\n", "line 1"),
+        ];
+        for (text, want) in cases {
+            let e = parse(text).unwrap_err();
+            assert!(e.contains(want), "{text:?}: {e}");
+        }
+    }
+}

@@ -1,0 +1,234 @@
+//! The mesh on disk: binary little-endian PLY with shared (indexed) vertices and a per-vertex
+//! `variance` property, or OBJ.
+//!
+//! A [`MeshSpool`] collects layers as they come (cells evicted from a sliding-window map, then
+//! the map at the end) into two spool files next to the output, so that memory stays flat
+//! however long the run; [`MeshSpool::finish`] writes the final file atomically. Within a layer
+//! the lattice vertices are shared by its triangles; only vertices of shown triangles are
+//! written. Neighbouring cells predict their face vertices independently, so vertices are not
+//! merged across layers.
+
+use crate::atomic::write_atomic;
+use crate::file_error::FileError;
+use slamesh_core::lattice::{Lattice, VERTICES};
+use slamesh_core::map::{LayerRef, MeshMap};
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Bytes of a spooled vertex: x, y, z, variance as little-endian `f32` (a PLY vertex record).
+const VERTEX_BYTES: usize = 16;
+/// Bytes of a spooled face: a `u8` 3 and three little-endian `u32` (a PLY face record).
+const FACE_BYTES: usize = 13;
+
+/// Mesh file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Binary little-endian PLY with a per-vertex variance.
+    Ply,
+    /// Wavefront OBJ (positions and faces; OBJ has no per-vertex scalar).
+    Obj,
+}
+
+/// What a finished mesh file holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MeshCounts {
+    /// Vertices written.
+    pub vertices: u64,
+    /// Triangles written.
+    pub triangles: u64,
+}
+
+/// Mesh pieces spooled to disk until [`finish`](Self::finish).
+#[derive(Debug)]
+pub struct MeshSpool {
+    lattice: Lattice,
+    variance_show: f32,
+    paths: [PathBuf; 2],
+    vertices: BufWriter<File>,
+    faces: BufWriter<File>,
+    counts: MeshCounts,
+}
+
+impl MeshSpool {
+    /// A spool for the mesh file `target` (its spool files go beside it).
+    pub fn new(target: &Path, lattice: Lattice, variance_show: f64) -> Result<Self, FileError> {
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let paths = [
+            target.with_file_name(format!(".{name}.vertices.spool")),
+            target.with_file_name(format!(".{name}.faces.spool")),
+        ];
+        let open = |p: &Path| {
+            File::create(p)
+                .map(BufWriter::new)
+                .map_err(|e| FileError::at(p, format!("cannot create spool file: {e}")))
+        };
+        Ok(MeshSpool {
+            lattice,
+            variance_show: variance_show as f32,
+            vertices: open(&paths[0])?,
+            faces: open(&paths[1])?,
+            paths,
+            counts: MeshCounts::default(),
+        })
+    }
+
+    /// What has been added so far.
+    pub fn counts(&self) -> MeshCounts {
+        self.counts
+    }
+
+    /// Adds the shown triangles of one layer, with the vertices they use.
+    pub fn add_layer(&mut self, l: LayerRef<'_>) -> Result<(), FileError> {
+        let mut index = [u32::MAX; VERTICES];
+        let mut next = self.counts.vertices;
+        let io = |e: std::io::Error, p: &Path| FileError::at(p, format!("cannot write: {e}"));
+        for t in l.layer.triangles(self.variance_show) {
+            let mut face = [0u8; FACE_BYTES];
+            face[0] = 3;
+            for (k, &j) in t.iter().enumerate() {
+                if index[j] == u32::MAX {
+                    index[j] = next as u32;
+                    next += 1;
+                    let v = l.layer.vertex(&self.lattice, &l.key, l.axis, j);
+                    let mut rec = [0u8; VERTEX_BYTES];
+                    for (c, x) in [v.x as f32, v.y as f32, v.z as f32, l.layer.var[j]]
+                        .iter()
+                        .enumerate()
+                    {
+                        rec[4 * c..4 * c + 4].copy_from_slice(&x.to_le_bytes());
+                    }
+                    self.vertices
+                        .write_all(&rec)
+                        .map_err(|e| io(e, &self.paths[0]))?;
+                }
+                face[1 + 4 * k..5 + 4 * k].copy_from_slice(&index[j].to_le_bytes());
+            }
+            self.faces
+                .write_all(&face)
+                .map_err(|e| io(e, &self.paths[1]))?;
+            self.counts.triangles += 1;
+        }
+        self.counts.vertices = next;
+        Ok(())
+    }
+
+    /// Adds every layer of `map`.
+    pub fn add_map(&mut self, map: &MeshMap) -> Result<(), FileError> {
+        map.layers().try_for_each(|l| self.add_layer(l))
+    }
+
+    /// Writes everything added to each `(path, format)` (atomically) and removes the spool.
+    pub fn finish(mut self, outputs: &[(PathBuf, MeshFormat)]) -> Result<MeshCounts, FileError> {
+        for (w, p) in [(&mut self.vertices, &self.paths[0]), (&mut self.faces, &self.paths[1])] {
+            w.flush()
+                .map_err(|e| FileError::at(p, format!("cannot write: {e}")))?;
+        }
+        for (target, format) in outputs {
+            self.write(target, *format)?;
+        }
+        Ok(self.counts)
+    }
+
+    fn write(&self, target: &Path, format: MeshFormat) -> Result<(), FileError> {
+        let counts = self.counts;
+        let paths = &self.paths;
+        write_atomic(target, |w| {
+            let mut vertices = BufReader::new(File::open(&paths[0])?);
+            let mut faces = BufReader::new(File::open(&paths[1])?);
+            match format {
+                MeshFormat::Ply => {
+                    write!(
+                        w,
+                        "ply\nformat binary_little_endian 1.0\ncomment slamesh mesh\n\
+                         element vertex {}\nproperty float x\nproperty float y\n\
+                         property float z\nproperty float variance\nelement face {}\n\
+                         property list uchar uint vertex_indices\nend_header\n",
+                        counts.vertices, counts.triangles
+                    )?;
+                    std::io::copy(&mut vertices, w)?;
+                    std::io::copy(&mut faces, w)?;
+                }
+                MeshFormat::Obj => {
+                    writeln!(w, "# slamesh mesh: {} vertices, {} triangles", counts.vertices, counts.triangles)?;
+                    let mut rec = [0u8; VERTEX_BYTES];
+                    for _ in 0..counts.vertices {
+                        vertices.read_exact(&mut rec)?;
+                        let f = |c: usize| f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]]);
+                        writeln!(w, "v {} {} {}", f(0), f(1), f(2))?;
+                    }
+                    let mut rec = [0u8; FACE_BYTES];
+                    for _ in 0..counts.triangles {
+                        faces.read_exact(&mut rec)?;
+                        let i = |k: usize| {
+                            u32::from_le_bytes([rec[1 + 4 * k], rec[2 + 4 * k], rec[3 + 4 * k], rec[4 + 4 * k]]) as u64 + 1
+                        };
+                        writeln!(w, "f {} {} {}", i(0), i(1), i(2))?;
+                    }
+                }
+            }
+            Ok(())
+        })
+    }
+}
+
+impl Drop for MeshSpool {
+    fn drop(&mut self) {
+        for p in &self.paths {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ply::read_ply_points;
+    use slamesh_core::cell::{Axis, CellKey};
+    use slamesh_core::layer::Layer;
+
+    #[test]
+    fn a_flat_layer_writes_36_shared_vertices_and_50_triangles() {
+        let lattice = Lattice {
+            cell_size: 1.0,
+            full_cover: true,
+        };
+        let mut map = MeshMap::with_capacity(4, 4, lattice);
+        let mut layer = Layer {
+            pred: [0.5; VERTICES],
+            var: [0.01; VERTICES],
+        };
+        layer.var[35] = 0.02;
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0).unwrap();
+        let dir = std::env::temp_dir().join(format!("slamesh-mesh-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let outputs = [(dir.join("m.ply"), MeshFormat::Ply), (dir.join("m.obj"), MeshFormat::Obj)];
+        let mut spool = MeshSpool::new(&outputs[0].0, lattice, 0.1).unwrap();
+        spool.add_map(&map).unwrap();
+        let counts = spool.finish(&outputs).unwrap();
+        assert_eq!(counts, MeshCounts { vertices: 36, triangles: 50 });
+        for (target, format) in outputs {
+            let text = std::fs::read(&target).unwrap();
+            if format == MeshFormat::Ply {
+                let pts = read_ply_points(&target).unwrap();
+                assert_eq!(pts.len(), 36);
+                assert!(pts.iter().all(|p| (p[2] - 0.5).abs() < 1e-6));
+                // The variance is the last float of each vertex record.
+                let body = &text[text.len() - 50 * FACE_BYTES - 36 * VERTEX_BYTES..];
+                let var = |i: usize| f32::from_le_bytes(body[i * 16 + 12..i * 16 + 16].try_into().unwrap());
+                let mut vars: Vec<f32> = (0..36).map(var).collect();
+                vars.sort_by(f32::total_cmp);
+                assert_eq!((vars[0], vars[35]), (0.01, 0.02));
+            } else {
+                let text = String::from_utf8(text).unwrap();
+                assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), 36);
+                assert_eq!(text.lines().filter(|l| l.starts_with("f ")).count(), 50);
+            }
+            assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".spool")));
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,418 @@
+//! PCD point clouds (PCL's format, version 0.7 and older headers): `ascii`, `binary` and
+//! `binary_compressed` data. Reads the `x`, `y`, `z` fields (any numeric type); other fields
+//! are skipped. Errors name the file, the header line where it applies, and the reason.
+
+use crate::file_error::FileError;
+use crate::lzf;
+use slamesh_core::Point;
+use std::path::Path;
+
+/// One field of a PCD record.
+#[derive(Debug, Clone, PartialEq)]
+struct Field {
+    name: String,
+    size: usize,
+    kind: u8,
+    count: usize,
+}
+
+impl Field {
+    fn bytes(&self) -> usize {
+        self.size * self.count
+    }
+
+    /// The first element of this field from its little-endian bytes.
+    fn value(&self, b: &[u8]) -> f64 {
+        let a = |n: usize| -> [u8; 8] {
+            let mut v = [0u8; 8];
+            v[..n].copy_from_slice(&b[..n]);
+            v
+        };
+        match (self.kind, self.size) {
+            (b'F', 4) => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+            (b'F', 8) => f64::from_le_bytes(a(8)),
+            (b'I', 1) => b[0] as i8 as f64,
+            (b'I', 2) => i16::from_le_bytes([b[0], b[1]]) as f64,
+            (b'I', 4) => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+            (b'I', 8) => i64::from_le_bytes(a(8)) as f64,
+            (b'U', n) => u64::from_le_bytes(a(n)) as f64,
+            _ => f64::NAN,
+        }
+    }
+}
+
+#[derive(Debug)]
+enum Data {
+    Ascii,
+    Binary,
+    Compressed,
+}
+
+#[derive(Debug)]
+struct Header {
+    fields: Vec<Field>,
+    points: usize,
+    data: Data,
+    /// Byte offset of the data.
+    start: usize,
+}
+
+fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
+    let (mut names, mut sizes, mut kinds, mut counts) = (vec![], vec![], vec![], vec![]);
+    let (mut width, mut height, mut points) = (None, None, None);
+    let mut pos = 0;
+    let mut line_no = 0;
+    loop {
+        line_no += 1;
+        let Some(len) = bytes[pos..].iter().position(|&b| b == b'\n') else {
+            return Err(FileError::at(path, "PCD header ends before its DATA line"));
+        };
+        let line = std::str::from_utf8(&bytes[pos..pos + len])
+            .map_err(|_| FileError::new(path, Some(line_no), "PCD header is not text"))?
+            .trim();
+        pos += len + 1;
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let bad = |reason: String| FileError::new(path, Some(line_no), reason);
+        let mut words = line.split_whitespace();
+        let key = words.next().unwrap_or_default().to_ascii_uppercase();
+        let rest: Vec<&str> = words.collect();
+        let numbers = || -> Result<Vec<usize>, FileError> {
+            rest.iter()
+                .map(|w| {
+                    w.parse::<usize>()
+                        .map_err(|_| bad(format!("{key}: not a count: {w:?}")))
+                })
+                .collect()
+        };
+        match key.as_str() {
+            "VERSION" | "VIEWPOINT" => {}
+            "FIELDS" | "COLUMNS" => names = rest.iter().map(|s| s.to_string()).collect(),
+            "SIZE" => sizes = numbers()?,
+            "TYPE" => {
+                kinds = rest
+                    .iter()
+                    .map(|w| match w.as_bytes() {
+                        [k @ (b'F' | b'I' | b'U')] => Ok(*k),
+                        _ => Err(bad(format!("TYPE: unknown type {w:?} (F, I or U)"))),
+                    })
+                    .collect::<Result<_, _>>()?
+            }
+            "COUNT" => counts = numbers()?,
+            "WIDTH" => width = numbers()?.first().copied(),
+            "HEIGHT" => height = numbers()?.first().copied(),
+            "POINTS" => points = numbers()?.first().copied(),
+            "DATA" => {
+                let data = match rest.first().copied() {
+                    Some("ascii") => Data::Ascii,
+                    Some("binary") => Data::Binary,
+                    Some("binary_compressed") => Data::Compressed,
+                    other => {
+                        return Err(bad(format!(
+                            "DATA: unknown encoding {other:?} (ascii, binary, binary_compressed)"
+                        )))
+                    }
+                };
+                if names.is_empty() {
+                    return Err(bad("no FIELDS line before DATA".into()));
+                }
+                if counts.is_empty() {
+                    counts = vec![1; names.len()];
+                }
+                if sizes.len() != names.len()
+                    || kinds.len() != names.len()
+                    || counts.len() != names.len()
+                {
+                    return Err(bad(format!(
+                        "FIELDS, SIZE, TYPE and COUNT disagree: {} names, {} sizes, {} types, {} counts",
+                        names.len(),
+                        sizes.len(),
+                        kinds.len(),
+                        counts.len()
+                    )));
+                }
+                let points = match (points, width, height) {
+                    (Some(p), _, _) => p,
+                    (None, Some(w), Some(h)) => w.saturating_mul(h),
+                    _ => return Err(bad("no POINTS, or WIDTH and HEIGHT, before DATA".into())),
+                };
+                let fields = names
+                    .into_iter()
+                    .zip(sizes)
+                    .zip(kinds)
+                    .zip(counts)
+                    .map(|(((name, size), kind), count)| Field {
+                        name,
+                        size,
+                        kind,
+                        count,
+                    })
+                    .collect::<Vec<_>>();
+                for f in &fields {
+                    let ok = match f.kind {
+                        b'F' => f.size == 4 || f.size == 8,
+                        _ => matches!(f.size, 1 | 2 | 4 | 8),
+                    };
+                    if !ok || f.count == 0 {
+                        return Err(bad(format!(
+                            "field {}: unsupported size {} / count {}",
+                            f.name, f.size, f.count
+                        )));
+                    }
+                }
+                return Ok(Header {
+                    fields,
+                    points,
+                    data,
+                    start: pos,
+                });
+            }
+            _ => return Err(bad(format!("not a PCD header line: {line:?}"))),
+        }
+    }
+}
+
+/// Reads the points of a PCD file (in the sensor frame, as stored).
+pub fn read_pcd(path: &Path) -> Result<Vec<Point>, FileError> {
+    let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    if bytes.is_empty() {
+        return Err(FileError::at(path, "empty file"));
+    }
+    let h = parse_header(path, &bytes)?;
+    let index = |name: &str| {
+        h.fields
+            .iter()
+            .position(|f| f.name == name)
+            .ok_or_else(|| FileError::at(path, format!("PCD has no {name} field")))
+    };
+    let xyz = [index("x")?, index("y")?, index("z")?];
+    let body = &bytes[h.start..];
+    match h.data {
+        Data::Ascii => read_ascii(path, &h, xyz, body),
+        Data::Binary => {
+            let record: usize = h.fields.iter().map(Field::bytes).sum();
+            let offsets = offsets(&h.fields);
+            let need = record.saturating_mul(h.points);
+            if body.len() < need {
+                return Err(FileError::at(
+                    path,
+                    format!(
+                        "truncated: {} points of {record} bytes need {need} bytes of data, found {}",
+                        h.points,
+                        body.len()
+                    ),
+                ));
+            }
+            Ok(body[..need]
+                .chunks_exact(record.max(1))
+                .map(|r| xyz.map(|k| h.fields[k].value(&r[offsets[k]..]) as f32))
+                .collect())
+        }
+        Data::Compressed => {
+            let word = |i: usize| {
+                body.get(i..i + 4)
+                    .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
+            };
+            let (Some(packed), Some(unpacked)) = (word(0), word(4)) else {
+                return Err(FileError::at(path, "truncated: no compressed sizes"));
+            };
+            let data = body.get(8..8 + packed).ok_or_else(|| {
+                FileError::at(
+                    path,
+                    format!(
+                        "truncated: {packed} compressed bytes declared, {} present",
+                        body.len().saturating_sub(8)
+                    ),
+                )
+            })?;
+            let record: usize = h.fields.iter().map(Field::bytes).sum();
+            if unpacked != record.saturating_mul(h.points) {
+                return Err(FileError::at(
+                    path,
+                    format!(
+                        "{unpacked} uncompressed bytes declared, {} points of {record} bytes need {}",
+                        h.points,
+                        record.saturating_mul(h.points)
+                    ),
+                ));
+            }
+            let raw = lzf::decompress(data, unpacked).map_err(|e| FileError::at(path, e))?;
+            // Column-major: all points' values of field 0, then of field 1, ...
+            let mut column = vec![0usize; h.fields.len()];
+            let mut at = 0;
+            for (k, f) in h.fields.iter().enumerate() {
+                column[k] = at;
+                at += f.bytes() * h.points;
+            }
+            Ok((0..h.points)
+                .map(|i| {
+                    xyz.map(|k| {
+                        let f = &h.fields[k];
+                        f.value(&raw[column[k] + i * f.bytes()..]) as f32
+                    })
+                })
+                .collect())
+        }
+    }
+}
+
+/// Byte offset of each field within a record.
+fn offsets(fields: &[Field]) -> Vec<usize> {
+    fields
+        .iter()
+        .scan(0, |at, f| {
+            let o = *at;
+            *at += f.bytes();
+            Some(o)
+        })
+        .collect()
+}
+
+fn read_ascii(
+    path: &Path,
+    h: &Header,
+    xyz: [usize; 3],
+    body: &[u8],
+) -> Result<Vec<Point>, FileError> {
+    let text =
+        std::str::from_utf8(body).map_err(|_| FileError::at(path, "ascii data is not text"))?;
+    // Column of each field's first element.
+    let columns: Vec<usize> = h
+        .fields
+        .iter()
+        .scan(0, |at, f| {
+            let o = *at;
+            *at += f.count;
+            Some(o)
+        })
+        .collect();
+    let mut out = Vec::with_capacity(h.points);
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() {
+            continue;
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let mut p = [0f32; 3];
+        for (c, &k) in xyz.iter().enumerate() {
+            let w = words.get(columns[k]).ok_or_else(|| {
+                FileError::at(
+                    path,
+                    format!("data line {} has only {} values", i + 1, words.len()),
+                )
+            })?;
+            p[c] = w.parse::<f32>().map_err(|_| {
+                FileError::at(path, format!("data line {}: not a number: {w:?}", i + 1))
+            })?;
+        }
+        out.push(p);
+        if out.len() == h.points {
+            break;
+        }
+    }
+    if out.len() < h.points {
+        return Err(FileError::at(
+            path,
+            format!(
+                "truncated: {} points declared, {} data lines",
+                h.points,
+                out.len()
+            ),
+        ));
+    }
+    Ok(out)
+}
+
+/// Writes `points` as a PCD with float `x y z` fields in the given encoding
+/// (`"ascii"`, `"binary"` or `"binary_compressed"`); for tests and tools.
+pub fn encode_pcd(points: &[Point], encoding: &str) -> Vec<u8> {
+    let mut out = format!(
+        "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n\
+         TYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\n\
+         DATA {encoding}\n",
+        n = points.len()
+    )
+    .into_bytes();
+    match encoding {
+        "ascii" => {
+            for p in points {
+                out.extend_from_slice(format!("{} {} {}\n", p[0], p[1], p[2]).as_bytes());
+            }
+        }
+        "binary" => {
+            for v in points.iter().flatten() {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        _ => {
+            let mut raw = Vec::with_capacity(points.len() * 12);
+            for c in 0..3 {
+                for p in points {
+                    raw.extend_from_slice(&p[c].to_le_bytes());
+                }
+            }
+            let packed = lzf::compress_literal(&raw);
+            out.extend_from_slice(&(packed.len() as u32).to_le_bytes());
+            out.extend_from_slice(&(raw.len() as u32).to_le_bytes());
+            out.extend_from_slice(&packed);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("slamesh-pcd-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    }
+
+    #[test]
+    fn all_three_encodings_round_trip() {
+        let pts = vec![[1.5, -2.0, 0.25], [3.0, 4.0, 5.0], [-0.5, 0.0, 7.75]];
+        for enc in ["ascii", "binary", "binary_compressed"] {
+            let p = tmp(&format!("{enc}.pcd"), &encode_pcd(&pts, enc));
+            assert_eq!(read_pcd(&p).unwrap(), pts, "{enc}");
+        }
+    }
+
+    #[test]
+    fn extra_fields_and_types_are_handled() {
+        // x y z as doubles with an intensity byte and a 2-element field in between.
+        let mut b = b"VERSION .7\nFIELDS x rgb y z intensity\nSIZE 8 4 8 8 1\nTYPE F U F F U\n\
+COUNT 1 2 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n"
+            .to_vec();
+        b.extend_from_slice(&1.25f64.to_le_bytes());
+        b.extend_from_slice(&[0u8; 8]);
+        b.extend_from_slice(&(-3.0f64).to_le_bytes());
+        b.extend_from_slice(&9.5f64.to_le_bytes());
+        b.push(200);
+        assert_eq!(read_pcd(&tmp("mixed.pcd", &b)).unwrap(), vec![[1.25, -3.0, 9.5]]);
+    }
+
+    #[test]
+    fn bad_files_are_errors_naming_the_file_and_reason() {
+        let cases: [(&str, Vec<u8>, &str); 5] = [
+            ("empty.pcd", vec![], "empty"),
+            ("garbage.pcd", b"hello world\nDATA ascii\n".to_vec(), "not a PCD header"),
+            ("noxyz.pcd", b"FIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nPOINTS 0\nDATA ascii\n".to_vec(), "no x field"),
+            ("short.pcd", { let b = encode_pcd(&[[1.0; 3]; 4], "binary"); b[..b.len() - 5].to_vec() }, "truncated"),
+            ("nodata.pcd", b"FIELDS x y z\nSIZE 4 4 4\n".to_vec(), "ends before"),
+        ];
+        for (name, bytes, reason) in cases {
+            let e = read_pcd(&tmp(name, &bytes)).unwrap_err();
+            assert!(e.to_string().contains(name), "{e}");
+            assert!(e.reason.contains(reason), "{name}: {e}");
+        }
+        let mut c = encode_pcd(&[[1.0; 3]; 4], "binary_compressed");
+        let n = c.len();
+        c[n - 17] = 31; // the last literal run now claims more bytes than remain
+        assert!(read_pcd(&tmp("corrupt.pcd", &c)).is_err());
+    }
+}

@@ -1,0 +1,256 @@
+//! PLY point clouds: the `x`, `y`, `z` properties of the `vertex` element, in `ascii`,
+//! `binary_little_endian` or `binary_big_endian` files (any numeric property type). Elements
+//! before `vertex` are skipped when their records have a fixed size. Faces, if present, are
+//! ignored. Errors name the file, the header line where it applies, and the reason.
+//!
+//! Meshes are written by [`crate::mesh_file`].
+
+use crate::file_error::FileError;
+use slamesh_core::Point;
+use std::path::Path;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Format {
+    Ascii,
+    Little,
+    Big,
+}
+
+/// Byte size of a scalar PLY type.
+fn type_size(t: &str) -> Option<usize> {
+    Some(match t {
+        "char" | "uchar" | "int8" | "uint8" => 1,
+        "short" | "ushort" | "int16" | "uint16" => 2,
+        "int" | "uint" | "float" | "int32" | "uint32" | "float32" => 4,
+        "double" | "float64" => 8,
+        _ => return None,
+    })
+}
+
+/// Decodes one scalar of type `t` (already known to be valid) from `b`.
+fn scalar(t: &str, b: &[u8], format: Format) -> f64 {
+    let mut a = [0u8; 8];
+    let n = type_size(t).unwrap_or(1);
+    a[..n].copy_from_slice(&b[..n]);
+    if format == Format::Big {
+        a[..n].reverse();
+    }
+    match t {
+        "char" | "int8" => a[0] as i8 as f64,
+        "uchar" | "uint8" => a[0] as f64,
+        "short" | "int16" => i16::from_le_bytes([a[0], a[1]]) as f64,
+        "ushort" | "uint16" => u16::from_le_bytes([a[0], a[1]]) as f64,
+        "int" | "int32" => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        "uint" | "uint32" => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        "float" | "float32" => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        _ => f64::from_le_bytes(a),
+    }
+}
+
+#[derive(Debug)]
+struct Element {
+    name: String,
+    count: usize,
+    /// (name, type); `None` type for a list property.
+    properties: Vec<(String, Option<String>)>,
+}
+
+/// Reads the vertex positions of a PLY file.
+pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
+    let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    if bytes.is_empty() {
+        return Err(FileError::at(path, "empty file"));
+    }
+    let mut pos = 0;
+    let mut line_no = 0;
+    let mut format = None;
+    let mut elements: Vec<Element> = Vec::new();
+    loop {
+        line_no += 1;
+        let Some(len) = bytes[pos..].iter().position(|&b| b == b'\n') else {
+            return Err(FileError::at(path, "PLY header has no end_header line"));
+        };
+        let bad = |reason: String| FileError::new(path, Some(line_no), reason);
+        let line = std::str::from_utf8(&bytes[pos..pos + len])
+            .map_err(|_| bad("PLY header is not text".into()))?
+            .trim();
+        pos += len + 1;
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["ply"] if line_no == 1 => {}
+            _ if line_no == 1 => return Err(bad("not a PLY file (no 'ply' magic)".into())),
+            ["format", f, _] => {
+                format = Some(match *f {
+                    "ascii" => Format::Ascii,
+                    "binary_little_endian" => Format::Little,
+                    "binary_big_endian" => Format::Big,
+                    _ => return Err(bad(format!("unknown format {f:?}"))),
+                })
+            }
+            ["comment", ..] | ["obj_info", ..] | [] => {}
+            ["element", name, count] => elements.push(Element {
+                name: name.to_string(),
+                count: count
+                    .parse()
+                    .map_err(|_| bad(format!("element {name}: not a count: {count:?}")))?,
+                properties: Vec::new(),
+            }),
+            ["property", "list", _, _, name] => elements
+                .last_mut()
+                .ok_or_else(|| bad("property before any element".into()))?
+                .properties
+                .push((name.to_string(), None)),
+            ["property", t, name] => {
+                if type_size(t).is_none() {
+                    return Err(bad(format!("property {name}: unknown type {t:?}")));
+                }
+                elements
+                    .last_mut()
+                    .ok_or_else(|| bad("property before any element".into()))?
+                    .properties
+                    .push((name.to_string(), Some(t.to_string())));
+            }
+            ["end_header"] => break,
+            _ => return Err(bad(format!("not a PLY header line: {line:?}"))),
+        }
+    }
+    let format = format.ok_or_else(|| FileError::at(path, "PLY header has no format line"))?;
+    let vi = elements
+        .iter()
+        .position(|e| e.name == "vertex")
+        .ok_or_else(|| FileError::at(path, "PLY has no vertex element"))?;
+    let vertex = &elements[vi];
+    let index = |n: &str| {
+        vertex
+            .properties
+            .iter()
+            .position(|(p, _)| p == n)
+            .ok_or_else(|| FileError::at(path, format!("PLY vertex has no {n} property")))
+    };
+    let xyz = [index("x")?, index("y")?, index("z")?];
+    let fixed_size = |e: &Element| -> Option<usize> {
+        e.properties
+            .iter()
+            .map(|(_, t)| t.as_deref().and_then(type_size))
+            .sum()
+    };
+    let body = &bytes[pos..];
+    if format == Format::Ascii {
+        let text = std::str::from_utf8(body)
+            .map_err(|_| FileError::at(path, "ascii PLY data is not text"))?;
+        let skip: usize = elements[..vi].iter().map(|e| e.count).sum();
+        let mut lines = text.lines().filter(|l| !l.trim().is_empty()).skip(skip);
+        let mut out = Vec::with_capacity(vertex.count);
+        for i in 0..vertex.count {
+            let line = lines.next().ok_or_else(|| {
+                FileError::at(
+                    path,
+                    format!("truncated: {} vertices declared, {i} present", vertex.count),
+                )
+            })?;
+            let words: Vec<&str> = line.split_whitespace().collect();
+            let mut p = [0f32; 3];
+            for (c, &k) in xyz.iter().enumerate() {
+                let w = words.get(k).ok_or_else(|| {
+                    FileError::at(path, format!("vertex {i} has only {} values", words.len()))
+                })?;
+                p[c] = w.parse::<f32>().map_err(|_| {
+                    FileError::at(path, format!("vertex {i}: not a number: {w:?}"))
+                })?;
+            }
+            out.push(p);
+        }
+        return Ok(out);
+    }
+    let mut start = 0usize;
+    for e in &elements[..vi] {
+        let size = fixed_size(e).ok_or_else(|| {
+            FileError::at(
+                path,
+                format!("element {} before vertex has a list property", e.name),
+            )
+        })?;
+        start = start.saturating_add(size.saturating_mul(e.count));
+    }
+    let record = fixed_size(vertex)
+        .ok_or_else(|| FileError::at(path, "vertex element has a list property"))?;
+    let offsets: Vec<usize> = vertex
+        .properties
+        .iter()
+        .scan(0, |at, (_, t)| {
+            let o = *at;
+            *at += t.as_deref().and_then(type_size).unwrap_or(0);
+            Some(o)
+        })
+        .collect();
+    let need = start.saturating_add(record.saturating_mul(vertex.count));
+    if body.len() < need {
+        return Err(FileError::at(
+            path,
+            format!(
+                "truncated: {} vertices of {record} bytes need {need} bytes of data, found {}",
+                vertex.count,
+                body.len()
+            ),
+        ));
+    }
+    Ok(body[start..need]
+        .chunks_exact(record.max(1))
+        .map(|r| {
+            xyz.map(|k| {
+                let t = vertex.properties[k].1.as_deref().unwrap_or("float");
+                scalar(t, &r[offsets[k]..], format) as f32
+            })
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("slamesh-ply-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    }
+
+    #[test]
+    fn ascii_little_and_big_endian_files_read_the_same_points() {
+        let ascii = b"ply\nformat ascii 1.0\ncomment hi\nelement vertex 2\nproperty float x\n\
+property float y\nproperty float z\nproperty uchar red\nend_header\n1 2 3 255\n-4.5 0 6 0\n";
+        let want = vec![[1.0, 2.0, 3.0], [-4.5, 0.0, 6.0]];
+        assert_eq!(read_ply_points(&tmp("a.ply", ascii)).unwrap(), want);
+        for (name, big) in [("little", false), ("big", true)] {
+            let mut b = format!(
+                "ply\nformat binary_{name}_endian 1.0\nelement vertex 2\nproperty double x\n\
+property float y\nproperty float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n"
+            )
+            .into_bytes();
+            for p in &want {
+                let x = p[0] as f64;
+                b.extend(if big { x.to_be_bytes() } else { x.to_le_bytes() });
+                for v in &p[1..] {
+                    b.extend(if big { v.to_be_bytes() } else { v.to_le_bytes() });
+                }
+            }
+            assert_eq!(read_ply_points(&tmp(&format!("{name}.ply"), &b)).unwrap(), want);
+        }
+    }
+
+    #[test]
+    fn bad_files_are_errors_naming_the_file_and_reason() {
+        let cases: [(&str, &[u8], &str); 4] = [
+            ("empty.ply", b"", "empty"),
+            ("magic.ply", b"plx\nend_header\n", "not a PLY"),
+            ("noxyz.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float a\nend_header\n1\n", "no x"),
+            ("short.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 9\nproperty float x\nproperty float y\nproperty float z\nend_header\n\0\0\0\0", "truncated"),
+        ];
+        for (name, bytes, reason) in cases {
+            let e = read_ply_points(&tmp(name, bytes)).unwrap_err();
+            assert!(e.to_string().contains(name) && e.reason.contains(reason), "{e}");
+        }
+    }
+}

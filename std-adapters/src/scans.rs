@@ -1,0 +1,155 @@
+//! Scan inputs: a folder of point-cloud files (KITTI `.bin`, `.pcd`, `.ply`) read one frame at
+//! a time in natural file order (`2.pcd` before `10.pcd`), or a single such file.
+//!
+//! A KITTI sequence folder may be given instead of its `velodyne/` folder. A sequence folder
+//! with a `times.txt` (KITTI) gives the frames' timestamps; otherwise frames are 0.1 s apart.
+
+use crate::file_error::FileError;
+use crate::{kitti, pcd, ply};
+use slamesh_core::Point;
+use std::cmp::Ordering;
+use std::path::{Path, PathBuf};
+
+/// The extensions read as scans.
+pub const EXTENSIONS: [&str; 3] = ["bin", "pcd", "ply"];
+
+/// The scan files of an input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanFolder {
+    /// The scan files in natural order.
+    pub paths: Vec<PathBuf>,
+    /// One timestamp per file (seconds).
+    pub stamps: Vec<f64>,
+}
+
+impl ScanFolder {
+    /// Lists the scans of `input` (a folder, a KITTI sequence folder, or one file).
+    pub fn open(input: &Path) -> Result<Self, FileError> {
+        if input.is_file() {
+            return Ok(ScanFolder {
+                paths: vec![input.to_path_buf()],
+                stamps: vec![0.0],
+            });
+        }
+        if !input.exists() {
+            return Err(FileError::at(input, "no such file or folder"));
+        }
+        let velodyne = input.join("velodyne");
+        let dir = if velodyne.is_dir() {
+            velodyne
+        } else {
+            input.to_path_buf()
+        };
+        let entries = std::fs::read_dir(&dir).map_err(|e| FileError::at(&dir, e.to_string()))?;
+        let mut paths: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_file() && is_scan(p))
+            .collect();
+        paths.sort_by(|a, b| natural_cmp(&a.to_string_lossy(), &b.to_string_lossy()));
+        if paths.is_empty() {
+            return Err(FileError::at(
+                &dir,
+                "no scans in this folder (looked for .bin, .pcd and .ply files)",
+            ));
+        }
+        let stamps = read_times(&kitti::sequence_folder(&dir).join("times.txt"), paths.len())
+            .unwrap_or_else(|| (0..paths.len()).map(|i| i as f64 * 0.1).collect());
+        Ok(ScanFolder { paths, stamps })
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.paths.len()
+    }
+
+    /// True if there are no frames (never, for an opened folder).
+    pub fn is_empty(&self) -> bool {
+        self.paths.is_empty()
+    }
+}
+
+/// True if `path` has one of the [`EXTENSIONS`] (any case).
+pub fn is_scan(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// Reads one scan by its extension.
+pub fn read_scan(path: &Path) -> Result<Vec<Point>, FileError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("bin") => kitti::read_bin(path),
+        Some("pcd") => pcd::read_pcd(path),
+        Some("ply") => ply::read_ply_points(path),
+        _ => Err(FileError::at(path, "not a scan file (.bin, .pcd or .ply)")),
+    }
+}
+
+/// `times.txt` with one number a line, if it exists, parses, and covers `frames`.
+fn read_times(path: &Path, frames: usize) -> Option<Vec<f64>> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let t: Vec<f64> = text
+        .split_whitespace()
+        .map(|w| w.parse().ok())
+        .collect::<Option<_>>()?;
+    (t.len() >= frames).then(|| t[..frames].to_vec())
+}
+
+/// Natural order: runs of digits compare as numbers, everything else as text.
+pub fn natural_cmp(a: &str, b: &str) -> Ordering {
+    let (mut a, mut b) = (a.as_bytes(), b.as_bytes());
+    loop {
+        match (a.first(), b.first()) {
+            (None, None) => return Ordering::Equal,
+            (None, _) => return Ordering::Less,
+            (_, None) => return Ordering::Greater,
+            (Some(x), Some(y)) if x.is_ascii_digit() && y.is_ascii_digit() => {
+                let da = a.iter().take_while(|c| c.is_ascii_digit()).count();
+                let db = b.iter().take_while(|c| c.is_ascii_digit()).count();
+                let strip = |d: &[u8]| {
+                    let z = d.iter().take_while(|&&c| c == b'0').count();
+                    d[z..].to_vec()
+                };
+                let (na, nb) = (strip(&a[..da]), strip(&b[..db]));
+                let ord = na.len().cmp(&nb.len()).then_with(|| na.cmp(&nb));
+                if ord != Ordering::Equal {
+                    return ord;
+                }
+                (a, b) = (&a[da..], &b[db..]);
+            }
+            (Some(x), Some(y)) => {
+                if x != y {
+                    return x.cmp(y);
+                }
+                (a, b) = (&a[1..], &b[1..]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn natural_order_sorts_numbers_by_value() {
+        let mut v = vec!["scan10.pcd", "scan2.pcd", "scan1.pcd", "scan02b.pcd", "a.pcd"];
+        v.sort_by(|a, b| natural_cmp(a, b));
+        assert_eq!(v, ["a.pcd", "scan1.pcd", "scan2.pcd", "scan02b.pcd", "scan10.pcd"]);
+        assert_eq!(natural_cmp("000009.bin", "000010.bin"), Ordering::Less);
+    }
+
+    #[test]
+    fn a_folder_without_scans_is_an_error_naming_it() {
+        let dir = std::env::temp_dir().join(format!("slamesh-noscans-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("notes.txt"), "hi").unwrap();
+        let e = ScanFolder::open(&dir).unwrap_err();
+        assert!(e.reason.contains("no scans") && e.to_string().contains("slamesh-noscans"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

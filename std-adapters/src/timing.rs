@@ -1,0 +1,84 @@
+//! Wall-clock time per pipeline stage, through the core's [`Probe`].
+
+use slamesh_core::{Probe, Stage};
+use std::time::{Duration, Instant};
+
+/// Milliseconds per stage of one scan, plus the std-side stages.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct StageMs {
+    /// Reading the scan file.
+    pub read: f64,
+    /// Range filter and down-sampling.
+    pub filter: f64,
+    /// Bucketing (all rounds).
+    pub bucket: f64,
+    /// GP reconstruction (all rounds).
+    pub reconstruct: f64,
+    /// Association (all rounds).
+    pub associate: f64,
+    /// Levenberg-Marquardt (all rounds).
+    pub solve: f64,
+    /// Map fusion.
+    pub update: f64,
+    /// Mesh extraction of the cells this scan updated.
+    pub mesh: f64,
+    /// Sliding-window eviction.
+    pub evict: f64,
+    /// Everything above but reading.
+    pub total: f64,
+}
+
+impl StageMs {
+    /// The per-scan pipeline time: filter to mesh (no reading, no eviction).
+    pub fn pipeline(&self) -> f64 {
+        self.filter + self.bucket + self.reconstruct + self.associate + self.solve + self.update + self.mesh
+    }
+}
+
+/// A [`Probe`] that adds up the time spent in each core stage.
+#[derive(Debug, Default)]
+pub struct StageTimer {
+    current: Option<(Stage, Instant)>,
+    spent: [Duration; 6],
+}
+
+impl StageTimer {
+    /// A timer with nothing recorded.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The time recorded so far, then cleared.
+    pub fn take(&mut self) -> StageMs {
+        let ms = |s: Stage| {
+            let i = Stage::WORKING.iter().position(|&w| w == s).unwrap_or(0);
+            self.spent[i].as_secs_f64() * 1e3
+        };
+        let out = StageMs {
+            filter: ms(Stage::Filter),
+            bucket: ms(Stage::Bucket),
+            reconstruct: ms(Stage::Reconstruct),
+            associate: ms(Stage::Associate),
+            solve: ms(Stage::Solve),
+            update: ms(Stage::Update),
+            ..StageMs::default()
+        };
+        self.spent = Default::default();
+        self.current = None;
+        out
+    }
+}
+
+impl Probe for StageTimer {
+    fn enter(&mut self, stage: Stage) {
+        let now = Instant::now();
+        if let Some((s, since)) = self.current.take() {
+            if let Some(i) = Stage::WORKING.iter().position(|&w| w == s) {
+                self.spent[i] += now - since;
+            }
+        }
+        if stage != Stage::Done {
+            self.current = Some((stage, now));
+        }
+    }
+}

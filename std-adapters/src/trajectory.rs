@@ -1,0 +1,176 @@
+//! Trajectories on disk: KITTI (12 numbers a line, row-major `[R | t]`) and TUM
+//! (`timestamp tx ty tz qx qy qz qw`). Reading detects the format from the first pose line.
+
+use crate::file_error::FileError;
+use nalgebra::{Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
+use slamesh_core::Pose;
+use std::io::Write;
+use std::path::Path;
+
+/// Trajectory file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// KITTI odometry: 12 numbers a line.
+    Kitti,
+    /// TUM RGB-D: timestamp, translation, quaternion (x y z w).
+    Tum,
+}
+
+/// A read trajectory: poses, with timestamps for TUM files.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// The format it was read from.
+    pub format: Format,
+    /// Timestamps in seconds (TUM only).
+    pub stamps: Option<Vec<f64>>,
+    /// The poses, one per line.
+    pub poses: Vec<Pose>,
+}
+
+/// Parses the whitespace-separated numbers of `text` (line `line_no` of `path`).
+pub(crate) fn parse_numbers(path: &Path, line_no: usize, text: &str) -> Result<Vec<f64>, FileError> {
+    text.split_whitespace()
+        .map(|w| {
+            w.parse::<f64>()
+                .map_err(|_| FileError::new(path, Some(line_no), format!("not a number: {w:?}")))
+        })
+        .collect()
+}
+
+/// A pose from 12 row-major `[R | t]` numbers; `None` if not finite. The rotation is
+/// re-orthonormalised (KITTI files carry 9 significant digits).
+pub(crate) fn pose_from_row(v: &[f64]) -> Option<Pose> {
+    if v.len() != 12 || !v.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let m = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
+    let r = Rotation3::from_matrix_eps(&m, 1e-12, 100, Rotation3::identity());
+    let t = Translation3::new(v[3], v[7], v[11]);
+    Some(Pose::from_parts(t, UnitQuaternion::from_rotation_matrix(&r)))
+}
+
+/// Reads a trajectory, KITTI or TUM, by the count of numbers on its first pose line (`#`
+/// lines and blank lines are skipped).
+pub fn read(path: &Path) -> Result<Trajectory, FileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    let mut format = None;
+    let mut stamps = Vec::new();
+    let mut poses = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let v = parse_numbers(path, i + 1, line)?;
+        let f = *format.get_or_insert(match v.len() {
+            12 => Format::Kitti,
+            8 => Format::Tum,
+            n => {
+                return Err(FileError::new(
+                    path,
+                    Some(i + 1),
+                    format!("{n} numbers: neither KITTI (12) nor TUM (8)"),
+                ))
+            }
+        });
+        let want = if f == Format::Kitti { 12 } else { 8 };
+        if v.len() != want {
+            return Err(FileError::new(
+                path,
+                Some(i + 1),
+                format!("expected {want} numbers like the first line, found {}", v.len()),
+            ));
+        }
+        let pose = match f {
+            Format::Kitti => pose_from_row(&v),
+            Format::Tum => {
+                let q = Quaternion::new(v[7], v[4], v[5], v[6]);
+                (v.iter().all(|x| x.is_finite()) && q.norm() > 1e-9).then(|| {
+                    Pose::from_parts(
+                        Translation3::new(v[1], v[2], v[3]),
+                        UnitQuaternion::from_quaternion(q),
+                    )
+                })
+            }
+        };
+        poses.push(pose.ok_or_else(|| FileError::new(path, Some(i + 1), "not a finite pose"))?);
+        if f == Format::Tum {
+            stamps.push(v[0]);
+        }
+    }
+    let format = format.ok_or_else(|| FileError::at(path, "no poses in this file"))?;
+    Ok(Trajectory {
+        format,
+        stamps: (format == Format::Tum).then_some(stamps),
+        poses,
+    })
+}
+
+/// Reads a KITTI trajectory (an error if the file is TUM).
+pub fn read_kitti(path: &Path) -> Result<Vec<Pose>, FileError> {
+    let t = read(path)?;
+    if t.format != Format::Kitti {
+        return Err(FileError::at(path, "expected a KITTI trajectory (12 numbers a line)"));
+    }
+    Ok(t.poses)
+}
+
+/// Writes one KITTI line: the row-major 3x4 `[R | t]`.
+pub fn write_kitti_line(w: &mut impl Write, p: &Pose) -> std::io::Result<()> {
+    let m = p.to_homogeneous();
+    for r in 0..3 {
+        for c in 0..4 {
+            let sep = if r == 2 && c == 3 { "\n" } else { " " };
+            write!(w, "{:.9e}{sep}", m[(r, c)])?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes one TUM line: `timestamp tx ty tz qx qy qz qw`.
+pub fn write_tum_line(w: &mut impl Write, stamp: f64, p: &Pose) -> std::io::Result<()> {
+    let t = p.translation.vector;
+    let q = p.rotation.coords; // x, y, z, w
+    writeln!(
+        w,
+        "{stamp:.6} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}",
+        t.x, t.y, t.z, q[0], q[1], q[2], q[3]
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_formats_round_trip_and_are_detected() {
+        let poses = [
+            Pose::identity(),
+            Pose::from_parts(
+                Translation3::new(1.0, -2.0, 3.5),
+                UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
+            ),
+        ];
+        let dir = std::env::temp_dir().join(format!("slamesh-traj-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (mut kitti, mut tum) = (Vec::new(), b"# timestamp tx ty tz qx qy qz qw\n".to_vec());
+        for (i, p) in poses.iter().enumerate() {
+            write_kitti_line(&mut kitti, p).unwrap();
+            write_tum_line(&mut tum, i as f64 * 0.1, p).unwrap();
+        }
+        for (name, bytes, format) in [("k.txt", kitti, Format::Kitti), ("t.txt", tum, Format::Tum)] {
+            let path = dir.join(name);
+            std::fs::write(&path, bytes).unwrap();
+            let t = read(&path).unwrap();
+            assert_eq!(t.format, format);
+            for (a, b) in t.poses.iter().zip(&poses) {
+                assert!((a.translation.vector - b.translation.vector).norm() < 1e-8);
+                assert!(a.rotation.angle_to(&b.rotation) < 1e-8);
+            }
+        }
+        std::fs::write(dir.join("bad.txt"), "1 2 3\n").unwrap();
+        let e = read(&dir.join("bad.txt")).unwrap_err();
+        assert!(e.to_string().contains("bad.txt:1") && e.reason.contains("neither"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,181 @@
+//! Sliding-window map eviction for long runs on small computers.
+//!
+//! After each scan, cells leave the map when they were not seen for `max_age_frames` frames,
+//! when their centre is farther than `radius_m` from the sensor, or, oldest first, when the map
+//! holds more layers than a memory cap allows. Evicted layers can be shown to a callback first
+//! (the run appends them to the output mesh), so nothing is lost.
+//!
+//! The memory cap: the core's buffers except the layer pool are allocated up front and count in
+//! full ([`fixed_bytes`]); the layer pool counts per layer in use. [`Window::max_layers`] turns
+//! a cap in bytes into a layer budget, leaving room for one scan's worth of new layers, so that
+//! the map never holds more than the cap allows even in the middle of a scan.
+
+use slamesh_core::cell::CellKey;
+use slamesh_core::layer::Layer;
+use slamesh_core::map::{LayerRef, MeshMap};
+use slamesh_core::{Capacity, Pose};
+use std::mem::size_of;
+
+/// Bytes one map layer costs (its pool slot and free-list entry).
+pub const LAYER_BYTES: usize = size_of::<Layer>() + size_of::<u32>();
+
+/// Heap bytes of a pipeline with capacities `C` other than its layer pool: scan buffers and the
+/// map's hash table, counted in full.
+pub fn fixed_bytes<C: Capacity>() -> usize {
+    C::memory_bytes() - C::MAP_LAYERS * LAYER_BYTES
+}
+
+/// When cells leave the map.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Window {
+    /// Evict cells not seen for more than this many frames.
+    pub max_age_frames: Option<u32>,
+    /// Evict cells whose centre is farther than this from the sensor (metres).
+    pub radius_m: Option<f64>,
+    /// Evict the oldest cells while the map holds more than this many layers.
+    pub max_layers: Option<usize>,
+}
+
+/// Why a memory cap cannot be met.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CapTooSmall {
+    /// The smallest cap (bytes) that leaves room for the map.
+    pub needed_bytes: usize,
+}
+
+impl Window {
+    /// The layer budget under a memory cap of `cap_bytes`, of which `other_bytes` go to the
+    /// rest of the process (code, IO buffers, threads): what is left after the fixed buffers
+    /// and one scan's worth of layers (capped at the map's capacity).
+    pub fn max_layers<C: Capacity>(cap_bytes: usize, other_bytes: usize) -> Result<usize, CapTooSmall> {
+        let reserved = fixed_bytes::<C>() + other_bytes + C::SCAN_LAYERS * LAYER_BYTES;
+        let needed_bytes = reserved + C::SCAN_LAYERS * LAYER_BYTES;
+        if cap_bytes < needed_bytes {
+            return Err(CapTooSmall { needed_bytes });
+        }
+        Ok(((cap_bytes - reserved) / LAYER_BYTES).min(C::MAP_LAYERS))
+    }
+
+    /// True if no rule is set.
+    pub fn is_off(&self) -> bool {
+        self.max_age_frames.is_none() && self.radius_m.is_none() && self.max_layers.is_none()
+    }
+
+    /// Applies the rules after scan `frame` seen from `sensor`; shows each evicted layer to
+    /// `on_evicted` first. Returns the number of cells evicted.
+    pub fn evict(
+        &self,
+        map: &mut MeshMap,
+        frame: u32,
+        sensor: &Pose,
+        mut on_evicted: impl FnMut(LayerRef<'_>),
+    ) -> usize {
+        let cell_size = map.lattice().cell_size;
+        let centre = sensor.translation.vector;
+        let far = |key: &CellKey| {
+            self.radius_m.is_some_and(|r| {
+                let c = key.min_corner(cell_size).add_scalar(cell_size / 2.0);
+                (c - centre).norm() > r
+            })
+        };
+        let old = |seen: u32| {
+            self.max_age_frames
+                .is_some_and(|a| frame.saturating_sub(seen) > a)
+        };
+        let mut evicted = 0;
+        if self.max_age_frames.is_some() || self.radius_m.is_some() {
+            evicted += map.evict_where(|k, c| old(c.last_seen) || far(k), &mut on_evicted);
+        }
+        if let Some(budget) = self.max_layers {
+            if map.layer_count() > budget {
+                let cutoff = oldest_cutoff(map, budget);
+                evicted += map.evict_where(|_, c| c.last_seen <= cutoff, &mut on_evicted);
+            }
+        }
+        evicted
+    }
+}
+
+/// The largest `last_seen` such that evicting every cell seen at or before it leaves at most
+/// `budget` layers.
+fn oldest_cutoff(map: &MeshMap, budget: usize) -> u32 {
+    let mut by_age: Vec<(u32, usize)> = map
+        .cells()
+        .map(|(_, c)| (c.last_seen, c.axes().count()))
+        .collect();
+    by_age.sort_unstable_by(|a, b| b.0.cmp(&a.0));
+    let mut kept = 0;
+    for &(seen, layers) in &by_age {
+        kept += layers;
+        if kept > budget {
+            // Keep only cells seen after `seen` (ties go too).
+            return seen;
+        }
+    }
+    0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slamesh_core::cell::Axis;
+    use slamesh_core::lattice::{Lattice, VERTICES};
+    use slamesh_core::{KittiCapacity, SmallCapacity};
+
+    /// Cells 0..10 along x (1 m apart), cell i seen at frame i, one layer each.
+    fn map() -> MeshMap {
+        let lattice = Lattice {
+            cell_size: 1.0,
+            full_cover: true,
+        };
+        let mut m = MeshMap::with_capacity(16, 16, lattice);
+        let layer = Layer {
+            pred: [0.5; VERTICES],
+            var: [0.01; VERTICES],
+        };
+        for i in 0..10 {
+            m.insert_layer(CellKey::new(i, 0, 0), Axis::Z, layer, i as u32).unwrap();
+        }
+        m
+    }
+
+    fn xs(m: &MeshMap) -> Vec<i32> {
+        let mut v: Vec<i32> = m.cells().map(|(k, _)| k.get(Axis::X)).collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn each_rule_evicts_what_it_says_and_shows_the_layers_first() {
+        let at = |x: f64| slamesh_core::Pose::translation(x, 0.5, 0.5);
+        let mut m = map();
+        let mut shown = 0;
+        let w = Window { max_age_frames: Some(3), ..Window::default() };
+        assert_eq!(w.evict(&mut m, 9, &at(9.5), |_| shown += 1), 6);
+        assert_eq!((xs(&m), shown), (vec![6, 7, 8, 9], 6));
+
+        let mut m = map();
+        let w = Window { radius_m: Some(2.5), ..Window::default() };
+        w.evict(&mut m, 9, &at(4.5), |_| {});
+        assert_eq!(xs(&m), vec![2, 3, 4, 5, 6]);
+
+        let mut m = map();
+        let w = Window { max_layers: Some(4), ..Window::default() };
+        w.evict(&mut m, 9, &at(0.0), |_| {});
+        assert_eq!(xs(&m), vec![6, 7, 8, 9]);
+        assert_eq!(m.layer_count(), 4);
+        assert!(Window::default().is_off());
+    }
+
+    #[test]
+    fn the_layer_budget_follows_the_cap() {
+        let fixed = fixed_bytes::<KittiCapacity>();
+        let scan = KittiCapacity::SCAN_LAYERS * LAYER_BYTES;
+        let e = Window::max_layers::<KittiCapacity>(fixed, 0).unwrap_err();
+        assert_eq!(e.needed_bytes, fixed + 2 * scan);
+        let n = Window::max_layers::<KittiCapacity>(fixed + 2 * scan + 1000 * LAYER_BYTES, 7).unwrap();
+        assert_eq!(n, KittiCapacity::SCAN_LAYERS + 1000 - 1, "7 bytes for the rest cost a layer");
+        let all = Window::max_layers::<SmallCapacity>(usize::MAX / 2, 0).unwrap();
+        assert_eq!(all, SmallCapacity::MAP_LAYERS);
+    }
+}
