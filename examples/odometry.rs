@@ -8,7 +8,8 @@
 use slamesh::eval::consecutive_errors;
 use slamesh::kitti;
 use slamesh::parallel::Rayon;
-use slamesh_core::{Config, Pipeline};
+use slamesh::scans::ScanFolder;
+use slamesh_core::{Config, NoProbe, Pipeline};
 use std::path::Path;
 use std::time::Instant;
 
@@ -36,18 +37,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     for dir in &dirs {
         let dir = Path::new(dir);
-        let reference = kitti::lidar_poses(
-            &kitti::read_poses(&dir.join("poses.txt"))?,
-            &kitti::read_calib_tr(&dir.join("calib.txt"))?,
-        );
+        let reference = kitti::reference_lidar_poses(dir)?;
         let mut pipeline = Pipeline::<slamesh_core::KittiCapacity>::new(Config::kitti())?;
         let mut poses = Vec::new();
         let mut ms = Vec::new();
-        for path in kitti::scan_paths(dir)? {
+        for path in ScanFolder::open(dir)?.paths {
             let scan = kitti::read_bin(&path)?;
             let start = Instant::now();
             let out = match &rayon {
-                Some(r) => pipeline.process_scan_with(&scan, r)?,
+                Some(r) => pipeline.process_scan_with(&scan, r, &mut NoProbe)?,
                 None => pipeline.process_scan(&scan)?,
             };
             ms.push(start.elapsed().as_secs_f64() * 1e3);

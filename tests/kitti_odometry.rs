@@ -1,66 +1,42 @@
-//! Odometry on real KITTI scans against reference poses (`SLAMESH_DATA`).
+//! Odometry on real KITTI scans through the `slamesh` command (`SLAMESH_DATA`).
 //!
-//! Runs the core pipeline frame by frame with the `kitti` preset on kitti-mini sequences 00-04
-//! and checks the consecutive-frame errors: mean translation at most 3.0 cm over the five
-//! sequences, no sequence above 5 cm, mean rotation at most 0.07 degree. Without
-//! `SLAMESH_DATA` it prints that it skipped; with it, a missing file is a failure.
+//! `slamesh run <seq> --preset kitti` on kitti-mini sequences 00-04, then the written
+//! `poses_kitti.txt` against the reference: mean consecutive-frame translation error at most
+//! 3.0 cm over the five sequences, no sequence above 5 cm, mean rotation at most 0.07 degree.
+//! Then: one and two threads, and a repeated run, write identical trajectories and meshes.
+//! Without `SLAMESH_DATA` it prints that it skipped; with it, a missing file is a failure.
 
+mod common;
+
+use common::{kitti_mini, scratch, slamesh_ok};
 use slamesh::eval::consecutive_errors;
-use slamesh::kitti;
-use slamesh_core::{Config, KittiCapacity, Pipeline, Pose};
-use std::path::PathBuf;
+use slamesh::{kitti, trajectory};
 
 const SEQUENCES: [&str; 5] = ["00", "01", "02", "03", "04"];
 
-/// `SLAMESH_DATA/kitti-mini`; a relative `SLAMESH_DATA` is taken from the workspace root
-/// (cargo runs tests in the package folder).
-fn data_dir() -> Option<PathBuf> {
-    match std::env::var_os("SLAMESH_DATA") {
-        Some(d) => {
-            let d = PathBuf::from(d);
-            let d = if d.is_relative() {
-                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(d)
-            } else {
-                d
-            };
-            Some(d.join("kitti-mini"))
-        }
-        None => {
-            println!("skipped: SLAMESH_DATA is not set");
-            None
-        }
-    }
-}
-
-fn run_sequence(dir: &std::path::Path) -> Vec<Pose> {
-    let mut pipeline = Pipeline::<KittiCapacity>::new(Config::kitti()).unwrap();
-    let paths = kitti::scan_paths(dir).unwrap();
-    assert_eq!(paths.len(), 10, "{}: expected 10 scans", dir.display());
-    paths
-        .iter()
-        .map(|p| {
-            let scan = kitti::read_bin(p).unwrap();
-            pipeline
-                .process_scan(&scan)
-                .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
-                .t_world_sensor
-        })
-        .collect()
-}
-
 #[test]
-fn kitti_mini_consecutive_frame_errors() {
-    let Some(root) = data_dir() else { return };
+fn kitti_mini_consecutive_frame_errors_through_the_command() {
+    let Some(root) = kitti_mini() else { return };
+    let out = scratch("kitti-odometry");
     let (mut t_sum, mut r_sum) = (0.0, 0.0);
     println!("| sequence | translation [cm] | worst step [cm] | rotation [deg] |");
     println!("|---|---|---|---|");
     let mut worst_sequence = 0.0f64;
     for seq in SEQUENCES {
         let dir = root.join(seq);
-        let tr = kitti::read_calib_tr(&dir.join("calib.txt")).unwrap();
-        let reference =
-            kitti::lidar_poses(&kitti::read_poses(&dir.join("poses.txt")).unwrap(), &tr);
-        let estimate = run_sequence(&dir);
+        let o = out.join(seq);
+        slamesh_ok(&[
+            "run",
+            dir.to_str().unwrap(),
+            "--out",
+            o.to_str().unwrap(),
+            "--preset",
+            "kitti",
+            "-q",
+        ]);
+        let reference = kitti::reference_lidar_poses(&dir).unwrap();
+        let estimate = trajectory::read_kitti(&o.join("poses_kitti.txt")).unwrap();
+        assert_eq!(estimate.len(), 10, "{seq}: one pose per scan");
         let e = consecutive_errors(&estimate, &reference);
         assert_eq!(e.pairs, 9);
         println!(
@@ -90,13 +66,45 @@ fn kitti_mini_consecutive_frame_errors() {
         "mean rotation error {:.4} deg > 0.07 deg",
         r_sum / n
     );
+    std::fs::remove_dir_all(&out).unwrap();
 }
 
 #[test]
-fn kitti_runs_are_deterministic() {
-    let Some(root) = data_dir() else { return };
-    let dir = root.join("01");
-    let a = run_sequence(&dir);
-    let b = run_sequence(&dir);
-    assert_eq!(a, b, "two runs over the same scans gave different poses");
+fn threads_and_repeats_write_identical_outputs() {
+    let Some(root) = kitti_mini() else { return };
+    let input = root.join("01");
+    let out = scratch("kitti-identical");
+    let mut outputs = Vec::new();
+    for (name, threads) in [("serial", "1"), ("two", "2"), ("again", "2")] {
+        let o = out.join(name);
+        slamesh_ok(&[
+            "run",
+            input.to_str().unwrap(),
+            "--out",
+            o.to_str().unwrap(),
+            "--preset",
+            "kitti",
+            "--threads",
+            threads,
+            "-q",
+        ]);
+        let read = |f: &str| std::fs::read(o.join(f)).unwrap();
+        outputs.push((
+            name,
+            read("poses_kitti.txt"),
+            read("poses_tum.txt"),
+            read("mesh.ply"),
+        ));
+    }
+    let first = &outputs[0];
+    assert!(first.3.len() > 100_000, "a real mesh was written");
+    for o in &outputs[1..] {
+        assert!(
+            o.1 == first.1 && o.2 == first.2,
+            "{}: trajectories differ from serial",
+            o.0
+        );
+        assert!(o.3 == first.3, "{}: mesh differs from serial", o.0);
+    }
+    std::fs::remove_dir_all(&out).unwrap();
 }

@@ -3,7 +3,7 @@
 use slamesh::parallel::Rayon;
 use slamesh::sim::{sensor_pose, Lidar, Scene};
 use slamesh_core::reconstruct::{CellLoop, Serial};
-use slamesh_core::{Config, KittiCapacity, Pipeline, Pose};
+use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose};
 
 fn run(
     cells: &impl CellLoop,
@@ -13,7 +13,11 @@ fn run(
     let mut p = Pipeline::<KittiCapacity>::new(config).unwrap();
     let poses = scans
         .iter()
-        .map(|s| p.process_scan_with(s, cells).unwrap().t_world_sensor)
+        .map(|s| {
+            p.process_scan_with(s, cells, &mut NoProbe)
+                .unwrap()
+                .t_world_sensor
+        })
         .collect();
     (poses, p.triangles().collect())
 }

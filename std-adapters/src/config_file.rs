@@ -157,10 +157,22 @@ impl WindowSettings {
 }
 
 const WINDOW_DOCS: [(&str, &str); 4] = [
-    ("max_age_frames", "Evict cells not seen for more than this many frames."),
-    ("radius_m", "Evict cells whose centre is farther than this from the sensor (metres)."),
-    ("memory_cap_mb", "Evict the oldest cells so that the process stays under this many MB."),
-    ("save_evicted", "Append evicted cells to the output mesh, so nothing is lost."),
+    (
+        "max_age_frames",
+        "Evict cells not seen for more than this many frames.",
+    ),
+    (
+        "radius_m",
+        "Evict cells whose centre is farther than this from the sensor (metres).",
+    ),
+    (
+        "memory_cap_mb",
+        "Evict the oldest cells so that the process stays under this many MB.",
+    ),
+    (
+        "save_evicted",
+        "Append evicted cells to the output mesh, so nothing is lost.",
+    ),
 ];
 
 /// Reads a configuration file.
@@ -218,7 +230,10 @@ fn set_section(config: &mut Config, section: &str, t: &toml::Table) -> Result<()
                 if known.is_empty() {
                     format!("[{section}]: unknown section")
                 } else {
-                    format!("[{section}] {name}: unknown parameter (known: {})", known.join(", "))
+                    format!(
+                        "[{section}] {name}: unknown parameter (known: {})",
+                        known.join(", ")
+                    )
                 }
             })?;
         (p.set)(config, v).map_err(|e| format!("[{section}] {name}: {e}"))?;
@@ -237,7 +252,10 @@ fn read_window(t: &toml::Table) -> Result<WindowSettings, String> {
             "save_evicted" => w.save_evicted = boolean(v).map_err(e)?,
             _ => {
                 let known: Vec<&str> = WINDOW_DOCS.iter().map(|d| d.0).collect();
-                return Err(format!("[window] {name}: unknown parameter (known: {})", known.join(", ")));
+                return Err(format!(
+                    "[window] {name}: unknown parameter (known: {})",
+                    known.join(", ")
+                ));
             }
         }
     }
@@ -271,7 +289,11 @@ pub fn documented_toml(config: &Config, preset: &str) -> String {
     }
     s.push_str("\n# Sliding-window eviction for long runs (all off unless set).\n[window]\n");
     for (name, doc) in WINDOW_DOCS {
-        let example = if name == "save_evicted" { "true" } else { "..." };
+        let example = if name == "save_evicted" {
+            "true"
+        } else {
+            "..."
+        };
         let _ = writeln!(s, "# {doc}\n# {name} = {example}");
     }
     s
@@ -315,13 +337,22 @@ mod tests {
     #[test]
     fn mistakes_get_messages_that_name_them() {
         let cases = [
-            ("[grid]\ncell_sise_m = 2\n", "[grid] cell_sise_m: unknown parameter"),
-            ("[grid]\nmin_points = -3\n", "[grid] min_points: -3 is out of range"),
+            (
+                "[grid]\ncell_sise_m = 2\n",
+                "[grid] cell_sise_m: unknown parameter",
+            ),
+            (
+                "[grid]\nmin_points = -3\n",
+                "[grid] min_points: -3 is out of range",
+            ),
             ("[grid]\nfull_cover = 1\n", "expected true or false"),
             ("[gird]\nx = 1\n", "[gird]: unknown section"),
             ("preset = \"fast\"\n", "preset \"fast\" is not one of"),
             ("[grid]\ncell_size_m = -1.6\n", "cell_size_m"),
-            ("[window]\nradius_m = 0\n", "[window] radius_m: must be a positive"),
+            (
+                "[window]\nradius_m = 0\n",
+                "[window] radius_m: must be a positive",
+            ),
             ("[grid\n", "line 1"),
         ];
         for (text, want) in cases {

@@ -66,7 +66,10 @@ pub fn lidar_poses(camera_poses: &[Pose], tr: &Pose) -> Vec<Pose> {
 /// turned into the LiDAR frame with its `calib.txt`.
 pub fn reference_lidar_poses(sequence: &Path) -> Result<Vec<Pose>, FileError> {
     let camera = crate::trajectory::read_kitti(&sequence.join("poses.txt"))?;
-    Ok(lidar_poses(&camera, &read_calib_tr(&sequence.join("calib.txt"))?))
+    Ok(lidar_poses(
+        &camera,
+        &read_calib_tr(&sequence.join("calib.txt"))?,
+    ))
 }
 
 /// The sequence folder of a KITTI scan folder: the folder itself, or its parent when the

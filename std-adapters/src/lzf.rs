@@ -19,10 +19,15 @@ pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, String> 
             // A back reference: length in the top 3 bits (7 = read one more byte).
             let mut len = ctrl >> 5;
             if len == 7 {
-                len += *input.get(i).ok_or("LZF data ends inside a back reference")? as usize;
+                len += *input
+                    .get(i)
+                    .ok_or("LZF data ends inside a back reference")?
+                    as usize;
                 i += 1;
             }
-            let low = *input.get(i).ok_or("LZF data ends inside a back reference")? as usize;
+            let low = *input
+                .get(i)
+                .ok_or("LZF data ends inside a back reference")? as usize;
             i += 1;
             let back = ((ctrl & 0x1f) << 8) + low + 1;
             let start = out
@@ -76,7 +81,10 @@ mod tests {
     #[test]
     fn corrupt_data_is_an_error() {
         assert!(decompress(&[5, 1, 2], 6).is_err(), "short literal");
-        assert!(decompress(&[(1 << 5), 10], 3).is_err(), "reference before start");
+        assert!(
+            decompress(&[(1 << 5), 10], 3).is_err(),
+            "reference before start"
+        );
         assert!(decompress(&[0, 1], 2).is_err(), "length mismatch");
         assert!(decompress(&[0xe0], 9).is_err(), "truncated reference");
     }

@@ -18,7 +18,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "slamesh", version, about = "Real-time LiDAR localization and meshing")]
+#[command(
+    name = "slamesh",
+    version,
+    about = "Real-time LiDAR localization and meshing"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -150,7 +154,10 @@ fn settings(common: &Common, default_preset: &str) -> Result<Settings, String> {
         Some(path) => config_file::read(path).map_err(|e| e.to_string())?,
         None => {
             let name = common.preset.as_deref().unwrap_or(default_preset);
-            let preset = PRESETS.into_iter().find(|p| *p == name).unwrap_or("default");
+            let preset = PRESETS
+                .into_iter()
+                .find(|p| *p == name)
+                .unwrap_or("default");
             Settings {
                 config: config_file::preset(preset).unwrap_or_default(),
                 preset,
@@ -177,7 +184,11 @@ fn settings(common: &Common, default_preset: &str) -> Result<Settings, String> {
     Ok(s)
 }
 
-fn run_command(common: Common, default_preset: &str, given: Option<Vec<Pose>>) -> Result<(), String> {
+fn run_command(
+    common: Common,
+    default_preset: &str,
+    given: Option<Vec<Pose>>,
+) -> Result<(), String> {
     let s = settings(&common, default_preset)?;
     let mut source = ScanFolder::open(&common.input).map_err(|e| e.to_string())?;
     if let Some(p) = &given {
@@ -223,7 +234,11 @@ fn run_command(common: Common, default_preset: &str, given: Option<Vec<Pose>>) -
         if let Some(e) = &rec.error {
             bar.suspend(|| eprintln!("slamesh: skipped: {e}"));
         }
-        bar.set_message(format!("{} ms, {} MB", rec.ms.total.round(), rec.rss_mb.unwrap_or(0.0).round()));
+        bar.set_message(format!(
+            "{} ms, {} MB",
+            rec.ms.total.round(),
+            rec.rss_mb.unwrap_or(0.0).round()
+        ));
         bar.inc(1);
     })
     .map_err(|e| e.to_string())?;
@@ -258,7 +273,8 @@ fn print_summary(s: &Summary, out: &Path) {
         s.mesh_vertices,
         s.map_cells,
         s.evicted_cells,
-        s.peak_rss_mb.map_or("unknown".into(), |m| format!("{m:.0} MB"))
+        s.peak_rss_mb
+            .map_or("unknown".into(), |m| format!("{m:.0} MB"))
     );
     say!(
         "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json",
@@ -274,7 +290,12 @@ fn read_given_poses(path: &Path, calib: Option<&Path>) -> Result<Vec<Pose>, File
     })
 }
 
-fn eval_command(estimate: &Path, reference: &Path, calib: Option<&Path>, json: bool) -> Result<(), String> {
+fn eval_command(
+    estimate: &Path,
+    reference: &Path,
+    calib: Option<&Path>,
+    json: bool,
+) -> Result<(), String> {
     let est = trajectory::read(estimate).map_err(|e| e.to_string())?.poses;
     let reference = if reference.is_dir() {
         kitti::reference_lidar_poses(reference)
@@ -301,7 +322,11 @@ fn eval_command(estimate: &Path, reference: &Path, calib: Option<&Path>, json: b
     } else {
         0.0
     };
-    let drift_percent = if path_m > 0.0 { 100.0 * end_m / path_m } else { 0.0 };
+    let drift_percent = if path_m > 0.0 {
+        100.0 * end_m / path_m
+    } else {
+        0.0
+    };
     if json {
         say!(
             "{}",
@@ -317,9 +342,21 @@ fn eval_command(estimate: &Path, reference: &Path, calib: Option<&Path>, json: b
         );
     } else {
         say!("frame pairs:                 {}", e.pairs);
-        say!("consecutive translation:     mean {:.2} cm, max {:.2} cm", e.mean_translation_m * 100.0, e.max_translation_m * 100.0);
-        say!("consecutive rotation:        mean {:.4} deg", e.mean_rotation_deg);
-        say!("end-point error:             {:.3} m over {:.1} m ({:.3} %)", end_m, path_m, drift_percent);
+        say!(
+            "consecutive translation:     mean {:.2} cm, max {:.2} cm",
+            e.mean_translation_m * 100.0,
+            e.max_translation_m * 100.0
+        );
+        say!(
+            "consecutive rotation:        mean {:.4} deg",
+            e.mean_rotation_deg
+        );
+        say!(
+            "end-point error:             {:.3} m over {:.1} m ({:.3} %)",
+            end_m,
+            path_m,
+            drift_percent
+        );
     }
     Ok(())
 }

@@ -123,7 +123,10 @@ impl MeshSpool {
 
     /// Writes everything added to each `(path, format)` (atomically) and removes the spool.
     pub fn finish(mut self, outputs: &[(PathBuf, MeshFormat)]) -> Result<MeshCounts, FileError> {
-        for (w, p) in [(&mut self.vertices, &self.paths[0]), (&mut self.faces, &self.paths[1])] {
+        for (w, p) in [
+            (&mut self.vertices, &self.paths[0]),
+            (&mut self.faces, &self.paths[1]),
+        ] {
             w.flush()
                 .map_err(|e| FileError::at(p, format!("cannot write: {e}")))?;
         }
@@ -153,18 +156,35 @@ impl MeshSpool {
                     std::io::copy(&mut faces, w)?;
                 }
                 MeshFormat::Obj => {
-                    writeln!(w, "# slamesh mesh: {} vertices, {} triangles", counts.vertices, counts.triangles)?;
+                    writeln!(
+                        w,
+                        "# slamesh mesh: {} vertices, {} triangles",
+                        counts.vertices, counts.triangles
+                    )?;
                     let mut rec = [0u8; VERTEX_BYTES];
                     for _ in 0..counts.vertices {
                         vertices.read_exact(&mut rec)?;
-                        let f = |c: usize| f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]]);
+                        let f = |c: usize| {
+                            f32::from_le_bytes([
+                                rec[4 * c],
+                                rec[4 * c + 1],
+                                rec[4 * c + 2],
+                                rec[4 * c + 3],
+                            ])
+                        };
                         writeln!(w, "v {} {} {}", f(0), f(1), f(2))?;
                     }
                     let mut rec = [0u8; FACE_BYTES];
                     for _ in 0..counts.triangles {
                         faces.read_exact(&mut rec)?;
                         let i = |k: usize| {
-                            u32::from_le_bytes([rec[1 + 4 * k], rec[2 + 4 * k], rec[3 + 4 * k], rec[4 + 4 * k]]) as u64 + 1
+                            u32::from_le_bytes([
+                                rec[1 + 4 * k],
+                                rec[2 + 4 * k],
+                                rec[3 + 4 * k],
+                                rec[4 + 4 * k],
+                            ]) as u64
+                                + 1
                         };
                         writeln!(w, "f {} {} {}", i(0), i(1), i(2))?;
                     }
@@ -202,14 +222,24 @@ mod tests {
             var: [0.01; VERTICES],
         };
         layer.var[35] = 0.02;
-        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0).unwrap();
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0)
+            .unwrap();
         let dir = std::env::temp_dir().join(format!("slamesh-mesh-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let outputs = [(dir.join("m.ply"), MeshFormat::Ply), (dir.join("m.obj"), MeshFormat::Obj)];
+        let outputs = [
+            (dir.join("m.ply"), MeshFormat::Ply),
+            (dir.join("m.obj"), MeshFormat::Obj),
+        ];
         let mut spool = MeshSpool::new(&outputs[0].0, lattice, 0.1).unwrap();
         spool.add_map(&map).unwrap();
         let counts = spool.finish(&outputs).unwrap();
-        assert_eq!(counts, MeshCounts { vertices: 36, triangles: 50 });
+        assert_eq!(
+            counts,
+            MeshCounts {
+                vertices: 36,
+                triangles: 50
+            }
+        );
         for (target, format) in outputs {
             let text = std::fs::read(&target).unwrap();
             if format == MeshFormat::Ply {
@@ -218,7 +248,9 @@ mod tests {
                 assert!(pts.iter().all(|p| (p[2] - 0.5).abs() < 1e-6));
                 // The variance is the last float of each vertex record.
                 let body = &text[text.len() - 50 * FACE_BYTES - 36 * VERTEX_BYTES..];
-                let var = |i: usize| f32::from_le_bytes(body[i * 16 + 12..i * 16 + 16].try_into().unwrap());
+                let var = |i: usize| {
+                    f32::from_le_bytes(body[i * 16 + 12..i * 16 + 16].try_into().unwrap())
+                };
                 let mut vars: Vec<f32> = (0..36).map(var).collect();
                 vars.sort_by(f32::total_cmp);
                 assert_eq!((vars[0], vars[35]), (0.01, 0.02));
@@ -227,7 +259,11 @@ mod tests {
                 assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), 36);
                 assert_eq!(text.lines().filter(|l| l.starts_with("f ")).count(), 50);
             }
-            assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".spool")));
+            assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .ends_with(".spool")));
         }
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -93,7 +93,9 @@ impl CellLoop for Workers {
         out: &mut BoundedVec<ScanLayer>,
     ) -> usize {
         match self {
-            Workers::Serial => slamesh_core::reconstruct::Serial.run(cells, bucketed, map, cfg, out),
+            Workers::Serial => {
+                slamesh_core::reconstruct::Serial.run(cells, bucketed, map, cfg, out)
+            }
             Workers::Pool(r) => r.run(cells, bucketed, map, cfg, out),
         }
     }

@@ -393,17 +393,39 @@ COUNT 1 2 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n"
         b.extend_from_slice(&(-3.0f64).to_le_bytes());
         b.extend_from_slice(&9.5f64.to_le_bytes());
         b.push(200);
-        assert_eq!(read_pcd(&tmp("mixed.pcd", &b)).unwrap(), vec![[1.25, -3.0, 9.5]]);
+        assert_eq!(
+            read_pcd(&tmp("mixed.pcd", &b)).unwrap(),
+            vec![[1.25, -3.0, 9.5]]
+        );
     }
 
     #[test]
     fn bad_files_are_errors_naming_the_file_and_reason() {
         let cases: [(&str, Vec<u8>, &str); 5] = [
             ("empty.pcd", vec![], "empty"),
-            ("garbage.pcd", b"hello world\nDATA ascii\n".to_vec(), "not a PCD header"),
-            ("noxyz.pcd", b"FIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nPOINTS 0\nDATA ascii\n".to_vec(), "no x field"),
-            ("short.pcd", { let b = encode_pcd(&[[1.0; 3]; 4], "binary"); b[..b.len() - 5].to_vec() }, "truncated"),
-            ("nodata.pcd", b"FIELDS x y z\nSIZE 4 4 4\n".to_vec(), "ends before"),
+            (
+                "garbage.pcd",
+                b"hello world\nDATA ascii\n".to_vec(),
+                "not a PCD header",
+            ),
+            (
+                "noxyz.pcd",
+                b"FIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nPOINTS 0\nDATA ascii\n".to_vec(),
+                "no x field",
+            ),
+            (
+                "short.pcd",
+                {
+                    let b = encode_pcd(&[[1.0; 3]; 4], "binary");
+                    b[..b.len() - 5].to_vec()
+                },
+                "truncated",
+            ),
+            (
+                "nodata.pcd",
+                b"FIELDS x y z\nSIZE 4 4 4\n".to_vec(),
+                "ends before",
+            ),
         ];
         for (name, bytes, reason) in cases {
             let e = read_pcd(&tmp(name, &bytes)).unwrap_err();

@@ -154,9 +154,9 @@ pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
                 let w = words.get(k).ok_or_else(|| {
                     FileError::at(path, format!("vertex {i} has only {} values", words.len()))
                 })?;
-                p[c] = w.parse::<f32>().map_err(|_| {
-                    FileError::at(path, format!("vertex {i}: not a number: {w:?}"))
-                })?;
+                p[c] = w
+                    .parse::<f32>()
+                    .map_err(|_| FileError::at(path, format!("vertex {i}: not a number: {w:?}")))?;
             }
             out.push(p);
         }
@@ -231,12 +231,23 @@ property float y\nproperty float z\nelement face 0\nproperty list uchar int vert
             .into_bytes();
             for p in &want {
                 let x = p[0] as f64;
-                b.extend(if big { x.to_be_bytes() } else { x.to_le_bytes() });
+                b.extend(if big {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                });
                 for v in &p[1..] {
-                    b.extend(if big { v.to_be_bytes() } else { v.to_le_bytes() });
+                    b.extend(if big {
+                        v.to_be_bytes()
+                    } else {
+                        v.to_le_bytes()
+                    });
                 }
             }
-            assert_eq!(read_ply_points(&tmp(&format!("{name}.ply"), &b)).unwrap(), want);
+            assert_eq!(
+                read_ply_points(&tmp(&format!("{name}.ply"), &b)).unwrap(),
+                want
+            );
         }
     }
 
@@ -250,7 +261,10 @@ property float y\nproperty float z\nelement face 0\nproperty list uchar int vert
         ];
         for (name, bytes, reason) in cases {
             let e = read_ply_points(&tmp(name, bytes)).unwrap_err();
-            assert!(e.to_string().contains(name) && e.reason.contains(reason), "{e}");
+            assert!(
+                e.to_string().contains(name) && e.reason.contains(reason),
+                "{e}"
+            );
         }
     }
 }

@@ -137,9 +137,24 @@ mod tests {
 
     #[test]
     fn natural_order_sorts_numbers_by_value() {
-        let mut v = vec!["scan10.pcd", "scan2.pcd", "scan1.pcd", "scan02b.pcd", "a.pcd"];
+        let mut v = vec![
+            "scan10.pcd",
+            "scan2.pcd",
+            "scan1.pcd",
+            "scan02b.pcd",
+            "a.pcd",
+        ];
         v.sort_by(|a, b| natural_cmp(a, b));
-        assert_eq!(v, ["a.pcd", "scan1.pcd", "scan2.pcd", "scan02b.pcd", "scan10.pcd"]);
+        assert_eq!(
+            v,
+            [
+                "a.pcd",
+                "scan1.pcd",
+                "scan2.pcd",
+                "scan02b.pcd",
+                "scan10.pcd"
+            ]
+        );
         assert_eq!(natural_cmp("000009.bin", "000010.bin"), Ordering::Less);
     }
 

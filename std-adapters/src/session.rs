@@ -194,7 +194,8 @@ pub fn run<C: Capacity>(
     let out = &opts.out;
     std::fs::create_dir_all(out)
         .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
-    let workers = Workers::new(opts.threads).map_err(|e| RunError::Config(format!("threads: {e}")))?;
+    let workers =
+        Workers::new(opts.threads).map_err(|e| RunError::Config(format!("threads: {e}")))?;
     let mut window = opts.window.rules();
     let mut max_layers = None;
     if let Some(cap) = opts.window.memory_cap_mb {
@@ -208,8 +209,8 @@ pub fn run<C: Capacity>(
         window.max_layers = Some(budget);
         max_layers = Some(budget);
     }
-    let mut pipeline =
-        Pipeline::<C>::new(opts.config).map_err(|e| RunError::Config(format!("{}: {}", e.field, e.reason)))?;
+    let mut pipeline = Pipeline::<C>::new(opts.config)
+        .map_err(|e| RunError::Config(format!("{}: {}", e.field, e.reason)))?;
     let show = opts.config.mesh.variance_show;
     let mesh_path = out.join("mesh.ply");
     let mut spool = MeshSpool::new(&mesh_path, opts.config.lattice(), show)?;
@@ -273,11 +274,12 @@ pub fn run<C: Capacity>(
                 rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
                 let t = Instant::now();
                 if !window.is_off() {
-                    rec.evicted_cells = window.evict(pipeline.map_mut(), o.stats.frame, &o.t_world_sensor, |l| {
-                        if opts.window.save_evicted && spool_error.is_none() {
-                            spool_error = spool.add_layer(l).err();
-                        }
-                    });
+                    rec.evicted_cells =
+                        window.evict(pipeline.map_mut(), o.stats.frame, &o.t_world_sensor, |l| {
+                            if opts.window.save_evicted && spool_error.is_none() {
+                                spool_error = spool.add_layer(l).err();
+                            }
+                        });
                     evicted_total += rec.evicted_cells;
                 }
                 rec.ms.evict = t.elapsed().as_secs_f64() * 1e3;
@@ -368,33 +370,39 @@ fn updated_triangles(map: &slamesh_core::map::MeshMap, frame: u32, show: f64) ->
 }
 
 fn spreads(ms: &[StageMs]) -> Vec<(String, Spread)> {
-    let stages: [(&str, fn(&StageMs) -> f64); 10] = [
-        ("read", |m| m.read),
-        ("filter", |m| m.filter),
-        ("bucket", |m| m.bucket),
-        ("reconstruct", |m| m.reconstruct),
-        ("associate", |m| m.associate),
-        ("solve", |m| m.solve),
-        ("update", |m| m.update),
-        ("mesh", |m| m.mesh),
-        ("evict", |m| m.evict),
-        ("total", |m| m.total),
-    ];
-    stages
-        .iter()
-        .map(|(name, get)| {
-            let mut v: Vec<f64> = ms.iter().map(get).collect();
+    (0..StageMs::NAMES.len())
+        .map(|k| {
+            let mut v: Vec<f64> = ms.iter().map(|m| m.values()[k]).collect();
             v.sort_by(f64::total_cmp);
-            let at = |q: f64| v.get(((v.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(0.0);
-            (name.to_string(), Spread { median: at(0.5), p95: at(0.95) })
+            let at = |q: f64| {
+                v.get(((v.len() as f64 - 1.0) * q).round() as usize)
+                    .copied()
+                    .unwrap_or(0.0)
+            };
+            (
+                StageMs::NAMES[k].to_string(),
+                Spread {
+                    median: at(0.5),
+                    p95: at(0.95),
+                },
+            )
         })
         .collect()
 }
 
-fn write_trajectories(out: &Path, source: &impl FrameSource, poses: &[(usize, Pose)]) -> Result<(), FileError> {
+fn write_trajectories(
+    out: &Path,
+    source: &impl FrameSource,
+    poses: &[(usize, Pose)],
+) -> Result<(), FileError> {
     write_atomic(&out.join("poses_tum.txt"), |w| {
-        writeln!(w, "# timestamp tx ty tz qx qy qz qw (LiDAR pose in the first LiDAR frame)")?;
-        poses.iter().try_for_each(|(i, p)| write_tum_line(w, source.stamp(*i), p))
+        writeln!(
+            w,
+            "# timestamp tx ty tz qx qy qz qw (LiDAR pose in the first LiDAR frame)"
+        )?;
+        poses
+            .iter()
+            .try_for_each(|(i, p)| write_tum_line(w, source.stamp(*i), p))
     })?;
     write_atomic(&out.join("poses_kitti.txt"), |w| {
         let mut held = Pose::identity();
@@ -409,7 +417,12 @@ fn write_trajectories(out: &Path, source: &impl FrameSource, poses: &[(usize, Po
     })
 }
 
-fn write_report(out: &Path, opts: &RunOptions, summary: &Summary, frames: &Path) -> Result<(), FileError> {
+fn write_report(
+    out: &Path,
+    opts: &RunOptions,
+    summary: &Summary,
+    frames: &Path,
+) -> Result<(), FileError> {
     #[derive(Serialize)]
     struct Head<'a> {
         input: &'a str,
@@ -426,7 +439,11 @@ fn write_report(out: &Path, opts: &RunOptions, summary: &Summary, frames: &Path)
     write_atomic(&out.join("report.json"), |w| {
         let head = serde_json::to_string_pretty(&head).map_err(std::io::Error::from)?;
         // The head object without its closing brace, then the streamed frame records.
-        let open = head.trim_end().strip_suffix('}').unwrap_or(&head).trim_end();
+        let open = head
+            .trim_end()
+            .strip_suffix('}')
+            .unwrap_or(&head)
+            .trim_end();
         w.write_all(open.as_bytes())?;
         w.write_all(b",\n  \"frames\": [\n")?;
         let lines = std::io::BufReader::new(std::fs::File::open(frames)?);

@@ -29,9 +29,45 @@ pub struct StageMs {
 }
 
 impl StageMs {
+    /// The field names, in [`values`](Self::values) order.
+    pub const NAMES: [&'static str; 10] = [
+        "read",
+        "filter",
+        "bucket",
+        "reconstruct",
+        "associate",
+        "solve",
+        "update",
+        "mesh",
+        "evict",
+        "total",
+    ];
+
+    /// The fields in [`NAMES`](Self::NAMES) order.
+    pub fn values(&self) -> [f64; 10] {
+        [
+            self.read,
+            self.filter,
+            self.bucket,
+            self.reconstruct,
+            self.associate,
+            self.solve,
+            self.update,
+            self.mesh,
+            self.evict,
+            self.total,
+        ]
+    }
+
     /// The per-scan pipeline time: filter to mesh (no reading, no eviction).
     pub fn pipeline(&self) -> f64 {
-        self.filter + self.bucket + self.reconstruct + self.associate + self.solve + self.update + self.mesh
+        self.filter
+            + self.bucket
+            + self.reconstruct
+            + self.associate
+            + self.solve
+            + self.update
+            + self.mesh
     }
 }
 

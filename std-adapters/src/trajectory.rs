@@ -28,7 +28,11 @@ pub struct Trajectory {
 }
 
 /// Parses the whitespace-separated numbers of `text` (line `line_no` of `path`).
-pub(crate) fn parse_numbers(path: &Path, line_no: usize, text: &str) -> Result<Vec<f64>, FileError> {
+pub(crate) fn parse_numbers(
+    path: &Path,
+    line_no: usize,
+    text: &str,
+) -> Result<Vec<f64>, FileError> {
     text.split_whitespace()
         .map(|w| {
             w.parse::<f64>()
@@ -46,7 +50,10 @@ pub(crate) fn pose_from_row(v: &[f64]) -> Option<Pose> {
     let m = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
     let r = Rotation3::from_matrix_eps(&m, 1e-12, 100, Rotation3::identity());
     let t = Translation3::new(v[3], v[7], v[11]);
-    Some(Pose::from_parts(t, UnitQuaternion::from_rotation_matrix(&r)))
+    Some(Pose::from_parts(
+        t,
+        UnitQuaternion::from_rotation_matrix(&r),
+    ))
 }
 
 /// Reads a trajectory, KITTI or TUM, by the count of numbers on its first pose line (`#`
@@ -78,7 +85,10 @@ pub fn read(path: &Path) -> Result<Trajectory, FileError> {
             return Err(FileError::new(
                 path,
                 Some(i + 1),
-                format!("expected {want} numbers like the first line, found {}", v.len()),
+                format!(
+                    "expected {want} numbers like the first line, found {}",
+                    v.len()
+                ),
             ));
         }
         let pose = match f {
@@ -110,7 +120,10 @@ pub fn read(path: &Path) -> Result<Trajectory, FileError> {
 pub fn read_kitti(path: &Path) -> Result<Vec<Pose>, FileError> {
     let t = read(path)?;
     if t.format != Format::Kitti {
-        return Err(FileError::at(path, "expected a KITTI trajectory (12 numbers a line)"));
+        return Err(FileError::at(
+            path,
+            "expected a KITTI trajectory (12 numbers a line)",
+        ));
     }
     Ok(t.poses)
 }
@@ -158,7 +171,8 @@ mod tests {
             write_kitti_line(&mut kitti, p).unwrap();
             write_tum_line(&mut tum, i as f64 * 0.1, p).unwrap();
         }
-        for (name, bytes, format) in [("k.txt", kitti, Format::Kitti), ("t.txt", tum, Format::Tum)] {
+        for (name, bytes, format) in [("k.txt", kitti, Format::Kitti), ("t.txt", tum, Format::Tum)]
+        {
             let path = dir.join(name);
             std::fs::write(&path, bytes).unwrap();
             let t = read(&path).unwrap();
@@ -170,7 +184,10 @@ mod tests {
         }
         std::fs::write(dir.join("bad.txt"), "1 2 3\n").unwrap();
         let e = read(&dir.join("bad.txt")).unwrap_err();
-        assert!(e.to_string().contains("bad.txt:1") && e.reason.contains("neither"), "{e}");
+        assert!(
+            e.to_string().contains("bad.txt:1") && e.reason.contains("neither"),
+            "{e}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -47,7 +47,10 @@ impl Window {
     /// The layer budget under a memory cap of `cap_bytes`, of which `other_bytes` go to the
     /// rest of the process (code, IO buffers, threads): what is left after the fixed buffers
     /// and one scan's worth of layers (capped at the map's capacity).
-    pub fn max_layers<C: Capacity>(cap_bytes: usize, other_bytes: usize) -> Result<usize, CapTooSmall> {
+    pub fn max_layers<C: Capacity>(
+        cap_bytes: usize,
+        other_bytes: usize,
+    ) -> Result<usize, CapTooSmall> {
         let reserved = fixed_bytes::<C>() + other_bytes + C::SCAN_LAYERS * LAYER_BYTES;
         let needed_bytes = reserved + C::SCAN_LAYERS * LAYER_BYTES;
         if cap_bytes < needed_bytes {
@@ -103,7 +106,7 @@ fn oldest_cutoff(map: &MeshMap, budget: usize) -> u32 {
         .cells()
         .map(|(_, c)| (c.last_seen, c.axes().count()))
         .collect();
-    by_age.sort_unstable_by(|a, b| b.0.cmp(&a.0));
+    by_age.sort_unstable_by_key(|a| std::cmp::Reverse(a.0));
     let mut kept = 0;
     for &(seen, layers) in &by_age {
         kept += layers;
@@ -134,7 +137,8 @@ mod tests {
             var: [0.01; VERTICES],
         };
         for i in 0..10 {
-            m.insert_layer(CellKey::new(i, 0, 0), Axis::Z, layer, i as u32).unwrap();
+            m.insert_layer(CellKey::new(i, 0, 0), Axis::Z, layer, i as u32)
+                .unwrap();
         }
         m
     }
@@ -150,17 +154,26 @@ mod tests {
         let at = |x: f64| slamesh_core::Pose::translation(x, 0.5, 0.5);
         let mut m = map();
         let mut shown = 0;
-        let w = Window { max_age_frames: Some(3), ..Window::default() };
+        let w = Window {
+            max_age_frames: Some(3),
+            ..Window::default()
+        };
         assert_eq!(w.evict(&mut m, 9, &at(9.5), |_| shown += 1), 6);
         assert_eq!((xs(&m), shown), (vec![6, 7, 8, 9], 6));
 
         let mut m = map();
-        let w = Window { radius_m: Some(2.5), ..Window::default() };
+        let w = Window {
+            radius_m: Some(2.5),
+            ..Window::default()
+        };
         w.evict(&mut m, 9, &at(4.5), |_| {});
         assert_eq!(xs(&m), vec![2, 3, 4, 5, 6]);
 
         let mut m = map();
-        let w = Window { max_layers: Some(4), ..Window::default() };
+        let w = Window {
+            max_layers: Some(4),
+            ..Window::default()
+        };
         w.evict(&mut m, 9, &at(0.0), |_| {});
         assert_eq!(xs(&m), vec![6, 7, 8, 9]);
         assert_eq!(m.layer_count(), 4);
@@ -173,8 +186,13 @@ mod tests {
         let scan = KittiCapacity::SCAN_LAYERS * LAYER_BYTES;
         let e = Window::max_layers::<KittiCapacity>(fixed, 0).unwrap_err();
         assert_eq!(e.needed_bytes, fixed + 2 * scan);
-        let n = Window::max_layers::<KittiCapacity>(fixed + 2 * scan + 1000 * LAYER_BYTES, 7).unwrap();
-        assert_eq!(n, KittiCapacity::SCAN_LAYERS + 1000 - 1, "7 bytes for the rest cost a layer");
+        let n =
+            Window::max_layers::<KittiCapacity>(fixed + 2 * scan + 1000 * LAYER_BYTES, 7).unwrap();
+        assert_eq!(
+            n,
+            KittiCapacity::SCAN_LAYERS + 1000 - 1,
+            "7 bytes for the rest cost a layer"
+        );
         let all = Window::max_layers::<SmallCapacity>(usize::MAX / 2, 0).unwrap();
         assert_eq!(all, SmallCapacity::MAP_LAYERS);
     }

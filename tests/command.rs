@@ -1,0 +1,239 @@
+//! The `slamesh` command on simulated scans written to disk (no data needed): bad inputs are
+//! reported and skipped, meshing with given poses, configuration files, evaluation.
+
+mod common;
+
+use common::{scratch, slamesh, slamesh_ok};
+use slamesh::pcd::encode_pcd;
+use slamesh::sim::{sensor_pose, Lidar, Scene};
+use slamesh::trajectory::{self, write_tum_line};
+use slamesh_core::{Point, Pose};
+use std::path::Path;
+
+/// True poses and scans of a slow drive down the simulated street (0.3 m a frame).
+fn drive(frames: usize) -> (Vec<Pose>, Vec<Vec<Point>>) {
+    let (scene, lidar) = (Scene::street(), Lidar::hdl64(900));
+    let poses: Vec<Pose> = (0..frames)
+        .map(|i| sensor_pose(0.3 * i as f64, 0.02 * i as f64, 1.73, 0.5 * i as f64))
+        .collect();
+    let scans = poses.iter().map(|p| lidar.scan(&scene, p)).collect();
+    (poses, scans)
+}
+
+fn write_bin(path: &Path, points: &[Point]) {
+    let mut b = Vec::with_capacity(points.len() * 16);
+    for p in points {
+        for v in [p[0], p[1], p[2], 0.0] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(path, b).unwrap();
+}
+
+fn write_tum(path: &Path, poses: &[Pose]) {
+    let mut b = Vec::new();
+    for (i, p) in poses.iter().enumerate() {
+        write_tum_line(&mut b, i as f64 * 0.1, p).unwrap();
+    }
+    std::fs::write(path, b).unwrap();
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+#[test]
+fn bad_frames_are_reported_and_skipped_and_the_run_completes() {
+    let dir = scratch("bad-frames");
+    let scans_dir = dir.join("scans");
+    std::fs::create_dir_all(&scans_dir).unwrap();
+    let (truth, scans) = drive(7);
+    for i in [0, 2, 4, 6] {
+        write_bin(&scans_dir.join(format!("{i:06}.bin")), &scans[i]);
+    }
+    std::fs::write(scans_dir.join("000001.bin"), []).unwrap();
+    write_bin(&scans_dir.join("000003.bin"), &scans[3]);
+    let truncated = std::fs::read(scans_dir.join("000003.bin")).unwrap();
+    std::fs::write(
+        scans_dir.join("000003.bin"),
+        &truncated[..truncated.len() - 7],
+    )
+    .unwrap();
+    std::fs::write(
+        scans_dir.join("000005.pcd"),
+        b"this is not a PCD header\nDATA ascii\n",
+    )
+    .unwrap();
+    std::fs::write(scans_dir.join("notes.txt"), b"not a scan, not a frame").unwrap();
+
+    let out = dir.join("out");
+    let o = slamesh_ok(&[
+        "run",
+        scans_dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    let err = text(&o.stderr);
+    for (file, reason) in [
+        ("000001.bin", "empty file"),
+        ("000003.bin", "truncated"),
+        ("000005.pcd", "not a PCD header line"),
+    ] {
+        assert!(
+            err.lines().any(|l| l.contains(file) && l.contains(reason)),
+            "no message for {file} ({reason}) in:\n{err}"
+        );
+    }
+    assert!(
+        text(&o.stdout).contains("7 frames (4 used, 3 skipped)"),
+        "{}",
+        text(&o.stdout)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["summary"]["skipped"].as_array().unwrap().len(), 3);
+    assert_eq!(report["frames"].as_array().unwrap().len(), 7);
+    assert_eq!(report["frames"][5]["status"], "Skipped");
+    // One KITTI line per frame (skipped frames repeat the last pose); TUM: used frames only.
+    let kitti = trajectory::read(&out.join("poses_kitti.txt"))
+        .unwrap()
+        .poses;
+    let tum = trajectory::read(&out.join("poses_tum.txt")).unwrap();
+    assert_eq!((kitti.len(), tum.poses.len()), (7, 4));
+    assert_eq!(tum.stamps.unwrap(), vec![0.0, 0.2, 0.4, 0.6]);
+    // The used frames are still tracked, across the gaps.
+    for (k, i) in [0, 2, 4, 6].into_iter().enumerate() {
+        let e =
+            (truth[0].inverse() * truth[i]).translation.vector - tum.poses[k].translation.vector;
+        assert!(e.norm() < 0.05, "frame {i}: {:.3} m off", e.norm());
+    }
+    assert!(out.join("mesh.ply").is_file());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn inputs_that_cannot_run_are_clear_errors() {
+    let dir = scratch("no-scans");
+    std::fs::write(dir.join("readme.txt"), b"nothing here").unwrap();
+    let out = dir.join("out");
+    let o = slamesh(&[
+        "run",
+        dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o.stderr).contains("no scans in this folder"),
+        "{}",
+        text(&o.stderr)
+    );
+
+    let missing = dir.join("missing");
+    let o = slamesh(&[
+        "run",
+        missing.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success() && text(&o.stderr).contains("no such file or folder"));
+
+    // Every frame bad: the run ends with an error, and says why for each.
+    std::fs::write(dir.join("0.bin"), []).unwrap();
+    let o = slamesh(&[
+        "run",
+        dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains("0.bin: empty file"));
+    assert!(text(&o.stderr).contains("no frame could be used"));
+
+    let cfg = dir.join("bad.toml");
+    std::fs::write(&cfg, "[grid]\ncell_size = 2\n").unwrap();
+    let o = slamesh(&[
+        "run",
+        dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--config",
+        cfg.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("bad.toml") && e.contains("[grid] cell_size: unknown parameter"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn pcd_and_ply_folders_run_and_mesh_mode_uses_the_given_poses() {
+    let dir = scratch("formats");
+    let (truth, scans) = drive(4);
+    let rel: Vec<Pose> = truth.iter().map(|p| truth[0].inverse() * p).collect();
+    let pcd_dir = dir.join("pcd");
+    std::fs::create_dir_all(&pcd_dir).unwrap();
+    for (i, s) in scans.iter().enumerate() {
+        let enc = ["ascii", "binary", "binary_compressed", "binary"][i];
+        // Natural order: 9 < 10 < 11 < 12.
+        std::fs::write(
+            pcd_dir.join(format!("scan{}.pcd", 9 + i)),
+            encode_pcd(s, enc),
+        )
+        .unwrap();
+    }
+    let poses = dir.join("truth_tum.txt");
+    write_tum(&poses, &rel);
+
+    // Odometry on the PCD folder, then evaluation against the truth.
+    let out = dir.join("run");
+    slamesh_ok(&[
+        "run",
+        pcd_dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    let o = slamesh_ok(&[
+        "eval",
+        "--estimate",
+        out.join("poses_kitti.txt").to_str().unwrap(),
+        "--reference",
+        poses.to_str().unwrap(),
+        "--json",
+    ]);
+    let m: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(m["pairs"], 3);
+    assert!(m["mean_translation_m"].as_f64().unwrap() < 0.01, "{m}");
+
+    // Meshing at the given poses: every vertex lies in the street's box, OBJ on request.
+    let out = dir.join("mesh");
+    slamesh_ok(&[
+        "mesh",
+        pcd_dir.to_str().unwrap(),
+        "--poses",
+        poses.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--obj",
+        "-q",
+    ]);
+    let vertices = slamesh::ply::read_ply_points(&out.join("mesh.ply")).unwrap();
+    assert!(vertices.len() > 1000, "{} vertices", vertices.len());
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["preset"], "meshing");
+    assert_eq!(report["frames"][2]["status"], "Given");
+    let obj = std::fs::read_to_string(out.join("mesh.obj")).unwrap();
+    assert_eq!(
+        obj.lines().filter(|l| l.starts_with("v ")).count(),
+        vertices.len()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,56 @@
+//! Helpers shared by the integration tests: the real-data folder and the `slamesh` command.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// `SLAMESH_DATA/kitti-mini`; a relative `SLAMESH_DATA` is taken from the workspace root
+/// (cargo runs tests in the package folder). Without the variable, prints that the test is
+/// skipped and returns `None`; with it, a missing folder fails the test.
+pub fn kitti_mini() -> Option<PathBuf> {
+    let Some(d) = std::env::var_os("SLAMESH_DATA") else {
+        println!("skipped: SLAMESH_DATA is not set");
+        return None;
+    };
+    let d = PathBuf::from(d);
+    let d = if d.is_relative() {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(d)
+    } else {
+        d
+    };
+    let k = d.join("kitti-mini");
+    assert!(
+        k.is_dir(),
+        "SLAMESH_DATA is set but {} is missing",
+        k.display()
+    );
+    Some(k)
+}
+
+/// A fresh, empty folder for one test.
+pub fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("slamesh-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs the `slamesh` binary with `args`.
+pub fn slamesh(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_slamesh"))
+        .args(args)
+        .output()
+        .expect("the slamesh binary runs")
+}
+
+/// Runs `slamesh` and fails the test, showing its output, unless it succeeds.
+pub fn slamesh_ok(args: &[&str]) -> Output {
+    let out = slamesh(args);
+    assert!(
+        out.status.success(),
+        "slamesh {args:?} failed\nstdout:\n{}\nstderr:\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
