@@ -15,7 +15,7 @@ use crate::filter::{filter_and_downsample, FilterStats};
 use crate::fusion::{integrate, FusionStats};
 use crate::lm::{self, LmError, Residual};
 use crate::map::MeshMap;
-use crate::math::{Point, Pose};
+use crate::math::{renormalized, Point, Pose};
 use crate::mesh::{self, Triangle};
 use crate::motion::ConstantVelocity;
 use crate::reconstruct::{CellLoop, ScanLayer, Serial};
@@ -206,7 +206,7 @@ impl<C: Capacity> Pipeline<C> {
                 probe.enter(Stage::Solve);
                 match lm::solve(&self.residuals, &r.lm) {
                     Ok(sol) => {
-                        pose = sol.correction * pose;
+                        pose = renormalized(sol.correction * pose);
                         stats.lm_iterations += sol.iterations;
                         stats.conditioning = sol.conditioning;
                     }

@@ -3,7 +3,9 @@
 //!
 //! Used by tests with ground truth: the true sensor pose of every scan is known exactly.
 
-use nalgebra::{Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use crate::file_error::FileError;
+use crate::session::FrameSource;
+use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 use slamesh_core::{Point, Pose};
 
 /// A level sensor pose: position (metres) and heading about z (degrees).
@@ -62,6 +64,112 @@ impl Scene {
 
     /// The range along the unit ray `origin + s·dir` to the nearest surface, up to `max_range`.
     pub fn cast(&self, origin: &Vector3<f64>, dir: &Vector3<f64>, max_range: f64) -> Option<f64> {
+        Prepared::new(self, origin, f64::INFINITY).cast(origin, dir, max_range)
+    }
+
+    /// A long straight street along +x from `x = 0` to `length_m`, deterministic from `seed`:
+    /// facades of varying height, depth and setback with gaps (side streets), parked cars,
+    /// poles and kiosks on both sides, a wall at each end. For long runs (memory, eviction).
+    pub fn long_street(length_m: f64, seed: u64) -> Self {
+        let mut rng = SplitMix64(seed);
+        let mut boxes = Vec::new();
+        let b = |c: [f64; 3], h: [f64; 3], yaw: f64| OrientedBox {
+            centre: c,
+            half: h,
+            yaw,
+        };
+        for side in [-1.0, 1.0] {
+            let mut x = -20.0;
+            while x < length_m + 20.0 {
+                let w = rng.range(8.0, 30.0);
+                if rng.next_f64() > 0.15 {
+                    let (setback, height) = (rng.range(9.0, 13.0), rng.range(4.0, 18.0));
+                    let yaw = rng.range(-0.05, 0.05);
+                    boxes.push(b(
+                        [x + w / 2.0, side * (setback + 4.0), height / 2.0],
+                        [w / 2.0, 4.0, height / 2.0],
+                        yaw,
+                    ));
+                }
+                x += w + rng.range(0.0, 3.0);
+            }
+            let mut x = 0.0;
+            while x < length_m {
+                x += rng.range(4.0, 14.0);
+                let y = side * rng.range(4.5, 7.0);
+                match rng.next_f64() {
+                    f if f < 0.5 => {
+                        boxes.push(b([x, y, 0.75], [2.2, 0.9, 0.75], rng.range(-0.1, 0.1)))
+                    }
+                    f if f < 0.8 => boxes.push(b([x, y, 2.5], [0.12, 0.12, 2.5], 0.0)),
+                    _ => boxes.push(b([x, y, 1.2], [1.2, 1.2, 1.2], rng.range(0.0, 1.5))),
+                }
+            }
+        }
+        boxes.push(b([-25.0, 0.0, 6.0], [0.5, 20.0, 6.0], 0.0));
+        boxes.push(b([length_m + 25.0, 0.0, 6.0], [0.5, 20.0, 6.0], 0.0));
+        Scene {
+            ground_z: 0.0,
+            boxes,
+        }
+    }
+}
+
+/// A small deterministic random generator (SplitMix64).
+#[derive(Debug, Clone)]
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in `[lo, hi)`.
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next_f64()
+    }
+}
+
+/// A scene made ready for many rays from one place: boxes out of reach dropped, their
+/// rotations computed once.
+struct Prepared {
+    ground_z: f64,
+    /// Centre, half extents, cos and sin of `-yaw`.
+    boxes: Vec<([f64; 3], [f64; 3], f64, f64)>,
+}
+
+impl Prepared {
+    /// The boxes of `scene` that can be hit within `reach` of `origin`.
+    fn new(scene: &Scene, origin: &Vector3<f64>, reach: f64) -> Self {
+        let boxes = scene
+            .boxes
+            .iter()
+            .filter(|b| {
+                let d = Vector3::from(b.centre) - origin;
+                d.norm() <= reach + Vector3::from(b.half).norm()
+            })
+            .map(|b| {
+                let (s, c) = (-b.yaw).sin_cos();
+                (b.centre, b.half, c, s)
+            })
+            .collect();
+        Prepared {
+            ground_z: scene.ground_z,
+            boxes,
+        }
+    }
+
+    fn cast(&self, origin: &Vector3<f64>, dir: &Vector3<f64>, max_range: f64) -> Option<f64> {
         let mut best = max_range;
         let mut hit = false;
         if dir.z < -1e-9 {
@@ -71,19 +179,19 @@ impl Scene {
                 hit = true;
             }
         }
-        for b in &self.boxes {
-            let r = Rotation3::from_axis_angle(&Vector3::z_axis(), -b.yaw);
-            let o = r * (origin - Vector3::from(b.centre));
-            let d = r * dir;
+        for (centre, half, c, s) in &self.boxes {
+            let (ox, oy) = (origin.x - centre[0], origin.y - centre[1]);
+            let o = [c * ox - s * oy, s * ox + c * oy, origin.z - centre[2]];
+            let d = [c * dir.x - s * dir.y, s * dir.x + c * dir.y, dir.z];
             let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
             for k in 0..3 {
                 if d[k].abs() < 1e-12 {
-                    if o[k].abs() > b.half[k] {
+                    if o[k].abs() > half[k] {
                         lo = f64::INFINITY;
                     }
                     continue;
                 }
-                let (s0, s1) = ((-b.half[k] - o[k]) / d[k], (b.half[k] - o[k]) / d[k]);
+                let (s0, s1) = ((-half[k] - o[k]) / d[k], (half[k] - o[k]) / d[k]);
                 lo = lo.max(s0.min(s1));
                 hi = hi.min(s0.max(s1));
             }
@@ -126,6 +234,7 @@ impl Lidar {
     /// One noise-free scan of `scene` from `t_world_sensor`, in the sensor frame.
     pub fn scan(&self, scene: &Scene, t_world_sensor: &Pose) -> Vec<Point> {
         let origin = t_world_sensor.translation.vector;
+        let scene = Prepared::new(scene, &origin, self.max_range_m);
         let mut out = Vec::with_capacity(self.beams * self.azimuth_steps);
         for beam in 0..self.beams {
             let f = if self.beams > 1 {
@@ -147,6 +256,71 @@ impl Lidar {
             }
         }
         out
+    }
+}
+
+/// A simulated drive: the scans a [`Lidar`] sees along `poses` through `scene`, with Gaussian
+/// range noise, made on demand (a [`FrameSource`], so long runs need no disk).
+#[derive(Debug, Clone)]
+pub struct Drive {
+    /// The world.
+    pub scene: Scene,
+    /// The scanner.
+    pub lidar: Lidar,
+    /// True sensor poses, one per frame.
+    pub poses: Vec<Pose>,
+    /// Standard deviation of the range noise (metres).
+    pub noise_m: f64,
+    /// Seed of the noise (frame `i` uses `seed + i`).
+    pub seed: u64,
+}
+
+impl Drive {
+    /// `frames` frames down [`Scene::long_street`] at `step_m` a frame, weaving gently across
+    /// the lane and turning with it; HDL-64-like scans (1 000 firings a turn, 80 m), 2 cm noise.
+    pub fn long_street(frames: usize, step_m: f64, seed: u64) -> Self {
+        let length = frames as f64 * step_m;
+        let poses = (0..frames)
+            .map(|i| {
+                let x = i as f64 * step_m;
+                let (y, slope) = (1.2 * (x / 40.0).sin(), 1.2 / 40.0 * (x / 40.0).cos());
+                sensor_pose(x, y, 1.73, slope.atan().to_degrees())
+            })
+            .collect();
+        let mut lidar = Lidar::hdl64(1000);
+        lidar.max_range_m = 80.0;
+        Drive {
+            scene: Scene::long_street(length, seed),
+            lidar,
+            poses,
+            noise_m: 0.02,
+            seed,
+        }
+    }
+}
+
+impl FrameSource for Drive {
+    fn frames(&self) -> usize {
+        self.poses.len()
+    }
+    fn label(&self, i: usize) -> String {
+        format!("simulated frame {i}")
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        i as f64 * 0.1
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
+        let mut rng = SplitMix64(self.seed.wrapping_add(i as u64));
+        let mut points = self.lidar.scan(&self.scene, &self.poses[i]);
+        for p in &mut points {
+            // Box-Muller: one Gaussian sample along the ray.
+            let (u, v) = (rng.next_f64().max(1e-12), rng.next_f64());
+            let n = self.noise_m * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
+            let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() as f64;
+            let k = ((r + n) / r) as f32;
+            *p = p.map(|c| c * k);
+        }
+        Ok(points)
     }
 }
 
