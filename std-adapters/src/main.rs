@@ -11,7 +11,8 @@ use slamesh::config_file::{self, Settings, WindowSettings, PRESETS};
 use slamesh::eval::consecutive_errors;
 use slamesh::mesh_file::MeshFormat;
 use slamesh::scans::ScanFolder;
-use slamesh::session::{run, FrameSource, RunOptions, Summary};
+use slamesh::session::{run, spreads, FrameSource, RunOptions, Summary};
+use slamesh::timing::StageMs;
 use slamesh::{kitti, trajectory, FileError};
 use slamesh_core::{KittiCapacity, Pose};
 use std::path::{Path, PathBuf};
@@ -61,6 +62,24 @@ enum Command {
         #[arg(long)]
         calib: Option<PathBuf>,
         /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Time the pipeline stage by stage: a warm-up pass over the scans, then --repeat timed
+    /// passes (median and 95th percentile per stage, scans per second, peak memory).
+    Bench {
+        /// Scans, as for `run`.
+        input: PathBuf,
+        /// Parameter preset.
+        #[arg(long, default_value = "default", value_parser = PRESETS)]
+        preset: String,
+        /// Reconstruction threads (1: serial; 0: one per core).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Timed passes over the scans.
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
     },
@@ -134,6 +153,13 @@ fn main() -> ExitCode {
             calib,
             json,
         } => eval_command(&estimate, &reference, calib.as_deref(), json),
+        Command::Bench {
+            input,
+            preset,
+            threads,
+            repeat,
+            json,
+        } => bench_command(&input, &preset, threads, repeat, json),
         Command::Config { preset } => {
             let c = config_file::preset(&preset).unwrap_or_default();
             say!("{}", config_file::documented_toml(&c, &preset).trim_end());
@@ -356,6 +382,87 @@ fn eval_command(
             end_m,
             path_m,
             drift_percent
+        );
+    }
+    Ok(())
+}
+
+fn bench_command(
+    input: &Path,
+    preset: &str,
+    threads: usize,
+    repeat: usize,
+    json: bool,
+) -> Result<(), String> {
+    let mut source = ScanFolder::open(input).map_err(|e| e.to_string())?;
+    let out = std::env::temp_dir().join(format!("slamesh-bench-{}", std::process::id()));
+    let opts = RunOptions {
+        out: out.clone(),
+        config: config_file::preset(preset).unwrap_or_default(),
+        preset: preset.to_string(),
+        window: WindowSettings::default(),
+        threads,
+        mesh_formats: Vec::new(),
+        given_poses: None,
+        input: input.display().to_string(),
+    };
+    let mut timed: Vec<StageMs> = Vec::new();
+    let mut last = None;
+    for pass in 0..=repeat.max(1) {
+        let summary = run::<KittiCapacity>(&mut source, &opts, |rec| {
+            if pass > 0 && rec.error.is_none() {
+                timed.push(rec.ms);
+            }
+        })
+        .map_err(|e| e.to_string())?;
+        last = Some(summary);
+    }
+    let _ = std::fs::remove_dir_all(&out);
+    let summary = last.ok_or("no pass ran")?;
+    let stages = spreads(&timed);
+    let total = stages
+        .iter()
+        .find(|(n, _)| n == "total")
+        .map_or(0.0, |(_, s)| s.median);
+    let peak = summary.peak_rss_mb;
+    if json {
+        let stage_json: serde_json::Map<String, serde_json::Value> = stages
+            .iter()
+            .map(|(n, s)| {
+                (
+                    n.clone(),
+                    serde_json::json!({"median_ms": s.median, "p95_ms": s.p95}),
+                )
+            })
+            .collect();
+        say!(
+            "{}",
+            serde_json::json!({
+                "input": input.display().to_string(),
+                "preset": preset,
+                "threads": summary.threads,
+                "scans_timed": timed.len(),
+                "stages": stage_json,
+                "hz": 1000.0 / total.max(1e-9),
+                "peak_rss_mb": peak,
+            })
+        );
+    } else {
+        say!(
+            "{} scans timed ({} passes after a warm-up), preset {}, {} thread(s)",
+            timed.len(),
+            repeat.max(1),
+            preset,
+            summary.threads
+        );
+        say!("{:<12} {:>10} {:>10}", "stage", "median ms", "p95 ms");
+        for (name, s) in &stages {
+            say!("{:<12} {:>10.2} {:>10.2}", name, s.median, s.p95);
+        }
+        say!(
+            "{:.1} scans/s at the median total; peak memory {}",
+            1000.0 / total.max(1e-9),
+            peak.map_or("unknown".into(), |m| format!("{m:.0} MB"))
         );
     }
     Ok(())

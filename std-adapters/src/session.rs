@@ -369,7 +369,8 @@ fn updated_triangles(map: &slamesh_core::map::MeshMap, frame: u32, show: f64) ->
         .sum()
 }
 
-fn spreads(ms: &[StageMs]) -> Vec<(String, Spread)> {
+/// Median and 95th percentile of each stage over `ms`, in [`StageMs::NAMES`] order.
+pub fn spreads(ms: &[StageMs]) -> Vec<(String, Spread)> {
     (0..StageMs::NAMES.len())
         .map(|k| {
             let mut v: Vec<f64> = ms.iter().map(|m| m.values()[k]).collect();

@@ -1,0 +1,114 @@
+//! Memory under the sliding window, on a simulated street (no data needed). One test in its
+//! own binary, so the process's resident memory is this run's alone.
+//!
+//! - With `max_age_frames`, the map and the resident memory stop growing once the window is
+//!   full, although the drive keeps going into new streets.
+//! - With a memory cap, the map never holds more layers than the cap's budget and the process
+//!   never exceeds the cap.
+
+use slamesh::config_file::WindowSettings;
+use slamesh::memory;
+use slamesh::mesh_file::MeshFormat;
+use slamesh::session::{run, FrameRecord, RunOptions};
+use slamesh::sim::Drive;
+use slamesh::window::{Window, LAYER_BYTES};
+use slamesh_core::{Capacity, Config};
+
+/// Room for the simulated scans with a small map, so that a cap of a few MB above the fixed
+/// buffers forces eviction.
+struct Test;
+impl Capacity for Test {
+    const POINTS: usize = 70_000;
+    const SCAN_CELLS: usize = 2_048;
+    const SCAN_LAYERS: usize = 2_560;
+    const MAP_CELLS: usize = 16_384;
+    const MAP_LAYERS: usize = 24_576;
+}
+
+fn drive(
+    d: &mut Drive,
+    window: WindowSettings,
+    name: &str,
+) -> (Vec<FrameRecord>, slamesh::session::Summary) {
+    let frames = d.poses.len();
+    let out = std::env::temp_dir().join(format!("slamesh-memory-{name}-{}", std::process::id()));
+    let opts = RunOptions {
+        out: out.clone(),
+        config: Config::default(),
+        preset: "default".into(),
+        window,
+        threads: 2,
+        mesh_formats: vec![MeshFormat::Ply],
+        given_poses: None,
+        input: "simulated street".into(),
+    };
+    let mut records = Vec::new();
+    let summary = run::<Test>(d, &opts, |r| records.push(r.clone())).unwrap();
+    std::fs::remove_dir_all(&out).unwrap();
+    assert_eq!(summary.used, frames, "every simulated frame is used");
+    (records, summary)
+}
+
+#[test]
+fn the_window_keeps_memory_flat_and_the_cap_holds() {
+    // The cap first: peak RSS is a high-water mark for the whole process.
+    let mut street = Drive::long_street(260, 1.0, 11);
+    let other =
+        memory::rss_bytes().unwrap_or(0) as usize + slamesh::session::PROCESS_HEADROOM_BYTES;
+    let needed = Window::max_layers::<Test>(0, other)
+        .unwrap_err()
+        .needed_bytes;
+    // A budget of one scan's layers and about 1 000 more (the run measures its own start).
+    let cap = needed + 300_000;
+    let window = WindowSettings {
+        memory_cap_mb: Some(cap as f64 / 1e6),
+        ..WindowSettings::default()
+    };
+    let (records, summary) = drive(&mut street, window, "cap");
+    let budget = summary.max_layers.unwrap();
+    assert!(
+        budget < Test::SCAN_LAYERS + 1_100,
+        "a tight cap: {budget} layers"
+    );
+    assert!(summary.evicted_cells > 0, "the cap forced eviction");
+    for r in &records {
+        assert!(
+            r.map_layers <= budget,
+            "frame {}: {} layers > {budget}",
+            r.frame,
+            r.map_layers
+        );
+    }
+    if let Some(peak) = memory::peak_rss_bytes() {
+        assert!(
+            peak as usize <= cap,
+            "peak RSS {} MB over the cap {} MB",
+            peak / 1_000_000,
+            cap / 1_000_000
+        );
+    }
+
+    // The age window: no growth over the second half of the drive.
+    let window = WindowSettings {
+        max_age_frames: Some(30),
+        save_evicted: true,
+        ..WindowSettings::default()
+    };
+    let (records, summary) = drive(&mut Drive::long_street(200, 1.0, 11), window, "age");
+    let layers_mid = records[99].map_layers;
+    let most = records[100..].iter().map(|r| r.map_layers).max().unwrap();
+    assert!(
+        most as f64 <= 1.25 * layers_mid as f64,
+        "map grew from {layers_mid} to {most} layers"
+    );
+    if let (Some(a), Some(b)) = (records[99].rss_mb, records[199].rss_mb) {
+        println!("RSS after 100 frames {a:.1} MB, after 200 frames {b:.1} MB");
+        assert!(
+            b - a < 3.0,
+            "resident memory grew {:.1} MB over 100 frames",
+            b - a
+        );
+    }
+    // Evicted cells were saved: the mesh holds far more than the final map.
+    assert!(summary.mesh_triangles > 3 * 50 * summary.map_layers as u64 / 2);
+}
