@@ -11,7 +11,7 @@ use slamesh::memory;
 use slamesh::mesh_file::MeshFormat;
 use slamesh::session::{run, FrameRecord, RunOptions};
 use slamesh::sim::Drive;
-use slamesh::window::{Window, LAYER_BYTES};
+use slamesh::window::Window;
 use slamesh_core::{Capacity, Config};
 
 /// Room for the simulated scans with a small map, so that a cap of a few MB above the fixed
