@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{scratch, slamesh, slamesh_ok};
+use common::{scratch, slamesh_ok, slamesh_run, slamesh_run_ok};
 use slamesh::pcd::encode_pcd;
 use slamesh::sim::{sensor_pose, Lidar, Scene};
 use slamesh::trajectory::{self, write_tum_line};
@@ -67,13 +67,7 @@ fn bad_frames_are_reported_and_skipped_and_the_run_completes() {
     std::fs::write(scans_dir.join("notes.txt"), b"not a scan, not a frame").unwrap();
 
     let out = dir.join("out");
-    let o = slamesh_ok(&[
-        "run",
-        scans_dir.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    let o = slamesh_run_ok(&scans_dir, &out, &[]);
     let err = text(&o.stderr);
     for (file, reason) in [
         ("000001.bin", "empty file"),
@@ -117,13 +111,7 @@ fn inputs_that_cannot_run_are_clear_errors() {
     let dir = scratch("no-scans");
     std::fs::write(dir.join("readme.txt"), b"nothing here").unwrap();
     let out = dir.join("out");
-    let o = slamesh(&[
-        "run",
-        dir.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    let o = slamesh_run(&dir, &out, &[]);
     assert!(!o.status.success());
     assert!(
         text(&o.stderr).contains("no scans in this folder"),
@@ -132,37 +120,19 @@ fn inputs_that_cannot_run_are_clear_errors() {
     );
 
     let missing = dir.join("missing");
-    let o = slamesh(&[
-        "run",
-        missing.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = slamesh_run(&missing, &out, &[]);
     assert!(!o.status.success() && text(&o.stderr).contains("no such file or folder"));
 
     // Every frame bad: the run ends with an error, and says why for each.
     std::fs::write(dir.join("0.bin"), []).unwrap();
-    let o = slamesh(&[
-        "run",
-        dir.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    let o = slamesh_run(&dir, &out, &[]);
     assert!(!o.status.success());
     assert!(text(&o.stderr).contains("0.bin: empty file"));
     assert!(text(&o.stderr).contains("no frame could be used"));
 
     let cfg = dir.join("bad.toml");
     std::fs::write(&cfg, "[grid]\ncell_size = 2\n").unwrap();
-    let o = slamesh(&[
-        "run",
-        dir.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--config",
-        cfg.to_str().unwrap(),
-    ]);
+    let o = slamesh_run(&dir, &out, &["--config", cfg.to_str().unwrap()]);
     assert!(!o.status.success());
     let e = text(&o.stderr);
     assert!(
@@ -193,13 +163,7 @@ fn pcd_and_ply_folders_run_and_mesh_mode_uses_the_given_poses() {
 
     // Odometry on the PCD folder, then evaluation against the truth.
     let out = dir.join("run");
-    slamesh_ok(&[
-        "run",
-        pcd_dir.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    slamesh_run_ok(&pcd_dir, &out, &[]);
     let o = slamesh_ok(&[
         "eval",
         "--estimate",

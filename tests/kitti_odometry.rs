@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{kitti_mini, scratch, slamesh_ok};
+use common::{kitti_mini, scratch, slamesh_run_ok};
 use slamesh::eval::consecutive_errors;
 use slamesh::{kitti, trajectory};
 
@@ -25,15 +25,7 @@ fn kitti_mini_consecutive_frame_errors_through_the_command() {
     for seq in SEQUENCES {
         let dir = root.join(seq);
         let o = out.join(seq);
-        slamesh_ok(&[
-            "run",
-            dir.to_str().unwrap(),
-            "--out",
-            o.to_str().unwrap(),
-            "--preset",
-            "kitti",
-            "-q",
-        ]);
+        slamesh_run_ok(&dir, &o, &["--preset", "kitti"]);
         let reference = kitti::reference_lidar_poses(&dir).unwrap();
         let estimate = trajectory::read_kitti(&o.join("poses_kitti.txt")).unwrap();
         assert_eq!(estimate.len(), 10, "{seq}: one pose per scan");
@@ -77,17 +69,7 @@ fn threads_and_repeats_write_identical_outputs() {
     let mut outputs = Vec::new();
     for (name, threads) in [("serial", "1"), ("two", "2"), ("again", "2")] {
         let o = out.join(name);
-        slamesh_ok(&[
-            "run",
-            input.to_str().unwrap(),
-            "--out",
-            o.to_str().unwrap(),
-            "--preset",
-            "kitti",
-            "--threads",
-            threads,
-            "-q",
-        ]);
+        slamesh_run_ok(&input, &o, &["--preset", "kitti", "--threads", threads]);
         let read = |f: &str| std::fs::read(o.join(f)).unwrap();
         outputs.push((
             name,

@@ -42,8 +42,7 @@ mod tests {
 
     #[test]
     fn a_failed_write_keeps_the_old_file_and_leaves_no_temporary() {
-        let dir = std::env::temp_dir().join(format!("slamesh-atomic-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_support::scratch_dir("atomic");
         let p = dir.join("out.txt");
         write_atomic(&p, |w| w.write_all(b"first")).unwrap();
         let e = write_atomic(&p, |w| {

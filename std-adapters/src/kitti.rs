@@ -87,8 +87,7 @@ mod tests {
 
     #[test]
     fn truncated_and_empty_bins_are_errors_naming_the_file() {
-        let dir = std::env::temp_dir().join(format!("slamesh-kitti-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_support::scratch_dir("kitti");
         let p = dir.join("000000.bin");
         std::fs::write(&p, [0u8; 20]).unwrap();
         let e = read_bin(&p).unwrap_err();

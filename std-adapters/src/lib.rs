@@ -38,5 +38,8 @@ pub mod timing;
 pub mod trajectory;
 pub mod window;
 
+#[cfg(test)]
+mod test_support;
+
 pub use file_error::FileError;
 pub use slamesh_core as core;

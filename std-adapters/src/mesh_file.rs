@@ -224,8 +224,7 @@ mod tests {
         layer.var[35] = 0.02;
         map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0)
             .unwrap();
-        let dir = std::env::temp_dir().join(format!("slamesh-mesh-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_support::scratch_dir("mesh");
         let outputs = [
             (dir.join("m.ply"), MeshFormat::Ply),
             (dir.join("m.obj"), MeshFormat::Obj),

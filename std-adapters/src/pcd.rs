@@ -366,11 +366,7 @@ mod tests {
     use super::*;
 
     fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("slamesh-pcd-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        std::fs::write(&p, bytes).unwrap();
-        p
+        crate::test_support::scratch_file("pcd", name, bytes)
     }
 
     #[test]

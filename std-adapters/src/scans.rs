@@ -160,8 +160,7 @@ mod tests {
 
     #[test]
     fn a_folder_without_scans_is_an_error_naming_it() {
-        let dir = std::env::temp_dir().join(format!("slamesh-noscans-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_support::scratch_dir("noscans");
         std::fs::write(dir.join("notes.txt"), "hi").unwrap();
         let e = ScanFolder::open(&dir).unwrap_err();
         assert!(e.reason.contains("no scans") && e.to_string().contains("slamesh-noscans"));

@@ -164,8 +164,7 @@ mod tests {
                 UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
             ),
         ];
-        let dir = std::env::temp_dir().join(format!("slamesh-traj-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_support::scratch_dir("traj");
         let (mut kitti, mut tum) = (Vec::new(), b"# timestamp tx ty tz qx qy qz qw\n".to_vec());
         for (i, p) in poses.iter().enumerate() {
             write_kitti_line(&mut kitti, p).unwrap();

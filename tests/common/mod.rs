@@ -54,3 +54,28 @@ pub fn slamesh_ok(args: &[&str]) -> Output {
     );
     out
 }
+
+/// `slamesh run <input> --out <out> -q` plus `extra` options (not checked for success).
+pub fn slamesh_run(input: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "run",
+        input.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ];
+    args.extend_from_slice(extra);
+    slamesh(&args)
+}
+
+/// [`slamesh_run`] that fails the test, showing its output, unless it succeeds.
+pub fn slamesh_run_ok(input: &Path, out: &Path, extra: &[&str]) -> Output {
+    let o = slamesh_run(input, out, extra);
+    assert!(
+        o.status.success(),
+        "slamesh run {} failed\nstderr:\n{}",
+        input.display(),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
