@@ -137,6 +137,12 @@ impl<C: Capacity> Pipeline<C> {
         })
     }
 
+    /// The layers reconstructed from the last accepted scan, at its final pose: the cells it
+    /// updated in the map (e.g. to refresh a mesh view incrementally).
+    pub fn last_scan(&self) -> &[ScanLayer] {
+        &self.scan
+    }
+
     /// The configuration.
     pub fn config(&self) -> &Config {
         &self.config

@@ -270,7 +270,7 @@ pub fn run<C: Capacity>(
                 rec.scan_cells = o.stats.bucket.cells;
                 rec.scan_layers = o.stats.scan_layers;
                 let t = Instant::now();
-                rec.triangles_updated = updated_triangles(pipeline.map(), o.stats.frame, show);
+                rec.triangles_updated = updated_triangles(&pipeline, show);
                 rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
                 let t = Instant::now();
                 if !window.is_off() {
@@ -359,12 +359,13 @@ fn status_name(s: RegistrationStatus) -> &'static str {
     }
 }
 
-/// Triangles of the layers in cells seen at `frame` (the mesh a viewer would refresh).
-fn updated_triangles(map: &slamesh_core::map::MeshMap, frame: u32, show: f64) -> usize {
+/// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).
+fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>, show: f64) -> usize {
     let show = show as f32;
-    map.cells()
-        .filter(|(_, c)| c.last_seen == frame)
-        .flat_map(|(k, c)| c.axes().filter_map(move |a| map.layer(k, a)))
+    pipeline
+        .last_scan()
+        .iter()
+        .filter_map(|s| pipeline.map().layer(&s.key, s.axis))
         .map(|l| l.triangles(show).count())
         .sum()
 }
