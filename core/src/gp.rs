@@ -56,11 +56,79 @@ impl fmt::Display for GpError {
 impl core::error::Error for GpError {}
 
 /// Bins cell-local `points` on the lattice grid of `axis` and keeps, per bin, the point closest
-/// to the bin centre.
+/// to the bin centre, among the points of the layer's own surface.
+///
+/// A cell where two surfaces meet (ground and facade, the two faces of a corner) holds points
+/// of both, and the other surface's points would pull this layer towards it by an amount that
+/// depends on what the sensor saw: a viewpoint-dependent bias that registration turns into
+/// drift (measured: 0.63 degree of pitch over a 200 m simulated street). So the per-bin samples
+/// are fitted with a plane, samples farther from it than [`outlier_threshold`] are dropped
+/// (repeatedly, a few times), and bins that lost their sample take their closest point within
+/// the threshold instead.
 pub fn select_training(
     points: &[(CellKey, Point)],
     axis: Axis,
     cell_size: f64,
+) -> heapless::Vec<Sample, MAX_TRAINING> {
+    let all = closest_per_bin(points, axis, cell_size, |_| true);
+    if all.len() < MIN_TRAINING {
+        return all;
+    }
+    let mut plane = plane_mean(&all);
+    let mut limit = f64::INFINITY;
+    for _ in 0..OUTLIER_ROUNDS {
+        let new_limit = outlier_threshold(&all, &plane);
+        let mut inliers = heapless::Vec::<Sample, MAX_TRAINING>::new();
+        for s in all
+            .iter()
+            .filter(|s| libm::fabs(s[2] - plane.at(s[0], s[1])) <= new_limit)
+        {
+            // No more than `all`: cannot overflow.
+            let _ = inliers.push(*s);
+        }
+        if inliers.len() < MIN_TRAINING {
+            break;
+        }
+        limit = new_limit;
+        if inliers.len() == all.len() {
+            return all;
+        }
+        plane = plane_mean(&inliers);
+    }
+    if !limit.is_finite() {
+        return all;
+    }
+    closest_per_bin(points, axis, cell_size, |s| {
+        libm::fabs(s[2] - plane.at(s[0], s[1])) <= limit
+    })
+}
+
+/// Rounds of plane fitting and outlier rejection in [`select_training`].
+const OUTLIER_ROUNDS: usize = 3;
+/// Samples within this distance of the fitted plane are never outliers (metres): curvature
+/// within a cell and sensor noise stay in.
+pub const MIN_OUTLIER_DISTANCE_M: f64 = 0.15;
+
+/// Farther from `plane` than this is an outlier: three robust standard deviations (from the
+/// median absolute residual), at least [`MIN_OUTLIER_DISTANCE_M`].
+fn outlier_threshold(samples: &[Sample], plane: &PlaneMean) -> f64 {
+    let mut r = [0.0f64; MAX_TRAINING];
+    let n = samples.len().min(MAX_TRAINING);
+    for (ri, s) in r.iter_mut().zip(samples) {
+        *ri = libm::fabs(s[2] - plane.at(s[0], s[1]));
+    }
+    let r = &mut r[..n];
+    r.sort_unstable_by(f64::total_cmp);
+    let median = r.get(n / 2).copied().unwrap_or(0.0);
+    (3.0 * 1.4826 * median).max(MIN_OUTLIER_DISTANCE_M)
+}
+
+/// Per lattice bin of `axis`, the point closest to the bin centre among those `keep` accepts.
+fn closest_per_bin(
+    points: &[(CellKey, Point)],
+    axis: Axis,
+    cell_size: f64,
+    keep: impl Fn(&Sample) -> bool,
 ) -> heapless::Vec<Sample, MAX_TRAINING> {
     let (ia, ib) = axis.locations();
     let bin = cell_size / N as f64;
@@ -69,14 +137,18 @@ pub fn select_training(
         let (Some(&a), Some(&b), Some(&d)) = (p.get(ia), p.get(ib), p.get(axis.index())) else {
             continue;
         };
-        let (a, b, d) = (f64::from(a), f64::from(b), f64::from(d));
+        let sample = [f64::from(a), f64::from(b), f64::from(d)];
+        if !keep(&sample) {
+            continue;
+        }
+        let [a, b, _] = sample;
         let index = |v: f64| (libm::floor(v / bin).max(0.0) as usize).min(N - 1);
         let (i, j) = (index(a), index(b));
         let (ca, cb) = ((i as f64 + 0.5) * bin, (j as f64 + 0.5) * bin);
         let dist = (a - ca) * (a - ca) + (b - cb) * (b - cb);
         if let Some(slot) = best.get_mut(i * N + j) {
             if slot.is_none_or(|(dd, _)| dist < dd) {
-                *slot = Some((dist, [a, b, d]));
+                *slot = Some((dist, sample));
             }
         }
     }
@@ -271,6 +343,31 @@ mod tests {
                 libm::fabs(f64::from(layer.pred[j]) - f(a, b))
             })
             .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn a_facade_meeting_the_ground_does_not_bend_the_ground_layer() {
+        // Ground at d = 0.3 over the whole cell, and facade points 0.5 to 1.25 m above it in
+        // the last column of bins, exactly at the bin centres: nearest to the centres, they
+        // would be the samples of that column if nothing told the surfaces apart.
+        let mut pts = cloud(|_, _| 0.3, 1.6);
+        let bin = 1.6 / 6.0;
+        for j in 0..6 {
+            for k in 0..6 {
+                let (b, d) = ((j as f64 + 0.5) * bin, 0.8 + 0.15 * k as f64);
+                pts.push((CellKey::default(), [(5.5 * bin) as f32, b as f32, d as f32]))
+                    .unwrap();
+            }
+        }
+        let samples = select_training(&pts, Axis::Z, 1.6);
+        assert_eq!(samples.len(), 36, "every bin keeps a ground point");
+        assert!(samples.iter().all(|s| libm::fabs(s[2] - 0.3) < 1e-6));
+        let lat = Lattice {
+            cell_size: 1.6,
+            full_cover: false,
+        };
+        let layer = predict(&samples, &lat, &CFG).unwrap();
+        assert!(layer.pred.iter().all(|&p| (p - 0.3).abs() < 1e-4));
     }
 
     #[test]

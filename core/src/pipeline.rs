@@ -104,8 +104,9 @@ pub struct ScanOutcome {
     pub stats: ScanStats,
 }
 
-/// LiDAR odometry and meshing with capacities `C`.
-#[derive(Debug)]
+/// LiDAR odometry and meshing with capacities `C`. Cloning copies the map and every buffer
+/// (it allocates, like [`Pipeline::new`]).
+#[derive(Debug, Clone)]
 pub struct Pipeline<C: Capacity = KittiCapacity> {
     config: Config,
     map: MeshMap,
