@@ -17,6 +17,7 @@
 //! | time per stage | [`timing`] |
 //! | a run and its outputs | [`session`] |
 //! | odometry metrics | [`eval`] |
+//! | mesh precision, recall and F-score | [`mesh_eval`] |
 //! | a ray-casting LiDAR simulator | [`sim`] |
 #![deny(missing_docs)]
 
@@ -27,6 +28,7 @@ pub mod file_error;
 pub mod kitti;
 pub mod lzf;
 pub mod memory;
+pub mod mesh_eval;
 pub mod mesh_file;
 pub mod parallel;
 pub mod pcd;

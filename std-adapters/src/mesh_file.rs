@@ -244,6 +244,8 @@ mod tests {
             if format == MeshFormat::Ply {
                 let pts = read_ply_points(&target).unwrap();
                 assert_eq!(pts.len(), 36);
+                let mesh = crate::ply::read_ply_mesh(&target).unwrap();
+                assert_eq!((mesh.vertices.len(), mesh.triangles.len()), (36, 50));
                 assert!(pts.iter().all(|p| (p[2] - 0.5).abs() < 1e-6));
                 // The variance is the last float of each vertex record.
                 let body = &text[text.len() - 50 * FACE_BYTES - 36 * VERTEX_BYTES..];

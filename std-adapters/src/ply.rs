@@ -53,11 +53,18 @@ struct Element {
     count: usize,
     /// (name, type); `None` type for a list property.
     properties: Vec<(String, Option<String>)>,
+    /// (count type, item type) of each list property, by property index.
+    lists: Vec<Option<(String, String)>>,
 }
 
-/// Reads the vertex positions of a PLY file.
-pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
-    let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+/// A parsed header: the format, the elements, and where the data starts.
+struct Header {
+    format: Format,
+    elements: Vec<Element>,
+    start: usize,
+}
+
+fn read_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
     if bytes.is_empty() {
         return Err(FileError::at(path, "empty file"));
     }
@@ -94,27 +101,49 @@ pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
                     .parse()
                     .map_err(|_| bad(format!("element {name}: not a count: {count:?}")))?,
                 properties: Vec::new(),
+                lists: Vec::new(),
             }),
-            ["property", "list", _, _, name] => elements
-                .last_mut()
-                .ok_or_else(|| bad("property before any element".into()))?
-                .properties
-                .push((name.to_string(), None)),
+            ["property", "list", count_type, item_type, name] => {
+                if type_size(count_type).is_none() || type_size(item_type).is_none() {
+                    return Err(bad(format!("property {name}: unknown list types")));
+                }
+                let e = elements
+                    .last_mut()
+                    .ok_or_else(|| bad("property before any element".into()))?;
+                e.properties.push((name.to_string(), None));
+                e.lists
+                    .push(Some((count_type.to_string(), item_type.to_string())));
+            }
             ["property", t, name] => {
                 if type_size(t).is_none() {
                     return Err(bad(format!("property {name}: unknown type {t:?}")));
                 }
-                elements
+                let e = elements
                     .last_mut()
-                    .ok_or_else(|| bad("property before any element".into()))?
-                    .properties
-                    .push((name.to_string(), Some(t.to_string())));
+                    .ok_or_else(|| bad("property before any element".into()))?;
+                e.properties.push((name.to_string(), Some(t.to_string())));
+                e.lists.push(None);
             }
             ["end_header"] => break,
             _ => return Err(bad(format!("not a PLY header line: {line:?}"))),
         }
     }
     let format = format.ok_or_else(|| FileError::at(path, "PLY header has no format line"))?;
+    Ok(Header {
+        format,
+        elements,
+        start: pos,
+    })
+}
+
+/// Reads the vertex positions of a PLY file.
+pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
+    let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    let Header {
+        format,
+        elements,
+        start: pos,
+    } = read_header(path, &bytes)?;
     let vi = elements
         .iter()
         .position(|e| e.name == "vertex")
@@ -203,6 +232,102 @@ pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
             })
         })
         .collect())
+}
+
+/// A triangle mesh read from a PLY file.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PlyMesh {
+    /// Vertex positions.
+    pub vertices: Vec<Point>,
+    /// Triangles as vertex indices (polygons are split into fans).
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Reads the vertices and faces (`vertex_indices` or `vertex_index`) of a PLY mesh, in any of
+/// the three formats. Faces referring to missing vertices are an error.
+pub fn read_ply_mesh(path: &Path) -> Result<PlyMesh, FileError> {
+    let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    let h = read_header(path, &bytes)?;
+    let body = &bytes[h.start..];
+    let mut mesh = PlyMesh::default();
+    let truncated = || {
+        FileError::at(
+            path,
+            "truncated: the data ends before the header's elements",
+        )
+    };
+    // A reader of scalars over the body: binary by offset, ascii by word.
+    let words: Vec<&str> = if h.format == Format::Ascii {
+        std::str::from_utf8(body)
+            .map_err(|_| FileError::at(path, "ascii PLY data is not text"))?
+            .split_whitespace()
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let (mut at, mut word) = (0usize, 0usize);
+    let mut next = |t: &str| -> Option<f64> {
+        if h.format == Format::Ascii {
+            let w = words.get(word)?;
+            word += 1;
+            w.parse().ok()
+        } else {
+            let n = type_size(t)?;
+            let b = body.get(at..at + n)?;
+            at += n;
+            Some(scalar(t, b, h.format))
+        }
+    };
+    for e in &h.elements {
+        let xyz = ["x", "y", "z"].map(|n| e.properties.iter().position(|(p, _)| p == n));
+        let face = e
+            .properties
+            .iter()
+            .position(|(p, _)| p == "vertex_indices" || p == "vertex_index");
+        for _ in 0..e.count {
+            let mut p = [0f32; 3];
+            for (k, ((_, t), list)) in e.properties.iter().zip(&e.lists).enumerate() {
+                match (t, list) {
+                    (Some(t), _) => {
+                        let v = next(t).ok_or_else(truncated)?;
+                        if let Some(c) = xyz.iter().position(|&i| i == Some(k)) {
+                            p[c] = v as f32;
+                        }
+                    }
+                    (None, Some((ct, it))) => {
+                        let count = next(ct).ok_or_else(truncated)?;
+                        if !(0.0..=1e6).contains(&count) {
+                            return Err(FileError::at(
+                                path,
+                                format!("a face with {count} corners"),
+                            ));
+                        }
+                        let mut corners = Vec::with_capacity(count as usize);
+                        for _ in 0..count as usize {
+                            corners.push(next(it).ok_or_else(truncated)? as u32);
+                        }
+                        if Some(k) == face {
+                            for w in corners.windows(2).skip(1) {
+                                mesh.triangles.push([corners[0], w[0], w[1]]);
+                            }
+                        }
+                    }
+                    (None, None) => return Err(truncated()),
+                }
+            }
+            if e.name == "vertex" {
+                mesh.vertices.push(p);
+            }
+        }
+    }
+    let n = mesh.vertices.len() as u32;
+    if let Some(t) = mesh.triangles.iter().find(|t| t.iter().any(|&i| i >= n)) {
+        return Err(FileError::at(
+            path,
+            format!("a face refers to vertex {:?} of {n}", t),
+        ));
+    }
+    Ok(mesh)
 }
 
 #[cfg(test)]
