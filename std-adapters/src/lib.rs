@@ -15,14 +15,16 @@
 //! | reconstruction on several threads | [`parallel`] |
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
 //! | time per stage | [`timing`] |
-//! | a run and its outputs | [`session`] |
+//! | a run and its outputs | [`session`]; the simulated demo [`demo`] |
+//! | a picture of the mesh from above | [`topview`] |
 //! | odometry metrics | [`eval`] |
 //! | mesh precision, recall and F-score | [`mesh_eval`] |
-//! | a ray-casting LiDAR simulator | [`sim`] |
+//! | a ray-casting LiDAR simulator | [`sim`], its procedural town [`town`] |
 #![deny(missing_docs)]
 
 pub mod atomic;
 pub mod config_file;
+pub mod demo;
 pub mod eval;
 pub mod file_error;
 pub mod kitti;
@@ -37,6 +39,8 @@ pub mod scans;
 pub mod session;
 pub mod sim;
 pub mod timing;
+pub mod topview;
+pub mod town;
 pub mod trajectory;
 pub mod window;
 

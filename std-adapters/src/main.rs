@@ -8,7 +8,7 @@
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use slamesh::config_file::{self, Settings, WindowSettings, PRESETS};
-use slamesh::eval::consecutive_errors;
+use slamesh::eval::{self, consecutive_errors};
 use slamesh::mesh_file::MeshFormat;
 use slamesh::scans::ScanFolder;
 use slamesh::session::{run, spreads, FrameSource, RunOptions, Summary};
@@ -52,12 +52,22 @@ enum Command {
     /// Compare a trajectory with reference poses: consecutive-frame errors and end-point drift.
     Eval {
         /// The estimated trajectory (KITTI or TUM format, e.g. <run dir>/poses_kitti.txt).
-        #[arg(long)]
-        estimate: PathBuf,
+        #[arg(long, requires = "reference")]
+        estimate: Option<PathBuf>,
         /// Reference poses: a trajectory file, or a KITTI sequence folder (poses.txt and
         /// calib.txt, turned into LiDAR poses).
         #[arg(long)]
-        reference: PathBuf,
+        reference: Option<PathBuf>,
+        /// A mesh (PLY) to score against --cloud: precision, recall and F1 at 0.1, 0.2, 0.3 m.
+        #[arg(long, requires = "cloud")]
+        mesh: Option<PathBuf>,
+        /// The reference point cloud for --mesh (PLY, PCD or KITTI .bin, world frame).
+        #[arg(long)]
+        cloud: Option<PathBuf>,
+        /// Build a reference cloud from a KITTI sequence (its scans at its reference poses,
+        /// one point per 5 cm, ranges 1.2-100 m) and write it to FILE.ply.
+        #[arg(long, value_names = ["KITTI_SEQUENCE", "FILE"], num_args = 2)]
+        build_reference: Option<Vec<PathBuf>>,
         /// KITTI calib.txt for a reference file of camera poses.
         #[arg(long)]
         calib: Option<PathBuf>,
@@ -82,6 +92,28 @@ enum Command {
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
+    },
+    /// Simulate a drive through a procedural town, run SLAM on it and print its accuracy
+    /// against the truth. Writes the outputs of `run`, the true trajectory and topview.png.
+    Demo {
+        /// Output folder.
+        #[arg(long, default_value = "demo-out")]
+        out: PathBuf,
+        /// Frames to drive (10 a second; the loop is about 1 200 frames, 1.1 km).
+        #[arg(long, default_value_t = 400)]
+        frames: usize,
+        /// Parameter preset (meshing: the better mesh, and here also the better odometry).
+        #[arg(long, default_value = "meshing", value_parser = PRESETS)]
+        preset: String,
+        /// Reconstruction threads (1: serial; 0: one per core).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Seed of the town and the sensor noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
     },
     /// Print a configuration file with every parameter and its documentation.
     Config {
@@ -150,9 +182,31 @@ fn main() -> ExitCode {
         Command::Eval {
             estimate,
             reference,
+            mesh,
+            cloud,
+            build_reference,
             calib,
             json,
-        } => eval_command(&estimate, &reference, calib.as_deref(), json),
+        } => {
+            let mut done = false;
+            let mut result = Ok(());
+            if let Some(v) = build_reference {
+                done = true;
+                result = result.and_then(|()| build_reference_command(&v[0], &v[1]));
+            }
+            if let (Some(e), Some(r)) = (&estimate, &reference) {
+                done = true;
+                result = result.and_then(|()| eval_command(e, r, calib.as_deref(), json));
+            }
+            if let (Some(m), Some(c)) = (&mesh, &cloud) {
+                done = true;
+                result = result.and_then(|()| mesh_eval_command(m, c, json));
+            }
+            if !done {
+                result = Err("eval: give --estimate and --reference, --mesh and --cloud, or --build-reference".into());
+            }
+            result
+        }
         Command::Bench {
             input,
             preset,
@@ -160,6 +214,14 @@ fn main() -> ExitCode {
             repeat,
             json,
         } => bench_command(&input, &preset, threads, repeat, json),
+        Command::Demo {
+            out,
+            frames,
+            preset,
+            threads,
+            seed,
+            quiet,
+        } => demo_command(out, frames, &preset, threads, seed, quiet),
         Command::Config { preset } => {
             let c = config_file::preset(&preset).unwrap_or_default();
             say!("{}", config_file::documented_toml(&c, &preset).trim_end());
@@ -339,20 +401,10 @@ fn eval_command(
     }
     let e = consecutive_errors(&est, &reference);
     let n = est.len().min(reference.len());
-    let path_m: f64 = reference[..n]
-        .windows(2)
-        .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
-        .sum();
-    let end_m = if n > 0 {
-        (est[n - 1].translation.vector - reference[n - 1].translation.vector).norm()
-    } else {
-        0.0
-    };
-    let drift_percent = if path_m > 0.0 {
-        100.0 * end_m / path_m
-    } else {
-        0.0
-    };
+    let path_m = eval::path_length(&reference[..n]);
+    let (end_m, drift_percent) = eval::end_drift(&est, &reference);
+    let ate = eval::ate_rmse(&est, &reference);
+    let segments = eval::segment_errors(&est, &reference, &eval::KITTI_SEGMENTS);
     if json {
         say!(
             "{}",
@@ -364,6 +416,13 @@ fn eval_command(
                 "path_m": path_m,
                 "end_error_m": end_m,
                 "end_drift_percent": drift_percent,
+                "ate_rmse_m": ate,
+                "segments": segments.iter().map(|s| serde_json::json!({
+                    "length_m": s.length_m,
+                    "translation_percent": s.translation_percent,
+                    "rotation_deg_per_100m": s.rotation_deg_per_100m,
+                    "segments": s.segments,
+                })).collect::<Vec<_>>(),
             })
         );
     } else {
@@ -383,7 +442,77 @@ fn eval_command(
             path_m,
             drift_percent
         );
+        say!("ATE (rigidly aligned):       {:.3} m RMSE", ate);
+        for s in &segments {
+            say!(
+                "{:>4.0} m segments:             {:.3} % translation, {:.4} deg/100 m ({} segments)",
+                s.length_m,
+                s.translation_percent,
+                s.rotation_deg_per_100m,
+                s.segments
+            );
+        }
     }
+    Ok(())
+}
+
+fn mesh_eval_command(mesh: &Path, cloud: &Path, json: bool) -> Result<(), String> {
+    let m = slamesh::ply::read_ply_mesh(mesh).map_err(|e| e.to_string())?;
+    let reference = slamesh::scans::read_scan(cloud).map_err(|e| e.to_string())?;
+    let triangles = m
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| m.vertices[i as usize]));
+    let samples = slamesh::mesh_eval::sample_triangles(triangles, 0.05, 1);
+    let scores = slamesh::mesh_eval::score(&samples, &reference, &slamesh::mesh_eval::THRESHOLDS);
+    if json {
+        say!("{}", serde_json::to_string(&scores).unwrap_or_default());
+    } else {
+        say!(
+            "mesh: {} triangles, {} samples (5 cm apart); reference: {} points",
+            m.triangles.len(),
+            samples.len(),
+            reference.len()
+        );
+        for s in &scores {
+            say!(
+                "at {:.1} m: precision {:.3}, recall {:.3}, F1 {:.3}",
+                s.threshold_m,
+                s.precision,
+                s.recall,
+                s.f1
+            );
+        }
+    }
+    Ok(())
+}
+
+fn build_reference_command(sequence: &Path, out: &Path) -> Result<(), String> {
+    let scans = ScanFolder::open(sequence).map_err(|e| e.to_string())?;
+    let poses = kitti::reference_lidar_poses(&kitti::sequence_folder(sequence))
+        .map_err(|e| e.to_string())?;
+    if poses.len() < scans.paths.len() {
+        return Err(format!(
+            "{}: {} reference poses for {} scans",
+            sequence.display(),
+            poses.len(),
+            scans.paths.len()
+        ));
+    }
+    let mut frames = Vec::new();
+    for (path, pose) in scans.paths.iter().zip(&poses) {
+        match slamesh::scans::read_scan(path) {
+            Ok(points) => frames.push((points, *pose)),
+            Err(e) => eprintln!("slamesh: skipped: {e}"),
+        }
+    }
+    let cloud = slamesh::mesh_eval::accumulate(frames, 0.05, 1.2, 100.0);
+    slamesh::ply::write_points(out, &cloud).map_err(|e| e.to_string())?;
+    say!(
+        "wrote {} reference points to {}",
+        cloud.len(),
+        out.display()
+    );
     Ok(())
 }
 
@@ -465,5 +594,84 @@ fn bench_command(
             peak.map_or("unknown".into(), |m| format!("{m:.0} MB"))
         );
     }
+    Ok(())
+}
+
+fn progress(frames: usize, quiet: bool) -> ProgressBar {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(frames as u64)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {per_sec}  eta {eta}  {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+fn demo_command(
+    out: PathBuf,
+    frames: usize,
+    preset: &str,
+    threads: usize,
+    seed: u64,
+    quiet: bool,
+) -> Result<(), String> {
+    let opts = RunOptions {
+        out: out.clone(),
+        config: config_file::preset(preset).unwrap_or_default(),
+        preset: preset.to_string(),
+        window: WindowSettings::default(),
+        threads,
+        mesh_formats: vec![MeshFormat::Ply],
+        given_poses: None,
+        input: format!("simulated town, seed {seed}, {frames} frames"),
+    };
+    eprintln!("slamesh demo: simulating {frames} frames through a procedural town (seed {seed}), output in {}", out.display());
+    let bar = progress(frames, quiet);
+    let r = slamesh::demo::run_demo::<KittiCapacity>(frames, seed, &opts, |rec| {
+        bar.set_message(format!("{} ms", rec.ms.total.round()));
+        bar.inc(1);
+    })
+    .map_err(|e| e.to_string())?;
+    bar.finish_and_clear();
+    print_summary(&r.summary, &out);
+    say!(
+        "demo: {} frames, {:.0} m; consecutive error {:.2} cm (worst {:.2} cm), {:.4} deg",
+        r.frames,
+        r.path_m,
+        r.consecutive.mean_translation_m * 100.0,
+        r.consecutive.max_translation_m * 100.0,
+        r.consecutive.mean_rotation_deg
+    );
+    say!(
+        "demo: end-point error {:.2} m ({:.2} % of the path), ATE {:.2} m",
+        r.end_drift.0,
+        r.end_drift.1,
+        r.ate_m
+    );
+    for s in &r.segments {
+        say!(
+            "demo: {:.0} m segments: {:.2} % translation, {:.3} deg/100 m ({} segments)",
+            s.length_m,
+            s.translation_percent,
+            s.rotation_deg_per_100m,
+            s.segments
+        );
+    }
+    for m in &r.mesh {
+        say!(
+            "demo: mesh at {:.1} m: precision {:.3}, recall {:.3}, F1 {:.3}",
+            m.threshold_m,
+            m.precision,
+            m.recall,
+            m.f1
+        );
+    }
+    say!(
+        "demo: wrote {0}/topview.png and {0}/poses_true_kitti.txt",
+        out.display()
+    );
     Ok(())
 }

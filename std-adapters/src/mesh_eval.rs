@@ -59,11 +59,28 @@ pub fn sample_triangles(
 /// Scores of `mesh_samples` against `reference` at each of `thresholds`.
 pub fn score(mesh_samples: &[Point], reference: &[Point], thresholds: &[f64]) -> Vec<MeshScore> {
     let largest = thresholds.iter().copied().fold(0.0, f64::max).max(1e-3);
-    let mesh_index = VoxelIndex::new(mesh_samples, largest);
     let ref_index = VoxelIndex::new(reference, largest);
-    let near = |index: &VoxelIndex, p: &Point| index.nearest_distance(p);
-    let d_mesh: Vec<f64> = mesh_samples.iter().map(|p| near(&ref_index, p)).collect();
-    let d_ref: Vec<f64> = reference.iter().map(|p| near(&mesh_index, p)).collect();
+    let d_mesh: Vec<f64> = mesh_samples
+        .iter()
+        .map(|p| ref_index.nearest_distance(p))
+        .collect();
+    score_with_precision_distances(&d_mesh, mesh_samples, reference, thresholds)
+}
+
+/// Scores where the mesh samples' distances to the truth are known (`d_mesh`, e.g. exact
+/// distances to the true surfaces of a simulation); recall is measured from `reference`.
+pub fn score_with_precision_distances(
+    d_mesh: &[f64],
+    mesh_samples: &[Point],
+    reference: &[Point],
+    thresholds: &[f64],
+) -> Vec<MeshScore> {
+    let largest = thresholds.iter().copied().fold(0.0, f64::max).max(1e-3);
+    let mesh_index = VoxelIndex::new(mesh_samples, largest);
+    let d_ref: Vec<f64> = reference
+        .iter()
+        .map(|p| mesh_index.nearest_distance(p))
+        .collect();
     thresholds
         .iter()
         .map(|&t| {
@@ -74,7 +91,7 @@ pub fn score(mesh_samples: &[Point], reference: &[Point], thresholds: &[f64]) ->
                     d.iter().filter(|&&x| x <= t).count() as f64 / d.len() as f64
                 }
             };
-            let (precision, recall) = (share(&d_mesh), share(&d_ref));
+            let (precision, recall) = (share(d_mesh), share(&d_ref));
             let f1 = if precision + recall > 0.0 {
                 2.0 * precision * recall / (precision + recall)
             } else {

@@ -234,6 +234,23 @@ pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
         .collect())
 }
 
+/// Writes `points` as a binary little-endian PLY point cloud (atomically).
+pub fn write_points(path: &Path, points: &[Point]) -> Result<(), FileError> {
+    crate::atomic::write_atomic(path, |w| {
+        use std::io::Write;
+        write!(
+            w,
+            "ply\nformat binary_little_endian 1.0\ncomment slamesh points\nelement vertex {}\n\
+             property float x\nproperty float y\nproperty float z\nend_header\n",
+            points.len()
+        )?;
+        for v in points.iter().flatten() {
+            w.write_all(&v.to_le_bytes())?;
+        }
+        Ok(())
+    })
+}
+
 /// A triangle mesh read from a PLY file.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PlyMesh {
@@ -344,6 +361,9 @@ mod tests {
 property float y\nproperty float z\nproperty uchar red\nend_header\n1 2 3 255\n-4.5 0 6 0\n";
         let want = vec![[1.0, 2.0, 3.0], [-4.5, 0.0, 6.0]];
         assert_eq!(read_ply_points(&tmp("a.ply", ascii)).unwrap(), want);
+        let written = crate::test_support::scratch_dir("ply").join("w.ply");
+        write_points(&written, &want).unwrap();
+        assert_eq!(read_ply_points(&written).unwrap(), want);
         for (name, big) in [("little", false), ("big", true)] {
             let mut b = format!(
                 "ply\nformat binary_{name}_endian 1.0\nelement vertex 2\nproperty double x\n\

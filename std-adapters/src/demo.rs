@@ -1,0 +1,132 @@
+//! The demo: a simulated drive through the procedural town, SLAM on it, and its accuracy
+//! against the truth, with every output of `run` plus the true trajectory and a picture.
+
+use crate::eval::{
+    ate_rmse, consecutive_errors, end_drift, path_length, segment_errors, ConsecutiveErrors,
+    SegmentError, KITTI_SEGMENTS,
+};
+use crate::mesh_eval::{self, MeshScore};
+use crate::session::{run, FrameRecord, RunError, RunOptions, Summary};
+use crate::sim::Drive;
+use crate::topview::TopView;
+use crate::trajectory::write_kitti_line;
+use crate::{atomic::write_atomic, ply};
+use slamesh_core::{Capacity, Pose};
+
+/// What the demo measured.
+#[derive(Debug, Clone)]
+pub struct DemoReport {
+    /// The run.
+    pub summary: Summary,
+    /// Frames driven.
+    pub frames: usize,
+    /// Path length of the true trajectory (metres).
+    pub path_m: f64,
+    /// Consecutive-frame errors.
+    pub consecutive: ConsecutiveErrors,
+    /// End-point error (metres) and as percent of the path.
+    pub end_drift: (f64, f64),
+    /// ATE after rigid alignment (metres).
+    pub ate_m: f64,
+    /// KITTI segment errors for the lengths the drive covers.
+    pub segments: Vec<SegmentError>,
+    /// Mesh accuracy: precision by exact distance to the true surfaces, recall of the true
+    /// surfaces where the sensor saw them.
+    pub mesh: Vec<MeshScore>,
+}
+
+/// Runs the demo: `frames` frames of [`Drive::town`] with seed `seed`, outputs into
+/// `opts.out` (`opts.given_poses` is ignored). Adds `poses_true_kitti.txt`, `reference.ply` (the
+/// true surfaces where the sensor saw them, one point per 5 cm) and `topview.png`.
+pub fn run_demo<C: Capacity>(
+    frames: usize,
+    seed: u64,
+    opts: &RunOptions,
+    on_frame: impl FnMut(&FrameRecord),
+) -> Result<DemoReport, RunError> {
+    let mut drive = Drive::town(frames, seed);
+    let opts = RunOptions {
+        given_poses: None,
+        ..opts.clone()
+    };
+    let summary = run::<C>(&mut drive, &opts, on_frame)?;
+    let truth: Vec<Pose> = drive
+        .poses
+        .iter()
+        .map(|p| drive.poses[0].inverse() * p)
+        .collect();
+    let mut estimate = vec![Pose::identity(); truth.len()];
+    for (i, p) in &summary.poses {
+        estimate[*i] = *p;
+    }
+    write_atomic(&opts.out.join("poses_true_kitti.txt"), |w| {
+        truth.iter().try_for_each(|p| write_kitti_line(w, p))
+    })?;
+
+    // The mesh against the true surfaces, both in the first sensor frame.
+    let mesh = ply::read_ply_mesh(&opts.out.join("mesh.ply"))?;
+    let to_first = drive.poses[0].inverse();
+    let reference = mesh_eval::accumulate(
+        (0..drive.poses.len()).step_by(5).map(|i| {
+            let world = drive.true_points(i);
+            let local = world
+                .into_iter()
+                .map(|p| {
+                    let q = to_first * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                    [q.x as f32, q.y as f32, q.z as f32]
+                })
+                .collect();
+            (local, Pose::identity())
+        }),
+        0.05,
+        0.0,
+        f64::INFINITY,
+    );
+    ply::write_points(&opts.out.join("reference.ply"), &reference)?;
+    let triangles = mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| mesh.vertices[i as usize]));
+    let samples = mesh_eval::sample_triangles(triangles.clone(), 0.05, seed);
+    // Precision: exact distances to the true surfaces; recall: the true hits covered.
+    let truth_distance = crate::sim::SurfaceDistance::new(&drive.scene);
+    let d_mesh: Vec<f64> = samples
+        .iter()
+        .map(|p| {
+            let w = drive.poses[0] * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            truth_distance.distance(&w.coords)
+        })
+        .collect();
+    let scores = mesh_eval::score_with_precision_distances(
+        &d_mesh,
+        &samples,
+        &reference,
+        &mesh_eval::THRESHOLDS,
+    );
+
+    // The picture: the mesh by height, the true path in white, the estimate in red.
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in truth.iter().chain(&estimate) {
+        let t = p.translation.vector;
+        lo = [lo[0].min(t.x - 40.0), lo[1].min(t.y - 40.0)];
+        hi = [hi[0].max(t.x + 40.0), hi[1].max(t.y + 40.0)];
+    }
+    let mut view = TopView::new(lo, hi, 1600);
+    let z: Vec<f32> = mesh.vertices.iter().map(|v| v[2]).collect();
+    let (z_lo, z_hi) = (-3.0f32, z.iter().copied().fold(2.0f32, f32::max).min(20.0));
+    view.triangles(triangles, z_lo, z_hi);
+    view.path(&truth, [255, 255, 255]);
+    view.path(&estimate, [230, 40, 40]);
+    view.write_png(&opts.out.join("topview.png"))?;
+
+    Ok(DemoReport {
+        frames: truth.len(),
+        path_m: path_length(&truth),
+        consecutive: consecutive_errors(&estimate, &truth),
+        end_drift: end_drift(&estimate, &truth),
+        ate_m: ate_rmse(&estimate, &truth),
+        segments: segment_errors(&estimate, &truth, &KITTI_SEGMENTS),
+        mesh: scores,
+        summary,
+    })
+}

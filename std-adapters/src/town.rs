@@ -1,0 +1,295 @@
+//! A procedural town for long simulated drives with ground truth (deterministic from a seed).
+//!
+//! A grid of blocks (90 m apart, 16 m streets) over gently rolling, rough ground: buildings of
+//! several heights and depths along every block edge with gaps between them, balconies and
+//! plinths on the facades, street lights, trees (trunk and crown), parked cars, fences and bus
+//! shelters on the sidewalks. The route is a loop around the middle blocks with rounded
+//! corners, about 1.1 km, driven from standstill with speed changes (slower in the corners).
+
+use crate::sim::{OrientedBox, Scene, Sphere, SplitMix64, Terrain};
+use nalgebra::{Translation3, UnitQuaternion};
+use slamesh_core::Pose;
+
+/// Distance between street centre lines (metres).
+pub const PITCH_M: f64 = 90.0;
+/// Streets per direction.
+const STREETS: usize = 6;
+/// Half the width between facades (metres).
+const STREET_HALF_M: f64 = 8.0;
+/// Sensor height above the ground (metres).
+pub const SENSOR_HEIGHT_M: f64 = 1.73;
+
+/// The town's scene.
+pub fn scene(seed: u64) -> Scene {
+    let mut rng = SplitMix64(seed);
+    let mut boxes = Vec::new();
+    let mut spheres = Vec::new();
+    let terrain = Terrain {
+        hill_m: 1.5,
+        hill_wavelength_m: 320.0,
+        roughness_m: 0.03,
+    };
+    let ground = |x: f64, y: f64| terrain.height(x, y);
+    let size = PITCH_M * (STREETS - 1) as f64;
+    // Buildings along the four edges of every block.
+    for bi in 0..STREETS - 1 {
+        for bj in 0..STREETS - 1 {
+            let (x0, y0) = (
+                bi as f64 * PITCH_M + STREET_HALF_M,
+                bj as f64 * PITCH_M + STREET_HALF_M,
+            );
+            let side = PITCH_M - 2.0 * STREET_HALF_M;
+            // Edges: origin, direction along the edge, inward normal.
+            let edges = [
+                ([x0, y0], [1.0, 0.0], [0.0, 1.0]),
+                ([x0 + side, y0], [0.0, 1.0], [-1.0, 0.0]),
+                ([x0 + side, y0 + side], [-1.0, 0.0], [0.0, -1.0]),
+                ([x0, y0 + side], [0.0, -1.0], [1.0, 0.0]),
+            ];
+            for (start, along, inward) in edges {
+                let mut t = 0.0;
+                while t < side - 6.0 {
+                    let width = rng.range(8.0, 22.0).min(side - t);
+                    if rng.next_f64() > 0.12 {
+                        let depth = rng.range(8.0, 14.0);
+                        let setback = rng.range(0.0, 1.5);
+                        let height = rng.range(5.0, 20.0);
+                        let centre_edge = t + width / 2.0;
+                        let cx =
+                            start[0] + along[0] * centre_edge + inward[0] * (setback + depth / 2.0);
+                        let cy =
+                            start[1] + along[1] * centre_edge + inward[1] * (setback + depth / 2.0);
+                        let base = ground(cx, cy) - 0.5;
+                        let yaw = along[1].atan2(along[0]) + rng.range(-0.03, 0.03);
+                        boxes.push(OrientedBox {
+                            centre: [cx, cy, base + height / 2.0],
+                            half: [width / 2.0, depth / 2.0, height / 2.0],
+                            yaw,
+                        });
+                        // A plinth and balconies on the street face.
+                        let face = setback - 0.25;
+                        let fx = start[0] + along[0] * centre_edge + inward[0] * face;
+                        let fy = start[1] + along[1] * centre_edge + inward[1] * face;
+                        boxes.push(OrientedBox {
+                            centre: [fx, fy, base + 0.9],
+                            half: [width / 2.0, 0.3, 0.9],
+                            yaw,
+                        });
+                        let floors = (height / 3.0) as usize;
+                        for floor in 1..floors {
+                            if rng.next_f64() < 0.5 {
+                                let off = rng.range(-width / 3.0, width / 3.0);
+                                let depth_b = rng.range(0.4, 1.0);
+                                let bx = fx + along[0] * off - inward[0] * depth_b / 2.0;
+                                let by = fy + along[1] * off - inward[1] * depth_b / 2.0;
+                                boxes.push(OrientedBox {
+                                    centre: [bx, by, base + 0.5 + 3.0 * floor as f64],
+                                    half: [rng.range(1.0, 2.0), depth_b / 2.0, rng.range(0.1, 0.5)],
+                                    yaw,
+                                });
+                            }
+                        }
+                    }
+                    t += width + rng.range(0.0, 4.0);
+                }
+            }
+        }
+    }
+    // Street furniture along both sides of every street.
+    for k in 0..STREETS {
+        let c = k as f64 * PITCH_M;
+        for horizontal in [true, false] {
+            for side in [-1.0, 1.0] {
+                let mut t = rng.range(0.0, 10.0);
+                while t < size {
+                    t += rng.range(6.0, 16.0);
+                    // Keep intersections clear.
+                    let local = t % PITCH_M;
+                    if !(STREET_HALF_M + 3.0..PITCH_M - STREET_HALF_M - 3.0).contains(&local) {
+                        continue;
+                    }
+                    let lateral = side * rng.range(4.2, 6.8);
+                    let (x, y) = if horizontal {
+                        (t, c + lateral)
+                    } else {
+                        (c + lateral, t)
+                    };
+                    let yaw = if horizontal {
+                        0.0
+                    } else {
+                        std::f64::consts::FRAC_PI_2
+                    };
+                    let g = ground(x, y);
+                    match rng.next_f64() {
+                        f if f < 0.35 => boxes.push(OrientedBox {
+                            centre: [x, y, g + 0.75],
+                            half: [2.2, 0.9, 0.75],
+                            yaw: yaw + rng.range(-0.08, 0.08),
+                        }),
+                        f if f < 0.55 => {
+                            let h = rng.range(2.0, 3.5);
+                            boxes.push(OrientedBox {
+                                centre: [x, y, g + h / 2.0],
+                                half: [0.15, 0.15, h / 2.0],
+                                yaw: 0.0,
+                            });
+                            spheres.push(Sphere {
+                                centre: [x, y, g + h + 1.2],
+                                radius: rng.range(1.4, 2.4),
+                            });
+                        }
+                        f if f < 0.75 => {
+                            let h = rng.range(4.0, 8.0);
+                            boxes.push(OrientedBox {
+                                centre: [x, y, g + h / 2.0],
+                                half: [0.1, 0.1, h / 2.0],
+                                yaw: 0.0,
+                            });
+                        }
+                        f if f < 0.9 => boxes.push(OrientedBox {
+                            centre: [x, y, g + 0.6],
+                            half: [rng.range(2.5, 7.0), 0.03, 0.6],
+                            yaw,
+                        }),
+                        _ => boxes.push(OrientedBox {
+                            centre: [x, y, g + 1.3],
+                            half: [1.8, 0.8, 1.3],
+                            yaw,
+                        }),
+                    }
+                }
+            }
+        }
+    }
+    Scene {
+        ground_z: 0.0,
+        terrain: Some(terrain),
+        boxes,
+        spheres,
+    }
+}
+
+/// The route: a loop around the middle blocks (from the second to the fifth street), corners
+/// rounded with a 10 m radius, as points about 0.25 m apart; it starts and ends mid-street.
+pub fn route() -> Vec<[f64; 2]> {
+    let (lo, hi, r) = (PITCH_M, 4.0 * PITCH_M, 10.0);
+    let mid = (lo + hi) / 2.0;
+    let mut pts = Vec::new();
+    let straight = |pts: &mut Vec<[f64; 2]>, a: [f64; 2], b: [f64; 2]| {
+        let n = (((b[0] - a[0]).hypot(b[1] - a[1])) / 0.25).ceil() as usize;
+        for i in 0..n {
+            let f = i as f64 / n as f64;
+            pts.push([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])]);
+        }
+    };
+    let arc = |pts: &mut Vec<[f64; 2]>, centre: [f64; 2], from: f64| {
+        let n = (r * std::f64::consts::FRAC_PI_2 / 0.25).ceil() as usize;
+        for i in 0..n {
+            let a = from + std::f64::consts::FRAC_PI_2 * i as f64 / n as f64;
+            pts.push([centre[0] + r * a.cos(), centre[1] + r * a.sin()]);
+        }
+    };
+    use std::f64::consts::{FRAC_PI_2, PI};
+    straight(&mut pts, [mid, lo], [hi - r, lo]);
+    arc(&mut pts, [hi - r, lo + r], -FRAC_PI_2);
+    straight(&mut pts, [hi, lo + r], [hi, hi - r]);
+    arc(&mut pts, [hi - r, hi - r], 0.0);
+    straight(&mut pts, [hi - r, hi], [lo + r, hi]);
+    arc(&mut pts, [lo + r, hi - r], FRAC_PI_2);
+    straight(&mut pts, [lo, hi - r], [lo, lo + r]);
+    arc(&mut pts, [lo + r, lo + r], PI);
+    straight(&mut pts, [lo + r, lo], [mid, lo]);
+    pts
+}
+
+/// Sensor poses along [`route`] at 10 Hz: from standstill, accelerating at 2 m/s² to
+/// 10 m/s on the straights and 5 m/s in the corners; up to `frames` frames or once round.
+/// The sensor sits `SENSOR_HEIGHT_M` above the ground, level with it (pitch and roll follow
+/// the slope).
+pub fn drive_poses(scene: &Scene, frames: usize) -> Vec<Pose> {
+    let path = route();
+    let mut cum = vec![0.0];
+    for w in path.windows(2) {
+        cum.push(cum[cum.len() - 1] + (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]));
+    }
+    let total = cum[cum.len() - 1];
+    let at = |s: f64| {
+        let i = cum.partition_point(|&c| c <= s).clamp(1, path.len() - 1);
+        let f = ((s - cum[i - 1]) / (cum[i] - cum[i - 1]).max(1e-9)).clamp(0.0, 1.0);
+        let (a, b) = (path[i - 1], path[i]);
+        (
+            [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])],
+            (b[1] - a[1]).atan2(b[0] - a[0]),
+        )
+    };
+    // Curvature near s: heading change over the next 15 m.
+    let cornering = |s: f64| {
+        let (_, h0) = at(s);
+        let (_, h1) = at((s + 15.0).min(total));
+        let mut d = (h1 - h0).abs();
+        if d > std::f64::consts::PI {
+            d = std::f64::consts::TAU - d;
+        }
+        d > 0.2
+    };
+    let (mut s, mut v) = (0.0f64, 0.0f64);
+    let mut poses = Vec::with_capacity(frames);
+    while poses.len() < frames && s < total {
+        let ([x, y], yaw) = at(s);
+        let h = |x: f64, y: f64| scene.ground_height(x, y);
+        let (c, sn) = (yaw.cos(), yaw.sin());
+        let e = 0.5;
+        let slope_fwd = (h(x + e * c, y + e * sn) - h(x - e * c, y - e * sn)) / (2.0 * e);
+        let slope_left = (h(x - e * sn, y + e * c) - h(x + e * sn, y - e * c)) / (2.0 * e);
+        let rotation = UnitQuaternion::from_euler_angles(slope_left.atan(), -slope_fwd.atan(), yaw);
+        poses.push(Pose::from_parts(
+            Translation3::new(x, y, h(x, y) + SENSOR_HEIGHT_M),
+            rotation,
+        ));
+        let target = if cornering(s) { 5.0 } else { 10.0 };
+        v = if v < target {
+            (v + 0.2).min(target)
+        } else {
+            (v - 0.3).max(target)
+        };
+        s += v * 0.1;
+    }
+    poses
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_loop_is_about_a_kilometre_and_the_drive_starts_from_standstill() {
+        let r = route();
+        let length: f64 = r
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum();
+        assert!((1000.0..1100.0).contains(&length), "{length}");
+        let s = scene(1);
+        let poses = drive_poses(&s, 100_000);
+        let steps: Vec<f64> = poses
+            .windows(2)
+            .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+            .collect();
+        assert!(steps[0] < 0.03, "standstill start: {}", steps[0]);
+        let fastest = steps.iter().copied().fold(0.0, f64::max);
+        assert!(
+            (0.95..1.05).contains(&fastest),
+            "10 m/s at 10 Hz: {fastest}"
+        );
+        assert!(
+            steps.iter().any(|&d| (0.45..0.55).contains(&d)),
+            "slower in corners"
+        );
+        // The sensor stays above the ground, and scans are deterministic.
+        for p in poses.iter().step_by(50) {
+            let t = p.translation.vector;
+            assert!((t.z - s.ground_height(t.x, t.y) - SENSOR_HEIGHT_M).abs() < 1e-9);
+        }
+        assert_eq!(scene(1), s);
+    }
+}
