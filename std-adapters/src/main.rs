@@ -100,11 +100,14 @@ enum Command {
         #[arg(long, default_value = "demo-out")]
         out: PathBuf,
         /// Frames to drive (10 a second; the loop is about 1 200 frames, 1.1 km).
-        #[arg(long, default_value_t = 400)]
+        #[arg(long, default_value_t = 300)]
         frames: usize,
         /// Parameter preset (meshing: the better mesh, and here also the better odometry).
         #[arg(long, default_value = "meshing", value_parser = PRESETS)]
         preset: String,
+        /// A TOML configuration file instead of the preset.
+        #[arg(long)]
+        config: Option<PathBuf>,
         /// Reconstruction threads (1: serial; 0: one per core).
         #[arg(long, default_value_t = 0)]
         threads: usize,
@@ -218,10 +221,19 @@ fn main() -> ExitCode {
             out,
             frames,
             preset,
+            config,
             threads,
             seed,
             quiet,
-        } => demo_command(out, frames, &preset, threads, seed, quiet),
+        } => demo_command(
+            out,
+            frames,
+            &preset,
+            config.as_deref(),
+            threads,
+            seed,
+            quiet,
+        ),
         Command::Config { preset } => {
             let c = config_file::preset(&preset).unwrap_or_default();
             say!("{}", config_file::documented_toml(&c, &preset).trim_end());
@@ -614,13 +626,21 @@ fn demo_command(
     out: PathBuf,
     frames: usize,
     preset: &str,
+    config: Option<&Path>,
     threads: usize,
     seed: u64,
     quiet: bool,
 ) -> Result<(), String> {
+    let (config, preset) = match config {
+        Some(path) => {
+            let s = config_file::read(path).map_err(|e| e.to_string())?;
+            (s.config, s.preset)
+        }
+        None => (config_file::preset(preset).unwrap_or_default(), preset),
+    };
     let opts = RunOptions {
         out: out.clone(),
-        config: config_file::preset(preset).unwrap_or_default(),
+        config,
         preset: preset.to_string(),
         window: WindowSettings::default(),
         threads,
