@@ -51,6 +51,11 @@ fn drive(
 
 #[test]
 fn the_window_keeps_memory_flat_and_the_cap_holds() {
+    if std::env::var_os("SLAMESH_TEST_RUNNER").is_some() {
+        // Under qemu-user, /proc/self/status is the emulator's, translation cache and all.
+        println!("skipped: resident memory under an emulator is the emulator's");
+        return;
+    }
     // The cap first: peak RSS is a high-water mark for the whole process.
     let mut street = Drive::long_street(260, 1.0, 11);
     let other =

@@ -74,6 +74,24 @@ mod tests {
 
     #[test]
     fn footprints_stay_what_the_docs_say() {
+        // The README's footprint table: bytes per unit of each capacity.
+        assert_eq!(
+            size_of::<Point>() + size_of::<(CellKey, Point)>(),
+            36,
+            "per scan point"
+        );
+        assert_eq!(size_of::<CellSpan>(), 20, "per scan cell");
+        assert_eq!(
+            size_of::<ScanLayer>() + size_of::<Residual>(),
+            384,
+            "per scan layer"
+        );
+        assert_eq!(
+            size_of::<(CellKey, MapCell)>(),
+            28,
+            "per map cell, before the table's factor"
+        );
+        assert_eq!(size_of::<Layer>() + size_of::<u32>(), 292, "per map layer");
         assert_eq!(size_of::<Layer>(), 288);
         // The documented figures, with 1 % slack for platform layout.
         let kitti = KittiCapacity::memory_bytes() as f64;

@@ -280,15 +280,17 @@ mod tests {
 
     #[test]
     fn table_never_reallocates_under_churn() {
+        // `capacity()` counts tombstones against the room left and so moves with the group
+        // width (16 on x86-64, 8 on aarch64); the allocation itself must not change.
         let mut m = MeshMap::with_capacity(64, 64, LAT);
-        let cap = m.cells.capacity();
+        let size = m.cells.allocation_size();
         for round in 0..50u32 {
             for i in 0..64 {
                 let key = CellKey::new(i + 64 * round as i32, 0, 0);
                 m.insert_layer(key, Axis::Z, Layer::UNKNOWN, round).unwrap();
             }
             m.evict_where(|_, c| c.last_seen == round, |_| {});
-            assert_eq!(m.cells.capacity(), cap);
+            assert_eq!(m.cells.allocation_size(), size);
         }
     }
 }

@@ -35,9 +35,21 @@ pub fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// Runs the `slamesh` binary with `args`.
+/// Runs the `slamesh` binary with `args`. When the tests run under an emulator (cross
+/// builds), `SLAMESH_TEST_RUNNER` names it (e.g. `qemu-aarch64 -L /usr/aarch64-linux-gnu`)
+/// and the binary runs under it too.
 pub fn slamesh(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_slamesh"))
+    let runner = std::env::var("SLAMESH_TEST_RUNNER").unwrap_or_default();
+    let mut words = runner.split_whitespace();
+    let mut command = match words.next() {
+        Some(program) => {
+            let mut c = Command::new(program);
+            c.args(words).arg(env!("CARGO_BIN_EXE_slamesh"));
+            c
+        }
+        None => Command::new(env!("CARGO_BIN_EXE_slamesh")),
+    };
+    command
         .args(args)
         .output()
         .expect("the slamesh binary runs")

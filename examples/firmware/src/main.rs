@@ -1,0 +1,230 @@
+//! slamesh-core on a Cortex-M4F: a fixed-capacity pipeline (`Sparse16`, under 1 MB) tracks a
+//! simulated 16-beam sensor through a small room and prints, over semihosting, each estimated
+//! pose next to the true one. Ends with `PASS` (and exit status 0) when every position is
+//! within `TOLERANCE_M` and every orientation within `TOLERANCE_DEG` of the truth, else `FAIL`.
+//!
+//! Run it under QEMU (`qemu-system-arm`, board `mps2-an386`): `cargo run --release` in this
+//! folder (the runner is set in `.cargo/config.toml`).
+#![no_std]
+#![no_main]
+
+extern crate alloc;
+
+use alloc::vec::Vec;
+use core::mem::MaybeUninit;
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hprintln};
+use embedded_alloc::LlffHeap as Heap;
+use slamesh_core::{Capacity, Config, Pipeline, Point, Pose};
+
+/// Capacities for a 16-beam sensor with 360 firings a turn in rooms and corridors: a few
+/// hundred cells per scan and in the map.
+struct Sparse16;
+impl Capacity for Sparse16 {
+    const POINTS: usize = 6_144;
+    const SCAN_CELLS: usize = 256;
+    const SCAN_LAYERS: usize = 384;
+    const MAP_CELLS: usize = 512;
+    const MAP_LAYERS: usize = 768;
+}
+
+/// Cell edge (metres).
+const CELL_M: f64 = 0.8;
+/// Firings per turn of the simulated sensor.
+const FIRINGS: usize = 360;
+/// The heap: the pipeline's one-time allocation, a scan, and margin.
+const HEAP_BYTES: usize = 1536 * 1024;
+/// Acceptance: position error (metres) and orientation error (degrees) of every frame.
+const TOLERANCE_M: f64 = 0.03;
+const TOLERANCE_DEG: f64 = 1.0;
+/// Frames driven.
+const FRAMES: usize = 6;
+
+#[global_allocator]
+static HEAP: Heap = Heap::empty();
+
+/// An axis-aligned box: min and max corners.
+type Aabb = ([f64; 3], [f64; 3]);
+
+/// The room (its inside is seen) and the objects in it (their outsides are seen).
+const ROOM: Aabb = ([-4.6, -3.7, 0.0], [4.9, 4.1, 3.0]);
+const OBJECTS: [Aabb; 3] = [
+    ([1.8, 1.2, 0.0], [2.6, 2.3, 1.4]),     // a cupboard
+    ([-3.0, -2.9, 0.0], [-2.2, -2.1, 0.9]), // a crate
+    ([-0.4, 2.9, 0.0], [0.4, 4.1, 2.2]),    // a wall pillar
+];
+
+/// Entry and exit ranges of a ray through a box (slab test).
+fn slabs(o: &[f64; 3], d: &[f64; 3], b: &Aabb) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    for k in 0..3 {
+        if libm::fabs(d[k]) < 1e-12 {
+            if o[k] < b.0[k] || o[k] > b.1[k] {
+                return (f64::INFINITY, f64::NEG_INFINITY);
+            }
+            continue;
+        }
+        let (s0, s1) = ((b.0[k] - o[k]) / d[k], (b.1[k] - o[k]) / d[k]);
+        lo = lo.max(s0.min(s1));
+        hi = hi.min(s0.max(s1));
+    }
+    (lo, hi)
+}
+
+/// Range to the first surface along a unit ray from inside the room.
+fn cast(o: &[f64; 3], d: &[f64; 3]) -> f64 {
+    let mut best = slabs(o, d, &ROOM).1;
+    for b in &OBJECTS {
+        let (lo, hi) = slabs(o, d, b);
+        if lo <= hi && lo > 0.0 && lo < best {
+            best = lo;
+        }
+    }
+    best
+}
+
+/// A level sensor pose at `(x, y, z)` heading `yaw` radians.
+fn pose(x: f64, y: f64, z: f64, yaw: f64) -> Pose {
+    Pose::from_parts(
+        nalgebra::Translation3::new(x, y, z),
+        nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw),
+    )
+}
+
+/// A 16-beam scan (-30 to +30 degrees, `FIRINGS` a turn) from `t_world_sensor`, in the
+/// sensor frame, with uniform ±1 cm range noise from a seeded generator.
+fn scan(t: &Pose, seed: u64, out: &mut Vec<Point>) {
+    out.clear();
+    let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    let mut noise = move || {
+        // xorshift64*: uniform in [-1, 1).
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        (state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    };
+    let o = t.translation.vector;
+    for beam in 0..16 {
+        let el = (-30.0 + 4.0 * beam as f64) * core::f64::consts::PI / 180.0;
+        for step in 0..FIRINGS {
+            let az = core::f64::consts::TAU * step as f64 / FIRINGS as f64;
+            let ds = nalgebra::Vector3::new(
+                libm::cos(el) * libm::cos(az),
+                libm::cos(el) * libm::sin(az),
+                libm::sin(el),
+            );
+            let dw = t.rotation * ds;
+            let r = cast(&[o.x, o.y, o.z], &[dw.x, dw.y, dw.z]);
+            if r.is_finite() && r < 30.0 {
+                let r = r + 0.01 * noise();
+                out.push([(ds.x * r) as f32, (ds.y * r) as f32, (ds.z * r) as f32]);
+            }
+        }
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    {
+        static mut MEMORY: [MaybeUninit<u8>; HEAP_BYTES] = [MaybeUninit::uninit(); HEAP_BYTES];
+        // SAFETY: the heap is initialised once, before any allocation, with memory only it uses.
+        #[allow(static_mut_refs)]
+        unsafe {
+            HEAP.init(MEMORY.as_ptr() as usize, HEAP_BYTES)
+        }
+    }
+    hprintln!(
+        "slamesh-core on Cortex-M4F: Sparse16 capacity, {} bytes (POINTS {}, SCAN_CELLS {}, MAP_CELLS {}, MAP_LAYERS {})",
+        Sparse16::memory_bytes(),
+        Sparse16::POINTS,
+        Sparse16::SCAN_CELLS,
+        Sparse16::MAP_CELLS,
+        Sparse16::MAP_LAYERS
+    );
+    // Indoors, at a few metres' range: cells of 0.8 m instead of KITTI's 1.6 m.
+    let mut config = Config::default();
+    config.grid.cell_size_m = CELL_M;
+    let mut pipeline = match Pipeline::<Sparse16>::new(config) {
+        Ok(p) => p,
+        Err(e) => {
+            hprintln!("FAIL: configuration {}: {}", e.field, e.reason);
+            finish(false)
+        }
+    };
+    // The one-time allocation stays within the capacity's bound (plus the allocator's
+    // bookkeeping).
+    let used = HEAP.used();
+    hprintln!(
+        "heap after Pipeline::new: {} bytes (bound {})",
+        used,
+        Sparse16::memory_bytes()
+    );
+    if used > Sparse16::memory_bytes() + 1024 {
+        hprintln!("FAIL: the pipeline allocated more than Capacity::memory_bytes");
+        debug::exit(debug::EXIT_FAILURE);
+    }
+    let mut points = Vec::with_capacity(16 * FIRINGS);
+    let start = pose(-0.8, -0.4, 1.2, 0.1);
+    let mut ok = true;
+    for i in 0..FRAMES {
+        let truth = pose(
+            -0.8 + 0.25 * i as f64,
+            -0.4 + 0.06 * i as f64,
+            1.2,
+            0.1 + 0.035 * i as f64,
+        );
+        scan(&truth, i as u64 + 1, &mut points);
+        let relative = start.inverse() * truth;
+        match pipeline.process_scan(&points) {
+            Ok(out) => {
+                let e = out.t_world_sensor.translation.vector - relative.translation.vector;
+                let yaw_err = (out.t_world_sensor.rotation.inverse() * relative.rotation)
+                    .angle()
+                    .to_degrees();
+                let t = out.t_world_sensor.translation.vector;
+                let r = relative.translation.vector;
+                hprintln!(
+                    "frame {}: {} points, {:?}; estimate ({:.3}, {:.3}, {:.3}) truth ({:.3}, {:.3}, {:.3}); error {:.2} cm, {:.3} deg",
+                    i,
+                    points.len(),
+                    out.status,
+                    t.x, t.y, t.z, r.x, r.y, r.z,
+                    e.norm() * 100.0,
+                    yaw_err
+                );
+                ok &= e.norm() <= TOLERANCE_M && yaw_err <= TOLERANCE_DEG;
+            }
+            Err(e) => {
+                hprintln!("frame {}: skipped: {}", i, e);
+                ok = false;
+            }
+        }
+    }
+    hprintln!(
+        "map: {} cells, {} layers; tolerance {} cm, {} deg",
+        pipeline.map().cell_count(),
+        pipeline.map().layer_count(),
+        TOLERANCE_M * 100.0,
+        TOLERANCE_DEG
+    );
+    hprintln!("{}", if ok { "PASS" } else { "FAIL" });
+    finish(ok)
+}
+
+/// Ends the run with QEMU's exit status (semihosting), then waits.
+fn finish(ok: bool) -> ! {
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("FAIL: panic: {}", info);
+    finish(false)
+}
