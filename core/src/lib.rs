@@ -53,6 +53,7 @@ pub mod gp;
 pub mod lattice;
 pub mod layer;
 pub mod lm;
+pub mod log;
 pub mod map;
 pub mod math;
 pub mod mesh;

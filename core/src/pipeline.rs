@@ -232,11 +232,14 @@ impl<C: Capacity> Pipeline<C> {
             }
         }
         self.finish(pose, cells, probe, &mut stats);
-        Ok(ScanOutcome {
+        let outcome = ScanOutcome {
             t_world_sensor: pose,
             status,
             stats,
-        })
+        };
+        #[cfg(feature = "defmt")]
+        crate::log::scan_done(&outcome);
+        Ok(outcome)
     }
 
     /// Meshing only: fuses a scan into the map at a pose the caller knows (ground truth, an
@@ -263,11 +266,14 @@ impl<C: Capacity> Pipeline<C> {
         }
         let mut stats = self.begin(points_sensor, probe)?;
         self.finish(*t_world_sensor, cells, probe, &mut stats);
-        Ok(ScanOutcome {
+        let outcome = ScanOutcome {
             t_world_sensor: *t_world_sensor,
             status: RegistrationStatus::Given,
             stats,
-        })
+        };
+        #[cfg(feature = "defmt")]
+        crate::log::scan_done(&outcome);
+        Ok(outcome)
     }
 
     /// Counts the frame and filters the scan into `points`.
@@ -288,7 +294,10 @@ impl<C: Capacity> Pipeline<C> {
         );
         if filter.kept == 0 {
             probe.enter(Stage::Done);
-            return Err(ScanError::EmptyScan(filter));
+            let error = ScanError::EmptyScan(filter);
+            #[cfg(feature = "defmt")]
+            crate::log::scan_rejected(frame, &error);
+            return Err(error);
         }
         Ok(ScanStats {
             frame,
