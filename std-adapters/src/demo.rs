@@ -83,10 +83,7 @@ pub fn run_demo<C: Capacity>(
         f64::INFINITY,
     );
     ply::write_points(&opts.out.join("reference.ply"), &reference)?;
-    let triangles = mesh
-        .triangles
-        .iter()
-        .map(|t| t.map(|i| mesh.vertices[i as usize]));
+    let triangles = mesh.triangle_corners();
     let samples = mesh_eval::sample_triangles(triangles.clone(), 0.05, seed);
     // Precision: exact distances to the true surfaces; recall: the true hits covered.
     let truth_distance = crate::sim::SurfaceDistance::new(&drive.scene);

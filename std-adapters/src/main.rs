@@ -314,15 +314,7 @@ fn run_command(
         given_poses: given,
         input: common.input.display().to_string(),
     };
-    let bar = if common.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(source.frames() as u64)
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {per_sec}  eta {eta}  {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = progress(source.frames(), common.quiet);
     eprintln!(
         "slamesh: {} frames from {} (preset {}), output in {}",
         source.frames(),
@@ -471,10 +463,7 @@ fn eval_command(
 fn mesh_eval_command(mesh: &Path, cloud: &Path, json: bool) -> Result<(), String> {
     let m = slamesh::ply::read_ply_mesh(mesh).map_err(|e| e.to_string())?;
     let reference = slamesh::scans::read_scan(cloud).map_err(|e| e.to_string())?;
-    let triangles = m
-        .triangles
-        .iter()
-        .map(|t| t.map(|i| m.vertices[i as usize]));
+    let triangles = m.triangle_corners();
     let samples = slamesh::mesh_eval::sample_triangles(triangles, 0.05, 1);
     let scores = slamesh::mesh_eval::score(&samples, &reference, &slamesh::mesh_eval::THRESHOLDS);
     if json {
@@ -609,6 +598,7 @@ fn bench_command(
     Ok(())
 }
 
+/// A progress bar for `frames` frames (hidden with `--quiet` or off a terminal).
 fn progress(frames: usize, quiet: bool) -> ProgressBar {
     let bar = if quiet {
         ProgressBar::hidden()

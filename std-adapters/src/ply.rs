@@ -260,6 +260,15 @@ pub struct PlyMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
+impl PlyMesh {
+    /// The triangles as their corner positions.
+    pub fn triangle_corners(&self) -> impl Iterator<Item = [Point; 3]> + Clone + '_ {
+        self.triangles
+            .iter()
+            .map(|t| t.map(|i| self.vertices[i as usize]))
+    }
+}
+
 /// Reads the vertices and faces (`vertex_indices` or `vertex_index`) of a PLY mesh, in any of
 /// the three formats. Faces referring to missing vertices are an error.
 pub fn read_ply_mesh(path: &Path) -> Result<PlyMesh, FileError> {
