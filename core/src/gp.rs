@@ -8,7 +8,7 @@
 //! The mean `m` is the least-squares plane through the samples (the constant mean when the
 //! samples do not span a plane). DESIGN §1.3 subtracts the constant mean of the targets; with
 //! the rough exponential kernel that makes the GP fall back towards the mean between and
-//! beyond samples, which costs up to 9 cm on a 0.25 slope at the cell faces (measured by
+//! beyond samples, which bends slopes at the cell faces (see
 //! `reproduces_plane_slope_and_curved_surface_within_5mm`). A plane mean is exact on planes
 //! and slopes and leaves the GP only the curvature.
 //! A 36 x 36 Cholesky factor on the stack (about 10 KB), no heap. Predictions are clamped into

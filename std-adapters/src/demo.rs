@@ -67,17 +67,9 @@ pub fn run_demo<C: Capacity>(
     let mesh = ply::read_ply_mesh(&opts.out.join("mesh.ply"))?;
     let to_first = drive.poses[0].inverse();
     let reference = mesh_eval::accumulate(
-        (0..drive.poses.len()).step_by(5).map(|i| {
-            let world = drive.true_points(i);
-            let local = world
-                .into_iter()
-                .map(|p| {
-                    let q = to_first * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-                    [q.x as f32, q.y as f32, q.z as f32]
-                })
-                .collect();
-            (local, Pose::identity())
-        }),
+        (0..drive.poses.len())
+            .step_by(5)
+            .map(|i| (drive.true_points(i), to_first)),
         0.05,
         0.0,
         f64::INFINITY,

@@ -22,7 +22,7 @@ use crate::timing::{StageMs, StageTimer};
 use crate::trajectory::{write_kitti_line, write_tum_line};
 use crate::window::Window;
 use serde::Serialize;
-use slamesh_core::{Capacity, Config, Pipeline, Point, Pose, RegistrationStatus};
+use slamesh_core::{Capacity, Config, Pipeline, Point, Pose};
 use std::fmt;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -83,7 +83,7 @@ pub struct FrameRecord {
     pub frame: usize,
     /// Its file.
     pub file: String,
-    /// `FirstScan`, `Converged`, `Degenerate`, ..., or `Skipped`.
+    /// The registration status (`FirstScan`, `Converged`, `Degenerate`, ...), or `Skipped`.
     pub status: String,
     /// Why it was skipped.
     pub error: Option<String>,
@@ -265,7 +265,7 @@ pub fn run<C: Capacity>(
         };
         match outcome {
             Ok(o) => {
-                rec.status = status_name(o.status).into();
+                rec.status = format!("{:?}", o.status);
                 rec.points_kept = o.stats.filter.kept;
                 rec.scan_cells = o.stats.bucket.cells;
                 rec.scan_layers = o.stats.scan_layers;
@@ -346,17 +346,6 @@ pub fn mesh_file_path(out: &Path, format: MeshFormat) -> PathBuf {
         MeshFormat::Ply => "mesh.ply",
         MeshFormat::Obj => "mesh.obj",
     })
-}
-
-fn status_name(s: RegistrationStatus) -> &'static str {
-    match s {
-        RegistrationStatus::FirstScan => "FirstScan",
-        RegistrationStatus::Converged => "Converged",
-        RegistrationStatus::Degenerate => "Degenerate",
-        RegistrationStatus::TooFewResiduals => "TooFewResiduals",
-        RegistrationStatus::SolverFailed => "SolverFailed",
-        RegistrationStatus::Given => "Given",
-    }
 }
 
 /// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).
