@@ -11,8 +11,9 @@
 //! beyond samples, which bends slopes at the cell faces (see
 //! `reproduces_plane_slope_and_curved_surface_within_5mm`). A plane mean is exact on planes
 //! and slopes and leaves the GP only the curvature.
-//! A 36 x 36 Cholesky factor on the stack (about 10 KB), no heap. Predictions are clamped into
-//! the cell; a vertex outside the training inputs' bounding box gets twice its variance.
+//! A 36 x 36 Cholesky factor and the 36 x 36 sample-to-vertex kernel on the stack (about
+//! 20 KB), no heap. Predictions are clamped into the cell; a vertex outside the training
+//! inputs' bounding box gets twice its variance.
 
 // The triangular factorization and solves read best with explicit indices.
 #![allow(clippy::needless_range_loop)]
@@ -142,7 +143,8 @@ fn closest_per_bin(
             continue;
         }
         let [a, b, _] = sample;
-        let index = |v: f64| (libm::floor(v / bin).max(0.0) as usize).min(N - 1);
+        // `as` truncates towards zero and sends negatives and NaN to 0: floor, clamped.
+        let index = |v: f64| ((v / bin) as usize).min(N - 1);
         let (i, j) = (index(a), index(b));
         let (ca, cb) = ((i as f64 + 0.5) * bin, (j as f64 + 0.5) * bin);
         let dist = (a - ca) * (a - ca) + (b - cb) * (b - cb);
@@ -160,9 +162,30 @@ fn closest_per_bin(
     out
 }
 
+/// `k(u, v) = exp(-κ |u - v|)` for `u - v = (da, db)`.
 #[inline]
-fn kernel(kappa: f64, a0: f64, b0: f64, a1: f64, b1: f64) -> f64 {
-    libm::exp(-kappa * libm::hypot(a0 - a1, b0 - b1))
+fn kernel(kappa: f64, da: f64, db: f64) -> f64 {
+    crate::math::exp(-kappa * libm::sqrt(da * da + db * db))
+}
+
+/// `Σ a_i b_i` with four running sums: independent additions pipeline (and vectorize), and the
+/// fixed order keeps results identical on every target.
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// The GP's mean function `d = c0 + c1 (a - ā) + c2 (b - b̄)`.
@@ -209,6 +232,11 @@ fn plane_mean(samples: &[Sample]) -> PlaneMean {
 }
 
 /// Predicts the layer at the lattice vertices from `samples`.
+///
+/// Laid out for speed (this is most of a scan's time): the kernel between the samples and
+/// all 36 vertices is one `m x 36` matrix, and the triangular solve for the variances runs
+/// over its rows, so every inner loop is an independent multiply-add over 36 contiguous
+/// values rather than one dependent chain per vertex.
 pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<Layer, GpError> {
     let m = samples.len().min(MAX_TRAINING);
     let samples = samples.get(..m).unwrap_or(&[]);
@@ -217,57 +245,80 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
     }
     let kappa = cfg.kappa_per_m;
     let noise = cfg.sensor_noise_m * cfg.sensor_noise_m;
-    // Lower-triangular Cholesky factor of K + σ² I, in place.
+    // Lower-triangular Cholesky factor of K + σ² I, in place, row by row.
     let mut l = [[0.0f64; MAX_TRAINING]; MAX_TRAINING];
-    for (i, si) in samples.iter().enumerate() {
-        for (j, sj) in samples.iter().enumerate().take(i + 1) {
-            let mut v = kernel(kappa, si[0], si[1], sj[0], sj[1]);
-            if i == j {
-                v += noise;
-            }
-            l[i][j] = v;
+    for i in 0..m {
+        let si = samples[i];
+        for j in 0..=i {
+            let sj = samples[j];
+            let v = kernel(kappa, si[0] - sj[0], si[1] - sj[1]);
+            l[i][j] = if i == j { v + noise } else { v };
         }
     }
-    for j in 0..m {
-        let mut diag = l[j][j];
-        for k in 0..j {
-            diag -= l[j][k] * l[j][k];
+    for i in 0..m {
+        for j in 0..i {
+            let v = l[i][j] - dot(&l[i][..j], &l[j][..j]);
+            l[i][j] = v / l[j][j];
         }
+        let diag = l[i][i] - dot(&l[i][..i], &l[i][..i]);
         if !(diag > 0.0 && diag.is_finite()) {
             return Err(GpError::NotPositiveDefinite);
         }
-        let diag = libm::sqrt(diag);
-        l[j][j] = diag;
-        for i in j + 1..m {
-            let mut v = l[i][j];
-            for k in 0..j {
-                v -= l[i][k] * l[j][k];
-            }
-            l[i][j] = v / diag;
-        }
+        l[i][i] = libm::sqrt(diag);
     }
-    let forward = |rhs: &mut [f64; MAX_TRAINING]| {
-        for i in 0..m {
-            let mut v = rhs[i];
-            for k in 0..i {
-                v -= l[i][k] * rhs[k];
-            }
-            rhs[i] = v / l[i][i];
-        }
-    };
-    // α = (K + σ² I)⁻¹ (f - m(u)).
+    // α = (K + σ² I)⁻¹ (f - m(u)): forward, then backward substitution.
     let mean = plane_mean(samples);
     let mut alpha = [0.0f64; MAX_TRAINING];
-    for (a, s) in alpha.iter_mut().zip(samples) {
-        *a = s[2] - mean.at(s[0], s[1]);
+    for i in 0..m {
+        let s = samples[i];
+        let v = s[2] - mean.at(s[0], s[1]) - dot(&l[i][..i], &alpha[..i]);
+        alpha[i] = v / l[i][i];
     }
-    forward(&mut alpha);
     for i in (0..m).rev() {
         let mut v = alpha[i];
         for k in i + 1..m {
             v -= l[k][i] * alpha[k];
         }
         alpha[i] = v / l[i][i];
+    }
+    // The vertices' locations, and the kernel between each sample and every vertex.
+    let mut ta = [0.0f64; VERTICES];
+    let mut tb = [0.0f64; VERTICES];
+    for j in 0..VERTICES {
+        (ta[j], tb[j]) = lattice.location(j);
+    }
+    let mut ks = [[0.0f64; VERTICES]; MAX_TRAINING];
+    for (row, s) in ks.iter_mut().zip(samples) {
+        for j in 0..VERTICES {
+            row[j] = kernel(kappa, ta[j] - s[0], tb[j] - s[1]);
+        }
+    }
+    // Mean: f* = m(u*) + k*ᵀ α.
+    let mut f = [0.0f64; VERTICES];
+    for j in 0..VERTICES {
+        f[j] = mean.at(ta[j], tb[j]);
+    }
+    for i in 0..m {
+        for j in 0..VERTICES {
+            f[j] += ks[i][j] * alpha[i];
+        }
+    }
+    // Variance: σ*² = 1 - |L⁻¹ k*|², with L⁻¹ applied to all 36 columns at once, in place.
+    let mut explained = [0.0f64; VERTICES];
+    for i in 0..m {
+        let (done, rest) = ks.split_at_mut(i);
+        let Some(row) = rest.first_mut() else { break };
+        for (k, prev) in done.iter().enumerate() {
+            let c = l[i][k];
+            for j in 0..VERTICES {
+                row[j] -= c * prev[j];
+            }
+        }
+        let inv = 1.0 / l[i][i];
+        for j in 0..VERTICES {
+            row[j] *= inv;
+            explained[j] += row[j] * row[j];
+        }
     }
     let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (
         f64::INFINITY,
@@ -283,20 +334,11 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
     }
     let mut layer = Layer::UNKNOWN;
     for j in 0..VERTICES {
-        let (ta, tb) = lattice.location(j);
-        let mut ks = [0.0f64; MAX_TRAINING];
-        let mut f = mean.at(ta, tb);
-        for (i, s) in samples.iter().enumerate() {
-            ks[i] = kernel(kappa, ta, tb, s[0], s[1]);
-            f += ks[i] * alpha[i];
-        }
-        forward(&mut ks);
-        let explained: f64 = ks.iter().take(m).map(|v| v * v).sum();
-        let mut var = (1.0 - explained).max(0.0);
-        if ta < lo_a || ta > hi_a || tb < lo_b || tb > hi_b {
+        let mut var = (1.0 - explained[j]).max(0.0);
+        if ta[j] < lo_a || ta[j] > hi_a || tb[j] < lo_b || tb[j] > hi_b {
             var *= 2.0;
         }
-        layer.pred[j] = f.clamp(0.0, lattice.cell_size) as f32;
+        layer.pred[j] = f[j].clamp(0.0, lattice.cell_size) as f32;
         layer.var[j] = var as f32;
     }
     Ok(layer)

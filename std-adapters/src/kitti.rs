@@ -15,6 +15,11 @@ fn err(path: &Path, line: Option<usize>, reason: impl Into<String>) -> FileError
 /// Reads a Velodyne scan: little-endian `f32` x, y, z, reflectance per point.
 pub fn read_bin(path: &Path) -> Result<Vec<Point>, FileError> {
     let bytes = std::fs::read(path).map_err(|e| err(path, None, e.to_string()))?;
+    parse_bin(path, &bytes)
+}
+
+/// Parses the bytes of a Velodyne scan read from `path` (named in errors).
+pub fn parse_bin(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
     if bytes.is_empty() {
         return Err(err(path, None, "empty file"));
     }

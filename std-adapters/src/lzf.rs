@@ -1,9 +1,10 @@
 //! LZF decompression (the codec of PCD's `binary_compressed`), checked: corrupt input is an
 //! error, never an out-of-bounds access.
 
-/// Decompresses `input` into exactly `expected_len` bytes.
+/// Decompresses `input` into exactly `expected_len` bytes. The declared length only bounds the
+/// output; memory is reserved for what `input` can expand to (at most 88 bytes per byte).
 pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, String> {
-    let mut out: Vec<u8> = Vec::with_capacity(expected_len);
+    let mut out: Vec<u8> = Vec::with_capacity(expected_len.min(input.len().saturating_mul(88)));
     let mut i = 0;
     while i < input.len() {
         let ctrl = input[i] as usize;

@@ -176,6 +176,11 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
 /// Reads the points of a PCD file (in the sensor frame, as stored).
 pub fn read_pcd(path: &Path) -> Result<Vec<Point>, FileError> {
     let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    parse_pcd(path, &bytes)
+}
+
+/// Parses the bytes of a PCD file read from `path` (named in errors).
+pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
     if bytes.is_empty() {
         return Err(FileError::at(path, "empty file"));
     }
@@ -287,7 +292,8 @@ fn read_ascii(
             Some(o)
         })
         .collect();
-    let mut out = Vec::with_capacity(h.points);
+    // The header's count is untrusted: reserve no more than the text has lines for.
+    let mut out = Vec::with_capacity(h.points.min(body.len() / 2));
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() {

@@ -139,6 +139,11 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
 /// Reads the vertex positions of a PLY file.
 pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
     let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    parse_ply_points(path, &bytes)
+}
+
+/// Parses the vertex positions of PLY bytes read from `path` (named in errors).
+pub fn parse_ply_points(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
     let Header {
         format,
         elements,
@@ -169,7 +174,8 @@ pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
             .map_err(|_| FileError::at(path, "ascii PLY data is not text"))?;
         let skip: usize = elements[..vi].iter().map(|e| e.count).sum();
         let mut lines = text.lines().filter(|l| !l.trim().is_empty()).skip(skip);
-        let mut out = Vec::with_capacity(vertex.count);
+        // The header's count is untrusted: reserve no more than the text has lines for.
+        let mut out = Vec::with_capacity(vertex.count.min(body.len() / 2));
         for i in 0..vertex.count {
             let line = lines.next().ok_or_else(|| {
                 FileError::at(
@@ -273,6 +279,11 @@ impl PlyMesh {
 /// the three formats. Faces referring to missing vertices are an error.
 pub fn read_ply_mesh(path: &Path) -> Result<PlyMesh, FileError> {
     let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    parse_ply_mesh(path, &bytes)
+}
+
+/// Parses PLY mesh bytes read from `path` (named in errors).
+pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
     let h = read_header(path, &bytes)?;
     let body = &bytes[h.start..];
     let mut mesh = PlyMesh::default();

@@ -1,0 +1,16 @@
+//! The TOML configuration reader on arbitrary text: every configuration it accepts is one the
+//! pipeline accepts too.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use slamesh_core::{Pipeline, SmallCapacity};
+
+fuzz_target!(|data: &[u8]| {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    if let Ok(settings) = slamesh::config_file::parse(text) {
+        assert!(settings.config.validate().is_ok());
+        assert!(Pipeline::<SmallCapacity>::new(settings.config).is_ok());
+    }
+});

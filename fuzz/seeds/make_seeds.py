@@ -1,0 +1,66 @@
+"""Writes the starting corpus of each fuzz target into fuzz/corpus/<target>/ (run from fuzz/).
+
+The seeds are small valid inputs: a slice of a real KITTI scan, the same points as PCD (three
+encodings) and PLY (ascii, both binary byte orders, with faces), the three preset TOML files,
+and scans for the core target. libFuzzer grows the corpus from them.
+"""
+import os, struct, subprocess, sys
+
+DATA = os.environ.get("SLAMESH_DATA", "../../shared/data")
+out = "corpus"
+
+
+def put(target, name, data):
+    os.makedirs(f"{out}/{target}", exist_ok=True)
+    with open(f"{out}/{target}/{name}", "wb") as f:
+        f.write(data)
+
+
+raw = open(f"{DATA}/kitti-mini/00/velodyne/000000.bin", "rb").read()
+records = [raw[i:i + 16] for i in range(0, len(raw), 16)]
+pts = [struct.unpack("<3f", r[:12]) for r in records[::500][:200]]
+put("kitti_bin", "slice", b"".join(records[::500][:200]))
+put("kitti_bin", "one", records[0])
+
+head = ("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+        "WIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {e}\n")
+few = pts[:24]
+put("pcd", "ascii", (head.format(n=len(few), e="ascii")
+                     + "".join(f"{x} {y} {z}\n" for x, y, z in few)).encode())
+put("pcd", "binary", head.format(n=len(few), e="binary").encode()
+    + b"".join(struct.pack("<3f", *p) for p in few))
+soa = b"".join(struct.pack("<f", p[c]) for c in range(3) for p in few)
+lzf = b"".join(bytes([len(soa[i:i + 32]) - 1]) + soa[i:i + 32] for i in range(0, len(soa), 32))
+put("pcd", "binary_compressed", head.format(n=len(few), e="binary_compressed").encode()
+    + struct.pack("<II", len(lzf), len(soa)) + lzf)
+
+tri = [(0, 1, 2), (1, 2, 3)]
+verts = few[:4]
+def ply(fmt, body):
+    return (f"ply\nformat {fmt} 1.0\nelement vertex {len(verts)}\nproperty float x\n"
+            "property float y\nproperty float z\nelement face 2\n"
+            "property list uchar int vertex_indices\nend_header\n").encode() + body
+put("ply", "ascii", ply("ascii", ("".join(f"{x} {y} {z}\n" for x, y, z in verts)
+                                  + "".join(f"3 {a} {b} {c}\n" for a, b, c in tri)).encode()))
+for fmt, e in (("binary_little_endian", "<"), ("binary_big_endian", ">")):
+    body = b"".join(struct.pack(e + "3f", *v) for v in verts)
+    body += b"".join(struct.pack(e + "B3i", 3, *t) for t in tri)
+    put("ply", fmt, ply(fmt, body))
+
+for preset in ("default", "kitti", "meshing"):
+    text = subprocess.run([sys.argv[1], "config", "--preset", preset], check=True,
+                          capture_output=True).stdout
+    put("config_toml", preset, text)
+put("config_toml", "window", b'preset = "kitti"\n[window]\nevict_after = 50\n')
+
+# Core: mode byte 1 (centimetre i16 coordinates), two scans of the same points, the second
+# moved 10 cm; mode 3 with the meshing preset; mode 0 raw f32.
+def cm(points, dx=0.0):
+    return b"".join(struct.pack("<3h", *(max(-32768, min(32767, round(v * 100)))
+                                         for v in (x + dx, y, z))) for x, y, z in points)
+near = [p for p in (struct.unpack("<3f", r[:12]) for r in records[::60]) if max(map(abs, p)) < 300][:600]
+scan = cm(near).replace(b"\xfe", b"\xfd")
+moved = cm(near, 0.1).replace(b"\xfe", b"\xfd")
+put("core_scan", "two_scans", b"\x01" + scan + b"\xfe" + moved)
+put("core_scan", "meshing", b"\x07" + scan + b"\xfe" + moved + b"\xfe" + scan)
+put("core_scan", "raw", b"\x00" + b"".join(struct.pack("<3f", *p) for p in near[:100]))
