@@ -64,7 +64,7 @@ pub fn bucket(
             let _ = bucketed.push((key, to_point(&local)));
         }
     }
-    bucketed.sort_unstable_by_key(|e| e.0);
+    bucketed.sort_unstable_by_key(|e| e.0.sort_value());
     let mut stats = BucketStats::default();
     let mut start = 0usize;
     while let Some(&(key, _)) = bucketed.get(start) {

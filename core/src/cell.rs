@@ -69,17 +69,28 @@ impl CellKey {
         Self { x, y, z }
     }
 
+    /// The key as one integer with the same order as the key's own (`x`, then `y`, then `z`):
+    /// sorting by it is one comparison instead of three.
+    #[inline]
+    pub fn sort_value(&self) -> u128 {
+        let u = |v: i32| (v as u32 ^ 0x8000_0000) as u128;
+        (u(self.x) << 64) | (u(self.y) << 32) | u(self.z)
+    }
+
     /// The cell containing world point `p`, or `None` when `p` is not finite or its index does
     /// not fit an `i32`.
     #[inline]
     pub fn containing(p: &Vec3, cell_size: f64) -> Option<Self> {
         let f = |v: f64| {
-            let k = libm::floor(v / cell_size);
-            if k.is_finite() && k >= f64::from(i32::MIN) && k <= f64::from(i32::MAX) {
-                Some(k as i32)
-            } else {
-                None
+            let q = v / cell_size;
+            // Range first (also refuses NaN); then floor as truncation, one less below zero
+            // (`libm::floor` was 2 % of a scan's time).
+            if !(q >= f64::from(i32::MIN) && q < f64::from(i32::MAX)) {
+                return None;
             }
+            let t = q as i64;
+            let k = if (t as f64) > q { t - 1 } else { t };
+            i32::try_from(k).ok()
         };
         Some(Self::new(f(p.x)?, f(p.y)?, f(p.z)?))
     }
@@ -173,6 +184,24 @@ mod tests {
         assert_eq!(k, CellKey::new(-1, 0, 1));
         assert!(CellKey::containing(&Vec3::new(f64::NAN, 0.0, 0.0), 1.6).is_none());
         assert!(CellKey::containing(&Vec3::new(1e12, 0.0, 0.0), 1.6).is_none());
+    }
+
+    #[test]
+    fn sort_value_orders_like_the_key() {
+        let v = [i32::MIN, -7, -1, 0, 1, 9, i32::MAX];
+        let mut keys = alloc::vec::Vec::new();
+        for x in v {
+            for y in v {
+                for z in v {
+                    keys.push(CellKey::new(x, y, z));
+                }
+            }
+        }
+        for a in &keys {
+            for b in &keys {
+                assert_eq!(a.cmp(b), a.sort_value().cmp(&b.sort_value()), "{a:?} {b:?}");
+            }
+        }
     }
 
     #[test]

@@ -100,7 +100,7 @@ pub fn filter_and_downsample(
             stats.over_capacity += 1;
         }
     }
-    work.sort_unstable_by_key(|e| e.0);
+    work.sort_unstable_by_key(|e| e.0.sort_value());
     let mut i = 0;
     while let Some(&(key, _)) = work.get(i) {
         let mut sum = Vec3::zeros();

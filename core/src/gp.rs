@@ -162,10 +162,12 @@ fn closest_per_bin(
     out
 }
 
-/// `k(u, v) = exp(-κ |u - v|)` for `u - v = (da, db)`.
+/// The exponent of the kernel `k(u, v) = exp(-κ |u - v|)` for `u - v = (da, db)`. Callers
+/// fill a row of exponents, then take [`crate::math::exp`] over the row in a loop of its own,
+/// which vectorizes.
 #[inline]
-fn kernel(kappa: f64, da: f64, db: f64) -> f64 {
-    crate::math::exp(-kappa * libm::sqrt(da * da + db * db))
+fn kernel_exponent(kappa: f64, da: f64, db: f64) -> f64 {
+    -kappa * libm::sqrt(da * da + db * db)
 }
 
 /// `Σ a_i b_i` with four running sums: independent additions pipeline (and vectorize), and the
@@ -249,11 +251,14 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
     let mut l = [[0.0f64; MAX_TRAINING]; MAX_TRAINING];
     for i in 0..m {
         let si = samples[i];
-        for j in 0..=i {
-            let sj = samples[j];
-            let v = kernel(kappa, si[0] - sj[0], si[1] - sj[1]);
-            l[i][j] = if i == j { v + noise } else { v };
+        let row = &mut l[i][..=i];
+        for (v, sj) in row.iter_mut().zip(samples) {
+            *v = kernel_exponent(kappa, si[0] - sj[0], si[1] - sj[1]);
         }
+        for v in row.iter_mut() {
+            *v = crate::math::exp(*v);
+        }
+        l[i][i] += noise;
     }
     for i in 0..m {
         for j in 0..i {
@@ -290,7 +295,10 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
     let mut ks = [[0.0f64; VERTICES]; MAX_TRAINING];
     for (row, s) in ks.iter_mut().zip(samples) {
         for j in 0..VERTICES {
-            row[j] = kernel(kappa, ta[j] - s[0], tb[j] - s[1]);
+            row[j] = kernel_exponent(kappa, ta[j] - s[0], tb[j] - s[1]);
+        }
+        for v in row.iter_mut() {
+            *v = crate::math::exp(*v);
         }
     }
     // Mean: f* = m(u*) + k*ᵀ α.
