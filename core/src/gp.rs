@@ -260,16 +260,19 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
         }
         l[i][i] += noise;
     }
+    // 1 / L_ii, so that the solves multiply instead of divide.
+    let mut inv_diag = [0.0f64; MAX_TRAINING];
     for i in 0..m {
         for j in 0..i {
             let v = l[i][j] - dot(&l[i][..j], &l[j][..j]);
-            l[i][j] = v / l[j][j];
+            l[i][j] = v * inv_diag[j];
         }
         let diag = l[i][i] - dot(&l[i][..i], &l[i][..i]);
         if !(diag > 0.0 && diag.is_finite()) {
             return Err(GpError::NotPositiveDefinite);
         }
         l[i][i] = libm::sqrt(diag);
+        inv_diag[i] = 1.0 / l[i][i];
     }
     // α = (K + σ² I)⁻¹ (f - m(u)): forward, then backward substitution.
     let mean = plane_mean(samples);
@@ -277,14 +280,14 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
     for i in 0..m {
         let s = samples[i];
         let v = s[2] - mean.at(s[0], s[1]) - dot(&l[i][..i], &alpha[..i]);
-        alpha[i] = v / l[i][i];
+        alpha[i] = v * inv_diag[i];
     }
     for i in (0..m).rev() {
         let mut v = alpha[i];
         for k in i + 1..m {
             v -= l[k][i] * alpha[k];
         }
-        alpha[i] = v / l[i][i];
+        alpha[i] = v * inv_diag[i];
     }
     // The vertices' locations, and the kernel between each sample and every vertex.
     let mut ta = [0.0f64; VERTICES];
@@ -316,16 +319,21 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
     for i in 0..m {
         let (done, rest) = ks.split_at_mut(i);
         let Some(row) = rest.first_mut() else { break };
-        for (k, prev) in done.iter().enumerate() {
-            let c = l[i][k];
-            for j in 0..VERTICES {
-                row[j] -= c * prev[j];
+        // Six columns at a time, kept in registers over the whole sum.
+        const BLOCK: usize = 6;
+        for c in (0..VERTICES).step_by(BLOCK) {
+            let mut acc = [0.0f64; BLOCK];
+            acc.copy_from_slice(&row[c..c + BLOCK]);
+            for (x, prev) in l[i].iter().zip(done.iter()) {
+                for q in 0..BLOCK {
+                    acc[q] -= x * prev[c + q];
+                }
             }
-        }
-        let inv = 1.0 / l[i][i];
-        for j in 0..VERTICES {
-            row[j] *= inv;
-            explained[j] += row[j] * row[j];
+            for q in 0..BLOCK {
+                let v = acc[q] * inv_diag[i];
+                row[c + q] = v;
+                explained[c + q] += v * v;
+            }
         }
     }
     let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (
