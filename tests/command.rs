@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{scratch, slamesh_ok, slamesh_run, slamesh_run_ok};
+use common::{scratch, slamesh_ok, slamesh_run, slamesh_run_ok, write_bin};
 use slamesh::pcd::encode_pcd;
 use slamesh::sim::{sensor_pose, Lidar, Scene};
 use slamesh::trajectory::{self, write_tum_line};
@@ -18,16 +18,6 @@ fn drive(frames: usize) -> (Vec<Pose>, Vec<Vec<Point>>) {
         .collect();
     let scans = poses.iter().map(|p| lidar.scan(&scene, p)).collect();
     (poses, scans)
-}
-
-fn write_bin(path: &Path, points: &[Point]) {
-    let mut b = Vec::with_capacity(points.len() * 16);
-    for p in points {
-        for v in [p[0], p[1], p[2], 0.0] {
-            b.extend_from_slice(&v.to_le_bytes());
-        }
-    }
-    std::fs::write(path, b).unwrap();
 }
 
 fn write_tum(path: &Path, poses: &[Pose]) {

@@ -28,6 +28,24 @@ impl ConstantVelocity {
         self.last = Some(renormalized(t_world_sensor));
     }
 
+    /// The history `(before, last)`: what a checkpoint saves.
+    pub fn history(&self) -> (Option<Pose>, Option<Pose>) {
+        (self.before, self.last)
+    }
+
+    /// A model with the history `(before, last)` (from [`history`](Self::history)); a
+    /// `before` without a `last` is dropped.
+    pub fn from_history(before: Option<Pose>, last: Option<Pose>) -> Self {
+        let mut m = Self::new();
+        for p in [before, last].into_iter().flatten() {
+            m.push(p);
+        }
+        if last.is_none() {
+            m = Self::new();
+        }
+        m
+    }
+
     /// Whether two poses are known, so the velocity is.
     pub fn velocity_known(&self) -> bool {
         self.before.is_some()

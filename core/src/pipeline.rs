@@ -164,6 +164,19 @@ impl<C: Capacity> Pipeline<C> {
         self.frame
     }
 
+    /// The motion model (its history is what a checkpoint saves besides the map).
+    pub fn motion(&self) -> &ConstantVelocity {
+        &self.motion
+    }
+
+    /// Continues from saved progress: `frames` scans given so far and the motion model's
+    /// history. With the map restored through [`map_mut`](Self::map_mut), the next scan is
+    /// processed exactly as it would have been without the interruption.
+    pub fn restore_progress(&mut self, frames: u32, motion: ConstantVelocity) {
+        self.frame = frames;
+        self.motion = motion;
+    }
+
     /// The newest pose, if any scan was accepted.
     pub fn pose(&self) -> Option<Pose> {
         self.motion.last()

@@ -36,6 +36,29 @@ pub fn write_atomic(
     })
 }
 
+/// Opens an append-only file of an interrupted run for writing at its end, after cutting it
+/// back to its first `keep` bytes; a file shorter than that is an error (it lost data the
+/// run counted).
+pub fn open_cut(path: &Path, keep: u64) -> Result<File, FileError> {
+    use std::io::{Seek, SeekFrom};
+    let fail = |what: String| FileError::at(path, format!("cannot resume: {what}"));
+    let mut file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .map_err(|e| fail(e.to_string()))?;
+    let len = file.metadata().map_err(|e| fail(e.to_string()))?.len();
+    if len < keep {
+        return Err(fail(format!(
+            "it holds {len} bytes, the checkpoint counted {keep}"
+        )));
+    }
+    file.set_len(keep).map_err(|e| fail(e.to_string()))?;
+    file.seek(SeekFrom::End(0))
+        .map_err(|e| fail(e.to_string()))?;
+    Ok(file)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -16,6 +16,7 @@
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
 //! | time per stage | [`timing`] |
 //! | a run and its outputs | [`session`]; the simulated demo [`demo`] |
+//! | resuming a killed run | [`checkpoint`] |
 //! | a picture of the mesh from above | [`topview`] |
 //! | odometry metrics | [`eval`] |
 //! | mesh precision, recall and F-score | [`mesh_eval`] |
@@ -23,6 +24,7 @@
 #![deny(missing_docs)]
 
 pub mod atomic;
+pub mod checkpoint;
 pub mod config_file;
 pub mod demo;
 pub mod eval;

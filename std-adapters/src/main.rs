@@ -158,6 +158,14 @@ struct Common {
     /// Append evicted cells to the output mesh, so nothing is lost.
     #[arg(long)]
     save_evicted: bool,
+    /// Save a checkpoint (the map and the run so far, `checkpoint.bin` in the output folder)
+    /// after every N frames, so that a killed run can be resumed.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    checkpoint_every: Option<u32>,
+    /// Continue a killed run from the checkpoint in its output folder (same input and
+    /// settings); it loses at most the frames after the last checkpoint.
+    #[arg(long)]
+    resume: bool,
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
@@ -313,6 +321,8 @@ fn run_command(
         mesh_formats,
         given_poses: given,
         input: common.input.display().to_string(),
+        checkpoint_every: common.checkpoint_every.map(|n| n as usize),
+        resume: common.resume,
     };
     let bar = progress(source.frames(), common.quiet);
     eprintln!(
@@ -535,6 +545,8 @@ fn bench_command(
         mesh_formats: Vec::new(),
         given_poses: None,
         input: input.display().to_string(),
+        checkpoint_every: None,
+        resume: false,
     };
     let mut timed: Vec<StageMs> = Vec::new();
     let mut last = None;
@@ -637,6 +649,8 @@ fn demo_command(
         mesh_formats: vec![MeshFormat::Ply],
         given_poses: None,
         input: format!("simulated town, seed {seed}, {frames} frames"),
+        checkpoint_every: None,
+        resume: false,
     };
     eprintln!("slamesh demo: simulating {frames} frames through a procedural town (seed {seed}), output in {}", out.display());
     let bar = progress(frames, quiet);

@@ -53,6 +53,26 @@ pub struct MeshSpool {
 impl MeshSpool {
     /// A spool for the mesh file `target` (its spool files go beside it).
     pub fn new(target: &Path, lattice: Lattice, variance_show: f64) -> Result<Self, FileError> {
+        Self::open(target, lattice, variance_show, None)
+    }
+
+    /// The spool of an interrupted run, cut back to the first `kept` records (what a
+    /// checkpoint counted; later records belong to frames that will be redone).
+    pub fn resume(
+        target: &Path,
+        lattice: Lattice,
+        variance_show: f64,
+        kept: MeshCounts,
+    ) -> Result<Self, FileError> {
+        Self::open(target, lattice, variance_show, Some(kept))
+    }
+
+    fn open(
+        target: &Path,
+        lattice: Lattice,
+        variance_show: f64,
+        kept: Option<MeshCounts>,
+    ) -> Result<Self, FileError> {
         let name = target
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -61,19 +81,34 @@ impl MeshSpool {
             target.with_file_name(format!(".{name}.vertices.spool")),
             target.with_file_name(format!(".{name}.faces.spool")),
         ];
-        let open = |p: &Path| {
-            File::create(p)
-                .map(BufWriter::new)
-                .map_err(|e| FileError::at(p, format!("cannot create spool file: {e}")))
+        let open = |p: &Path, keep_bytes: Option<u64>| {
+            let file = match keep_bytes {
+                None => File::create(p)
+                    .map_err(|e| FileError::at(p, format!("cannot create spool file: {e}")))?,
+                Some(bytes) => crate::atomic::open_cut(p, bytes)?,
+            };
+            Ok::<_, FileError>(BufWriter::new(file))
         };
         Ok(MeshSpool {
             lattice,
             variance_show: variance_show as f32,
-            vertices: open(&paths[0])?,
-            faces: open(&paths[1])?,
+            vertices: open(&paths[0], kept.map(|k| k.vertices * VERTEX_BYTES as u64))?,
+            faces: open(&paths[1], kept.map(|k| k.triangles * FACE_BYTES as u64))?,
             paths,
-            counts: MeshCounts::default(),
+            counts: kept.unwrap_or_default(),
         })
+    }
+
+    /// Writes what is buffered to the spool files (before a checkpoint counts them).
+    pub fn flush(&mut self) -> Result<(), FileError> {
+        for (w, p) in [
+            (&mut self.vertices, &self.paths[0]),
+            (&mut self.faces, &self.paths[1]),
+        ] {
+            w.flush()
+                .map_err(|e| FileError::at(p, format!("cannot write: {e}")))?;
+        }
+        Ok(())
     }
 
     /// What has been added so far.
@@ -123,13 +158,7 @@ impl MeshSpool {
 
     /// Writes everything added to each `(path, format)` (atomically) and removes the spool.
     pub fn finish(mut self, outputs: &[(PathBuf, MeshFormat)]) -> Result<MeshCounts, FileError> {
-        for (w, p) in [
-            (&mut self.vertices, &self.paths[0]),
-            (&mut self.faces, &self.paths[1]),
-        ] {
-            w.flush()
-                .map_err(|e| FileError::at(p, format!("cannot write: {e}")))?;
-        }
+        self.flush()?;
         for (target, format) in outputs {
             self.write(target, *format)?;
         }

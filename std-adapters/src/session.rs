@@ -10,8 +10,13 @@
 //! Trajectories: the TUM file has one line per used frame with its timestamp; the KITTI file
 //! has one line per frame (KITTI files have no timestamps), a skipped frame repeating the last
 //! pose (the report lists the skipped frames).
+//!
+//! Checkpoints: with `checkpoint_every`, the map and the run's totals are saved every so many
+//! frames; with `resume`, a killed run continues from its last checkpoint and ends with the
+//! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
 
 use crate::atomic::write_atomic;
+use crate::checkpoint::{self, Progress};
 use crate::config_file::WindowSettings;
 use crate::file_error::FileError;
 use crate::memory;
@@ -74,6 +79,10 @@ pub struct RunOptions {
     pub given_poses: Option<Vec<Pose>>,
     /// What the input was (for the report).
     pub input: String,
+    /// Write a checkpoint after every this many frames ([`crate::checkpoint`]).
+    pub checkpoint_every: Option<usize>,
+    /// Continue from the checkpoint in `out` instead of starting over.
+    pub resume: bool,
 }
 
 /// What happened to one frame (a line of `report.json`).
@@ -213,21 +222,60 @@ pub fn run<C: Capacity>(
         .map_err(|e| RunError::Config(format!("{}: {}", e.field, e.reason)))?;
     let show = opts.config.mesh.variance_show;
     let mesh_path = out.join("mesh.ply");
-    let mut spool = MeshSpool::new(&mesh_path, opts.config.lattice(), show)?;
     let frames_path = out.join(".report.frames.spool");
-    let mut frame_lines = BufWriter::new(
-        std::fs::File::create(&frames_path)
-            .map_err(|e| FileError::at(&frames_path, format!("cannot create: {e}")))?,
-    );
+    let checkpoint_path = checkpoint::path(out);
+    let fingerprint = fingerprint::<C>(source, opts);
+    let (mut spool, frames_file, mut progress) = if opts.resume {
+        if !checkpoint_path.exists() {
+            return Err(FileError::at(
+                &checkpoint_path,
+                "cannot resume: no checkpoint here (was the run started with --checkpoint-every?)",
+            )
+            .into());
+        }
+        let progress = checkpoint::read(&checkpoint_path, pipeline.map_mut())?;
+        if progress.fingerprint != fingerprint {
+            return Err(FileError::at(
+                &checkpoint_path,
+                format!(
+                    "cannot resume: the checkpoint is of another run\n  it has:   {}\n  this run: {fingerprint}",
+                    progress.fingerprint
+                ),
+            )
+            .into());
+        }
+        pipeline.restore_progress(progress.pipeline_frames, progress.motion_model());
+        let spool = MeshSpool::resume(&mesh_path, opts.config.lattice(), show, progress.mesh)?;
+        let frames = crate::atomic::open_cut(&frames_path, progress.report_bytes)?;
+        (spool, frames, progress)
+    } else {
+        let spool = MeshSpool::new(&mesh_path, opts.config.lattice(), show)?;
+        let frames = std::fs::File::create(&frames_path)
+            .map_err(|e| FileError::at(&frames_path, format!("cannot create: {e}")))?;
+        let progress = Progress {
+            fingerprint,
+            next_frame: 0,
+            pipeline_frames: 0,
+            motion: (None, None),
+            poses: Vec::new(),
+            skipped: Vec::new(),
+            evicted_cells: 0,
+            used_ms: Vec::new(),
+            seconds: 0.0,
+            report_bytes: 0,
+            mesh: MeshCounts::default(),
+        };
+        (spool, frames, progress)
+    };
+    let mut frame_lines = BufWriter::new(frames_file);
 
     let mut timer = StageTimer::new();
-    let mut poses = Vec::new();
-    let mut skipped = Vec::new();
-    let mut evicted_total = 0;
-    let mut used_ms: Vec<StageMs> = Vec::new();
     let mut spool_error = None;
     let start = Instant::now();
-    for i in 0..source.frames() {
+    // Seconds of this process's loop already added to `progress.seconds`.
+    let mut counted = 0.0;
+    let first = progress.next_frame;
+    for i in first..source.frames() {
         let mut rec = FrameRecord {
             frame: i,
             file: source.label(i),
@@ -280,16 +328,16 @@ pub fn run<C: Capacity>(
                                 spool_error = spool.add_layer(l).err();
                             }
                         });
-                    evicted_total += rec.evicted_cells;
+                    progress.evicted_cells += rec.evicted_cells;
                 }
                 rec.ms.evict = t.elapsed().as_secs_f64() * 1e3;
                 rec.ms.total = rec.ms.pipeline() + rec.ms.evict;
-                poses.push((i, o.t_world_sensor));
-                used_ms.push(rec.ms);
+                progress.poses.push((i, o.t_world_sensor));
+                progress.used_ms.push(rec.ms);
             }
             Err(e) => {
                 rec.error = Some(e.clone());
-                skipped.push(e);
+                progress.skipped.push(e);
             }
         }
         if let Some(e) = spool_error.take() {
@@ -303,8 +351,32 @@ pub fn run<C: Capacity>(
             .and_then(|()| frame_lines.write_all(b"\n"))
             .map_err(|e| FileError::at(&frames_path, format!("cannot write: {e}")))?;
         on_frame(&rec);
+        if let Some(every) = opts.checkpoint_every.filter(|&n| n > 0) {
+            if (i + 1) % every == 0 && i + 1 < source.frames() {
+                frame_lines
+                    .flush()
+                    .map_err(|e| FileError::at(&frames_path, format!("cannot write: {e}")))?;
+                spool.flush()?;
+                progress.next_frame = i + 1;
+                progress.pipeline_frames = pipeline.frames();
+                progress.motion = pipeline.motion().history();
+                progress.seconds += start.elapsed().as_secs_f64() - counted;
+                counted = start.elapsed().as_secs_f64();
+                progress.report_bytes = frames_path.metadata().map_or(0, |m| m.len());
+                progress.mesh = spool.counts();
+                checkpoint::write(&checkpoint_path, &progress, pipeline.map())?;
+            }
+        }
     }
-    let seconds = start.elapsed().as_secs_f64();
+    progress.seconds += start.elapsed().as_secs_f64() - counted;
+    let Progress {
+        poses,
+        skipped,
+        evicted_cells: evicted_total,
+        used_ms,
+        seconds,
+        ..
+    } = progress;
     frame_lines
         .flush()
         .map_err(|e| FileError::at(&frames_path, format!("cannot write: {e}")))?;
@@ -337,7 +409,23 @@ pub fn run<C: Capacity>(
     };
     write_report(out, opts, &summary, &frames_path)?;
     let _ = std::fs::remove_file(&frames_path);
+    // The run is complete: nothing is left to resume.
+    let _ = std::fs::remove_file(&checkpoint_path);
     Ok(summary)
+}
+
+/// What identifies a run for resuming: its input, frames, capacity, configuration, window and
+/// given poses (the thread count is left out: it does not change the results).
+fn fingerprint<C: Capacity>(source: &impl FrameSource, opts: &RunOptions) -> String {
+    format!(
+        "input {:?}, {} frames, capacity {}, config {:?}, window {:?}, {} given poses",
+        opts.input,
+        source.frames(),
+        std::any::type_name::<C>(),
+        opts.config,
+        opts.window,
+        opts.given_poses.as_ref().map_or(0, Vec::len)
+    )
 }
 
 /// `mesh.ply` or `mesh.obj` in `out`.

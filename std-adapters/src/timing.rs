@@ -59,6 +59,23 @@ impl StageMs {
         ]
     }
 
+    /// The times from their [`values`](Self::values).
+    pub fn from_values(v: [f64; 10]) -> Self {
+        let [read, filter, bucket, reconstruct, associate, solve, update, mesh, evict, total] = v;
+        StageMs {
+            read,
+            filter,
+            bucket,
+            reconstruct,
+            associate,
+            solve,
+            update,
+            mesh,
+            evict,
+            total,
+        }
+    }
+
     /// The per-scan pipeline time: filter to mesh (no reading, no eviction).
     pub fn pipeline(&self) -> f64 {
         self.filter

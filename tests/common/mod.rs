@@ -35,10 +35,10 @@ pub fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// Runs the `slamesh` binary with `args`. When the tests run under an emulator (cross
-/// builds), `SLAMESH_TEST_RUNNER` names it (e.g. `qemu-aarch64 -L /usr/aarch64-linux-gnu`)
-/// and the binary runs under it too.
-pub fn slamesh(args: &[&str]) -> Output {
+/// The `slamesh` binary with `args`, not started. When the tests run under an emulator
+/// (cross builds), `SLAMESH_TEST_RUNNER` names it (e.g. `qemu-aarch64 -L
+/// /usr/aarch64-linux-gnu`) and the binary runs under it too.
+pub fn slamesh_command(args: &[&str]) -> Command {
     let runner = std::env::var("SLAMESH_TEST_RUNNER").unwrap_or_default();
     let mut words = runner.split_whitespace();
     let mut command = match words.next() {
@@ -49,10 +49,26 @@ pub fn slamesh(args: &[&str]) -> Output {
         }
         None => Command::new(env!("CARGO_BIN_EXE_slamesh")),
     };
+    command.args(args);
     command
-        .args(args)
+}
+
+/// Runs the `slamesh` binary with `args` (see [`slamesh_command`]).
+pub fn slamesh(args: &[&str]) -> Output {
+    slamesh_command(args)
         .output()
         .expect("the slamesh binary runs")
+}
+
+/// Writes `points` as a KITTI `.bin` scan (reflectance 0).
+pub fn write_bin(path: &Path, points: &[slamesh_core::Point]) {
+    let mut b = Vec::with_capacity(points.len() * 16);
+    for p in points {
+        for v in [p[0], p[1], p[2], 0.0] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(path, b).unwrap();
 }
 
 /// Runs `slamesh` and fails the test, showing its output, unless it succeeds.
