@@ -1,10 +1,19 @@
 //! Levenberg-Marquardt on SE(3) for point-to-plane residuals (DESIGN §1.4).
 //!
-//! Residual `e = nᵀ (R p + t - q)` of a correction `T = (R, t)` applied on the left;
-//! perturbation `T ← exp(δ) T` with `δ = (ω, ρ)`, so `∂e/∂δ = [ (T p × n)ᵀ, nᵀ ]`
-//! (= `[-nᵀ (Tp)^, nᵀ]`). Huber loss by iteratively re-weighted least squares, 6 x 6 normal
-//! equations damped by `λ · diag`. Degeneracy is judged on the normal equations scaled to unit
-//! diagonal, so rotation (lever arm in metres) and translation compare. Stack only.
+//! Residual `e = nᵀ (R p + t - q)` of a correction `T = (R, t)` applied on the left. The
+//! perturbation turns about the centroid `c` of the scan points, `T ← C exp(δ) C⁻¹ T` with
+//! `C` the translation by `c` and `δ = (ω, ρ)`, so `∂e/∂δ = [ ((T p - c) × n)ᵀ, nᵀ ]`: far from
+//! the world origin, rotation and translation stay as separable as they are near it. Huber
+//! loss by iteratively re-weighted least squares, 6 x 6 normal equations damped by
+//! `λ · diag`. Stack only.
+//!
+//! Degeneracy (a tunnel leaves the motion along it free, a plane leaves three directions
+//! free): the normal equations are scaled to metres (rotation times the scan's RMS lever arm)
+//! and divided by the residuals' total weight, so each eigenvalue is the mean squared normal
+//! component along its direction. Directions below [`LmConfig::degenerate_ratio`] are
+//! degenerate: the correction is solved in the other directions only (solution remapping),
+//! so that the pose keeps its prediction where the geometry says nothing, and the solution
+//! reports how many directions were left out.
 
 use crate::config::LmConfig;
 use crate::math::{se3_exp, Pose, Twist, Vec3};
@@ -42,8 +51,11 @@ pub struct Solution {
     pub iterations: usize,
     /// Robust cost before and after.
     pub cost: (f64, f64),
-    /// Smallest eigenvalue of the unit-diagonal normal equations (0 to 1-ish; small is weak).
+    /// Smallest eigenvalue of the scaled normal equations (see the module docs): the mean
+    /// squared normal component along the weakest direction, 0 to 1/3.
     pub conditioning: f64,
+    /// Directions left out as degenerate (0: the correction is constrained in all six).
+    pub degenerate_directions: usize,
 }
 
 /// Why no correction was computed.
@@ -55,9 +67,9 @@ pub enum LmError {
         /// Residuals given.
         found: usize,
     },
-    /// The residuals leave a direction unconstrained.
+    /// The residuals constrain no direction at all (or the system could not be analysed).
     Degenerate {
-        /// Smallest eigenvalue of the unit-diagonal normal equations.
+        /// Smallest eigenvalue of the scaled normal equations.
         conditioning: f64,
     },
     /// A residual or the system was not finite.
@@ -78,8 +90,13 @@ impl fmt::Display for LmError {
 
 impl core::error::Error for LmError {}
 
-/// Normal equations `H δ = -g` and robust cost at `t`.
-fn linearize(residuals: &[Residual], t: &Pose, huber: f64) -> (Matrix6<f64>, Twist, f64) {
+/// Normal equations `H δ = -g` and robust cost at `t`, for perturbations about `centre`.
+fn linearize(
+    residuals: &[Residual],
+    t: &Pose,
+    centre: &Vec3,
+    huber: f64,
+) -> (Matrix6<f64>, Twist, f64) {
     let mut h = Matrix6::zeros();
     let mut g = Twist::zeros();
     let mut cost = 0.0;
@@ -87,7 +104,7 @@ fn linearize(residuals: &[Residual], t: &Pose, huber: f64) -> (Matrix6<f64>, Twi
         let tp = (t * nalgebra::Point3::from(r.p)).coords;
         let e = r.n.dot(&(tp - r.q));
         let (w, c) = huber_loss(e, huber);
-        let rot = tp.cross(&r.n);
+        let rot = (tp - centre).cross(&r.n);
         let j = Twist::new(rot.x, rot.y, rot.z, r.n.x, r.n.y, r.n.z);
         let ww = w * r.weight;
         h += j * j.transpose() * ww;
@@ -115,25 +132,28 @@ fn huber_loss(e: f64, delta: f64) -> (f64, f64) {
     }
 }
 
-/// Smallest eigenvalue of `h` scaled to unit diagonal (0 if a diagonal entry vanishes).
-pub fn conditioning(h: &Matrix6<f64>) -> f64 {
-    let max_diag = h.diagonal().max();
-    if !(max_diag > 0.0) {
-        return 0.0;
-    }
-    let mut s = Twist::zeros();
-    for i in 0..6 {
-        let d = h[(i, i)];
-        if !(d > 1e-12 * max_diag) {
-            return 0.0;
-        }
-        s[i] = 1.0 / libm::sqrt(d);
-    }
-    let scaled = Matrix6::from_fn(|i, j| h[(i, j)] * s[i] * s[j]);
-    SymmetricEigen::try_new(scaled, 1e-12, 100).map_or(0.0, |e| e.eigenvalues.min())
+/// The scaling `δ = S x` that makes `x` metres: rotation times `lever`, translation as is.
+fn scaling(lever: f64) -> Twist {
+    let l = 1.0 / lever;
+    Twist::new(l, l, l, 1.0, 1.0, 1.0)
 }
 
-/// Finds the correction `T` minimising the Huber cost of `residuals`.
+/// The eigen-decomposition of the normal equations scaled to metres by `s` and divided by
+/// the residuals' total weight `weight` (see the module docs); `None` if not finite.
+pub fn information(
+    h: &Matrix6<f64>,
+    s: &Twist,
+    weight: f64,
+) -> Option<SymmetricEigen<f64, nalgebra::U6>> {
+    let scaled = Matrix6::from_fn(|i, j| h[(i, j)] * s[i] * s[j] / weight);
+    if !scaled.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    SymmetricEigen::try_new(scaled, 1e-12, 100)
+}
+
+/// Finds the correction `T` minimising the Huber cost of `residuals`, in the directions they
+/// constrain (see the module docs).
 pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError> {
     if residuals.len() < cfg.min_residuals {
         return Err(LmError::TooFewResiduals {
@@ -151,34 +171,73 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
         return Err(LmError::NotFinite);
     }
     let huber = cfg.huber_delta_m;
+    let count = residuals.len() as f64;
+    let centre = residuals.iter().fold(Vec3::zeros(), |a, r| a + r.p) / count;
+    let lever = libm::sqrt(
+        residuals
+            .iter()
+            .map(|r| (r.p - centre).norm_squared())
+            .sum::<f64>()
+            / count,
+    )
+    .max(1.0);
+    let s = scaling(lever);
+    let about = |delta: &Twist| {
+        let c = nalgebra::Translation3::from(centre);
+        c * se3_exp(delta) * c.inverse()
+    };
     let mut t = Pose::identity();
-    let (mut h, mut g, mut cost) = linearize(residuals, &t, huber);
+    let (mut h, mut g, mut cost) = linearize(residuals, &t, &centre, huber);
     let initial_cost = cost;
-    let cond = conditioning(&h);
-    if !(cond >= cfg.degenerate_ratio) || cond == 0.0 {
-        return Err(LmError::Degenerate { conditioning: cond });
+    // Degenerate directions, judged once on the first linearization, unweighted by Huber.
+    let weight: f64 = residuals.iter().map(|r| r.weight).sum();
+    let (h0, _, _) = linearize(residuals, &t, &centre, f64::INFINITY);
+    let Some(eigen) = information(&h0, &s, weight.max(1e-12)) else {
+        return Err(LmError::NotFinite);
+    };
+    let conditioning = eigen.eigenvalues.min();
+    // Projector onto the constrained directions (in the scaled variables).
+    let mut keep = Matrix6::<f64>::zeros();
+    let mut degenerate_directions = 0;
+    for k in 0..6 {
+        if eigen.eigenvalues[k] >= cfg.degenerate_ratio {
+            let v = eigen.eigenvectors.column(k);
+            keep += v * v.transpose();
+        } else {
+            degenerate_directions += 1;
+        }
     }
+    if degenerate_directions == 6 {
+        return Err(LmError::Degenerate { conditioning });
+    }
+    let free = Matrix6::<f64>::identity() - keep;
     let mut lambda = 1e-4;
     let mut iterations = 0;
     while iterations < cfg.max_iterations {
         iterations += 1;
-        let mut a = h;
+        // In the scaled variables x (δ = S x): (P (H + λ diag H) P + (I - P)) x = -P g.
+        let mut a = Matrix6::from_fn(|i, j| h[(i, j)] * s[i] * s[j]);
         for i in 0..6 {
-            a[(i, i)] += lambda * h[(i, i)];
+            a[(i, i)] *= 1.0 + lambda;
         }
+        let a = keep * a * keep + free;
+        let rhs = keep * g.component_mul(&s);
         let Some(chol) = a.cholesky() else {
             lambda *= 10.0;
+            if lambda > 1e10 {
+                break;
+            }
             continue;
         };
-        let delta = -chol.solve(&g);
+        let delta = (-chol.solve(&rhs)).component_mul(&s);
         if !delta.iter().all(|v| v.is_finite()) {
             return Err(LmError::NotFinite);
         }
-        let candidate = se3_exp(&delta) * t;
+        let candidate = about(&delta) * t;
         let new_cost = robust_cost(residuals, &candidate, huber);
         if new_cost <= cost {
             t = candidate;
-            (h, g, cost) = linearize(residuals, &t, huber);
+            (h, g, cost) = linearize(residuals, &t, &centre, huber);
             lambda = (lambda * 0.1).max(1e-10);
             if delta.norm() < cfg.tolerance {
                 break;
@@ -194,7 +253,8 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
         correction: t,
         iterations,
         cost: (initial_cost, cost),
-        conditioning: cond,
+        conditioning,
+        degenerate_directions,
     })
 }
 
@@ -259,6 +319,7 @@ mod tests {
             truth.translation.vector.norm() >= 0.5 && truth.rotation.angle().to_degrees() >= 5.0
         );
         let sol = solve(&residuals(&truth), &cfg()).unwrap();
+        assert_eq!(sol.degenerate_directions, 0);
         let err = sol.correction * truth.inverse();
         assert!(
             err.translation.vector.norm() < 1e-4,
@@ -301,8 +362,37 @@ mod tests {
                 }
             })
             .collect();
+        // The plane fixes height, roll and pitch; along it and about its normal the solution
+        // keeps the prediction (the identity correction).
+        let sol = solve(&plane, &cfg()).unwrap();
+        assert_eq!(sol.degenerate_directions, 3);
+        let t = sol.correction.translation.vector;
+        assert!((t - Vec3::new(0.0, 0.0, -0.3)).norm() < 1e-9, "{t:?}");
+        assert!(sol.correction.rotation.angle() < 1e-9);
+        // Parallel planes twice over, and a single point: nothing constrains all six.
+        let flat: heapless::Vec<Residual, 64> = plane
+            .iter()
+            .map(|r| Residual {
+                p: Vec3::new(0.0, 0.0, 0.3),
+                q: Vec3::zeros(),
+                ..*r
+            })
+            .collect();
+        assert_eq!(solve(&flat, &cfg()).unwrap().degenerate_directions, 5);
+    }
+
+    #[test]
+    fn no_direction_at_all_is_an_error() {
+        let none: heapless::Vec<Residual, 16> = (0..16)
+            .map(|_| Residual {
+                p: Vec3::zeros(),
+                q: Vec3::zeros(),
+                n: Vec3::zeros(),
+                weight: 1.0,
+            })
+            .collect();
         assert!(matches!(
-            solve(&plane, &cfg()),
+            solve(&none, &cfg()),
             Err(LmError::Degenerate { .. })
         ));
     }

@@ -49,11 +49,12 @@ mod formats {
         fn format(&self, f: Formatter) {
             write!(
                 f,
-                "Solution {{ correction: {}, iterations: {}, cost: {}, conditioning: {} }}",
+                "Solution {{ correction: {}, iterations: {}, cost: {}, conditioning: {}, degenerate_directions: {} }}",
                 PoseFmt(&self.correction),
                 self.iterations,
                 self.cost,
-                self.conditioning
+                self.conditioning,
+                self.degenerate_directions
             )
         }
     }

@@ -31,8 +31,10 @@ pub enum RegistrationStatus {
     FirstScan,
     /// Every round solved.
     Converged,
-    /// A round's geometry left a direction unconstrained: the pose keeps the rounds before
-    /// it (the motion prediction if it was the first).
+    /// The geometry left some direction unconstrained (a tunnel, a plane): the pose was
+    /// corrected only in the directions the scan constrains and keeps the motion prediction
+    /// in the others ([`ScanStats::degenerate_directions`] says how many). If it constrained
+    /// none, the pose keeps the rounds before (the motion prediction if it was the first).
     Degenerate,
     /// A round had too few residuals: as for `Degenerate`.
     TooFewResiduals,
@@ -87,8 +89,11 @@ pub struct ScanStats {
     pub rounds: usize,
     /// LM iterations over all rounds.
     pub lm_iterations: usize,
-    /// Conditioning of the last solved round (see [`lm::conditioning`]).
+    /// Conditioning of the last solved round: the mean squared normal component along its
+    /// weakest direction (see [`lm`]).
     pub conditioning: f64,
+    /// Directions the last solved round left to the motion prediction (0 to 6).
+    pub degenerate_directions: usize,
     /// Map update.
     pub fusion: FusionStats,
 }
@@ -229,12 +234,17 @@ impl<C: Capacity> Pipeline<C> {
                         pose = renormalized(sol.correction * pose);
                         stats.lm_iterations += sol.iterations;
                         stats.conditioning = sol.conditioning;
+                        stats.degenerate_directions = sol.degenerate_directions;
+                        if sol.degenerate_directions > 0 {
+                            status = RegistrationStatus::Degenerate;
+                        }
                     }
                     Err(e) => {
                         status = match e {
                             LmError::TooFewResiduals { .. } => RegistrationStatus::TooFewResiduals,
                             LmError::Degenerate { conditioning } => {
                                 stats.conditioning = conditioning;
+                                stats.degenerate_directions = 6;
                                 RegistrationStatus::Degenerate
                             }
                             LmError::NotFinite => RegistrationStatus::SolverFailed,

@@ -114,7 +114,7 @@ parameters! {
     "register.lm" register.lm.max_iterations: count as uv, "Levenberg-Marquardt iterations per round.";
     "register.lm" register.lm.tolerance: float as fv, "Stop when the update's norm is below this.";
     "register.lm" register.lm.huber_delta_m: float as fv, "Huber loss threshold (metres).";
-    "register.lm" register.lm.degenerate_ratio: float as fv, "Degenerate when the smallest eigenvalue of the scaled normal equations is below this.";
+    "register.lm" register.lm.degenerate_ratio: float as fv, "A direction whose mean squared normal component is below this is left to the motion model.";
     "register.lm" register.lm.min_residuals: count as uv, "Fewer residuals than this and the scan keeps the motion prediction.";
     "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
     "map" map.add_missing_layers: boolean as Value::Boolean, "Add a layer that a known cell lacks.";

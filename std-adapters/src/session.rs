@@ -114,6 +114,11 @@ pub struct FrameRecord {
     pub triangles_updated: usize,
     /// Cells evicted after this frame.
     pub evicted_cells: usize,
+    /// Conditioning of the registration: the mean squared normal component along its
+    /// weakest direction (0 to 1/3; small is weak).
+    pub conditioning: f64,
+    /// Directions registration left to the motion model (see the `Degenerate` status).
+    pub degenerate_directions: usize,
     /// Resident memory after the frame (MB).
     pub rss_mb: Option<f64>,
 }
@@ -290,6 +295,8 @@ pub fn run<C: Capacity>(
             map_layers: 0,
             triangles_updated: 0,
             evicted_cells: 0,
+            conditioning: 0.0,
+            degenerate_directions: 0,
             rss_mb: None,
         };
         let t_read = Instant::now();
@@ -317,6 +324,8 @@ pub fn run<C: Capacity>(
                 rec.points_kept = o.stats.filter.kept;
                 rec.scan_cells = o.stats.bucket.cells;
                 rec.scan_layers = o.stats.scan_layers;
+                rec.conditioning = o.stats.conditioning;
+                rec.degenerate_directions = o.stats.degenerate_directions;
                 let t = Instant::now();
                 rec.triangles_updated = updated_triangles(&pipeline, show);
                 rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
