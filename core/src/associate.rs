@@ -24,6 +24,12 @@ pub struct AssociateStats {
     pub residuals: usize,
 }
 
+/// Candidate map layers per scan layer: the cell and `2 · reach` neighbours along the axis;
+/// a reach beyond [`MAX_REACH`] is cut to it.
+const MAX_CANDIDATES: usize = 2 * MAX_REACH as usize + 1;
+/// The largest cross-cell reach ([`crate::config::Config::validate`] refuses more).
+pub const MAX_REACH: u32 = 8;
+
 /// Writes one combined residual per scan layer that has map pairs into `out` (cleared first).
 pub fn associate(
     scan: &[ScanLayer],
@@ -35,11 +41,23 @@ pub fn associate(
     out.clear();
     let lattice = *map.lattice();
     let max_var = variance_register as f32;
-    let reach = reach.min(i32::MAX as u32) as i32;
+    let reach = reach.min(MAX_REACH) as i32;
     let mut stats = AssociateStats::default();
     for s in scan {
         let (mut sum_p, mut sum_q, mut sum_n, mut count) =
             (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), 0usize);
+        // The candidate map layers along the axis, looked up once per scan layer.
+        let mut candidates = heapless::Vec::<_, MAX_CANDIDATES>::new();
+        for i in -reach..=reach {
+            let Some(key) = s.key.offset(s.axis, i) else {
+                continue;
+            };
+            if let Some(m) = map.layer(&key, s.axis) {
+                if candidates.push((i, key, m)).is_err() {
+                    break;
+                }
+            }
+        }
         for j in 0..VERTICES {
             if !(s.layer.var[j] < max_var) {
                 continue;
@@ -47,13 +65,7 @@ pub fn associate(
             let d_scan = f64::from(s.layer.pred[j]);
             // (|Δd|, key, layer) of the nearest usable map vertex along the axis.
             let mut best = None;
-            for i in -reach..=reach {
-                let Some(key) = s.key.offset(s.axis, i) else {
-                    continue;
-                };
-                let Some(m) = map.layer(&key, s.axis) else {
-                    continue;
-                };
+            for &(i, key, m) in &candidates {
                 if !(m.var[j] < max_var) {
                     continue;
                 }
@@ -64,7 +76,7 @@ pub fn associate(
                 }
             }
             let Some((_, key, m)) = best else { continue };
-            let Some(n) = m.normal(&lattice, &key, s.axis, j, max_var) else {
+            let Some(n) = m.normal(&lattice, s.axis, j, max_var) else {
                 continue;
             };
             sum_p += s.layer.vertex(&lattice, &s.key, s.axis, j);

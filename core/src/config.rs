@@ -253,13 +253,13 @@ impl Config {
                 reason: "must be 1 to 50",
             });
         }
-        if r.cross_cell_overlap > 8 {
+        if r.cross_cell_overlap > crate::associate::MAX_REACH {
             return Err(ConfigError {
                 field: "register.cross_cell_overlap",
                 reason: "must be 0 to 8",
             });
         }
-        if r.initial_cross_cell_overlap > 8 {
+        if r.initial_cross_cell_overlap > crate::associate::MAX_REACH {
             return Err(ConfigError {
                 field: "register.initial_cross_cell_overlap",
                 reason: "must be 0 to 8",

@@ -38,19 +38,29 @@ impl Layer {
     pub fn normal(
         &self,
         lattice: &Lattice,
-        key: &CellKey,
         axis: Axis,
         j: usize,
         max_var: f32,
     ) -> Option<Vec3> {
-        let centre = self.vertex(lattice, key, axis, j);
+        // Edges are differences of vertices of one cell: cell-local positions suffice.
+        let local = |v: usize| -> Vec3 {
+            let (a, b) = axis.locations();
+            let (la, lb) = lattice.location(v);
+            let mut p = Vec3::zeros();
+            p[a] = la;
+            p[b] = lb;
+            p[axis.index()] = f64::from(self.pred.get(v).copied().unwrap_or(0.0));
+            p
+        };
+        let centre = local(j);
+        let max_sq = lattice.cell_size * lattice.cell_size;
         let edge = |n: Option<usize>| -> Option<Vec3> {
             let n = n?;
             if !(*self.var.get(n)? < max_var) {
                 return None;
             }
-            let e = self.vertex(lattice, key, axis, n) - centre;
-            (e.norm() < lattice.cell_size).then_some(e)
+            let e = local(n) - centre;
+            (e.norm_squared() < max_sq).then_some(e)
         };
         let nb = neighbours(j);
         let edges = nb.map(edge);
@@ -112,7 +122,7 @@ mod tests {
         for axis in Axis::ALL {
             let (l, lat) = plane(|a, _| 0.2 + 0.5 * a);
             let n = l
-                .normal(&lat, &CellKey::new(3, -2, 1), axis, 14, 0.5)
+                .normal(&lat, axis, 14, 0.5)
                 .unwrap();
             let (ia, ib) = axis.locations();
             let want = Vec3::new(-0.5, 0.0, 1.0).normalize();
@@ -125,12 +135,12 @@ mod tests {
     fn corner_vertex_normal_uses_the_one_edge_pair_and_uncertain_vertices_are_skipped() {
         let (mut l, lat) = plane(|_, _| 0.4);
         let n = l
-            .normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5)
+            .normal(&lat, Axis::Z, 0, 0.5)
             .unwrap();
         assert!((n - Vec3::z()).norm() < 1e-9);
         l.var[1] = 0.9;
         assert!(l
-            .normal(&lat, &CellKey::default(), Axis::Z, 0, 0.5)
+            .normal(&lat, Axis::Z, 0, 0.5)
             .is_none());
     }
 
