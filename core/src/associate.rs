@@ -8,7 +8,9 @@
 //! normal) into one residual. No k-d tree, no heap: the output is the caller's bounded buffer.
 
 use crate::bounded::BoundedVec;
+use crate::cell::{Axis, CellKey};
 use crate::lattice::VERTICES;
+use crate::layer::Layer;
 use crate::lm::Residual;
 use crate::map::MeshMap;
 use crate::math::Vec3;
@@ -30,6 +32,37 @@ const MAX_CANDIDATES: usize = 2 * MAX_REACH as usize + 1;
 /// The largest cross-cell reach ([`crate::config::Config::validate`] refuses more).
 pub const MAX_REACH: u32 = 8;
 
+/// The map layers of `axis` in cell `key` and the cells `key ± i·e_axis`, `i ≤ reach`, with
+/// their offset `i`: what a scan layer there can pair with, looked up once per scan layer.
+fn candidates(
+    map: &MeshMap,
+    key: CellKey,
+    axis: Axis,
+    reach: u32,
+) -> heapless::Vec<(i32, CellKey, &Layer), MAX_CANDIDATES> {
+    let reach = reach.min(MAX_REACH) as i32;
+    let mut out = heapless::Vec::new();
+    for i in -reach..=reach {
+        let Some(k) = key.offset(axis, i) else {
+            continue;
+        };
+        if let Some(m) = map.layer(&k, axis) {
+            // At most 2 · MAX_REACH + 1 offsets: cannot overflow.
+            let _ = out.push((i, k, m));
+        }
+    }
+    out
+}
+
+/// Whether a scan layer of `axis` in cell `key` has anything to pair with at `reach`.
+pub fn has_candidates(map: &MeshMap, key: CellKey, axis: Axis, reach: u32) -> bool {
+    let reach = reach.min(MAX_REACH) as i32;
+    (-reach..=reach).any(|i| {
+        key.offset(axis, i)
+            .is_some_and(|k| map.layer(&k, axis).is_some())
+    })
+}
+
 /// Writes one combined residual per scan layer that has map pairs into `out` (cleared first).
 pub fn associate(
     scan: &[ScanLayer],
@@ -41,23 +74,11 @@ pub fn associate(
     out.clear();
     let lattice = *map.lattice();
     let max_var = variance_register as f32;
-    let reach = reach.min(MAX_REACH) as i32;
     let mut stats = AssociateStats::default();
     for s in scan {
         let (mut sum_p, mut sum_q, mut sum_n, mut count) =
             (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), 0usize);
-        // The candidate map layers along the axis, looked up once per scan layer.
-        let mut candidates = heapless::Vec::<_, MAX_CANDIDATES>::new();
-        for i in -reach..=reach {
-            let Some(key) = s.key.offset(s.axis, i) else {
-                continue;
-            };
-            if let Some(m) = map.layer(&key, s.axis) {
-                if candidates.push((i, key, m)).is_err() {
-                    break;
-                }
-            }
-        }
+        let candidates = candidates(map, s.key, s.axis, reach);
         for j in 0..VERTICES {
             if !(s.layer.var[j] < max_var) {
                 continue;
@@ -110,9 +131,7 @@ pub fn associate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cell::{Axis, CellKey};
     use crate::lattice::Lattice;
-    use crate::layer::Layer;
 
     const LAT: Lattice = Lattice {
         cell_size: 1.6,

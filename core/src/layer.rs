@@ -35,13 +35,7 @@ impl Layer {
     /// The surface normal at vertex `j`: the mean of the cross products of consecutive edges
     /// to its usable 4-neighbours (variance below `max_var`, edge shorter than a cell),
     /// normalised, oriented along `+axis` (DESIGN §1.4). `None` when no pair of edges is usable.
-    pub fn normal(
-        &self,
-        lattice: &Lattice,
-        axis: Axis,
-        j: usize,
-        max_var: f32,
-    ) -> Option<Vec3> {
+    pub fn normal(&self, lattice: &Lattice, axis: Axis, j: usize, max_var: f32) -> Option<Vec3> {
         // Edges are differences of vertices of one cell: cell-local positions suffice.
         let local = |v: usize| -> Vec3 {
             let (a, b) = axis.locations();
@@ -121,9 +115,7 @@ mod tests {
         // d = 0.2 + 0.5 a: normal ∝ (-0.5, 0, 1) in (a, b, d).
         for axis in Axis::ALL {
             let (l, lat) = plane(|a, _| 0.2 + 0.5 * a);
-            let n = l
-                .normal(&lat, axis, 14, 0.5)
-                .unwrap();
+            let n = l.normal(&lat, axis, 14, 0.5).unwrap();
             let (ia, ib) = axis.locations();
             let want = Vec3::new(-0.5, 0.0, 1.0).normalize();
             assert!((n[ia] - want.x).abs() < 1e-6 && (n[ib] - want.y).abs() < 1e-6);
@@ -134,14 +126,10 @@ mod tests {
     #[test]
     fn corner_vertex_normal_uses_the_one_edge_pair_and_uncertain_vertices_are_skipped() {
         let (mut l, lat) = plane(|_, _| 0.4);
-        let n = l
-            .normal(&lat, Axis::Z, 0, 0.5)
-            .unwrap();
+        let n = l.normal(&lat, Axis::Z, 0, 0.5).unwrap();
         assert!((n - Vec3::z()).norm() < 1e-9);
         l.var[1] = 0.9;
-        assert!(l
-            .normal(&lat, Axis::Z, 0, 0.5)
-            .is_none());
+        assert!(l.normal(&lat, Axis::Z, 0, 0.5).is_none());
     }
 
     #[test]

@@ -18,7 +18,7 @@ use crate::map::MeshMap;
 use crate::math::{renormalized, Point, Pose};
 use crate::mesh::{self, Triangle};
 use crate::motion::ConstantVelocity;
-use crate::reconstruct::{CellLoop, ScanLayer, Serial};
+use crate::reconstruct::{CellLoop, Purpose, ScanLayer, Serial};
 use crate::stage::{NoProbe, Probe, Stage};
 use core::fmt;
 use core::marker::PhantomData;
@@ -218,7 +218,8 @@ impl<C: Capacity> Pipeline<C> {
             status = RegistrationStatus::Converged;
             for round in 0..rounds {
                 let reach = if round + 1 == rounds { 0 } else { reach };
-                stats.dropped_layers += self.reconstruct(&pose, cells, probe).1;
+                let purpose = Purpose::Register { reach };
+                stats.dropped_layers += self.reconstruct(&pose, cells, purpose, probe).1;
                 probe.enter(Stage::Associate);
                 stats.associate = associate(
                     &self.scan,
@@ -334,6 +335,7 @@ impl<C: Capacity> Pipeline<C> {
         &mut self,
         pose: &Pose,
         cells: &impl CellLoop,
+        purpose: Purpose,
         probe: &mut impl Probe,
     ) -> (BucketStats, usize) {
         probe.enter(Stage::Bucket);
@@ -353,6 +355,7 @@ impl<C: Capacity> Pipeline<C> {
             &self.work,
             &self.map,
             &self.config,
+            purpose,
             &mut self.scan,
         );
         (b, dropped)
@@ -366,7 +369,7 @@ impl<C: Capacity> Pipeline<C> {
         probe: &mut impl Probe,
         stats: &mut ScanStats,
     ) {
-        let (b, dropped) = self.reconstruct(&pose, cells, probe);
+        let (b, dropped) = self.reconstruct(&pose, cells, Purpose::Update, probe);
         stats.bucket = b;
         stats.dropped_layers += dropped;
         stats.scan_layers = self.scan.len();

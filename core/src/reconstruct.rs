@@ -24,13 +24,28 @@ pub struct ScanLayer {
     pub layer: Layer,
 }
 
+/// What a reconstruction is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Purpose {
+    /// A registration round with this cross-cell reach: a layer with no map layer of its axis
+    /// within reach could not pair with anything, so its GP is not computed.
+    Register {
+        /// The round's reach.
+        reach: u32,
+    },
+    /// The map update: every layer.
+    Update,
+}
+
 /// Reconstructs the layers of cell `key` from its cell-local `points` (at most three layers;
-/// a layer whose GP fails is left out).
+/// a layer whose GP fails is left out, and so is one `purpose` has no use for).
 pub fn reconstruct_cell(
     points: &[(CellKey, Point)],
     key: CellKey,
     map: &MeshMap,
     cfg: &Config,
+    purpose: Purpose,
 ) -> heapless::Vec<ScanLayer, 3> {
     let mut axes = heapless::Vec::<Axis, 3>::new();
     match choose_layers(points) {
@@ -47,6 +62,11 @@ pub fn reconstruct_cell(
     let lattice = cfg.lattice();
     let mut out = heapless::Vec::new();
     for axis in axes {
+        if let Purpose::Register { reach } = purpose {
+            if !crate::associate::has_candidates(map, key, axis, reach) {
+                continue;
+            }
+        }
         let samples = gp::select_training(points, axis, lattice.cell_size);
         if let Ok(layer) = gp::predict(&samples, &lattice, &cfg.gp) {
             // At most three axes: cannot overflow.
@@ -67,6 +87,7 @@ pub trait CellLoop {
         bucketed: &[(CellKey, Point)],
         map: &MeshMap,
         cfg: &Config,
+        purpose: Purpose,
         out: &mut crate::bounded::BoundedVec<ScanLayer>,
     ) -> usize;
 }
@@ -82,11 +103,15 @@ impl CellLoop for Serial {
         bucketed: &[(CellKey, Point)],
         map: &MeshMap,
         cfg: &Config,
+        purpose: Purpose,
         out: &mut crate::bounded::BoundedVec<ScanLayer>,
     ) -> usize {
         cells
             .iter()
-            .map(|c| append_layers(out, reconstruct_cell(c.points(bucketed), c.key, map, cfg)))
+            .map(|c| {
+                let layers = reconstruct_cell(c.points(bucketed), c.key, map, cfg, purpose);
+                append_layers(out, layers)
+            })
             .sum()
     }
 }

@@ -9,7 +9,7 @@ use slamesh_core::bounded::BoundedVec;
 use slamesh_core::bucket::CellSpan;
 use slamesh_core::cell::CellKey;
 use slamesh_core::map::MeshMap;
-use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, ScanLayer};
+use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, Purpose, ScanLayer};
 use slamesh_core::{Config, Point};
 
 /// Reconstructs cells on a dedicated rayon pool.
@@ -40,12 +40,13 @@ impl CellLoop for Rayon {
         bucketed: &[(CellKey, Point)],
         map: &MeshMap,
         cfg: &Config,
+        purpose: Purpose,
         out: &mut BoundedVec<ScanLayer>,
     ) -> usize {
         let per_cell: Vec<_> = self.pool.install(|| {
             cells
                 .par_iter()
-                .map(|c| reconstruct_cell(c.points(bucketed), c.key, map, cfg))
+                .map(|c| reconstruct_cell(c.points(bucketed), c.key, map, cfg, purpose))
                 .collect()
         });
         per_cell
@@ -90,13 +91,14 @@ impl CellLoop for Workers {
         bucketed: &[(CellKey, Point)],
         map: &MeshMap,
         cfg: &Config,
+        purpose: Purpose,
         out: &mut BoundedVec<ScanLayer>,
     ) -> usize {
         match self {
             Workers::Serial => {
-                slamesh_core::reconstruct::Serial.run(cells, bucketed, map, cfg, out)
+                slamesh_core::reconstruct::Serial.run(cells, bucketed, map, cfg, purpose, out)
             }
-            Workers::Pool(r) => r.run(cells, bucketed, map, cfg, out),
+            Workers::Pool(r) => r.run(cells, bucketed, map, cfg, purpose, out),
         }
     }
 }
