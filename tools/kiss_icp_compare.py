@@ -1,0 +1,93 @@
+"""KISS-ICP on the same kitti-mini scans, timed the way `slamesh bench` times slamesh.
+
+    pip install kiss-icp
+    python3 tools/kiss_icp_compare.py ../shared/data/kitti-mini --threads 1 2 --repeat 3
+
+Per sequence and thread count: one warm-up pass, then `--repeat` timed passes; each pass is a
+fresh KissICP (default configuration, the KITTI vertical correction its own KITTI loader
+applies, no deskewing: the odometry scans carry no per-point times). The time of a scan is
+`register_frame` alone (reading the file is not timed, as in `slamesh bench`). Prints the
+median and 95th percentile ms per scan, and the mean consecutive-frame translation error
+against the reference poses (same metric as slamesh's kitti_odometry test).
+"""
+import argparse
+import glob
+import os
+import statistics
+import time
+
+import numpy as np
+from kiss_icp.config import load_config
+from kiss_icp.kiss_icp import KissICP
+from kiss_icp.pybind import kiss_icp_pybind
+
+
+def read_scan(path):
+    points = np.fromfile(path, dtype=np.float32).reshape((-1, 4))[:, :3].astype(np.float64)
+    return np.asarray(kiss_icp_pybind._correct_kitti_scan(kiss_icp_pybind._Vector3dVector(points)))
+
+
+def reference_lidar_poses(seq_dir):
+    calib = {}
+    for line in open(os.path.join(seq_dir, "calib.txt")):
+        key, _, values = line.partition(":")
+        calib[key.strip()] = np.array([float(v) for v in values.split()])
+    tr = np.eye(4)
+    tr[:3, :4] = calib["Tr"].reshape(3, 4)
+    poses = []
+    for line in open(os.path.join(seq_dir, "poses.txt")):
+        p = np.eye(4)
+        p[:3, :4] = np.array([float(v) for v in line.split()]).reshape(3, 4)
+        poses.append(np.linalg.inv(tr) @ p @ tr)
+    return poses
+
+
+def consecutive_error_cm(estimate, reference):
+    errors = []
+    for i in range(1, len(estimate)):
+        d_est = np.linalg.inv(estimate[i - 1]) @ estimate[i]
+        d_ref = np.linalg.inv(reference[i - 1]) @ reference[i]
+        errors.append(np.linalg.norm((np.linalg.inv(d_ref) @ d_est)[:3, 3]) * 100)
+    return sum(errors) / len(errors)
+
+
+def run(scans, threads):
+    config = load_config(None)
+    config.data.deskew = False
+    config.registration.max_num_threads = threads
+    odometry = KissICP(config)
+    ms, poses = [], []
+    for points in scans:
+        start = time.perf_counter()
+        odometry.register_frame(points, np.array([]))
+        ms.append((time.perf_counter() - start) * 1e3)
+        poses.append(odometry.last_pose.copy())
+    return ms, poses
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("kitti_mini")
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    print("| sequence | threads | median ms | p95 ms | translation [cm] |")
+    print("|---|---|---|---|---|")
+    for seq_dir in sorted(glob.glob(os.path.join(args.kitti_mini, "[0-9][0-9]"))):
+        scans = [read_scan(p) for p in sorted(glob.glob(os.path.join(seq_dir, "velodyne", "*.bin")))]
+        reference = reference_lidar_poses(seq_dir)
+        for threads in args.threads:
+            run(scans, threads)  # warm-up
+            timed = []
+            for _ in range(args.repeat):
+                ms, poses = run(scans, threads)
+                timed.extend(ms)
+            timed.sort()
+            p95 = timed[min(len(timed) - 1, round((len(timed) - 1) * 0.95))]
+            error = consecutive_error_cm(poses, reference)
+            print(f"| {os.path.basename(seq_dir)} | {threads} | {statistics.median(timed):.1f} "
+                  f"| {p95:.1f} | {error:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
