@@ -74,6 +74,9 @@ fn a_featureless_tunnel_is_degenerate_along_its_axis_and_the_motion_model_carrie
     let mut d = drive(scene, 70, step, 50.0);
     let out = run(&mut d);
     let truth: Vec<Pose> = d.poses.iter().map(|p| d.poses[0].inverse() * p).collect();
+    // Once only walls are in view (50 m range past the last pillar and the end wall).
+    let walls_only = |i: usize| step * i as f64 > 50.0 + 12.0 + 10.0;
+    let mut entered = None;
     for (i, (status, pose, cond)) in out.iter().enumerate() {
         let pose = pose.expect("every frame has a pose");
         let e = position_error(&pose, &truth[i]);
@@ -81,17 +84,26 @@ fn a_featureless_tunnel_is_degenerate_along_its_axis_and_the_motion_model_carrie
             "frame {i:2} {status:?} {cond:.5} error x {:.3} y {:.3} z {:.3}",
             e[0], e[1], e[2]
         );
-        // Across the tunnel and vertically the walls hold it; along it, the motion model.
+        // Across the tunnel and vertically the walls hold it throughout.
         assert!(e[1] < 0.1 && e[2] < 0.1, "frame {i}: {e:?}");
-        assert!(e[0] < 0.5, "frame {i}: drifted {} m along the tunnel", e[0]);
-        if step * i as f64 > 50.0 + 12.0 + 10.0 {
+        if walls_only(i) {
             assert_eq!(
                 *status,
                 Ok(RegistrationStatus::Degenerate),
                 "frame {i}: only walls in view"
             );
+            // Along the tunnel the motion model carries the pose: no divergence.
+            let x0 = *entered.get_or_insert(e[0]);
+            assert!(
+                e[0] < x0 + 0.05,
+                "frame {i}: {} m, {x0} m on entering",
+                e[0]
+            );
         }
     }
+    // While a few distant pillars are the only hold along the axis (conditioning about
+    // 0.011), a full solve slides on them, 0.7 m in three frames; they count as degenerate.
+    assert!(entered.is_some_and(|x0| x0 < 0.1));
 }
 
 #[test]

@@ -12,7 +12,7 @@
 //! and divided by the residuals' total weight, so each eigenvalue is the mean squared normal
 //! component along its direction. Directions below [`LmConfig::degenerate_ratio`] are
 //! degenerate: the correction is solved in the other directions only (solution remapping),
-//! so that the pose keeps its prediction where the geometry says nothing, and the solution
+//! so that the pose keeps its prediction where the geometry says nothing. The solution
 //! reports how many directions were left out.
 
 use crate::config::LmConfig;
@@ -170,7 +170,6 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
     }) {
         return Err(LmError::NotFinite);
     }
-    let huber = cfg.huber_delta_m;
     let count = residuals.len() as f64;
     let centre = residuals.iter().fold(Vec3::zeros(), |a, r| a + r.p) / count;
     let lever = libm::sqrt(
@@ -182,35 +181,56 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
     )
     .max(1.0);
     let s = scaling(lever);
-    let about = |delta: &Twist| {
-        let c = nalgebra::Translation3::from(centre);
-        c * se3_exp(delta) * c.inverse()
-    };
-    let mut t = Pose::identity();
-    let (mut h, mut g, mut cost) = linearize(residuals, &t, &centre, huber);
-    let initial_cost = cost;
-    // Degenerate directions, judged once on the first linearization, unweighted by Huber.
+    // Directions, judged once on the first linearization, unweighted by Huber.
     let weight: f64 = residuals.iter().map(|r| r.weight).sum();
-    let (h0, _, _) = linearize(residuals, &t, &centre, f64::INFINITY);
+    let (h0, _, _) = linearize(residuals, &Pose::identity(), &centre, f64::INFINITY);
     let Some(eigen) = information(&h0, &s, weight.max(1e-12)) else {
         return Err(LmError::NotFinite);
     };
     let conditioning = eigen.eigenvalues.min();
-    // Projector onto the constrained directions (in the scaled variables).
-    let mut keep = Matrix6::<f64>::zeros();
-    let mut degenerate_directions = 0;
-    for k in 0..6 {
-        if eigen.eigenvalues[k] >= cfg.degenerate_ratio {
-            let v = eigen.eigenvectors.column(k);
-            keep += v * v.transpose();
-        } else {
-            degenerate_directions += 1;
-        }
+    let mut left_out = [false; 6];
+    for (k, out) in left_out.iter_mut().enumerate() {
+        *out = !(eigen.eigenvalues[k] >= cfg.degenerate_ratio);
     }
-    if degenerate_directions == 6 {
+    if left_out.iter().all(|&o| o) {
         return Err(LmError::Degenerate { conditioning });
     }
+    let run = iterate(residuals, cfg, &centre, &s, &eigen, &left_out)?;
+    Ok(Solution {
+        degenerate_directions: left_out.iter().filter(|&&o| o).count(),
+        conditioning,
+        ..run
+    })
+}
+
+/// Levenberg-Marquardt from the identity, solving only in the eigen-directions of `eigen`
+/// not `left_out` (the others keep the prediction). `Solution::conditioning` and
+/// `degenerate_directions` are left for the caller.
+fn iterate(
+    residuals: &[Residual],
+    cfg: &LmConfig,
+    centre: &Vec3,
+    s: &Twist,
+    eigen: &SymmetricEigen<f64, nalgebra::U6>,
+    left_out: &[bool; 6],
+) -> Result<Solution, LmError> {
+    let huber = cfg.huber_delta_m;
+    // Projector onto the directions solved for (in the scaled variables).
+    let mut keep = Matrix6::<f64>::zeros();
+    for (k, &out) in left_out.iter().enumerate() {
+        if !out {
+            let v = eigen.eigenvectors.column(k);
+            keep += v * v.transpose();
+        }
+    }
     let free = Matrix6::<f64>::identity() - keep;
+    let about = |delta: &Twist| {
+        let c = nalgebra::Translation3::from(*centre);
+        c * se3_exp(delta) * c.inverse()
+    };
+    let mut t = Pose::identity();
+    let (mut h, mut g, mut cost) = linearize(residuals, &t, centre, huber);
+    let initial_cost = cost;
     let mut lambda = 1e-4;
     let mut iterations = 0;
     while iterations < cfg.max_iterations {
@@ -221,7 +241,7 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
             a[(i, i)] *= 1.0 + lambda;
         }
         let a = keep * a * keep + free;
-        let rhs = keep * g.component_mul(&s);
+        let rhs = keep * g.component_mul(s);
         let Some(chol) = a.cholesky() else {
             lambda *= 10.0;
             if lambda > 1e10 {
@@ -229,7 +249,7 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
             }
             continue;
         };
-        let delta = (-chol.solve(&rhs)).component_mul(&s);
+        let delta = (-chol.solve(&rhs)).component_mul(s);
         if !delta.iter().all(|v| v.is_finite()) {
             return Err(LmError::NotFinite);
         }
@@ -237,7 +257,7 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
         let new_cost = robust_cost(residuals, &candidate, huber);
         if new_cost <= cost {
             t = candidate;
-            (h, g, cost) = linearize(residuals, &t, &centre, huber);
+            (h, g, cost) = linearize(residuals, &t, centre, huber);
             lambda = (lambda * 0.1).max(1e-10);
             if delta.norm() < cfg.tolerance {
                 break;
@@ -253,8 +273,8 @@ pub fn solve(residuals: &[Residual], cfg: &LmConfig) -> Result<Solution, LmError
         correction: t,
         iterations,
         cost: (initial_cost, cost),
-        conditioning,
-        degenerate_directions,
+        conditioning: 0.0,
+        degenerate_directions: 0,
     })
 }
 
