@@ -19,6 +19,8 @@ fn a_short_town_drive_writes_everything_and_tracks() {
         mesh_formats: vec![MeshFormat::Ply],
         given_poses: None,
         input: "demo test".into(),
+        checkpoint_every: None,
+        resume: false,
     };
     let r = run_demo::<KittiCapacity>(60, 1, &opts, |_| {}).unwrap();
     for f in [

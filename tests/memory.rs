@@ -41,6 +41,8 @@ fn drive(
         mesh_formats: vec![MeshFormat::Ply],
         given_poses: None,
         input: "simulated street".into(),
+        checkpoint_every: None,
+        resume: false,
     };
     let mut records = Vec::new();
     let summary = run::<Test>(d, &opts, |r| records.push(r.clone())).unwrap();

@@ -23,7 +23,7 @@ pub fn parse_bin(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
     if bytes.is_empty() {
         return Err(err(path, None, "empty file"));
     }
-    if bytes.len() % 16 != 0 {
+    if !bytes.len().is_multiple_of(16) {
         return Err(err(
             path,
             None,

@@ -184,7 +184,7 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
     if bytes.is_empty() {
         return Err(FileError::at(path, "empty file"));
     }
-    let h = parse_header(path, &bytes)?;
+    let h = parse_header(path, bytes)?;
     let index = |name: &str| {
         h.fields
             .iter()

@@ -148,7 +148,7 @@ pub fn parse_ply_points(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileErr
         format,
         elements,
         start: pos,
-    } = read_header(path, &bytes)?;
+    } = read_header(path, bytes)?;
     let vi = elements
         .iter()
         .position(|e| e.name == "vertex")
@@ -284,7 +284,7 @@ pub fn read_ply_mesh(path: &Path) -> Result<PlyMesh, FileError> {
 
 /// Parses PLY mesh bytes read from `path` (named in errors).
 pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
-    let h = read_header(path, &bytes)?;
+    let h = read_header(path, bytes)?;
     let body = &bytes[h.start..];
     let mut mesh = PlyMesh::default();
     let truncated = || {
