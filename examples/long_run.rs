@@ -43,8 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         mesh_formats: vec![MeshFormat::Ply],
         given_poses: None,
         input: format!("simulated long street, {frames} frames"),
-        checkpoint_every: None,
-        resume: false,
+        ..RunOptions::default()
     };
     println!(
         "{:>7} {:>9} {:>9} {:>8} {:>9}",

@@ -19,8 +19,7 @@ fn a_short_town_drive_writes_everything_and_tracks() {
         mesh_formats: vec![MeshFormat::Ply],
         given_poses: None,
         input: "demo test".into(),
-        checkpoint_every: None,
-        resume: false,
+        ..RunOptions::default()
     };
     let r = run_demo::<KittiCapacity>(60, 1, &opts, |_| {}).unwrap();
     for f in [

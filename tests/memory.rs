@@ -41,8 +41,7 @@ fn drive(
         mesh_formats: vec![MeshFormat::Ply],
         given_poses: None,
         input: "simulated street".into(),
-        checkpoint_every: None,
-        resume: false,
+        ..RunOptions::default()
     };
     let mut records = Vec::new();
     let summary = run::<Test>(d, &opts, |r| records.push(r.clone())).unwrap();

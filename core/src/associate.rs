@@ -56,11 +56,7 @@ fn candidates(
 
 /// Whether a scan layer of `axis` in cell `key` has anything to pair with at `reach`.
 pub fn has_candidates(map: &MeshMap, key: CellKey, axis: Axis, reach: u32) -> bool {
-    let reach = reach.min(MAX_REACH) as i32;
-    (-reach..=reach).any(|i| {
-        key.offset(axis, i)
-            .is_some_and(|k| map.layer(&k, axis).is_some())
-    })
+    !candidates(map, key, axis, reach).is_empty()
 }
 
 /// Writes one combined residual per scan layer that has map pairs into `out` (cleared first).

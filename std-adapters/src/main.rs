@@ -545,8 +545,7 @@ fn bench_command(
         mesh_formats: Vec::new(),
         given_poses: None,
         input: input.display().to_string(),
-        checkpoint_every: None,
-        resume: false,
+        ..RunOptions::default()
     };
     let mut timed: Vec<StageMs> = Vec::new();
     let mut last = None;
@@ -649,8 +648,7 @@ fn demo_command(
         mesh_formats: vec![MeshFormat::Ply],
         given_poses: None,
         input: format!("simulated town, seed {seed}, {frames} frames"),
-        checkpoint_every: None,
-        resume: false,
+        ..RunOptions::default()
     };
     eprintln!("slamesh demo: simulating {frames} frames through a procedural town (seed {seed}), output in {}", out.display());
     let bar = progress(frames, quiet);

@@ -60,8 +60,9 @@ impl FrameSource for ScanFolder {
     }
 }
 
-/// How to run.
-#[derive(Debug, Clone)]
+/// How to run. The default is the default configuration, one thread per core, no mesh file,
+/// no window, no checkpoints.
+#[derive(Debug, Clone, Default)]
 pub struct RunOptions {
     /// Output folder (created if missing).
     pub out: PathBuf,
@@ -277,8 +278,8 @@ pub fn run<C: Capacity>(
     let mut timer = StageTimer::new();
     let mut spool_error = None;
     let start = Instant::now();
-    // Seconds of this process's loop already added to `progress.seconds`.
-    let mut counted = 0.0;
+    // Loop seconds before this process (from the checkpoint when resuming).
+    let seconds_before = progress.seconds;
     let first = progress.next_frame;
     for i in first..source.frames() {
         let mut rec = FrameRecord {
@@ -369,15 +370,14 @@ pub fn run<C: Capacity>(
                 progress.next_frame = i + 1;
                 progress.pipeline_frames = pipeline.frames();
                 progress.motion = pipeline.motion().history();
-                progress.seconds += start.elapsed().as_secs_f64() - counted;
-                counted = start.elapsed().as_secs_f64();
+                progress.seconds = seconds_before + start.elapsed().as_secs_f64();
                 progress.report_bytes = frames_path.metadata().map_or(0, |m| m.len());
                 progress.mesh = spool.counts();
                 checkpoint::write(&checkpoint_path, &progress, pipeline.map())?;
             }
         }
     }
-    progress.seconds += start.elapsed().as_secs_f64() - counted;
+    progress.seconds = seconds_before + start.elapsed().as_secs_f64();
     let Progress {
         poses,
         skipped,
