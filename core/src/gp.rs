@@ -233,13 +233,36 @@ fn plane_mean(samples: &[Sample]) -> PlaneMean {
     PlaneMean { centre: c, slope }
 }
 
+/// Which variances [`predict`] must compute exactly.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Variances {
+    /// Every vertex's (the map update and the mesh weigh by them).
+    Exact,
+    /// Only whether each is below this threshold (registration's `variance_register`): a
+    /// vertex whose variance is certainly below it gets an upper bound of its variance
+    /// instead, the others their exact variance. Comparisons with the threshold give the
+    /// same answers as exact variances.
+    Below(f64),
+}
+
 /// Predicts the layer at the lattice vertices from `samples`.
 ///
 /// Laid out for speed (this is most of a scan's time): the kernel between the samples and
 /// all 36 vertices is one `m x 36` matrix, and the triangular solve for the variances runs
 /// over its rows, so every inner loop is an independent multiply-add over 36 contiguous
 /// values rather than one dependent chain per vertex.
-pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<Layer, GpError> {
+///
+/// With [`Variances::Below`], most of that solve is skipped: conditioning on more samples
+/// never raises a GP's variance, so the variance given the nearest sample alone,
+/// `1 - k² / (1 + σ²)`, bounds the variance given all of them, and a vertex whose bound is
+/// already below the threshold needs no solve.
+pub fn predict(
+    samples: &[Sample],
+    lattice: &Lattice,
+    cfg: &GpConfig,
+    variances: Variances,
+) -> Result<Layer, GpError> {
     let m = samples.len().min(MAX_TRAINING);
     let samples = samples.get(..m).unwrap_or(&[]);
     if m < MIN_TRAINING {
@@ -314,7 +337,47 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
             f[j] += ks[i][j] * alpha[i];
         }
     }
-    // Variance: σ*² = 1 - |L⁻¹ k*|², with L⁻¹ applied to all 36 columns at once, in place.
+    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for s in samples {
+        lo_a = lo_a.min(s[0]);
+        hi_a = hi_a.max(s[0]);
+        lo_b = lo_b.min(s[1]);
+        hi_b = hi_b.max(s[1]);
+    }
+    // Twice the variance outside the training inputs' bounding box (extrapolation).
+    let mut factor = [1.0f64; VERTICES];
+    for j in 0..VERTICES {
+        if ta[j] < lo_a || ta[j] > hi_a || tb[j] < lo_b || tb[j] > hi_b {
+            factor[j] = 2.0;
+        }
+    }
+    let var = match variances {
+        Variances::Exact => exact_variances(&l, &inv_diag, &mut ks, m),
+        Variances::Below(threshold) => {
+            bounded_variances(&l, &inv_diag, &ks, m, noise, &factor, threshold)
+        }
+    };
+    let mut layer = Layer::UNKNOWN;
+    for j in 0..VERTICES {
+        layer.pred[j] = f[j].clamp(0.0, lattice.cell_size) as f32;
+        layer.var[j] = (var[j].max(0.0) * factor[j]) as f32;
+    }
+    Ok(layer)
+}
+
+/// `σ*² = 1 - |L⁻¹ k*|²` at every vertex, with `L⁻¹` applied to all 36 columns of `ks` at
+/// once, in place (`ks` is left holding `L⁻¹ k*`).
+fn exact_variances(
+    l: &[[f64; MAX_TRAINING]; MAX_TRAINING],
+    inv_diag: &[f64; MAX_TRAINING],
+    ks: &mut [[f64; VERTICES]; MAX_TRAINING],
+    m: usize,
+) -> [f64; VERTICES] {
     let mut explained = [0.0f64; VERTICES];
     for i in 0..m {
         let (done, rest) = ks.split_at_mut(i);
@@ -336,28 +399,59 @@ pub fn predict(samples: &[Sample], lattice: &Lattice, cfg: &GpConfig) -> Result<
             }
         }
     }
-    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-    );
-    for s in samples {
-        lo_a = lo_a.min(s[0]);
-        hi_a = hi_a.max(s[0]);
-        lo_b = lo_b.min(s[1]);
-        hi_b = hi_b.max(s[1]);
-    }
-    let mut layer = Layer::UNKNOWN;
-    for j in 0..VERTICES {
-        let mut var = (1.0 - explained[j]).max(0.0);
-        if ta[j] < lo_a || ta[j] > hi_a || tb[j] < lo_b || tb[j] > hi_b {
-            var *= 2.0;
+    explained.map(|e| 1.0 - e)
+}
+
+/// Variances (before the extrapolation `factor`) exact where they could reach `threshold`
+/// and bounded by the nearest sample's where they cannot (see [`Variances::Below`]).
+fn bounded_variances(
+    l: &[[f64; MAX_TRAINING]; MAX_TRAINING],
+    inv_diag: &[f64; MAX_TRAINING],
+    ks: &[[f64; VERTICES]; MAX_TRAINING],
+    m: usize,
+    noise: f64,
+    factor: &[f64; VERTICES],
+    threshold: f64,
+) -> [f64; VERTICES] {
+    let mut nearest = [0.0f64; VERTICES];
+    for row in &ks[..m] {
+        for j in 0..VERTICES {
+            nearest[j] = nearest[j].max(row[j]);
         }
-        layer.pred[j] = f[j].clamp(0.0, lattice.cell_size) as f32;
-        layer.var[j] = var as f32;
     }
-    Ok(layer)
+    let mut var = [0.0f64; VERTICES];
+    for j in 0..VERTICES {
+        let bound = 1.0 - nearest[j] * nearest[j] / (1.0 + noise);
+        var[j] = if bound * factor[j] < threshold {
+            bound
+        } else {
+            exact_variance(l, inv_diag, ks, m, j)
+        };
+    }
+    var
+}
+
+/// `σ*² = 1 - |L⁻¹ k*|²` at vertex `j` alone, summed in the order of [`exact_variances`]
+/// (so the two agree to the bit).
+fn exact_variance(
+    l: &[[f64; MAX_TRAINING]; MAX_TRAINING],
+    inv_diag: &[f64; MAX_TRAINING],
+    ks: &[[f64; VERTICES]; MAX_TRAINING],
+    m: usize,
+    j: usize,
+) -> f64 {
+    let mut v = [0.0f64; MAX_TRAINING];
+    let mut explained = 0.0;
+    for i in 0..m {
+        let mut acc = ks[i][j];
+        for (x, prev) in l[i].iter().zip(&v[..i]) {
+            acc -= x * prev;
+        }
+        let x = acc * inv_diag[i];
+        v[i] = x;
+        explained += x * x;
+    }
+    1.0 - explained
 }
 
 #[cfg(test)]
@@ -394,7 +488,7 @@ mod tests {
         };
         let samples = select_training(&cloud(f, 1.6), Axis::Z, 1.6);
         assert_eq!(samples.len(), 36);
-        let layer = predict(&samples, &lat, &CFG).unwrap();
+        let layer = predict(&samples, &lat, &CFG, Variances::Exact).unwrap();
         (0..VERTICES)
             .map(|j| {
                 let (a, b) = lat.location(j);
@@ -424,7 +518,7 @@ mod tests {
             cell_size: 1.6,
             full_cover: false,
         };
-        let layer = predict(&samples, &lat, &CFG).unwrap();
+        let layer = predict(&samples, &lat, &CFG, Variances::Exact).unwrap();
         assert!(layer.pred.iter().all(|&p| (p - 0.3).abs() < 1e-4));
     }
 
@@ -459,7 +553,7 @@ mod tests {
             full_cover: false,
         };
         let samples = select_training(&cloud(|_, _| 0.5, 0.8), Axis::Z, 1.6);
-        let layer = predict(&samples, &lat, &CFG).unwrap();
+        let layer = predict(&samples, &lat, &CFG, Variances::Exact).unwrap();
         let var = |ia: usize, ib: usize| layer.var[ia * N + ib];
         // Next to a sample the exponential kernel leaves about 2κ·distance.
         assert!(var(0, 0) < 0.15, "on the data: {}", var(0, 0));
@@ -474,6 +568,42 @@ mod tests {
         }
         // Outside the training box the variance is doubled, so it exceeds the prior 1.
         assert!(var(5, 5) > 1.0 && var(5, 5) <= 2.0);
+    }
+
+    #[test]
+    fn bounded_variances_decide_the_threshold_as_exact_ones_do() {
+        // Samples over part of the cell and some bins empty: vertices on, near and far from
+        // the data, inside and outside the training box.
+        let lat = Lattice {
+            cell_size: 1.6,
+            full_cover: false,
+        };
+        let mut tested = 0;
+        for (extent, skip) in [(0.8, 0), (1.2, 3), (1.6, 5), (1.6, 0)] {
+            let pts: heapless::Vec<_, 1024> = cloud(|a, b| 0.4 + 0.1 * a * b, extent)
+                .into_iter()
+                .enumerate()
+                .filter(|(i, _)| skip == 0 || i % 7 != skip)
+                .map(|(_, p)| p)
+                .collect();
+            let samples = select_training(&pts, Axis::Z, 1.6);
+            let exact = predict(&samples, &lat, &CFG, Variances::Exact).unwrap();
+            for threshold in [0.1, 0.3, 0.6, 1.5] {
+                let bounded = predict(&samples, &lat, &CFG, Variances::Below(threshold)).unwrap();
+                assert_eq!(bounded.pred, exact.pred);
+                for j in 0..VERTICES {
+                    let (e, b) = (exact.var[j], bounded.var[j]);
+                    assert_eq!(e < threshold as f32, b < threshold as f32, "vertex {j}");
+                    if b < threshold as f32 {
+                        assert!(b >= e, "a bound: {b} < {e}");
+                    } else {
+                        assert_eq!(b, e, "exact where it matters");
+                    }
+                    tested += usize::from(b != e);
+                }
+            }
+        }
+        assert!(tested > 100, "the bound was used ({tested} vertices)");
     }
 
     #[test]
@@ -496,10 +626,13 @@ mod tests {
             full_cover: false,
         };
         assert_eq!(
-            predict(&[[0.1, 0.1, 0.1]; 2], &lat, &CFG),
+            predict(&[[0.1, 0.1, 0.1]; 2], &lat, &CFG, Variances::Exact),
             Err(GpError::TooFewSamples)
         );
         let bad = [[0.1, 0.1, 0.1], [f64::NAN, 0.5, 0.1], [0.9, 0.9, 0.1]];
-        assert_eq!(predict(&bad, &lat, &CFG), Err(GpError::NotPositiveDefinite));
+        assert_eq!(
+            predict(&bad, &lat, &CFG, Variances::Exact),
+            Err(GpError::NotPositiveDefinite)
+        );
     }
 }

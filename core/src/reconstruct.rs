@@ -29,7 +29,9 @@ pub struct ScanLayer {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Purpose {
     /// A registration round with this cross-cell reach: a layer with no map layer of its axis
-    /// within reach could not pair with anything, so its GP is not computed.
+    /// within reach could not pair with anything, so its GP is not computed, and variances
+    /// are exact only where they could reach `variance_register` (elsewhere an upper bound:
+    /// see [`gp::Variances::Below`]), which is all association asks of them.
     Register {
         /// The round's reach.
         reach: u32,
@@ -67,8 +69,12 @@ pub fn reconstruct_cell(
                 continue;
             }
         }
+        let variances = match purpose {
+            Purpose::Register { .. } => gp::Variances::Below(cfg.register.variance_register),
+            Purpose::Update => gp::Variances::Exact,
+        };
         let samples = gp::select_training(points, axis, lattice.cell_size);
-        if let Ok(layer) = gp::predict(&samples, &lattice, &cfg.gp) {
+        if let Ok(layer) = gp::predict(&samples, &lattice, &cfg.gp, variances) {
             // At most three axes: cannot overflow.
             let _ = out.push(ScanLayer { key, axis, layer });
         }

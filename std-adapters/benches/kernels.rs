@@ -38,7 +38,18 @@ fn gp_layer(c: &mut Criterion) {
     let samples = gp::select_training(&points, Axis::Z, lattice.cell_size);
     assert_eq!(samples.len(), 36);
     c.bench_function("gp/predict (36 samples)", |b| {
-        b.iter(|| gp::predict(black_box(&samples), &lattice, &config.gp))
+        b.iter(|| {
+            gp::predict(
+                black_box(&samples),
+                &lattice,
+                &config.gp,
+                gp::Variances::Exact,
+            )
+        })
+    });
+    let below = gp::Variances::Below(config.register.variance_register);
+    c.bench_function("gp/predict (36 samples, registration)", |b| {
+        b.iter(|| gp::predict(black_box(&samples), &lattice, &config.gp, below))
     });
 }
 
