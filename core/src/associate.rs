@@ -68,7 +68,7 @@ pub fn associate(
     out: &mut BoundedVec<Residual>,
 ) -> AssociateStats {
     out.clear();
-    let lattice = *map.lattice();
+    let lattice = map.lattice().table();
     let max_var = variance_register as f32;
     let mut stats = AssociateStats::default();
     for s in scan {

@@ -46,14 +46,61 @@ impl Lattice {
     /// prediction is `d_local` (metres from the cell's minimum face along `axis`).
     #[inline]
     pub fn vertex_world(&self, key: &CellKey, axis: Axis, j: usize, d_local: f64) -> Vec3 {
-        let (a, b) = axis.locations();
-        let (la, lb) = self.location(j);
-        let mut v = key.min_corner(self.cell_size);
-        v[a] += la;
-        v[b] += lb;
-        v[axis.index()] += d_local;
-        v
+        place(
+            key.min_corner(self.cell_size),
+            axis,
+            self.location(j),
+            d_local,
+        )
     }
+
+    /// The `N` coordinates, computed once (each is a division), for loops over many vertices.
+    pub fn table(&self) -> LatticeTable {
+        LatticeTable {
+            cell_size: self.cell_size,
+            coordinates: core::array::from_fn(|i| self.coordinate(i)),
+        }
+    }
+}
+
+/// A [`Lattice`] with its coordinates computed: the same numbers, without the divisions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LatticeTable {
+    /// Cell edge in metres.
+    pub cell_size: f64,
+    /// [`Lattice::coordinate`] of each index.
+    pub coordinates: [f64; N],
+}
+
+impl LatticeTable {
+    /// [`Lattice::location`] of vertex `j < VERTICES` (`(0, 0)` beyond).
+    #[inline]
+    pub fn location(&self, j: usize) -> (f64, f64) {
+        let c = |i: usize| self.coordinates.get(i).copied().unwrap_or(0.0);
+        (c(j / N), c(j % N))
+    }
+
+    /// [`Lattice::vertex_world`].
+    #[inline]
+    pub fn vertex_world(&self, key: &CellKey, axis: Axis, j: usize, d_local: f64) -> Vec3 {
+        place(
+            key.min_corner(self.cell_size),
+            axis,
+            self.location(j),
+            d_local,
+        )
+    }
+}
+
+/// The point at cell-local `(a, b)` and `d` along `axis` from the cell corner `corner`.
+#[inline]
+fn place(corner: Vec3, axis: Axis, (la, lb): (f64, f64), d_local: f64) -> Vec3 {
+    let (a, b) = axis.locations();
+    let mut v = corner;
+    v[a] += la;
+    v[b] += lb;
+    v[axis.index()] += d_local;
+    v
 }
 
 /// The 4-neighbours of vertex `j` in counter-clockwise order `(+a, +b, -a, -b)`, `None` past
@@ -100,6 +147,25 @@ mod tests {
         let left = l.vertex_world(&CellKey::new(0, 0, 0), Axis::Z, 5 * N + 2, 0.3);
         let right = l.vertex_world(&CellKey::new(1, 0, 0), Axis::Z, 2, 0.3);
         assert!((left - right).norm() < 1e-12);
+    }
+
+    #[test]
+    fn the_table_gives_the_lattice_s_numbers() {
+        for full_cover in [false, true] {
+            let l = Lattice {
+                cell_size: 1.6,
+                full_cover,
+            };
+            let t = l.table();
+            for j in 0..VERTICES {
+                assert_eq!(t.location(j), l.location(j));
+                let key = CellKey::new(-3, 7, 2);
+                assert_eq!(
+                    t.vertex_world(&key, Axis::Y, j, 0.4),
+                    l.vertex_world(&key, Axis::Y, j, 0.4)
+                );
+            }
+        }
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! the map's fused estimate. 288 bytes, no heap.
 
 use crate::cell::{Axis, CellKey};
-use crate::lattice::{neighbours, Lattice, N, VERTICES};
+use crate::lattice::{neighbours, LatticeTable, N, VERTICES};
 use crate::math::Vec3;
 
 /// Predictions and variances at the `6 x 6` lattice of one layer.
@@ -27,7 +27,7 @@ impl Layer {
 
     /// The world position of vertex `j` of this layer, placed in cell `key` along `axis`.
     #[inline]
-    pub fn vertex(&self, lattice: &Lattice, key: &CellKey, axis: Axis, j: usize) -> Vec3 {
+    pub fn vertex(&self, lattice: &LatticeTable, key: &CellKey, axis: Axis, j: usize) -> Vec3 {
         let d = self.pred.get(j).copied().unwrap_or(0.0);
         lattice.vertex_world(key, axis, j, f64::from(d))
     }
@@ -35,37 +35,47 @@ impl Layer {
     /// The surface normal at vertex `j`: the mean of the cross products of consecutive edges
     /// to its usable 4-neighbours (variance below `max_var`, edge shorter than a cell),
     /// normalised, oriented along `+axis` (DESIGN §1.4). `None` when no pair of edges is usable.
-    pub fn normal(&self, lattice: &Lattice, axis: Axis, j: usize, max_var: f32) -> Option<Vec3> {
-        // Edges are differences of vertices of one cell: cell-local positions suffice.
-        let local = |v: usize| -> Vec3 {
-            let (a, b) = axis.locations();
-            let (la, lb) = lattice.location(v);
-            let mut p = Vec3::zeros();
-            p[a] = la;
-            p[b] = lb;
-            p[axis.index()] = f64::from(self.pred.get(v).copied().unwrap_or(0.0));
-            p
-        };
-        let centre = local(j);
+    pub fn normal(
+        &self,
+        lattice: &LatticeTable,
+        axis: Axis,
+        j: usize,
+        max_var: f32,
+    ) -> Option<Vec3> {
+        // Edges are differences of vertices of one cell: cell-local differences suffice. They
+        // are taken in the layer's own (a, b, d) coordinates, a cyclic permutation of
+        // (x, y, z), so their cross products are the same numbers, permuted.
+        let (ia, ib) = (j / N, j % N);
+        let d_centre = f64::from(*self.pred.get(j)?);
         let max_sq = lattice.cell_size * lattice.cell_size;
-        let edge = |n: Option<usize>| -> Option<Vec3> {
-            let n = n?;
+        let at = |i: usize| lattice.coordinates.get(i).copied().unwrap_or(0.0);
+        let edge = |n: usize| -> Option<[f64; 3]> {
             if !(*self.var.get(n)? < max_var) {
                 return None;
             }
-            let e = local(n) - centre;
-            (e.norm_squared() < max_sq).then_some(e)
+            let e = [
+                at(n / N) - at(ia),
+                at(n % N) - at(ib),
+                f64::from(*self.pred.get(n)?) - d_centre,
+            ];
+            (e[0] * e[0] + e[1] * e[1] + e[2] * e[2] < max_sq).then_some(e)
         };
-        let nb = neighbours(j);
-        let edges = nb.map(edge);
-        let mut sum = Vec3::zeros();
+        let edges = neighbours(j).map(|n| n.and_then(edge));
+        let mut sum = [0.0f64; 3];
         for k in 0..4 {
-            if let (Some(Some(e0)), Some(Some(e1))) = (edges.get(k), edges.get((k + 1) % 4)) {
-                sum += e0.cross(e1);
+            if let (Some(u), Some(v)) = (edges[k], edges[(k + 1) % 4]) {
+                sum[0] += u[1] * v[2] - u[2] * v[1];
+                sum[1] += u[2] * v[0] - u[0] * v[2];
+                sum[2] += u[0] * v[1] - u[1] * v[0];
             }
         }
-        let norm = sum.norm();
-        (norm > 1e-12).then(|| sum / norm)
+        let (a, b) = axis.locations();
+        let mut n = Vec3::zeros();
+        n[a] = sum[0];
+        n[b] = sum[1];
+        n[axis.index()] = sum[2];
+        let norm = n.norm();
+        (norm > 1e-12).then(|| n / norm)
     }
 
     /// The lattice's triangles as vertex-index triples, counter-clockwise seen from `+axis`:
@@ -115,7 +125,7 @@ mod tests {
         // d = 0.2 + 0.5 a: normal ∝ (-0.5, 0, 1) in (a, b, d).
         for axis in Axis::ALL {
             let (l, lat) = plane(|a, _| 0.2 + 0.5 * a);
-            let n = l.normal(&lat, axis, 14, 0.5).unwrap();
+            let n = l.normal(&lat.table(), axis, 14, 0.5).unwrap();
             let (ia, ib) = axis.locations();
             let want = Vec3::new(-0.5, 0.0, 1.0).normalize();
             assert!((n[ia] - want.x).abs() < 1e-6 && (n[ib] - want.y).abs() < 1e-6);
@@ -126,10 +136,10 @@ mod tests {
     #[test]
     fn corner_vertex_normal_uses_the_one_edge_pair_and_uncertain_vertices_are_skipped() {
         let (mut l, lat) = plane(|_, _| 0.4);
-        let n = l.normal(&lat, Axis::Z, 0, 0.5).unwrap();
+        let n = l.normal(&lat.table(), Axis::Z, 0, 0.5).unwrap();
         assert!((n - Vec3::z()).norm() < 1e-9);
         l.var[1] = 0.9;
-        assert!(l.normal(&lat, Axis::Z, 0, 0.5).is_none());
+        assert!(l.normal(&lat.table(), Axis::Z, 0, 0.5).is_none());
     }
 
     #[test]

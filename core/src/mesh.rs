@@ -21,7 +21,7 @@ pub struct Triangle {
 
 /// Every shown triangle of `map`, in the map's deterministic order.
 pub fn triangles(map: &MeshMap, variance_show: f64) -> impl Iterator<Item = Triangle> + '_ {
-    let lattice = *map.lattice();
+    let lattice = map.lattice().table();
     let show = variance_show as f32;
     map.layers().flat_map(move |l| {
         l.layer.triangles(show).map(move |t| Triangle {

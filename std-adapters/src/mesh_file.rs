@@ -10,7 +10,7 @@
 
 use crate::atomic::write_atomic;
 use crate::file_error::FileError;
-use slamesh_core::lattice::{Lattice, VERTICES};
+use slamesh_core::lattice::{Lattice, LatticeTable, VERTICES};
 use slamesh_core::map::{LayerRef, MeshMap};
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -42,7 +42,7 @@ pub struct MeshCounts {
 /// Mesh pieces spooled to disk until [`finish`](Self::finish).
 #[derive(Debug)]
 pub struct MeshSpool {
-    lattice: Lattice,
+    lattice: LatticeTable,
     variance_show: f32,
     paths: [PathBuf; 2],
     vertices: BufWriter<File>,
@@ -90,7 +90,7 @@ impl MeshSpool {
             Ok::<_, FileError>(BufWriter::new(file))
         };
         Ok(MeshSpool {
-            lattice,
+            lattice: lattice.table(),
             variance_show: variance_show as f32,
             vertices: open(&paths[0], kept.map(|k| k.vertices * VERTEX_BYTES as u64))?,
             faces: open(&paths[1], kept.map(|k| k.triangles * FACE_BYTES as u64))?,
