@@ -105,6 +105,7 @@ impl Layer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lattice::Lattice;
 
     fn plane(f: impl Fn(f64, f64) -> f64) -> (Layer, Lattice) {
         let lattice = Lattice {
