@@ -52,6 +52,17 @@ impl<T> BoundedVec<T> {
         self.items.clear();
     }
 
+    /// Appends default items up to `len` items in all, or up to the capacity if that is less.
+    pub fn extend_default(&mut self, len: usize)
+    where
+        T: Default + Clone,
+    {
+        let len = len.min(self.capacity);
+        if len > self.items.len() {
+            self.items.resize(len, T::default());
+        }
+    }
+
     /// Shortens the vector to `len` items (no effect if it is shorter).
     #[inline]
     pub fn truncate(&mut self, len: usize) {

@@ -9,6 +9,7 @@
 use crate::bounded::BoundedVec;
 use crate::cell::CellKey;
 use crate::math::{to_point, to_vec3, Point, Pose};
+use crate::sort::KeySorter;
 
 /// A cell of the current scan: its key and its run of points in the bucketed buffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -45,13 +46,15 @@ pub struct BucketStats {
     pub dropped_cells: usize,
 }
 
-/// Buckets `points_sensor` moved by `t_world_sensor` into cells of edge `cell_size`.
+/// Buckets `points_sensor` moved by `t_world_sensor` into cells of edge `cell_size`
+/// (`sorter` is scratch space).
 pub fn bucket(
     points_sensor: &[Point],
     t_world_sensor: &Pose,
     cell_size: f64,
     min_points: usize,
     bucketed: &mut BoundedVec<(CellKey, Point)>,
+    sorter: &mut KeySorter,
     cells: &mut BoundedVec<CellSpan>,
 ) -> BucketStats {
     bucketed.clear();
@@ -64,7 +67,7 @@ pub fn bucket(
             let _ = bucketed.push((key, to_point(&local)));
         }
     }
-    bucketed.sort_unstable_by_key(|e| e.0.sort_value());
+    sorter.sort(bucketed);
     let mut stats = BucketStats::default();
     let mut start = 0usize;
     while let Some(&(key, _)) = bucketed.get(start) {
@@ -106,7 +109,15 @@ mod tests {
         let mut b = BoundedVec::with_capacity(8);
         let mut c = BoundedVec::with_capacity(4);
         let t = Pose::translation(0.0, 0.0, 0.0);
-        let s = bucket(&pts, &t, 1.6, 2, &mut b, &mut c);
+        let s = bucket(
+            &pts,
+            &t,
+            1.6,
+            2,
+            &mut b,
+            &mut KeySorter::with_capacity(8),
+            &mut c,
+        );
         assert_eq!((s.cells, s.sparse_cells), (2, 1));
         assert_eq!(c[0].key, CellKey::new(0, 0, 0));
         assert_eq!(c[0].len, 5);
@@ -123,7 +134,15 @@ mod tests {
         let mut b = BoundedVec::with_capacity(3);
         let mut c = BoundedVec::with_capacity(1);
         let t = Pose::translation(-1.0, 0.0, 0.0);
-        bucket(&pts, &t, 1.6, 1, &mut b, &mut c);
+        bucket(
+            &pts,
+            &t,
+            1.6,
+            1,
+            &mut b,
+            &mut KeySorter::with_capacity(3),
+            &mut c,
+        );
         assert_eq!(c[0].key, CellKey::new(-1, 0, 0));
         let local = Vec3::new(1.1, 0.5, 0.5);
         assert!((to_vec3(&b[0].1) - local).norm() < 1e-6);

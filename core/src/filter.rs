@@ -8,6 +8,7 @@ use crate::bounded::BoundedVec;
 use crate::cell::CellKey;
 use crate::config::FilterConfig;
 use crate::math::{to_point, to_vec3, Point, Vec3};
+use crate::sort::KeySorter;
 
 /// What the filter kept and dropped from one scan.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -58,12 +59,13 @@ impl VerticalCorrection {
 }
 
 /// Filters `raw` (sensor frame) and down-samples it to one centroid per voxel of edge `leaf_m`,
-/// written to `out` in voxel-key order. `work` is scratch space.
+/// written to `out` in voxel-key order. `work` and `sorter` are scratch space.
 pub fn filter_and_downsample(
     raw: &[Point],
     cfg: &FilterConfig,
     leaf_m: f64,
     work: &mut BoundedVec<(CellKey, Point)>,
+    sorter: &mut KeySorter,
     out: &mut BoundedVec<Point>,
 ) -> FilterStats {
     work.clear();
@@ -100,7 +102,7 @@ pub fn filter_and_downsample(
             stats.over_capacity += 1;
         }
     }
-    work.sort_unstable_by_key(|e| e.0.sort_value());
+    sorter.sort(work);
     let mut i = 0;
     while let Some(&(key, _)) = work.get(i) {
         let mut sum = Vec3::zeros();
@@ -145,7 +147,14 @@ mod tests {
         ];
         let mut work = BoundedVec::with_capacity(16);
         let mut out = BoundedVec::with_capacity(16);
-        let s = filter_and_downsample(&raw, &cfg(), 0.2, &mut work, &mut out);
+        let s = filter_and_downsample(
+            &raw,
+            &cfg(),
+            0.2,
+            &mut work,
+            &mut KeySorter::with_capacity(16),
+            &mut out,
+        );
         assert_eq!(
             (s.non_finite, s.out_of_range, s.over_capacity, s.kept),
             (2, 2, 0, 2)
@@ -159,7 +168,14 @@ mod tests {
         let raw: [Point; 5] = core::array::from_fn(|i| [2.0 + i as f32, 0.0, 0.0]);
         let mut work = BoundedVec::with_capacity(3);
         let mut out = BoundedVec::with_capacity(3);
-        let s = filter_and_downsample(&raw, &cfg(), 0.2, &mut work, &mut out);
+        let s = filter_and_downsample(
+            &raw,
+            &cfg(),
+            0.2,
+            &mut work,
+            &mut KeySorter::with_capacity(3),
+            &mut out,
+        );
         assert_eq!((s.over_capacity, s.kept), (2, 3));
         assert!((out[2][0] - 4.0).abs() < 1e-6);
     }

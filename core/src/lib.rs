@@ -61,6 +61,7 @@ pub mod motion;
 pub mod pca;
 pub mod pipeline;
 pub mod reconstruct;
+pub mod sort;
 pub mod stage;
 
 pub use capacity::{Capacity, KittiCapacity, SmallCapacity};

@@ -19,6 +19,7 @@ use crate::math::{renormalized, Point, Pose};
 use crate::mesh::{self, Triangle};
 use crate::motion::ConstantVelocity;
 use crate::reconstruct::{CellLoop, Purpose, ScanLayer, Serial};
+use crate::sort::KeySorter;
 use crate::stage::{NoProbe, Probe, Stage};
 use core::fmt;
 use core::marker::PhantomData;
@@ -119,6 +120,7 @@ pub struct Pipeline<C: Capacity = KittiCapacity> {
     frame: u32,
     points: BoundedVec<Point>,
     work: BoundedVec<(CellKey, Point)>,
+    sorter: KeySorter,
     cells: BoundedVec<CellSpan>,
     scan: BoundedVec<ScanLayer>,
     residuals: BoundedVec<Residual>,
@@ -136,6 +138,7 @@ impl<C: Capacity> Pipeline<C> {
             frame: 0,
             points: BoundedVec::with_capacity(C::POINTS),
             work: BoundedVec::with_capacity(C::POINTS),
+            sorter: KeySorter::with_capacity(C::sort_entries()),
             cells: BoundedVec::with_capacity(C::SCAN_CELLS),
             scan: BoundedVec::with_capacity(C::SCAN_LAYERS),
             residuals: BoundedVec::with_capacity(C::SCAN_LAYERS),
@@ -314,6 +317,7 @@ impl<C: Capacity> Pipeline<C> {
             &self.config.filter,
             self.config.voxel_leaf_m(),
             &mut self.work,
+            &mut self.sorter,
             &mut self.points,
         );
         if filter.kept == 0 {
@@ -346,6 +350,7 @@ impl<C: Capacity> Pipeline<C> {
             g.cell_size_m,
             g.min_points,
             &mut self.work,
+            &mut self.sorter,
             &mut self.cells,
         );
         self.scan.clear();

@@ -26,6 +26,8 @@ impl Capacity for Sparse16 {
     const SCAN_LAYERS: usize = 384;
     const MAP_CELLS: usize = 512;
     const MAP_LAYERS: usize = 768;
+    // The comparison sort: 147 KB less heap, and 6 144 points sort quickly either way.
+    const RADIX_SORT: bool = false;
 }
 
 /// Cell edge (metres).

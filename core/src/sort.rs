@@ -1,0 +1,190 @@
+//! Sorting entries by [`CellKey`] in linear time (filter and bucketing, DESIGN §1.1 steps 1, 3).
+//!
+//! The keys of one scan lie in a small box (a 100 m range spans about 750 voxels of 0.27 m or
+//! 125 cells of 1.6 m along each axis), so a key measured from the box's minimum corner packs
+//! into a few dozen bits. An LSD radix sort on those bits, 11 at a time, moves the entries
+//! between the caller's buffer and one of the sorter's own (sequential writes per digit, so
+//! it stays in cache, unlike a permutation by index). It orders entries as [`CellKey`]'s
+//! `Ord` does (x, then y, then z) and keeps equal keys in input order. When the box needs more
+//! than 64 bits (points scattered over thousands of kilometres) or the entries outnumber the
+//! sorter's capacity, the comparison sort takes over, with the same order of keys.
+
+use crate::bounded::BoundedVec;
+use crate::cell::CellKey;
+use crate::math::Point;
+
+/// Bits sorted per radix pass.
+const DIGIT_BITS: u32 = 11;
+
+/// An entry of the filter's and bucketing's buffers: a key and a point.
+pub type Entry = (CellKey, Point);
+
+/// A reusable radix sorter for up to its capacity of entries (it owns one spare buffer).
+#[derive(Debug, Clone)]
+pub struct KeySorter {
+    spare: BoundedVec<Entry>,
+}
+
+impl KeySorter {
+    /// A sorter for up to `capacity` entries (its buffer is allocated now).
+    pub fn with_capacity(capacity: usize) -> Self {
+        Self {
+            spare: BoundedVec::with_capacity(capacity),
+        }
+    }
+
+    /// Sorts `entries` by key, equal keys in input order (in an unspecified but deterministic
+    /// order when the comparison sort takes over). `entries` may come back in the sorter's
+    /// buffer: both have the sorter's capacity, then.
+    pub fn sort(&mut self, entries: &mut BoundedVec<Entry>) {
+        let n = entries.len();
+        if n < 2 {
+            return;
+        }
+        let layout = Layout::of(entries);
+        let fits = self.spare.capacity() >= n && entries.capacity() == self.spare.capacity();
+        let Some(layout) = layout.filter(|_| fits) else {
+            entries.sort_unstable_by_key(|e| e.0.sort_value());
+            return;
+        };
+        let mask = (1u64 << DIGIT_BITS) - 1;
+        let mut shift = 0;
+        while shift < layout.total_bits {
+            let digit = |e: &Entry| ((layout.pack(&e.0) >> shift) & mask) as usize;
+            let mut start = [0u32; 1 << DIGIT_BITS];
+            for e in entries.iter() {
+                start[digit(e)] += 1;
+            }
+            let mut sum = 0;
+            for s in start.iter_mut() {
+                (*s, sum) = (sum, sum + *s);
+            }
+            self.spare.clear();
+            self.spare.extend_default(n);
+            for e in entries.iter() {
+                let slot = &mut start[digit(e)];
+                if let Some(t) = self.spare.get_mut(*slot as usize) {
+                    *t = *e;
+                }
+                *slot += 1;
+            }
+            core::mem::swap(entries, &mut self.spare);
+            shift += DIGIT_BITS;
+        }
+    }
+}
+
+/// How a key packs into a `u64`: `(x - x0) << (by + bz) | (y - y0) << bz | (z - z0)`.
+#[derive(Debug, Clone, Copy)]
+struct Layout {
+    min: [i64; 3],
+    bits: [u32; 3],
+    total_bits: u32,
+}
+
+impl Layout {
+    /// The layout for the keys of `entries`, if they fit 64 bits.
+    fn of(entries: &[Entry]) -> Option<Self> {
+        let mut min = [i64::MAX; 3];
+        let mut max = [i64::MIN; 3];
+        for (k, _) in entries {
+            for (c, v) in [k.x, k.y, k.z].into_iter().enumerate() {
+                min[c] = min[c].min(i64::from(v));
+                max[c] = max[c].max(i64::from(v));
+            }
+        }
+        let width = |span: u64| u64::BITS - span.leading_zeros();
+        let bits: [u32; 3] = core::array::from_fn(|c| width(max[c].abs_diff(min[c])));
+        let total_bits = bits.iter().sum::<u32>();
+        (total_bits <= 64).then_some(Self {
+            min,
+            bits,
+            total_bits,
+        })
+    }
+
+    #[inline]
+    fn pack(&self, key: &CellKey) -> u64 {
+        let rel = |v: i32, c: usize| i64::from(v).abs_diff(self.min[c]);
+        // Shifts by less than 64: each part has fewer bits than the total.
+        let shl = |v: u64, by: u32| v.checked_shl(by).unwrap_or(0);
+        shl(rel(key.x, 0), self.bits[1] + self.bits[2])
+            | shl(rel(key.y, 1), self.bits[2])
+            | rel(key.z, 2)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use alloc::vec::Vec;
+
+    /// A deterministic pseudo-random sequence.
+    fn lcg(seed: &mut u64) -> u64 {
+        *seed = seed
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        *seed >> 33
+    }
+
+    /// Sorts `entries` and compares with a stable sort by key (alloc's); without `stable`,
+    /// equal keys may come in any order.
+    fn check(entries: Vec<(CellKey, u32)>, sorter: &mut KeySorter, stable: bool) {
+        let mut want = entries.clone();
+        want.sort_by_key(|e| e.0);
+        // The entry's number rides in the point.
+        let mut buffer = BoundedVec::with_capacity(sorter.spare.capacity());
+        for (k, i) in &entries {
+            let _ = buffer.push((*k, [*i as f32, 0.0, 0.0]));
+        }
+        if buffer.len() < entries.len() {
+            buffer = BoundedVec::with_capacity(entries.len());
+            for (k, i) in &entries {
+                let _ = buffer.push((*k, [*i as f32, 0.0, 0.0]));
+            }
+        }
+        sorter.sort(&mut buffer);
+        let mut got: Vec<_> = buffer.iter().map(|(k, p)| (*k, p[0] as u32)).collect();
+        if !stable {
+            got.sort_by_key(|e| (e.0, e.1));
+            want.sort_by_key(|e| (e.0, e.1));
+        }
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn sorts_like_the_key_order_and_keeps_ties_in_input_order() {
+        let mut sorter = KeySorter::with_capacity(5000);
+        let mut seed = 1;
+        for spread in [1, 3, 40, 700, 5000] {
+            let entries: Vec<_> = (0..5000u32)
+                .map(|i| {
+                    let mut c = || (lcg(&mut seed) % spread) as i32 - spread as i32 / 2;
+                    (CellKey::new(c(), c(), c()), i)
+                })
+                .collect();
+            check(entries, &mut sorter, true);
+        }
+    }
+
+    #[test]
+    fn falls_back_beyond_its_bits_or_capacity() {
+        let mut sorter = KeySorter::with_capacity(100);
+        // Keys at the ends of i32: 96 bits, more than a u64.
+        let far = [i32::MIN, -5, 0, 7, i32::MAX];
+        let entries: Vec<_> = (0..60u32)
+            .map(|i| {
+                let k = |s: u32| far[((i * s) % 5) as usize];
+                (CellKey::new(k(1), k(3), k(7)), i)
+            })
+            .collect();
+        check(entries.clone(), &mut sorter, false);
+        // More entries than the sorter holds.
+        let many: Vec<_> = (0..300u32)
+            .map(|i| (CellKey::new((i % 7) as i32, 0, (i % 3) as i32), i))
+            .collect();
+        check(many, &mut sorter, false);
+        check(Vec::new(), &mut sorter, true);
+        check(entries[..1].to_vec(), &mut sorter, true);
+    }
+}
