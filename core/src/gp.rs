@@ -312,19 +312,28 @@ pub fn predict(
         }
         alpha[i] = v * inv_diag[i];
     }
-    // The vertices' locations, and the kernel between each sample and every vertex.
+    // The vertices' locations, and the kernel between each sample and every vertex: in f32,
+    // four lanes to a vector, as it only weighs the known α and measures the variances (the
+    // factorization and α, which the predictions are sensitive to, stay in f64).
     let mut ta = [0.0f64; VERTICES];
     let mut tb = [0.0f64; VERTICES];
     for j in 0..VERTICES {
         (ta[j], tb[j]) = lattice.location(j);
     }
-    let mut ks = [[0.0f64; VERTICES]; MAX_TRAINING];
+    let (ta32, tb32) = (ta.map(|v| v as f32), tb.map(|v| v as f32));
+    let kappa32 = kappa as f32;
+    let mut ks = [[0.0f32; VERTICES]; MAX_TRAINING];
     for (row, s) in ks.iter_mut().zip(samples) {
+        let (sa, sb) = (s[0] as f32, s[1] as f32);
         for j in 0..VERTICES {
-            row[j] = kernel_exponent(kappa, ta[j] - s[0], tb[j] - s[1]);
+            let (da, db) = (ta32[j] - sa, tb32[j] - sb);
+            row[j] = da * da + db * db;
         }
         for v in row.iter_mut() {
-            *v = crate::math::exp(*v);
+            *v = -kappa32 * crate::math::sqrt_f32(*v);
+        }
+        for v in row.iter_mut() {
+            *v = crate::math::exp_f32(*v);
         }
     }
     // Mean: f* = m(u*) + k*ᵀ α.
@@ -334,7 +343,7 @@ pub fn predict(
     }
     for i in 0..m {
         for j in 0..VERTICES {
-            f[j] += ks[i][j] * alpha[i];
+            f[j] += f64::from(ks[i][j]) * alpha[i];
         }
     }
     let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (
@@ -356,10 +365,18 @@ pub fn predict(
             factor[j] = 2.0;
         }
     }
+    // The factor in f32 for the variances' solves.
+    let mut l32 = [[0.0f32; MAX_TRAINING]; MAX_TRAINING];
+    for i in 0..m {
+        for k in 0..=i {
+            l32[i][k] = l[i][k] as f32;
+        }
+    }
+    let inv_diag32 = inv_diag.map(|v| v as f32);
     let var = match variances {
-        Variances::Exact => exact_variances(&l, &inv_diag, &mut ks, m),
+        Variances::Exact => exact_variances(&l32, &inv_diag32, &mut ks, m),
         Variances::Below(threshold) => {
-            bounded_variances(&l, &inv_diag, &ks, m, noise, &factor, threshold)
+            bounded_variances(&l32, &inv_diag32, &ks, m, noise, &factor, threshold)
         }
     };
     let mut layer = Layer::UNKNOWN;
@@ -370,22 +387,27 @@ pub fn predict(
     Ok(layer)
 }
 
+/// The lower-triangular factor, in f32.
+type Factor32 = [[f32; MAX_TRAINING]; MAX_TRAINING];
+/// The sample-to-vertex kernel, in f32.
+type VertexKernel = [[f32; VERTICES]; MAX_TRAINING];
+
 /// `σ*² = 1 - |L⁻¹ k*|²` at every vertex, with `L⁻¹` applied to all 36 columns of `ks` at
 /// once, in place (`ks` is left holding `L⁻¹ k*`).
 fn exact_variances(
-    l: &[[f64; MAX_TRAINING]; MAX_TRAINING],
-    inv_diag: &[f64; MAX_TRAINING],
-    ks: &mut [[f64; VERTICES]; MAX_TRAINING],
+    l: &Factor32,
+    inv_diag: &[f32; MAX_TRAINING],
+    ks: &mut VertexKernel,
     m: usize,
 ) -> [f64; VERTICES] {
-    let mut explained = [0.0f64; VERTICES];
+    let mut explained = [0.0f32; VERTICES];
     for i in 0..m {
         let (done, rest) = ks.split_at_mut(i);
         let Some(row) = rest.first_mut() else { break };
-        // Six columns at a time, kept in registers over the whole sum.
-        const BLOCK: usize = 6;
+        // Twelve columns at a time (three vectors), kept in registers over the whole sum.
+        const BLOCK: usize = 12;
         for c in (0..VERTICES).step_by(BLOCK) {
-            let mut acc = [0.0f64; BLOCK];
+            let mut acc = [0.0f32; BLOCK];
             acc.copy_from_slice(&row[c..c + BLOCK]);
             for (x, prev) in l[i].iter().zip(done.iter()) {
                 for q in 0..BLOCK {
@@ -399,21 +421,21 @@ fn exact_variances(
             }
         }
     }
-    explained.map(|e| 1.0 - e)
+    explained.map(|e| 1.0 - f64::from(e))
 }
 
 /// Variances (before the extrapolation `factor`) exact where they could reach `threshold`
 /// and bounded by the nearest sample's where they cannot (see [`Variances::Below`]).
 fn bounded_variances(
-    l: &[[f64; MAX_TRAINING]; MAX_TRAINING],
-    inv_diag: &[f64; MAX_TRAINING],
-    ks: &[[f64; VERTICES]; MAX_TRAINING],
+    l: &Factor32,
+    inv_diag: &[f32; MAX_TRAINING],
+    ks: &VertexKernel,
     m: usize,
     noise: f64,
     factor: &[f64; VERTICES],
     threshold: f64,
 ) -> [f64; VERTICES] {
-    let mut nearest = [0.0f64; VERTICES];
+    let mut nearest = [0.0f32; VERTICES];
     for row in &ks[..m] {
         for j in 0..VERTICES {
             nearest[j] = nearest[j].max(row[j]);
@@ -421,7 +443,8 @@ fn bounded_variances(
     }
     let mut var = [0.0f64; VERTICES];
     for j in 0..VERTICES {
-        let bound = 1.0 - nearest[j] * nearest[j] / (1.0 + noise);
+        let k = f64::from(nearest[j]);
+        let bound = 1.0 - k * k / (1.0 + noise);
         var[j] = if bound * factor[j] < threshold {
             bound
         } else {
@@ -434,14 +457,14 @@ fn bounded_variances(
 /// `σ*² = 1 - |L⁻¹ k*|²` at vertex `j` alone, summed in the order of [`exact_variances`]
 /// (so the two agree to the bit).
 fn exact_variance(
-    l: &[[f64; MAX_TRAINING]; MAX_TRAINING],
-    inv_diag: &[f64; MAX_TRAINING],
-    ks: &[[f64; VERTICES]; MAX_TRAINING],
+    l: &Factor32,
+    inv_diag: &[f32; MAX_TRAINING],
+    ks: &VertexKernel,
     m: usize,
     j: usize,
 ) -> f64 {
-    let mut v = [0.0f64; MAX_TRAINING];
-    let mut explained = 0.0;
+    let mut v = [0.0f32; MAX_TRAINING];
+    let mut explained = 0.0f32;
     for i in 0..m {
         let mut acc = ks[i][j];
         for (x, prev) in l[i].iter().zip(&v[..i]) {
@@ -451,7 +474,7 @@ fn exact_variance(
         v[i] = x;
         explained += x * x;
     }
-    1.0 - explained
+    1.0 - f64::from(explained)
 }
 
 #[cfg(test)]

@@ -60,7 +60,13 @@ impl Layer {
             ];
             (e[0] * e[0] + e[1] * e[1] + e[2] * e[2] < max_sq).then_some(e)
         };
-        let edges = neighbours(j).map(|n| n.and_then(edge));
+        let [n0, n1, n2, n3] = neighbours(j);
+        let edges = [
+            n0.and_then(edge),
+            n1.and_then(edge),
+            n2.and_then(edge),
+            n3.and_then(edge),
+        ];
         let mut sum = [0.0f64; 3];
         for k in 0..4 {
             if let (Some(u), Some(v)) = (edges[k], edges[(k + 1) % 4]) {

@@ -114,6 +114,58 @@ pub fn exp(x: f64) -> f64 {
     p * f64::from_bits((k_int.wrapping_add(1023) as u64) << 52)
 }
 
+/// `e^x` in `f32`, branch-free, within 2 ulp of the true value on `[-87, 88]` (clamped
+/// outside it; NaN stays NaN): [`exp`]'s method with a degree-7 polynomial, four lanes to a
+/// 128-bit vector where [`exp`] has two.
+#[inline]
+pub fn exp_f32(x: f32) -> f32 {
+    const LOG2_E: f32 = core::f32::consts::LOG2_E;
+    // ln 2 split so that k · LN2_HI is exact for |k| < 2^8.
+    const LN2_HI: f32 = 0.693_145_75;
+    const LN2_LO: f32 = 1.428_606_8e-6;
+    // 1.5 · 2^23: adding it rounds to an integer kept in the low mantissa bits.
+    const SHIFT: f32 = 12_582_912.0;
+    let x = x.clamp(-87.0, 88.0);
+    let t = x * LOG2_E + SHIFT;
+    let k = t - SHIFT;
+    let r = (x - k * LN2_HI) - k * LN2_LO;
+    let mut p = 1.0 / 5_040.0;
+    for c in [
+        1.0 / 720.0,
+        1.0 / 120.0,
+        1.0 / 24.0,
+        1.0 / 6.0,
+        0.5,
+        1.0,
+        1.0,
+    ] {
+        p = p * r + c;
+    }
+    let k_int = (t.to_bits() as i32).wrapping_sub(SHIFT.to_bits() as i32);
+    p * f32::from_bits((k_int.wrapping_add(127) as u32) << 23)
+}
+
+/// `√q` in `f32` for `q ≥ 0`, within 2 ulp, branch-free (NaN for NaN or negative `q`).
+///
+/// `core` has no `sqrt` (and `libm::sqrtf` is one scalar instruction a call, which keeps
+/// loops from vectorizing): the bit-level estimate of `1/√q`, three Newton steps, times `q`.
+#[inline]
+pub fn sqrt_f32(q: f32) -> f32 {
+    // Below the smallest normal the estimate is meaningless: such a q's root is 0 to f32's
+    // precision for our purposes (distances in metres).
+    let q_safe = q.max(f32::MIN_POSITIVE);
+    let mut r = f32::from_bits(0x5f37_5a86_u32.wrapping_sub(q_safe.to_bits() >> 1));
+    for _ in 0..3 {
+        r *= 1.5 - 0.5 * q_safe * r * r;
+    }
+    let root = q_safe * r;
+    if q >= 0.0 {
+        root
+    } else {
+        f32::NAN
+    }
+}
+
 /// Rotation angle of a pose in radians, in `[0, π]`.
 #[inline]
 pub fn rotation_angle(pose: &Pose) -> f64 {
@@ -173,6 +225,28 @@ mod tests {
         assert!(exp(-1e6) >= 0.0 && exp(-1e6) < 1e-300);
         assert!(exp(1e6).is_finite() && exp(1e6) > 1e307);
         assert!(exp(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn f32_exp_and_sqrt_are_within_two_ulp() {
+        let ulp = |v: f32| f64::from(f32::EPSILON) * libm::fabs(f64::from(v));
+        let mut worst = 0.0f64;
+        for i in -100_000..=100_000 {
+            let x = i as f32 * 8e-4 + 1.234_567e-5;
+            let reference = libm::exp(f64::from(x));
+            worst = worst.max(libm::fabs(f64::from(exp_f32(x)) - reference) / ulp(exp_f32(x)));
+        }
+        assert!(worst <= 2.0, "exp_f32: {worst} ulp");
+        assert_eq!(exp_f32(0.0), 1.0);
+        assert!(exp_f32(f32::NAN).is_nan() && exp_f32(-1e6) >= 0.0);
+        let mut worst = 0.0f64;
+        for i in 0..200_000 {
+            let q = i as f32 * 1e-4 + 1e-7;
+            let reference = libm::sqrt(f64::from(q));
+            worst = worst.max(libm::fabs(f64::from(sqrt_f32(q)) - reference) / ulp(sqrt_f32(q)));
+        }
+        assert!(worst <= 2.0, "sqrt_f32: {worst} ulp");
+        assert!(sqrt_f32(0.0) < 1e-18 && sqrt_f32(-1.0).is_nan() && sqrt_f32(f32::NAN).is_nan());
     }
 
     #[test]
