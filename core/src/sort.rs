@@ -15,6 +15,8 @@ use crate::math::Point;
 
 /// Bits sorted per radix pass.
 const DIGIT_BITS: u32 = 11;
+/// Passes for a 64-bit key.
+const MAX_PASSES: usize = 64usize.div_ceil(DIGIT_BITS as usize);
 
 /// An entry of the filter's and bucketing's buffers: a key and a point.
 pub type Entry = (CellKey, Point);
@@ -47,29 +49,36 @@ impl KeySorter {
             entries.sort_unstable_by_key(|e| e.0.sort_value());
             return;
         };
+        // One pass counts every digit; a digit all entries share needs no pass of its own.
         let mask = (1u64 << DIGIT_BITS) - 1;
-        let mut shift = 0;
-        while shift < layout.total_bits {
-            let digit = |e: &Entry| ((layout.pack(&e.0) >> shift) & mask) as usize;
-            let mut start = [0u32; 1 << DIGIT_BITS];
-            for e in entries.iter() {
-                start[digit(e)] += 1;
+        let passes = layout.total_bits.div_ceil(DIGIT_BITS) as usize;
+        let mut counts = [[0u32; 1 << DIGIT_BITS]; MAX_PASSES];
+        for e in entries.iter() {
+            let key = layout.pack(&e.0);
+            for (p, count) in counts.iter_mut().enumerate().take(passes) {
+                count[((key >> (p as u32 * DIGIT_BITS)) & mask) as usize] += 1;
+            }
+        }
+        for (p, count) in counts.iter_mut().enumerate().take(passes) {
+            if count.iter().any(|&c| c as usize == n) {
+                continue;
             }
             let mut sum = 0;
-            for s in start.iter_mut() {
-                (*s, sum) = (sum, sum + *s);
+            for c in count.iter_mut() {
+                (*c, sum) = (sum, sum + *c);
             }
-            self.spare.clear();
+            let shift = p as u32 * DIGIT_BITS;
+            // Every slot is written below: only a shorter buffer needs filling.
+            self.spare.truncate(n);
             self.spare.extend_default(n);
             for e in entries.iter() {
-                let slot = &mut start[digit(e)];
+                let slot = &mut count[((layout.pack(&e.0) >> shift) & mask) as usize];
                 if let Some(t) = self.spare.get_mut(*slot as usize) {
                     *t = *e;
                 }
                 *slot += 1;
             }
             core::mem::swap(entries, &mut self.spare);
-            shift += DIGIT_BITS;
         }
     }
 }
