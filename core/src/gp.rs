@@ -133,6 +133,7 @@ fn closest_per_bin(
 ) -> heapless::Vec<Sample, MAX_TRAINING> {
     let (ia, ib) = axis.locations();
     let bin = cell_size / N as f64;
+    let per_metre = N as f64 / cell_size;
     let mut best: [Option<(f64, Sample)>; VERTICES] = [None; VERTICES];
     for (_, p) in points {
         let (Some(&a), Some(&b), Some(&d)) = (p.get(ia), p.get(ib), p.get(axis.index())) else {
@@ -144,7 +145,7 @@ fn closest_per_bin(
         }
         let [a, b, _] = sample;
         // `as` truncates towards zero and sends negatives and NaN to 0: floor, clamped.
-        let index = |v: f64| ((v / bin) as usize).min(N - 1);
+        let index = |v: f64| ((v * per_metre) as usize).min(N - 1);
         let (i, j) = (index(a), index(b));
         let (ca, cb) = ((i as f64 + 0.5) * bin, (j as f64 + 0.5) * bin);
         let dist = (a - ca) * (a - ca) + (b - cb) * (b - cb);
