@@ -5,15 +5,15 @@ use slamesh::config_file::WindowSettings;
 use slamesh::demo::run_demo;
 use slamesh::mesh_file::MeshFormat;
 use slamesh::session::RunOptions;
-use slamesh_core::{Config, KittiCapacity};
+use slamesh_core::KittiCapacity;
 
 #[test]
 fn a_short_town_drive_writes_everything_and_tracks() {
     let out = std::env::temp_dir().join(format!("slamesh-demo-{}", std::process::id()));
     let opts = RunOptions {
         out: out.clone(),
-        config: Config::meshing(),
-        preset: "meshing".into(),
+        config: slamesh::config_file::preset("town").unwrap(),
+        preset: "town".into(),
         window: WindowSettings::default(),
         threads: 2,
         mesh_formats: vec![MeshFormat::Ply],

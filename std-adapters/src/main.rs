@@ -102,8 +102,8 @@ enum Command {
         /// Frames to drive (10 a second; the loop is about 1 200 frames, 1.1 km).
         #[arg(long, default_value_t = 300)]
         frames: usize,
-        /// Parameter preset (meshing: the better mesh, and here also the better odometry).
-        #[arg(long, default_value = "meshing", value_parser = PRESETS)]
+        /// Parameter preset (town: meshing with 1.4 m cells, the better mesh and odometry here).
+        #[arg(long, default_value = "town", value_parser = PRESETS)]
         preset: String,
         /// A TOML configuration file instead of the preset.
         #[arg(long)]
