@@ -9,7 +9,7 @@
 
 use crate::bounded::BoundedVec;
 use crate::cell::{Axis, CellKey};
-use crate::lattice::VERTICES;
+use crate::lattice::{LatticeTable, VERTICES};
 use crate::layer::Layer;
 use crate::lm::Residual;
 use crate::map::MeshMap;
@@ -67,14 +67,55 @@ pub fn associate(
     variance_register: f64,
     out: &mut BoundedVec<Residual>,
 ) -> AssociateStats {
+    let a = Associator::new(map, reach, variance_register);
+    collect(scan.iter().map(|s| a.layer(s)), out)
+}
+
+/// Writes the per-layer results of [`Associator::layer`], in scan order, into `out` (cleared
+/// first); stops when `out` is full.
+pub fn collect(
+    per_layer: impl Iterator<Item = Option<(Residual, usize)>>,
+    out: &mut BoundedVec<Residual>,
+) -> AssociateStats {
     out.clear();
-    let lattice = map.lattice().table();
-    let max_var = variance_register as f32;
     let mut stats = AssociateStats::default();
-    for s in scan {
+    for (r, pairs) in per_layer.flatten() {
+        if out.push(r).is_err() {
+            break;
+        }
+        stats.pairs += pairs;
+    }
+    stats.residuals = out.len();
+    stats
+}
+
+/// Association of one scan layer at a time against a map: the unit a parallel loop runs.
+#[derive(Debug, Clone, Copy)]
+pub struct Associator<'a> {
+    map: &'a MeshMap,
+    lattice: LatticeTable,
+    reach: u32,
+    max_var: f32,
+}
+
+impl<'a> Associator<'a> {
+    /// Pairs against `map` with cross-cell `reach`, vertices below `variance_register`.
+    pub fn new(map: &'a MeshMap, reach: u32, variance_register: f64) -> Self {
+        Self {
+            map,
+            lattice: map.lattice().table(),
+            reach,
+            max_var: variance_register as f32,
+        }
+    }
+
+    /// The combined residual of scan layer `s` and how many vertex pairs it averages, or
+    /// `None` when nothing pairs.
+    pub fn layer(&self, s: &ScanLayer) -> Option<(Residual, usize)> {
+        let (lattice, max_var) = (&self.lattice, self.max_var);
         let (mut sum_p, mut sum_q, mut sum_n, mut count) =
             (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), 0usize);
-        let candidates = candidates(map, s.key, s.axis, reach);
+        let candidates = candidates(self.map, s.key, s.axis, self.reach);
         for j in 0..VERTICES {
             if !(s.layer.var[j] < max_var) {
                 continue;
@@ -93,20 +134,17 @@ pub fn associate(
                 }
             }
             let Some((_, key, m)) = best else { continue };
-            let Some(n) = m.normal(&lattice, s.axis, j, max_var) else {
+            let Some(n) = m.normal(lattice, s.axis, j, max_var) else {
                 continue;
             };
-            sum_p += s.layer.vertex(&lattice, &s.key, s.axis, j);
-            sum_q += m.vertex(&lattice, &key, s.axis, j);
+            sum_p += s.layer.vertex(lattice, &s.key, s.axis, j);
+            sum_q += m.vertex(lattice, &key, s.axis, j);
             sum_n += n;
             count += 1;
         }
-        if count == 0 {
-            continue;
-        }
         let norm = sum_n.norm();
-        if !(norm > 1e-9) {
-            continue;
+        if count == 0 || !(norm > 1e-9) {
+            return None;
         }
         let c = count as f64;
         let r = Residual {
@@ -115,13 +153,8 @@ pub fn associate(
             n: sum_n / norm,
             weight: 1.0,
         };
-        if out.push(r).is_err() {
-            break;
-        }
-        stats.pairs += count;
+        Some((r, count))
     }
-    stats.residuals = out.len();
-    stats
 }
 
 #[cfg(test)]

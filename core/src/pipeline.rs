@@ -5,7 +5,7 @@
 //! meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
 //! the capacities of `C`; nothing is allocated afterwards.
 
-use crate::associate::{associate, AssociateStats};
+use crate::associate::AssociateStats;
 use crate::bounded::BoundedVec;
 use crate::bucket::{bucket, BucketStats, CellSpan};
 use crate::capacity::{Capacity, KittiCapacity};
@@ -224,7 +224,7 @@ impl<C: Capacity> Pipeline<C> {
                 let purpose = Purpose::Register { reach };
                 stats.dropped_layers += self.reconstruct(&pose, cells, purpose, probe).1;
                 probe.enter(Stage::Associate);
-                stats.associate = associate(
+                stats.associate = cells.associate(
                     &self.scan,
                     &self.map,
                     reach,

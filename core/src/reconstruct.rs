@@ -82,8 +82,9 @@ pub fn reconstruct_cell(
     out
 }
 
-/// The loop that reconstructs every cell of a scan. The pipeline's only pluggable part: a
-/// parallel implementation (std adapters) must produce the same layers in the same order.
+/// The loops over a scan's cells (reconstruction) and layers (association). The pipeline's
+/// only pluggable part: a parallel implementation (std adapters) must produce the same
+/// layers and residuals in the same order.
 pub trait CellLoop {
     /// Reconstructs `cells` (spans into `bucketed`) and appends their layers to `out` in cell
     /// order via [`append_layers`]; returns how many layers did not fit.
@@ -96,6 +97,20 @@ pub trait CellLoop {
         purpose: Purpose,
         out: &mut crate::bounded::BoundedVec<ScanLayer>,
     ) -> usize;
+
+    /// Associates every scan layer with the map ([`crate::associate::associate`]), one
+    /// [`Associator::layer`](crate::associate::Associator::layer) per layer, results
+    /// collected in scan order by [`crate::associate::collect`]. Serial unless overridden.
+    fn associate(
+        &self,
+        scan: &[ScanLayer],
+        map: &MeshMap,
+        reach: u32,
+        variance_register: f64,
+        out: &mut crate::bounded::BoundedVec<crate::lm::Residual>,
+    ) -> crate::associate::AssociateStats {
+        crate::associate::associate(scan, map, reach, variance_register, out)
+    }
 }
 
 /// The serial cell loop.

@@ -1,13 +1,18 @@
-//! Parallel reconstruction: the per-cell loop on a rayon thread pool.
+//! Parallel reconstruction and association: the per-cell and per-layer loops on a rayon
+//! thread pool.
 //!
-//! Only the loop differs from the core's serial [`Serial`](slamesh_core::reconstruct::Serial):
+//! Only the loops differ from the core's serial [`Serial`](slamesh_core::reconstruct::Serial):
 //! each cell goes through the same [`reconstruct_cell`], and the layers are appended in cell
-//! order by the same [`append_layers`], so both give bit-identical results (tested).
+//! order by the same [`append_layers`]; each scan layer goes through the same
+//! [`Associator::layer`], collected in scan order by the same [`associate::collect`]. Both
+//! give bit-identical results (tested).
 
 use rayon::prelude::*;
+use slamesh_core::associate::{self, AssociateStats, Associator};
 use slamesh_core::bounded::BoundedVec;
 use slamesh_core::bucket::CellSpan;
 use slamesh_core::cell::CellKey;
+use slamesh_core::lm::Residual;
 use slamesh_core::map::MeshMap;
 use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, Purpose, ScanLayer};
 use slamesh_core::{Config, Point};
@@ -54,6 +59,21 @@ impl CellLoop for Rayon {
             .map(|layers| append_layers(out, layers))
             .sum()
     }
+
+    fn associate(
+        &self,
+        scan: &[ScanLayer],
+        map: &MeshMap,
+        reach: u32,
+        variance_register: f64,
+        out: &mut BoundedVec<Residual>,
+    ) -> AssociateStats {
+        let a = Associator::new(map, reach, variance_register);
+        let per_layer: Vec<_> = self
+            .pool
+            .install(|| scan.par_iter().map(|s| a.layer(s)).collect());
+        associate::collect(per_layer.into_iter(), out)
+    }
 }
 
 /// The cell loop for a thread count: the core's serial loop for one thread, a rayon pool for
@@ -99,6 +119,20 @@ impl CellLoop for Workers {
                 slamesh_core::reconstruct::Serial.run(cells, bucketed, map, cfg, purpose, out)
             }
             Workers::Pool(r) => r.run(cells, bucketed, map, cfg, purpose, out),
+        }
+    }
+
+    fn associate(
+        &self,
+        scan: &[ScanLayer],
+        map: &MeshMap,
+        reach: u32,
+        variance_register: f64,
+        out: &mut BoundedVec<Residual>,
+    ) -> AssociateStats {
+        match self {
+            Workers::Serial => associate::associate(scan, map, reach, variance_register, out),
+            Workers::Pool(r) => r.associate(scan, map, reach, variance_register, out),
         }
     }
 }
