@@ -8,6 +8,7 @@ use crate::bounded::BoundedVec;
 use crate::cell::CellKey;
 use crate::config::FilterConfig;
 use crate::math::{to_point, to_vec3, Point, Vec3};
+use crate::reconstruct::CellLoop;
 use crate::sort::KeySorter;
 
 /// What the filter kept and dropped from one scan.
@@ -58,8 +59,80 @@ impl VerticalCorrection {
     }
 }
 
+/// What the filter does to one point: the range test, the vertical correction and the voxel
+/// key. Built once per scan; [`Preparation::point`] is the unit a parallel loop runs.
+#[derive(Debug, Clone, Copy)]
+pub struct Preparation {
+    r2_min: f64,
+    r2_max: f64,
+    correction: Option<VerticalCorrection>,
+    leaf_m: f64,
+}
+
+/// Why the filter dropped a point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dropped {
+    /// A coordinate was NaN or infinite.
+    NonFinite,
+    /// Its range was outside `[range_min, range_max]` (or its voxel index beyond `i32`).
+    OutOfRange,
+}
+
+impl Preparation {
+    /// The preparation for `cfg` with voxels of edge `leaf_m`.
+    pub fn new(cfg: &FilterConfig, leaf_m: f64) -> Self {
+        Self {
+            r2_min: cfg.range_min_m * cfg.range_min_m,
+            r2_max: cfg.range_max_m * cfg.range_max_m,
+            correction: (cfg.vertical_correction_deg != 0.0)
+                .then(|| VerticalCorrection::new(cfg.vertical_correction_deg.to_radians())),
+            leaf_m,
+        }
+    }
+
+    /// The point, corrected, with its voxel key; or why it is dropped.
+    #[inline]
+    pub fn point(&self, p: &Point) -> Result<(CellKey, Point), Dropped> {
+        if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()) {
+            return Err(Dropped::NonFinite);
+        }
+        let mut v = to_vec3(p);
+        let r2 = v.norm_squared();
+        if r2 < self.r2_min || r2 > self.r2_max {
+            return Err(Dropped::OutOfRange);
+        }
+        if let Some(c) = &self.correction {
+            v = c.apply(&v);
+        }
+        let key = CellKey::containing(&v, self.leaf_m).ok_or(Dropped::OutOfRange)?;
+        Ok((key, to_point(&v)))
+    }
+}
+
+/// Appends prepared points to `work` in order, counting what was dropped (and what did not
+/// fit) into `stats`.
+pub fn collect(
+    prepared: impl Iterator<Item = Result<(CellKey, Point), Dropped>>,
+    work: &mut BoundedVec<(CellKey, Point)>,
+    stats: &mut FilterStats,
+) {
+    for p in prepared {
+        match p {
+            Ok(entry) => {
+                if work.push(entry).is_err() {
+                    stats.over_capacity += 1;
+                }
+            }
+            Err(Dropped::NonFinite) => stats.non_finite += 1,
+            Err(Dropped::OutOfRange) => stats.out_of_range += 1,
+        }
+    }
+}
+
 /// Filters `raw` (sensor frame) and down-samples it to one centroid per voxel of edge `leaf_m`,
-/// written to `out` in voxel-key order. `work` and `sorter` are scratch space.
+/// written to `out` in voxel-key order. `work` and `sorter` are scratch space; `loops` runs
+/// the per-point preparation ([`CellLoop::prepare_points`]).
+#[allow(clippy::too_many_arguments)]
 pub fn filter_and_downsample(
     raw: &[Point],
     cfg: &FilterConfig,
@@ -67,41 +140,28 @@ pub fn filter_and_downsample(
     work: &mut BoundedVec<(CellKey, Point)>,
     sorter: &mut KeySorter,
     out: &mut BoundedVec<Point>,
+    loops: &impl CellLoop,
 ) -> FilterStats {
+    let prep = Preparation::new(cfg, leaf_m);
     work.clear();
-    out.clear();
     let mut stats = FilterStats {
         input: raw.len(),
         ..FilterStats::default()
     };
-    let correction = (cfg.vertical_correction_deg != 0.0)
-        .then(|| VerticalCorrection::new(cfg.vertical_correction_deg.to_radians()));
-    let (r2_min, r2_max) = (
-        cfg.range_min_m * cfg.range_min_m,
-        cfg.range_max_m * cfg.range_max_m,
-    );
-    for p in raw {
-        if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()) {
-            stats.non_finite += 1;
-            continue;
-        }
-        let mut v = to_vec3(p);
-        let r2 = v.norm_squared();
-        if r2 < r2_min || r2 > r2_max {
-            stats.out_of_range += 1;
-            continue;
-        }
-        if let Some(c) = &correction {
-            v = c.apply(&v);
-        }
-        let Some(key) = CellKey::containing(&v, leaf_m) else {
-            stats.out_of_range += 1;
-            continue;
-        };
-        if work.push((key, to_point(&v))).is_err() {
-            stats.over_capacity += 1;
-        }
-    }
+    loops.prepare_points(raw, &prep, work, &mut stats);
+    downsample(work, sorter, out, &mut stats);
+    stats
+}
+
+/// Sorts the prepared points in `work` by voxel and writes one centroid per voxel to `out`
+/// (cleared first); sets `stats.kept`.
+pub fn downsample(
+    work: &mut BoundedVec<(CellKey, Point)>,
+    sorter: &mut KeySorter,
+    out: &mut BoundedVec<Point>,
+    stats: &mut FilterStats,
+) {
+    out.clear();
     sorter.sort(work);
     let mut i = 0;
     while let Some(&(key, _)) = work.get(i) {
@@ -119,7 +179,6 @@ pub fn filter_and_downsample(
         let _ = out.push(to_point(&(sum / count as f64)));
     }
     stats.kept = out.len();
-    stats
 }
 
 #[cfg(test)]
@@ -154,6 +213,7 @@ mod tests {
             &mut work,
             &mut KeySorter::with_capacity(16),
             &mut out,
+            &crate::reconstruct::Serial,
         );
         assert_eq!(
             (s.non_finite, s.out_of_range, s.over_capacity, s.kept),
@@ -175,6 +235,7 @@ mod tests {
             &mut work,
             &mut KeySorter::with_capacity(3),
             &mut out,
+            &crate::reconstruct::Serial,
         );
         assert_eq!((s.over_capacity, s.kept), (2, 3));
         assert!((out[2][0] - 4.0).abs() < 1e-6);

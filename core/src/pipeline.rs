@@ -208,7 +208,7 @@ impl<C: Capacity> Pipeline<C> {
         cells: &impl CellLoop,
         probe: &mut impl Probe,
     ) -> Result<ScanOutcome, ScanError> {
-        let mut stats = self.begin(points_sensor, probe)?;
+        let mut stats = self.begin(points_sensor, cells, probe)?;
         let mut pose = self.motion.predict();
         let mut status = RegistrationStatus::FirstScan;
         if !self.map.is_empty() {
@@ -291,7 +291,7 @@ impl<C: Capacity> Pipeline<C> {
             self.frame = self.frame.saturating_add(1);
             return Err(ScanError::BadPose);
         }
-        let mut stats = self.begin(points_sensor, probe)?;
+        let mut stats = self.begin(points_sensor, cells, probe)?;
         self.finish(*t_world_sensor, cells, probe, &mut stats);
         let outcome = ScanOutcome {
             t_world_sensor: *t_world_sensor,
@@ -307,6 +307,7 @@ impl<C: Capacity> Pipeline<C> {
     fn begin(
         &mut self,
         points_sensor: &[Point],
+        cells: &impl CellLoop,
         probe: &mut impl Probe,
     ) -> Result<ScanStats, ScanError> {
         probe.enter(Stage::Filter);
@@ -319,6 +320,7 @@ impl<C: Capacity> Pipeline<C> {
             &mut self.work,
             &mut self.sorter,
             &mut self.points,
+            cells,
         );
         if filter.kept == 0 {
             probe.enter(Stage::Done);

@@ -82,9 +82,9 @@ pub fn reconstruct_cell(
     out
 }
 
-/// The loops over a scan's cells (reconstruction) and layers (association). The pipeline's
-/// only pluggable part: a parallel implementation (std adapters) must produce the same
-/// layers and residuals in the same order.
+/// The loops over a scan's points (filter), cells (reconstruction) and layers
+/// (association). The pipeline's only pluggable part: a parallel implementation (std
+/// adapters) must produce the same points, layers and residuals in the same order.
 pub trait CellLoop {
     /// Reconstructs `cells` (spans into `bucketed`) and appends their layers to `out` in cell
     /// order via [`append_layers`]; returns how many layers did not fit.
@@ -97,6 +97,19 @@ pub trait CellLoop {
         purpose: Purpose,
         out: &mut crate::bounded::BoundedVec<ScanLayer>,
     ) -> usize;
+
+    /// Prepares every raw point ([`Preparation::point`](crate::filter::Preparation::point))
+    /// and collects them in input order into `work` ([`crate::filter::collect`]). Serial
+    /// unless overridden.
+    fn prepare_points(
+        &self,
+        raw: &[Point],
+        prep: &crate::filter::Preparation,
+        work: &mut crate::bounded::BoundedVec<(CellKey, Point)>,
+        stats: &mut crate::filter::FilterStats,
+    ) {
+        crate::filter::collect(raw.iter().map(|p| prep.point(p)), work, stats)
+    }
 
     /// Associates every scan layer with the map ([`crate::associate::associate`]), one
     /// [`Associator::layer`](crate::associate::Associator::layer) per layer, results

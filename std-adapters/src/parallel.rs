@@ -1,21 +1,26 @@
-//! Parallel reconstruction and association: the per-cell and per-layer loops on a rayon
-//! thread pool.
+//! Parallel filter, reconstruction and association: the per-point, per-cell and per-layer
+//! loops on a rayon thread pool.
 //!
 //! Only the loops differ from the core's serial [`Serial`](slamesh_core::reconstruct::Serial):
 //! each cell goes through the same [`reconstruct_cell`], and the layers are appended in cell
 //! order by the same [`append_layers`]; each scan layer goes through the same
-//! [`Associator::layer`], collected in scan order by the same [`associate::collect`]. Both
-//! give bit-identical results (tested).
+//! [`Associator::layer`], collected in scan order by the same [`associate::collect`]; each
+//! raw point through the same [`Preparation::point`], collected in input order by the same
+//! [`filter::collect`]. All give bit-identical results (tested).
 
 use rayon::prelude::*;
 use slamesh_core::associate::{self, AssociateStats, Associator};
 use slamesh_core::bounded::BoundedVec;
 use slamesh_core::bucket::CellSpan;
 use slamesh_core::cell::CellKey;
+use slamesh_core::filter::{self, FilterStats, Preparation};
 use slamesh_core::lm::Residual;
 use slamesh_core::map::MeshMap;
 use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, Purpose, ScanLayer};
 use slamesh_core::{Config, Point};
+
+/// Raw points per task of the parallel filter.
+const POINTS_PER_TASK: usize = 8192;
 
 /// Reconstructs cells on a dedicated rayon pool.
 #[derive(Debug)]
@@ -58,6 +63,22 @@ impl CellLoop for Rayon {
             .into_iter()
             .map(|layers| append_layers(out, layers))
             .sum()
+    }
+
+    fn prepare_points(
+        &self,
+        raw: &[Point],
+        prep: &Preparation,
+        work: &mut BoundedVec<(CellKey, Point)>,
+        stats: &mut FilterStats,
+    ) {
+        // Chunks of a few thousand points: enough work per task to pay for the copy.
+        let per_chunk: Vec<Vec<_>> = self.pool.install(|| {
+            raw.par_chunks(POINTS_PER_TASK)
+                .map(|c| c.iter().map(|p| prep.point(p)).collect())
+                .collect()
+        });
+        filter::collect(per_chunk.into_iter().flatten(), work, stats)
     }
 
     fn associate(
@@ -133,6 +154,19 @@ impl CellLoop for Workers {
         match self {
             Workers::Serial => associate::associate(scan, map, reach, variance_register, out),
             Workers::Pool(r) => r.associate(scan, map, reach, variance_register, out),
+        }
+    }
+
+    fn prepare_points(
+        &self,
+        raw: &[Point],
+        prep: &Preparation,
+        work: &mut BoundedVec<(CellKey, Point)>,
+        stats: &mut FilterStats,
+    ) {
+        match self {
+            Workers::Serial => filter::collect(raw.iter().map(|p| prep.point(p)), work, stats),
+            Workers::Pool(r) => r.prepare_points(raw, prep, work, stats),
         }
     }
 }
