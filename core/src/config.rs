@@ -101,6 +101,11 @@ pub struct MeshConfig {
     /// Triangles whose mean vertex variance is at or above this are hidden. Default 1.0
     /// (0.3 for meshing).
     pub variance_show: f64,
+    /// Triangles steeper than this against their layer's axis (degrees) are hidden: every
+    /// surface is within 54.7° of some axis, and the layer choice gives a cell the layers
+    /// along its surfaces, so a steeper triangle is a layer wrapping over an edge that another
+    /// layer holds (a car roof's layer running down its side). 90 shows them all. Default 60.
+    pub max_slope_deg: f64,
 }
 
 /// Everything the pipeline can be told, grouped by stage.
@@ -157,7 +162,10 @@ impl Default for Config {
                 variance_update: 0.5,
                 add_missing_layers: true,
             },
-            mesh: MeshConfig { variance_show: 1.0 },
+            mesh: MeshConfig {
+                variance_show: 1.0,
+                max_slope_deg: 60.0,
+            },
         }
     }
 }
@@ -290,6 +298,12 @@ impl Config {
         }
         positive("map.variance_update", self.map.variance_update)?;
         positive("mesh.variance_show", self.mesh.variance_show)?;
+        if !(self.mesh.max_slope_deg > 0.0 && self.mesh.max_slope_deg <= 90.0) {
+            return Err(ConfigError {
+                field: "mesh.max_slope_deg",
+                reason: "must be above 0 and at most 90 degrees",
+            });
+        }
         Ok(())
     }
 }

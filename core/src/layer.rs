@@ -8,6 +8,25 @@ use crate::cell::{Axis, CellKey};
 use crate::lattice::{neighbours, LatticeTable, N, VERTICES};
 use crate::math::Vec3;
 
+/// Which triangles of a layer are shown, from [`MeshConfig`](crate::config::MeshConfig).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shown {
+    /// Mean vertex variance below this.
+    pub variance: f32,
+    /// Cosine of the angle to the layer's axis at least this.
+    pub min_axis_cosine: f32,
+}
+
+impl Shown {
+    /// The rule of `cfg`.
+    pub fn new(cfg: &crate::config::MeshConfig) -> Self {
+        Self {
+            variance: cfg.variance_show as f32,
+            min_axis_cosine: libm::cos(cfg.max_slope_deg.to_radians()) as f32,
+        }
+    }
+}
+
 /// Predictions and variances at the `6 x 6` lattice of one layer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -85,17 +104,51 @@ impl Layer {
     }
 
     /// The lattice's triangles as vertex-index triples, counter-clockwise seen from `+axis`:
-    /// 5 x 5 quads, two triangles each, kept when the mean variance of their vertices is below
-    /// `variance_show` (DESIGN §1.6).
-    pub fn triangles(&self, variance_show: f32) -> impl Iterator<Item = [usize; 3]> + '_ {
+    /// 5 x 5 quads, two triangles each, kept when `shown` accepts them (DESIGN §1.6, plus the
+    /// slope rule of [`crate::config::MeshConfig::max_slope_deg`]).
+    pub fn triangles<'a>(
+        &'a self,
+        lattice: &'a LatticeTable,
+        shown: Shown,
+    ) -> impl Iterator<Item = [usize; 3]> + 'a {
         (0..(N - 1) * (N - 1)).flat_map(move |q| {
             let (ia, ib) = (q / (N - 1), q % (N - 1));
             let v00 = ia * N + ib;
             let (v10, v01, v11) = (v00 + N, v00 + 1, v00 + N + 1);
             [[v00, v10, v11], [v00, v11, v01]]
                 .into_iter()
-                .filter(move |t| self.mean_variance(t) < variance_show)
+                .filter(move |t| {
+                    self.mean_variance(t) < shown.variance
+                        && self.axis_cosine(lattice, t) >= shown.min_axis_cosine
+                })
         })
+    }
+
+    /// The cosine of the angle between triangle `t`'s normal and the layer's axis (1: flat
+    /// across the axis, 0: along it).
+    fn axis_cosine(&self, lattice: &LatticeTable, t: &[usize; 3]) -> f32 {
+        let at = |i: usize| lattice.coordinates.get(i).copied().unwrap_or(0.0) as f32;
+        let p = |j: usize| {
+            [
+                at(j / N),
+                at(j % N),
+                self.pred.get(j).copied().unwrap_or(0.0),
+            ]
+        };
+        let (p0, p1, p2) = (p(t[0]), p(t[1]), p(t[2]));
+        let u = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
+        let v = [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]];
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let norm = libm::sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if norm > 0.0 {
+            libm::fabsf(n[2]) / norm
+        } else {
+            0.0
+        }
     }
 
     /// Mean variance of three vertices (`INFINITY` for an index out of range).
@@ -151,9 +204,37 @@ mod tests {
 
     #[test]
     fn triangles_follow_the_variance_threshold() {
-        let (mut l, _) = plane(|_, _| 0.4);
-        assert_eq!(l.triangles(1.0).count(), 50);
+        let (mut l, lat) = plane(|_, _| 0.4);
+        let show = |variance| Shown {
+            variance,
+            min_axis_cosine: 0.5,
+        };
+        assert_eq!(l.triangles(&lat.table(), show(1.0)).count(), 50);
         l.var[0] = 3.0; // in 1 triangle of quad (0, 0)... and the other one too
-        assert_eq!(l.triangles(1.0).count(), 48);
+        assert_eq!(l.triangles(&lat.table(), show(1.0)).count(), 48);
+    }
+
+    #[test]
+    fn triangles_steeper_than_the_limit_are_hidden() {
+        // A step of 1 m between two lattice columns 0.27 m apart: the quads across it slope
+        // at 75 degrees; the rest is flat.
+        let (l, lat) = plane(|a, _| if a < 0.8 { 0.2 } else { 1.2 });
+        let table = lat.table();
+        let count = |deg: f64| {
+            let shown = Shown::new(&crate::config::MeshConfig {
+                variance_show: 1.0,
+                max_slope_deg: deg,
+            });
+            l.triangles(&table, shown).count()
+        };
+        assert_eq!(count(90.0), 50);
+        assert_eq!(count(60.0), 40, "the 5 quads across the step are hidden");
+        // A 45-degree slope is kept at 60.
+        let (slope, lat) = plane(|a, _| a);
+        let shown = Shown::new(&crate::config::MeshConfig {
+            variance_show: 1.0,
+            max_slope_deg: 60.0,
+        });
+        assert_eq!(slope.triangles(&lat.table(), shown).count(), 50);
     }
 }

@@ -1,10 +1,14 @@
 //! Triangles of the map, without allocation (DESIGN §1.6).
 //!
 //! Each layer's lattice gives 5 x 5 quads, two triangles each, kept when the mean variance of
-//! their vertices is below `variance_show`. Iterate with [`triangles`] or fill a caller's
+//! their vertices is below `variance_show` and they are no steeper than `max_slope_deg`
+//! against the layer's axis ([`MeshConfig`]). Iterate with [`triangles`] or fill a caller's
 //! buffer with [`triangles_into`]. For an indexed mesh (shared vertices), walk
 //! [`MeshMap::layers`] and use [`Layer::triangles`](crate::layer::Layer::triangles) per layer.
 
+use crate::config::MeshConfig;
+use crate::lattice::N;
+use crate::layer::Shown;
 use crate::map::MeshMap;
 use crate::math::to_point;
 use crate::math::Point;
@@ -20,22 +24,29 @@ pub struct Triangle {
 }
 
 /// Every shown triangle of `map`, in the map's deterministic order.
-pub fn triangles(map: &MeshMap, variance_show: f64) -> impl Iterator<Item = Triangle> + '_ {
+pub fn triangles<'a>(map: &'a MeshMap, cfg: &MeshConfig) -> impl Iterator<Item = Triangle> + 'a {
     let lattice = map.lattice().table();
-    let show = variance_show as f32;
+    let shown = Shown::new(cfg);
     map.layers().flat_map(move |l| {
-        l.layer.triangles(show).map(move |t| Triangle {
-            vertices: t.map(|j| to_point(&l.layer.vertex(&lattice, &l.key, l.axis, j))),
+        // The lattice table is copied into each layer's iterator (it is 56 bytes).
+        let table = lattice;
+        let list: heapless::Vec<[usize; 3], MAX_TRIANGLES> =
+            l.layer.triangles(&table, shown).collect();
+        list.into_iter().map(move |t| Triangle {
+            vertices: t.map(|j| to_point(&l.layer.vertex(&table, &l.key, l.axis, j))),
             variance: l.layer.mean_variance(&t),
         })
     })
 }
 
+/// Triangles of one layer: 5 x 5 quads, two each.
+const MAX_TRIANGLES: usize = 2 * (N - 1) * (N - 1);
+
 /// Fills `buf` with shown triangles; returns how many were written (at most `buf.len()`; call
 /// [`triangles`]`(..).count()` for the total).
-pub fn triangles_into(map: &MeshMap, variance_show: f64, buf: &mut [Triangle]) -> usize {
+pub fn triangles_into(map: &MeshMap, cfg: &MeshConfig, buf: &mut [Triangle]) -> usize {
     buf.iter_mut()
-        .zip(triangles(map, variance_show))
+        .zip(triangles(map, cfg))
         .map(|(slot, t)| *slot = t)
         .count()
 }
@@ -46,6 +57,13 @@ mod tests {
     use crate::cell::{Axis, CellKey};
     use crate::lattice::{Lattice, VERTICES};
     use crate::layer::Layer;
+
+    fn show(variance_show: f64) -> MeshConfig {
+        MeshConfig {
+            variance_show,
+            max_slope_deg: 60.0,
+        }
+    }
 
     #[test]
     fn a_flat_layer_gives_fifty_triangles_on_its_plane() {
@@ -60,12 +78,12 @@ mod tests {
         };
         map.insert_layer(CellKey::new(1, 2, 3), Axis::Z, layer, 0)
             .unwrap();
-        assert_eq!(triangles(&map, 0.3).count(), 50);
-        assert_eq!(triangles(&map, 0.05).count(), 0);
+        assert_eq!(triangles(&map, &show(0.3)).count(), 50);
+        assert_eq!(triangles(&map, &show(0.05)).count(), 0);
         let mut buf = [Triangle::default(); 10];
-        assert_eq!(triangles_into(&map, 0.3, &mut buf), 10);
+        assert_eq!(triangles_into(&map, &show(0.3), &mut buf), 10);
         let mut area = 0.0;
-        for t in triangles(&map, 0.3) {
+        for t in triangles(&map, &show(0.3)) {
             for v in t.vertices {
                 assert!((v[2] - (3.0 * 1.6 + 0.5)).abs() < 1e-5);
                 assert!(v[0] >= 1.6 - 1e-5 && v[0] <= 3.2 + 1e-5);

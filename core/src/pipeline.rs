@@ -190,9 +190,9 @@ impl<C: Capacity> Pipeline<C> {
         self.motion.last()
     }
 
-    /// The map's shown triangles (`mesh.variance_show`), without allocation.
+    /// The map's shown triangles (`mesh.variance_show`, `mesh.max_slope_deg`), without allocation.
     pub fn triangles(&self) -> impl Iterator<Item = Triangle> + '_ {
-        mesh::triangles(&self.map, self.config.mesh.variance_show)
+        mesh::triangles(&self.map, &self.config.mesh)
     }
 
     /// Estimates the pose of a scan (sensor-frame points) and fuses it into the map.

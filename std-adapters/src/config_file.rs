@@ -133,6 +133,7 @@ parameters! {
     "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
     "map" map.add_missing_layers: boolean as Value::Boolean, "Add a layer that a known cell lacks.";
     "mesh" mesh.variance_show: float as fv, "Triangles whose mean vertex variance is at or above this are not shown.";
+    "mesh" mesh.max_slope_deg: float as fv, "Triangles steeper than this against their layer's axis (degrees) are not shown (90: all shown).";
 }
 
 /// What a configuration file sets: the pipeline configuration and the sliding window.

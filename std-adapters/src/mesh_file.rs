@@ -10,7 +10,9 @@
 
 use crate::atomic::write_atomic;
 use crate::file_error::FileError;
+use slamesh_core::config::MeshConfig;
 use slamesh_core::lattice::{Lattice, LatticeTable, VERTICES};
+use slamesh_core::layer::Shown;
 use slamesh_core::map::{LayerRef, MeshMap};
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -43,7 +45,7 @@ pub struct MeshCounts {
 #[derive(Debug)]
 pub struct MeshSpool {
     lattice: LatticeTable,
-    variance_show: f32,
+    shown: Shown,
     paths: [PathBuf; 2],
     vertices: BufWriter<File>,
     faces: BufWriter<File>,
@@ -52,8 +54,8 @@ pub struct MeshSpool {
 
 impl MeshSpool {
     /// A spool for the mesh file `target` (its spool files go beside it).
-    pub fn new(target: &Path, lattice: Lattice, variance_show: f64) -> Result<Self, FileError> {
-        Self::open(target, lattice, variance_show, None)
+    pub fn new(target: &Path, lattice: Lattice, shown: &MeshConfig) -> Result<Self, FileError> {
+        Self::open(target, lattice, shown, None)
     }
 
     /// The spool of an interrupted run, cut back to the first `kept` records (what a
@@ -61,16 +63,16 @@ impl MeshSpool {
     pub fn resume(
         target: &Path,
         lattice: Lattice,
-        variance_show: f64,
+        shown: &MeshConfig,
         kept: MeshCounts,
     ) -> Result<Self, FileError> {
-        Self::open(target, lattice, variance_show, Some(kept))
+        Self::open(target, lattice, shown, Some(kept))
     }
 
     fn open(
         target: &Path,
         lattice: Lattice,
-        variance_show: f64,
+        shown: &MeshConfig,
         kept: Option<MeshCounts>,
     ) -> Result<Self, FileError> {
         let name = target
@@ -91,7 +93,7 @@ impl MeshSpool {
         };
         Ok(MeshSpool {
             lattice: lattice.table(),
-            variance_show: variance_show as f32,
+            shown: Shown::new(shown),
             vertices: open(&paths[0], kept.map(|k| k.vertices * VERTEX_BYTES as u64))?,
             faces: open(&paths[1], kept.map(|k| k.triangles * FACE_BYTES as u64))?,
             paths,
@@ -121,7 +123,7 @@ impl MeshSpool {
         let mut index = [u32::MAX; VERTICES];
         let mut next = self.counts.vertices;
         let io = |e: std::io::Error, p: &Path| FileError::at(p, format!("cannot write: {e}"));
-        for t in l.layer.triangles(self.variance_show) {
+        for t in l.layer.triangles(&self.lattice, self.shown) {
             let mut face = [0u8; FACE_BYTES];
             face[0] = 3;
             for (k, &j) in t.iter().enumerate() {
@@ -258,7 +260,15 @@ mod tests {
             (dir.join("m.ply"), MeshFormat::Ply),
             (dir.join("m.obj"), MeshFormat::Obj),
         ];
-        let mut spool = MeshSpool::new(&outputs[0].0, lattice, 0.1).unwrap();
+        let mut spool = MeshSpool::new(
+            &outputs[0].0,
+            lattice,
+            &MeshConfig {
+                variance_show: 0.1,
+                max_slope_deg: 60.0,
+            },
+        )
+        .unwrap();
         spool.add_map(&map).unwrap();
         let counts = spool.finish(&outputs).unwrap();
         assert_eq!(

@@ -27,6 +27,7 @@ use crate::timing::{StageMs, StageTimer};
 use crate::trajectory::{write_kitti_line, write_tum_line};
 use crate::window::Window;
 use serde::Serialize;
+use slamesh_core::layer::Shown;
 use slamesh_core::{Capacity, Config, Pipeline, Point, Pose};
 use std::fmt;
 use std::io::{BufWriter, Write};
@@ -226,7 +227,7 @@ pub fn run<C: Capacity>(
     }
     let mut pipeline = Pipeline::<C>::new(opts.config)
         .map_err(|e| RunError::Config(format!("{}: {}", e.field, e.reason)))?;
-    let show = opts.config.mesh.variance_show;
+    let show = &opts.config.mesh;
     let mesh_path = out.join("mesh.ply");
     let frames_path = out.join(".report.frames.spool");
     let checkpoint_path = checkpoint::path(out);
@@ -328,7 +329,7 @@ pub fn run<C: Capacity>(
                 rec.conditioning = o.stats.conditioning;
                 rec.degenerate_directions = o.stats.degenerate_directions;
                 let t = Instant::now();
-                rec.triangles_updated = updated_triangles(&pipeline, show);
+                rec.triangles_updated = updated_triangles(&pipeline);
                 rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
                 let t = Instant::now();
                 if !window.is_off() {
@@ -446,13 +447,14 @@ pub fn mesh_file_path(out: &Path, format: MeshFormat) -> PathBuf {
 }
 
 /// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).
-fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>, show: f64) -> usize {
-    let show = show as f32;
+fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>) -> usize {
+    let shown = Shown::new(&pipeline.config().mesh);
+    let lattice = pipeline.map().lattice().table();
     pipeline
         .last_scan()
         .iter()
         .filter_map(|s| pipeline.map().layer(&s.key, s.axis))
-        .map(|l| l.triangles(show).count())
+        .map(|l| l.triangles(&lattice, shown).count())
         .sum()
 }
 
