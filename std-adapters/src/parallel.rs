@@ -13,7 +13,7 @@ use slamesh_core::associate::{self, AssociateStats, Associator};
 use slamesh_core::bounded::BoundedVec;
 use slamesh_core::bucket::CellSpan;
 use slamesh_core::cell::CellKey;
-use slamesh_core::filter::{self, FilterStats, Preparation};
+use slamesh_core::filter::{self, Dropped, FilterStats, Preparation};
 use slamesh_core::lm::Residual;
 use slamesh_core::map::MeshMap;
 use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, Purpose, ScanLayer};
@@ -72,13 +72,43 @@ impl CellLoop for Rayon {
         work: &mut BoundedVec<(CellKey, Point)>,
         stats: &mut FilterStats,
     ) {
-        // Chunks of a few thousand points: enough work per task to pay for the copy.
-        let per_chunk: Vec<Vec<_>> = self.pool.install(|| {
-            raw.par_chunks(POINTS_PER_TASK)
-                .map(|c| c.iter().map(|p| prep.point(p)).collect())
+        if raw.len() > work.capacity() - work.len() {
+            // Some would not fit: the serial loop drops them in input order.
+            return filter::collect(raw.iter().map(|p| prep.point(p)), work, stats);
+        }
+        // Each task writes its kept points to the front of its own stretch of `work`; the
+        // stretches are then closed up in order, which is what the serial loop writes.
+        let start = work.len();
+        work.extend_default(start + raw.len());
+        let per_task: Vec<FilterStats> = self.pool.install(|| {
+            work[start..]
+                .par_chunks_mut(POINTS_PER_TASK)
+                .zip(raw.par_chunks(POINTS_PER_TASK))
+                .map(|(dst, src)| {
+                    let mut s = FilterStats::default();
+                    for p in src {
+                        match prep.point(p) {
+                            Ok(e) => {
+                                dst[s.kept] = e;
+                                s.kept += 1;
+                            }
+                            Err(Dropped::NonFinite) => s.non_finite += 1,
+                            Err(Dropped::OutOfRange) => s.out_of_range += 1,
+                        }
+                    }
+                    s
+                })
                 .collect()
         });
-        filter::collect(per_chunk.into_iter().flatten(), work, stats)
+        let mut end = start;
+        for (k, s) in per_task.iter().enumerate() {
+            let from = start + k * POINTS_PER_TASK;
+            work.copy_within(from..from + s.kept, end);
+            end += s.kept;
+            stats.non_finite += s.non_finite;
+            stats.out_of_range += s.out_of_range;
+        }
+        work.truncate(end);
     }
 
     fn associate(
