@@ -102,9 +102,10 @@ pub struct MeshConfig {
     /// (0.3 for meshing).
     pub variance_show: f64,
     /// Triangles steeper than this against their layer's axis (degrees) are hidden: every
-    /// surface is within 54.7° of some axis, and the layer choice gives a cell the layers
-    /// along its surfaces, so a steeper triangle is a layer wrapping over an edge that another
-    /// layer holds (a car roof's layer running down its side). 90 shows them all. Default 60.
+    /// surface orientation is within 54.7° (arccos 1/√3) of some axis, and the layer choice
+    /// gives a cell the layers along its surfaces, so a steeper triangle is a layer wrapping
+    /// over an edge that another layer holds (a car roof's layer running down its side). 90
+    /// shows them all. Default 55.
     pub max_slope_deg: f64,
 }
 
@@ -164,7 +165,7 @@ impl Default for Config {
             },
             mesh: MeshConfig {
                 variance_show: 1.0,
-                max_slope_deg: 60.0,
+                max_slope_deg: 55.0,
             },
         }
     }

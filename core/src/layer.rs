@@ -228,13 +228,11 @@ mod tests {
             l.triangles(&table, shown).count()
         };
         assert_eq!(count(90.0), 50);
-        assert_eq!(count(60.0), 40, "the 5 quads across the step are hidden");
-        // A 45-degree slope is kept at 60.
-        let (slope, lat) = plane(|a, _| a);
-        let shown = Shown::new(&crate::config::MeshConfig {
-            variance_show: 1.0,
-            max_slope_deg: 60.0,
-        });
+        assert_eq!(count(55.0), 40, "the 5 quads across the step are hidden");
+        // The steepest a surface can be against its best axis, normal (1, 1, 1)/√3 at 54.7
+        // degrees from every axis, is kept at the default 55.
+        let (slope, lat) = plane(|a, b| 1.5 - a - b);
+        let shown = Shown::new(&crate::config::Config::default().mesh);
         assert_eq!(slope.triangles(&lat.table(), shown).count(), 50);
     }
 }
