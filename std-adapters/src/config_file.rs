@@ -330,7 +330,7 @@ mod tests {
             assert_eq!(s.config, changed, "{name}");
             assert_eq!(s.preset, name);
         }
-        assert_eq!(PARAMETERS.len(), 21);
+        assert_eq!(PARAMETERS.len(), 22);
     }
 
     #[test]
