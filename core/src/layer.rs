@@ -119,14 +119,17 @@ impl Layer {
                 .into_iter()
                 .filter(move |t| {
                     self.mean_variance(t) < shown.variance
-                        && self.axis_cosine(lattice, t) >= shown.min_axis_cosine
+                        && self.within_slope(lattice, t, shown.min_axis_cosine)
                 })
         })
     }
 
-    /// The cosine of the angle between triangle `t`'s normal and the layer's axis (1: flat
-    /// across the axis, 0: along it).
-    fn axis_cosine(&self, lattice: &LatticeTable, t: &[usize; 3]) -> f32 {
+    /// Whether the cosine of the angle between triangle `t`'s normal and the layer's axis is
+    /// at least `min_cosine` (compared squared: no root per triangle).
+    fn within_slope(&self, lattice: &LatticeTable, t: &[usize; 3], min_cosine: f32) -> bool {
+        if min_cosine <= 0.0 {
+            return true;
+        }
         let at = |i: usize| lattice.coordinates.get(i).copied().unwrap_or(0.0) as f32;
         let p = |j: usize| {
             [
@@ -143,12 +146,8 @@ impl Layer {
             u[2] * v[0] - u[0] * v[2],
             u[0] * v[1] - u[1] * v[0],
         ];
-        let norm = libm::sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if norm > 0.0 {
-            libm::fabsf(n[2]) / norm
-        } else {
-            0.0
-        }
+        let norm_sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+        n[2] * n[2] >= min_cosine * min_cosine * norm_sq
     }
 
     /// Mean variance of three vertices (`INFINITY` for an index out of range).
