@@ -10,7 +10,7 @@
 //! |---|---|
 //! | range filter, voxel down-sampling | [`filter`] |
 //! | constant-velocity prediction | [`motion`] |
-//! | bucketing points into world-fixed cells | [`bucket`] (keys in [`cell`]) |
+//! | bucketing points into world-fixed cells | [`bucket`] (keys in [`cell`], sorted by [`sort`]) |
 //! | layer choice by PCA | [`pca`] |
 //! | Gaussian-process reconstruction of a layer | [`gp`] on the [`lattice`] |
 //! | location-indexed association, residual combination | [`associate`] |
