@@ -129,6 +129,14 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
         }
     }
     let format = format.ok_or_else(|| FileError::at(path, "PLY header has no format line"))?;
+    // An entry with no properties takes no data, so its count is not bounded by the file:
+    // refuse it rather than make that many entries (the fuzzer's 4·10^9 empty vertices).
+    if let Some(e) = elements.iter().find(|e| e.count > 0 && e.properties.is_empty()) {
+        return Err(FileError::at(
+            path,
+            format!("element {} has {} entries but no properties", e.name, e.count),
+        ));
+    }
     Ok(Header {
         format,
         elements,
@@ -370,6 +378,18 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_element_with_entries_but_no_properties_is_refused() {
+        // Found by the fuzzer: 4 111 111 111 property-less vertices ran out of memory.
+        let bytes = b"ply\nformat ascii 1\nelement vertex 4111111111\nend_header\n2\n";
+        for e in [
+            parse_ply_mesh(Path::new("m.ply"), bytes).unwrap_err(),
+            parse_ply_points(Path::new("m.ply"), bytes).unwrap_err(),
+        ] {
+            assert!(e.to_string().contains("no properties"), "{e}");
+        }
+    }
 
     fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
         crate::test_support::scratch_file("ply", name, bytes)
