@@ -131,10 +131,16 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
     let format = format.ok_or_else(|| FileError::at(path, "PLY header has no format line"))?;
     // An entry with no properties takes no data, so its count is not bounded by the file:
     // refuse it rather than make that many entries (the fuzzer's 4·10^9 empty vertices).
-    if let Some(e) = elements.iter().find(|e| e.count > 0 && e.properties.is_empty()) {
+    if let Some(e) = elements
+        .iter()
+        .find(|e| e.count > 0 && e.properties.is_empty())
+    {
         return Err(FileError::at(
             path,
-            format!("element {} has {} entries but no properties", e.name, e.count),
+            format!(
+                "element {} has {} entries but no properties",
+                e.name, e.count
+            ),
         ));
     }
     Ok(Header {
