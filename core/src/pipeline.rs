@@ -221,7 +221,10 @@ impl<C: Capacity> Pipeline<C> {
             status = RegistrationStatus::Converged;
             for round in 0..rounds {
                 let reach = if round + 1 == rounds { 0 } else { reach };
-                let purpose = Purpose::Register { reach };
+                let purpose = Purpose::Register {
+                    reach,
+                    half_cells: reach > 0 && r.coarse_half_cells,
+                };
                 stats.dropped_layers += self.reconstruct(&pose, cells, purpose, probe).1;
                 probe.enter(Stage::Associate);
                 stats.associate = cells.associate(

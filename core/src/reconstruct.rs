@@ -35,6 +35,9 @@ pub enum Purpose {
     Register {
         /// The round's reach.
         reach: u32,
+        /// Only the cells of [`in_checkerboard`] (a coarse round with
+        /// [`RegisterConfig::coarse_half_cells`](crate::config::RegisterConfig::coarse_half_cells)).
+        half_cells: bool,
     },
     /// The map update: every layer.
     Update,
@@ -49,6 +52,14 @@ pub fn reconstruct_cell(
     cfg: &Config,
     purpose: Purpose,
 ) -> heapless::Vec<ScanLayer, 3> {
+    if let Purpose::Register {
+        half_cells: true, ..
+    } = purpose
+    {
+        if !in_checkerboard(key) {
+            return heapless::Vec::new();
+        }
+    }
     let mut axes = heapless::Vec::<Axis, 3>::new();
     match choose_layers(points) {
         Shape::Surface(a) => axes = a,
@@ -64,7 +75,7 @@ pub fn reconstruct_cell(
     let lattice = cfg.lattice();
     let mut out = heapless::Vec::new();
     for axis in axes {
-        if let Purpose::Register { reach } = purpose {
+        if let Purpose::Register { reach, .. } = purpose {
             if !crate::associate::has_candidates(map, key, axis, reach) {
                 continue;
             }
@@ -80,6 +91,13 @@ pub fn reconstruct_cell(
         }
     }
     out
+}
+
+/// Half the cells, every other one along each axis: those whose indices sum to an even number.
+#[inline]
+pub fn in_checkerboard(key: CellKey) -> bool {
+    // The low bit of a two's-complement integer is its parity, negative ones included.
+    (key.x ^ key.y ^ key.z) & 1 == 0
 }
 
 /// The loops over a scan's points (filter), cells (reconstruction) and layers
@@ -157,4 +175,62 @@ pub fn append_layers(
     layers: heapless::Vec<ScanLayer, 3>,
 ) -> usize {
     layers.into_iter().filter(|l| out.push(*l).is_err()).count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lattice::VERTICES;
+
+    /// A flat ground patch, cell-local, 20 x 20 points over a 1.6 m cell at height 0.5.
+    fn ground() -> heapless::Vec<(CellKey, Point), 400> {
+        (0..400)
+            .map(|i| {
+                let (a, b) = ((i / 20) as f32 * 0.08 + 0.04, (i % 20) as f32 * 0.08 + 0.04);
+                (CellKey::default(), [a, b, 0.5])
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_checkerboard_holds_every_other_cell_negative_indices_included() {
+        let parity = |x: i32, y: i32, z: i32| in_checkerboard(CellKey::new(x, y, z));
+        assert!(parity(0, 0, 0) && parity(1, 1, 0) && parity(-1, 0, 1) && parity(-3, -5, 0));
+        assert!(!parity(1, 0, 0) && !parity(0, 0, -1) && !parity(-1, -1, -1));
+        // Each cell's six face neighbours are on the other colour.
+        for key in [CellKey::new(4, -7, 2), CellKey::new(-1, 0, 3)] {
+            for (dx, dy, dz) in [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1)] {
+                let n = CellKey::new(key.x + dx, key.y + dy, key.z + dz);
+                assert_ne!(in_checkerboard(key), in_checkerboard(n));
+            }
+        }
+    }
+
+    #[test]
+    fn coarse_rounds_with_half_cells_skip_the_other_colour_only() {
+        let cfg = Config::default();
+        let mut map = MeshMap::with_capacity(8, 8, cfg.lattice());
+        let flat = Layer {
+            pred: [0.5; VERTICES],
+            var: [0.05; VERTICES],
+        };
+        let (even, odd) = (CellKey::new(2, 0, 0), CellKey::new(3, 0, 0));
+        for key in [even, odd] {
+            map.insert_layer(key, Axis::Z, flat, 0).unwrap();
+        }
+        let points = ground();
+        let layers = |key, purpose| reconstruct_cell(&points, key, &map, &cfg, purpose).len();
+        let coarse = Purpose::Register {
+            reach: 1,
+            half_cells: true,
+        };
+        let all = Purpose::Register {
+            reach: 1,
+            half_cells: false,
+        };
+        assert_eq!(layers(even, coarse), 1);
+        assert_eq!(layers(odd, coarse), 0);
+        assert_eq!(layers(odd, all), 1);
+        assert_eq!(layers(odd, Purpose::Update), 1);
+    }
 }

@@ -125,6 +125,7 @@ parameters! {
     "register" register.initial_iterations: count as uv, "Rounds while the motion is still unknown (the second scan).";
     "register" register.initial_cross_cell_overlap: count as iv, "Cross-cell reach while the motion is still unknown.";
     "register" register.variance_register: float as fv, "Vertices with a variance at or above this are not registered against.";
+    "register" register.coarse_half_cells: boolean as Value::Boolean, "Rounds with a cross-cell reach reconstruct every other cell (a 3D checkerboard).";
     "register.lm" register.lm.max_iterations: count as uv, "Levenberg-Marquardt iterations per round.";
     "register.lm" register.lm.tolerance: float as fv, "Stop when the update's norm is below this.";
     "register.lm" register.lm.huber_delta_m: float as fv, "Huber loss threshold (metres).";
