@@ -377,7 +377,7 @@ pub fn predict(
     let var = match variances {
         Variances::Exact => exact_variances(&l32, &inv_diag32, &mut ks, m),
         Variances::Below(threshold) => {
-            bounded_variances(&l32, &inv_diag32, &ks, m, noise, &factor, threshold)
+            bounded_variances(&l32, &inv_diag32, &mut ks, m, noise, &factor, threshold)
         }
     };
     let mut layer = Layer::UNKNOWN;
@@ -401,13 +401,28 @@ fn exact_variances(
     ks: &mut VertexKernel,
     m: usize,
 ) -> [f64; VERTICES] {
-    let mut explained = [0.0f32; VERTICES];
+    forward_solve(l, inv_diag, ks, m).map(|e| 1.0 - f64::from(e))
+}
+
+/// Columns solved together: three 128-bit vectors, kept in registers over a whole row's sum.
+const BLOCK: usize = 12;
+
+/// Applies `L⁻¹` in place to the `W` columns of `cols` (rows `0..m`; `W` a multiple of
+/// [`BLOCK`]) and returns each column's `|L⁻¹ k|²`. Every column is computed by the same
+/// sequence of operations whatever `W` is and wherever the column sits, so a vertex's
+/// variance is the same to the bit when solved alone among a few columns or with all 36.
+fn forward_solve<const W: usize>(
+    l: &Factor32,
+    inv_diag: &[f32; MAX_TRAINING],
+    cols: &mut [[f32; W]; MAX_TRAINING],
+    m: usize,
+) -> [f32; W] {
+    const { assert!(W % BLOCK == 0) };
+    let mut explained = [0.0f32; W];
     for i in 0..m {
-        let (done, rest) = ks.split_at_mut(i);
+        let (done, rest) = cols.split_at_mut(i);
         let Some(row) = rest.first_mut() else { break };
-        // Twelve columns at a time (three vectors), kept in registers over the whole sum.
-        const BLOCK: usize = 12;
-        for c in (0..VERTICES).step_by(BLOCK) {
+        for c in (0..W).step_by(BLOCK) {
             let mut acc = [0.0f32; BLOCK];
             acc.copy_from_slice(&row[c..c + BLOCK]);
             for (x, prev) in l[i].iter().zip(done.iter()) {
@@ -422,15 +437,16 @@ fn exact_variances(
             }
         }
     }
-    explained.map(|e| 1.0 - f64::from(e))
+    explained
 }
 
 /// Variances (before the extrapolation `factor`) exact where they could reach `threshold`
-/// and bounded by the nearest sample's where they cannot (see [`Variances::Below`]).
+/// and bounded by the nearest sample's where they cannot (see [`Variances::Below`]). The
+/// vertices that need the exact value are gathered into the narrowest solve that holds them.
 fn bounded_variances(
     l: &Factor32,
     inv_diag: &[f32; MAX_TRAINING],
-    ks: &VertexKernel,
+    ks: &mut VertexKernel,
     m: usize,
     noise: f64,
     factor: &[f64; VERTICES],
@@ -443,39 +459,51 @@ fn bounded_variances(
         }
     }
     let mut var = [0.0f64; VERTICES];
+    let mut exact = heapless::Vec::<usize, VERTICES>::new();
     for j in 0..VERTICES {
         let k = f64::from(nearest[j]);
         let bound = 1.0 - k * k / (1.0 + noise);
-        var[j] = if bound * factor[j] < threshold {
-            bound
+        if bound * factor[j] < threshold {
+            var[j] = bound;
         } else {
-            exact_variance(l, inv_diag, ks, m, j)
-        };
+            // At most VERTICES vertices: cannot overflow.
+            let _ = exact.push(j);
+        }
+    }
+    match exact.len() {
+        0 => {}
+        1..=BLOCK => solve_some::<BLOCK>(l, inv_diag, ks, m, &exact, &mut var),
+        n if n <= 2 * BLOCK => solve_some::<{ 2 * BLOCK }>(l, inv_diag, ks, m, &exact, &mut var),
+        _ => {
+            let all = exact_variances(l, inv_diag, ks, m);
+            for &j in &exact {
+                var[j] = all[j];
+            }
+        }
     }
     var
 }
 
-/// `σ*² = 1 - |L⁻¹ k*|²` at vertex `j` alone, summed in the order of [`exact_variances`]
-/// (so the two agree to the bit).
-fn exact_variance(
+/// The exact variances of the vertices `which` (at most `W`), gathered from `ks` into a
+/// `W`-column solve, written into `var`.
+fn solve_some<const W: usize>(
     l: &Factor32,
     inv_diag: &[f32; MAX_TRAINING],
     ks: &VertexKernel,
     m: usize,
-    j: usize,
-) -> f64 {
-    let mut v = [0.0f32; MAX_TRAINING];
-    let mut explained = 0.0f32;
-    for i in 0..m {
-        let mut acc = ks[i][j];
-        for (x, prev) in l[i].iter().zip(&v[..i]) {
-            acc -= x * prev;
+    which: &[usize],
+    var: &mut [f64; VERTICES],
+) {
+    let mut cols = [[0.0f32; W]; MAX_TRAINING];
+    for (dst, src) in cols.iter_mut().zip(&ks[..m]) {
+        for (d, &j) in dst.iter_mut().zip(which) {
+            *d = src[j];
         }
-        let x = acc * inv_diag[i];
-        v[i] = x;
-        explained += x * x;
     }
-    1.0 - f64::from(explained)
+    let explained = forward_solve(l, inv_diag, &mut cols, m);
+    for (&e, &j) in explained.iter().zip(which) {
+        var[j] = 1.0 - f64::from(e);
+    }
 }
 
 #[cfg(test)]
