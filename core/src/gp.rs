@@ -417,7 +417,7 @@ fn forward_solve<const W: usize>(
     cols: &mut [[f32; W]; MAX_TRAINING],
     m: usize,
 ) -> [f32; W] {
-    const { assert!(W % BLOCK == 0) };
+    const { assert!(W.is_multiple_of(BLOCK)) };
     let mut explained = [0.0f32; W];
     for i in 0..m {
         let (done, rest) = cols.split_at_mut(i);
