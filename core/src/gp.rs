@@ -11,8 +11,8 @@
 //! beyond samples, which bends slopes at the cell faces (see
 //! `reproduces_plane_slope_and_curved_surface_within_5mm`). A plane mean is exact on planes
 //! and slopes and leaves the GP only the curvature.
-//! A 36 x 36 Cholesky factor and the 36 x 36 sample-to-vertex kernel on the stack (about
-//! 20 KB), no heap. Predictions are clamped into the cell; a vertex outside the training
+//! The Cholesky factor (a packed lower triangle, in f64 and an f32 copy) and the 36 x 36
+//! sample-to-vertex kernel on the stack (about 14 KB), no heap. Predictions are clamped into the cell; a vertex outside the training
 //! inputs' bounding box gets twice its variance.
 
 // The triangular factorization and solves read best with explicit indices.
@@ -271,45 +271,47 @@ pub fn predict(
     }
     let kappa = cfg.kappa_per_m;
     let noise = cfg.sensor_noise_m * cfg.sensor_noise_m;
-    // Lower-triangular Cholesky factor of K + σ² I, in place, row by row.
-    let mut l = [[0.0f64; MAX_TRAINING]; MAX_TRAINING];
+    // Lower-triangular Cholesky factor of K + σ² I, in place, row by row, packed.
+    let mut l = [0.0f64; PACKED];
     for i in 0..m {
         let si = samples[i];
-        let row = &mut l[i][..=i];
+        let row = &mut l[row_start(i)..=row_start(i) + i];
         for (v, sj) in row.iter_mut().zip(samples) {
             *v = kernel_exponent(kappa, si[0] - sj[0], si[1] - sj[1]);
         }
         for v in row.iter_mut() {
             *v = crate::math::exp(*v);
         }
-        l[i][i] += noise;
+        l[row_start(i) + i] += noise;
     }
     // 1 / L_ii, so that the solves multiply instead of divide.
     let mut inv_diag = [0.0f64; MAX_TRAINING];
     for i in 0..m {
+        let ri = row_start(i);
         for j in 0..i {
-            let v = l[i][j] - dot(&l[i][..j], &l[j][..j]);
-            l[i][j] = v * inv_diag[j];
+            let rj = row_start(j);
+            let v = l[ri + j] - dot(&l[ri..ri + j], &l[rj..rj + j]);
+            l[ri + j] = v * inv_diag[j];
         }
-        let diag = l[i][i] - dot(&l[i][..i], &l[i][..i]);
+        let diag = l[ri + i] - dot(&l[ri..ri + i], &l[ri..ri + i]);
         if !(diag > 0.0 && diag.is_finite()) {
             return Err(GpError::NotPositiveDefinite);
         }
-        l[i][i] = libm::sqrt(diag);
-        inv_diag[i] = 1.0 / l[i][i];
+        l[ri + i] = libm::sqrt(diag);
+        inv_diag[i] = 1.0 / l[ri + i];
     }
     // α = (K + σ² I)⁻¹ (f - m(u)): forward, then backward substitution.
     let mean = plane_mean(samples);
     let mut alpha = [0.0f64; MAX_TRAINING];
     for i in 0..m {
         let s = samples[i];
-        let v = s[2] - mean.at(s[0], s[1]) - dot(&l[i][..i], &alpha[..i]);
+        let v = s[2] - mean.at(s[0], s[1]) - dot(&l[row_start(i)..][..i], &alpha[..i]);
         alpha[i] = v * inv_diag[i];
     }
     for i in (0..m).rev() {
         let mut v = alpha[i];
         for k in i + 1..m {
-            v -= l[k][i] * alpha[k];
+            v -= l[row_start(k) + i] * alpha[k];
         }
         alpha[i] = v * inv_diag[i];
     }
@@ -367,11 +369,9 @@ pub fn predict(
         }
     }
     // The factor in f32 for the variances' solves.
-    let mut l32 = [[0.0f32; MAX_TRAINING]; MAX_TRAINING];
-    for i in 0..m {
-        for k in 0..=i {
-            l32[i][k] = l[i][k] as f32;
-        }
+    let mut l32 = [0.0f32; PACKED];
+    for (d, v) in l32.iter_mut().zip(&l[..row_start(m)]) {
+        *d = *v as f32;
     }
     let inv_diag32 = inv_diag.map(|v| v as f32);
     let var = match variances {
@@ -388,8 +388,18 @@ pub fn predict(
     Ok(layer)
 }
 
-/// The lower-triangular factor, in f32.
-type Factor32 = [[f32; MAX_TRAINING]; MAX_TRAINING];
+/// Entries of a lower triangle of [`MAX_TRAINING`] rows, stored row after row (a full
+/// square would be twice the stack to clear on every call).
+const PACKED: usize = MAX_TRAINING * (MAX_TRAINING + 1) / 2;
+
+/// Where row `i` of a packed lower triangle starts (it holds `i + 1` entries).
+#[inline]
+const fn row_start(i: usize) -> usize {
+    i * (i + 1) / 2
+}
+
+/// The lower-triangular factor, in f32, packed.
+type Factor32 = [f32; PACKED];
 /// The sample-to-vertex kernel, in f32.
 type VertexKernel = [[f32; VERTICES]; MAX_TRAINING];
 
@@ -425,7 +435,7 @@ fn forward_solve<const W: usize>(
         for c in (0..W).step_by(BLOCK) {
             let mut acc = [0.0f32; BLOCK];
             acc.copy_from_slice(&row[c..c + BLOCK]);
-            for (x, prev) in l[i].iter().zip(done.iter()) {
+            for (x, prev) in l[row_start(i)..][..i].iter().zip(done.iter()) {
                 for q in 0..BLOCK {
                     acc[q] -= x * prev[c + q];
                 }
