@@ -331,7 +331,7 @@ mod tests {
             assert_eq!(s.config, changed, "{name}");
             assert_eq!(s.preset, name);
         }
-        assert_eq!(PARAMETERS.len(), 22);
+        assert_eq!(PARAMETERS.len(), 23);
     }
 
     #[test]
