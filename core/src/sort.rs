@@ -94,14 +94,16 @@ struct Layout {
 impl Layout {
     /// The layout for the keys of `entries`, if they fit 64 bits.
     fn of(entries: &[Entry]) -> Option<Self> {
-        let mut min = [i64::MAX; 3];
-        let mut max = [i64::MIN; 3];
+        // Written out per coordinate: rustc 1.95 (LLVM 20) with `-C target-cpu=x86-64-v3`
+        // miscompiled the loop over `[k.x, k.y, k.z]` that was here into one that ran past
+        // the end of `entries` (a segfault in safe code; nightly 1.97 compiles it correctly).
+        // `.ci/run` builds and runs the core's tests for x86-64-v3 to catch such things.
+        let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
         for (k, _) in entries {
-            for (c, v) in [k.x, k.y, k.z].into_iter().enumerate() {
-                min[c] = min[c].min(i64::from(v));
-                max[c] = max[c].max(i64::from(v));
-            }
+            lo = [lo[0].min(k.x), lo[1].min(k.y), lo[2].min(k.z)];
+            hi = [hi[0].max(k.x), hi[1].max(k.y), hi[2].max(k.z)];
         }
+        let (min, max) = (lo.map(i64::from), hi.map(i64::from));
         let width = |span: u64| u64::BITS - span.leading_zeros();
         let bits: [u32; 3] = core::array::from_fn(|c| width(max[c].abs_diff(min[c])));
         let total_bits = bits.iter().sum::<u32>();
