@@ -4,11 +4,13 @@
 //! cell-local (metres from the cell's minimum corner, so `f32` keeps sub-micrometre precision
 //! anywhere in the world) and sorted by key: a cell's points are one contiguous run. Cells with
 //! fewer than `min_points` points are skipped. When the cell list is full, further cells are
-//! dropped in key order and counted. Owns no memory.
+//! dropped in key order and counted. Owns no memory. The per-point step ([`Placement::point`])
+//! runs through the [`CellLoop`], so a parallel loop can place the points.
 
 use crate::bounded::BoundedVec;
 use crate::cell::CellKey;
 use crate::math::{to_point, to_vec3, Point, Pose};
+use crate::reconstruct::CellLoop;
 use crate::sort::KeySorter;
 
 /// A cell of the current scan: its key and its run of points in the bucketed buffer.
@@ -46,8 +48,50 @@ pub struct BucketStats {
     pub dropped_cells: usize,
 }
 
+/// Where one point goes: moved into the world by the pose, keyed by its cell, and stored
+/// relative to the cell's minimum corner.
+#[derive(Debug, Clone, Copy)]
+pub struct Placement {
+    t_world_sensor: Pose,
+    cell_size: f64,
+}
+
+impl Placement {
+    /// Placement at `t_world_sensor` in cells of edge `cell_size`.
+    pub fn new(t_world_sensor: &Pose, cell_size: f64) -> Self {
+        Self {
+            t_world_sensor: *t_world_sensor,
+            cell_size,
+        }
+    }
+
+    /// The cell of sensor-frame point `p` and `p` relative to the cell's minimum corner;
+    /// `None` when the point is beyond the key range (or not finite).
+    #[inline]
+    pub fn point(&self, p: &Point) -> Option<(CellKey, Point)> {
+        let w = self.t_world_sensor * nalgebra::Point3::from(to_vec3(p));
+        let key = CellKey::containing(&w.coords, self.cell_size)?;
+        let local = w.coords - key.min_corner(self.cell_size);
+        Some((key, to_point(&local)))
+    }
+}
+
+/// Appends the placed points, in order, to `out`; points without a cell are left out, and so
+/// are those beyond `out`'s capacity.
+pub fn collect(
+    placed: impl Iterator<Item = Option<(CellKey, Point)>>,
+    out: &mut BoundedVec<(CellKey, Point)>,
+) {
+    for e in placed.flatten() {
+        if out.push(e).is_err() {
+            break;
+        }
+    }
+}
+
 /// Buckets `points_sensor` moved by `t_world_sensor` into cells of edge `cell_size`
-/// (`sorter` is scratch space).
+/// (`sorter` is scratch space; `loops` places the points).
+#[allow(clippy::too_many_arguments)]
 pub fn bucket(
     points_sensor: &[Point],
     t_world_sensor: &Pose,
@@ -56,17 +100,16 @@ pub fn bucket(
     bucketed: &mut BoundedVec<(CellKey, Point)>,
     sorter: &mut KeySorter,
     cells: &mut BoundedVec<CellSpan>,
+    loops: &impl CellLoop,
 ) -> BucketStats {
     bucketed.clear();
     cells.clear();
-    for p in points_sensor {
-        let w = t_world_sensor * nalgebra::Point3::from(to_vec3(p));
-        if let Some(key) = CellKey::containing(&w.coords, cell_size) {
-            let local = w.coords - key.min_corner(cell_size);
-            // Same capacity as the points buffer: never full here.
-            let _ = bucketed.push((key, to_point(&local)));
-        }
-    }
+    // The points buffer and `bucketed` have the same capacity: nothing is left out for room.
+    loops.place_points(
+        points_sensor,
+        &Placement::new(t_world_sensor, cell_size),
+        bucketed,
+    );
     sorter.sort(bucketed);
     let mut stats = BucketStats::default();
     let mut start = 0usize;
@@ -117,6 +160,7 @@ mod tests {
             &mut b,
             &mut KeySorter::with_capacity(8),
             &mut c,
+            &crate::reconstruct::Serial,
         );
         assert_eq!((s.cells, s.sparse_cells), (2, 1));
         assert_eq!(c[0].key, CellKey::new(0, 0, 0));
@@ -142,6 +186,7 @@ mod tests {
             &mut b,
             &mut KeySorter::with_capacity(3),
             &mut c,
+            &crate::reconstruct::Serial,
         );
         assert_eq!(c[0].key, CellKey::new(-1, 0, 0));
         let local = Vec3::new(1.1, 0.5, 0.5);

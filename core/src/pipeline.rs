@@ -357,6 +357,7 @@ impl<C: Capacity> Pipeline<C> {
             &mut self.work,
             &mut self.sorter,
             &mut self.cells,
+            cells,
         );
         self.scan.clear();
         probe.enter(Stage::Reconstruct);

@@ -100,7 +100,7 @@ pub fn in_checkerboard(key: CellKey) -> bool {
     (key.x ^ key.y ^ key.z) & 1 == 0
 }
 
-/// The loops over a scan's points (filter), cells (reconstruction) and layers
+/// The loops over a scan's points (filter, bucketing), cells (reconstruction) and layers
 /// (association). The pipeline's only pluggable part: a parallel implementation (std
 /// adapters) must produce the same points, layers and residuals in the same order.
 pub trait CellLoop {
@@ -127,6 +127,18 @@ pub trait CellLoop {
         stats: &mut crate::filter::FilterStats,
     ) {
         crate::filter::collect(raw.iter().map(|p| prep.point(p)), work, stats)
+    }
+
+    /// Places every scan point in its cell ([`Placement::point`](crate::bucket::Placement::point))
+    /// and collects the placed ones in input order into `out` ([`crate::bucket::collect`]).
+    /// Serial unless overridden.
+    fn place_points(
+        &self,
+        points: &[Point],
+        placement: &crate::bucket::Placement,
+        out: &mut crate::bounded::BoundedVec<(CellKey, Point)>,
+    ) {
+        crate::bucket::collect(points.iter().map(|p| placement.point(p)), out)
     }
 
     /// Associates every scan layer with the map ([`crate::associate::associate`]), one

@@ -1,17 +1,18 @@
-//! Parallel filter, reconstruction and association: the per-point, per-cell and per-layer
-//! loops on a rayon thread pool.
+//! Parallel filter, bucketing, reconstruction and association: the per-point, per-cell and
+//! per-layer loops on a rayon thread pool.
 //!
 //! Only the loops differ from the core's serial [`Serial`](slamesh_core::reconstruct::Serial):
 //! each cell goes through the same [`reconstruct_cell`], and the layers are appended in cell
 //! order by the same [`append_layers`]; each scan layer goes through the same
 //! [`Associator::layer`], collected in scan order by the same [`associate::collect`]; each
 //! raw point through the same [`Preparation::point`], collected in input order by the same
-//! [`filter::collect`]. All give bit-identical results (tested).
+//! [`filter::collect`]; each scan point through the same [`Placement::point`], in input order
+//! as [`bucket::collect`] keeps them. All give bit-identical results (tested).
 
 use rayon::prelude::*;
 use slamesh_core::associate::{self, AssociateStats, Associator};
 use slamesh_core::bounded::BoundedVec;
-use slamesh_core::bucket::CellSpan;
+use slamesh_core::bucket::{self, CellSpan, Placement};
 use slamesh_core::cell::CellKey;
 use slamesh_core::filter::{self, Dropped, FilterStats, Preparation};
 use slamesh_core::lm::Residual;
@@ -40,6 +41,37 @@ impl Rayon {
     /// Number of threads in the pool.
     pub fn threads(&self) -> usize {
         self.pool.current_num_threads()
+    }
+
+    /// Appends what `task` keeps of `src` to `dst`, in input order, as a serial loop would.
+    /// `src` is cut into tasks of [`POINTS_PER_TASK`]; each task writes its kept items to the
+    /// front of its own stretch of `dst` and returns how many it kept and its counts, and
+    /// the stretches are then closed up in order. `dst` must have room for all of `src`.
+    fn filter_map_in_place<T: Sync, R: Send>(
+        &self,
+        src: &[T],
+        dst: &mut BoundedVec<(CellKey, Point)>,
+        task: impl Fn(&[T], &mut [(CellKey, Point)]) -> (usize, R) + Sync,
+    ) -> Vec<R> {
+        let start = dst.len();
+        dst.extend_default(start + src.len());
+        let per_task: Vec<(usize, R)> = self.pool.install(|| {
+            dst[start..]
+                .par_chunks_mut(POINTS_PER_TASK)
+                .zip(src.par_chunks(POINTS_PER_TASK))
+                .map(|(d, s)| task(s, d))
+                .collect()
+        });
+        let mut end = start;
+        let mut counts = Vec::with_capacity(per_task.len());
+        for (k, (kept, r)) in per_task.into_iter().enumerate() {
+            let from = start + k * POINTS_PER_TASK;
+            dst.copy_within(from..from + kept, end);
+            end += kept;
+            counts.push(r);
+        }
+        dst.truncate(end);
+        counts
     }
 }
 
@@ -76,39 +108,44 @@ impl CellLoop for Rayon {
             // Some would not fit: the serial loop drops them in input order.
             return filter::collect(raw.iter().map(|p| prep.point(p)), work, stats);
         }
-        // Each task writes its kept points to the front of its own stretch of `work`; the
-        // stretches are then closed up in order, which is what the serial loop writes.
-        let start = work.len();
-        work.extend_default(start + raw.len());
-        let per_task: Vec<FilterStats> = self.pool.install(|| {
-            work[start..]
-                .par_chunks_mut(POINTS_PER_TASK)
-                .zip(raw.par_chunks(POINTS_PER_TASK))
-                .map(|(dst, src)| {
-                    let mut s = FilterStats::default();
-                    for p in src {
-                        match prep.point(p) {
-                            Ok(e) => {
-                                dst[s.kept] = e;
-                                s.kept += 1;
-                            }
-                            Err(Dropped::NonFinite) => s.non_finite += 1,
-                            Err(Dropped::OutOfRange) => s.out_of_range += 1,
-                        }
+        let per_task = self.filter_map_in_place(raw, work, |src, dst| {
+            let mut s = FilterStats::default();
+            for p in src {
+                match prep.point(p) {
+                    Ok(e) => {
+                        dst[s.kept] = e;
+                        s.kept += 1;
                     }
-                    s
-                })
-                .collect()
+                    Err(Dropped::NonFinite) => s.non_finite += 1,
+                    Err(Dropped::OutOfRange) => s.out_of_range += 1,
+                }
+            }
+            (s.kept, s)
         });
-        let mut end = start;
-        for (k, s) in per_task.iter().enumerate() {
-            let from = start + k * POINTS_PER_TASK;
-            work.copy_within(from..from + s.kept, end);
-            end += s.kept;
+        for s in per_task {
             stats.non_finite += s.non_finite;
             stats.out_of_range += s.out_of_range;
         }
-        work.truncate(end);
+    }
+
+    fn place_points(
+        &self,
+        points: &[Point],
+        placement: &Placement,
+        out: &mut BoundedVec<(CellKey, Point)>,
+    ) {
+        if points.len() > out.capacity() - out.len() {
+            // Some would not fit: the serial loop keeps the first ones.
+            return bucket::collect(points.iter().map(|p| placement.point(p)), out);
+        }
+        self.filter_map_in_place(points, out, |src, dst| {
+            let mut kept = 0;
+            for e in src.iter().filter_map(|p| placement.point(p)) {
+                dst[kept] = e;
+                kept += 1;
+            }
+            (kept, ())
+        });
     }
 
     fn associate(
@@ -197,6 +234,18 @@ impl CellLoop for Workers {
         match self {
             Workers::Serial => filter::collect(raw.iter().map(|p| prep.point(p)), work, stats),
             Workers::Pool(r) => r.prepare_points(raw, prep, work, stats),
+        }
+    }
+
+    fn place_points(
+        &self,
+        points: &[Point],
+        placement: &Placement,
+        out: &mut BoundedVec<(CellKey, Point)>,
+    ) {
+        match self {
+            Workers::Serial => bucket::collect(points.iter().map(|p| placement.point(p)), out),
+            Workers::Pool(r) => r.place_points(points, placement, out),
         }
     }
 }
