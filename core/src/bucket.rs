@@ -89,13 +89,11 @@ pub fn collect(
     }
 }
 
-/// Buckets `points_sensor` moved by `t_world_sensor` into cells of edge `cell_size`
-/// (`sorter` is scratch space; `loops` places the points).
-#[allow(clippy::too_many_arguments)]
+/// Buckets `points_sensor` into cells as `placement` places them (`sorter` is scratch space;
+/// `loops` runs the placement).
 pub fn bucket(
     points_sensor: &[Point],
-    t_world_sensor: &Pose,
-    cell_size: f64,
+    placement: &Placement,
     min_points: usize,
     bucketed: &mut BoundedVec<(CellKey, Point)>,
     sorter: &mut KeySorter,
@@ -105,11 +103,7 @@ pub fn bucket(
     bucketed.clear();
     cells.clear();
     // The points buffer and `bucketed` have the same capacity: nothing is left out for room.
-    loops.place_points(
-        points_sensor,
-        &Placement::new(t_world_sensor, cell_size),
-        bucketed,
-    );
+    loops.place_points(points_sensor, placement, bucketed);
     sorter.sort(bucketed);
     let mut stats = BucketStats::default();
     let mut start = 0usize;
@@ -154,8 +148,7 @@ mod tests {
         let t = Pose::translation(0.0, 0.0, 0.0);
         let s = bucket(
             &pts,
-            &t,
-            1.6,
+            &Placement::new(&t, 1.6),
             2,
             &mut b,
             &mut KeySorter::with_capacity(8),
@@ -180,8 +173,7 @@ mod tests {
         let t = Pose::translation(-1.0, 0.0, 0.0);
         bucket(
             &pts,
-            &t,
-            1.6,
+            &Placement::new(&t, 1.6),
             1,
             &mut b,
             &mut KeySorter::with_capacity(3),

@@ -7,7 +7,7 @@
 
 use crate::associate::AssociateStats;
 use crate::bounded::BoundedVec;
-use crate::bucket::{bucket, BucketStats, CellSpan};
+use crate::bucket::{bucket, BucketStats, CellSpan, Placement};
 use crate::capacity::{Capacity, KittiCapacity};
 use crate::cell::CellKey;
 use crate::config::{Config, ConfigError};
@@ -351,8 +351,7 @@ impl<C: Capacity> Pipeline<C> {
         let g = &self.config.grid;
         let b = bucket(
             &self.points,
-            pose,
-            g.cell_size_m,
+            &Placement::new(pose, g.cell_size_m),
             g.min_points,
             &mut self.work,
             &mut self.sorter,
