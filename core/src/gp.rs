@@ -12,8 +12,8 @@
 //! `reproduces_plane_slope_and_curved_surface_within_5mm`). A plane mean is exact on planes
 //! and slopes and leaves the GP only the curvature.
 //! The Cholesky factor (a packed lower triangle, in f64 and an f32 copy) and the 36 x 36
-//! sample-to-vertex kernel on the stack (about 14 KB), no heap. Predictions are clamped into the cell; a vertex outside the training
-//! inputs' bounding box gets twice its variance.
+//! sample-to-vertex kernel on the stack (about 14 KB), no heap. Predictions are clamped into
+//! the cell; a vertex outside the training inputs' bounding box gets twice its variance.
 
 // The triangular factorization and solves read best with explicit indices.
 #![allow(clippy::needless_range_loop)]
