@@ -190,6 +190,14 @@ impl Workers {
             Workers::Pool(r) => r.threads(),
         }
     }
+
+    /// `Σ count(item)` over `items` (a sum of integers: the same in any order).
+    pub fn sum<T: Sync>(&self, items: &[T], count: impl Fn(&T) -> usize + Sync) -> usize {
+        match self {
+            Workers::Serial => items.iter().map(count).sum(),
+            Workers::Pool(r) => r.pool.install(|| items.par_iter().map(&count).sum()),
+        }
+    }
 }
 
 impl CellLoop for Workers {

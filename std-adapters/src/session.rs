@@ -329,7 +329,7 @@ pub fn run<C: Capacity>(
                 rec.conditioning = o.stats.conditioning;
                 rec.degenerate_directions = o.stats.degenerate_directions;
                 let t = Instant::now();
-                rec.triangles_updated = updated_triangles(&pipeline);
+                rec.triangles_updated = updated_triangles(&pipeline, &workers);
                 rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
                 let t = Instant::now();
                 if !window.is_off() {
@@ -447,15 +447,14 @@ pub fn mesh_file_path(out: &Path, format: MeshFormat) -> PathBuf {
 }
 
 /// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).
-fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>) -> usize {
+fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>, workers: &Workers) -> usize {
     let shown = Shown::new(&pipeline.config().mesh);
     let lattice = pipeline.map().lattice().table();
-    pipeline
-        .last_scan()
-        .iter()
-        .filter_map(|s| pipeline.map().layer(&s.key, s.axis))
-        .map(|l| l.triangles(&lattice, shown).count())
-        .sum()
+    let map = pipeline.map();
+    workers.sum(pipeline.last_scan(), |s| {
+        map.layer(&s.key, s.axis)
+            .map_or(0, |l| l.triangles(&lattice, shown).count())
+    })
 }
 
 /// Median and 95th percentile of each stage over `ms`, in [`StageMs::NAMES`] order.
