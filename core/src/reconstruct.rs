@@ -6,7 +6,7 @@
 
 use crate::cell::{Axis, CellKey};
 use crate::config::Config;
-use crate::gp;
+use crate::gp::{self, GpScratch};
 use crate::layer::Layer;
 use crate::map::MeshMap;
 use crate::math::Point;
@@ -44,8 +44,10 @@ pub enum Purpose {
 }
 
 /// Reconstructs the layers of cell `key` from its cell-local `points` (at most three layers;
-/// a layer whose GP fails is left out, and so is one `purpose` has no use for).
+/// a layer whose GP fails is left out, and so is one `purpose` has no use for). `scratch` is
+/// the GP's working memory (any content: the result does not depend on it).
 pub fn reconstruct_cell(
+    scratch: &mut GpScratch,
     points: &[(CellKey, Point)],
     key: CellKey,
     map: &MeshMap,
@@ -85,7 +87,7 @@ pub fn reconstruct_cell(
             Purpose::Update => gp::Variances::Exact,
         };
         let samples = gp::select_training(points, axis, lattice.cell_size);
-        if let Ok(layer) = gp::predict(&samples, &lattice, &cfg.gp, variances) {
+        if let Ok(layer) = gp::predict_in(scratch, &samples, &lattice, &cfg.gp, variances) {
             // At most three axes: cannot overflow.
             let _ = out.push(ScanLayer { key, axis, layer });
         }
@@ -170,10 +172,12 @@ impl CellLoop for Serial {
         purpose: Purpose,
         out: &mut crate::bounded::BoundedVec<ScanLayer>,
     ) -> usize {
+        let mut scratch = GpScratch::new();
         cells
             .iter()
             .map(|c| {
-                let layers = reconstruct_cell(c.points(bucketed), c.key, map, cfg, purpose);
+                let points = c.points(bucketed);
+                let layers = reconstruct_cell(&mut scratch, points, c.key, map, cfg, purpose);
                 append_layers(out, layers)
             })
             .sum()
@@ -231,7 +235,9 @@ mod tests {
             map.insert_layer(key, Axis::Z, flat, 0).unwrap();
         }
         let points = ground();
-        let layers = |key, purpose| reconstruct_cell(&points, key, &map, &cfg, purpose).len();
+        let mut scratch = GpScratch::new();
+        let mut layers =
+            |key, purpose| reconstruct_cell(&mut scratch, &points, key, &map, &cfg, purpose).len();
         let coarse = Purpose::Register {
             reach: 1,
             half_cells: true,

@@ -37,19 +37,31 @@ fn gp_layer(c: &mut Criterion) {
     });
     let samples = gp::select_training(&points, Axis::Z, lattice.cell_size);
     assert_eq!(samples.len(), 36);
+    // As the pipeline calls it: one working memory for all the layers.
+    let mut scratch = gp::GpScratch::new();
+    let exact = gp::Variances::Exact;
     c.bench_function("gp/predict (36 samples)", |b| {
         b.iter(|| {
-            gp::predict(
+            gp::predict_in(
+                &mut scratch,
                 black_box(&samples),
                 &lattice,
                 &config.gp,
-                gp::Variances::Exact,
+                exact,
             )
         })
     });
     let below = gp::Variances::Below(config.register.variance_register);
     c.bench_function("gp/predict (36 samples, registration)", |b| {
-        b.iter(|| gp::predict(black_box(&samples), &lattice, &config.gp, below))
+        b.iter(|| {
+            gp::predict_in(
+                &mut scratch,
+                black_box(&samples),
+                &lattice,
+                &config.gp,
+                below,
+            )
+        })
     });
 }
 

@@ -15,6 +15,7 @@ use slamesh_core::bounded::BoundedVec;
 use slamesh_core::bucket::{self, CellSpan, Placement};
 use slamesh_core::cell::CellKey;
 use slamesh_core::filter::{self, Dropped, FilterStats, Preparation};
+use slamesh_core::gp::GpScratch;
 use slamesh_core::lm::Residual;
 use slamesh_core::map::MeshMap;
 use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, Purpose, ScanLayer};
@@ -88,7 +89,9 @@ impl CellLoop for Rayon {
         let per_cell: Vec<_> = self.pool.install(|| {
             cells
                 .par_iter()
-                .map(|c| reconstruct_cell(c.points(bucketed), c.key, map, cfg, purpose))
+                .map_init(GpScratch::new, |scratch, c| {
+                    reconstruct_cell(scratch, c.points(bucketed), c.key, map, cfg, purpose)
+                })
                 .collect()
         });
         per_cell
