@@ -191,3 +191,65 @@ fn pcd_and_ply_folders_run_and_mesh_mode_uses_the_given_poses() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn bench_times_every_stage_with_a_configuration_file() {
+    let dir = scratch("bench");
+    let (_, scans) = drive(4);
+    for (i, s) in scans.iter().enumerate() {
+        write_bin(&dir.join(format!("{i:06}.bin")), s);
+    }
+    let cfg = dir.join("full.toml");
+    std::fs::write(
+        &cfg,
+        "preset = \"kitti\"\n[register]\ncoarse_half_cells = false\n",
+    )
+    .unwrap();
+    let args = |config: &Path| {
+        let config = config.to_str().unwrap().to_string();
+        let input = dir.to_str().unwrap().to_string();
+        [
+            "bench".to_string(),
+            input,
+            "--config".into(),
+            config,
+            "--threads".into(),
+            "1".into(),
+            "--repeat".into(),
+            "2".into(),
+            "--json".into(),
+        ]
+    };
+    let a = args(&cfg);
+    let o = slamesh_ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let b: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(b["preset"], "kitti", "{b}");
+    assert_eq!(b["threads"], 1);
+    assert_eq!(b["scans_timed"], 8, "two passes over four scans: {b}");
+    for stage in [
+        "filter",
+        "bucket",
+        "reconstruct",
+        "associate",
+        "solve",
+        "update",
+        "mesh",
+    ] {
+        let s = &b["stages"][stage];
+        assert!(s["median_ms"].as_f64().unwrap() >= 0.0, "{stage}: {b}");
+        assert!(s["p95_ms"].as_f64().unwrap() >= s["median_ms"].as_f64().unwrap());
+    }
+    assert!(b["stages"]["reconstruct"]["median_ms"].as_f64().unwrap() > 0.0);
+
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[register]\ncoarse_half_cells = 3\n").unwrap();
+    let a = args(&bad);
+    let o = common::slamesh(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!o.status.success());
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("bad.toml") && e.contains("coarse_half_cells"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -81,8 +81,12 @@ enum Command {
         /// Scans, as for `run`.
         input: PathBuf,
         /// Parameter preset.
-        #[arg(long, default_value = "default", value_parser = PRESETS)]
+        #[arg(long, default_value = "default", value_parser = PRESETS, conflicts_with = "config")]
         preset: String,
+        /// A TOML configuration file instead of the preset (its [window] section is not used:
+        /// bench times the pipeline without eviction).
+        #[arg(long)]
+        config: Option<PathBuf>,
         /// Reconstruction threads (1: serial; 0: one per core).
         #[arg(long, default_value_t = 0)]
         threads: usize,
@@ -221,10 +225,11 @@ fn main() -> ExitCode {
         Command::Bench {
             input,
             preset,
+            config,
             threads,
             repeat,
             json,
-        } => bench_command(&input, &preset, threads, repeat, json),
+        } => bench_command(&input, &preset, config.as_deref(), threads, repeat, json),
         Command::Demo {
             out,
             frames,
@@ -530,15 +535,23 @@ fn build_reference_command(sequence: &Path, out: &Path) -> Result<(), String> {
 fn bench_command(
     input: &Path,
     preset: &str,
+    config: Option<&Path>,
     threads: usize,
     repeat: usize,
     json: bool,
 ) -> Result<(), String> {
+    let (config, preset) = match config {
+        Some(path) => {
+            let s = config_file::read(path).map_err(|e| e.to_string())?;
+            (s.config, s.preset)
+        }
+        None => (config_file::preset(preset).unwrap_or_default(), preset),
+    };
     let mut source = ScanFolder::open(input).map_err(|e| e.to_string())?;
     let out = std::env::temp_dir().join(format!("slamesh-bench-{}", std::process::id()));
     let opts = RunOptions {
         out: out.clone(),
-        config: config_file::preset(preset).unwrap_or_default(),
+        config,
         preset: preset.to_string(),
         window: WindowSettings::default(),
         threads,
