@@ -120,8 +120,12 @@ fn outlier_threshold(samples: &[Sample], plane: &PlaneMean) -> f64 {
         *ri = libm::fabs(s[2] - plane.at(s[0], s[1]));
     }
     let r = &mut r[..n];
-    r.sort_unstable_by(f64::total_cmp);
-    let median = r.get(n / 2).copied().unwrap_or(0.0);
+    // The median alone: selection, not a sort (the same value).
+    let median = if n == 0 {
+        0.0
+    } else {
+        *r.select_nth_unstable_by(n / 2, f64::total_cmp).1
+    };
     (3.0 * 1.4826 * median).max(MIN_OUTLIER_DISTANCE_M)
 }
 
