@@ -226,15 +226,7 @@ fn bench_times_every_stage_with_a_configuration_file() {
     assert_eq!(b["preset"], "kitti", "{b}");
     assert_eq!(b["threads"], 1);
     assert_eq!(b["scans_timed"], 8, "two passes over four scans: {b}");
-    for stage in [
-        "filter",
-        "bucket",
-        "reconstruct",
-        "associate",
-        "solve",
-        "update",
-        "mesh",
-    ] {
+    for stage in slamesh::timing::StageMs::NAMES {
         let s = &b["stages"][stage];
         assert!(s["median_ms"].as_f64().unwrap() >= 0.0, "{stage}: {b}");
         assert!(s["p95_ms"].as_f64().unwrap() >= s["median_ms"].as_f64().unwrap());

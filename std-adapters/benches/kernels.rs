@@ -39,30 +39,18 @@ fn gp_layer(c: &mut Criterion) {
     assert_eq!(samples.len(), 36);
     // As the pipeline calls it: one working memory for all the layers.
     let mut scratch = gp::GpScratch::new();
-    let exact = gp::Variances::Exact;
-    c.bench_function("gp/predict (36 samples)", |b| {
-        b.iter(|| {
-            gp::predict_in(
-                &mut scratch,
-                black_box(&samples),
-                &lattice,
-                &config.gp,
-                exact,
-            )
-        })
-    });
     let below = gp::Variances::Below(config.register.variance_register);
-    c.bench_function("gp/predict (36 samples, registration)", |b| {
-        b.iter(|| {
-            gp::predict_in(
-                &mut scratch,
-                black_box(&samples),
-                &lattice,
-                &config.gp,
-                below,
-            )
-        })
-    });
+    for (name, variances) in [
+        ("gp/predict (36 samples)", gp::Variances::Exact),
+        ("gp/predict (36 samples, registration)", below),
+    ] {
+        c.bench_function(name, |b| {
+            b.iter(|| {
+                let samples = black_box(&samples);
+                gp::predict_in(&mut scratch, samples, &lattice, &config.gp, variances)
+            })
+        });
+    }
 }
 
 fn registration(c: &mut Criterion) {
