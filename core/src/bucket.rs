@@ -90,7 +90,7 @@ pub fn collect(
 }
 
 /// Buckets `points_sensor` into cells as `placement` places them (`sorter` is scratch space;
-/// `loops` runs the placement).
+/// `loops` runs the placement and the sort).
 pub fn bucket(
     points_sensor: &[Point],
     placement: &Placement,
@@ -104,7 +104,7 @@ pub fn bucket(
     cells.clear();
     // The points buffer and `bucketed` have the same capacity: nothing is left out for room.
     loops.place_points(points_sensor, placement, bucketed);
-    sorter.sort(bucketed);
+    loops.sort(sorter, bucketed);
     let mut stats = BucketStats::default();
     let mut start = 0usize;
     while let Some(&(key, _)) = bucketed.get(start) {

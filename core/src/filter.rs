@@ -131,7 +131,7 @@ pub fn collect(
 
 /// Filters `raw` (sensor frame) and down-samples it to one centroid per voxel of edge `leaf_m`,
 /// written to `out` in voxel-key order. `work` and `sorter` are scratch space; `loops` runs
-/// the per-point preparation ([`CellLoop::prepare_points`]).
+/// the per-point preparation ([`CellLoop::prepare_points`]) and the sort ([`CellLoop::sort`]).
 #[allow(clippy::too_many_arguments)]
 pub fn filter_and_downsample(
     raw: &[Point],
@@ -149,20 +149,21 @@ pub fn filter_and_downsample(
         ..FilterStats::default()
     };
     loops.prepare_points(raw, &prep, work, &mut stats);
-    downsample(work, sorter, out, &mut stats);
+    downsample(work, sorter, out, &mut stats, loops);
     stats
 }
 
-/// Sorts the prepared points in `work` by voxel and writes one centroid per voxel to `out`
-/// (cleared first); sets `stats.kept`.
+/// Sorts the prepared points in `work` by voxel (`loops` runs the sort) and writes one
+/// centroid per voxel to `out` (cleared first); sets `stats.kept`.
 pub fn downsample(
     work: &mut BoundedVec<(CellKey, Point)>,
     sorter: &mut KeySorter,
     out: &mut BoundedVec<Point>,
     stats: &mut FilterStats,
+    loops: &impl CellLoop,
 ) {
     out.clear();
-    sorter.sort(work);
+    loops.sort(sorter, work);
     let mut i = 0;
     while let Some(&(key, _)) = work.get(i) {
         let mut sum = Vec3::zeros();

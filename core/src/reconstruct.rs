@@ -102,8 +102,8 @@ pub fn in_checkerboard(key: CellKey) -> bool {
     (key.x ^ key.y ^ key.z) & 1 == 0
 }
 
-/// The loops over a scan's points (filter, bucketing), cells (reconstruction) and layers
-/// (association). The pipeline's only pluggable part: a parallel implementation (std
+/// The loops over a scan's points (filter, bucketing, their sorts), cells (reconstruction) and
+/// layers (association). The pipeline's only pluggable part: a parallel implementation (std
 /// adapters) must produce the same points, layers and residuals in the same order.
 pub trait CellLoop {
     /// Reconstructs `cells` (spans into `bucketed`) and appends their layers to `out` in cell
@@ -129,6 +129,16 @@ pub trait CellLoop {
         stats: &mut crate::filter::FilterStats,
     ) {
         crate::filter::collect(raw.iter().map(|p| prep.point(p)), work, stats)
+    }
+
+    /// Sorts filter and bucketing entries by key ([`KeySorter::sort`](crate::sort::KeySorter::sort),
+    /// whose order a parallel sort must give exactly). Serial unless overridden.
+    fn sort(
+        &self,
+        sorter: &mut crate::sort::KeySorter,
+        entries: &mut crate::bounded::BoundedVec<crate::sort::Entry>,
+    ) {
+        sorter.sort(entries)
     }
 
     /// Places every scan point in its cell ([`Placement::point`](crate::bucket::Placement::point))

@@ -17,6 +17,10 @@ use crate::math::Point;
 const DIGIT_BITS: u32 = 11;
 /// Passes for a 64-bit key.
 const MAX_PASSES: usize = 64usize.div_ceil(DIGIT_BITS as usize);
+/// The values one digit takes.
+pub const RADIX: usize = 1 << DIGIT_BITS;
+/// How many entries have each digit value (in one pass).
+pub type Histogram = [u32; RADIX];
 
 /// An entry of the filter's and bucketing's buffers: a key and a point.
 pub type Entry = (CellKey, Point);
@@ -39,48 +43,104 @@ impl KeySorter {
     /// order when the comparison sort takes over). `entries` may come back in the sorter's
     /// buffer: both have the sorter's capacity, then.
     pub fn sort(&mut self, entries: &mut BoundedVec<Entry>) {
-        let n = entries.len();
-        if n < 2 {
-            return;
-        }
-        let layout = Layout::of(entries);
-        let fits = self.spare.capacity() >= n && entries.capacity() == self.spare.capacity();
-        let Some(layout) = layout.filter(|_| fits) else {
+        let Some((plan, spare)) = self.radix(entries) else {
             entries.sort_unstable_by_key(|e| e.0.sort_value());
             return;
         };
-        // One pass counts every digit; a digit all entries share needs no pass of its own.
-        let mask = (1u64 << DIGIT_BITS) - 1;
-        let passes = layout.total_bits.div_ceil(DIGIT_BITS) as usize;
-        let mut counts = [[0u32; 1 << DIGIT_BITS]; MAX_PASSES];
+        // One pass over the entries counts the digits of every pass.
+        let mut counts = [[0u32; RADIX]; MAX_PASSES];
         for e in entries.iter() {
-            let key = layout.pack(&e.0);
-            for (p, count) in counts.iter_mut().enumerate().take(passes) {
-                count[((key >> (p as u32 * DIGIT_BITS)) & mask) as usize] += 1;
+            for (p, count) in counts.iter_mut().enumerate().take(plan.passes) {
+                count[plan.digit(&e.0, p)] += 1;
             }
         }
-        for (p, count) in counts.iter_mut().enumerate().take(passes) {
-            if count.iter().any(|&c| c as usize == n) {
+        for (p, count) in counts.iter_mut().enumerate().take(plan.passes) {
+            if !part_offsets(&mut [count]) {
                 continue;
             }
-            let mut sum = 0;
-            for c in count.iter_mut() {
-                (*c, sum) = (sum, sum + *c);
-            }
-            let shift = p as u32 * DIGIT_BITS;
-            // Every slot is written below: only a shorter buffer needs filling.
-            self.spare.truncate(n);
-            self.spare.extend_default(n);
             for e in entries.iter() {
-                let slot = &mut count[((layout.pack(&e.0) >> shift) & mask) as usize];
-                if let Some(t) = self.spare.get_mut(*slot as usize) {
+                let slot = &mut count[plan.digit(&e.0, p)];
+                if let Some(t) = spare.get_mut(*slot as usize) {
                     *t = *e;
                 }
                 *slot += 1;
             }
-            core::mem::swap(entries, &mut self.spare);
+            core::mem::swap(entries, spare);
         }
     }
+
+    /// For a radix sort of `entries` (at least two): its plan, and the sorter's buffer with
+    /// as many entries as `entries` (a pass writes every one of them, then the two buffers
+    /// are swapped). `None` when the comparison sort must take over (keys wider than 64 bits,
+    /// more entries than the sorter holds) or there is nothing to sort. [`sort`](Self::sort)
+    /// and a parallel sort (std adapters) both start here.
+    pub fn radix(
+        &mut self,
+        entries: &BoundedVec<Entry>,
+    ) -> Option<(RadixPlan, &mut BoundedVec<Entry>)> {
+        let n = entries.len();
+        let fits = self.spare.capacity() >= n && entries.capacity() == self.spare.capacity();
+        if n < 2 || !fits {
+            return None;
+        }
+        let layout = Layout::of(entries)?;
+        let plan = RadixPlan {
+            layout,
+            passes: layout.total_bits.div_ceil(DIGIT_BITS) as usize,
+        };
+        // Every slot is written by a pass: only a shorter buffer needs filling.
+        self.spare.truncate(n);
+        self.spare.extend_default(n);
+        Some((plan, &mut self.spare))
+    }
+}
+
+/// The passes of one radix sort: the layout of its keys and how many digits they take.
+#[derive(Debug, Clone, Copy)]
+pub struct RadixPlan {
+    layout: Layout,
+    passes: usize,
+}
+
+impl RadixPlan {
+    /// Passes, least significant digit first.
+    pub fn passes(&self) -> usize {
+        self.passes
+    }
+
+    /// The digit of `key` that pass `pass` sorts by.
+    #[inline]
+    pub fn digit(&self, key: &CellKey, pass: usize) -> usize {
+        let shift = pass as u32 * DIGIT_BITS;
+        let digit = self.layout.pack(key).checked_shr(shift).unwrap_or(0);
+        (digit & (RADIX as u64 - 1)) as usize
+    }
+
+    /// Adds the digits of pass `pass` of `entries` to `histogram`.
+    pub fn count(&self, entries: &[Entry], pass: usize, histogram: &mut Histogram) {
+        for e in entries {
+            histogram[self.digit(&e.0, pass)] += 1;
+        }
+    }
+}
+
+/// Turns the histograms of one pass over consecutive parts of the input (in input order)
+/// into each part's first output slot per digit: digit by digit, part after part, so that a
+/// pass that writes each part's entries in order from its slots is stable. `false` when one
+/// digit holds every entry: the pass would move nothing and is skipped.
+pub fn part_offsets(parts: &mut [&mut Histogram]) -> bool {
+    let n: u32 = parts.iter().flat_map(|h| h.iter()).sum();
+    let all_one_digit = (0..RADIX).any(|d| parts.iter().map(|h| h[d]).sum::<u32>() == n);
+    if all_one_digit {
+        return false;
+    }
+    let mut sum = 0;
+    for d in 0..RADIX {
+        for h in parts.iter_mut() {
+            (h[d], sum) = (sum, sum + h[d]);
+        }
+    }
+    true
 }
 
 /// How a key packs into a `u64`: `(x - x0) << (by + bz) | (y - y0) << bz | (z - z0)`.

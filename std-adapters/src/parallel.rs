@@ -19,10 +19,13 @@ use slamesh_core::gp::GpScratch;
 use slamesh_core::lm::Residual;
 use slamesh_core::map::MeshMap;
 use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, Purpose, ScanLayer};
+use slamesh_core::sort::{part_offsets, Entry, Histogram, KeySorter, RADIX};
 use slamesh_core::{Config, Point};
 
 /// Raw points per task of the parallel filter.
 const POINTS_PER_TASK: usize = 8192;
+/// Fewest entries per part of a parallel sort (fewer are sorted serially).
+const MIN_SORT_PART: usize = 8192;
 
 /// Reconstructs cells on a dedicated rayon pool.
 #[derive(Debug)]
@@ -128,6 +131,65 @@ impl CellLoop for Rayon {
         for s in per_task {
             stats.non_finite += s.non_finite;
             stats.out_of_range += s.out_of_range;
+        }
+    }
+
+    fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
+        let parts = self.threads().min(entries.len() / MIN_SORT_PART);
+        if parts < 2 {
+            return sorter.sort(entries);
+        }
+        let Some((plan, spare)) = sorter.radix(entries) else {
+            return sorter.sort(entries);
+        };
+        let part_len = entries.len().div_ceil(parts);
+        for pass in 0..plan.passes() {
+            let mut hists: Vec<Histogram> = self.pool.install(|| {
+                entries
+                    .par_chunks(part_len)
+                    .map(|part| {
+                        let mut h = [0u32; RADIX];
+                        plan.count(part, pass, &mut h);
+                        h
+                    })
+                    .collect()
+            });
+            if !part_offsets(&mut hists.iter_mut().collect::<Vec<_>>()) {
+                continue;
+            }
+            // The output cut into one run per (digit, part), digit after digit, part after
+            // part: each part fills its own runs, in input order.
+            let mut runs: Vec<Vec<&mut [Entry]>> =
+                hists.iter().map(|_| Vec::with_capacity(RADIX)).collect();
+            let mut rest: &mut [Entry] = &mut spare[..];
+            let mut at = 0;
+            for d in 0..RADIX {
+                for (k, part_runs) in runs.iter_mut().enumerate() {
+                    let end = hists
+                        .get(k + 1)
+                        .map_or_else(|| hists.first().and_then(|h| h.get(d + 1)), |h| h.get(d))
+                        .map_or(entries.len(), |&e| e as usize);
+                    let (run, tail) = std::mem::take(&mut rest).split_at_mut(end - at);
+                    part_runs.push(run);
+                    rest = tail;
+                    at = end;
+                }
+            }
+            self.pool.install(|| {
+                entries
+                    .par_chunks(part_len)
+                    .zip(runs.par_iter_mut())
+                    .for_each(|(part, runs)| {
+                        for e in part {
+                            let run = &mut runs[plan.digit(&e.0, pass)];
+                            if let Some((slot, tail)) = std::mem::take(run).split_first_mut() {
+                                *slot = *e;
+                                *run = tail;
+                            }
+                        }
+                    })
+            });
+            std::mem::swap(entries, spare);
         }
     }
 
@@ -245,6 +307,13 @@ impl CellLoop for Workers {
         match self {
             Workers::Serial => filter::collect(raw.iter().map(|p| prep.point(p)), work, stats),
             Workers::Pool(r) => r.prepare_points(raw, prep, work, stats),
+        }
+    }
+
+    fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
+        match self {
+            Workers::Serial => sorter.sort(entries),
+            Workers::Pool(r) => r.sort(sorter, entries),
         }
     }
 
