@@ -7,7 +7,9 @@
 //! [`Associator::layer`], collected in scan order by the same [`associate::collect`]; each
 //! raw point through the same [`Preparation::point`], collected in input order by the same
 //! [`filter::collect`]; each scan point through the same [`Placement::point`], in input order
-//! as [`bucket::collect`] keeps them. All give bit-identical results (tested).
+//! as [`bucket::collect`] keeps them. The radix sort's passes take their plan, digits and
+//! stable offsets from the core's [`KeySorter::radix`], [`RadixPlan`](slamesh_core::sort::RadixPlan)
+//! and [`part_offsets`]; only the parts run at once. All give bit-identical results (tested).
 
 use rayon::prelude::*;
 use slamesh_core::associate::{self, AssociateStats, Associator};
