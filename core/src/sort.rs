@@ -55,8 +55,13 @@ impl KeySorter {
             }
         }
         for (p, count) in counts.iter_mut().enumerate().take(plan.passes) {
-            if !part_offsets(&mut [count]) {
+            if moves_nothing(&[count]) {
                 continue;
+            }
+            // Each digit's first slot: the entries of one digit go in input order (stable).
+            let mut sum = 0;
+            for c in count.iter_mut() {
+                (*c, sum) = (sum, sum + *c);
             }
             for e in entries.iter() {
                 let slot = &mut count[plan.digit(&e.0, p)];
@@ -124,23 +129,11 @@ impl RadixPlan {
     }
 }
 
-/// Turns the histograms of one pass over consecutive parts of the input (in input order)
-/// into each part's first output slot per digit: digit by digit, part after part, so that a
-/// pass that writes each part's entries in order from its slots is stable. `false` when one
-/// digit holds every entry: the pass would move nothing and is skipped.
-pub fn part_offsets(parts: &mut [&mut Histogram]) -> bool {
+/// True when one digit holds every entry counted in `parts` (the histograms of one pass over
+/// parts of the input): the pass would move nothing and is skipped.
+pub fn moves_nothing(parts: &[&Histogram]) -> bool {
     let n: u32 = parts.iter().flat_map(|h| h.iter()).sum();
-    let all_one_digit = (0..RADIX).any(|d| parts.iter().map(|h| h[d]).sum::<u32>() == n);
-    if all_one_digit {
-        return false;
-    }
-    let mut sum = 0;
-    for d in 0..RADIX {
-        for h in parts.iter_mut() {
-            (h[d], sum) = (sum, sum + h[d]);
-        }
-    }
-    true
+    (0..RADIX).any(|d| parts.iter().map(|h| h[d]).sum::<u32>() == n)
 }
 
 /// How a key packs into a `u64`: `(x - x0) << (by + bz) | (y - y0) << bz | (z - z0)`.

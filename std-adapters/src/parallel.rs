@@ -8,8 +8,8 @@
 //! raw point through the same [`Preparation::point`], collected in input order by the same
 //! [`filter::collect`]; each scan point through the same [`Placement::point`], in input order
 //! as [`bucket::collect`] keeps them. The radix sort's passes take their plan, digits and
-//! stable offsets from the core's [`KeySorter::radix`], [`RadixPlan`](slamesh_core::sort::RadixPlan)
-//! and [`part_offsets`]; only the parts run at once. All give bit-identical results (tested).
+//! skip rule from the core's [`KeySorter::radix`], [`RadixPlan`](slamesh_core::sort::RadixPlan)
+//! and [`moves_nothing`]; only the parts run at once. All give bit-identical results (tested).
 
 use rayon::prelude::*;
 use slamesh_core::associate::{self, AssociateStats, Associator};
@@ -21,7 +21,7 @@ use slamesh_core::gp::GpScratch;
 use slamesh_core::lm::Residual;
 use slamesh_core::map::MeshMap;
 use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, Purpose, ScanLayer};
-use slamesh_core::sort::{part_offsets, Entry, Histogram, KeySorter, RADIX};
+use slamesh_core::sort::{moves_nothing, Entry, Histogram, KeySorter, RADIX};
 use slamesh_core::{Config, Point};
 
 /// Raw points per task of the parallel filter.
@@ -146,7 +146,7 @@ impl CellLoop for Rayon {
         };
         let part_len = entries.len().div_ceil(parts);
         for pass in 0..plan.passes() {
-            let mut hists: Vec<Histogram> = self.pool.install(|| {
+            let counts: Vec<Histogram> = self.pool.install(|| {
                 entries
                     .par_chunks(part_len)
                     .map(|part| {
@@ -156,25 +156,20 @@ impl CellLoop for Rayon {
                     })
                     .collect()
             });
-            if !part_offsets(&mut hists.iter_mut().collect::<Vec<_>>()) {
+            if moves_nothing(&counts.iter().collect::<Vec<_>>()) {
                 continue;
             }
             // The output cut into one run per (digit, part), digit after digit, part after
-            // part: each part fills its own runs, in input order.
+            // part, each as long as the part's count of the digit: each part fills its own
+            // runs in input order, so the pass is stable.
             let mut runs: Vec<Vec<&mut [Entry]>> =
-                hists.iter().map(|_| Vec::with_capacity(RADIX)).collect();
+                counts.iter().map(|_| Vec::with_capacity(RADIX)).collect();
             let mut rest: &mut [Entry] = &mut spare[..];
-            let mut at = 0;
             for d in 0..RADIX {
-                for (k, part_runs) in runs.iter_mut().enumerate() {
-                    let end = hists
-                        .get(k + 1)
-                        .map_or_else(|| hists.first().and_then(|h| h.get(d + 1)), |h| h.get(d))
-                        .map_or(entries.len(), |&e| e as usize);
-                    let (run, tail) = std::mem::take(&mut rest).split_at_mut(end - at);
+                for (part_runs, count) in runs.iter_mut().zip(&counts) {
+                    let (run, tail) = std::mem::take(&mut rest).split_at_mut(count[d] as usize);
                     part_runs.push(run);
                     rest = tail;
-                    at = end;
                 }
             }
             self.pool.install(|| {
