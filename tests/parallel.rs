@@ -37,7 +37,9 @@ fn serial_and_parallel_agree_bit_for_bit() {
             lidar.scan(&scene, &t)
         })
         .collect();
-    for config in [Config::default(), Config::meshing()] {
+    let mut moved = Config::default();
+    moved.map.reconstruct_at_final_pose = false;
+    for config in [Config::default(), Config::meshing(), moved] {
         let serial = run(&Serial, config, &scans);
         for threads in [1, 2, 4] {
             let parallel = run(&Rayon::new(threads).unwrap(), config, &scans);

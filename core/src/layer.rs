@@ -6,7 +6,7 @@
 
 use crate::cell::{Axis, CellKey};
 use crate::lattice::{neighbours, LatticeTable, N, VERTICES};
-use crate::math::Vec3;
+use crate::math::{Pose, Vec3};
 
 /// Which triangles of a layer are shown, from [`MeshConfig`](crate::config::MeshConfig).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -103,6 +103,31 @@ impl Layer {
         (norm > 1e-12).then(|| n / norm)
     }
 
+    /// The layer of cell `key` along `axis` after its surface is moved by the small rigid
+    /// motion `motion` (world frame), to first order: each vertex `p` moves by
+    /// `Δ = motion·p - p`, and the surface through it then crosses the vertex's fixed
+    /// location at `d + (n · Δ) / n_d` (`n` the surface normal there, from
+    /// [`normal`](Self::normal) over every neighbour). Exact for a plane and a translation;
+    /// the error grows with the curvature times the motion's sideways part. Where the surface
+    /// is steeper than 75 degrees against the axis (or has no normal) the vertex moves by
+    /// `Δ_d` alone. Predictions are clamped into the cell; variances are kept.
+    pub fn moved(&self, lattice: &LatticeTable, key: &CellKey, axis: Axis, motion: &Pose) -> Layer {
+        /// `n_d` below this (75 degrees) is too steep to move along the surface.
+        const MIN_AXIS_COSINE: f64 = 0.26;
+        let d = axis.index();
+        let mut out = *self;
+        for (j, pred) in out.pred.iter_mut().enumerate() {
+            let p = self.vertex(lattice, key, axis, j);
+            let delta = motion * nalgebra::Point3::from(p) - nalgebra::Point3::from(p);
+            let shift = match self.normal(lattice, axis, j, f32::INFINITY) {
+                Some(n) if n[d] >= MIN_AXIS_COSINE => n.dot(&delta) / n[d],
+                _ => delta[d],
+            };
+            *pred = (f64::from(*pred) + shift).clamp(0.0, lattice.cell_size) as f32;
+        }
+        out
+    }
+
     /// The lattice's triangles as vertex-index triples, counter-clockwise seen from `+axis`:
     /// 5 x 5 quads, two triangles each, kept when `shown` accepts them (DESIGN §1.6, plus the
     /// slope rule of [`crate::config::MeshConfig::max_slope_deg`]).
@@ -190,6 +215,57 @@ mod tests {
             assert!((n[ia] - want.x).abs() < 1e-6 && (n[ib] - want.y).abs() < 1e-6);
             assert!((n[axis.index()] - want.z).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn a_plane_moved_by_a_small_motion_is_the_moved_plane() {
+        use crate::math::{se3_exp, Twist};
+        // d = 0.5 + 0.3 a - 0.2 b in a cell 13 m from the origin, moved by 0.25 degree and
+        // 2 cm: its vertices move by up to 6 cm. The formula is first order; what it leaves
+        // out is about the displacement times the rotation, 6 cm x 0.0044 = 0.26 mm at most.
+        let motion = se3_exp(&Twist::new(0.002, -0.003, 0.0025, 0.012, -0.015, 0.009));
+        let key = CellKey::new(7, -3, 2);
+        for axis in Axis::ALL {
+            let (l, lat) = plane(|a, b| 0.5 + 0.3 * a - 0.2 * b);
+            let mut unmoved_error = 0.0f64;
+            let table = lat.table();
+            let moved = l.moved(&table, &key, axis, &motion);
+            // The plane through three of its vertices, moved exactly.
+            let at = |j: usize| motion * nalgebra::Point3::from(l.vertex(&table, &key, axis, j));
+            let (p0, p1, p2) = (at(0), at(5), at(30));
+            let n = (p1 - p0).cross(&(p2 - p0));
+            for j in 0..VERTICES {
+                // Where the line through vertex j's location along `axis` meets it.
+                let base = l.vertex(&table, &key, axis, j);
+                let mut dir = Vec3::zeros();
+                dir[axis.index()] = 1.0;
+                let t = n.dot(&(p0.coords - base)) / n.dot(&dir);
+                let want = f64::from(l.pred[j]) + t;
+                let got = f64::from(moved.pred[j]);
+                assert!(
+                    (got - want).abs() < 3e-4,
+                    "{axis:?} {j}: {got} against {want}"
+                );
+                assert_eq!(moved.var[j], l.var[j]);
+                unmoved_error = unmoved_error.max((f64::from(l.pred[j]) - want).abs());
+            }
+            assert!(
+                unmoved_error > 0.004,
+                "{axis:?}: the motion moves the plane by {unmoved_error}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_layer_moved_by_the_identity_is_unchanged() {
+        let (l, lat) = plane(|a, b| 0.5 + 0.4 * a * a - 0.2 * b);
+        let moved = l.moved(
+            &lat.table(),
+            &CellKey::new(1, 2, 3),
+            Axis::Y,
+            &Pose::identity(),
+        );
+        assert_eq!(moved, l);
     }
 
     #[test]

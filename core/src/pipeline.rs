@@ -1,7 +1,8 @@
 //! The pipeline: composes the stages for each scan (DESIGN §1.1). Holds no math of its own.
 //!
 //! Per scan: filter → predict → (bucket → reconstruct → associate → LM) × rounds → bucket →
-//! reconstruct → fuse. [`Pipeline::process_scan`] estimates the pose; [`Pipeline::integrate_scan`]
+//! reconstruct → fuse; or, without `MapConfig::reconstruct_at_final_pose`, the last round's
+//! reconstruction moved to the final pose → fuse. [`Pipeline::process_scan`] estimates the pose; [`Pipeline::integrate_scan`]
 //! meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
 //! the capacities of `C`; nothing is allocated afterwards.
 
@@ -78,9 +79,9 @@ pub struct ScanStats {
     pub frame: u32,
     /// Range filter and down-sampling.
     pub filter: FilterStats,
-    /// Bucketing of the final reconstruction.
+    /// Bucketing of the reconstruction fused into the map.
     pub bucket: BucketStats,
-    /// Layers in the final reconstruction.
+    /// Layers fused into the map.
     pub scan_layers: usize,
     /// Layers dropped because the scan's layer buffer was full (summed over rounds).
     pub dropped_layers: usize,
@@ -146,7 +147,7 @@ impl<C: Capacity> Pipeline<C> {
         })
     }
 
-    /// The layers reconstructed from the last accepted scan, at its final pose: the cells it
+    /// The layers fused from the last accepted scan, at its final pose: the cells it
     /// updated in the map (e.g. to refresh a mesh view incrementally).
     pub fn last_scan(&self) -> &[ScanLayer] {
         &self.scan
@@ -211,6 +212,9 @@ impl<C: Capacity> Pipeline<C> {
         let mut stats = self.begin(points_sensor, cells, probe)?;
         let mut pose = self.motion.predict();
         let mut status = RegistrationStatus::FirstScan;
+        // The last round's reconstruction when it is also the map update's (see
+        // `MapConfig::reconstruct_at_final_pose`): its bucketing and the pose it was made at.
+        let mut for_update: Option<(BucketStats, Pose)> = None;
         if !self.map.is_empty() {
             let r = self.config.register;
             let (rounds, reach) = if self.motion.velocity_known() {
@@ -219,13 +223,25 @@ impl<C: Capacity> Pipeline<C> {
                 (r.initial_iterations, r.initial_cross_cell_overlap)
             };
             status = RegistrationStatus::Converged;
+            let reuse_last = !self.config.map.reconstruct_at_final_pose;
             for round in 0..rounds {
-                let reach = if round + 1 == rounds { 0 } else { reach };
-                let purpose = Purpose::Register {
-                    reach,
-                    half_cells: reach > 0 && r.coarse_half_cells,
+                let last = round + 1 == rounds;
+                let reach = if last { 0 } else { reach };
+                // Every layer with exact variances: registration pairs the same vertices as
+                // with `Register` (it only compares variances with its threshold).
+                let purpose = if last && reuse_last {
+                    Purpose::Update
+                } else {
+                    Purpose::Register {
+                        reach,
+                        half_cells: reach > 0 && r.coarse_half_cells,
+                    }
                 };
-                stats.dropped_layers += self.reconstruct(&pose, cells, purpose, probe).1;
+                let (b, dropped) = self.reconstruct(&pose, cells, purpose, probe);
+                stats.dropped_layers += dropped;
+                if purpose == Purpose::Update {
+                    for_update = Some((b, pose));
+                }
                 probe.enter(Stage::Associate);
                 stats.associate = cells.associate(
                     &self.scan,
@@ -261,7 +277,10 @@ impl<C: Capacity> Pipeline<C> {
                 }
             }
         }
-        self.finish(pose, cells, probe, &mut stats);
+        match for_update {
+            Some((b, made_at)) => self.move_and_fuse(made_at, pose, b, probe, &mut stats),
+            None => self.finish(pose, cells, probe, &mut stats),
+        }
         let outcome = ScanOutcome {
             t_world_sensor: pose,
             status,
@@ -380,13 +399,38 @@ impl<C: Capacity> Pipeline<C> {
         stats: &mut ScanStats,
     ) {
         let (b, dropped) = self.reconstruct(&pose, cells, Purpose::Update, probe);
-        stats.bucket = b;
         stats.dropped_layers += dropped;
-        stats.scan_layers = self.scan.len();
         probe.enter(Stage::Update);
+        self.fuse(pose, b, stats);
+        probe.enter(Stage::Done);
+    }
+
+    /// Moves `scan`, reconstructed at `made_at`, to the final `pose` (to first order:
+    /// [`Layer::moved`](crate::layer::Layer::moved)); map update, motion update.
+    fn move_and_fuse(
+        &mut self,
+        made_at: Pose,
+        pose: Pose,
+        bucketed: BucketStats,
+        probe: &mut impl Probe,
+        stats: &mut ScanStats,
+    ) {
+        probe.enter(Stage::Update);
+        let motion = pose * made_at.inverse();
+        let lattice = self.config.lattice().table();
+        for s in self.scan.iter_mut() {
+            s.layer = s.layer.moved(&lattice, &s.key, s.axis, &motion);
+        }
+        self.fuse(pose, bucketed, stats);
+        probe.enter(Stage::Done);
+    }
+
+    /// Fuses `scan` (at `pose`, bucketed as `bucketed`) into the map; motion update.
+    fn fuse(&mut self, pose: Pose, bucketed: BucketStats, stats: &mut ScanStats) {
+        stats.bucket = bucketed;
+        stats.scan_layers = self.scan.len();
         stats.fusion = integrate(&mut self.map, &self.scan, &self.config.map, stats.frame);
         self.motion.push(pose);
-        probe.enter(Stage::Done);
     }
 }
 
