@@ -106,24 +106,46 @@ impl Layer {
     /// The layer of cell `key` along `axis` after its surface is moved by the small rigid
     /// motion `motion` (world frame), to first order: each vertex `p` moves by
     /// `Δ = motion·p - p`, and the surface through it then crosses the vertex's fixed
-    /// location at `d + (n · Δ) / n_d` (`n` the surface normal there, from
-    /// [`normal`](Self::normal) over every neighbour). Exact for a plane and a translation;
-    /// the error grows with the curvature times the motion's sideways part. Where the surface
-    /// is steeper than 75 degrees against the axis (or has no normal) the vertex moves by
-    /// `Δ_d` alone. Predictions are clamped into the cell; variances are kept.
+    /// location at `d + Δ_d - s_a Δ_a - s_b Δ_b`, with `(s_a, s_b)` the surface's slope there
+    /// (central differences of the predictions, one-sided on the border). Exact for a plane
+    /// and a translation; the error grows with the curvature times the motion's sideways
+    /// part. Where the surface is steeper than 75 degrees against the axis the vertex moves
+    /// by `Δ_d` alone. Predictions are clamped into the cell; variances are kept.
     pub fn moved(&self, lattice: &LatticeTable, key: &CellKey, axis: Axis, motion: &Pose) -> Layer {
-        /// `n_d` below this (75 degrees) is too steep to move along the surface.
-        const MIN_AXIS_COSINE: f64 = 0.26;
-        let d = axis.index();
+        /// `s_a² + s_b²` above this (`tan² 75°`) is too steep to move along the surface.
+        const MAX_SLOPE_SQ: f64 = 13.9;
+        let (ia_axis, ib_axis) = axis.locations();
+        let d_axis = axis.index();
+        // Δ = (R - I) p + t, the same linear map for every vertex.
+        let mut step = motion.rotation.to_rotation_matrix().into_inner();
+        for k in 0..3 {
+            step[(k, k)] -= 1.0;
+        }
+        let t = motion.translation.vector;
+        let corner = key.min_corner(lattice.cell_size);
+        let c = &lattice.coordinates;
+        let pred = |ia: usize, ib: usize| f64::from(self.pred[ia * N + ib]);
+        let slope = |lo: usize, hi: usize, v_lo: f64, v_hi: f64| (v_hi - v_lo) / (c[hi] - c[lo]);
         let mut out = *self;
-        for (j, pred) in out.pred.iter_mut().enumerate() {
-            let p = self.vertex(lattice, key, axis, j);
-            let delta = motion * nalgebra::Point3::from(p) - nalgebra::Point3::from(p);
-            let shift = match self.normal(lattice, axis, j, f32::INFINITY) {
-                Some(n) if n[d] >= MIN_AXIS_COSINE => n.dot(&delta) / n[d],
-                _ => delta[d],
-            };
-            *pred = (f64::from(*pred) + shift).clamp(0.0, lattice.cell_size) as f32;
+        for ia in 0..N {
+            let (a_lo, a_hi) = (ia.saturating_sub(1), (ia + 1).min(N - 1));
+            for ib in 0..N {
+                let (b_lo, b_hi) = (ib.saturating_sub(1), (ib + 1).min(N - 1));
+                let d = pred(ia, ib);
+                let mut p = corner;
+                p[ia_axis] += c[ia];
+                p[ib_axis] += c[ib];
+                p[d_axis] += d;
+                let delta = step * p + t;
+                let s_a = slope(a_lo, a_hi, pred(a_lo, ib), pred(a_hi, ib));
+                let s_b = slope(b_lo, b_hi, pred(ia, b_lo), pred(ia, b_hi));
+                let shift = if s_a * s_a + s_b * s_b <= MAX_SLOPE_SQ {
+                    delta[d_axis] - s_a * delta[ia_axis] - s_b * delta[ib_axis]
+                } else {
+                    delta[d_axis]
+                };
+                out.pred[ia * N + ib] = (d + shift).clamp(0.0, lattice.cell_size) as f32;
+            }
         }
         out
     }
