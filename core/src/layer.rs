@@ -122,7 +122,6 @@ impl Layer {
             step[(k, k)] -= 1.0;
         }
         let t = motion.translation.vector;
-        let corner = key.min_corner(lattice.cell_size);
         let c = &lattice.coordinates;
         let pred = |ia: usize, ib: usize| f64::from(self.pred[ia * N + ib]);
         let slope = |lo: usize, hi: usize, v_lo: f64, v_hi: f64| (v_hi - v_lo) / (c[hi] - c[lo]);
@@ -132,11 +131,7 @@ impl Layer {
             for ib in 0..N {
                 let (b_lo, b_hi) = (ib.saturating_sub(1), (ib + 1).min(N - 1));
                 let d = pred(ia, ib);
-                let mut p = corner;
-                p[ia_axis] += c[ia];
-                p[ib_axis] += c[ib];
-                p[d_axis] += d;
-                let delta = step * p + t;
+                let delta = step * self.vertex(lattice, key, axis, ia * N + ib) + t;
                 let s_a = slope(a_lo, a_hi, pred(a_lo, ib), pred(a_hi, ib));
                 let s_b = slope(b_lo, b_hi, pred(ia, b_lo), pred(ia, b_hi));
                 let shift = if s_a * s_a + s_b * s_b <= MAX_SLOPE_SQ {

@@ -2,8 +2,8 @@
 //!
 //! Per scan: filter → predict → (bucket → reconstruct → associate → LM) × rounds → bucket →
 //! reconstruct → fuse; or, without `MapConfig::reconstruct_at_final_pose`, the last round's
-//! reconstruction moved to the final pose → fuse. [`Pipeline::process_scan`] estimates the pose; [`Pipeline::integrate_scan`]
-//! meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
+//! reconstruction moved to the final pose → fuse. [`Pipeline::process_scan`] estimates the
+//! pose; [`Pipeline::integrate_scan`] meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
 //! the capacities of `C`; nothing is allocated afterwards.
 
 use crate::associate::AssociateStats;
