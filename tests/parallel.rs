@@ -2,11 +2,11 @@
 
 use slamesh::parallel::Rayon;
 use slamesh::sim::{sensor_pose, Lidar, Scene};
-use slamesh_core::reconstruct::{CellLoop, Serial};
+use slamesh_core::executor::{Executor, Serial};
 use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose};
 
 fn run(
-    cells: &impl CellLoop,
+    cells: &impl Executor,
     config: Config,
     scans: &[Vec<[f32; 3]>],
 ) -> (Vec<Pose>, Vec<slamesh_core::mesh::Triangle>) {

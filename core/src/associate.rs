@@ -9,12 +9,13 @@
 
 use crate::bounded::BoundedVec;
 use crate::cell::{Axis, CellKey};
+use crate::config::MAX_REACH;
+use crate::executor::Executor;
 use crate::lattice::{LatticeTable, VERTICES};
-use crate::layer::Layer;
+use crate::layer::{Layer, ScanLayer};
 use crate::lm::Residual;
 use crate::map::MeshMap;
 use crate::math::Vec3;
-use crate::reconstruct::ScanLayer;
 
 /// What association found for one scan.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -29,8 +30,6 @@ pub struct AssociateStats {
 /// Candidate map layers per scan layer: the cell and `2 · reach` neighbours along the axis;
 /// a reach beyond [`MAX_REACH`] is cut to it.
 const MAX_CANDIDATES: usize = 2 * MAX_REACH as usize + 1;
-/// The largest cross-cell reach ([`crate::config::Config::validate`] refuses more).
-pub const MAX_REACH: u32 = 8;
 
 /// The map layers of `axis` in cell `key` and the cells `key ± i·e_axis`, `i ≤ reach`, with
 /// their offset `i`: what a scan layer there can pair with, looked up once per scan layer.
@@ -59,32 +58,35 @@ pub fn has_candidates(map: &MeshMap, key: CellKey, axis: Axis, reach: u32) -> bo
     !candidates(map, key, axis, reach).is_empty()
 }
 
-/// Writes one combined residual per scan layer that has map pairs into `out` (cleared first).
+/// Writes one combined residual per scan layer that has map pairs into `out` (cleared first),
+/// in scan order, one [`Associator::layer`] per layer run by `exec`; stops when `out` is full.
 pub fn associate(
     scan: &[ScanLayer],
     map: &MeshMap,
     reach: u32,
     variance_register: f64,
     out: &mut BoundedVec<Residual>,
+    exec: &impl Executor,
 ) -> AssociateStats {
     let a = Associator::new(map, reach, variance_register);
-    collect(scan.iter().map(|s| a.layer(s)), out)
-}
-
-/// Writes the per-layer results of [`Associator::layer`], in scan order, into `out` (cleared
-/// first); stops when `out` is full.
-pub fn collect(
-    per_layer: impl Iterator<Item = Option<(Residual, usize)>>,
-    out: &mut BoundedVec<Residual>,
-) -> AssociateStats {
     out.clear();
     let mut stats = AssociateStats::default();
-    for (r, pairs) in per_layer.flatten() {
-        if out.push(r).is_err() {
-            break;
-        }
-        stats.pairs += pairs;
-    }
+    let mut full = false;
+    exec.map_in_order(
+        scan,
+        || (),
+        |(), s| a.layer(s),
+        |per_layer| {
+            let Some((r, pairs)) = per_layer else {
+                return;
+            };
+            if full || out.push(r).is_err() {
+                full = true;
+                return;
+            }
+            stats.pairs += pairs;
+        },
+    );
     stats.residuals = out.len();
     stats
 }
@@ -186,8 +188,11 @@ mod tests {
             layer: flat(1.5),
         }];
         let mut out = BoundedVec::with_capacity(4);
-        assert_eq!(associate(&scan, &map, 0, 0.6, &mut out).residuals, 0);
-        let s = associate(&scan, &map, 1, 0.6, &mut out);
+        assert_eq!(
+            associate(&scan, &map, 0, 0.6, &mut out, &crate::executor::Serial).residuals,
+            0
+        );
+        let s = associate(&scan, &map, 1, 0.6, &mut out, &crate::executor::Serial);
         assert_eq!((s.pairs, s.residuals), (36, 1));
         let r = out[0];
         assert!((r.n - Vec3::z()).norm() < 1e-9);
@@ -210,6 +215,9 @@ mod tests {
             layer: flat(0.5),
         }];
         let mut out = BoundedVec::with_capacity(4);
-        assert_eq!(associate(&scan, &map, 0, 0.6, &mut out).pairs, 18);
+        assert_eq!(
+            associate(&scan, &map, 0, 0.6, &mut out, &crate::executor::Serial).pairs,
+            18
+        );
     }
 }

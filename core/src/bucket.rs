@@ -5,12 +5,12 @@
 //! anywhere in the world) and sorted by key: a cell's points are one contiguous run. Cells with
 //! fewer than `min_points` points are skipped. When the cell list is full, further cells are
 //! dropped in key order and counted. Owns no memory. The per-point step ([`Placement::point`])
-//! runs through the [`CellLoop`], so a parallel loop can place the points.
+//! runs through the [`Executor`], so a parallel loop can place the points.
 
 use crate::bounded::BoundedVec;
 use crate::cell::CellKey;
+use crate::executor::Executor;
 use crate::math::{to_point, to_vec3, Point, Pose};
-use crate::reconstruct::CellLoop;
 use crate::sort::KeySorter;
 
 /// A cell of the current scan: its key and its run of points in the bucketed buffer.
@@ -89,8 +89,36 @@ pub fn collect(
     }
 }
 
+/// Places every scan point in its cell ([`Placement::point`], the unit `exec` runs) and
+/// appends the placed ones to `out` in input order.
+pub fn place_all(
+    points: &[Point],
+    placement: &Placement,
+    out: &mut BoundedVec<(CellKey, Point)>,
+    exec: &impl Executor,
+) {
+    let fits = exec.filter_map_into(
+        points,
+        out,
+        |src, dst| {
+            let mut kept = 0;
+            for e in src.iter().filter_map(|p| placement.point(p)) {
+                if let Some(slot) = dst.get_mut(kept) {
+                    *slot = e;
+                    kept += 1;
+                }
+            }
+            (kept, ())
+        },
+        |()| {},
+    );
+    if !fits {
+        collect(points.iter().map(|p| placement.point(p)), out);
+    }
+}
+
 /// Buckets `points_sensor` into cells as `placement` places them (`sorter` is scratch space;
-/// `loops` runs the placement and the sort).
+/// `exec` runs the placement and the sort).
 pub fn bucket(
     points_sensor: &[Point],
     placement: &Placement,
@@ -98,13 +126,13 @@ pub fn bucket(
     bucketed: &mut BoundedVec<(CellKey, Point)>,
     sorter: &mut KeySorter,
     cells: &mut BoundedVec<CellSpan>,
-    loops: &impl CellLoop,
+    exec: &impl Executor,
 ) -> BucketStats {
     bucketed.clear();
     cells.clear();
     // The points buffer and `bucketed` have the same capacity: nothing is left out for room.
-    loops.place_points(points_sensor, placement, bucketed);
-    loops.sort(sorter, bucketed);
+    place_all(points_sensor, placement, bucketed, exec);
+    exec.sort(sorter, bucketed);
     let mut stats = BucketStats::default();
     let mut start = 0usize;
     while let Some(&(key, _)) = bucketed.get(start) {
@@ -153,7 +181,7 @@ mod tests {
             &mut b,
             &mut KeySorter::with_capacity(8),
             &mut c,
-            &crate::reconstruct::Serial,
+            &crate::executor::Serial,
         );
         assert_eq!((s.cells, s.sparse_cells), (2, 1));
         assert_eq!(c[0].key, CellKey::new(0, 0, 0));
@@ -178,7 +206,7 @@ mod tests {
             &mut b,
             &mut KeySorter::with_capacity(3),
             &mut c,
-            &crate::reconstruct::Serial,
+            &crate::executor::Serial,
         );
         assert_eq!(c[0].key, CellKey::new(-1, 0, 0));
         let local = Vec3::new(1.1, 0.5, 0.5);

@@ -9,10 +9,10 @@
 use crate::bucket::CellSpan;
 use crate::cell::CellKey;
 use crate::layer::Layer;
+use crate::layer::ScanLayer;
 use crate::lm::Residual;
 use crate::map::{MapCell, MAP_TABLE_FACTOR};
 use crate::math::Point;
-use crate::reconstruct::ScanLayer;
 use core::mem::size_of;
 
 /// How much one pipeline can hold. Implement it for your sensor, or use a provided one.

@@ -7,6 +7,10 @@
 use crate::lattice::{Lattice, N};
 use core::fmt;
 
+/// The largest cross-cell reach of association ([`Config::validate`] refuses more; association
+/// sizes its candidate list for it).
+pub const MAX_REACH: u32 = 8;
+
 /// Range filter and down-sampling (DESIGN §1.1 step 1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -278,13 +282,13 @@ impl Config {
                 reason: "must be 1 to 50",
             });
         }
-        if r.cross_cell_overlap > crate::associate::MAX_REACH {
+        if r.cross_cell_overlap > MAX_REACH {
             return Err(ConfigError {
                 field: "register.cross_cell_overlap",
                 reason: "must be 0 to 8",
             });
         }
-        if r.initial_cross_cell_overlap > crate::associate::MAX_REACH {
+        if r.initial_cross_cell_overlap > MAX_REACH {
             return Err(ConfigError {
                 field: "register.initial_cross_cell_overlap",
                 reason: "must be 0 to 8",

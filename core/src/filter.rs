@@ -7,8 +7,8 @@
 use crate::bounded::BoundedVec;
 use crate::cell::CellKey;
 use crate::config::FilterConfig;
+use crate::executor::Executor;
 use crate::math::{to_point, to_vec3, Point, Vec3};
-use crate::reconstruct::CellLoop;
 use crate::sort::KeySorter;
 
 /// What the filter kept and dropped from one scan.
@@ -130,8 +130,8 @@ pub fn collect(
 }
 
 /// Filters `raw` (sensor frame) and down-samples it to one centroid per voxel of edge `leaf_m`,
-/// written to `out` in voxel-key order. `work` and `sorter` are scratch space; `loops` runs
-/// the per-point preparation ([`CellLoop::prepare_points`]) and the sort ([`CellLoop::sort`]).
+/// written to `out` in voxel-key order. `work` and `sorter` are scratch space; `exec` runs
+/// the per-point preparation and the sort.
 #[allow(clippy::too_many_arguments)]
 pub fn filter_and_downsample(
     raw: &[Point],
@@ -140,7 +140,7 @@ pub fn filter_and_downsample(
     work: &mut BoundedVec<(CellKey, Point)>,
     sorter: &mut KeySorter,
     out: &mut BoundedVec<Point>,
-    loops: &impl CellLoop,
+    exec: &impl Executor,
 ) -> FilterStats {
     let prep = Preparation::new(cfg, leaf_m);
     work.clear();
@@ -148,22 +148,60 @@ pub fn filter_and_downsample(
         input: raw.len(),
         ..FilterStats::default()
     };
-    loops.prepare_points(raw, &prep, work, &mut stats);
-    downsample(work, sorter, out, &mut stats, loops);
+    prepare_all(raw, &prep, work, &mut stats, exec);
+    downsample(work, sorter, out, &mut stats, exec);
     stats
 }
 
-/// Sorts the prepared points in `work` by voxel (`loops` runs the sort) and writes one
+/// Prepares every raw point ([`Preparation::point`], the unit `exec` runs) and appends the kept
+/// ones to `work` in input order, counting the dropped ones into `stats`.
+pub fn prepare_all(
+    raw: &[Point],
+    prep: &Preparation,
+    work: &mut BoundedVec<(CellKey, Point)>,
+    stats: &mut FilterStats,
+    exec: &impl Executor,
+) {
+    let fits = exec.filter_map_into(
+        raw,
+        work,
+        |src, dst| {
+            let mut s = FilterStats::default();
+            for p in src {
+                match prep.point(p) {
+                    Ok(e) => {
+                        if let Some(slot) = dst.get_mut(s.kept) {
+                            *slot = e;
+                            s.kept += 1;
+                        }
+                    }
+                    Err(Dropped::NonFinite) => s.non_finite += 1,
+                    Err(Dropped::OutOfRange) => s.out_of_range += 1,
+                }
+            }
+            (s.kept, s)
+        },
+        |s| {
+            stats.non_finite += s.non_finite;
+            stats.out_of_range += s.out_of_range;
+        },
+    );
+    if !fits {
+        collect(raw.iter().map(|p| prep.point(p)), work, stats);
+    }
+}
+
+/// Sorts the prepared points in `work` by voxel (`exec` runs the sort) and writes one
 /// centroid per voxel to `out` (cleared first); sets `stats.kept`.
 pub fn downsample(
     work: &mut BoundedVec<(CellKey, Point)>,
     sorter: &mut KeySorter,
     out: &mut BoundedVec<Point>,
     stats: &mut FilterStats,
-    loops: &impl CellLoop,
+    exec: &impl Executor,
 ) {
     out.clear();
-    loops.sort(sorter, work);
+    exec.sort(sorter, work);
     let mut i = 0;
     while let Some(&(key, _)) = work.get(i) {
         let mut sum = Vec3::zeros();
@@ -214,7 +252,7 @@ mod tests {
             &mut work,
             &mut KeySorter::with_capacity(16),
             &mut out,
-            &crate::reconstruct::Serial,
+            &crate::executor::Serial,
         );
         assert_eq!(
             (s.non_finite, s.out_of_range, s.over_capacity, s.kept),
@@ -236,7 +274,7 @@ mod tests {
             &mut work,
             &mut KeySorter::with_capacity(3),
             &mut out,
-            &crate::reconstruct::Serial,
+            &crate::executor::Serial,
         );
         assert_eq!((s.over_capacity, s.kept), (2, 3));
         assert!((out[2][0] - 4.0).abs() < 1e-6);

@@ -5,8 +5,8 @@
 //! [`MapConfig::add_missing_layers`] is set. Map-capacity refusals are counted, never fatal.
 
 use crate::config::MapConfig;
+use crate::layer::ScanLayer;
 use crate::map::MeshMap;
-use crate::reconstruct::ScanLayer;
 
 /// Fuses map estimate `(u, var_u)` with observation `(o, var_o)`: inverse-variance weighting
 /// when both variances are below `variance_update`, else the one with the smaller variance.

@@ -202,6 +202,18 @@ impl Layer {
     }
 }
 
+/// A layer reconstructed from the current scan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ScanLayer {
+    /// Its cell.
+    pub key: CellKey,
+    /// Its axis.
+    pub axis: Axis,
+    /// Its predictions and variances.
+    pub layer: Layer,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

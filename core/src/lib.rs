@@ -47,6 +47,7 @@ pub mod bucket;
 pub mod capacity;
 pub mod cell;
 pub mod config;
+pub mod executor;
 pub mod filter;
 pub mod fusion;
 pub mod gp;
@@ -66,6 +67,7 @@ pub mod stage;
 
 pub use capacity::{Capacity, KittiCapacity, SmallCapacity};
 pub use config::{Config, ConfigError};
+pub use executor::{Executor, Serial};
 pub use math::{Point, Pose};
 pub use pipeline::{Pipeline, RegistrationStatus, ScanError, ScanOutcome, ScanStats};
 pub use stage::{NoProbe, Probe, Stage};

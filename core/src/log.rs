@@ -1,16 +1,15 @@
 //! defmt support (feature `defmt`): `defmt::Format` for the public types that hold nalgebra
-//! values (poses as translation and quaternion, vectors as arrays; containers as their fill),
-//! and the one place the core logs. Without the feature this module is empty.
+//! values (poses as translation and quaternion, vectors as arrays; containers as their fill).
+//! The pipeline's own types and its two log lines are in [`crate::pipeline`]. Without the
+//! feature this module is empty.
 
 #[cfg(feature = "defmt")]
-mod formats {
+pub(crate) mod formats {
     use crate::bounded::BoundedVec;
-    use crate::capacity::Capacity;
     use crate::lm::{Residual, Solution};
     use crate::map::{LayerRef, MeshMap};
     use crate::math::{Pose, Vec3};
     use crate::motion::ConstantVelocity;
-    use crate::pipeline::{Pipeline, ScanOutcome};
     use defmt::{write, Format, Formatter};
 
     fn vec3(v: &Vec3) -> [f64; 3] {
@@ -18,7 +17,7 @@ mod formats {
     }
 
     /// A pose as `t=[x, y, z] q=[x, y, z, w]`.
-    struct PoseFmt<'a>(&'a Pose);
+    pub(crate) struct PoseFmt<'a>(pub(crate) &'a Pose);
 
     impl Format for PoseFmt<'_> {
         fn format(&self, f: Formatter) {
@@ -55,18 +54,6 @@ mod formats {
                 self.cost,
                 self.conditioning,
                 self.degenerate_directions
-            )
-        }
-    }
-
-    impl Format for ScanOutcome {
-        fn format(&self, f: Formatter) {
-            write!(
-                f,
-                "ScanOutcome {{ {}, {}, {} }}",
-                PoseFmt(&self.t_world_sensor),
-                self.status,
-                self.stats
             )
         }
     }
@@ -116,37 +103,4 @@ mod formats {
             )
         }
     }
-
-    impl<C: Capacity> Format for Pipeline<C> {
-        fn format(&self, f: Formatter) {
-            write!(
-                f,
-                "Pipeline {{ frames: {}, map: {} }}",
-                self.frames(),
-                self.map()
-            )
-        }
-    }
-}
-
-/// Logs the end of one scan (defmt `debug`, or `warn` when registration fell back).
-#[cfg(feature = "defmt")]
-pub(crate) fn scan_done(outcome: &crate::pipeline::ScanOutcome) {
-    use crate::pipeline::RegistrationStatus as S;
-    match outcome.status {
-        S::FirstScan | S::Converged | S::Given => {
-            defmt::debug!("scan {}: {}", outcome.stats.frame, outcome)
-        }
-        _ => defmt::warn!(
-            "scan {}: kept the motion prediction: {}",
-            outcome.stats.frame,
-            outcome
-        ),
-    }
-}
-
-/// Logs a rejected scan.
-#[cfg(feature = "defmt")]
-pub(crate) fn scan_rejected(frame: u32, error: &crate::pipeline::ScanError) {
-    defmt::warn!("scan {} rejected: {}", frame, error);
 }

@@ -6,20 +6,22 @@
 //! pose; [`Pipeline::integrate_scan`] meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
 //! the capacities of `C`; nothing is allocated afterwards.
 
-use crate::associate::AssociateStats;
+use crate::associate::{associate, AssociateStats};
 use crate::bounded::BoundedVec;
 use crate::bucket::{bucket, BucketStats, CellSpan, Placement};
 use crate::capacity::{Capacity, KittiCapacity};
 use crate::cell::CellKey;
 use crate::config::{Config, ConfigError};
+use crate::executor::{Executor, Serial};
 use crate::filter::{filter_and_downsample, FilterStats};
 use crate::fusion::{integrate, FusionStats};
+use crate::layer::ScanLayer;
 use crate::lm::{self, LmError, Residual};
 use crate::map::MeshMap;
 use crate::math::{renormalized, Point, Pose};
 use crate::mesh::{self, Triangle};
 use crate::motion::ConstantVelocity;
-use crate::reconstruct::{CellLoop, Purpose, ScanLayer, Serial};
+use crate::reconstruct::{reconstruct_cells, Purpose};
 use crate::sort::KeySorter;
 use crate::stage::{NoProbe, Probe, Stage};
 use core::fmt;
@@ -201,15 +203,15 @@ impl<C: Capacity> Pipeline<C> {
         self.process_scan_with(points_sensor, &Serial, &mut NoProbe)
     }
 
-    /// [`process_scan`](Self::process_scan) with a given cell loop (e.g. a parallel one),
+    /// [`process_scan`](Self::process_scan) with a given executor (e.g. a parallel one),
     /// telling `probe` the stage boundaries.
     pub fn process_scan_with(
         &mut self,
         points_sensor: &[Point],
-        cells: &impl CellLoop,
+        exec: &impl Executor,
         probe: &mut impl Probe,
     ) -> Result<ScanOutcome, ScanError> {
-        let mut stats = self.begin(points_sensor, cells, probe)?;
+        let mut stats = self.begin(points_sensor, exec, probe)?;
         let mut pose = self.motion.predict();
         let mut status = RegistrationStatus::FirstScan;
         // The last round's reconstruction when it is also the map update's (see
@@ -237,18 +239,19 @@ impl<C: Capacity> Pipeline<C> {
                         half_cells: reach > 0 && r.coarse_half_cells,
                     }
                 };
-                let (b, dropped) = self.reconstruct(&pose, cells, purpose, probe);
+                let (b, dropped) = self.reconstruct(&pose, exec, purpose, probe);
                 stats.dropped_layers += dropped;
                 if purpose == Purpose::Update {
                     for_update = Some((b, pose));
                 }
                 probe.enter(Stage::Associate);
-                stats.associate = cells.associate(
+                stats.associate = associate(
                     &self.scan,
                     &self.map,
                     reach,
                     r.variance_register,
                     &mut self.residuals,
+                    exec,
                 );
                 stats.rounds += 1;
                 probe.enter(Stage::Solve);
@@ -279,7 +282,7 @@ impl<C: Capacity> Pipeline<C> {
         }
         match for_update {
             Some((b, made_at)) => self.move_and_fuse(made_at, pose, b, probe, &mut stats),
-            None => self.finish(pose, cells, probe, &mut stats),
+            None => self.finish(pose, exec, probe, &mut stats),
         }
         let outcome = ScanOutcome {
             t_world_sensor: pose,
@@ -287,7 +290,7 @@ impl<C: Capacity> Pipeline<C> {
             stats,
         };
         #[cfg(feature = "defmt")]
-        crate::log::scan_done(&outcome);
+        log::scan_done(&outcome);
         Ok(outcome)
     }
 
@@ -301,27 +304,27 @@ impl<C: Capacity> Pipeline<C> {
         self.integrate_scan_with(points_sensor, t_world_sensor, &Serial, &mut NoProbe)
     }
 
-    /// [`integrate_scan`](Self::integrate_scan) with a given cell loop and probe.
+    /// [`integrate_scan`](Self::integrate_scan) with a given executor and probe.
     pub fn integrate_scan_with(
         &mut self,
         points_sensor: &[Point],
         t_world_sensor: &Pose,
-        cells: &impl CellLoop,
+        exec: &impl Executor,
         probe: &mut impl Probe,
     ) -> Result<ScanOutcome, ScanError> {
         if !pose_is_finite(t_world_sensor) {
             self.frame = self.frame.saturating_add(1);
             return Err(ScanError::BadPose);
         }
-        let mut stats = self.begin(points_sensor, cells, probe)?;
-        self.finish(*t_world_sensor, cells, probe, &mut stats);
+        let mut stats = self.begin(points_sensor, exec, probe)?;
+        self.finish(*t_world_sensor, exec, probe, &mut stats);
         let outcome = ScanOutcome {
             t_world_sensor: *t_world_sensor,
             status: RegistrationStatus::Given,
             stats,
         };
         #[cfg(feature = "defmt")]
-        crate::log::scan_done(&outcome);
+        log::scan_done(&outcome);
         Ok(outcome)
     }
 
@@ -329,7 +332,7 @@ impl<C: Capacity> Pipeline<C> {
     fn begin(
         &mut self,
         points_sensor: &[Point],
-        cells: &impl CellLoop,
+        exec: &impl Executor,
         probe: &mut impl Probe,
     ) -> Result<ScanStats, ScanError> {
         probe.enter(Stage::Filter);
@@ -342,13 +345,13 @@ impl<C: Capacity> Pipeline<C> {
             &mut self.work,
             &mut self.sorter,
             &mut self.points,
-            cells,
+            exec,
         );
         if filter.kept == 0 {
             probe.enter(Stage::Done);
             let error = ScanError::EmptyScan(filter);
             #[cfg(feature = "defmt")]
-            crate::log::scan_rejected(frame, &error);
+            log::scan_rejected(frame, &error);
             return Err(error);
         }
         Ok(ScanStats {
@@ -362,7 +365,7 @@ impl<C: Capacity> Pipeline<C> {
     fn reconstruct(
         &mut self,
         pose: &Pose,
-        cells: &impl CellLoop,
+        exec: &impl Executor,
         purpose: Purpose,
         probe: &mut impl Probe,
     ) -> (BucketStats, usize) {
@@ -375,17 +378,18 @@ impl<C: Capacity> Pipeline<C> {
             &mut self.work,
             &mut self.sorter,
             &mut self.cells,
-            cells,
+            exec,
         );
         self.scan.clear();
         probe.enter(Stage::Reconstruct);
-        let dropped = cells.run(
+        let dropped = reconstruct_cells(
             &self.cells,
             &self.work,
             &self.map,
             &self.config,
             purpose,
             &mut self.scan,
+            exec,
         );
         (b, dropped)
     }
@@ -394,11 +398,11 @@ impl<C: Capacity> Pipeline<C> {
     fn finish(
         &mut self,
         pose: Pose,
-        cells: &impl CellLoop,
+        exec: &impl Executor,
         probe: &mut impl Probe,
         stats: &mut ScanStats,
     ) {
-        let (b, dropped) = self.reconstruct(&pose, cells, Purpose::Update, probe);
+        let (b, dropped) = self.reconstruct(&pose, exec, Purpose::Update, probe);
         stats.dropped_layers += dropped;
         probe.enter(Stage::Update);
         self.fuse(pose, b, stats);
@@ -441,6 +445,60 @@ fn pose_is_finite(pose: &Pose) -> bool {
         .iter()
         .chain(pose.rotation.coords.iter())
         .all(|v| v.is_finite())
+}
+
+/// defmt: the pipeline's types and the one place the core logs.
+#[cfg(feature = "defmt")]
+mod log {
+    use super::{Pipeline, ScanOutcome};
+    use crate::capacity::Capacity;
+    use crate::log::formats::PoseFmt;
+    use defmt::{write, Format, Formatter};
+
+    impl Format for ScanOutcome {
+        fn format(&self, f: Formatter) {
+            write!(
+                f,
+                "ScanOutcome {{ {}, {}, {} }}",
+                PoseFmt(&self.t_world_sensor),
+                self.status,
+                self.stats
+            )
+        }
+    }
+
+    impl<C: Capacity> Format for Pipeline<C> {
+        fn format(&self, f: Formatter) {
+            write!(
+                f,
+                "Pipeline {{ frames: {}, map: {} }}",
+                self.frames(),
+                self.map()
+            )
+        }
+    }
+
+    /// Logs the end of one scan (defmt `debug`, or `warn` when registration fell back).
+    #[cfg(feature = "defmt")]
+    pub(super) fn scan_done(outcome: &super::ScanOutcome) {
+        use super::RegistrationStatus as S;
+        match outcome.status {
+            S::FirstScan | S::Converged | S::Given => {
+                defmt::debug!("scan {}: {}", outcome.stats.frame, outcome)
+            }
+            _ => defmt::warn!(
+                "scan {}: kept the motion prediction: {}",
+                outcome.stats.frame,
+                outcome
+            ),
+        }
+    }
+
+    /// Logs a rejected scan.
+    #[cfg(feature = "defmt")]
+    pub(super) fn scan_rejected(frame: u32, error: &super::ScanError) {
+        defmt::warn!("scan {} rejected: {}", frame, error);
+    }
 }
 
 #[cfg(test)]

@@ -1,28 +1,19 @@
 //! Reconstruction of one cell: layer choice, then a GP per layer (DESIGN §1.1 step 4).
 //!
 //! [`reconstruct_cell`] is the per-cell unit of work: pure, reading the map only to give a
-//! line-like cell the layers the map already has there. The serial loop lives in the pipeline;
-//! a parallel one (std adapters) calls the same function per cell and must give the same result.
+//! line-like cell the layers the map already has there. [`reconstruct_cells`] runs it over a
+//! scan's cells on an [`Executor`], which gives the same layers whatever its threads.
 
+use crate::bounded::BoundedVec;
+use crate::bucket::CellSpan;
 use crate::cell::{Axis, CellKey};
 use crate::config::Config;
+use crate::executor::Executor;
 use crate::gp::{self, GpScratch};
-use crate::layer::Layer;
+use crate::layer::ScanLayer;
 use crate::map::MeshMap;
 use crate::math::Point;
 use crate::pca::{choose_layers, Shape};
-
-/// A layer reconstructed from the current scan.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ScanLayer {
-    /// Its cell.
-    pub key: CellKey,
-    /// Its axis.
-    pub axis: Axis,
-    /// Its predictions and variances.
-    pub layer: Layer,
-}
 
 /// What a reconstruction is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -102,102 +93,32 @@ pub fn in_checkerboard(key: CellKey) -> bool {
     (key.x ^ key.y ^ key.z) & 1 == 0
 }
 
-/// The loops over a scan's points (filter, bucketing, their sorts), cells (reconstruction) and
-/// layers (association). The pipeline's only pluggable part: a parallel implementation (std
-/// adapters) must produce the same points, layers and residuals in the same order.
-pub trait CellLoop {
-    /// Reconstructs `cells` (spans into `bucketed`) and appends their layers to `out` in cell
-    /// order via [`append_layers`]; returns how many layers did not fit.
-    fn run(
-        &self,
-        cells: &[crate::bucket::CellSpan],
-        bucketed: &[(CellKey, Point)],
-        map: &MeshMap,
-        cfg: &Config,
-        purpose: Purpose,
-        out: &mut crate::bounded::BoundedVec<ScanLayer>,
-    ) -> usize;
-
-    /// Prepares every raw point ([`Preparation::point`](crate::filter::Preparation::point))
-    /// and collects them in input order into `work` ([`crate::filter::collect`]). Serial
-    /// unless overridden.
-    fn prepare_points(
-        &self,
-        raw: &[Point],
-        prep: &crate::filter::Preparation,
-        work: &mut crate::bounded::BoundedVec<(CellKey, Point)>,
-        stats: &mut crate::filter::FilterStats,
-    ) {
-        crate::filter::collect(raw.iter().map(|p| prep.point(p)), work, stats)
-    }
-
-    /// Sorts filter and bucketing entries by key ([`KeySorter::sort`](crate::sort::KeySorter::sort),
-    /// whose order a parallel sort must give exactly). Serial unless overridden.
-    fn sort(
-        &self,
-        sorter: &mut crate::sort::KeySorter,
-        entries: &mut crate::bounded::BoundedVec<crate::sort::Entry>,
-    ) {
-        sorter.sort(entries)
-    }
-
-    /// Places every scan point in its cell ([`Placement::point`](crate::bucket::Placement::point))
-    /// and collects the placed ones in input order into `out` ([`crate::bucket::collect`]).
-    /// Serial unless overridden.
-    fn place_points(
-        &self,
-        points: &[Point],
-        placement: &crate::bucket::Placement,
-        out: &mut crate::bounded::BoundedVec<(CellKey, Point)>,
-    ) {
-        crate::bucket::collect(points.iter().map(|p| placement.point(p)), out)
-    }
-
-    /// Associates every scan layer with the map ([`crate::associate::associate`]), one
-    /// [`Associator::layer`](crate::associate::Associator::layer) per layer, results
-    /// collected in scan order by [`crate::associate::collect`]. Serial unless overridden.
-    fn associate(
-        &self,
-        scan: &[ScanLayer],
-        map: &MeshMap,
-        reach: u32,
-        variance_register: f64,
-        out: &mut crate::bounded::BoundedVec<crate::lm::Residual>,
-    ) -> crate::associate::AssociateStats {
-        crate::associate::associate(scan, map, reach, variance_register, out)
-    }
-}
-
-/// The serial cell loop.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Serial;
-
-impl CellLoop for Serial {
-    fn run(
-        &self,
-        cells: &[crate::bucket::CellSpan],
-        bucketed: &[(CellKey, Point)],
-        map: &MeshMap,
-        cfg: &Config,
-        purpose: Purpose,
-        out: &mut crate::bounded::BoundedVec<ScanLayer>,
-    ) -> usize {
-        let mut scratch = GpScratch::new();
-        cells
-            .iter()
-            .map(|c| {
-                let points = c.points(bucketed);
-                let layers = reconstruct_cell(&mut scratch, points, c.key, map, cfg, purpose);
-                append_layers(out, layers)
-            })
-            .sum()
-    }
+/// Reconstructs `cells` (spans into `bucketed`), one [`reconstruct_cell`] per cell run by
+/// `exec`, and appends their layers to `out` in cell order via [`append_layers`]; returns how
+/// many layers did not fit.
+pub fn reconstruct_cells(
+    cells: &[CellSpan],
+    bucketed: &[(CellKey, Point)],
+    map: &MeshMap,
+    cfg: &Config,
+    purpose: Purpose,
+    out: &mut BoundedVec<ScanLayer>,
+    exec: &impl Executor,
+) -> usize {
+    let mut dropped = 0;
+    exec.map_in_order(
+        cells,
+        GpScratch::new,
+        |scratch, c| reconstruct_cell(scratch, c.points(bucketed), c.key, map, cfg, purpose),
+        |layers| dropped += append_layers(out, layers),
+    );
+    dropped
 }
 
 /// Appends one cell's layers to `out`; layers that do not fit are dropped (the scan keeps its
 /// first cells in key order) and counted in the return value.
 pub fn append_layers(
-    out: &mut crate::bounded::BoundedVec<ScanLayer>,
+    out: &mut BoundedVec<ScanLayer>,
     layers: heapless::Vec<ScanLayer, 3>,
 ) -> usize {
     layers.into_iter().filter(|l| out.push(*l).is_err()).count()
@@ -207,6 +128,7 @@ pub fn append_layers(
 mod tests {
     use super::*;
     use crate::lattice::VERTICES;
+    use crate::layer::Layer;
 
     /// A flat ground patch, cell-local, 20 x 20 points over a 1.6 m cell at height 0.5.
     fn ground() -> heapless::Vec<(CellKey, Point), 400> {

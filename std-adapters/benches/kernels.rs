@@ -12,7 +12,7 @@ use slamesh_core::bounded::BoundedVec;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::gp;
 use slamesh_core::lm;
-use slamesh_core::{Config, Pipeline};
+use slamesh_core::{Config, Pipeline, Serial};
 
 /// A ground layer's points: 20 x 20 over a 1.6 m cell, gently curved, 2 cm noise.
 fn ground_cell() -> Vec<(CellKey, [f32; 3])> {
@@ -64,7 +64,14 @@ fn registration(c: &mut Criterion) {
     let map = pipeline.map();
     let cfg = Config::kitti().register;
     let mut residuals = BoundedVec::with_capacity(layers.len());
-    let stats = associate(&layers, map, 0, cfg.variance_register, &mut residuals);
+    let stats = associate(
+        &layers,
+        map,
+        0,
+        cfg.variance_register,
+        &mut residuals,
+        &Serial,
+    );
     println!(
         "{} scan layers, {} residuals from {} vertex pairs",
         layers.len(),
@@ -79,10 +86,18 @@ fn registration(c: &mut Criterion) {
                 1,
                 cfg.variance_register,
                 &mut residuals,
+                &Serial,
             )
         })
     });
-    associate(&layers, map, 0, cfg.variance_register, &mut residuals);
+    associate(
+        &layers,
+        map,
+        0,
+        cfg.variance_register,
+        &mut residuals,
+        &Serial,
+    );
     c.bench_function("lm/solve (one scan)", |b| {
         b.iter(|| lm::solve(black_box(&residuals), &cfg.lm).unwrap())
     });

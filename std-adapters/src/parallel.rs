@@ -1,28 +1,17 @@
-//! Parallel filter, bucketing, reconstruction and association: the per-point, per-cell and
-//! per-layer loops on a rayon thread pool.
+//! The core's [`Executor`] on a rayon thread pool: a scan's per-point, per-cell and per-layer
+//! loops and its radix sort spread over the pool's threads.
 //!
-//! Only the loops differ from the core's serial [`Serial`](slamesh_core::reconstruct::Serial):
-//! each cell goes through the same [`reconstruct_cell`], and the layers are appended in cell
-//! order by the same [`append_layers`]; each scan layer goes through the same
-//! [`Associator::layer`], collected in scan order by the same [`associate::collect`]; each
-//! raw point through the same [`Preparation::point`], collected in input order by the same
-//! [`filter::collect`]; each scan point through the same [`Placement::point`], in input order
-//! as [`bucket::collect`] keeps them. The radix sort's passes take their plan, digits and
-//! skip rule from the core's [`KeySorter::radix`], [`RadixPlan`](slamesh_core::sort::RadixPlan)
-//! and [`moves_nothing`]; only the parts run at once. All give bit-identical results (tested).
+//! Only how the units are run differs from the core's [`Serial`]: the stages hand the same units
+//! (a point's preparation or placement, a cell's reconstruction, a layer's association) to
+//! [`Executor::map_in_order`] and [`Executor::filter_map_into`], and both hand the results back
+//! in input order. The radix sort's passes take their plan, digits and skip rule from the core's
+//! [`KeySorter::radix`], [`RadixPlan`](slamesh_core::sort::RadixPlan) and [`moves_nothing`];
+//! only the parts run at once. All give bit-identical results (`tests/parallel.rs`).
 
 use rayon::prelude::*;
-use slamesh_core::associate::{self, AssociateStats, Associator};
 use slamesh_core::bounded::BoundedVec;
-use slamesh_core::bucket::{self, CellSpan, Placement};
-use slamesh_core::cell::CellKey;
-use slamesh_core::filter::{self, Dropped, FilterStats, Preparation};
-use slamesh_core::gp::GpScratch;
-use slamesh_core::lm::Residual;
-use slamesh_core::map::MeshMap;
-use slamesh_core::reconstruct::{append_layers, reconstruct_cell, CellLoop, Purpose, ScanLayer};
+use slamesh_core::executor::{Executor, Serial};
 use slamesh_core::sort::{moves_nothing, Entry, Histogram, KeySorter, RADIX};
-use slamesh_core::{Config, Point};
 
 /// Raw points per task of the parallel filter.
 const POINTS_PER_TASK: usize = 8192;
@@ -48,18 +37,43 @@ impl Rayon {
     pub fn threads(&self) -> usize {
         self.pool.current_num_threads()
     }
+}
 
-    /// Appends what `task` keeps of `src` to `dst`, in input order, as a serial loop would.
+impl Executor for Rayon {
+    fn map_in_order<T, S, R>(
+        &self,
+        items: &[T],
+        init: impl Fn() -> S + Sync + Send,
+        unit: impl Fn(&mut S, &T) -> R + Sync + Send,
+        sink: impl FnMut(R),
+    ) where
+        T: Sync,
+        R: Send,
+    {
+        let results: Vec<R> = self
+            .pool
+            .install(|| items.par_iter().map_init(&init, &unit).collect());
+        results.into_iter().for_each(sink);
+    }
+
     /// `src` is cut into tasks of [`POINTS_PER_TASK`]; each task writes its kept items to the
-    /// front of its own stretch of `dst` and returns how many it kept and its counts, and
-    /// the stretches are then closed up in order. `dst` must have room for all of `src`.
-    fn filter_map_in_place<T: Sync, R: Send>(
+    /// front of its own stretch of `dst`, and the stretches are then closed up in order.
+    fn filter_map_into<T, U, R>(
         &self,
         src: &[T],
-        dst: &mut BoundedVec<(CellKey, Point)>,
-        task: impl Fn(&[T], &mut [(CellKey, Point)]) -> (usize, R) + Sync,
-    ) -> Vec<R> {
+        dst: &mut BoundedVec<U>,
+        task: impl Fn(&[T], &mut [U]) -> (usize, R) + Sync + Send,
+        tally: impl FnMut(R),
+    ) -> bool
+    where
+        T: Sync,
+        U: Default + Clone + Send,
+        R: Send,
+    {
         let start = dst.len();
+        if src.len() > dst.capacity() - start {
+            return false;
+        }
         dst.extend_default(start + src.len());
         let per_task: Vec<(usize, R)> = self.pool.install(|| {
             dst[start..]
@@ -68,72 +82,21 @@ impl Rayon {
                 .map(|(d, s)| task(s, d))
                 .collect()
         });
+        // Each task wrote its kept outputs to the front of its chunk: close the gaps, in order
+        // (a slot is written only after the value it held has moved).
         let mut end = start;
-        let mut counts = Vec::with_capacity(per_task.len());
+        let mut tallies = Vec::with_capacity(per_task.len());
         for (k, (kept, r)) in per_task.into_iter().enumerate() {
             let from = start + k * POINTS_PER_TASK;
-            dst.copy_within(from..from + kept, end);
+            for i in 0..kept {
+                dst.swap(end + i, from + i);
+            }
             end += kept;
-            counts.push(r);
+            tallies.push(r);
         }
         dst.truncate(end);
-        counts
-    }
-}
-
-impl CellLoop for Rayon {
-    fn run(
-        &self,
-        cells: &[CellSpan],
-        bucketed: &[(CellKey, Point)],
-        map: &MeshMap,
-        cfg: &Config,
-        purpose: Purpose,
-        out: &mut BoundedVec<ScanLayer>,
-    ) -> usize {
-        let per_cell: Vec<_> = self.pool.install(|| {
-            cells
-                .par_iter()
-                .map_init(GpScratch::new, |scratch, c| {
-                    reconstruct_cell(scratch, c.points(bucketed), c.key, map, cfg, purpose)
-                })
-                .collect()
-        });
-        per_cell
-            .into_iter()
-            .map(|layers| append_layers(out, layers))
-            .sum()
-    }
-
-    fn prepare_points(
-        &self,
-        raw: &[Point],
-        prep: &Preparation,
-        work: &mut BoundedVec<(CellKey, Point)>,
-        stats: &mut FilterStats,
-    ) {
-        if raw.len() > work.capacity() - work.len() {
-            // Some would not fit: the serial loop drops them in input order.
-            return filter::collect(raw.iter().map(|p| prep.point(p)), work, stats);
-        }
-        let per_task = self.filter_map_in_place(raw, work, |src, dst| {
-            let mut s = FilterStats::default();
-            for p in src {
-                match prep.point(p) {
-                    Ok(e) => {
-                        dst[s.kept] = e;
-                        s.kept += 1;
-                    }
-                    Err(Dropped::NonFinite) => s.non_finite += 1,
-                    Err(Dropped::OutOfRange) => s.out_of_range += 1,
-                }
-            }
-            (s.kept, s)
-        });
-        for s in per_task {
-            stats.non_finite += s.non_finite;
-            stats.out_of_range += s.out_of_range;
-        }
+        tallies.into_iter().for_each(tally);
+        true
     }
 
     fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
@@ -189,44 +152,9 @@ impl CellLoop for Rayon {
             std::mem::swap(entries, spare);
         }
     }
-
-    fn place_points(
-        &self,
-        points: &[Point],
-        placement: &Placement,
-        out: &mut BoundedVec<(CellKey, Point)>,
-    ) {
-        if points.len() > out.capacity() - out.len() {
-            // Some would not fit: the serial loop keeps the first ones.
-            return bucket::collect(points.iter().map(|p| placement.point(p)), out);
-        }
-        self.filter_map_in_place(points, out, |src, dst| {
-            let mut kept = 0;
-            for e in src.iter().filter_map(|p| placement.point(p)) {
-                dst[kept] = e;
-                kept += 1;
-            }
-            (kept, ())
-        });
-    }
-
-    fn associate(
-        &self,
-        scan: &[ScanLayer],
-        map: &MeshMap,
-        reach: u32,
-        variance_register: f64,
-        out: &mut BoundedVec<Residual>,
-    ) -> AssociateStats {
-        let a = Associator::new(map, reach, variance_register);
-        let per_layer: Vec<_> = self
-            .pool
-            .install(|| scan.par_iter().map(|s| a.layer(s)).collect());
-        associate::collect(per_layer.into_iter(), out)
-    }
 }
 
-/// The cell loop for a thread count: the core's serial loop for one thread, a rayon pool for
+/// The executor for a thread count: the core's serial loops for one thread, a rayon pool for
 /// more (0: one thread per core).
 #[derive(Debug)]
 pub enum Workers {
@@ -262,67 +190,45 @@ impl Workers {
     }
 }
 
-impl CellLoop for Workers {
-    fn run(
+impl Executor for Workers {
+    fn map_in_order<T, S, R>(
         &self,
-        cells: &[CellSpan],
-        bucketed: &[(CellKey, Point)],
-        map: &MeshMap,
-        cfg: &Config,
-        purpose: Purpose,
-        out: &mut BoundedVec<ScanLayer>,
-    ) -> usize {
+        items: &[T],
+        init: impl Fn() -> S + Sync + Send,
+        unit: impl Fn(&mut S, &T) -> R + Sync + Send,
+        sink: impl FnMut(R),
+    ) where
+        T: Sync,
+        R: Send,
+    {
         match self {
-            Workers::Serial => {
-                slamesh_core::reconstruct::Serial.run(cells, bucketed, map, cfg, purpose, out)
-            }
-            Workers::Pool(r) => r.run(cells, bucketed, map, cfg, purpose, out),
+            Workers::Serial => Serial.map_in_order(items, init, unit, sink),
+            Workers::Pool(r) => r.map_in_order(items, init, unit, sink),
         }
     }
 
-    fn associate(
+    fn filter_map_into<T, U, R>(
         &self,
-        scan: &[ScanLayer],
-        map: &MeshMap,
-        reach: u32,
-        variance_register: f64,
-        out: &mut BoundedVec<Residual>,
-    ) -> AssociateStats {
+        src: &[T],
+        dst: &mut BoundedVec<U>,
+        task: impl Fn(&[T], &mut [U]) -> (usize, R) + Sync + Send,
+        tally: impl FnMut(R),
+    ) -> bool
+    where
+        T: Sync,
+        U: Default + Clone + Send,
+        R: Send,
+    {
         match self {
-            Workers::Serial => associate::associate(scan, map, reach, variance_register, out),
-            Workers::Pool(r) => r.associate(scan, map, reach, variance_register, out),
-        }
-    }
-
-    fn prepare_points(
-        &self,
-        raw: &[Point],
-        prep: &Preparation,
-        work: &mut BoundedVec<(CellKey, Point)>,
-        stats: &mut FilterStats,
-    ) {
-        match self {
-            Workers::Serial => filter::collect(raw.iter().map(|p| prep.point(p)), work, stats),
-            Workers::Pool(r) => r.prepare_points(raw, prep, work, stats),
+            Workers::Serial => Serial.filter_map_into(src, dst, task, tally),
+            Workers::Pool(r) => r.filter_map_into(src, dst, task, tally),
         }
     }
 
     fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
         match self {
-            Workers::Serial => sorter.sort(entries),
+            Workers::Serial => Serial.sort(sorter, entries),
             Workers::Pool(r) => r.sort(sorter, entries),
-        }
-    }
-
-    fn place_points(
-        &self,
-        points: &[Point],
-        placement: &Placement,
-        out: &mut BoundedVec<(CellKey, Point)>,
-    ) {
-        match self {
-            Workers::Serial => bucket::collect(points.iter().map(|p| placement.point(p)), out),
-            Workers::Pool(r) => r.place_points(points, placement, out),
         }
     }
 }

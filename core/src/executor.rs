@@ -1,0 +1,112 @@
+//! [`Executor`]: how a scan's data-parallel loops are run; [`Serial`] runs them in order.
+//!
+//! The pipeline's only pluggable part. The stages (filter, bucketing, reconstruction,
+//! association) express their per-point, per-cell and per-layer work as calls to the three
+//! primitives below; an executor decides only how the units are spread over threads. The std
+//! adapters' rayon pool is one. Whatever the executor, a stage's output must be the same to the
+//! bit: each primitive hands its results back in input order, and the sort orders entries
+//! exactly as [`KeySorter::sort`] does.
+//!
+//! This module sits at the bottom of the core: it knows the bounded buffers and the sorter,
+//! never a stage.
+
+use crate::bounded::BoundedVec;
+use crate::sort::{Entry, KeySorter};
+
+/// Runs the units of a scan's loops. Each default method is the serial loop; an implementation
+/// overrides any of them to spread the units over workers, giving the same result.
+pub trait Executor {
+    /// Maps every item with `unit` and hands the results to `sink` in item order. `init` makes
+    /// the working memory a worker reuses across its items (the result must not depend on it).
+    fn map_in_order<T, S, R>(
+        &self,
+        items: &[T],
+        init: impl Fn() -> S + Sync + Send,
+        unit: impl Fn(&mut S, &T) -> R + Sync + Send,
+        mut sink: impl FnMut(R),
+    ) where
+        T: Sync,
+        R: Send,
+    {
+        let mut scratch = init();
+        for item in items {
+            sink(unit(&mut scratch, item));
+        }
+    }
+
+    /// Appends the outputs of `task` over `src` to `dst`, in input order. `task` gets a run of
+    /// consecutive inputs and as many output slots, writes its kept outputs to the front of
+    /// the slots and returns how many it kept, with a tally that `tally` receives (in input
+    /// order). `dst` must have room for `src.len()` more items; without it nothing is done and
+    /// `false` is returned, so that the caller can fall back to a loop that stops when full.
+    fn filter_map_into<T, U, R>(
+        &self,
+        src: &[T],
+        dst: &mut BoundedVec<U>,
+        task: impl Fn(&[T], &mut [U]) -> (usize, R) + Sync + Send,
+        mut tally: impl FnMut(R),
+    ) -> bool
+    where
+        T: Sync,
+        U: Default + Clone + Send,
+        R: Send,
+    {
+        let start = dst.len();
+        if src.len() > dst.capacity() - start {
+            return false;
+        }
+        dst.extend_default(start + src.len());
+        let (kept, r) = task(src, &mut dst[start..]);
+        dst.truncate(start + kept);
+        tally(r);
+        true
+    }
+
+    /// Sorts filter and bucketing entries by key, in exactly [`KeySorter::sort`]'s order.
+    fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
+        sorter.sort(entries)
+    }
+}
+
+/// The serial loops: every unit in order, on the caller's thread.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Serial;
+
+impl Executor for Serial {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_serial_primitives_keep_input_order_and_refuse_what_does_not_fit() {
+        let mut seen = [0u32; 4];
+        let mut n = 0;
+        Serial.map_in_order(
+            &[3u32, 1, 4, 1],
+            || 10u32,
+            |s, x| *s + x,
+            |r| {
+                seen[n] = r;
+                n += 1;
+            },
+        );
+        assert_eq!(seen, [13, 11, 14, 11]);
+
+        let mut dst = BoundedVec::<u32>::with_capacity(4);
+        let _ = dst.push(7);
+        let mut dropped = 0;
+        let even_only = |src: &[u32], out: &mut [u32]| {
+            let mut kept = 0;
+            for &x in src.iter().filter(|x| *x % 2 == 0) {
+                out[kept] = x;
+                kept += 1;
+            }
+            (kept, src.len() - kept)
+        };
+        assert!(Serial.filter_map_into(&[2, 3, 4], &mut dst, even_only, |d| dropped += d));
+        assert_eq!((&dst[..], dropped), (&[7, 2, 4][..], 1));
+        assert!(!Serial.filter_map_into(&[2, 3], &mut dst, even_only, |_| {}));
+        assert_eq!(&dst[..], &[7, 2, 4]);
+    }
+}
