@@ -9,12 +9,12 @@
 //! the map's cells and layers, the current and the peak resident memory, and at the end the
 //! summary. Outputs go to a temporary folder, removed afterwards.
 
-use slamesh::config_file::WindowSettings;
-use slamesh::mesh_file::MeshFormat;
-use slamesh::session::{run, RunOptions};
-use slamesh::sim::Drive;
-use slamesh::{memory, session::FrameSource};
+use slamesh::io::config_file::WindowSettings;
+use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::run::{memory, FrameSource};
+use slamesh::run::{run, RunOptions};
 use slamesh_core::{Config, KittiCapacity};
+use slamesh_sim::Drive;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

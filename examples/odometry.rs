@@ -5,10 +5,10 @@
 //! Without `--threads` the core's serial loop runs; with it, the rayon loop on N threads.
 //! `--steps` also prints, per step, the reference step length and the step's error.
 
-use slamesh::eval::consecutive_errors;
-use slamesh::kitti;
+use slamesh::eval::odometry::consecutive_errors;
+use slamesh::io::kitti;
+use slamesh::io::scans::ScanFolder;
 use slamesh::parallel::Rayon;
-use slamesh::scans::ScanFolder;
 use slamesh_core::{Config, NoProbe, Pipeline};
 use std::path::Path;
 use std::time::Instant;

@@ -6,9 +6,9 @@
 mod common;
 
 use common::{scratch, slamesh_command, slamesh_run, slamesh_run_ok, write_bin};
-use slamesh::ply::read_ply_mesh;
-use slamesh::session::FrameSource;
-use slamesh::sim::Drive;
+use slamesh::io::ply::read_ply_mesh;
+use slamesh::run::FrameSource;
+use slamesh_sim::Drive;
 use std::path::Path;
 use std::time::{Duration, Instant};
 

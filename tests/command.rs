@@ -4,10 +4,10 @@
 mod common;
 
 use common::{scratch, slamesh_ok, slamesh_run, slamesh_run_ok, write_bin};
-use slamesh::pcd::encode_pcd;
-use slamesh::sim::{sensor_pose, Lidar, Scene};
-use slamesh::trajectory::{self, write_tum_line};
+use slamesh::io::pcd::encode_pcd;
+use slamesh::io::trajectory::{self, write_tum_line};
 use slamesh_core::{Point, Pose};
+use slamesh_sim::{sensor_pose, Lidar, Scene};
 use std::path::Path;
 
 /// True poses and scans of a slow drive down the simulated street (0.3 m a frame).
@@ -178,7 +178,7 @@ fn pcd_and_ply_folders_run_and_mesh_mode_uses_the_given_poses() {
         "--obj",
         "-q",
     ]);
-    let vertices = slamesh::ply::read_ply_points(&out.join("mesh.ply")).unwrap();
+    let vertices = slamesh::io::ply::read_ply_points(&out.join("mesh.ply")).unwrap();
     assert!(vertices.len() > 1000, "{} vertices", vertices.len());
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
@@ -226,7 +226,7 @@ fn bench_times_every_stage_with_a_configuration_file() {
     assert_eq!(b["preset"], "kitti", "{b}");
     assert_eq!(b["threads"], 1);
     assert_eq!(b["scans_timed"], 8, "two passes over four scans: {b}");
-    for stage in slamesh::timing::StageMs::NAMES {
+    for stage in slamesh::run::timing::StageMs::NAMES {
         let s = &b["stages"][stage];
         assert!(s["median_ms"].as_f64().unwrap() >= 0.0, "{stage}: {b}");
         assert!(s["p95_ms"].as_f64().unwrap() >= s["median_ms"].as_f64().unwrap());

@@ -3,9 +3,9 @@
 //! status, or an empty scan) and keep the motion model's pose where the geometry says
 //! nothing, without diverging.
 
-use slamesh::session::FrameSource;
-use slamesh::sim::{sensor_pose, Drive, Lidar, OrientedBox, Scene};
+use slamesh::run::FrameSource;
 use slamesh_core::{Config, KittiCapacity, Pipeline, Pose, RegistrationStatus, ScanError};
+use slamesh_sim::{sensor_pose, Drive, Lidar, OrientedBox, Scene};
 
 fn wall(centre: [f64; 3], half: [f64; 3]) -> OrientedBox {
     OrientedBox {

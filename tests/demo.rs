@@ -2,10 +2,10 @@
 //! output, track, and mesh the town to the mesh targets (F1 at least 0.95 at 0.1 m and 0.99
 //! at 0.3 m against the true surfaces, with the estimated poses).
 
-use slamesh::config_file::WindowSettings;
 use slamesh::demo::run_demo;
-use slamesh::mesh_file::MeshFormat;
-use slamesh::session::RunOptions;
+use slamesh::io::config_file::WindowSettings;
+use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::run::RunOptions;
 use slamesh_core::KittiCapacity;
 
 #[test]
@@ -13,7 +13,7 @@ fn the_first_100_town_frames_write_everything_track_and_reach_the_mesh_targets()
     let out = std::env::temp_dir().join(format!("slamesh-demo-{}", std::process::id()));
     let opts = RunOptions {
         out: out.clone(),
-        config: slamesh::config_file::preset("town").unwrap(),
+        config: slamesh::io::config_file::preset("town").unwrap(),
         preset: "town".into(),
         window: WindowSettings::default(),
         threads: 2,

@@ -9,8 +9,8 @@
 mod common;
 
 use common::{kitti_mini, scratch, slamesh_run_ok};
-use slamesh::eval::consecutive_errors;
-use slamesh::{kitti, trajectory};
+use slamesh::eval::odometry::consecutive_errors;
+use slamesh::io::{kitti, trajectory};
 
 const SEQUENCES: [&str; 5] = ["00", "01", "02", "03", "04"];
 

@@ -6,13 +6,13 @@
 //! - With a memory cap, the map never holds more layers than the cap's budget and the process
 //!   never exceeds the cap.
 
-use slamesh::config_file::WindowSettings;
-use slamesh::memory;
-use slamesh::mesh_file::MeshFormat;
-use slamesh::session::{run, FrameRecord, RunOptions};
-use slamesh::sim::Drive;
-use slamesh::window::Window;
+use slamesh::io::config_file::WindowSettings;
+use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::run::memory;
+use slamesh::run::window::Window;
+use slamesh::run::{run, FrameRecord, RunOptions};
 use slamesh_core::{Capacity, Config};
+use slamesh_sim::Drive;
 
 /// Room for the simulated scans with a small map, so that a cap of a few MB above the fixed
 /// buffers forces eviction.
@@ -29,7 +29,7 @@ fn drive(
     d: &mut Drive,
     window: WindowSettings,
     name: &str,
-) -> (Vec<FrameRecord>, slamesh::session::Summary) {
+) -> (Vec<FrameRecord>, slamesh::run::Summary) {
     let frames = d.poses.len();
     let out = std::env::temp_dir().join(format!("slamesh-memory-{name}-{}", std::process::id()));
     let opts = RunOptions {
@@ -70,7 +70,7 @@ fn the_window_keeps_memory_flat_and_the_cap_holds() {
         "warm-up",
     );
     let other =
-        memory::rss_bytes().unwrap_or(0) as usize + slamesh::session::PROCESS_HEADROOM_BYTES;
+        memory::rss_bytes().unwrap_or(0) as usize + slamesh::run::session::PROCESS_HEADROOM_BYTES;
     let needed = Window::max_layers::<Test>(0, other)
         .unwrap_err()
         .needed_bytes;

@@ -3,8 +3,8 @@
 //! the mesh allocate nothing (counted by a global allocator). One test per binary, so no other
 //! test's allocations are counted.
 
-use slamesh::sim::{sensor_pose, Lidar, Scene};
 use slamesh_core::{Config, KittiCapacity, Pipeline, Pose};
+use slamesh_sim::{sensor_pose, Lidar, Scene};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 

@@ -1,9 +1,9 @@
 //! The serial and parallel cell loops give bit-identical poses and meshes.
 
 use slamesh::parallel::Rayon;
-use slamesh::sim::{sensor_pose, Lidar, Scene};
 use slamesh_core::executor::{Executor, Serial};
 use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose};
+use slamesh_sim::{sensor_pose, Lidar, Scene};
 
 fn run(
     cells: &impl Executor,

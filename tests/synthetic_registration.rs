@@ -1,7 +1,7 @@
 //! Registration against ground truth: a structured synthetic street seen from two poses.
 
-use slamesh::sim::{sensor_pose as pose, Lidar, Scene};
 use slamesh_core::{Config, Pipeline, Pose, RegistrationStatus};
+use slamesh_sim::{sensor_pose as pose, Lidar, Scene};
 
 /// Registers the scan from `second` against the map of the scan from `first` and returns the
 /// translation (m) and rotation (deg) error of the estimated relative pose.

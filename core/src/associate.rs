@@ -1,4 +1,4 @@
-//! Location-indexed association and per-layer residual combination (DESIGN §1.4).
+//! Location-indexed association and per-layer residual combination (docs/design.md §1.4).
 //!
 //! Scan and map vertices sit on the same world lattice, so vertex `j` of a scan layer pairs
 //! with vertex `j` of a map layer of the same axis in the same cell or, with cross-cell reach

@@ -1,4 +1,4 @@
-//! Bucketing a scan into world-fixed cells (DESIGN §1.1 steps 2-3).
+//! Bucketing a scan into world-fixed cells (docs/design.md §1.1 steps 2-3).
 //!
 //! Points are moved into the world by the current pose estimate, keyed by [`CellKey`], stored
 //! cell-local (metres from the cell's minimum corner, so `f32` keeps sub-micrometre precision

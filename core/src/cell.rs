@@ -1,7 +1,7 @@
 //! World-fixed cells: integer keys, axes, and the one copy of the neighbour rule.
 //!
 //! A cell is the axis-aligned cube `[k·s, (k+1)·s)` per axis for edge `s = cell_size`
-//! (DESIGN §1). Keys are `i32` per axis; a point whose key would not fit is rejected by
+//! (docs/design.md §1). Keys are `i32` per axis; a point whose key would not fit is rejected by
 //! [`CellKey::containing`] rather than wrapped.
 
 use crate::math::Vec3;
@@ -107,7 +107,7 @@ impl CellKey {
         }
     }
 
-    /// The cell `steps` cells away along `axis` (`self ± i·e_axis`, DESIGN §1.4), or `None` on
+    /// The cell `steps` cells away along `axis` (`self ± i·e_axis`, docs/design.md §1.4), or `None` on
     /// overflow.
     #[inline]
     pub fn offset(&self, axis: Axis, steps: i32) -> Option<Self> {

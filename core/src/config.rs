@@ -1,6 +1,6 @@
 //! The one [`Config`], made of one struct per stage, with presets and validation.
 //!
-//! Defaults are the KITTI values of the original SLAMesh (DESIGN §1.7) unless a field says
+//! Defaults are the KITTI values of the original SLAMesh (docs/design.md §1.7) unless a field says
 //! otherwise. [`Config::validate`] names the first bad field; the pipeline refuses an invalid
 //! configuration at construction.
 
@@ -11,7 +11,7 @@ use core::fmt;
 /// sizes its candidate list for it).
 pub const MAX_REACH: u32 = 8;
 
-/// Range filter and down-sampling (DESIGN §1.1 step 1).
+/// Range filter and down-sampling (docs/design.md §1.1 step 1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FilterConfig {
@@ -20,12 +20,12 @@ pub struct FilterConfig {
     /// Points farther than this are dropped (metres). Default 100.
     pub range_max_m: f64,
     /// KITTI's vertical-angle calibration error: each point is rotated up by this angle about
-    /// the horizontal axis perpendicular to its azimuth (DESIGN §1.8). Default 0 (off);
+    /// the horizontal axis perpendicular to its azimuth (docs/design.md §1.8). Default 0 (off);
     /// [`Config::kitti`] sets 0.22.
     pub vertical_correction_deg: f64,
 }
 
-/// The world grid of cells and their lattice (DESIGN §1, §1.3).
+/// The world grid of cells and their lattice (docs/design.md §1, §1.3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct GridConfig {
@@ -38,7 +38,7 @@ pub struct GridConfig {
     pub full_cover: bool,
 }
 
-/// Gaussian-process reconstruction (DESIGN §1.3).
+/// Gaussian-process reconstruction (docs/design.md §1.3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct GpConfig {
@@ -48,7 +48,7 @@ pub struct GpConfig {
     pub sensor_noise_m: f64,
 }
 
-/// Levenberg-Marquardt on SE(3) (DESIGN §1.4).
+/// Levenberg-Marquardt on SE(3) (docs/design.md §1.4).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LmConfig {
@@ -69,7 +69,7 @@ pub struct LmConfig {
     pub min_residuals: usize,
 }
 
-/// Scan-to-map registration (DESIGN §1.1 step 5, §1.4, §1.8).
+/// Scan-to-map registration (docs/design.md §1.1 step 5, §1.4, §1.8).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RegisterConfig {
@@ -93,7 +93,7 @@ pub struct RegisterConfig {
     pub lm: LmConfig,
 }
 
-/// Map update (DESIGN §1.5).
+/// Map update (docs/design.md §1.5).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MapConfig {
@@ -102,7 +102,7 @@ pub struct MapConfig {
     pub variance_update: f64,
     /// Add a layer that a known cell lacks (the original never does). Default `true`.
     pub add_missing_layers: bool,
-    /// Reconstruct the scan again at its final pose before fusing it (DESIGN §1.1 step 6).
+    /// Reconstruct the scan again at its final pose before fusing it (docs/design.md §1.1 step 6).
     /// `false` fuses the last registration round's reconstruction instead, moved to the final
     /// pose to first order ([`Layer::moved`](crate::layer::Layer::moved)): that saves a
     /// bucketing and the costliest of the scan's reconstructions, about a quarter of a KITTI
@@ -110,7 +110,7 @@ pub struct MapConfig {
     pub reconstruct_at_final_pose: bool,
 }
 
-/// Mesh export (DESIGN §1.6).
+/// Mesh export (docs/design.md §1.6).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MeshConfig {
@@ -144,7 +144,7 @@ pub struct Config {
 }
 
 impl Default for Config {
-    /// The original's KITTI values (DESIGN §1.7), without the KITTI calibration correction.
+    /// The original's KITTI values (docs/design.md §1.7), without the KITTI calibration correction.
     fn default() -> Self {
         Self {
             filter: FilterConfig {
@@ -198,7 +198,7 @@ impl Config {
     }
 
     /// Meshing: lattice on the cell faces (no gaps), lower point threshold, wider cross-cell
-    /// reach, only confident triangles shown (DESIGN §1.7).
+    /// reach, only confident triangles shown (docs/design.md §1.7).
     pub fn meshing() -> Self {
         let mut c = Self::default();
         c.grid.min_points = 5;

@@ -1,4 +1,4 @@
-//! Range filter, KITTI vertical-angle correction and voxel down-sampling (DESIGN §1.1 step 1).
+//! Range filter, KITTI vertical-angle correction and voxel down-sampling (docs/design.md §1.1 step 1).
 //!
 //! Owns no memory: it fills the caller's buffers. Drop rules: non-finite points and points
 //! outside `[range_min, range_max]` are dropped; when the work buffer is full, further input
@@ -27,7 +27,7 @@ pub struct FilterStats {
     pub kept: usize,
 }
 
-/// KITTI's vertical-angle correction (IMLS-SLAM, CT-ICP; DESIGN §1.8): each point is rotated
+/// KITTI's vertical-angle correction (IMLS-SLAM, CT-ICP; docs/design.md §1.8): each point is rotated
 /// up by a fixed angle about the horizontal axis perpendicular to its azimuth. The angle's
 /// sine and cosine are computed once, not per point.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,4 +1,4 @@
-//! Map update by inverse-variance fusion of 1-D predictions (DESIGN §1.5).
+//! Map update by inverse-variance fusion of 1-D predictions (docs/design.md §1.5).
 //!
 //! Vertex locations are fixed, so fusing a scan into the map is fusing, per vertex, two
 //! scalar estimates. New cells are inserted; a layer a known cell lacks is added when

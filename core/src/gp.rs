@@ -1,4 +1,4 @@
-//! Gaussian-process reconstruction of one layer on its fixed lattice (DESIGN §1.3).
+//! Gaussian-process reconstruction of one layer on its fixed lattice (docs/design.md §1.3).
 //!
 //! Training data: the cell's points binned on the `6 x 6` grid of the layer's location axes,
 //! one per bin (the one closest to the bin centre), so at most 36. Kernel
@@ -6,7 +6,7 @@
 //! `f* = m(u*) + k*ᵀ (K + σ_n² I)⁻¹ (f - m(u))`, `σ*² = 1 - k*ᵀ (K + σ_n² I)⁻¹ k*`.
 //!
 //! The mean `m` is the least-squares plane through the samples (the constant mean when the
-//! samples do not span a plane). DESIGN §1.3 subtracts the constant mean of the targets; with
+//! samples do not span a plane). docs/design.md §1.3 subtracts the constant mean of the targets; with
 //! the rough exponential kernel that makes the GP fall back towards the mean between and
 //! beyond samples, which bends slopes at the cell faces (see
 //! `reproduces_plane_slope_and_curved_surface_within_5mm`). A plane mean is exact on planes

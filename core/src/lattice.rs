@@ -1,4 +1,4 @@
-//! The fixed `n x n` vertex lattice of a layer (DESIGN §1.3).
+//! The fixed `n x n` vertex lattice of a layer (docs/design.md §1.3).
 //!
 //! A layer along axis `d` has its vertices at fixed locations `(a_i, b_j)` in the cell's two
 //! location axes; only the coordinate along `d` (the *prediction*) is estimated. Vertex

@@ -53,7 +53,7 @@ impl Layer {
 
     /// The surface normal at vertex `j`: the mean of the cross products of consecutive edges
     /// to its usable 4-neighbours (variance below `max_var`, edge shorter than a cell),
-    /// normalised, oriented along `+axis` (DESIGN §1.4). `None` when no pair of edges is usable.
+    /// normalised, oriented along `+axis` (docs/design.md §1.4). `None` when no pair of edges is usable.
     pub fn normal(
         &self,
         lattice: &LatticeTable,
@@ -146,7 +146,7 @@ impl Layer {
     }
 
     /// The lattice's triangles as vertex-index triples, counter-clockwise seen from `+axis`:
-    /// 5 x 5 quads, two triangles each, kept when `shown` accepts them (DESIGN §1.6, plus the
+    /// 5 x 5 quads, two triangles each, kept when `shown` accepts them (docs/design.md §1.6, plus the
     /// slope rule of [`crate::config::MeshConfig::max_slope_deg`]).
     pub fn triangles<'a>(
         &'a self,

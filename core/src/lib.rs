@@ -4,7 +4,7 @@
 //! LiDAR odometry that localizes against the triangle mesh it builds.
 //!
 //! A scan goes through the stages below, one module each; [`pipeline`] composes them and holds
-//! no math of its own (DESIGN §1.1):
+//! no math of its own (docs/design.md §1.1):
 //!
 //! | stage | module |
 //! |---|---|
@@ -61,6 +61,7 @@ pub mod mesh;
 pub mod motion;
 pub mod pca;
 pub mod pipeline;
+pub mod random;
 pub mod reconstruct;
 pub mod sort;
 pub mod stage;

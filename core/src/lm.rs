@@ -1,4 +1,4 @@
-//! Levenberg-Marquardt on SE(3) for point-to-plane residuals (DESIGN §1.4).
+//! Levenberg-Marquardt on SE(3) for point-to-plane residuals (docs/design.md §1.4).
 //!
 //! Residual `e = nᵀ (R p + t - q)` of a correction `T = (R, t)` applied on the left. The
 //! perturbation turns about the centroid `c` of the scan points, `T ← C exp(δ) C⁻¹ T` with

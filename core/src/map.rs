@@ -1,4 +1,4 @@
-//! The mesh map: world-fixed cells, each with up to three layers (DESIGN §1.5).
+//! The mesh map: world-fixed cells, each with up to three layers (docs/design.md §1.5).
 //!
 //! Owns its memory, all allocated once by [`MeshMap::with_capacity`]:
 //! - a hash table from [`CellKey`] to [`MapCell`], made for [`MAP_TABLE_FACTOR`] times the

@@ -2,7 +2,7 @@
 //!
 //! Poses are [`Pose`] (`Isometry3<f64>`), named by frames: `t_world_sensor` maps sensor-frame
 //! points into the world. Points are stored as `f32` ([`Point`]); all estimation math is `f64`.
-//! Tangent vectors of SE(3) are ordered `(ω, ρ)`: rotation first, as in DESIGN §1.4.
+//! Tangent vectors of SE(3) are ordered `(ω, ρ)`: rotation first, as in docs/design.md §1.4.
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6};
 

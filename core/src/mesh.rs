@@ -1,4 +1,4 @@
-//! Triangles of the map, without allocation (DESIGN §1.6).
+//! Triangles of the map, without allocation (docs/design.md §1.6).
 //!
 //! Each layer's lattice gives 5 x 5 quads, two triangles each, kept when the mean variance of
 //! their vertices is below `variance_show` and they are no steeper than `max_slope_deg`

@@ -1,4 +1,4 @@
-//! Constant-velocity pose prediction (DESIGN §1.1 step 2).
+//! Constant-velocity pose prediction (docs/design.md §1.1 step 2).
 //!
 //! Predicts `T_k = T_{k-1} · (T_{k-2}⁻¹ · T_{k-1})`: the last motion, expressed in the sensor
 //! frame, repeated (constant body velocity, right for a turning vehicle). With fewer than two

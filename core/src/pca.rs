@@ -1,4 +1,4 @@
-//! Layer choice by principal component analysis of a cell's points (DESIGN §1.2).
+//! Layer choice by principal component analysis of a cell's points (docs/design.md §1.2).
 //!
 //! Decides how many surface layers a cell gets and along which axes. Stack only; never panics
 //! (an eigen-decomposition that does not converge gives [`Shape::Unclear`]).
@@ -10,7 +10,7 @@ use nalgebra::SymmetricEigen;
 
 /// λ3/λ2 above this is line-like: points along one line, less than 1/30 as wide as long.
 ///
-/// DESIGN §1.2 (the original) draws the line at 48, which also refuses a pole, a fence post
+/// docs/design.md §1.2 (the original) draws the line at 48, which also refuses a pole, a fence post
 /// or the single scan ring that crosses a distant ground cell: measured on the simulated
 /// town's first 100 frames, such cells held most of what the mesh missed (recall at 0.3 m
 /// 0.971 with 48, 0.986 with 1000; precision rose too), and KITTI odometry was unchanged

@@ -1,4 +1,4 @@
-//! The pipeline: composes the stages for each scan (DESIGN §1.1). Holds no math of its own.
+//! The pipeline: composes the stages for each scan (docs/design.md §1.1). Holds no math of its own.
 //!
 //! Per scan: filter → predict → (bucket → reconstruct → associate → LM) × rounds → bucket →
 //! reconstruct → fuse; or, without `MapConfig::reconstruct_at_final_pose`, the last round's

@@ -1,4 +1,4 @@
-//! Reconstruction of one cell: layer choice, then a GP per layer (DESIGN §1.1 step 4).
+//! Reconstruction of one cell: layer choice, then a GP per layer (docs/design.md §1.1 step 4).
 //!
 //! [`reconstruct_cell`] is the per-cell unit of work: pure, reading the map only to give a
 //! line-like cell the layers the map already has there. [`reconstruct_cells`] runs it over a

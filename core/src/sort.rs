@@ -1,4 +1,4 @@
-//! Sorting entries by [`CellKey`] in linear time (filter and bucketing, DESIGN §1.1 steps 1, 3).
+//! Sorting entries by [`CellKey`] in linear time (filter and bucketing, docs/design.md §1.1 steps 1, 3).
 //!
 //! The keys of one scan lie in a small box (a 100 m range spans about 750 voxels of 0.27 m or
 //! 125 cells of 1.6 m along each axis), so a key measured from the box's minimum corner packs

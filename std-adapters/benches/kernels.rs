@@ -6,13 +6,13 @@
 //! registration round.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use slamesh::sim::{Drive, SplitMix64};
 use slamesh_core::associate::associate;
 use slamesh_core::bounded::BoundedVec;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::gp;
 use slamesh_core::lm;
 use slamesh_core::{Config, Pipeline, Serial};
+use slamesh_sim::{Drive, SplitMix64};
 
 /// A ground layer's points: 20 x 20 over a 1.6 m cell, gently curved, 2 cm noise.
 fn ground_cell() -> Vec<(CellKey, [f32; 3])> {

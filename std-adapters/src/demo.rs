@@ -1,17 +1,17 @@
 //! The demo: a simulated drive through the procedural town, SLAM on it, and its accuracy
 //! against the truth, with every output of `run` plus the true trajectory and a picture.
 
-use crate::eval::{
+use crate::eval::mesh::{self as mesh_eval, MeshScore};
+use crate::eval::odometry::{
     ate_rmse, consecutive_errors, end_drift, path_length, segment_errors, ConsecutiveErrors,
     SegmentError, KITTI_SEGMENTS,
 };
-use crate::mesh_eval::{self, MeshScore};
-use crate::session::{run, FrameRecord, RunError, RunOptions, Summary};
-use crate::sim::Drive;
-use crate::topview::TopView;
-use crate::trajectory::write_kitti_line;
-use crate::{atomic::write_atomic, ply};
+use crate::io::topview::TopView;
+use crate::io::trajectory::write_kitti_line;
+use crate::io::{atomic::write_atomic, ply};
+use crate::run::{run, FrameRecord, RunError, RunOptions, Summary};
 use slamesh_core::{Capacity, Pose};
+use slamesh_sim::{Drive, SurfaceDistance};
 
 /// What the demo measured.
 #[derive(Debug, Clone)]
@@ -78,7 +78,7 @@ pub fn run_demo<C: Capacity>(
     let triangles = mesh.triangle_corners();
     let samples = mesh_eval::sample_triangles(triangles.clone(), 0.05, seed);
     // Precision: exact distances to the true surfaces; recall: the true hits covered.
-    let truth_distance = crate::sim::SurfaceDistance::new(&drive.scene);
+    let truth_distance = SurfaceDistance::new(&drive.scene);
     let d_mesh: Vec<f64> = samples
         .iter()
         .map(|p| {

@@ -1,5 +1,4 @@
-//! The mesh on disk: binary little-endian PLY with shared (indexed) vertices and a per-vertex
-//! `variance` property, or OBJ.
+//! The mesh on its way to disk.
 //!
 //! A [`MeshSpool`] collects layers as they come (cells evicted from a sliding-window map, then
 //! the map at the end) into two spool files next to the output, so that memory stays flat
@@ -8,20 +7,20 @@
 //! written. Neighbouring cells predict their face vertices independently, so vertices are not
 //! merged across layers.
 
-use crate::atomic::write_atomic;
-use crate::file_error::FileError;
+use crate::io::atomic::write_atomic;
+use crate::io::error::FileError;
 use slamesh_core::config::MeshConfig;
 use slamesh_core::lattice::{Lattice, LatticeTable, VERTICES};
 use slamesh_core::layer::Shown;
 use slamesh_core::map::{LayerRef, MeshMap};
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 /// Bytes of a spooled vertex: x, y, z, variance as little-endian `f32` (a PLY vertex record).
-const VERTEX_BYTES: usize = 16;
+pub const VERTEX_BYTES: usize = 16;
 /// Bytes of a spooled face: a `u8` 3 and three little-endian `u32` (a PLY face record).
-const FACE_BYTES: usize = 13;
+pub const FACE_BYTES: usize = 13;
 
 /// Mesh file formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -87,7 +86,7 @@ impl MeshSpool {
             let file = match keep_bytes {
                 None => File::create(p)
                     .map_err(|e| FileError::at(p, format!("cannot create spool file: {e}")))?,
-                Some(bytes) => crate::atomic::open_cut(p, bytes)?,
+                Some(bytes) => crate::io::atomic::open_cut(p, bytes)?,
             };
             Ok::<_, FileError>(BufWriter::new(file))
         };
@@ -174,54 +173,21 @@ impl MeshSpool {
             let mut vertices = BufReader::new(File::open(&paths[0])?);
             let mut faces = BufReader::new(File::open(&paths[1])?);
             match format {
-                MeshFormat::Ply => {
-                    write!(
-                        w,
-                        "ply\nformat binary_little_endian 1.0\ncomment slamesh mesh\n\
-                         element vertex {}\nproperty float x\nproperty float y\n\
-                         property float z\nproperty float variance\nelement face {}\n\
-                         property list uchar uint vertex_indices\nend_header\n",
-                        counts.vertices, counts.triangles
-                    )?;
-                    std::io::copy(&mut vertices, w)?;
-                    std::io::copy(&mut faces, w)?;
-                }
-                MeshFormat::Obj => {
-                    writeln!(
-                        w,
-                        "# slamesh mesh: {} vertices, {} triangles",
-                        counts.vertices, counts.triangles
-                    )?;
-                    let mut rec = [0u8; VERTEX_BYTES];
-                    for _ in 0..counts.vertices {
-                        vertices.read_exact(&mut rec)?;
-                        let f = |c: usize| {
-                            f32::from_le_bytes([
-                                rec[4 * c],
-                                rec[4 * c + 1],
-                                rec[4 * c + 2],
-                                rec[4 * c + 3],
-                            ])
-                        };
-                        writeln!(w, "v {} {} {}", f(0), f(1), f(2))?;
-                    }
-                    let mut rec = [0u8; FACE_BYTES];
-                    for _ in 0..counts.triangles {
-                        faces.read_exact(&mut rec)?;
-                        let i = |k: usize| {
-                            u32::from_le_bytes([
-                                rec[1 + 4 * k],
-                                rec[2 + 4 * k],
-                                rec[3 + 4 * k],
-                                rec[4 + 4 * k],
-                            ]) as u64
-                                + 1
-                        };
-                        writeln!(w, "f {} {} {}", i(0), i(1), i(2))?;
-                    }
-                }
+                MeshFormat::Ply => crate::io::ply::write_mesh_records(
+                    w,
+                    &mut vertices,
+                    &mut faces,
+                    counts.vertices,
+                    counts.triangles,
+                ),
+                MeshFormat::Obj => crate::io::obj::write_mesh_records(
+                    w,
+                    &mut vertices,
+                    &mut faces,
+                    counts.vertices,
+                    counts.triangles,
+                ),
             }
-            Ok(())
         })
     }
 }
@@ -237,7 +203,7 @@ impl Drop for MeshSpool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ply::read_ply_points;
+    use crate::io::ply::read_ply_points;
     use slamesh_core::cell::{Axis, CellKey};
     use slamesh_core::layer::Layer;
 
@@ -283,7 +249,7 @@ mod tests {
             if format == MeshFormat::Ply {
                 let pts = read_ply_points(&target).unwrap();
                 assert_eq!(pts.len(), 36);
-                let mesh = crate::ply::read_ply_mesh(&target).unwrap();
+                let mesh = crate::io::ply::read_ply_mesh(&target).unwrap();
                 assert_eq!((mesh.vertices.len(), mesh.triangles.len()), (36, 50));
                 assert!(pts.iter().all(|p| (p[2] - 0.5).abs() < 1e-6));
                 // The variance is the last float of each vertex record.

@@ -15,8 +15,8 @@
 //! Errors name the file, and the line or the parameter, and the reason; the assembled
 //! configuration is checked with [`Config::validate`].
 
-use crate::file_error::FileError;
-use crate::window::Window;
+use crate::io::error::FileError;
+use crate::run::window::Window;
 use slamesh_core::Config;
 use std::fmt::Write as _;
 use std::path::Path;

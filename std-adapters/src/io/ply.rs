@@ -1,12 +1,17 @@
-//! PLY point clouds: the `x`, `y`, `z` properties of the `vertex` element, in `ascii`,
-//! `binary_little_endian` or `binary_big_endian` files (any numeric property type). Elements
-//! before `vertex` are skipped when their records have a fixed size. Faces, if present, are
-//! ignored. Errors name the file, the header line where it applies, and the reason.
+//! PLY, read and written.
 //!
-//! Meshes are written by [`crate::mesh_file`].
+//! Reading: point clouds from the `x`, `y`, `z` properties of the `vertex` element, in `ascii`,
+//! `binary_little_endian` or `binary_big_endian` files (any numeric property type); elements
+//! before `vertex` are skipped when their records have a fixed size; meshes (vertices and
+//! triangle faces) for evaluation. Errors name the file, the header line where it applies,
+//! and the reason.
+//!
+//! Writing: point clouds ([`write_points`]) and the run's mesh from its spool
+//! ([`write_mesh_records`]: binary little-endian, a per-vertex `variance`).
 
-use crate::file_error::FileError;
+use crate::io::error::FileError;
 use slamesh_core::Point;
+use std::io::{Read, Write};
 use std::path::Path;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -256,7 +261,7 @@ pub fn parse_ply_points(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileErr
 
 /// Writes `points` as a binary little-endian PLY point cloud (atomically).
 pub fn write_points(path: &Path, points: &[Point]) -> Result<(), FileError> {
-    crate::atomic::write_atomic(path, |w| {
+    crate::io::atomic::write_atomic(path, |w| {
         use std::io::Write;
         write!(
             w,
@@ -379,6 +384,29 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
         ));
     }
     Ok(mesh)
+}
+
+/// Writes a binary little-endian PLY mesh from spooled records ([`crate::io::mesh_spool`]):
+/// `vertex_count` vertex records (x, y, z, variance as little-endian `f32`) and
+/// `triangle_count` face records (a `u8` 3 and three little-endian `u32`), which are PLY's own
+/// binary records, copied after the header.
+pub fn write_mesh_records(
+    w: &mut impl Write,
+    vertices: &mut impl Read,
+    faces: &mut impl Read,
+    vertex_count: u64,
+    triangle_count: u64,
+) -> std::io::Result<()> {
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment slamesh mesh\n\
+         element vertex {vertex_count}\nproperty float x\nproperty float y\n\
+         property float z\nproperty float variance\nelement face {triangle_count}\n\
+         property list uchar uint vertex_indices\nend_header\n"
+    )?;
+    std::io::copy(vertices, w)?;
+    std::io::copy(faces, w)?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Trajectories on disk: KITTI (12 numbers a line, row-major `[R | t]`) and TUM
 //! (`timestamp tx ty tz qx qy qz qw`). Reading detects the format from the first pose line.
 
-use crate::file_error::FileError;
+use crate::io::error::FileError;
 use nalgebra::{Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
 use slamesh_core::Pose;
 use std::io::Write;

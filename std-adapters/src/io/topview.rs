@@ -1,8 +1,8 @@
 //! A picture of the mesh from above: triangles rasterised top-down, coloured by height and
 //! shaded by slope, with trajectories drawn over it; written as PNG.
 
-use crate::atomic::write_atomic;
-use crate::file_error::FileError;
+use crate::io::atomic::write_atomic;
+use crate::io::error::FileError;
 use slamesh_core::{Point, Pose};
 use std::path::Path;
 

@@ -14,10 +14,10 @@
 //! The encoding is little-endian and versioned; every read is checked, so a damaged file is
 //! a [`FileError`] naming it, never a panic.
 
-use crate::atomic::write_atomic;
-use crate::file_error::FileError;
-use crate::mesh_file::MeshCounts;
-use crate::timing::StageMs;
+use crate::io::atomic::write_atomic;
+use crate::io::error::FileError;
+use crate::io::mesh_spool::MeshCounts;
+use crate::run::timing::StageMs;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::lattice::VERTICES;
@@ -64,6 +64,23 @@ pub struct Progress {
 }
 
 impl Progress {
+    /// The progress of a run that has not begun, identified by `fingerprint`.
+    pub fn new(fingerprint: String) -> Self {
+        Progress {
+            fingerprint,
+            next_frame: 0,
+            pipeline_frames: 0,
+            motion: (None, None),
+            poses: Vec::new(),
+            skipped: Vec::new(),
+            evicted_cells: 0,
+            used_ms: Vec::new(),
+            seconds: 0.0,
+            report_bytes: 0,
+            mesh: MeshCounts::default(),
+        }
+    }
+
     /// The motion model this progress had.
     pub fn motion_model(&self) -> ConstantVelocity {
         ConstantVelocity::from_history(self.motion.0, self.motion.1)

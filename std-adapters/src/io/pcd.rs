@@ -2,8 +2,8 @@
 //! `binary_compressed` data. Reads the `x`, `y`, `z` fields (any numeric type); other fields
 //! are skipped. Errors name the file, the header line where it applies, and the reason.
 
-use crate::file_error::FileError;
-use crate::lzf;
+use crate::io::error::FileError;
+use crate::io::lzf;
 use slamesh_core::Point;
 use std::path::Path;
 

@@ -6,8 +6,9 @@
 //! shelters on the sidewalks. The route is a loop around the middle blocks with rounded
 //! corners, about 1.1 km, driven from standstill with speed changes (slower in the corners).
 
-use crate::sim::{OrientedBox, Scene, Sphere, SplitMix64, Terrain};
+use crate::scene::{OrientedBox, Scene, Sphere, Terrain};
 use nalgebra::{Translation3, UnitQuaternion};
+use slamesh_core::random::SplitMix64;
 use slamesh_core::Pose;
 
 /// Distance between street centre lines (metres).

@@ -2,7 +2,7 @@
 //! it, flush it to disk, then rename it over the target. A failed or interrupted write leaves
 //! the previous file (if any) in place and removes the temporary.
 
-use crate::file_error::FileError;
+use crate::io::error::FileError;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

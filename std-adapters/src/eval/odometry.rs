@@ -1,4 +1,4 @@
-//! Odometry error metrics against reference poses (DESIGN §3): consecutive-frame errors,
+//! Odometry error metrics against reference poses (docs/design.md §3): consecutive-frame errors,
 //! end-point drift, ATE after rigid alignment, and KITTI's segment errors.
 
 use nalgebra::{Matrix3, Vector3};

@@ -4,8 +4,8 @@
 //! A KITTI sequence folder may be given instead of its `velodyne/` folder. A sequence folder
 //! with a `times.txt` (KITTI) gives the frames' timestamps; otherwise frames are 0.1 s apart.
 
-use crate::file_error::FileError;
-use crate::{kitti, pcd, ply};
+use crate::io::error::FileError;
+use crate::io::{kitti, pcd, ply};
 use slamesh_core::Point;
 use std::cmp::Ordering;
 use std::path::{Path, PathBuf};

@@ -1,20 +1,8 @@
-//! A small ray-casting LiDAR simulator: scenes of oriented boxes over a ground plane, seen by
-//! a spinning multi-beam scanner. Deterministic (no noise unless asked, seeded when asked).
-//!
-//! Used by tests with ground truth: the true sensor pose of every scan is known exactly.
+//! The simulated world: oriented boxes and spheres over a ground plane with optional relief,
+//! and the ray casting that finds the nearest surface along a ray. Deterministic.
 
-use crate::file_error::FileError;
-use crate::session::FrameSource;
-use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
-use slamesh_core::{Point, Pose};
-
-/// A level sensor pose: position (metres) and heading about z (degrees).
-pub fn sensor_pose(x: f64, y: f64, z: f64, yaw_deg: f64) -> Pose {
-    Pose::from_parts(
-        Translation3::new(x, y, z),
-        UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()),
-    )
-}
+use nalgebra::Vector3;
+use slamesh_core::random::SplitMix64;
 
 /// A box with a yaw about z: centre, half extents along its own axes, yaw in radians.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -166,105 +154,13 @@ impl Scene {
     }
 }
 
-/// A small deterministic random generator (SplitMix64).
-#[derive(Debug, Clone)]
-pub struct SplitMix64(pub u64);
-
-impl SplitMix64 {
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn next_f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[lo, hi)`.
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next_f64()
-    }
-}
-
-/// The distance from points to the true surfaces of a [`Scene`], for exact mesh precision:
-/// boxes and spheres are found through a 2D grid of 8 m cells; the ground distance is
-/// measured vertically (exact to within the slope's cosine, under 0.1 % here).
-pub struct SurfaceDistance<'a> {
-    scene: &'a Scene,
-    cells: std::collections::HashMap<(i64, i64), Vec<u32>>,
-}
-
-/// Cell size of [`SurfaceDistance`]'s grid (metres).
-const DISTANCE_CELL_M: f64 = 8.0;
-
-impl<'a> SurfaceDistance<'a> {
-    /// Indexes the objects of `scene`.
-    pub fn new(scene: &'a Scene) -> Self {
-        let mut cells: std::collections::HashMap<(i64, i64), Vec<u32>> =
-            std::collections::HashMap::new();
-        let mut add = |id: u32, c: [f64; 3], r: f64| {
-            let lo = ((c[0] - r) / DISTANCE_CELL_M).floor() as i64 - 1;
-            let hi = ((c[0] + r) / DISTANCE_CELL_M).floor() as i64 + 1;
-            let lo_y = ((c[1] - r) / DISTANCE_CELL_M).floor() as i64 - 1;
-            let hi_y = ((c[1] + r) / DISTANCE_CELL_M).floor() as i64 + 1;
-            for i in lo..=hi {
-                for j in lo_y..=hi_y {
-                    cells.entry((i, j)).or_default().push(id);
-                }
-            }
-        };
-        for (k, b) in scene.boxes.iter().enumerate() {
-            add(k as u32, b.centre, b.half[0].hypot(b.half[1]));
-        }
-        for (k, sp) in scene.spheres.iter().enumerate() {
-            add((scene.boxes.len() + k) as u32, sp.centre, sp.radius);
-        }
-        SurfaceDistance { scene, cells }
-    }
-
-    /// Distance from `p` to the nearest true surface; objects more than 8 m away are not
-    /// considered (the ground always is).
-    pub fn distance(&self, p: &Vector3<f64>) -> f64 {
-        let mut best = (p.z - self.scene.ground_height(p.x, p.y)).abs();
-        let key = (
-            (p.x / DISTANCE_CELL_M).floor() as i64,
-            (p.y / DISTANCE_CELL_M).floor() as i64,
-        );
-        for &id in self.cells.get(&key).map(Vec::as_slice).unwrap_or(&[]) {
-            let id = id as usize;
-            let d = match self.scene.boxes.get(id) {
-                Some(b) => {
-                    let (s, c) = (-b.yaw).sin_cos();
-                    let (ox, oy) = (p.x - b.centre[0], p.y - b.centre[1]);
-                    let local = [c * ox - s * oy, s * ox + c * oy, p.z - b.centre[2]];
-                    let q: Vec<f64> = (0..3).map(|k| local[k].abs() - b.half[k]).collect();
-                    let outside = q.iter().map(|v| v.max(0.0).powi(2)).sum::<f64>().sqrt();
-                    let inside = q.iter().copied().fold(f64::NEG_INFINITY, f64::max).min(0.0);
-                    outside + inside.abs()
-                }
-                None => match self.scene.spheres.get(id - self.scene.boxes.len()) {
-                    Some(sp) => ((p - Vector3::from(sp.centre)).norm() - sp.radius).abs(),
-                    None => f64::INFINITY,
-                },
-            };
-            best = best.min(d);
-        }
-        best
-    }
-}
-
 /// Azimuth sectors of a [`Prepared`] scene.
 const SECTORS: usize = 720;
 
 /// A scene made ready for many rays from one place: objects out of reach dropped, box
 /// rotations computed once, and each object listed in the azimuth sectors it covers as seen
 /// from the origin, so that a ray tests only the objects of its sector.
-struct Prepared {
+pub(crate) struct Prepared {
     ground_z: f64,
     terrain: Option<Terrain>,
     /// Centre, half extents, cos and sin of `-yaw`.
@@ -276,7 +172,7 @@ struct Prepared {
 
 impl Prepared {
     /// The objects of `scene` that can be hit within `reach` of `origin`.
-    fn new(scene: &Scene, origin: &Vector3<f64>, reach: f64) -> Self {
+    pub(crate) fn new(scene: &Scene, origin: &Vector3<f64>, reach: f64) -> Self {
         let mut sectors = vec![Vec::new(); SECTORS];
         let mut list = |id: u32, centre: [f64; 3], radius_xy: f64| {
             let (dx, dy) = (centre[0] - origin.x, centre[1] - origin.y);
@@ -352,7 +248,12 @@ impl Prepared {
         None
     }
 
-    fn cast(&self, origin: &Vector3<f64>, dir: &Vector3<f64>, max_range: f64) -> Option<f64> {
+    pub(crate) fn cast(
+        &self,
+        origin: &Vector3<f64>,
+        dir: &Vector3<f64>,
+        max_range: f64,
+    ) -> Option<f64> {
         let mut best = max_range;
         let mut hit = false;
         if let Some(s) = self.ground(origin, dir, best) {
@@ -417,165 +318,6 @@ fn hit_sphere(sp: &Sphere, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Option<
     }
     let s = -b - disc.sqrt();
     (s > 0.0).then_some(s)
-}
-
-/// A spinning multi-beam LiDAR.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Lidar {
-    /// Number of beams, evenly spread between the two elevations.
-    pub beams: usize,
-    /// Lowest beam elevation (degrees).
-    pub elevation_min_deg: f64,
-    /// Highest beam elevation (degrees).
-    pub elevation_max_deg: f64,
-    /// Firings per revolution.
-    pub azimuth_steps: usize,
-    /// Maximum range (metres).
-    pub max_range_m: f64,
-}
-
-impl Lidar {
-    /// An HDL-64E-like scanner: 64 beams from -24.8 to +2 degrees.
-    pub fn hdl64(azimuth_steps: usize) -> Self {
-        Lidar {
-            beams: 64,
-            elevation_min_deg: -24.8,
-            elevation_max_deg: 2.0,
-            azimuth_steps,
-            max_range_m: 100.0,
-        }
-    }
-
-    /// One noise-free scan of `scene` from `t_world_sensor`, in the sensor frame.
-    pub fn scan(&self, scene: &Scene, t_world_sensor: &Pose) -> Vec<Point> {
-        let origin = t_world_sensor.translation.vector;
-        let scene = Prepared::new(scene, &origin, self.max_range_m);
-        let mut out = Vec::with_capacity(self.beams * self.azimuth_steps);
-        for beam in 0..self.beams {
-            let f = if self.beams > 1 {
-                beam as f64 / (self.beams - 1) as f64
-            } else {
-                0.0
-            };
-            let el = (self.elevation_min_deg
-                + f * (self.elevation_max_deg - self.elevation_min_deg))
-                .to_radians();
-            for step in 0..self.azimuth_steps {
-                let az = std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
-                let dir_s = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
-                let dir_w = t_world_sensor.rotation * dir_s;
-                if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
-                    let p = Point3::from(dir_s * range);
-                    out.push([p.x as f32, p.y as f32, p.z as f32]);
-                }
-            }
-        }
-        out
-    }
-}
-
-/// A simulated drive: the scans a [`Lidar`] sees along `poses` through `scene`, with Gaussian
-/// range noise, made on demand (a [`FrameSource`], so long runs need no disk).
-#[derive(Debug, Clone)]
-pub struct Drive {
-    /// The world.
-    pub scene: Scene,
-    /// The scanner.
-    pub lidar: Lidar,
-    /// True sensor poses, one per frame.
-    pub poses: Vec<Pose>,
-    /// Standard deviation of the range noise (metres).
-    pub noise_m: f64,
-    /// Share of returns lost (0 to 1).
-    pub dropout: f64,
-    /// Seed of the noise and dropouts (frame `i` uses `seed + i`).
-    pub seed: u64,
-}
-
-impl Drive {
-    /// `frames` frames down [`Scene::long_street`] at `step_m` a frame, weaving gently across
-    /// the lane and turning with it; HDL-64-like scans (1 000 firings a turn, 80 m), 2 cm noise.
-    pub fn long_street(frames: usize, step_m: f64, seed: u64) -> Self {
-        let length = frames as f64 * step_m;
-        let poses = (0..frames)
-            .map(|i| {
-                let x = i as f64 * step_m;
-                let (y, slope) = (1.2 * (x / 40.0).sin(), 1.2 / 40.0 * (x / 40.0).cos());
-                sensor_pose(x, y, 1.73, slope.atan().to_degrees())
-            })
-            .collect();
-        let mut lidar = Lidar::hdl64(1000);
-        lidar.max_range_m = 80.0;
-        Drive {
-            scene: Scene::long_street(length, seed),
-            lidar,
-            poses,
-            noise_m: 0.02,
-            dropout: 0.0,
-            seed,
-        }
-    }
-
-    /// Up to `frames` frames (at most once round, about 1 200) of the loop through
-    /// [`crate::town`]'s town: HDL-64-like scans (1 000 firings a turn, 80 m), 2 cm range
-    /// noise, 5 % dropouts.
-    pub fn town(frames: usize, seed: u64) -> Self {
-        let scene = crate::town::scene(seed);
-        let poses = crate::town::drive_poses(&scene, frames);
-        let mut lidar = Lidar::hdl64(1000);
-        lidar.max_range_m = 80.0;
-        Drive {
-            scene,
-            lidar,
-            poses,
-            noise_m: 0.02,
-            dropout: 0.05,
-            seed,
-        }
-    }
-
-    /// The noise-free, complete scan of frame `i` in the world frame: samples of the true
-    /// surfaces where the sensor saw them (a reference for mesh accuracy).
-    pub fn true_points(&self, i: usize) -> Vec<Point> {
-        let pose = &self.poses[i];
-        self.lidar
-            .scan(&self.scene, pose)
-            .into_iter()
-            .map(|p| {
-                let w = pose * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-                [w.x as f32, w.y as f32, w.z as f32]
-            })
-            .collect()
-    }
-}
-
-impl FrameSource for Drive {
-    fn frames(&self) -> usize {
-        self.poses.len()
-    }
-    fn label(&self, i: usize) -> String {
-        format!("simulated frame {i}")
-    }
-    fn stamp(&self, i: usize) -> f64 {
-        i as f64 * 0.1
-    }
-    fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
-        let mut rng = SplitMix64(self.seed.wrapping_add(i as u64));
-        let mut points = self.lidar.scan(&self.scene, &self.poses[i]);
-        if self.dropout > 0.0 {
-            let dropout = self.dropout;
-            points.retain(|_| rng.next_f64() >= dropout);
-        }
-        for p in &mut points {
-            // Box-Muller: one Gaussian sample along the ray.
-            let (u, v) = (rng.next_f64().max(1e-12), rng.next_f64());
-            let n = self.noise_m * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
-            let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() as f64;
-            let k = ((r + n) / r) as f32;
-            *p = p.map(|c| c * k);
-        }
-        Ok(points)
-    }
 }
 
 #[cfg(test)]
@@ -682,34 +424,5 @@ mod tests {
                 }
             }
         }
-    }
-
-    #[test]
-    fn distances_to_the_true_surfaces() {
-        let scene = Scene {
-            terrain: None,
-            boxes: vec![OrientedBox {
-                centre: [10.0, 0.0, 2.0],
-                half: [1.0, 2.0, 2.0],
-                yaw: 0.0,
-            }],
-            spheres: vec![Sphere {
-                centre: [0.0, 10.0, 5.0],
-                radius: 1.0,
-            }],
-            ground_z: 0.0,
-        };
-        let d = SurfaceDistance::new(&scene);
-        let at = |x: f64, y: f64, z: f64| d.distance(&Vector3::new(x, y, z));
-        assert!((at(0.0, 0.0, 0.3) - 0.3).abs() < 1e-12, "above the ground");
-        assert!(
-            (at(8.5, 0.0, 2.0) - 0.5).abs() < 1e-12,
-            "in front of the box"
-        );
-        assert!(
-            (at(10.0, 0.0, 3.5) - 0.5).abs() < 1e-12,
-            "inside, under the top"
-        );
-        assert!((at(0.0, 10.0, 6.5) - 0.5).abs() < 1e-12, "above the sphere");
     }
 }

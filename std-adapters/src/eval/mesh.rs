@@ -3,8 +3,8 @@
 //! of the mesh samples) and their F-score, at several distances (the SLAMesh paper used
 //! 0.3 m). Also builds a reference from scans and their reference poses.
 
-use crate::sim::SplitMix64;
 use nalgebra::Vector3;
+use slamesh_core::random::SplitMix64;
 use slamesh_core::{Point, Pose};
 use voxel_index::VoxelIndex;
 

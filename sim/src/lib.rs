@@ -1,0 +1,26 @@
+//! # slamesh-sim
+//!
+//! A small ray-casting LiDAR simulator with ground truth, for slamesh's demo, tests and
+//! benchmarks; not part of the library a robot links. Deterministic: the same seed gives the
+//! same scene, poses and scans.
+//!
+//! | what | module |
+//! |---|---|
+//! | the world: boxes, spheres, ground relief; ray casting | [`scene`] |
+//! | a spinning multi-beam scanner | [`lidar`] |
+//! | true poses and the noisy scans along them | [`drive`] |
+//! | a procedural town and its loop | [`town`] |
+//! | the exact distance to the true surfaces (mesh precision) | [`truth`] |
+#![deny(missing_docs)]
+
+pub mod drive;
+pub mod lidar;
+pub mod scene;
+pub mod town;
+pub mod truth;
+
+pub use drive::{sensor_pose, Drive};
+pub use lidar::Lidar;
+pub use scene::{OrientedBox, Scene, Sphere, Terrain};
+pub use slamesh_core::random::SplitMix64;
+pub use truth::SurfaceDistance;

@@ -1,0 +1,60 @@
+//! A spinning multi-beam LiDAR that casts its rays into a [`Scene`].
+
+use crate::scene::{Prepared, Scene};
+use nalgebra::{Point3, Vector3};
+use slamesh_core::{Point, Pose};
+
+/// A spinning multi-beam LiDAR.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lidar {
+    /// Number of beams, evenly spread between the two elevations.
+    pub beams: usize,
+    /// Lowest beam elevation (degrees).
+    pub elevation_min_deg: f64,
+    /// Highest beam elevation (degrees).
+    pub elevation_max_deg: f64,
+    /// Firings per revolution.
+    pub azimuth_steps: usize,
+    /// Maximum range (metres).
+    pub max_range_m: f64,
+}
+
+impl Lidar {
+    /// An HDL-64E-like scanner: 64 beams from -24.8 to +2 degrees.
+    pub fn hdl64(azimuth_steps: usize) -> Self {
+        Lidar {
+            beams: 64,
+            elevation_min_deg: -24.8,
+            elevation_max_deg: 2.0,
+            azimuth_steps,
+            max_range_m: 100.0,
+        }
+    }
+
+    /// One noise-free scan of `scene` from `t_world_sensor`, in the sensor frame.
+    pub fn scan(&self, scene: &Scene, t_world_sensor: &Pose) -> Vec<Point> {
+        let origin = t_world_sensor.translation.vector;
+        let scene = Prepared::new(scene, &origin, self.max_range_m);
+        let mut out = Vec::with_capacity(self.beams * self.azimuth_steps);
+        for beam in 0..self.beams {
+            let f = if self.beams > 1 {
+                beam as f64 / (self.beams - 1) as f64
+            } else {
+                0.0
+            };
+            let el = (self.elevation_min_deg
+                + f * (self.elevation_max_deg - self.elevation_min_deg))
+                .to_radians();
+            for step in 0..self.azimuth_steps {
+                let az = std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
+                let dir_s = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                let dir_w = t_world_sensor.rotation * dir_s;
+                if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
+                    let p = Point3::from(dir_s * range);
+                    out.push([p.x as f32, p.y as f32, p.z as f32]);
+                }
+            }
+        }
+        out
+    }
+}

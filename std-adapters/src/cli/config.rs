@@ -1,0 +1,22 @@
+//! `slamesh config`: print a configuration file with every parameter and its documentation.
+
+use crate::say;
+use clap::Args;
+use slamesh::io::config_file::{self, PRESETS};
+
+/// `slamesh config`'s arguments.
+#[derive(Args, Debug)]
+pub struct ConfigArgs {
+    /// The preset to print.
+    #[arg(long, default_value = "default", value_parser = PRESETS)]
+    pub preset: String,
+}
+
+/// Prints the preset as a documented TOML file.
+pub fn config(args: &ConfigArgs) {
+    let c = config_file::preset(&args.preset).unwrap_or_default();
+    say!(
+        "{}",
+        config_file::documented_toml(&c, &args.preset).trim_end()
+    );
+}

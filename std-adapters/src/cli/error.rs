@@ -1,0 +1,76 @@
+//! [`CliError`]: why a subcommand failed, with the error of the layer that failed kept whole.
+
+use slamesh::io::FileError;
+use slamesh::run::RunError;
+use std::fmt;
+
+/// Why a subcommand failed.
+#[derive(Debug)]
+pub enum CliError {
+    /// A file could not be read or written (it names the file, line and reason).
+    File(FileError),
+    /// A run could not start or finish.
+    Run(RunError),
+    /// A flag's value is out of its range.
+    BadFlag {
+        /// The flag, e.g. `--memory-cap`.
+        flag: &'static str,
+        /// What is wrong with its value.
+        reason: String,
+    },
+    /// `eval` was given no complete mode.
+    NoEvalMode,
+    /// Fewer reference poses than scans.
+    TooFewPoses {
+        /// The sequence.
+        sequence: String,
+        /// Reference poses found.
+        poses: usize,
+        /// Scans found.
+        scans: usize,
+    },
+    /// The run ended without a single usable frame.
+    NoFrameUsed,
+}
+
+impl fmt::Display for CliError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CliError::File(e) => write!(f, "{e}"),
+            CliError::Run(e) => write!(f, "{e}"),
+            CliError::BadFlag { flag, reason } => write!(f, "{flag}: {reason}"),
+            CliError::NoEvalMode => write!(
+                f,
+                "eval: give --estimate and --reference, --mesh and --cloud, or --build-reference"
+            ),
+            CliError::TooFewPoses {
+                sequence,
+                poses,
+                scans,
+            } => write!(f, "{sequence}: {poses} reference poses for {scans} scans"),
+            CliError::NoFrameUsed => write!(f, "no frame could be used"),
+        }
+    }
+}
+
+impl std::error::Error for CliError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            CliError::File(e) => Some(e),
+            CliError::Run(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<FileError> for CliError {
+    fn from(e: FileError) -> Self {
+        CliError::File(e)
+    }
+}
+
+impl From<RunError> for CliError {
+    fn from(e: RunError) -> Self {
+        CliError::Run(e)
+    }
+}

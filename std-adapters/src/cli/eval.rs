@@ -1,0 +1,227 @@
+//! `slamesh eval`: how far a trajectory or a mesh is from a reference, and building a reference
+//! cloud from a KITTI sequence. Each mode has its own flags; several can run in one call.
+
+use crate::cli::error::CliError;
+use crate::cli::run::read_given_poses;
+use crate::say;
+use clap::Args;
+use slamesh::eval::mesh as mesh_eval;
+use slamesh::eval::odometry::{self as eval, consecutive_errors};
+use slamesh::io::scans::{read_scan, ScanFolder};
+use slamesh::io::{kitti, ply, trajectory};
+use std::path::{Path, PathBuf};
+
+/// `slamesh eval`'s arguments.
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// The estimated trajectory (KITTI or TUM format, e.g. <run dir>/poses_kitti.txt).
+    #[arg(long, requires = "reference")]
+    pub estimate: Option<PathBuf>,
+    /// Reference poses: a trajectory file, or a KITTI sequence folder (poses.txt and
+    /// calib.txt, turned into LiDAR poses).
+    #[arg(long, requires = "estimate")]
+    pub reference: Option<PathBuf>,
+    /// A mesh (PLY) to score against --cloud: precision, recall and F1 at 0.1, 0.2, 0.3 m.
+    #[arg(long, requires = "cloud")]
+    pub mesh: Option<PathBuf>,
+    /// The reference point cloud for --mesh (PLY, PCD or KITTI .bin, world frame).
+    #[arg(long, requires = "mesh")]
+    pub cloud: Option<PathBuf>,
+    /// Build a reference cloud from a KITTI sequence (its scans at its reference poses,
+    /// one point per 5 cm, ranges 1.2-100 m) and write it to FILE.ply.
+    #[arg(long, value_names = ["KITTI_SEQUENCE", "FILE"], num_args = 2)]
+    pub build_reference: Option<Vec<PathBuf>>,
+    /// KITTI calib.txt for a reference file of camera poses.
+    #[arg(long)]
+    pub calib: Option<PathBuf>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One thing `eval` does.
+enum Mode<'a> {
+    BuildReference {
+        sequence: &'a Path,
+        out: &'a Path,
+    },
+    Trajectory {
+        estimate: &'a Path,
+        reference: &'a Path,
+    },
+    Mesh {
+        mesh: &'a Path,
+        cloud: &'a Path,
+    },
+}
+
+impl EvalArgs {
+    /// The modes the flags ask for, in the order they run (clap has paired the flags).
+    fn modes(&self) -> Vec<Mode<'_>> {
+        let mut modes = Vec::new();
+        if let Some([sequence, out]) = self.build_reference.as_deref() {
+            modes.push(Mode::BuildReference { sequence, out });
+        }
+        if let (Some(estimate), Some(reference)) = (&self.estimate, &self.reference) {
+            modes.push(Mode::Trajectory {
+                estimate,
+                reference,
+            });
+        }
+        if let (Some(mesh), Some(cloud)) = (&self.mesh, &self.cloud) {
+            modes.push(Mode::Mesh { mesh, cloud });
+        }
+        modes
+    }
+}
+
+/// Runs every mode the flags ask for; none is an error.
+pub fn eval(args: &EvalArgs) -> Result<(), CliError> {
+    let modes = args.modes();
+    if modes.is_empty() {
+        return Err(CliError::NoEvalMode);
+    }
+    for mode in modes {
+        match mode {
+            Mode::BuildReference { sequence, out } => build_reference(sequence, out)?,
+            Mode::Trajectory {
+                estimate,
+                reference,
+            } => trajectory_errors(estimate, reference, args.calib.as_deref(), args.json)?,
+            Mode::Mesh { mesh, cloud } => mesh_scores(mesh, cloud, args.json)?,
+        }
+    }
+    Ok(())
+}
+
+fn trajectory_errors(
+    estimate: &Path,
+    reference: &Path,
+    calib: Option<&Path>,
+    json: bool,
+) -> Result<(), CliError> {
+    let est = trajectory::read(estimate)?.poses;
+    let reference = if reference.is_dir() {
+        kitti::reference_lidar_poses(reference)
+    } else {
+        read_given_poses(reference, calib)
+    }?;
+    if est.len() != reference.len() {
+        eprintln!(
+            "slamesh: warning: {} estimated poses, {} reference poses; comparing the first {}",
+            est.len(),
+            reference.len(),
+            est.len().min(reference.len())
+        );
+    }
+    let e = consecutive_errors(&est, &reference);
+    let n = est.len().min(reference.len());
+    let path_m = eval::path_length(&reference[..n]);
+    let (end_m, drift_percent) = eval::end_drift(&est, &reference);
+    let ate = eval::ate_rmse(&est, &reference);
+    let segments = eval::segment_errors(&est, &reference, &eval::KITTI_SEGMENTS);
+    if json {
+        say!(
+            "{}",
+            serde_json::json!({
+                "pairs": e.pairs,
+                "mean_translation_m": e.mean_translation_m,
+                "max_translation_m": e.max_translation_m,
+                "mean_rotation_deg": e.mean_rotation_deg,
+                "path_m": path_m,
+                "end_error_m": end_m,
+                "end_drift_percent": drift_percent,
+                "ate_rmse_m": ate,
+                "segments": segments.iter().map(|s| serde_json::json!({
+                    "length_m": s.length_m,
+                    "translation_percent": s.translation_percent,
+                    "rotation_deg_per_100m": s.rotation_deg_per_100m,
+                    "segments": s.segments,
+                })).collect::<Vec<_>>(),
+            })
+        );
+    } else {
+        say!("frame pairs:                 {}", e.pairs);
+        say!(
+            "consecutive translation:     mean {:.2} cm, max {:.2} cm",
+            e.mean_translation_m * 100.0,
+            e.max_translation_m * 100.0
+        );
+        say!(
+            "consecutive rotation:        mean {:.4} deg",
+            e.mean_rotation_deg
+        );
+        say!(
+            "end-point error:             {:.3} m over {:.1} m ({:.3} %)",
+            end_m,
+            path_m,
+            drift_percent
+        );
+        say!("ATE (rigidly aligned):       {:.3} m RMSE", ate);
+        for s in &segments {
+            say!(
+                "{:>4.0} m segments:             {:.3} % translation, {:.4} deg/100 m ({} segments)",
+                s.length_m,
+                s.translation_percent,
+                s.rotation_deg_per_100m,
+                s.segments
+            );
+        }
+    }
+    Ok(())
+}
+
+fn mesh_scores(mesh: &Path, cloud: &Path, json: bool) -> Result<(), CliError> {
+    let m = ply::read_ply_mesh(mesh)?;
+    let reference = read_scan(cloud)?;
+    let triangles = m.triangle_corners();
+    let samples = mesh_eval::sample_triangles(triangles, 0.05, 1);
+    let scores = mesh_eval::score(&samples, &reference, &mesh_eval::THRESHOLDS);
+    if json {
+        say!("{}", serde_json::to_string(&scores).unwrap_or_default());
+    } else {
+        say!(
+            "mesh: {} triangles, {} samples (5 cm apart); reference: {} points",
+            m.triangles.len(),
+            samples.len(),
+            reference.len()
+        );
+        for s in &scores {
+            say!(
+                "at {:.1} m: precision {:.3}, recall {:.3}, F1 {:.3}",
+                s.threshold_m,
+                s.precision,
+                s.recall,
+                s.f1
+            );
+        }
+    }
+    Ok(())
+}
+
+fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
+    let scans = ScanFolder::open(sequence)?;
+    let poses = kitti::reference_lidar_poses(&kitti::sequence_folder(sequence))?;
+    if poses.len() < scans.paths.len() {
+        return Err(CliError::TooFewPoses {
+            sequence: sequence.display().to_string(),
+            poses: poses.len(),
+            scans: scans.paths.len(),
+        });
+    }
+    let mut frames = Vec::new();
+    for (path, pose) in scans.paths.iter().zip(&poses) {
+        match read_scan(path) {
+            Ok(points) => frames.push((points, *pose)),
+            Err(e) => eprintln!("slamesh: skipped: {e}"),
+        }
+    }
+    let cloud = mesh_eval::accumulate(frames, 0.05, 1.2, 100.0);
+    ply::write_points(out, &cloud)?;
+    say!(
+        "wrote {} reference points to {}",
+        cloud.len(),
+        out.display()
+    );
+    Ok(())
+}

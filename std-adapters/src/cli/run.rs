@@ -1,0 +1,172 @@
+//! `slamesh run` (estimate poses, build the mesh) and `slamesh mesh` (build it at given poses).
+
+use crate::cli::error::CliError;
+use crate::cli::progress;
+use crate::cli::settings::{Profile, WindowFlags};
+use crate::say;
+use clap::Args;
+use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::io::scans::ScanFolder;
+use slamesh::io::{kitti, trajectory, FileError};
+use slamesh::run::{run, FrameSource, RunOptions, Summary};
+use slamesh_core::{KittiCapacity, Pose};
+use std::path::{Path, PathBuf};
+
+/// `slamesh run`'s arguments (and most of `slamesh mesh`'s).
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// A folder of scans (.bin, .pcd or .ply, read in natural order), a KITTI sequence folder,
+    /// or one scan file.
+    pub input: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub profile: Profile,
+    /// Reconstruction threads (1: serial; 0: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Also write mesh.obj.
+    #[arg(long)]
+    pub obj: bool,
+    #[command(flatten)]
+    pub window: WindowFlags,
+    /// Save a checkpoint (the map and the run so far, `checkpoint.bin` in the output folder)
+    /// after every N frames, so that a killed run can be resumed.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub checkpoint_every: Option<u32>,
+    /// Continue a killed run from the checkpoint in its output folder (same input and
+    /// settings); it loses at most the frames after the last checkpoint.
+    #[arg(long)]
+    pub resume: bool,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// `slamesh mesh`'s arguments.
+#[derive(Args, Debug)]
+pub struct MeshArgs {
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// LiDAR poses, one per frame (KITTI or TUM format).
+    #[arg(long)]
+    pub poses: PathBuf,
+    /// KITTI calib.txt: the poses are camera poses (KITTI poses.txt); turn them into
+    /// LiDAR poses with its Tr.
+    #[arg(long)]
+    pub calib: Option<PathBuf>,
+}
+
+/// Meshes at the given poses (preset `meshing` unless told otherwise).
+pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
+    let poses = read_given_poses(&args.poses, args.calib.as_deref())?;
+    run_with(&args.run, "meshing", Some(poses))
+}
+
+/// Estimates the poses and builds the mesh (preset `default` unless told otherwise).
+pub fn run_command(args: &RunArgs) -> Result<(), CliError> {
+    run_with(args, "default", None)
+}
+
+fn run_with(
+    args: &RunArgs,
+    default_preset: &str,
+    given: Option<Vec<Pose>>,
+) -> Result<(), CliError> {
+    let mut s = args.profile.resolve(default_preset)?;
+    args.window.apply(&mut s.window)?;
+    let mut source = ScanFolder::open(&args.input)?;
+    if let Some(p) = &given {
+        if p.len() < source.frames() {
+            eprintln!(
+                "slamesh: warning: {} poses for {} frames; frames without a pose are skipped",
+                p.len(),
+                source.frames()
+            );
+        }
+    }
+    let mut mesh_formats = vec![MeshFormat::Ply];
+    if args.obj {
+        mesh_formats.push(MeshFormat::Obj);
+    }
+    let opts = RunOptions {
+        out: args.out.clone(),
+        config: s.config,
+        preset: s.preset.to_string(),
+        window: s.window,
+        threads: args.threads,
+        mesh_formats,
+        given_poses: given,
+        input: args.input.display().to_string(),
+        checkpoint_every: args.checkpoint_every.map(|n| n as usize),
+        resume: args.resume,
+    };
+    let bar = progress(source.frames(), args.quiet);
+    eprintln!(
+        "slamesh: {} frames from {} (preset {}), output in {}",
+        source.frames(),
+        args.input.display(),
+        s.preset,
+        args.out.display()
+    );
+    let summary = run::<KittiCapacity>(&mut source, &opts, |rec| {
+        if let Some(e) = &rec.error {
+            bar.suspend(|| eprintln!("slamesh: skipped: {e}"));
+        }
+        bar.set_message(format!(
+            "{} ms, {} MB",
+            rec.ms.total.round(),
+            rec.rss_mb.unwrap_or(0.0).round()
+        ));
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    print_summary(&summary, &args.out);
+    if summary.used == 0 {
+        return Err(CliError::NoFrameUsed);
+    }
+    Ok(())
+}
+
+/// The closing lines of a run: frames, speed, mesh, memory, files.
+pub fn print_summary(s: &Summary, out: &Path) {
+    let median = |name: &str| {
+        s.stage_ms
+            .iter()
+            .find(|(n, _)| n == name)
+            .map_or(0.0, |(_, m)| m.median)
+    };
+    say!(
+        "slamesh: {} frames ({} used, {} skipped) in {:.1} s, {:.1} Hz, median {:.1} ms a frame on {} thread(s)",
+        s.frames,
+        s.used,
+        s.skipped.len(),
+        s.seconds,
+        s.hz,
+        median("total"),
+        s.threads
+    );
+    say!(
+        "slamesh: mesh {} triangles, {} vertices; map {} cells, {} evicted; peak memory {}",
+        s.mesh_triangles,
+        s.mesh_vertices,
+        s.map_cells,
+        s.evicted_cells,
+        s.peak_rss_mb
+            .map_or("unknown".into(), |m| format!("{m:.0} MB"))
+    );
+    say!(
+        "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json",
+        out.display()
+    );
+}
+
+/// LiDAR poses from a trajectory file; with `calib`, KITTI camera poses turned into LiDAR ones.
+pub fn read_given_poses(path: &Path, calib: Option<&Path>) -> Result<Vec<Pose>, FileError> {
+    let poses = trajectory::read(path)?.poses;
+    Ok(match calib {
+        Some(c) => kitti::lidar_poses(&poses, &kitti::read_calib_tr(c)?),
+        None => poses,
+    })
+}

@@ -1,0 +1,32 @@
+//! Readers and writers, one module per format; a format's reader and writer live together.
+//! Every error names the file (and the line or record where it applies) and the reason
+//! ([`FileError`]); every output is written to a temporary name and renamed ([`atomic`]).
+//!
+//! | what | module |
+//! |---|---|
+//! | errors naming the file, line and reason | [`error`] |
+//! | write-then-rename | [`atomic`] |
+//! | scan inputs: folders of scans in natural order, or one file | [`scans`] |
+//! | KITTI `.bin` scans and `calib.txt` | [`kitti`] |
+//! | PCD point clouds (with [`lzf`] for `binary_compressed`) | [`pcd`] |
+//! | PLY point clouds and meshes, read and written | [`ply`] |
+//! | OBJ meshes, written | [`obj`] |
+//! | the run's mesh on its way to disk | [`mesh_spool`] |
+//! | trajectories, KITTI and TUM | [`trajectory`] |
+//! | TOML configuration files | [`config_file`] |
+//! | a picture of the mesh from above (PNG) | [`topview`] |
+
+pub mod atomic;
+pub mod config_file;
+pub mod error;
+pub mod kitti;
+pub mod lzf;
+pub mod mesh_spool;
+pub mod obj;
+pub mod pcd;
+pub mod ply;
+pub mod scans;
+pub mod topview;
+pub mod trajectory;
+
+pub use error::FileError;

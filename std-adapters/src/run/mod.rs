@@ -1,0 +1,23 @@
+//! A run: frames in, poses and a mesh out, with everything the command writes and the rules
+//! that keep a long run small.
+//!
+//! | what | module |
+//! |---|---|
+//! | where frames come from | [`source`] |
+//! | the run loop: start or resume, a step per frame, finish | [`session`] |
+//! | the per-frame records, the summary, `report.json` and the trajectories | [`report`] |
+//! | time per stage | [`timing`] |
+//! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
+//! | saving and resuming a killed run | [`checkpoint`] |
+
+pub mod checkpoint;
+pub mod memory;
+pub mod report;
+pub mod session;
+pub mod source;
+pub mod timing;
+pub mod window;
+
+pub use report::{FrameRecord, Summary};
+pub use session::{run, Run, RunError, RunOptions};
+pub use source::FrameSource;

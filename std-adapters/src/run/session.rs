@@ -1,0 +1,442 @@
+//! One run of the pipeline over a sequence of frames, with everything the command writes:
+//! trajectories (KITTI and TUM), the mesh, and `report.json`.
+//!
+//! [`run`] (or a [`Run`], step by step) reads each frame from a [`FrameSource`], estimates its pose (or takes a given one),
+//! extracts the mesh of the cells it updated, applies the sliding window, and records timings,
+//! counts and memory. A frame that cannot be read or used is reported (its file, index and
+//! reason) and skipped; the run goes on. Outputs are written at the end, each to a temporary
+//! name then renamed; evicted cells are spooled to disk as they leave, so memory stays flat.
+//!
+//! Checkpoints: with `checkpoint_every`, the map and the run's totals are saved every so many
+//! frames; with `resume`, a killed run continues from its last checkpoint and ends with the
+//! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
+
+use crate::io::atomic::open_cut;
+use crate::io::config_file::WindowSettings;
+use crate::io::error::FileError;
+use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
+use crate::parallel::Workers;
+use crate::run::checkpoint::{self, Progress};
+use crate::run::memory;
+use crate::run::report::{spreads, write_report, write_trajectories, FrameRecord, Summary};
+use crate::run::source::FrameSource;
+use crate::run::timing::{StageMs, StageTimer};
+use crate::run::window::Window;
+use slamesh_core::layer::Shown;
+use slamesh_core::{Capacity, Config, Pipeline, Pose};
+use std::fmt;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How to run. The default is the default configuration, one thread per core, no mesh file,
+/// no window, no checkpoints.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Output folder (created if missing).
+    pub out: PathBuf,
+    /// Pipeline configuration.
+    pub config: Config,
+    /// Name of the preset it came from (for the report).
+    pub preset: String,
+    /// Sliding-window eviction.
+    pub window: WindowSettings,
+    /// Reconstruction threads (1: serial; 0: one per core).
+    pub threads: usize,
+    /// Mesh files to write (`mesh.ply`, `mesh.obj`; none: no mesh file).
+    pub mesh_formats: Vec<MeshFormat>,
+    /// Poses to mesh with instead of estimating them (meshing only), one per frame.
+    pub given_poses: Option<Vec<Pose>>,
+    /// What the input was (for the report).
+    pub input: String,
+    /// Write a checkpoint after every this many frames ([`crate::run::checkpoint`]).
+    pub checkpoint_every: Option<usize>,
+    /// Continue from the checkpoint in `out` instead of starting over.
+    pub resume: bool,
+}
+/// Why a run could not start or finish.
+#[derive(Debug)]
+pub enum RunError {
+    /// The configuration is invalid.
+    Config(String),
+    /// An output could not be written.
+    File(FileError),
+}
+
+impl fmt::Display for RunError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RunError::Config(m) => write!(f, "configuration: {m}"),
+            RunError::File(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for RunError {}
+
+impl From<FileError> for RunError {
+    fn from(e: FileError) -> Self {
+        RunError::File(e)
+    }
+}
+
+/// Headroom for the rest of the process under a memory cap: IO buffers of a scan, thread
+/// stacks, the allocator's slack.
+pub const PROCESS_HEADROOM_BYTES: usize = 24 << 20;
+
+/// Runs over every frame of `source`; `on_frame` sees each record as it is made (for progress
+/// and messages). Writes the outputs into `opts.out`. With `opts.resume`, continues from the
+/// checkpoint there.
+pub fn run<C: Capacity>(
+    source: &mut impl FrameSource,
+    opts: &RunOptions,
+    mut on_frame: impl FnMut(&FrameRecord),
+) -> Result<Summary, RunError> {
+    let mut run = if opts.resume {
+        Run::<C>::resume(source, opts)?
+    } else {
+        Run::<C>::start(source, opts)?
+    };
+    for i in run.next_frame()..source.frames() {
+        let record = run.step(source, i)?;
+        on_frame(&record);
+    }
+    run.finish(source)
+}
+
+/// A run in progress: the pipeline, its executor and window, and the spools of what it will
+/// write. [`Run::start`] (or [`Run::resume`]), one [`Run::step`] per frame in order from
+/// [`Run::next_frame`], then [`Run::finish`].
+pub struct Run<'a, C: Capacity> {
+    opts: &'a RunOptions,
+    pipeline: Pipeline<C>,
+    workers: Workers,
+    window: Window,
+    /// The layer budget a memory cap allows.
+    max_layers: Option<usize>,
+    spool: MeshSpool,
+    frame_lines: BufWriter<File>,
+    frames_path: PathBuf,
+    checkpoint_path: PathBuf,
+    /// What a checkpoint saves: poses, skipped frames, totals.
+    progress: Progress,
+    timer: StageTimer,
+    started: Instant,
+    /// Loop seconds before this process (from the checkpoint when resuming).
+    seconds_before: f64,
+}
+
+impl<'a, C: Capacity> Run<'a, C> {
+    /// A new run into `opts.out` (created if missing).
+    pub fn start(source: &impl FrameSource, opts: &'a RunOptions) -> Result<Self, RunError> {
+        let (pipeline, workers, window, max_layers) = setup::<C>(opts)?;
+        let spool = MeshSpool::new(
+            &opts.out.join("mesh.ply"),
+            opts.config.lattice(),
+            &opts.config.mesh,
+        )?;
+        let frames_path = frames_path(opts);
+        let frames = File::create(&frames_path)
+            .map_err(|e| FileError::at(&frames_path, format!("cannot create: {e}")))?;
+        let progress = Progress::new(fingerprint::<C>(source, opts));
+        Ok(Self::assemble(
+            opts, pipeline, workers, window, max_layers, spool, frames, progress,
+        ))
+    }
+
+    /// The run killed after the checkpoint in `opts.out`, continued from it; refused when the
+    /// checkpoint is missing or of another run (input, capacity, configuration, window).
+    pub fn resume(source: &impl FrameSource, opts: &'a RunOptions) -> Result<Self, RunError> {
+        let (mut pipeline, workers, window, max_layers) = setup::<C>(opts)?;
+        let path = checkpoint::path(&opts.out);
+        if !path.exists() {
+            return Err(FileError::at(
+                &path,
+                "cannot resume: no checkpoint here (was the run started with --checkpoint-every?)",
+            )
+            .into());
+        }
+        let progress = checkpoint::read(&path, pipeline.map_mut())?;
+        let fingerprint = fingerprint::<C>(source, opts);
+        if progress.fingerprint != fingerprint {
+            return Err(FileError::at(
+                &path,
+                format!(
+                    "cannot resume: the checkpoint is of another run\n  it has:   {}\n  this run: {fingerprint}",
+                    progress.fingerprint
+                ),
+            )
+            .into());
+        }
+        pipeline.restore_progress(progress.pipeline_frames, progress.motion_model());
+        let spool = MeshSpool::resume(
+            &opts.out.join("mesh.ply"),
+            opts.config.lattice(),
+            &opts.config.mesh,
+            progress.mesh,
+        )?;
+        let frames = open_cut(&frames_path(opts), progress.report_bytes)?;
+        Ok(Self::assemble(
+            opts, pipeline, workers, window, max_layers, spool, frames, progress,
+        ))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        opts: &'a RunOptions,
+        pipeline: Pipeline<C>,
+        workers: Workers,
+        window: Window,
+        max_layers: Option<usize>,
+        spool: MeshSpool,
+        frames: File,
+        progress: Progress,
+    ) -> Self {
+        Run {
+            opts,
+            pipeline,
+            workers,
+            window,
+            max_layers,
+            spool,
+            frame_lines: BufWriter::new(frames),
+            frames_path: frames_path(opts),
+            checkpoint_path: checkpoint::path(&opts.out),
+            seconds_before: progress.seconds,
+            progress,
+            timer: StageTimer::new(),
+            started: Instant::now(),
+        }
+    }
+
+    /// The first frame still to run (0, or the one after the checkpoint).
+    pub fn next_frame(&self) -> usize {
+        self.progress.next_frame
+    }
+
+    /// The pipeline as it stands.
+    pub fn pipeline(&self) -> &Pipeline<C> {
+        &self.pipeline
+    }
+
+    /// Runs frame `i`: reads it, estimates its pose (or takes the given one), counts the
+    /// triangles it updated, applies the window, spools its record and, when one is due,
+    /// writes a checkpoint. A frame that cannot be read or used is recorded as skipped with
+    /// its file, index and reason; only an output that cannot be written is an error.
+    pub fn step(
+        &mut self,
+        source: &mut impl FrameSource,
+        i: usize,
+    ) -> Result<FrameRecord, RunError> {
+        let mut rec = FrameRecord::skipped(i, source.label(i));
+        let t_read = Instant::now();
+        let scan = source.read(i);
+        let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
+        let (pipeline, workers, timer) = (&mut self.pipeline, &self.workers, &mut self.timer);
+        let outcome = scan.map_err(|e| e.to_string()).and_then(|points| {
+            rec.points = points.len();
+            let given = match &self.opts.given_poses {
+                Some(p) => Some(p.get(i).ok_or("no given pose for this frame")?),
+                None => None,
+            };
+            let r = match given {
+                Some(pose) => pipeline.integrate_scan_with(&points, pose, workers, timer),
+                None => pipeline.process_scan_with(&points, workers, timer),
+            };
+            r.map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))
+        });
+        rec.ms = StageMs {
+            read: read_ms,
+            ..self.timer.take()
+        };
+        match outcome {
+            Ok(o) => {
+                rec.status = format!("{:?}", o.status);
+                rec.points_kept = o.stats.filter.kept;
+                rec.scan_cells = o.stats.bucket.cells;
+                rec.scan_layers = o.stats.scan_layers;
+                rec.conditioning = o.stats.conditioning;
+                rec.degenerate_directions = o.stats.degenerate_directions;
+                let t = Instant::now();
+                rec.triangles_updated = updated_triangles(&self.pipeline, &self.workers);
+                rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
+                let t = Instant::now();
+                if !self.window.is_off() {
+                    let (spool, save) = (&mut self.spool, self.opts.window.save_evicted);
+                    let mut spool_error = None;
+                    rec.evicted_cells = self.window.evict(
+                        self.pipeline.map_mut(),
+                        o.stats.frame,
+                        &o.t_world_sensor,
+                        |l| {
+                            if save && spool_error.is_none() {
+                                spool_error = spool.add_layer(l).err();
+                            }
+                        },
+                    );
+                    if let Some(e) = spool_error {
+                        return Err(e.into());
+                    }
+                    self.progress.evicted_cells += rec.evicted_cells;
+                }
+                rec.ms.evict = t.elapsed().as_secs_f64() * 1e3;
+                rec.ms.total = rec.ms.pipeline() + rec.ms.evict;
+                self.progress.poses.push((i, o.t_world_sensor));
+                self.progress.used_ms.push(rec.ms);
+            }
+            Err(e) => {
+                rec.error = Some(e.clone());
+                self.progress.skipped.push(e);
+            }
+        }
+        rec.map_cells = self.pipeline.map().cell_count();
+        rec.map_layers = self.pipeline.map().layer_count();
+        rec.rss_mb = memory::rss_bytes().map(memory::mb);
+        let cannot_write =
+            |e: std::io::Error| FileError::at(&self.frames_path, format!("cannot write: {e}"));
+        serde_json::to_writer(&mut self.frame_lines, &rec)
+            .map_err(std::io::Error::from)
+            .and_then(|()| self.frame_lines.write_all(b"\n"))
+            .map_err(cannot_write)?;
+        if let Some(every) = self.opts.checkpoint_every.filter(|&n| n > 0) {
+            if (i + 1).is_multiple_of(every) && i + 1 < source.frames() {
+                self.checkpoint(i + 1)?;
+            }
+        }
+        Ok(rec)
+    }
+
+    /// Saves everything a killed run needs to continue at frame `next`.
+    fn checkpoint(&mut self, next: usize) -> Result<(), RunError> {
+        self.frame_lines
+            .flush()
+            .map_err(|e| FileError::at(&self.frames_path, format!("cannot write: {e}")))?;
+        self.spool.flush()?;
+        let p = &mut self.progress;
+        p.next_frame = next;
+        p.pipeline_frames = self.pipeline.frames();
+        p.motion = self.pipeline.motion().history();
+        p.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
+        p.report_bytes = self.frames_path.metadata().map_or(0, |m| m.len());
+        p.mesh = self.spool.counts();
+        checkpoint::write(&self.checkpoint_path, p, self.pipeline.map())?;
+        Ok(())
+    }
+
+    /// Writes the trajectories, the mesh files and `report.json`, removes the spools and the
+    /// checkpoint, and sums the run up.
+    pub fn finish(mut self, source: &impl FrameSource) -> Result<Summary, RunError> {
+        self.progress.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
+        let Progress {
+            poses,
+            skipped,
+            evicted_cells,
+            used_ms,
+            seconds,
+            ..
+        } = self.progress;
+        self.frame_lines
+            .flush()
+            .map_err(|e| FileError::at(&self.frames_path, format!("cannot write: {e}")))?;
+        drop(self.frame_lines);
+        let out = &self.opts.out;
+        write_trajectories(out, source, &poses)?;
+        self.spool.add_map(self.pipeline.map())?;
+        let outputs: Vec<(PathBuf, MeshFormat)> = self
+            .opts
+            .mesh_formats
+            .iter()
+            .map(|&f| (mesh_file_path(out, f), f))
+            .collect();
+        let counts: MeshCounts = self.spool.finish(&outputs)?;
+        let summary = Summary {
+            frames: source.frames(),
+            used: poses.len(),
+            skipped,
+            seconds,
+            hz: poses.len() as f64 / seconds.max(1e-9),
+            threads: self.workers.threads(),
+            stage_ms: spreads(&used_ms),
+            mesh_vertices: counts.vertices,
+            mesh_triangles: counts.triangles,
+            map_cells: self.pipeline.map().cell_count(),
+            map_layers: self.pipeline.map().layer_count(),
+            evicted_cells,
+            max_layers: self.max_layers,
+            peak_rss_mb: memory::peak_rss_bytes().map(memory::mb),
+            poses,
+        };
+        write_report(out, self.opts, &summary, &self.frames_path)?;
+        let _ = std::fs::remove_file(&self.frames_path);
+        // The run is complete: nothing is left to resume.
+        let _ = std::fs::remove_file(&self.checkpoint_path);
+        Ok(summary)
+    }
+}
+
+/// The run's frame records, spooled one JSON object a line until `report.json` is written.
+fn frames_path(opts: &RunOptions) -> PathBuf {
+    opts.out.join(".report.frames.spool")
+}
+
+/// What both starts share: the output folder, the pipeline, the executor, the window and the
+/// memory cap's layer budget.
+fn setup<C: Capacity>(
+    opts: &RunOptions,
+) -> Result<(Pipeline<C>, Workers, Window, Option<usize>), RunError> {
+    let out = &opts.out;
+    std::fs::create_dir_all(out)
+        .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
+    let workers =
+        Workers::new(opts.threads).map_err(|e| RunError::Config(format!("threads: {e}")))?;
+    let mut window = opts.window.rules();
+    let mut max_layers = None;
+    if let Some(cap) = opts.window.memory_cap_mb {
+        let other = memory::rss_bytes().unwrap_or(0) as usize + PROCESS_HEADROOM_BYTES;
+        let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
+            RunError::Config(format!(
+                "memory cap {cap} MB is below what this capacity needs with an empty map: {:.0} MB",
+                e.needed_bytes as f64 / 1e6
+            ))
+        })?;
+        window.max_layers = Some(budget);
+        max_layers = Some(budget);
+    }
+    let pipeline = Pipeline::<C>::new(opts.config)
+        .map_err(|e| RunError::Config(format!("{}: {}", e.field, e.reason)))?;
+    Ok((pipeline, workers, window, max_layers))
+}
+
+/// What identifies a run for resuming: its input, frames, capacity, configuration, window and
+/// given poses (the thread count is left out: it does not change the results).
+fn fingerprint<C: Capacity>(source: &impl FrameSource, opts: &RunOptions) -> String {
+    format!(
+        "input {:?}, {} frames, capacity {}, config {:?}, window {:?}, {} given poses",
+        opts.input,
+        source.frames(),
+        std::any::type_name::<C>(),
+        opts.config,
+        opts.window,
+        opts.given_poses.as_ref().map_or(0, Vec::len)
+    )
+}
+
+/// `mesh.ply` or `mesh.obj` in `out`.
+pub fn mesh_file_path(out: &Path, format: MeshFormat) -> PathBuf {
+    out.join(match format {
+        MeshFormat::Ply => "mesh.ply",
+        MeshFormat::Obj => "mesh.obj",
+    })
+}
+
+/// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).
+fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>, workers: &Workers) -> usize {
+    let shown = Shown::new(&pipeline.config().mesh);
+    let lattice = pipeline.map().lattice().table();
+    let map = pipeline.map();
+    workers.sum(pipeline.last_scan(), |s| {
+        map.layer(&s.key, s.axis)
+            .map_or(0, |l| l.triangles(&lattice, shown).count())
+    })
+}

@@ -1,0 +1,191 @@
+//! The layout rules the code keeps (docs/design.md §2), checked on the sources:
+//! - the core's modules import each other without a loop;
+//! - no source file holds more than 600 lines before its tests;
+//! - every section of docs/design.md that a source cites exists there.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+const MAX_LINES_BEFORE_TESTS: usize = 600;
+/// How code cites the design notes (split so that this file does not cite).
+const CITE: &str = concat!("design.md ", "§");
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Every `.rs` file below `dir`.
+fn sources(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                if p.file_name().is_some_and(|n| n != "target") {
+                    stack.push(p);
+                }
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The code of a file before its unit tests, without comment lines.
+fn code_before_tests(text: &str) -> Vec<&str> {
+    text.lines()
+        .take_while(|l| l.trim() != "#[cfg(test)]")
+        .filter(|l| !l.trim_start().starts_with("//"))
+        .collect()
+}
+
+/// The modules of `crate::name` paths in `lines` (first segment only).
+fn imported_modules(lines: &[&str]) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    for l in lines {
+        for (at, _) in l.match_indices("crate::") {
+            let rest = &l[at + "crate::".len()..];
+            let name: String = rest
+                .chars()
+                .take_while(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || *c == '_')
+                .collect();
+            if !name.is_empty() {
+                out.insert(name);
+            }
+        }
+    }
+    out
+}
+
+/// A module that reaches itself through the import graph, with the loop's path.
+fn find_loop(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        m: &str,
+        graph: &BTreeMap<String, BTreeSet<String>>,
+        path: &mut Vec<String>,
+        done: &mut BTreeSet<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(i) = path.iter().position(|p| p == m) {
+            let mut cycle = path[i..].to_vec();
+            cycle.push(m.to_string());
+            return Some(cycle);
+        }
+        if done.contains(m) {
+            return None;
+        }
+        path.push(m.to_string());
+        for next in graph.get(m).into_iter().flatten() {
+            if let Some(c) = visit(next, graph, path, done) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        done.insert(m.to_string());
+        None
+    }
+    let mut done = BTreeSet::new();
+    graph
+        .keys()
+        .find_map(|m| visit(m, graph, &mut Vec::new(), &mut done))
+}
+
+#[test]
+fn the_core_modules_import_each_other_without_a_loop() {
+    let dir = root().join("core/src");
+    let files = sources(&dir);
+    let modules: BTreeSet<String> = files
+        .iter()
+        .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .filter(|m| m != "lib")
+        .collect();
+    assert!(modules.len() > 15, "found only {modules:?} in {dir:?}");
+    let mut graph = BTreeMap::new();
+    for p in &files {
+        let m = p.file_stem().unwrap().to_string_lossy().into_owned();
+        let text = std::fs::read_to_string(p).unwrap();
+        let uses: BTreeSet<String> = imported_modules(&code_before_tests(&text))
+            .into_iter()
+            .filter(|u| modules.contains(u) && *u != m)
+            .collect();
+        graph.insert(m, uses);
+    }
+    assert_eq!(find_loop(&graph), None, "an import loop among the core's modules");
+}
+
+#[test]
+fn the_loop_finder_finds_a_planted_loop() {
+    let g = |edges: &[(&str, &str)]| {
+        let mut g: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for (a, b) in edges {
+            g.entry(a.to_string()).or_default().insert(b.to_string());
+            g.entry(b.to_string()).or_default();
+        }
+        g
+    };
+    assert_eq!(find_loop(&g(&[("a", "b"), ("b", "c"), ("a", "c")])), None);
+    let found = find_loop(&g(&[("a", "b"), ("b", "c"), ("c", "a"), ("d", "a")])).unwrap();
+    assert_eq!(found.first(), found.last());
+    assert_eq!(found.len(), 4);
+    let lines = ["use crate::gp::{self, GpScratch};", "// crate::map in a comment"];
+    assert_eq!(
+        imported_modules(&code_before_tests(&lines.join("\n"))),
+        BTreeSet::from(["gp".to_string()])
+    );
+}
+
+#[test]
+fn no_source_file_holds_more_than_600_lines_before_its_tests() {
+    let root = root();
+    let mut long = Vec::new();
+    let mut seen = 0;
+    for dir in ["core/src", "sim/src", "std-adapters/src", "tests", "examples"] {
+        for p in sources(&root.join(dir)) {
+            seen += 1;
+            let text = std::fs::read_to_string(&p).unwrap();
+            let n = text
+                .lines()
+                .take_while(|l| l.trim() != "#[cfg(test)]")
+                .count();
+            if n > MAX_LINES_BEFORE_TESTS {
+                long.push(format!("{}: {n} lines", p.display()));
+            }
+        }
+    }
+    assert!(seen > 60, "found only {seen} source files");
+    assert!(long.is_empty(), "split by concept: {long:?}");
+}
+
+#[test]
+fn every_cited_design_section_exists() {
+    let root = root();
+    let design = std::fs::read_to_string(root.join("docs/design.md")).unwrap();
+    let sections: BTreeSet<String> = design
+        .lines()
+        .filter(|l| l.starts_with('#'))
+        .filter_map(|l| l.trim_start_matches('#').split_whitespace().next())
+        .map(|n| n.trim_end_matches('.').to_string())
+        .collect();
+    let mut cited = 0;
+    let mut missing = Vec::new();
+    for dir in ["core/src", "sim/src", "std-adapters/src", "tests", "examples"] {
+        for p in sources(&root.join(dir)) {
+            let text = std::fs::read_to_string(&p).unwrap();
+            for (at, _) in text.match_indices(CITE) {
+                let n: String = text[at + CITE.len()..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_digit() || *c == '.')
+                    .collect();
+                let n = n.trim_end_matches('.').to_string();
+                cited += 1;
+                if !sections.contains(&n) {
+                    missing.push(format!("{}: §{n}", p.display()));
+                }
+            }
+        }
+    }
+    assert!(cited > 20, "found only {cited} citations");
+    assert!(missing.is_empty(), "cited but not in docs/design.md: {missing:?}");
+}
