@@ -112,7 +112,11 @@ fn the_core_modules_import_each_other_without_a_loop() {
             .collect();
         graph.insert(m, uses);
     }
-    assert_eq!(find_loop(&graph), None, "an import loop among the core's modules");
+    assert_eq!(
+        find_loop(&graph),
+        None,
+        "an import loop among the core's modules"
+    );
 }
 
 #[test]
@@ -129,7 +133,10 @@ fn the_loop_finder_finds_a_planted_loop() {
     let found = find_loop(&g(&[("a", "b"), ("b", "c"), ("c", "a"), ("d", "a")])).unwrap();
     assert_eq!(found.first(), found.last());
     assert_eq!(found.len(), 4);
-    let lines = ["use crate::gp::{self, GpScratch};", "// crate::map in a comment"];
+    let lines = [
+        "use crate::gp::{self, GpScratch};",
+        "// crate::map in a comment",
+    ];
     assert_eq!(
         imported_modules(&code_before_tests(&lines.join("\n"))),
         BTreeSet::from(["gp".to_string()])
@@ -141,7 +148,13 @@ fn no_source_file_holds_more_than_600_lines_before_its_tests() {
     let root = root();
     let mut long = Vec::new();
     let mut seen = 0;
-    for dir in ["core/src", "sim/src", "std-adapters/src", "tests", "examples"] {
+    for dir in [
+        "core/src",
+        "sim/src",
+        "std-adapters/src",
+        "tests",
+        "examples",
+    ] {
         for p in sources(&root.join(dir)) {
             seen += 1;
             let text = std::fs::read_to_string(&p).unwrap();
@@ -170,7 +183,13 @@ fn every_cited_design_section_exists() {
         .collect();
     let mut cited = 0;
     let mut missing = Vec::new();
-    for dir in ["core/src", "sim/src", "std-adapters/src", "tests", "examples"] {
+    for dir in [
+        "core/src",
+        "sim/src",
+        "std-adapters/src",
+        "tests",
+        "examples",
+    ] {
         for p in sources(&root.join(dir)) {
             let text = std::fs::read_to_string(&p).unwrap();
             for (at, _) in text.match_indices(CITE) {
@@ -187,5 +206,8 @@ fn every_cited_design_section_exists() {
         }
     }
     assert!(cited > 20, "found only {cited} citations");
-    assert!(missing.is_empty(), "cited but not in docs/design.md: {missing:?}");
+    assert!(
+        missing.is_empty(),
+        "cited but not in docs/design.md: {missing:?}"
+    );
 }

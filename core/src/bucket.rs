@@ -97,21 +97,7 @@ pub fn place_all(
     out: &mut BoundedVec<(CellKey, Point)>,
     exec: &impl Executor,
 ) {
-    let fits = exec.filter_map_into(
-        points,
-        out,
-        |src, dst| {
-            let mut kept = 0;
-            for e in src.iter().filter_map(|p| placement.point(p)) {
-                if let Some(slot) = dst.get_mut(kept) {
-                    *slot = e;
-                    kept += 1;
-                }
-            }
-            (kept, ())
-        },
-        |()| {},
-    );
+    let fits = exec.filter_map_into(points, out, |p, _: &mut ()| placement.point(p), |()| {});
     if !fits {
         collect(points.iter().map(|p| placement.point(p)), out);
     }

@@ -15,6 +15,9 @@ use crate::map::{MapCell, MAP_TABLE_FACTOR};
 use crate::math::Point;
 use core::mem::size_of;
 
+/// Bytes one map layer costs: its slot in the map's layer pool and its free-list entry.
+pub const MAP_LAYER_BYTES: usize = size_of::<Layer>() + size_of::<u32>();
+
 /// How much one pipeline can hold. Implement it for your sensor, or use a provided one.
 pub trait Capacity {
     /// Points of one scan kept after the range filter (the rest are dropped in input order).
@@ -51,8 +54,13 @@ pub trait Capacity {
             + Self::SCAN_LAYERS * (size_of::<ScanLayer>() + size_of::<Residual>());
         let buckets = (Self::MAP_CELLS * MAP_TABLE_FACTOR * 8 / 7).next_power_of_two();
         let table = buckets * (size_of::<(CellKey, MapCell)>() + 1);
-        let pool = Self::MAP_LAYERS * (size_of::<Layer>() + size_of::<u32>());
-        scan + table + pool
+        scan + table + Self::MAP_LAYERS * MAP_LAYER_BYTES
+    }
+
+    /// [`memory_bytes`](Self::memory_bytes) less the map's layer pool: what a pipeline costs
+    /// with an empty map (scan buffers and the hash table, counted in full).
+    fn fixed_bytes() -> usize {
+        Self::memory_bytes() - Self::MAP_LAYERS * MAP_LAYER_BYTES
     }
 }
 

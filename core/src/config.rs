@@ -59,11 +59,9 @@ pub struct LmConfig {
     /// Huber loss threshold (metres). Default 0.1.
     pub huber_delta_m: f64,
     /// A direction is degenerate (left to the motion model) when the mean squared normal
-    /// component along it is below this (see [`crate::lm`]). Default 0.012. Measured: the
-    /// weakest direction of the kitti-mini scans carries 0.06 to 0.15, and of the simulated
-    /// town at least 0.011 (at 0.015, 22 town frames were left to the motion model and the
-    /// loop's drift doubled); a tunnel with a few distant pillars 0.011 (solved in full, the
-    /// scan slid 0.7 m along it), a plane or a bare tunnel 0.
+    /// component along it is below this (see [`crate::lm`]). Default 0.012: below what
+    /// well-constrained outdoor scans carry in their weakest direction and above what a
+    /// tunnel or a plane does (the trade-off is measured in docs/benchmarks.md, Robustness).
     pub degenerate_ratio: f64,
     /// Fewer combined residuals than this is [`TooFewResiduals`](crate::lm::LmError). Default 10.
     pub min_residuals: usize,

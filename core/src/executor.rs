@@ -34,31 +34,34 @@ pub trait Executor {
         }
     }
 
-    /// Appends the outputs of `task` over `src` to `dst`, in input order. `task` gets a run of
-    /// consecutive inputs and as many output slots, writes its kept outputs to the front of
-    /// the slots and returns how many it kept, with a tally that `tally` receives (in input
-    /// order). `dst` must have room for `src.len()` more items; without it nothing is done and
-    /// `false` is returned, so that the caller can fall back to a loop that stops when full.
-    fn filter_map_into<T, U, R>(
+    /// Appends what `unit` keeps of `src` to `dst`, in input order. `unit` maps one item to
+    /// an output or to nothing, and may count into a tally (one per worker, starting from
+    /// `A::default()`), which `tally` receives in input order. `dst` must have room for
+    /// `src.len()` more items; without it nothing is done and `false` is returned, so that the
+    /// caller can fall back to a loop that stops when full.
+    fn filter_map_into<T, U, A>(
         &self,
         src: &[T],
         dst: &mut BoundedVec<U>,
-        task: impl Fn(&[T], &mut [U]) -> (usize, R) + Sync + Send,
-        mut tally: impl FnMut(R),
+        unit: impl Fn(&T, &mut A) -> Option<U> + Sync + Send,
+        mut tally: impl FnMut(A),
     ) -> bool
     where
         T: Sync,
         U: Default + Clone + Send,
-        R: Send,
+        A: Default + Send,
     {
-        let start = dst.len();
-        if src.len() > dst.capacity() - start {
+        if src.len() > dst.capacity() - dst.len() {
             return false;
         }
-        dst.extend_default(start + src.len());
-        let (kept, r) = task(src, &mut dst[start..]);
-        dst.truncate(start + kept);
-        tally(r);
+        let mut counts = A::default();
+        for item in src {
+            if let Some(out) = unit(item, &mut counts) {
+                // There is room for every item: cannot fail.
+                let _ = dst.push(out);
+            }
+        }
+        tally(counts);
         true
     }
 
@@ -95,17 +98,17 @@ mod tests {
 
         let mut dst = BoundedVec::<u32>::with_capacity(4);
         let _ = dst.push(7);
-        let mut dropped = 0;
-        let even_only = |src: &[u32], out: &mut [u32]| {
-            let mut kept = 0;
-            for &x in src.iter().filter(|x| *x % 2 == 0) {
-                out[kept] = x;
-                kept += 1;
+        let mut odd = 0;
+        let even_only = |x: &u32, odd: &mut usize| {
+            if x.is_multiple_of(2) {
+                Some(*x)
+            } else {
+                *odd += 1;
+                None
             }
-            (kept, src.len() - kept)
         };
-        assert!(Serial.filter_map_into(&[2, 3, 4], &mut dst, even_only, |d| dropped += d));
-        assert_eq!((&dst[..], dropped), (&[7, 2, 4][..], 1));
+        assert!(Serial.filter_map_into(&[2, 3, 4], &mut dst, even_only, |n| odd += n));
+        assert_eq!((&dst[..], odd), (&[7, 2, 4][..], 1));
         assert!(!Serial.filter_map_into(&[2, 3], &mut dst, even_only, |_| {}));
         assert_eq!(&dst[..], &[7, 2, 4]);
     }

@@ -165,21 +165,16 @@ pub fn prepare_all(
     let fits = exec.filter_map_into(
         raw,
         work,
-        |src, dst| {
-            let mut s = FilterStats::default();
-            for p in src {
-                match prep.point(p) {
-                    Ok(e) => {
-                        if let Some(slot) = dst.get_mut(s.kept) {
-                            *slot = e;
-                            s.kept += 1;
-                        }
-                    }
-                    Err(Dropped::NonFinite) => s.non_finite += 1,
-                    Err(Dropped::OutOfRange) => s.out_of_range += 1,
-                }
+        |p, dropped: &mut FilterStats| match prep.point(p) {
+            Ok(e) => Some(e),
+            Err(Dropped::NonFinite) => {
+                dropped.non_finite += 1;
+                None
             }
-            (s.kept, s)
+            Err(Dropped::OutOfRange) => {
+                dropped.out_of_range += 1;
+                None
+            }
         },
         |s| {
             stats.non_finite += s.non_finite;

@@ -56,30 +56,40 @@ impl Executor for Rayon {
         results.into_iter().for_each(sink);
     }
 
-    /// `src` is cut into tasks of [`POINTS_PER_TASK`]; each task writes its kept items to the
-    /// front of its own stretch of `dst`, and the stretches are then closed up in order.
-    fn filter_map_into<T, U, R>(
+    /// `src` is cut into tasks of [`POINTS_PER_TASK`] items; each task writes what it keeps to
+    /// the front of its own stretch of `dst`, and the stretches are then closed up in order.
+    fn filter_map_into<T, U, A>(
         &self,
         src: &[T],
         dst: &mut BoundedVec<U>,
-        task: impl Fn(&[T], &mut [U]) -> (usize, R) + Sync + Send,
-        tally: impl FnMut(R),
+        unit: impl Fn(&T, &mut A) -> Option<U> + Sync + Send,
+        tally: impl FnMut(A),
     ) -> bool
     where
         T: Sync,
         U: Default + Clone + Send,
-        R: Send,
+        A: Default + Send,
     {
         let start = dst.len();
         if src.len() > dst.capacity() - start {
             return false;
         }
         dst.extend_default(start + src.len());
-        let per_task: Vec<(usize, R)> = self.pool.install(|| {
+        let per_task: Vec<(usize, A)> = self.pool.install(|| {
             dst[start..]
                 .par_chunks_mut(POINTS_PER_TASK)
                 .zip(src.par_chunks(POINTS_PER_TASK))
-                .map(|(d, s)| task(s, d))
+                .map(|(d, s)| {
+                    let mut counts = A::default();
+                    let mut kept = 0;
+                    for item in s {
+                        if let Some(out) = unit(item, &mut counts) {
+                            d[kept] = out;
+                            kept += 1;
+                        }
+                    }
+                    (kept, counts)
+                })
                 .collect()
         });
         // Each task wrote its kept outputs to the front of its chunk: close the gaps, in order
@@ -207,21 +217,21 @@ impl Executor for Workers {
         }
     }
 
-    fn filter_map_into<T, U, R>(
+    fn filter_map_into<T, U, A>(
         &self,
         src: &[T],
         dst: &mut BoundedVec<U>,
-        task: impl Fn(&[T], &mut [U]) -> (usize, R) + Sync + Send,
-        tally: impl FnMut(R),
+        unit: impl Fn(&T, &mut A) -> Option<U> + Sync + Send,
+        tally: impl FnMut(A),
     ) -> bool
     where
         T: Sync,
         U: Default + Clone + Send,
-        R: Send,
+        A: Default + Send,
     {
         match self {
-            Workers::Serial => Serial.filter_map_into(src, dst, task, tally),
-            Workers::Pool(r) => r.filter_map_into(src, dst, task, tally),
+            Workers::Serial => Serial.filter_map_into(src, dst, unit, tally),
+            Workers::Pool(r) => r.filter_map_into(src, dst, unit, tally),
         }
     }
 

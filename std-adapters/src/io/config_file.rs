@@ -32,9 +32,7 @@ pub const TOWN_CELL_M: f64 = 1.4;
 ///
 /// `town` is `meshing` with [`TOWN_CELL_M`] cells, for the simulated town of the demo (the
 /// original tunes the cell per dataset too: 1.6 m for KITTI, 1.5 m for the simulated Mai
-/// City). Measured on the demo's first 100 frames, seeds 1 to 3, against 1.6 m cells: F1 at
-/// 0.1 m 0.951 / 0.948 / 0.942 against 0.942 / 0.937 / 0.915, at 0.3 m 0.991 / 0.992 /
-/// 0.991 against 0.989 / 0.991 / 0.990.
+/// City); the comparison with 1.6 m cells is in docs/benchmarks.md (The demo).
 pub fn preset(name: &str) -> Option<Config> {
     match name {
         "default" => Some(Config::default()),

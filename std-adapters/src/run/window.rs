@@ -6,24 +6,14 @@
 //! (the run appends them to the output mesh), so nothing is lost.
 //!
 //! The memory cap: the core's buffers except the layer pool are allocated up front and count in
-//! full ([`fixed_bytes`]); the layer pool counts per layer in use. [`Window::max_layers`] turns
+//! full ([`Capacity::fixed_bytes`]); the layer pool counts per layer in use. [`Window::max_layers`] turns
 //! a cap in bytes into a layer budget, leaving room for one scan's worth of new layers, so that
 //! the map never holds more than the cap allows even in the middle of a scan.
 
+use slamesh_core::capacity::MAP_LAYER_BYTES;
 use slamesh_core::cell::CellKey;
-use slamesh_core::layer::Layer;
 use slamesh_core::map::{LayerRef, MeshMap};
 use slamesh_core::{Capacity, Pose};
-use std::mem::size_of;
-
-/// Bytes one map layer costs (its pool slot and free-list entry).
-pub const LAYER_BYTES: usize = size_of::<Layer>() + size_of::<u32>();
-
-/// Heap bytes of a pipeline with capacities `C` other than its layer pool: scan buffers and the
-/// map's hash table, counted in full.
-pub fn fixed_bytes<C: Capacity>() -> usize {
-    C::memory_bytes() - C::MAP_LAYERS * LAYER_BYTES
-}
 
 /// When cells leave the map.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -51,12 +41,12 @@ impl Window {
         cap_bytes: usize,
         other_bytes: usize,
     ) -> Result<usize, CapTooSmall> {
-        let reserved = fixed_bytes::<C>() + other_bytes + C::SCAN_LAYERS * LAYER_BYTES;
-        let needed_bytes = reserved + C::SCAN_LAYERS * LAYER_BYTES;
+        let reserved = C::fixed_bytes() + other_bytes + C::SCAN_LAYERS * MAP_LAYER_BYTES;
+        let needed_bytes = reserved + C::SCAN_LAYERS * MAP_LAYER_BYTES;
         if cap_bytes < needed_bytes {
             return Err(CapTooSmall { needed_bytes });
         }
-        Ok(((cap_bytes - reserved) / LAYER_BYTES).min(C::MAP_LAYERS))
+        Ok(((cap_bytes - reserved) / MAP_LAYER_BYTES).min(C::MAP_LAYERS))
     }
 
     /// True if no rule is set.
@@ -123,6 +113,7 @@ mod tests {
     use super::*;
     use slamesh_core::cell::Axis;
     use slamesh_core::lattice::{Lattice, VERTICES};
+    use slamesh_core::layer::Layer;
     use slamesh_core::{KittiCapacity, SmallCapacity};
 
     /// Cells 0..10 along x (1 m apart), cell i seen at frame i, one layer each.
@@ -182,12 +173,12 @@ mod tests {
 
     #[test]
     fn the_layer_budget_follows_the_cap() {
-        let fixed = fixed_bytes::<KittiCapacity>();
-        let scan = KittiCapacity::SCAN_LAYERS * LAYER_BYTES;
+        let fixed = KittiCapacity::fixed_bytes();
+        let scan = KittiCapacity::SCAN_LAYERS * MAP_LAYER_BYTES;
         let e = Window::max_layers::<KittiCapacity>(fixed, 0).unwrap_err();
         assert_eq!(e.needed_bytes, fixed + 2 * scan);
-        let n =
-            Window::max_layers::<KittiCapacity>(fixed + 2 * scan + 1000 * LAYER_BYTES, 7).unwrap();
+        let n = Window::max_layers::<KittiCapacity>(fixed + 2 * scan + 1000 * MAP_LAYER_BYTES, 7)
+            .unwrap();
         assert_eq!(
             n,
             KittiCapacity::SCAN_LAYERS + 1000 - 1,
