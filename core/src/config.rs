@@ -103,8 +103,8 @@ pub struct MapConfig {
     /// Reconstruct the scan again at its final pose before fusing it (docs/design.md §1.1 step 6).
     /// `false` fuses the last registration round's reconstruction instead, moved to the final
     /// pose to first order ([`Layer::moved`](crate::layer::Layer::moved)): that saves a
-    /// bucketing and the costliest of the scan's reconstructions, about a quarter of a KITTI
-    /// scan's time, at a small cost in accuracy (README, Speed). Default `true`.
+    /// bucketing and the costliest of the scan's reconstructions at a small cost in accuracy
+    /// (both measured in docs/benchmarks.md, Speed). Default `true`.
     pub reconstruct_at_final_pose: bool,
 }
 

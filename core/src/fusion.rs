@@ -97,4 +97,80 @@ mod tests {
         assert_eq!(fuse_vertex(1.0, 0.1, 2.0, 0.7, 0.5), (1.0, 0.1));
         assert_eq!(fuse_vertex(1.0, 0.8, 2.0, 0.9, 0.5), (1.0, 0.8));
     }
+
+    /// A known flat surface at 0.5 m seen 25 times with Gaussian noise of 2 cm: every vertex
+    /// must come out at the inverse-variance weighted mean of what it was shown (to f32
+    /// rounding), its variance at the harmonic combination, and the surface must converge as
+    /// the rule predicts, to about 2 cm / sqrt(25) = 4 mm RMS from the truth.
+    #[test]
+    fn repeated_noisy_views_of_a_known_surface_converge_as_inverse_variance_predicts() {
+        use crate::cell::{Axis, CellKey};
+        use crate::lattice::{Lattice, VERTICES};
+        use crate::layer::Layer;
+        use crate::random::SplitMix64;
+
+        let lattice = Lattice {
+            cell_size: 1.6,
+            full_cover: false,
+        };
+        let cfg = MapConfig {
+            variance_update: 0.5,
+            add_missing_layers: true,
+            reconstruct_at_final_pose: true,
+        };
+        let (truth, sigma) = (0.5f64, 0.02f64);
+        let key = CellKey::new(3, -2, 0);
+        let mut map = MeshMap::with_capacity(4, 4, lattice);
+        let mut rng = SplitMix64(42);
+        let mut gauss = || {
+            let (u, v) = (rng.next_f64().max(1e-12), rng.next_f64());
+            (-2.0 * u.ln()).sqrt() * (core::f64::consts::TAU * v).cos()
+        };
+        // Per vertex: sum of w·o and of w = 1/var over the views, in f64.
+        let (mut sum_wo, mut sum_w) = ([0.0f64; VERTICES], [0.0f64; VERTICES]);
+        let views = 25;
+        for k in 0..views {
+            // Alternate a confident and a less confident view (variance 0.01 and 0.04).
+            let var = if k % 2 == 0 { 0.01f32 } else { 0.04 };
+            let mut layer = Layer {
+                pred: [0.0; VERTICES],
+                var: [var; VERTICES],
+            };
+            for j in 0..VERTICES {
+                layer.pred[j] = (truth + sigma * gauss()) as f32;
+                sum_wo[j] += f64::from(layer.pred[j]) / f64::from(var);
+                sum_w[j] += 1.0 / f64::from(var);
+            }
+            let scan = [ScanLayer {
+                key,
+                axis: Axis::Z,
+                layer,
+            }];
+            let stats = integrate(&mut map, &scan, &cfg, k);
+            assert_eq!(
+                (stats.added, stats.fused),
+                if k == 0 { (1, 0) } else { (0, 1) }
+            );
+        }
+        let fused = map.layer(&key, Axis::Z).unwrap();
+        let mut squared = 0.0;
+        for j in 0..VERTICES {
+            let mean = sum_wo[j] / sum_w[j];
+            assert!((f64::from(fused.pred[j]) - mean).abs() < 2e-6, "vertex {j}");
+            let var = 1.0 / sum_w[j];
+            assert!(
+                (f64::from(fused.var[j]) - var).abs() < 1e-4 * var,
+                "vertex {j}"
+            );
+            squared += (f64::from(fused.pred[j]) - truth).powi(2);
+        }
+        // The weighted mean of 13 views of variance 0.01 and 12 of 0.04 has the noise of
+        // sigma / sqrt(13 + 12 / 4) = 5 mm; 36 vertices give its RMS within about 25 %.
+        let rms = (squared / VERTICES as f64).sqrt();
+        let expected = sigma / (13.0f64 + 3.0).sqrt();
+        assert!(
+            rms < 1.5 * expected && rms > 0.5 * expected,
+            "RMS {rms} m, expected {expected} m"
+        );
+    }
 }

@@ -40,6 +40,8 @@
 )]
 
 extern crate alloc;
+#[cfg(test)]
+extern crate std;
 
 pub mod associate;
 pub mod bounded;

@@ -9,8 +9,8 @@ use crate::eval::odometry::{
 use crate::io::topview::TopView;
 use crate::io::trajectory::write_kitti_line;
 use crate::io::{atomic::write_atomic, ply};
-use crate::run::{run, FrameRecord, RunError, RunOptions, Summary};
-use slamesh_core::{Capacity, Pose};
+use crate::run::{FrameRecord, Run, RunError, RunOptions, Summary};
+use slamesh_core::{Capacity, Point, Pose};
 use slamesh_sim::{Drive, SurfaceDistance};
 
 /// What the demo measured.
@@ -49,7 +49,15 @@ pub fn run_demo<C: Capacity>(
         given_poses: None,
         ..opts.clone()
     };
-    let summary = run::<C>(&mut drive, &opts, on_frame)?;
+    // The run, step by step, so that the mesh is taken from the map before it is written
+    // (the demo evicts nothing, so the map's triangles are mesh.ply's).
+    let mut on_frame = on_frame;
+    let mut run = Run::<C>::start(&drive, &opts)?;
+    for i in 0..drive.poses.len() {
+        on_frame(&run.step(&mut drive, i)?);
+    }
+    let triangles: Vec<[Point; 3]> = run.pipeline().triangles().map(|t| t.vertices).collect();
+    let summary = run.finish(&drive)?;
     let truth: Vec<Pose> = drive
         .poses
         .iter()
@@ -64,7 +72,6 @@ pub fn run_demo<C: Capacity>(
     })?;
 
     // The mesh against the true surfaces, both in the first sensor frame.
-    let mesh = ply::read_ply_mesh(&opts.out.join("mesh.ply"))?;
     let to_first = drive.poses[0].inverse();
     let reference = mesh_eval::accumulate(
         (0..drive.poses.len())
@@ -75,8 +82,7 @@ pub fn run_demo<C: Capacity>(
         f64::INFINITY,
     );
     ply::write_points(&opts.out.join("reference.ply"), &reference)?;
-    let triangles = mesh.triangle_corners();
-    let samples = mesh_eval::sample_triangles(triangles.clone(), 0.05, seed);
+    let samples = mesh_eval::sample_triangles(triangles.iter().copied(), 0.05, seed);
     // Precision: exact distances to the true surfaces; recall: the true hits covered.
     let truth_distance = SurfaceDistance::new(&drive.scene);
     let d_mesh: Vec<f64> = samples
@@ -101,9 +107,13 @@ pub fn run_demo<C: Capacity>(
         hi = [hi[0].max(t.x + 40.0), hi[1].max(t.y + 40.0)];
     }
     let mut view = TopView::new(lo, hi, 1600);
-    let z: Vec<f32> = mesh.vertices.iter().map(|v| v[2]).collect();
-    let (z_lo, z_hi) = (-3.0f32, z.iter().copied().fold(2.0f32, f32::max).min(20.0));
-    view.triangles(triangles, z_lo, z_hi);
+    let z_top = triangles
+        .iter()
+        .flatten()
+        .map(|v| v[2])
+        .fold(2.0f32, f32::max);
+    let (z_lo, z_hi) = (-3.0f32, z_top.min(20.0));
+    view.triangles(triangles.iter().copied(), z_lo, z_hi);
     view.path(&truth, [255, 255, 255]);
     view.path(&estimate, [230, 40, 40]);
     view.write_png(&opts.out.join("topview.png"))?;

@@ -56,7 +56,8 @@ pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, String> 
 }
 
 /// Compresses `input` as LZF with literal runs only (valid LZF that any decoder reads; used
-/// to write test files, not for size).
+/// to write test files, not for size, so hidden from the docs).
+#[doc(hidden)]
 pub fn compress_literal(input: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(input.len() + input.len() / 32 + 1);
     for chunk in input.chunks(32) {

@@ -331,7 +331,9 @@ fn read_ascii(
 }
 
 /// Writes `points` as a PCD with float `x y z` fields in the given encoding
-/// (`"ascii"`, `"binary"` or `"binary_compressed"`); for tests and tools.
+/// (`"ascii"`, `"binary"` or `"binary_compressed"`, the latter with literal-only LZF). For
+/// tests and fuzz seeds only, so hidden from the docs: slamesh writes no PCD.
+#[doc(hidden)]
 pub fn encode_pcd(points: &[Point], encoding: &str) -> Vec<u8> {
     let mut out = format!(
         "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n\
