@@ -1,5 +1,5 @@
 //! Criterion benchmarks of the hot kernels: the GP of one layer, the association of one scan
-//! and one LM solve. `cargo bench -p slamesh --bench kernels`.
+//! and one LM solve. `cargo bench --manifest-path benches/Cargo.toml`.
 //!
 //! The scan and map are the simulated town's first two frames (no data files needed): the
 //! map holds frame 0, the scan is frame 1 reconstructed at its true pose, as in the last
