@@ -23,7 +23,7 @@ use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
 use slamesh_core::layer::Shown;
-use slamesh_core::{Capacity, Config, Pipeline, Pose};
+use slamesh_core::{Capacity, Config, ConfigError, Pipeline, Pose};
 use std::fmt;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -55,25 +55,53 @@ pub struct RunOptions {
     /// Continue from the checkpoint in `out` instead of starting over.
     pub resume: bool,
 }
+
 /// Why a run could not start or finish.
 #[derive(Debug)]
 pub enum RunError {
-    /// The configuration is invalid.
-    Config(String),
-    /// An output could not be written.
+    /// The pipeline's configuration is invalid.
+    Config(ConfigError),
+    /// The worker threads could not be started.
+    Threads(rayon::ThreadPoolBuildError),
+    /// The memory cap is below what the capacity needs with an empty map.
+    MemoryCapTooSmall {
+        /// The cap asked for (MB).
+        cap_mb: f64,
+        /// What the capacity needs with an empty map, the process's memory and headroom.
+        needed_bytes: usize,
+    },
+    /// An input or output file could not be read or written.
     File(FileError),
 }
 
 impl fmt::Display for RunError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            RunError::Config(m) => write!(f, "configuration: {m}"),
+            RunError::Config(e) => write!(f, "configuration: {}: {}", e.field, e.reason),
+            RunError::Threads(e) => write!(f, "configuration: threads: {e}"),
+            RunError::MemoryCapTooSmall {
+                cap_mb,
+                needed_bytes,
+            } => write!(
+                f,
+                "configuration: memory cap {cap_mb} MB is below what this capacity needs with an empty map: {:.0} MB",
+                *needed_bytes as f64 / 1e6
+            ),
             RunError::File(e) => write!(f, "{e}"),
         }
     }
 }
 
-impl std::error::Error for RunError {}
+impl std::error::Error for RunError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            RunError::Config(e) => Some(e),
+            RunError::Threads(e) => Some(e),
+            RunError::File(e) => Some(e),
+            RunError::MemoryCapTooSmall { .. } => None,
+        }
+    }
+}
 
 impl From<FileError> for RunError {
     fn from(e: FileError) -> Self {
@@ -388,23 +416,21 @@ fn setup<C: Capacity>(
     let out = &opts.out;
     std::fs::create_dir_all(out)
         .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
-    let workers =
-        Workers::new(opts.threads).map_err(|e| RunError::Config(format!("threads: {e}")))?;
+    let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
     let mut window = opts.window.rules();
     let mut max_layers = None;
     if let Some(cap) = opts.window.memory_cap_mb {
         let other = memory::rss_bytes().unwrap_or(0) as usize + PROCESS_HEADROOM_BYTES;
         let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
-            RunError::Config(format!(
-                "memory cap {cap} MB is below what this capacity needs with an empty map: {:.0} MB",
-                e.needed_bytes as f64 / 1e6
-            ))
+            RunError::MemoryCapTooSmall {
+                cap_mb: cap,
+                needed_bytes: e.needed_bytes,
+            }
         })?;
         window.max_layers = Some(budget);
         max_layers = Some(budget);
     }
-    let pipeline = Pipeline::<C>::new(opts.config)
-        .map_err(|e| RunError::Config(format!("{}: {}", e.field, e.reason)))?;
+    let pipeline = Pipeline::<C>::new(opts.config).map_err(RunError::Config)?;
     Ok((pipeline, workers, window, max_layers))
 }
 
