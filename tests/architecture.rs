@@ -7,6 +7,14 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 const MAX_LINES_BEFORE_TESTS: usize = 600;
+/// The folders of Rust sources the rules cover.
+const SOURCE_DIRS: [&str; 5] = [
+    "core/src",
+    "sim/src",
+    "std-adapters/src",
+    "tests",
+    "examples",
+];
 /// How code cites the design notes (split so that this file does not cite).
 const CITE: &str = concat!("design.md ", "§");
 
@@ -148,13 +156,7 @@ fn no_source_file_holds_more_than_600_lines_before_its_tests() {
     let root = root();
     let mut long = Vec::new();
     let mut seen = 0;
-    for dir in [
-        "core/src",
-        "sim/src",
-        "std-adapters/src",
-        "tests",
-        "examples",
-    ] {
+    for dir in SOURCE_DIRS {
         for p in sources(&root.join(dir)) {
             seen += 1;
             let text = std::fs::read_to_string(&p).unwrap();
@@ -183,13 +185,7 @@ fn every_cited_design_section_exists() {
         .collect();
     let mut cited = 0;
     let mut missing = Vec::new();
-    for dir in [
-        "core/src",
-        "sim/src",
-        "std-adapters/src",
-        "tests",
-        "examples",
-    ] {
+    for dir in SOURCE_DIRS {
         for p in sources(&root.join(dir)) {
             let text = std::fs::read_to_string(&p).unwrap();
             for (at, _) in text.match_indices(CITE) {

@@ -158,7 +158,7 @@ pub struct Run<'a, C: Capacity> {
 impl<'a, C: Capacity> Run<'a, C> {
     /// A new run into `opts.out` (created if missing).
     pub fn start(source: &impl FrameSource, opts: &'a RunOptions) -> Result<Self, RunError> {
-        let (pipeline, workers, window, max_layers) = setup::<C>(opts)?;
+        let setup = Setup::<C>::new(opts)?;
         let spool = MeshSpool::new(
             &opts.out.join("mesh.ply"),
             opts.config.lattice(),
@@ -168,15 +168,13 @@ impl<'a, C: Capacity> Run<'a, C> {
         let frames = File::create(&frames_path)
             .map_err(|e| FileError::at(&frames_path, format!("cannot create: {e}")))?;
         let progress = Progress::new(fingerprint::<C>(source, opts));
-        Ok(Self::assemble(
-            opts, pipeline, workers, window, max_layers, spool, frames, progress,
-        ))
+        Ok(Self::assemble(opts, setup, spool, frames, progress))
     }
 
     /// The run killed after the checkpoint in `opts.out`, continued from it; refused when the
     /// checkpoint is missing or of another run (input, capacity, configuration, window).
     pub fn resume(source: &impl FrameSource, opts: &'a RunOptions) -> Result<Self, RunError> {
-        let (mut pipeline, workers, window, max_layers) = setup::<C>(opts)?;
+        let mut setup = Setup::<C>::new(opts)?;
         let path = checkpoint::path(&opts.out);
         if !path.exists() {
             return Err(FileError::at(
@@ -185,7 +183,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             )
             .into());
         }
-        let progress = checkpoint::read(&path, pipeline.map_mut())?;
+        let progress = checkpoint::read(&path, setup.pipeline.map_mut())?;
         let fingerprint = fingerprint::<C>(source, opts);
         if progress.fingerprint != fingerprint {
             return Err(FileError::at(
@@ -197,7 +195,9 @@ impl<'a, C: Capacity> Run<'a, C> {
             )
             .into());
         }
-        pipeline.restore_progress(progress.pipeline_frames, progress.motion_model());
+        setup
+            .pipeline
+            .restore_progress(progress.pipeline_frames, progress.motion_model());
         let spool = MeshSpool::resume(
             &opts.out.join("mesh.ply"),
             opts.config.lattice(),
@@ -205,28 +205,22 @@ impl<'a, C: Capacity> Run<'a, C> {
             progress.mesh,
         )?;
         let frames = open_cut(&frames_path(opts), progress.report_bytes)?;
-        Ok(Self::assemble(
-            opts, pipeline, workers, window, max_layers, spool, frames, progress,
-        ))
+        Ok(Self::assemble(opts, setup, spool, frames, progress))
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn assemble(
         opts: &'a RunOptions,
-        pipeline: Pipeline<C>,
-        workers: Workers,
-        window: Window,
-        max_layers: Option<usize>,
+        setup: Setup<C>,
         spool: MeshSpool,
         frames: File,
         progress: Progress,
     ) -> Self {
         Run {
             opts,
-            pipeline,
-            workers,
-            window,
-            max_layers,
+            pipeline: setup.pipeline,
+            workers: setup.workers,
+            window: setup.window,
+            max_layers: setup.max_layers,
             spool,
             frame_lines: BufWriter::new(frames),
             frames_path: frames_path(opts),
@@ -408,30 +402,42 @@ fn frames_path(opts: &RunOptions) -> PathBuf {
     opts.out.join(".report.frames.spool")
 }
 
-/// What both starts share: the output folder, the pipeline, the executor, the window and the
-/// memory cap's layer budget.
-fn setup<C: Capacity>(
-    opts: &RunOptions,
-) -> Result<(Pipeline<C>, Workers, Window, Option<usize>), RunError> {
-    let out = &opts.out;
-    std::fs::create_dir_all(out)
-        .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
-    let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
-    let mut window = opts.window.rules();
-    let mut max_layers = None;
-    if let Some(cap) = opts.window.memory_cap_mb {
-        let other = memory::rss_bytes().unwrap_or(0) as usize + PROCESS_HEADROOM_BYTES;
-        let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
-            RunError::MemoryCapTooSmall {
-                cap_mb: cap,
-                needed_bytes: e.needed_bytes,
-            }
-        })?;
-        window.max_layers = Some(budget);
-        max_layers = Some(budget);
+/// What both starts share: the output folder (made here), the pipeline, the executor, the
+/// window and the memory cap's layer budget.
+struct Setup<C: Capacity> {
+    pipeline: Pipeline<C>,
+    workers: Workers,
+    window: Window,
+    max_layers: Option<usize>,
+}
+
+impl<C: Capacity> Setup<C> {
+    fn new(opts: &RunOptions) -> Result<Self, RunError> {
+        let out = &opts.out;
+        std::fs::create_dir_all(out)
+            .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
+        let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
+        let mut window = opts.window.rules();
+        let mut max_layers = None;
+        if let Some(cap) = opts.window.memory_cap_mb {
+            let other = memory::rss_bytes().unwrap_or(0) as usize + PROCESS_HEADROOM_BYTES;
+            let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
+                RunError::MemoryCapTooSmall {
+                    cap_mb: cap,
+                    needed_bytes: e.needed_bytes,
+                }
+            })?;
+            window.max_layers = Some(budget);
+            max_layers = Some(budget);
+        }
+        let pipeline = Pipeline::<C>::new(opts.config).map_err(RunError::Config)?;
+        Ok(Setup {
+            pipeline,
+            workers,
+            window,
+            max_layers,
+        })
     }
-    let pipeline = Pipeline::<C>::new(opts.config).map_err(RunError::Config)?;
-    Ok((pipeline, workers, window, max_layers))
 }
 
 /// What identifies a run for resuming: its input, frames, capacity, configuration, window and
