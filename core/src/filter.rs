@@ -19,12 +19,29 @@ pub struct FilterStats {
     pub input: usize,
     /// Dropped: a coordinate was NaN or infinite.
     pub non_finite: usize,
-    /// Dropped: range outside `[range_min, range_max]`.
+    /// Dropped: range outside `[range_min, range_max]` (or a voxel index beyond `i32`).
     pub out_of_range: usize,
+    /// Of `out_of_range`, those closer than `range_min` (the rest are farther than
+    /// `range_max`, or beyond the key range).
+    pub too_near: usize,
     /// Dropped: the work buffer was full.
     pub over_capacity: usize,
     /// Points after down-sampling.
     pub kept: usize,
+}
+
+impl FilterStats {
+    /// Counts one dropped point.
+    pub fn count(&mut self, why: Dropped) {
+        match why {
+            Dropped::NonFinite => self.non_finite += 1,
+            Dropped::TooNear => {
+                self.out_of_range += 1;
+                self.too_near += 1;
+            }
+            Dropped::OutOfRange => self.out_of_range += 1,
+        }
+    }
 }
 
 /// KITTI's vertical-angle correction (IMLS-SLAM, CT-ICP; docs/design.md §1.8): each point is rotated
@@ -74,7 +91,9 @@ pub struct Preparation {
 pub enum Dropped {
     /// A coordinate was NaN or infinite.
     NonFinite,
-    /// Its range was outside `[range_min, range_max]` (or its voxel index beyond `i32`).
+    /// Its range was below `range_min`.
+    TooNear,
+    /// Its range was above `range_max` (or its voxel index beyond `i32`).
     OutOfRange,
 }
 
@@ -98,7 +117,10 @@ impl Preparation {
         }
         let mut v = to_vec3(p);
         let r2 = v.norm_squared();
-        if r2 < self.r2_min || r2 > self.r2_max {
+        if r2 < self.r2_min {
+            return Err(Dropped::TooNear);
+        }
+        if r2 > self.r2_max {
             return Err(Dropped::OutOfRange);
         }
         if let Some(c) = &self.correction {
@@ -123,8 +145,7 @@ pub fn collect(
                     stats.over_capacity += 1;
                 }
             }
-            Err(Dropped::NonFinite) => stats.non_finite += 1,
-            Err(Dropped::OutOfRange) => stats.out_of_range += 1,
+            Err(dropped) => stats.count(dropped),
         }
     }
 }
@@ -167,18 +188,15 @@ pub fn prepare_all(
         work,
         |p, dropped: &mut FilterStats| match prep.point(p) {
             Ok(e) => Some(e),
-            Err(Dropped::NonFinite) => {
-                dropped.non_finite += 1;
-                None
-            }
-            Err(Dropped::OutOfRange) => {
-                dropped.out_of_range += 1;
+            Err(why) => {
+                dropped.count(why);
                 None
             }
         },
         |s| {
             stats.non_finite += s.non_finite;
             stats.out_of_range += s.out_of_range;
+            stats.too_near += s.too_near;
         },
     );
     if !fits {

@@ -49,11 +49,16 @@ pub enum RegistrationStatus {
 }
 
 /// Why a scan was not used. The map and motion model are unchanged.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ScanError {
     /// No point survived the filter (all non-finite, out of range, or none given).
-    EmptyScan(FilterStats),
+    EmptyScan {
+        /// What the filter did.
+        stats: FilterStats,
+        /// The range limits it applied, `filter.range_min_m` and `filter.range_max_m` (m).
+        range_m: [f64; 2],
+    },
     /// The given pose is not finite.
     BadPose,
 }
@@ -61,11 +66,39 @@ pub enum ScanError {
 impl fmt::Display for ScanError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ScanError::EmptyScan(s) => write!(
-                f,
-                "empty scan: none of {} points usable ({} non-finite, {} out of range)",
-                s.input, s.non_finite, s.out_of_range
-            ),
+            ScanError::EmptyScan { stats: s, range_m } => {
+                write!(f, "empty scan: none of {} points usable", s.input)?;
+                let far = s.out_of_range - s.too_near;
+                let mut parts = 0;
+                let mut part = |f: &mut fmt::Formatter<'_>, n: usize, what: fmt::Arguments| {
+                    if n == 0 {
+                        return Ok(());
+                    }
+                    parts += 1;
+                    write!(f, "{}{n} {what}", if parts == 1 { " (" } else { ", " })
+                };
+                part(f, s.non_finite, format_args!("not finite"))?;
+                part(
+                    f,
+                    s.too_near,
+                    format_args!(
+                        "closer than filter.range_min_m = {} m: lower it for a sensor this close",
+                        range_m[0]
+                    ),
+                )?;
+                part(
+                    f,
+                    far,
+                    format_args!(
+                        "farther than filter.range_max_m = {} m: raise it for a scene this large",
+                        range_m[1]
+                    ),
+                )?;
+                if parts > 0 {
+                    write!(f, ")")?;
+                }
+                Ok(())
+            }
             ScanError::BadPose => write!(f, "the given pose is not finite"),
         }
     }
@@ -349,7 +382,13 @@ impl<C: Capacity> Pipeline<C> {
         );
         if filter.kept == 0 {
             probe.enter(Stage::Done);
-            let error = ScanError::EmptyScan(filter);
+            let error = ScanError::EmptyScan {
+                stats: filter,
+                range_m: [
+                    self.config.filter.range_min_m,
+                    self.config.filter.range_max_m,
+                ],
+            };
             #[cfg(feature = "defmt")]
             log::scan_rejected(frame, &error);
             return Err(error);
@@ -528,19 +567,37 @@ mod tests {
     #[test]
     fn empty_and_all_non_finite_scans_are_errors_that_leave_the_map_alone() {
         let mut p = Pipeline::<Tiny>::new(Config::default()).unwrap();
-        assert!(matches!(p.process_scan(&[]), Err(ScanError::EmptyScan(_))));
+        assert!(matches!(
+            p.process_scan(&[]),
+            Err(ScanError::EmptyScan { .. })
+        ));
         let bad = [
             [f32::NAN, 0.0, 0.0],
             [f32::INFINITY, 1.0, 2.0],
             [0.0, f32::NEG_INFINITY, 0.0],
             [1e30, 1e30, 1e30],
         ];
-        let Err(ScanError::EmptyScan(s)) = p.process_scan(&bad) else {
+        let Err(e @ ScanError::EmptyScan { stats: s, .. }) = p.process_scan(&bad) else {
             panic!("expected EmptyScan")
         };
-        assert_eq!((s.non_finite, s.out_of_range), (3, 1));
+        assert_eq!((s.non_finite, s.out_of_range, s.too_near), (3, 1, 0));
+        assert_eq!(
+            std::string::ToString::to_string(&e),
+            "empty scan: none of 4 points usable (3 not finite, 1 farther than \
+             filter.range_max_m = 100 m: raise it for a scene this large)"
+        );
+        // Every point too close: the message names the limit and the parameter.
+        let near = [[0.3f32, 0.2, 0.0]; 5];
+        let Err(e) = p.process_scan(&near) else {
+            panic!("expected EmptyScan")
+        };
+        assert_eq!(
+            std::string::ToString::to_string(&e),
+            "empty scan: none of 5 points usable (5 closer than filter.range_min_m = 1.2 m: \
+             lower it for a sensor this close)"
+        );
         assert!(p.map().is_empty() && p.pose().is_none());
-        assert_eq!(p.frames(), 2);
+        assert_eq!(p.frames(), 3);
     }
 
     #[test]

@@ -7,10 +7,12 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    match cli::Cli::parse().run() {
+    let cli = cli::Cli::parse();
+    cli.init_logger();
+    match cli.run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("slamesh: error: {e}");
+            log::error!("{e}");
             ExitCode::FAILURE
         }
     }

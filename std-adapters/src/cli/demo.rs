@@ -2,8 +2,9 @@
 //! against the truth.
 
 use crate::cli::error::CliError;
+use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
-use crate::cli::run::print_summary;
+use crate::cli::run::{frame_messages, print_summary};
 use crate::cli::settings::Profile;
 use crate::say;
 use clap::Args;
@@ -32,13 +33,10 @@ pub struct DemoArgs {
     /// Seed of the town and the sensor noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// No progress bar.
-    #[arg(long, short)]
-    pub quiet: bool,
 }
 
 /// Drives, runs SLAM, writes the outputs and prints the accuracy.
-pub fn demo(args: &DemoArgs) -> Result<(), CliError> {
+pub fn demo(args: &DemoArgs, quiet: bool) -> Result<(), CliError> {
     let (out, frames, seed) = (&args.out, args.frames, args.seed);
     let s = args.profile.resolve("town")?;
     let opts = RunOptions {
@@ -52,13 +50,19 @@ pub fn demo(args: &DemoArgs) -> Result<(), CliError> {
         input: format!("simulated town, seed {seed}, {frames} frames"),
         ..RunOptions::default()
     };
-    eprintln!("slamesh demo: simulating {frames} frames through a procedural town (seed {seed}), output in {}", out.display());
-    let bar = progress(frames, args.quiet);
+    log::info!(
+        "demo: simulating {frames} frames through a procedural town (seed {seed}), output in {}",
+        out.display()
+    );
+    let bar = progress(frames, quiet);
+    let mut notices = FrameNotices::default();
     let r = slamesh::demo::run_demo::<KittiCapacity>(frames, seed, &opts, |rec| {
+        frame_messages(rec, &bar, &mut notices);
         bar.set_message(format!("{} ms", rec.ms.total.round()));
         bar.inc(1);
     })?;
     bar.finish_and_clear();
+    notices.finish();
     print_summary(&r.summary, out);
     say!(
         "demo: {} frames, {:.0} m; consecutive error {:.2} cm (worst {:.2} cm), {:.4} deg",

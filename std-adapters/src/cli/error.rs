@@ -31,6 +31,11 @@ pub enum CliError {
     },
     /// The run ended without a single usable frame.
     NoFrameUsed,
+    /// With `--strict`: frames were not registered normally.
+    NotRegistered {
+        /// How many.
+        frames: usize,
+    },
 }
 
 impl fmt::Display for CliError {
@@ -49,6 +54,10 @@ impl fmt::Display for CliError {
                 scans,
             } => write!(f, "{sequence}: {poses} reference poses for {scans} scans"),
             CliError::NoFrameUsed => write!(f, "no frame could be used"),
+            CliError::NotRegistered { frames } => write!(
+                f,
+                "--strict: {frames} frame(s) not registered normally (listed above)"
+            ),
         }
     }
 }

@@ -107,8 +107,8 @@ fn trajectory_errors(
         read_given_poses(reference, calib)
     }?;
     if est.len() != reference.len() {
-        eprintln!(
-            "slamesh: warning: {} estimated poses, {} reference poses; comparing the first {}",
+        log::warn!(
+            "{} estimated poses, {} reference poses; comparing the first {}",
             est.len(),
             reference.len(),
             est.len().min(reference.len())
@@ -213,7 +213,7 @@ fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
     for (path, pose) in scans.paths.iter().zip(&poses) {
         match read_scan(path) {
             Ok(points) => frames.push((points, *pose)),
-            Err(e) => eprintln!("slamesh: skipped: {e}"),
+            Err(e) => log::warn!("skipped: {e}"),
         }
     }
     let cloud = mesh_eval::accumulate(frames, 0.05, 1.2, 100.0);

@@ -7,12 +7,14 @@ pub mod config;
 pub mod demo;
 pub mod error;
 pub mod eval;
+pub mod notices;
 pub mod run;
 pub mod settings;
 
-use clap::{Parser, Subcommand};
+use clap::{ArgAction, Parser, Subcommand};
 pub use error::CliError;
 use indicatif::{ProgressBar, ProgressStyle};
+use std::io::Write as _;
 
 /// Prints a line to stdout; a closed pipe (`slamesh ... | head`) is not an error.
 #[macro_export]
@@ -33,6 +35,13 @@ macro_rules! say {
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// More messages: -v adds each frame's outcome, -vv everything (RUST_LOG, when set,
+    /// overrides both this and -q, e.g. RUST_LOG=slamesh=debug).
+    #[arg(short, long, global = true, action = ArgAction::Count)]
+    verbose: u8,
+    /// No progress bar, and only warnings and errors.
+    #[arg(short, long, global = true)]
+    quiet: bool,
 }
 
 #[derive(Subcommand)]
@@ -57,15 +66,41 @@ enum Command {
 }
 
 impl Cli {
+    /// Sets up the logger for `-v`, `-q` and `RUST_LOG`: messages go to standard error as
+    /// `slamesh: warning: ...`; standard output holds only results.
+    pub fn init_logger(&self) {
+        let level = match (self.quiet, self.verbose) {
+            (true, _) => log::LevelFilter::Warn,
+            (false, 0) => log::LevelFilter::Info,
+            (false, 1) => log::LevelFilter::Debug,
+            (false, _) => log::LevelFilter::Trace,
+        };
+        let _ = env_logger::Builder::new()
+            .filter_level(level)
+            .parse_env("RUST_LOG")
+            .format(|buf, record| {
+                let level = match record.level() {
+                    log::Level::Error => "error: ",
+                    log::Level::Warn => "warning: ",
+                    log::Level::Info => "",
+                    log::Level::Debug => "debug: ",
+                    log::Level::Trace => "trace: ",
+                };
+                writeln!(buf, "slamesh: {level}{}", record.args())
+            })
+            .try_init();
+    }
+
     /// Runs the subcommand.
     pub fn run(&self) -> Result<(), CliError> {
+        let quiet = self.quiet;
         match &self.command {
-            Command::Run(a) => run::run_command(a),
-            Command::Mesh(a) => run::mesh(a),
+            Command::Run(a) => run::run_command(a, quiet),
+            Command::Mesh(a) => run::mesh(a, quiet),
             Command::Eval(a) => eval::eval(a),
             Command::Bench(a) => bench::bench(a),
             #[cfg(feature = "sim")]
-            Command::Demo(a) => demo::demo(a),
+            Command::Demo(a) => demo::demo(a, quiet),
             Command::Config(a) => {
                 config::config(a);
                 Ok(())

@@ -1,14 +1,16 @@
 //! `slamesh run` (estimate poses, build the mesh) and `slamesh mesh` (build it at given poses).
 
 use crate::cli::error::CliError;
+use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
 use crate::cli::settings::{Profile, WindowFlags};
 use crate::say;
 use clap::Args;
+use indicatif::ProgressBar;
 use slamesh::io::mesh_spool::MeshFormat;
 use slamesh::io::scans::ScanFolder;
 use slamesh::io::{kitti, trajectory, FileError};
-use slamesh::run::{run, FrameSource, RunOptions, Summary};
+use slamesh::run::{run, FrameRecord, FrameSource, RunOptions, Summary};
 use slamesh_core::{KittiCapacity, Pose};
 use std::path::{Path, PathBuf};
 
@@ -39,9 +41,11 @@ pub struct RunArgs {
     /// settings); it loses at most the frames after the last checkpoint.
     #[arg(long)]
     pub resume: bool,
-    /// No progress bar.
-    #[arg(long, short)]
-    pub quiet: bool,
+    /// Exit with an error, listing them, when any frame was not registered normally
+    /// (skipped, degenerate, too few matches, solver failure); the outputs are written all
+    /// the same.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// `slamesh mesh`'s arguments.
@@ -59,28 +63,29 @@ pub struct MeshArgs {
 }
 
 /// Meshes at the given poses (preset `meshing` unless told otherwise).
-pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
+pub fn mesh(args: &MeshArgs, quiet: bool) -> Result<(), CliError> {
     let poses = read_given_poses(&args.poses, args.calib.as_deref())?;
-    run_with(&args.run, "meshing", Some(poses))
+    run_with(&args.run, "meshing", Some(poses), quiet)
 }
 
 /// Estimates the poses and builds the mesh (preset `default` unless told otherwise).
-pub fn run_command(args: &RunArgs) -> Result<(), CliError> {
-    run_with(args, "default", None)
+pub fn run_command(args: &RunArgs, quiet: bool) -> Result<(), CliError> {
+    run_with(args, "default", None, quiet)
 }
 
 fn run_with(
     args: &RunArgs,
     default_preset: &str,
     given: Option<Vec<Pose>>,
+    quiet: bool,
 ) -> Result<(), CliError> {
     let mut s = args.profile.resolve(default_preset)?;
     args.window.apply(&mut s.window)?;
     let mut source = ScanFolder::open(&args.input)?;
     if let Some(p) = &given {
         if p.len() < source.frames() {
-            eprintln!(
-                "slamesh: warning: {} poses for {} frames; frames without a pose are skipped",
+            log::warn!(
+                "{} poses for {} frames; frames without a pose are skipped",
                 p.len(),
                 source.frames()
             );
@@ -102,18 +107,17 @@ fn run_with(
         checkpoint_every: args.checkpoint_every.map(|n| n as usize),
         resume: args.resume,
     };
-    let bar = progress(source.frames(), args.quiet);
-    eprintln!(
-        "slamesh: {} frames from {} (preset {}), output in {}",
+    let bar = progress(source.frames(), quiet);
+    log::info!(
+        "{} frames from {} (preset {}), output in {}",
         source.frames(),
         args.input.display(),
         s.preset,
         args.out.display()
     );
+    let mut notices = FrameNotices::default();
     let summary = run::<KittiCapacity>(&mut source, &opts, |rec| {
-        if let Some(e) = &rec.error {
-            bar.suspend(|| eprintln!("slamesh: skipped: {e}"));
-        }
+        frame_messages(rec, &bar, &mut notices);
         bar.set_message(format!(
             "{} ms, {} MB",
             rec.ms.total.round(),
@@ -122,11 +126,48 @@ fn run_with(
         bar.inc(1);
     })?;
     bar.finish_and_clear();
+    notices.finish();
     print_summary(&summary, &args.out);
     if summary.used == 0 {
         return Err(CliError::NoFrameUsed);
     }
+    let bad = &summary.health.not_registered;
+    if args.strict && !bad.is_empty() {
+        for b in bad {
+            log::error!("frame {} ({}): {}: {}", b.frame, b.file, b.status, b.reason);
+        }
+        return Err(CliError::NotRegistered { frames: bad.len() });
+    }
     Ok(())
+}
+
+/// What the terminal says about one frame: a rate-limited warning when it was skipped or not
+/// registered normally, and with `-v` its outcome.
+pub fn frame_messages(rec: &FrameRecord, bar: &ProgressBar, notices: &mut FrameNotices) {
+    if let Some(e) = &rec.error {
+        notices.warn(bar, &format!("skipped: {e}"));
+    } else if let Some(reason) = &rec.reason {
+        notices.warn(
+            bar,
+            &format!(
+                "frame {} ({}): {}: {reason}",
+                rec.frame, rec.file, rec.status
+            ),
+        );
+    }
+    if log::log_enabled!(log::Level::Debug) {
+        bar.suspend(|| {
+            log::debug!(
+                "frame {}: {}, {} of {} points kept, {} layers, {:.1} ms",
+                rec.frame,
+                rec.status,
+                rec.points_kept,
+                rec.points,
+                rec.scan_layers,
+                rec.ms.total
+            )
+        });
+    }
 }
 
 /// The closing lines of a run: frames, speed, mesh, memory, files.
@@ -156,6 +197,14 @@ pub fn print_summary(s: &Summary, out: &Path) {
         s.peak_rss_mb
             .map_or("unknown".into(), |m| format!("{m:.0} MB"))
     );
+    say!("slamesh: frames by status: {}", s.health.counts_line());
+    let bad = s.health.not_registered.len();
+    if bad > 0 {
+        say!(
+            "slamesh: {bad} frame(s) not registered normally: listed in report.json (summary.health); \
+             --strict makes this an error"
+        );
+    }
     say!(
         "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json",
         out.display()

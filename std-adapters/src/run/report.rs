@@ -12,13 +12,13 @@ use crate::io::trajectory::{write_kitti_line, write_tum_line};
 use crate::run::session::RunOptions;
 use crate::run::source::FrameSource;
 use crate::run::timing::StageMs;
-use serde::Serialize;
-use slamesh_core::Pose;
+use serde::{Deserialize, Serialize};
+use slamesh_core::{Config, Pose, RegistrationStatus, ScanStats};
 use std::io::Write;
 use std::path::Path;
 
 /// What happened to one frame (a line of `report.json`).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FrameRecord {
     /// Frame index.
     pub frame: usize,
@@ -28,6 +28,9 @@ pub struct FrameRecord {
     pub status: String,
     /// Why it was skipped.
     pub error: Option<String>,
+    /// Why it was not registered normally (statuses `Degenerate`, `TooFewResiduals`,
+    /// `SolverFailed`), naming the parameter involved.
+    pub reason: Option<String>,
     /// Milliseconds per stage.
     pub ms: StageMs,
     /// Points read.
@@ -64,6 +67,7 @@ impl FrameRecord {
             file,
             status: "Skipped".into(),
             error: None,
+            reason: None,
             ms: StageMs::default(),
             points: 0,
             points_kept: 0,
@@ -120,9 +124,145 @@ pub struct Summary {
     pub max_layers: Option<usize>,
     /// Peak resident memory of the process (MB).
     pub peak_rss_mb: Option<f64>,
+    /// Frames by status, and those not registered normally.
+    pub health: Health,
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,
+}
+
+/// Statuses of a frame registered normally: the first scan, converged, or meshed at a given
+/// pose. Any other status, and a skipped frame, is a frame not registered normally.
+pub const NORMAL_STATUSES: [&str; 3] = ["FirstScan", "Converged", "Given"];
+
+/// How the run's frames went.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Health {
+    /// Frames by status (`Converged`, `Degenerate`, ..., `Skipped`), the statuses seen, in
+    /// the order of [`RegistrationStatus`]'s variants then `Skipped`.
+    pub counts: Vec<(String, usize)>,
+    /// Each frame not registered normally, in frame order.
+    pub not_registered: Vec<NotRegistered>,
+}
+
+/// A frame not registered normally.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NotRegistered {
+    /// Frame index.
+    pub frame: usize,
+    /// Its file.
+    pub file: String,
+    /// Its status (`Skipped` when it could not be read or used).
+    pub status: String,
+    /// Why, with the parameter involved where there is one.
+    pub reason: String,
+}
+
+impl Health {
+    /// The health of the frames whose records are `records`, in frame order.
+    pub fn of<'a>(records: impl IntoIterator<Item = &'a FrameRecord>) -> Self {
+        const ORDER: [&str; 7] = [
+            "FirstScan",
+            "Converged",
+            "Given",
+            "Degenerate",
+            "TooFewResiduals",
+            "SolverFailed",
+            "Skipped",
+        ];
+        let mut counts = [0usize; ORDER.len()];
+        let mut other: Vec<(String, usize)> = Vec::new();
+        let mut not_registered = Vec::new();
+        for r in records {
+            match ORDER.iter().position(|s| *s == r.status) {
+                Some(k) => counts[k] += 1,
+                None => match other.iter_mut().find(|(s, _)| *s == r.status) {
+                    Some((_, n)) => *n += 1,
+                    None => other.push((r.status.clone(), 1)),
+                },
+            }
+            if !NORMAL_STATUSES.contains(&r.status.as_str()) {
+                not_registered.push(NotRegistered {
+                    frame: r.frame,
+                    file: r.file.clone(),
+                    status: r.status.clone(),
+                    reason: r
+                        .error
+                        .clone()
+                        .or_else(|| r.reason.clone())
+                        .unwrap_or_default(),
+                });
+            }
+        }
+        let mut counts: Vec<(String, usize)> = ORDER
+            .iter()
+            .zip(counts)
+            .filter(|(_, n)| *n > 0)
+            .map(|(s, n)| (s.to_string(), n))
+            .collect();
+        counts.extend(other);
+        Health {
+            counts,
+            not_registered,
+        }
+    }
+
+    /// The health of the frame records spooled in `frames` (one JSON object a line).
+    pub fn of_spool(frames: &Path) -> Result<Self, FileError> {
+        let text = std::fs::read_to_string(frames)
+            .map_err(|e| FileError::at(frames, format!("cannot read: {e}")))?;
+        let records = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                serde_json::from_str::<FrameRecord>(l)
+                    .map_err(|e| FileError::new(frames, Some(i + 1), format!("bad record: {e}")))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self::of(&records))
+    }
+
+    /// `8 Converged, 1 FirstScan, 1 TooFewResiduals`.
+    pub fn counts_line(&self) -> String {
+        let parts: Vec<String> = self
+            .counts
+            .iter()
+            .map(|(s, n)| format!("{n} {s}"))
+            .collect();
+        parts.join(", ")
+    }
+}
+
+/// Why a scan that was registered with `status` was not registered normally, naming the
+/// parameter involved; `None` for a normal status.
+pub fn registration_reason(
+    status: RegistrationStatus,
+    stats: &ScanStats,
+    config: &Config,
+) -> Option<String> {
+    let lm = &config.register.lm;
+    match status {
+        RegistrationStatus::FirstScan
+        | RegistrationStatus::Converged
+        | RegistrationStatus::Given => None,
+        RegistrationStatus::Degenerate if stats.degenerate_directions >= 6 => Some(format!(
+            "no direction constrained (weakest {:.4}); the pose is the motion prediction",
+            stats.conditioning
+        )),
+        RegistrationStatus::Degenerate => Some(format!(
+            "{} of 6 directions unconstrained (weakest {:.4}, below register.lm.degenerate_ratio \
+             = {}) kept the motion prediction",
+            stats.degenerate_directions, stats.conditioning, lm.degenerate_ratio
+        )),
+        RegistrationStatus::TooFewResiduals => Some(format!(
+            "{} surface matches with the map, fewer than register.lm.min_residuals = {}; the \
+             pose is the motion prediction",
+            stats.associate.residuals, lm.min_residuals
+        )),
+        RegistrationStatus::SolverFailed => {
+            Some("the solver's correction was not finite; the pose is the motion prediction".into())
+        }
+    }
 }
 
 /// Median and 95th percentile of each stage over `ms`, in [`StageMs::NAMES`] order.

@@ -18,7 +18,9 @@ use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::memory;
-use crate::run::report::{spreads, write_report, write_trajectories, FrameRecord, Summary};
+use crate::run::report::{
+    registration_reason, spreads, write_report, write_trajectories, FrameRecord, Health, Summary,
+};
 use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
@@ -275,6 +277,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         match outcome {
             Ok(o) => {
                 rec.status = format!("{:?}", o.status);
+                rec.reason = registration_reason(o.status, &o.stats, &self.opts.config);
                 rec.points_kept = o.stats.filter.kept;
                 rec.scan_cells = o.stats.bucket.cells;
                 rec.scan_layers = o.stats.scan_layers;
@@ -362,6 +365,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             .flush()
             .map_err(|e| FileError::at(&self.frames_path, format!("cannot write: {e}")))?;
         drop(self.frame_lines);
+        let health = Health::of_spool(&self.frames_path)?;
         let out = &self.opts.out;
         write_trajectories(out, source, &poses)?;
         self.spool.add_map(self.pipeline.map())?;
@@ -387,6 +391,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             evicted_cells,
             max_layers: self.max_layers,
             peak_rss_mb: memory::peak_rss_bytes().map(memory::mb),
+            health,
             poses,
         };
         write_report(out, self.opts, &summary, &self.frames_path)?;

@@ -4,7 +4,7 @@ use slamesh_core::{Probe, Stage};
 use std::time::{Duration, Instant};
 
 /// Milliseconds per stage of one scan, plus the std-side stages.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct StageMs {
     /// Reading the scan file.
     pub read: f64,
