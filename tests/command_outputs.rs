@@ -462,3 +462,65 @@ fn bench_takes_a_preset() {
     assert!(!o.status.success() && text(&o.stderr).contains("nonsense"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn the_capacity_class_fits_the_first_scan_and_a_scan_too_large_for_it_is_refused() {
+    let dir = scratch("capacity");
+    let (_, scans) = drive(3);
+    let scans_dir = dir.join("scans");
+    std::fs::create_dir_all(&scans_dir).unwrap();
+    for (i, scan) in scans.iter().enumerate() {
+        write_bin(&scans_dir.join(format!("{i}.bin")), scan);
+    }
+    // Points within the default range limits (1.2 to 100 m) in the first scan, and the class
+    // the rule gives: the smallest of 2 048, 36 000, 72 000, 140 000 points that holds them
+    // with a quarter to spare.
+    let n = scans[0]
+        .iter()
+        .filter(|p| {
+            let r = p.iter().map(|c| c * c).sum::<f32>().sqrt();
+            (1.2..=100.0).contains(&r)
+        })
+        .count();
+    let (name, flag) = [
+        (2_048, "tiny", "tiny"),
+        (36_000, "16-beam", "16"),
+        (72_000, "32-beam", "32"),
+    ]
+    .into_iter()
+    .find(|(points, _, _)| *points as f64 >= 1.25 * n as f64)
+    .map_or(("64-beam", "64"), |(_, name, flag)| (name, flag));
+    let out = dir.join("auto");
+    // Without -q: the choice is an info message.
+    let o = slamesh_ok(&["run", s(&scans_dir), "--out", s(&out)]);
+    let stderr = text(&o.stderr);
+    assert!(
+        stderr.contains(&format!(
+            "capacity {name} (--capacity {flag}): frame 0 has {n} points within range"
+        )),
+        "{n} points: {stderr}"
+    );
+    assert_eq!(report(&out)["summary"]["capacity"], name);
+
+    // The tiny class cannot hold these scans: each is refused, naming the class that can.
+    let holding = [(36_000, "16"), (72_000, "32"), (140_000, "64")]
+        .into_iter()
+        .find(|(points, _)| *points >= n)
+        .unwrap()
+        .1;
+    let o = slamesh_run(&scans_dir, &dir.join("tiny"), &["--capacity", "tiny"]);
+    assert!(!o.status.success());
+    let stderr = text(&o.stderr);
+    assert!(
+        stderr.contains(&format!(
+            "0.bin: frame 0: {n} points within range, more than the tiny capacity holds (2048): run with --capacity {holding}"
+        )),
+        "{stderr}"
+    );
+    assert!(stderr.contains("no frame could be used"), "{stderr}");
+
+    let out = dir.join("largest");
+    slamesh_run_ok(&scans_dir, &out, &["--capacity", "64"]);
+    assert_eq!(report(&out)["summary"]["capacity"], "64-beam");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -68,7 +68,7 @@ pub mod reconstruct;
 pub mod sort;
 pub mod stage;
 
-pub use capacity::{Capacity, KittiCapacity, SmallCapacity};
+pub use capacity::{Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 pub use config::{Config, ConfigError};
 pub use executor::{Executor, Serial};
 pub use math::{Point, Pose};

@@ -10,8 +10,9 @@ use indicatif::ProgressBar;
 use slamesh::io::mesh_spool::MeshFormat;
 use slamesh::io::scans::ScanFolder;
 use slamesh::io::{kitti, trajectory, FileError};
+use slamesh::run::capacity;
 use slamesh::run::{run, FrameRecord, FrameSource, RunOptions, Summary};
-use slamesh_core::{KittiCapacity, Pose};
+use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, Pose, SmallCapacity};
 use std::path::{Path, PathBuf};
 
 /// `slamesh run`'s arguments (and most of `slamesh mesh`'s).
@@ -46,6 +47,30 @@ pub struct RunArgs {
     /// the same.
     #[arg(long)]
     pub strict: bool,
+    /// The capacity class: how many points a scan may keep within range, and how large the
+    /// map may grow (tiny: 2 048 points, 0.35 MB; 16: 36 000, 41 MB; 32: 72 000, 82 MB;
+    /// 64: 140 000, 163 MB). auto takes the smallest that holds the first scan's points
+    /// within range with a quarter to spare.
+    #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
+    pub capacity: CapacityFlag,
+}
+
+/// `--capacity`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CapacityFlag {
+    /// The smallest class for the first scan.
+    Auto,
+    /// `SmallCapacity`.
+    Tiny,
+    /// `Lidar16Capacity`.
+    #[value(name = "16")]
+    L16,
+    /// `Lidar32Capacity`.
+    #[value(name = "32")]
+    L32,
+    /// `KittiCapacity`.
+    #[value(name = "64")]
+    L64,
 }
 
 /// `slamesh mesh`'s arguments.
@@ -116,7 +141,7 @@ fn run_with(
         args.out.display()
     );
     let mut notices = FrameNotices::default();
-    let summary = run::<KittiCapacity>(&mut source, &opts, |rec| {
+    let on_frame = |rec: &FrameRecord| {
         frame_messages(rec, &bar, &mut notices);
         bar.set_message(format!(
             "{} ms, {} MB",
@@ -124,7 +149,19 @@ fn run_with(
             rec.rss_mb.unwrap_or(0.0).round()
         ));
         bar.inc(1);
-    })?;
+    };
+    let flag = match args.capacity {
+        CapacityFlag::Auto => auto_capacity(&mut source, &opts),
+        given => given,
+    };
+    let summary = match flag {
+        CapacityFlag::Tiny => run::<SmallCapacity>(&mut source, &opts, on_frame),
+        CapacityFlag::L16 => run::<Lidar16Capacity>(&mut source, &opts, on_frame),
+        CapacityFlag::L32 => run::<Lidar32Capacity>(&mut source, &opts, on_frame),
+        CapacityFlag::Auto | CapacityFlag::L64 => {
+            run::<KittiCapacity>(&mut source, &opts, on_frame)
+        }
+    }?;
     bar.finish_and_clear();
     notices.finish();
     print_summary(&summary, &args.out);
@@ -170,6 +207,30 @@ pub fn frame_messages(rec: &FrameRecord, bar: &ProgressBar, notices: &mut FrameN
     }
 }
 
+/// The smallest class for the first readable scan of `source` (of the first ten), counting
+/// its points within the configuration's range limits; the 64-beam class when none is
+/// readable.
+fn auto_capacity(source: &mut ScanFolder, opts: &RunOptions) -> CapacityFlag {
+    let Some((i, n)) = (0..source.frames().min(10)).find_map(|i| {
+        let scan = source.read(i).ok()?;
+        Some((i, capacity::points_in_range(&scan, &opts.config.filter)))
+    }) else {
+        return CapacityFlag::L64;
+    };
+    let class = capacity::class_for(n);
+    log::info!(
+        "capacity {} (--capacity {}): frame {i} has {n} points within range",
+        class.name,
+        class.flag
+    );
+    match class.flag {
+        "tiny" => CapacityFlag::Tiny,
+        "16" => CapacityFlag::L16,
+        "32" => CapacityFlag::L32,
+        _ => CapacityFlag::L64,
+    }
+}
+
 /// The closing lines of a run: frames, speed, mesh, memory, files.
 pub fn print_summary(s: &Summary, out: &Path) {
     let median = |name: &str| {
@@ -189,7 +250,8 @@ pub fn print_summary(s: &Summary, out: &Path) {
         s.threads
     );
     say!(
-        "slamesh: mesh {} triangles, {} vertices; map {} cells, {} evicted; peak memory {}",
+        "slamesh: capacity {}; mesh {} triangles, {} vertices; map {} cells, {} evicted; peak memory {}",
+        s.capacity,
         s.mesh_triangles,
         s.mesh_vertices,
         s.map_cells,

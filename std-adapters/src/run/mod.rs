@@ -4,12 +4,14 @@
 //! | what | module |
 //! |---|---|
 //! | where frames come from | [`source`] |
+//! | the capacity classes and how to choose one | [`capacity`] |
 //! | the run loop: start or resume, a step per frame, finish | [`session`] |
 //! | the per-frame records, the summary, `report.json` and the trajectories | [`report`] |
 //! | time per stage | [`timing`] |
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
 //! | saving and resuming a killed run | [`checkpoint`] |
 
+pub mod capacity;
 pub mod checkpoint;
 pub mod memory;
 pub mod report;

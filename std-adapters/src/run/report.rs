@@ -108,6 +108,8 @@ pub struct Summary {
     pub hz: f64,
     /// Reconstruction threads.
     pub threads: usize,
+    /// The capacity class ([`slamesh_core::Capacity::NAME`]).
+    pub capacity: String,
     /// Median and 95th percentile per stage over used frames (ms).
     pub stage_ms: Vec<(String, Spread)>,
     /// The mesh written.

@@ -16,6 +16,7 @@ use crate::io::config_file::WindowSettings;
 use crate::io::error::FileError;
 use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
+use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::memory;
 use crate::run::report::{
@@ -258,8 +259,27 @@ impl<'a, C: Capacity> Run<'a, C> {
         let scan = source.read(i);
         let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
         let (pipeline, workers, timer) = (&mut self.pipeline, &self.workers, &mut self.timer);
+        let filter = &self.opts.config.filter;
         let outcome = scan.map_err(|e| e.to_string()).and_then(|points| {
             rec.points = points.len();
+            if points.len() > C::POINTS {
+                let n = capacity::points_in_range(&points, filter);
+                if n > C::POINTS {
+                    let advice = match capacity::class_holding(n) {
+                        Some(c) => format!("run with --capacity {}", c.flag),
+                        None => "no class holds it: thin the scan, or narrow \
+                                 filter.range_min_m and filter.range_max_m"
+                            .to_string(),
+                    };
+                    return Err(format!(
+                        "{}: frame {i}: {n} points within range, more than the {} capacity \
+                         holds ({}): {advice}",
+                        source.label(i),
+                        C::NAME,
+                        C::POINTS
+                    ));
+                }
+            }
             let given = match &self.opts.given_poses {
                 Some(p) => Some(p.get(i).ok_or("no given pose for this frame")?),
                 None => None,
@@ -383,6 +403,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             seconds,
             hz: poses.len() as f64 / seconds.max(1e-9),
             threads: self.workers.threads(),
+            capacity: C::NAME.to_string(),
             stage_ms: spreads(&used_ms),
             mesh_vertices: counts.vertices,
             mesh_triangles: counts.triangles,

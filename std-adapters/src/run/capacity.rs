@@ -1,0 +1,115 @@
+//! The capacity classes the command offers, and how to choose one for a sensor.
+//!
+//! A class is one of the core's [`Capacity`] types: its numbers are fixed at compile time,
+//! and the command is built for each (so four copies of the pipeline's code are in the
+//! binary). A scan with more points within range than its class holds is refused with the
+//! class to use, rather than cut silently ([`Run::step`](crate::run::Run::step)).
+
+use slamesh_core::config::FilterConfig;
+use slamesh_core::{
+    Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, Point, SmallCapacity,
+};
+
+/// One compiled-in capacity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Class {
+    /// Its name in messages ([`Capacity::NAME`]).
+    pub name: &'static str,
+    /// Its value of `--capacity`.
+    pub flag: &'static str,
+    /// Points a scan may keep within range ([`Capacity::POINTS`]).
+    pub points: usize,
+    /// Its memory bound ([`Capacity::memory_bytes`]).
+    pub bytes: usize,
+}
+
+impl Class {
+    fn of<C: Capacity>(flag: &'static str) -> Self {
+        Class {
+            name: C::NAME,
+            flag,
+            points: C::POINTS,
+            bytes: C::memory_bytes(),
+        }
+    }
+}
+
+/// The classes, smallest first.
+pub fn classes() -> [Class; 4] {
+    [
+        Class::of::<SmallCapacity>("tiny"),
+        Class::of::<Lidar16Capacity>("16"),
+        Class::of::<Lidar32Capacity>("32"),
+        Class::of::<KittiCapacity>("64"),
+    ]
+}
+
+/// Room kept above the first scan's points when choosing a class: later scans may see more.
+pub const HEADROOM: f64 = 1.25;
+
+/// The smallest class that holds `points` within range with [`HEADROOM`] to spare; the
+/// largest when none does.
+pub fn class_for(points: usize) -> Class {
+    let all = classes();
+    let need = (points as f64 * HEADROOM).ceil() as usize;
+    all.into_iter()
+        .find(|c| c.points >= need)
+        .unwrap_or(all[all.len() - 1])
+}
+
+/// The class that holds a scan of `points` within range (no headroom), if any does.
+pub fn class_holding(points: usize) -> Option<Class> {
+    classes().into_iter().find(|c| c.points >= points)
+}
+
+/// Points of `scan` the filter would keep before down-sampling: finite and within range.
+pub fn points_in_range(scan: &[Point], filter: &FilterConfig) -> usize {
+    let (lo, hi) = (
+        filter.range_min_m * filter.range_min_m,
+        filter.range_max_m * filter.range_max_m,
+    );
+    scan.iter()
+        .filter(|p| {
+            let r2 = p.iter().map(|&c| f64::from(c) * f64::from(c)).sum::<f64>();
+            r2.is_finite() && r2 >= lo && r2 <= hi
+        })
+        .count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_smallest_class_with_headroom_is_chosen() {
+        assert_eq!(class_for(1_000).flag, "tiny");
+        assert_eq!(class_for(1_700).flag, "16", "1 700 x 1.25 > 2 048");
+        assert_eq!(class_for(28_000).flag, "16");
+        assert_eq!(class_for(30_000).flag, "32");
+        assert_eq!(class_for(121_000).flag, "64");
+        assert_eq!(
+            class_for(500_000).flag,
+            "64",
+            "the largest when none holds it"
+        );
+        assert_eq!(class_holding(36_000).map(|c| c.flag), Some("16"));
+        assert_eq!(class_holding(200_000), None);
+    }
+
+    #[test]
+    fn points_in_range_counts_what_the_filter_keeps() {
+        let f = FilterConfig {
+            range_min_m: 1.0,
+            range_max_m: 10.0,
+            vertical_correction_deg: 0.0,
+        };
+        let scan = [
+            [0.5, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [0.0, 9.0, 0.0],
+            [20.0, 0.0, 0.0],
+            [f32::NAN, 0.0, 0.0],
+        ];
+        assert_eq!(points_in_range(&scan, &f), 2);
+    }
+}
