@@ -321,6 +321,48 @@ fn mesh_mode_with_fewer_poses_than_frames_meshes_those_and_skips_the_rest() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The RGB pixels of a PNG, with its size.
+fn png_pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    let pixels = buf[..info.buffer_size()]
+        .chunks(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    (info.width, info.height, pixels)
+}
+
+#[test]
+fn run_draws_a_picture_of_its_mesh_and_path() {
+    let dir = scratch("picture");
+    let (_, scans) = drive(4);
+    let scans_dir = dir.join("scans");
+    std::fs::create_dir_all(&scans_dir).unwrap();
+    for (i, scan) in scans.iter().enumerate() {
+        write_bin(&scans_dir.join(format!("{i}.bin")), scan);
+    }
+    let out = dir.join("out");
+    slamesh_run_ok(&scans_dir, &out, &[]);
+    let (w, h, pixels) = png_pixels(&out.join("topview.png"));
+    // The path (1.5 m) and 40 m around it, plus a 5 m margin: about 91 by 90 m, 1 000
+    // pixels on the long side.
+    assert_eq!(w.max(h), 1001, "{w} x {h}");
+    let red = pixels.iter().filter(|p| **p == [230, 40, 40]).count();
+    let background = pixels.iter().filter(|p| **p == [24, 24, 28]).count();
+    let mesh = pixels.len() - red - background;
+    // 1.5 m of path at about 11 pixels a metre; the street's mesh covers a good share.
+    assert!(red > 20, "{red} path pixels");
+    assert!(
+        mesh > pixels.len() / 20,
+        "{mesh} of {} pixels show the mesh",
+        pixels.len()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn run_obj_writes_the_same_mesh_as_the_ply() {
     let dir = scratch("obj");

@@ -47,6 +47,9 @@ pub struct RunArgs {
     /// the same.
     #[arg(long)]
     pub strict: bool,
+    /// Do not draw topview.png (the mesh from above with the path; 7 MB while it is drawn).
+    #[arg(long)]
+    pub no_picture: bool,
     /// The capacity class: how many points a scan may keep within range, and how large the
     /// map may grow (tiny: 2 048 points, 0.35 MB; 16: 36 000, 41 MB; 32: 72 000, 82 MB;
     /// 64: 140 000, 163 MB). auto takes the smallest that holds the first scan's points
@@ -131,6 +134,7 @@ fn run_with(
         input: args.input.display().to_string(),
         checkpoint_every: args.checkpoint_every.map(|n| n as usize),
         resume: args.resume,
+        picture: !args.no_picture,
     };
     let bar = progress(source.frames(), quiet);
     log::info!(
@@ -268,8 +272,13 @@ pub fn print_summary(s: &Summary, out: &Path) {
         );
     }
     say!(
-        "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json",
-        out.display()
+        "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json{1}",
+        out.display(),
+        if out.join("topview.png").is_file() {
+            format!(", {}/topview.png", out.display())
+        } else {
+            String::new()
+        }
     );
 }
 

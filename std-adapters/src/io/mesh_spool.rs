@@ -13,8 +13,10 @@ use slamesh_core::config::MeshConfig;
 use slamesh_core::lattice::{Lattice, LatticeTable, VERTICES};
 use slamesh_core::layer::Shown;
 use slamesh_core::map::{LayerRef, MeshMap};
+use slamesh_core::Point;
+use std::collections::VecDeque;
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Write};
+use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 /// Bytes of a spooled vertex: x, y, z, variance as little-endian `f32` (a PLY vertex record).
@@ -157,6 +159,81 @@ impl MeshSpool {
         map.layers().try_for_each(|l| self.add_layer(l))
     }
 
+    /// Calls `each` with every triangle added so far, as its three corners, and the highest
+    /// vertex `z` of the mesh (for colour scales), in the order they were added. Reads the
+    /// spool files (flushed first) without holding them in memory: a face uses only its
+    /// layer's vertices, at most [`VERTICES`] of them, all spooled before it, so the last
+    /// [`VERTICES`] vertices read are all a face can need.
+    pub fn for_each_triangle(
+        &mut self,
+        mut each: impl FnMut([Point; 3], f32),
+    ) -> Result<(), FileError> {
+        self.flush()?;
+        let io = |e: std::io::Error, p: &Path| FileError::at(p, format!("cannot read: {e}"));
+        let read_vertex = |r: &mut BufReader<File>| -> std::io::Result<Point> {
+            let mut rec = [0u8; VERTEX_BYTES];
+            r.read_exact(&mut rec)?;
+            let f = |c: usize| {
+                f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]])
+            };
+            Ok([f(0), f(1), f(2)])
+        };
+        // First pass: the highest vertex.
+        let open = |p: &Path| File::open(p).map(BufReader::new).map_err(|e| io(e, p));
+        let mut vertices = open(&self.paths[0])?;
+        let mut z_top = f32::NEG_INFINITY;
+        for _ in 0..self.counts.vertices {
+            let v = read_vertex(&mut vertices).map_err(|e| io(e, &self.paths[0]))?;
+            z_top = z_top.max(v[2]);
+        }
+        // Second pass: faces, with the last VERTICES vertices read.
+        let mut vertices = open(&self.paths[0])?;
+        let mut faces = open(&self.paths[1])?;
+        let mut window: VecDeque<Point> = VecDeque::new();
+        let (mut base, mut next) = (0u64, 0u64);
+        for _ in 0..self.counts.triangles {
+            let mut rec = [0u8; FACE_BYTES];
+            faces
+                .read_exact(&mut rec)
+                .map_err(|e| io(e, &self.paths[1]))?;
+            let index = |k: usize| {
+                u64::from(u32::from_le_bytes([
+                    rec[1 + 4 * k],
+                    rec[2 + 4 * k],
+                    rec[3 + 4 * k],
+                    rec[4 + 4 * k],
+                ]))
+            };
+            let ids = [index(0), index(1), index(2)];
+            let (lo, hi) = (
+                ids.iter().min().copied().unwrap_or(0),
+                ids.iter().max().copied().unwrap_or(0),
+            );
+            if hi >= self.counts.vertices {
+                return Err(FileError::at(
+                    &self.paths[1],
+                    "a face refers to a vertex not spooled",
+                ));
+            }
+            while next <= hi {
+                window.push_back(read_vertex(&mut vertices).map_err(|e| io(e, &self.paths[0]))?);
+                next += 1;
+            }
+            while next - base > VERTICES as u64 {
+                window.pop_front();
+                base += 1;
+            }
+            if lo < base {
+                return Err(FileError::at(
+                    &self.paths[1],
+                    "a face refers to another layer's vertex",
+                ));
+            }
+            each(ids.map(|i| window[(i - base) as usize]), z_top);
+        }
+        Ok(())
+    }
+
     /// Writes everything added to each `(path, format)` (atomically) and removes the spool.
     pub fn finish(mut self, outputs: &[(PathBuf, MeshFormat)]) -> Result<MeshCounts, FileError> {
         self.flush()?;
@@ -206,6 +283,62 @@ mod tests {
     use crate::io::ply::read_ply_points;
     use slamesh_core::cell::{Axis, CellKey};
     use slamesh_core::layer::Layer;
+
+    /// Streaming the spool gives the map's triangles, corner for corner and in order, over
+    /// many layers of different axes and heights (each layer's faces reuse earlier vertices
+    /// of that layer only).
+    #[test]
+    fn the_spooled_triangles_stream_back_as_the_map_has_them() {
+        let lattice = Lattice {
+            cell_size: 1.6,
+            full_cover: true,
+        };
+        let mut map = MeshMap::with_capacity(64, 64, lattice);
+        let mut k = 0u32;
+        for x in 0..4 {
+            for (y, axis) in [(0, Axis::Z), (1, Axis::X), (2, Axis::Y)] {
+                let mut layer = Layer {
+                    pred: [0.0; VERTICES],
+                    var: [0.01; VERTICES],
+                };
+                for (j, p) in layer.pred.iter_mut().enumerate() {
+                    *p = 0.2 + 0.01 * ((j as u32 * 7 + k) % 13) as f32;
+                }
+                // Some vertices too uncertain to show: layers with fewer triangles.
+                layer.var[(k as usize * 5) % VERTICES] = 0.9;
+                map.insert_layer(CellKey::new(x, y, -1), axis, layer, 0)
+                    .unwrap();
+                k += 1;
+            }
+        }
+        let cfg = MeshConfig {
+            variance_show: 0.3,
+            max_slope_deg: 90.0,
+        };
+        let dir = crate::test_support::scratch_dir("mesh-stream");
+        let mut spool = MeshSpool::new(&dir.join("m.ply"), lattice, &cfg).unwrap();
+        spool.add_map(&map).unwrap();
+        let mut streamed = Vec::new();
+        let mut tops = Vec::new();
+        spool
+            .for_each_triangle(|t, z_top| {
+                streamed.push(t);
+                tops.push(z_top);
+            })
+            .unwrap();
+        let expected: Vec<[Point; 3]> = slamesh_core::mesh::triangles(&map, &cfg)
+            .map(|t| t.vertices)
+            .collect();
+        assert!(expected.len() > 400, "{} triangles", expected.len());
+        assert_eq!(streamed, expected);
+        let z_top = expected
+            .iter()
+            .flatten()
+            .map(|v| v[2])
+            .fold(f32::MIN, f32::max);
+        assert!(tops.iter().all(|&z| z == z_top));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn a_flat_layer_writes_36_shared_vertices_and_50_triangles() {

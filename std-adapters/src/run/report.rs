@@ -8,6 +8,8 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
+use crate::io::mesh_spool::MeshSpool;
+use crate::io::topview::TopView;
 use crate::io::trajectory::{write_kitti_line, write_tum_line};
 use crate::run::session::RunOptions;
 use crate::run::source::FrameSource;
@@ -316,6 +318,43 @@ pub(crate) fn write_trajectories(
         }
         Ok(())
     })
+}
+
+/// Metres of map around the path that the picture shows.
+const PICTURE_MARGIN_M: f64 = 40.0;
+/// Pixels on the picture's long side.
+const PICTURE_PIXELS: usize = 1000;
+
+/// Writes `file`, a PNG of the spooled mesh from above (coloured by height from 3 m below the
+/// first sensor pose to the mesh's top, at most 20 m above) with `path` in red, covering the
+/// path and [`PICTURE_MARGIN_M`] around it, [`PICTURE_PIXELS`] on its long side (7 bytes a
+/// pixel while it is drawn: 7 MB). Nothing is written for an empty path.
+pub(crate) fn write_topview(
+    spool: &mut MeshSpool,
+    path: &[Pose],
+    file: &Path,
+) -> Result<(), FileError> {
+    if path.is_empty() {
+        return Ok(());
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in path {
+        let t = p.translation.vector;
+        lo = [
+            lo[0].min(t.x - PICTURE_MARGIN_M),
+            lo[1].min(t.y - PICTURE_MARGIN_M),
+        ];
+        hi = [
+            hi[0].max(t.x + PICTURE_MARGIN_M),
+            hi[1].max(t.y + PICTURE_MARGIN_M),
+        ];
+    }
+    let mut view = TopView::new(lo, hi, PICTURE_PIXELS);
+    spool.for_each_triangle(|t, z_top| {
+        view.triangles(std::iter::once(t), -3.0, z_top.clamp(2.0, 20.0))
+    })?;
+    view.path(path, [230, 40, 40]);
+    view.write_png(file)
 }
 
 /// Writes `report.json` into `out`: the run, its configuration and summary, then the frame

@@ -20,7 +20,8 @@ use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::memory;
 use crate::run::report::{
-    registration_reason, spreads, write_report, write_trajectories, FrameRecord, Health, Summary,
+    registration_reason, spreads, write_report, write_topview, write_trajectories, FrameRecord,
+    Health, Summary,
 };
 use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
@@ -57,6 +58,8 @@ pub struct RunOptions {
     pub checkpoint_every: Option<usize>,
     /// Continue from the checkpoint in `out` instead of starting over.
     pub resume: bool,
+    /// Also write `topview.png`: the mesh from above, coloured by height, with the path.
+    pub picture: bool,
 }
 
 /// Why a run could not start or finish.
@@ -389,6 +392,10 @@ impl<'a, C: Capacity> Run<'a, C> {
         let out = &self.opts.out;
         write_trajectories(out, source, &poses)?;
         self.spool.add_map(self.pipeline.map())?;
+        if self.opts.picture {
+            let path: Vec<Pose> = poses.iter().map(|(_, p)| *p).collect();
+            write_topview(&mut self.spool, &path, &out.join("topview.png"))?;
+        }
         let outputs: Vec<(PathBuf, MeshFormat)> = self
             .opts
             .mesh_formats
