@@ -258,6 +258,87 @@ pub fn drive_poses(scene: &Scene, frames: usize) -> Vec<Pose> {
     poses
 }
 
+/// How a hand-held rig or a drone moves along [`route`]: 2 scans a second, the walking or
+/// flying speed, the height above the ground, and the swings of its heading, pitch and roll.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Carried {
+    /// Speed along the route (m/s).
+    pub speed_m_s: f64,
+    /// Height above the ground (m).
+    pub height_m: f64,
+    /// Largest change of heading between two scans (degrees), drawn uniformly.
+    pub max_turn_deg: f64,
+    /// Largest departure of the heading from the route's direction (degrees).
+    pub max_look_deg: f64,
+    /// Amplitude of the pitch and roll swings (degrees).
+    pub tilt_deg: f64,
+}
+
+impl Carried {
+    /// A person walking with a hand-held scanner: 1.2 m/s, 1.5 m up, looking around (turns of
+    /// up to 45 degrees between scans), tilting by up to 15 degrees.
+    pub const HANDHELD: Carried = Carried {
+        speed_m_s: 1.2,
+        height_m: 1.5,
+        max_turn_deg: 45.0,
+        max_look_deg: 90.0,
+        tilt_deg: 15.0,
+    };
+    /// A small drone: 1.5 m/s, 5 m up, yawing by up to 45 degrees between scans, pitching and
+    /// rolling by up to 15 degrees.
+    pub const DRONE: Carried = Carried {
+        speed_m_s: 1.5,
+        height_m: 5.0,
+        max_turn_deg: 45.0,
+        max_look_deg: 120.0,
+        tilt_deg: 15.0,
+    };
+}
+
+/// Scans a second of [`carried_poses`].
+pub const CARRIED_HZ: f64 = 2.0;
+
+/// Sensor poses of a rig carried along [`route`] at [`CARRIED_HZ`] (see [`Carried`]): the
+/// heading follows the route plus a look-around offset that changes by a random amount up to
+/// `max_turn_deg` each scan (kept within `max_look_deg`), and pitch and roll swing
+/// sinusoidally; deterministic from `seed`.
+pub fn carried_poses(scene: &Scene, frames: usize, how: Carried, seed: u64) -> Vec<Pose> {
+    let path = route();
+    let mut cum = vec![0.0];
+    for w in path.windows(2) {
+        cum.push(cum[cum.len() - 1] + (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]));
+    }
+    let mut rng = SplitMix64(seed);
+    let mut look = 0.0f64;
+    (0..frames)
+        .map(|k| {
+            let s = (k as f64 * how.speed_m_s / CARRIED_HZ).min(cum[cum.len() - 1]);
+            let i = cum.partition_point(|&c| c <= s).clamp(1, path.len() - 1);
+            let f = ((s - cum[i - 1]) / (cum[i] - cum[i - 1]).max(1e-9)).clamp(0.0, 1.0);
+            let (a, b) = (path[i - 1], path[i]);
+            let (x, y) = (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]));
+            let along = (b[1] - a[1]).atan2(b[0] - a[0]);
+            if k > 0 {
+                look = (look + rng.range(-how.max_turn_deg, how.max_turn_deg))
+                    .clamp(-how.max_look_deg, how.max_look_deg);
+            }
+            let t = k as f64;
+            let pitch = how.tilt_deg * (0.9 * t + 0.3).sin();
+            let roll = how.tilt_deg * 0.8 * (1.3 * t).sin();
+            let rotation = UnitQuaternion::from_euler_angles(
+                roll.to_radians(),
+                pitch.to_radians(),
+                along + look.to_radians(),
+            );
+            let bob = 0.05 * (2.1 * t).sin();
+            Pose::from_parts(
+                Translation3::new(x, y, scene.ground_height(x, y) + how.height_m + bob),
+                rotation,
+            )
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -292,5 +373,31 @@ mod tests {
             assert!((t.z - s.ground_height(t.x, t.y) - SENSOR_HEIGHT_M).abs() < 1e-9);
         }
         assert_eq!(scene(1), s);
+    }
+
+    #[test]
+    fn carried_rigs_turn_and_tilt_as_described() {
+        let scene = scene(1);
+        for how in [Carried::HANDHELD, Carried::DRONE] {
+            let poses = carried_poses(&scene, 80, how, 3);
+            let mut largest_turn = 0.0f64;
+            for w in poses.windows(2) {
+                let step = w[0].inverse() * w[1];
+                let d = step.translation.vector.norm();
+                // The speed along the route, a little more with the bob and the corners cut.
+                assert!(d < how.speed_m_s / CARRIED_HZ + 0.15, "{d} m in one step");
+                largest_turn = largest_turn.max(step.rotation.angle().to_degrees());
+            }
+            // Heading changes of up to max_turn_deg plus the swings of pitch and roll.
+            assert!(largest_turn > 30.0 && largest_turn < 75.0, "{largest_turn} deg");
+            for p in &poses {
+                let (roll, pitch, _) = p.rotation.euler_angles();
+                assert!(roll.to_degrees().abs() <= how.tilt_deg + 1e-9);
+                assert!(pitch.to_degrees().abs() <= how.tilt_deg + 1e-9);
+                let t = p.translation.vector;
+                let above = t.z - scene.ground_height(t.x, t.y);
+                assert!((above - how.height_m).abs() <= 0.05 + 1e-9);
+            }
+        }
     }
 }

@@ -56,7 +56,7 @@ impl Executor for Rayon {
         results.into_iter().for_each(sink);
     }
 
-    /// `src` is cut into tasks of [`POINTS_PER_TASK`] items; each task writes what it keeps to
+    /// `src` is cut into tasks of 8 192 items; each task writes what it keeps to
     /// the front of its own stretch of `dst`, and the stretches are then closed up in order.
     fn filter_map_into<T, U, A>(
         &self,
