@@ -389,7 +389,10 @@ mod tests {
                 largest_turn = largest_turn.max(step.rotation.angle().to_degrees());
             }
             // Heading changes of up to max_turn_deg plus the swings of pitch and roll.
-            assert!(largest_turn > 30.0 && largest_turn < 75.0, "{largest_turn} deg");
+            assert!(
+                largest_turn > 30.0 && largest_turn < 75.0,
+                "{largest_turn} deg"
+            );
             for p in &poses {
                 let (roll, pitch, _) = p.rotation.euler_angles();
                 assert!(roll.to_degrees().abs() <= how.tilt_deg + 1e-9);
