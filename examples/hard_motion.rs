@@ -5,7 +5,13 @@
 //! ATE and the statuses: what the code does today on motion the constant-velocity guess gets
 //! wrong.
 //!
-//! `cargo run --release --example hard_motion -- [--frames N] [--preset NAME] [--seed S] [--steps]`
+//! `--signals` also prints, for the steps tracked (within 5 cm and 0.5 degree) and those lost,
+//! the range of each candidate signal for telling them apart: the share of the scan's layers
+//! that found a match in the map in the last round, the share of the fused layers that were
+//! new to the map, the LM iterations and the conditioning. The town's car drive (10 Hz) is
+//! added as a drive that tracks.
+//!
+//! `cargo run --release --example hard_motion -- [--frames N] [--preset NAME] [--seed S] [--steps] [--signals]`
 
 use slamesh::eval::odometry::{ate_rmse, consecutive_errors};
 use slamesh::io::config_file;
@@ -26,10 +32,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seed: u64 = value("--seed").map_or(Ok(1), |v| v.parse())?;
     let preset = value("--preset").map_or("default", |v| v.as_str());
     let steps = args.iter().any(|a| a == "--steps");
+    let signals = args.iter().any(|a| a == "--signals");
+    // Per step: tracked or not, and the signals.
+    let mut seen: Vec<(bool, [f64; 4])> = Vec::new();
     let config = config_file::preset(preset).ok_or("unknown preset")?;
     let workers = Workers::new(0)?;
-    for (name, how) in [("hand-held", Carried::HANDHELD), ("drone", Carried::DRONE)] {
-        let drive = Drive::carried(frames, how, seed);
+    let drives = [
+        ("hand-held", Some(Carried::HANDHELD)),
+        ("drone", Some(Carried::DRONE)),
+        ("car", None),
+    ];
+    for (name, how) in drives {
+        if how.is_none() && !signals {
+            continue;
+        }
+        let drive = match how {
+            Some(how) => Drive::carried(frames, how, seed),
+            None => Drive::town(frames, seed),
+        };
         let truth: Vec<Pose> = drive
             .poses
             .iter()
@@ -38,10 +58,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut pipeline = Pipeline::<Lidar32Capacity>::new(config)?;
         let mut estimate = Vec::with_capacity(frames);
         let mut statuses: BTreeMap<String, usize> = BTreeMap::new();
-        for i in 0..frames {
+        let mut step_signals = vec![[f64::NAN; 4]; frames];
+        for (i, signals_i) in step_signals.iter_mut().enumerate() {
             let status = match pipeline.process_scan_with(&drive.scan(i), &workers, &mut NoProbe) {
                 Ok(o) => {
                     estimate.push(o.t_world_sensor);
+                    let st = &o.stats;
+                    let layers = st.scan_layers.max(1) as f64;
+                    let fused = (st.fusion.fused + st.fusion.added).max(1) as f64;
+                    *signals_i = [
+                        st.associate.residuals as f64 / layers,
+                        st.fusion.added as f64 / fused,
+                        st.lm_iterations as f64,
+                        st.conditioning,
+                    ];
                     format!("{:?}", o.status)
                 }
                 Err(e) => {
@@ -60,6 +90,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if t <= 0.05 && r <= 0.5 {
                 good += 1;
             }
+            seen.push((t <= 0.05 && r <= 0.5, step_signals[i]));
             if steps {
                 println!(
                     "{name} step {i}: turn {turn:.1} deg; error {:.2} cm, {r:.3} deg",
@@ -69,14 +100,47 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         let c = consecutive_errors(&estimate, &truth);
         println!(
-            "{name} ({preset}, {frames} scans at 2 Hz): {good} of {} steps within 5 cm and 0.5 deg; \
+            "{name} ({preset}, {frames} scans at {} Hz): {good} of {} steps within 5 cm and 0.5 deg; \
              mean step error {:.2} cm, worst {:.2} cm, {:.3} deg; ATE {:.2} m; {statuses:?}",
+            if how.is_some() { 2 } else { 10 },
             frames - 1,
             c.mean_translation_m * 100.0,
             c.max_translation_m * 100.0,
             c.mean_rotation_deg,
             ate_rmse(&estimate, &truth)
         );
+    }
+    if signals {
+        let names = [
+            "matched share of layers",
+            "new share of fused layers",
+            "LM iterations",
+            "conditioning",
+        ];
+        for (k, name) in names.iter().enumerate() {
+            for tracked in [true, false] {
+                let mut v: Vec<f64> = seen
+                    .iter()
+                    .filter(|(g, s)| *g == tracked && s[k].is_finite())
+                    .map(|(_, s)| s[k])
+                    .collect();
+                v.sort_by(f64::total_cmp);
+                if v.is_empty() {
+                    continue;
+                }
+                let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+                println!(
+                    "{name}, {} steps ({}): min {:.3}, 5 % {:.3}, median {:.3}, 95 % {:.3}, max {:.3}",
+                    if tracked { "tracked" } else { "lost" },
+                    v.len(),
+                    q(0.0),
+                    q(0.05),
+                    q(0.5),
+                    q(0.95),
+                    q(1.0)
+                );
+            }
+        }
     }
     Ok(())
 }
