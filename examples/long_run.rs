@@ -5,7 +5,7 @@
 //!  [--threads N] [--every K]`
 //!
 //! Drives [`Drive::long_street`] (1 m a frame, 64-beam scans with 2 cm noise) through
-//! `session::run` with the default preset, printing every K frames (default 500) the frame,
+//! `slamesh::run::run` with the default preset, printing every K frames (default 500) the frame,
 //! the map's cells and layers, the current and the peak resident memory, and at the end the
 //! summary. Outputs go to a temporary folder, removed afterwards.
 

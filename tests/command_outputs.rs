@@ -6,7 +6,9 @@
 
 mod common;
 
-use common::{scratch, slamesh, slamesh_ok, slamesh_run, slamesh_run_ok, write_bin};
+use common::{
+    scratch, slamesh, slamesh_ok, slamesh_run, slamesh_run_ok, write_bin, write_scan_folder,
+};
 use nalgebra::{Point3, Translation3, UnitQuaternion};
 use slamesh::io::config_file::{self, PRESETS};
 use slamesh::io::ply::{read_ply_mesh, read_ply_points};
@@ -280,11 +282,7 @@ fn eval_reads_kitti_folders_and_calib_files_scores_meshes_and_builds_references(
 fn mesh_mode_with_fewer_poses_than_frames_meshes_those_and_skips_the_rest() {
     let dir = scratch("few-poses");
     let (truth, scans) = drive(4);
-    let scans_dir = dir.join("scans");
-    std::fs::create_dir_all(&scans_dir).unwrap();
-    for (i, scan) in scans.iter().enumerate() {
-        write_bin(&scans_dir.join(format!("{i}.bin")), scan);
-    }
+    let scans_dir = write_scan_folder(&dir, &scans);
     let poses = dir.join("two.txt");
     let mut b = Vec::new();
     for (i, p) in relative(&truth).iter().take(2).enumerate() {
@@ -339,11 +337,7 @@ fn png_pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
 fn run_draws_a_picture_of_its_mesh_and_path() {
     let dir = scratch("picture");
     let (_, scans) = drive(4);
-    let scans_dir = dir.join("scans");
-    std::fs::create_dir_all(&scans_dir).unwrap();
-    for (i, scan) in scans.iter().enumerate() {
-        write_bin(&scans_dir.join(format!("{i}.bin")), scan);
-    }
+    let scans_dir = write_scan_folder(&dir, &scans);
     let out = dir.join("out");
     slamesh_run_ok(&scans_dir, &out, &[]);
     let (w, h, pixels) = png_pixels(&out.join("topview.png"));
@@ -367,11 +361,7 @@ fn run_draws_a_picture_of_its_mesh_and_path() {
 fn run_obj_writes_the_same_mesh_as_the_ply() {
     let dir = scratch("obj");
     let (_, scans) = drive(3);
-    let scans_dir = dir.join("scans");
-    std::fs::create_dir_all(&scans_dir).unwrap();
-    for (i, scan) in scans.iter().enumerate() {
-        write_bin(&scans_dir.join(format!("{i}.bin")), scan);
-    }
+    let scans_dir = write_scan_folder(&dir, &scans);
     let out = dir.join("out");
     slamesh_run_ok(&scans_dir, &out, &["--obj"]);
     let ply = read_ply_mesh(&out.join("mesh.ply")).unwrap();
@@ -405,11 +395,7 @@ fn run_obj_writes_the_same_mesh_as_the_ply() {
 fn window_flags_and_the_memory_cap_from_the_command_line() {
     let dir = scratch("window-flags");
     let (_, scans) = drive(10);
-    let scans_dir = dir.join("scans");
-    std::fs::create_dir_all(&scans_dir).unwrap();
-    for (i, scan) in scans.iter().enumerate() {
-        write_bin(&scans_dir.join(format!("{i}.bin")), scan);
-    }
+    let scans_dir = write_scan_folder(&dir, &scans);
     let run = |name: &str, extra: &[&str]| {
         let out = dir.join(name);
         slamesh_run_ok(&scans_dir, &out, extra);
@@ -509,11 +495,7 @@ fn bench_takes_a_preset() {
 fn the_capacity_class_fits_the_first_scan_and_a_scan_too_large_for_it_is_refused() {
     let dir = scratch("capacity");
     let (_, scans) = drive(3);
-    let scans_dir = dir.join("scans");
-    std::fs::create_dir_all(&scans_dir).unwrap();
-    for (i, scan) in scans.iter().enumerate() {
-        write_bin(&scans_dir.join(format!("{i}.bin")), scan);
-    }
+    let scans_dir = write_scan_folder(&dir, &scans);
     // Points within the default range limits (1.2 to 100 m) in the first scan, and the class
     // the rule gives: the smallest of 2 048, 36 000, 72 000, 140 000 points that holds them
     // with a quarter to spare.

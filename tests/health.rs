@@ -9,7 +9,7 @@ mod common;
 use common::{scratch, slamesh_command, slamesh_run, write_bin};
 use slamesh_core::Point;
 use slamesh_sim::{sensor_pose, Lidar, Scene};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()
@@ -22,9 +22,11 @@ fn far_patch() -> Vec<Point> {
         .collect()
 }
 
-/// Frame 0 and 1: the street; then `far` frames of [`far_patch`]; then one frame whose
-/// points are all within 1 m of the sensor.
-fn write_frames(dir: &Path, far: usize) {
+/// Writes into `dir/scans` (returned) frames 0 and 1 of the street, then `far` frames of
+/// [`far_patch`], then one frame whose points are all within 1 m of the sensor.
+fn write_frames(dir: &Path, far: usize) -> PathBuf {
+    let dir = dir.join("scans");
+    std::fs::create_dir_all(&dir).unwrap();
     let (scene, lidar) = (Scene::street(), Lidar::hdl64(900));
     for i in 0..2 {
         let scan = lidar.scan(&scene, &sensor_pose(0.3 * i as f64, 0.0, 1.73, 0.0));
@@ -35,14 +37,13 @@ fn write_frames(dir: &Path, far: usize) {
     }
     let near: Vec<Point> = (0..50).map(|k| [0.5, 0.01 * k as f32, -0.2]).collect();
     write_bin(&dir.join(format!("{:03}.bin", 2 + far)), &near);
+    dir
 }
 
 #[test]
 fn frames_not_registered_are_named_counted_reported_and_fail_a_strict_run() {
     let dir = scratch("health");
-    let scans = dir.join("scans");
-    std::fs::create_dir_all(&scans).unwrap();
-    write_frames(&scans, 2);
+    let scans = write_frames(&dir, 2);
     let out = dir.join("out");
     let o = slamesh_run(&scans, &out, &[]);
     assert!(o.status.success(), "{}", text(&o.stderr));
@@ -125,9 +126,7 @@ fn frames_not_registered_are_named_counted_reported_and_fail_a_strict_run() {
 #[test]
 fn a_long_stretch_of_bad_frames_does_not_flood_the_terminal() {
     let dir = scratch("health-flood");
-    let scans = dir.join("scans");
-    std::fs::create_dir_all(&scans).unwrap();
-    write_frames(&scans, 40);
+    let scans = write_frames(&dir, 40);
     let o = slamesh_run(&scans, &dir.join("out"), &[]);
     assert!(o.status.success());
     let stderr = text(&o.stderr);
@@ -149,9 +148,7 @@ fn a_long_stretch_of_bad_frames_does_not_flood_the_terminal() {
 #[test]
 fn verbosity_follows_v_q_and_rust_log() {
     let dir = scratch("health-verbosity");
-    let scans = dir.join("scans");
-    std::fs::create_dir_all(&scans).unwrap();
-    write_frames(&scans, 1);
+    let scans = write_frames(&dir, 1);
     let run = |extra: &[&str], rust_log: Option<&str>| {
         let out = dir.join("out");
         let mut args = vec![

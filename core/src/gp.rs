@@ -702,11 +702,6 @@ mod tests {
         let c = ata.try_inverse().unwrap() * atd;
         let rms = libm::sqrt(squared / VERTICES as f64);
         let centre_error = libm::fabs(c[0] + 0.8 * c[1] + 0.8 * c[2] - f(0.8, 0.8));
-        std::println!(
-            "samples {sample_rms} m RMS; layer {rms} m RMS, worst {worst} m; slope error {} {}, centre {centre_error} m",
-            c[1] - 0.2,
-            c[2] + 0.1
-        );
         assert!(
             rms <= 1.05 * sample_rms,
             "layer RMS {rms} m, samples {sample_rms} m"

@@ -40,8 +40,6 @@
 )]
 
 extern crate alloc;
-#[cfg(test)]
-extern crate std;
 
 pub mod associate;
 pub mod bounded;

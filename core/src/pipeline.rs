@@ -582,7 +582,7 @@ mod tests {
         };
         assert_eq!((s.non_finite, s.out_of_range, s.too_near), (3, 1, 0));
         assert_eq!(
-            std::string::ToString::to_string(&e),
+            alloc::string::ToString::to_string(&e),
             "empty scan: none of 4 points usable (3 not finite, 1 farther than \
              filter.range_max_m = 100 m: raise it for a scene this large)"
         );
@@ -592,7 +592,7 @@ mod tests {
             panic!("expected EmptyScan")
         };
         assert_eq!(
-            std::string::ToString::to_string(&e),
+            alloc::string::ToString::to_string(&e),
             "empty scan: none of 5 points usable (5 closer than filter.range_min_m = 1.2 m: \
              lower it for a sensor this close)"
         );

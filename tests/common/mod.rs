@@ -71,6 +71,17 @@ pub fn write_bin(path: &Path, points: &[slamesh_core::Point]) {
     std::fs::write(path, b).unwrap();
 }
 
+/// Writes `scans` as KITTI `.bin` files `000000.bin`, `000001.bin`, ... into `dir/scans`
+/// (created) and returns that folder.
+pub fn write_scan_folder(dir: &Path, scans: &[Vec<slamesh_core::Point>]) -> PathBuf {
+    let folder = dir.join("scans");
+    std::fs::create_dir_all(&folder).unwrap();
+    for (i, scan) in scans.iter().enumerate() {
+        write_bin(&folder.join(format!("{i:06}.bin")), scan);
+    }
+    folder
+}
+
 /// Runs `slamesh` and fails the test, showing its output, unless it succeeds.
 pub fn slamesh_ok(args: &[&str]) -> Output {
     let out = slamesh(args);

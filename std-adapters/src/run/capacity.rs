@@ -6,6 +6,7 @@
 //! class to use, rather than cut silently ([`Run::step`](crate::run::Run::step)).
 
 use slamesh_core::config::FilterConfig;
+use slamesh_core::filter::Preparation;
 use slamesh_core::{
     Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, Point, SmallCapacity,
 };
@@ -62,18 +63,12 @@ pub fn class_holding(points: usize) -> Option<Class> {
     classes().into_iter().find(|c| c.points >= points)
 }
 
-/// Points of `scan` the filter would keep before down-sampling: finite and within range.
+/// Points of `scan` the filter would keep before down-sampling: those the core's
+/// [`Preparation`] accepts (finite, within range).
 pub fn points_in_range(scan: &[Point], filter: &FilterConfig) -> usize {
-    let (lo, hi) = (
-        filter.range_min_m * filter.range_min_m,
-        filter.range_max_m * filter.range_max_m,
-    );
-    scan.iter()
-        .filter(|p| {
-            let r2 = p.iter().map(|&c| f64::from(c) * f64::from(c)).sum::<f64>();
-            r2.is_finite() && r2 >= lo && r2 <= hi
-        })
-        .count()
+    // The voxel size only sets the keys, which this count does not use.
+    let prep = Preparation::new(filter, 1.0);
+    scan.iter().filter(|p| prep.point(p).is_ok()).count()
 }
 
 #[cfg(test)]
