@@ -163,8 +163,11 @@ pub struct NotRegistered {
 }
 
 impl Health {
-    /// The health of the frames whose records are `records`, in frame order.
-    pub fn of<'a>(records: impl IntoIterator<Item = &'a FrameRecord>) -> Self {
+    /// The health of the frames whose records `records` gives, in frame order (taken one at a
+    /// time: none is kept but those not registered normally).
+    pub fn of<R: std::borrow::Borrow<FrameRecord>>(
+        records: impl IntoIterator<Item = Result<R, FileError>>,
+    ) -> Result<Self, FileError> {
         const ORDER: [&str; 7] = [
             "FirstScan",
             "Converged",
@@ -178,6 +181,8 @@ impl Health {
         let mut other: Vec<(String, usize)> = Vec::new();
         let mut not_registered = Vec::new();
         for r in records {
+            let r = r?;
+            let r = r.borrow();
             match ORDER.iter().position(|s| *s == r.status) {
                 Some(k) => counts[k] += 1,
                 None => match other.iter_mut().find(|(s, _)| *s == r.status) {
@@ -205,25 +210,23 @@ impl Health {
             .map(|(s, n)| (s.to_string(), n))
             .collect();
         counts.extend(other);
-        Health {
+        Ok(Health {
             counts,
             not_registered,
-        }
+        })
     }
 
-    /// The health of the frame records spooled in `frames` (one JSON object a line).
+    /// The health of the frame records spooled in `frames` (one JSON object a line), read a
+    /// line at a time.
     pub fn of_spool(frames: &Path) -> Result<Self, FileError> {
-        let text = std::fs::read_to_string(frames)
+        let file = std::fs::File::open(frames)
             .map_err(|e| FileError::at(frames, format!("cannot read: {e}")))?;
-        let records = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| {
-                serde_json::from_str::<FrameRecord>(l)
-                    .map_err(|e| FileError::new(frames, Some(i + 1), format!("bad record: {e}")))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(Self::of(&records))
+        let lines = std::io::BufRead::lines(std::io::BufReader::new(file));
+        Self::of(lines.enumerate().map(|(i, line)| {
+            let bad = |reason: String| FileError::new(frames, Some(i + 1), reason);
+            let line = line.map_err(|e| bad(format!("cannot read: {e}")))?;
+            serde_json::from_str::<FrameRecord>(&line).map_err(|e| bad(format!("bad record: {e}")))
+        }))
     }
 
     /// `8 Converged, 1 FirstScan, 1 TooFewResiduals`.
