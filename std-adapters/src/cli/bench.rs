@@ -5,18 +5,20 @@ use crate::cli::settings::Profile;
 use crate::say;
 use clap::Args;
 use slamesh::io::config_file::WindowSettings;
-use slamesh::io::scans::ScanFolder;
 use slamesh::run::report::spreads;
 use slamesh::run::timing::StageMs;
-use slamesh::run::{run, RunOptions};
+use slamesh::run::{run, Input, RunOptions};
 use slamesh_core::KittiCapacity;
 use std::path::PathBuf;
 
 /// `slamesh bench`'s arguments.
 #[derive(Args, Debug)]
 pub struct BenchArgs {
-    /// Scans, as for `run`.
+    /// Scans or a recording, as for `run`.
     pub input: PathBuf,
+    /// The recording's PointCloud2 topic (default: its only one).
+    #[arg(long, value_name = "NAME")]
+    pub topic: Option<String>,
     /// The preset or configuration file (its [window] section is not used: bench times the
     /// pipeline without eviction).
     #[command(flatten)]
@@ -37,7 +39,7 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     let (input, threads, repeat, json) = (&args.input, args.threads, args.repeat, args.json);
     let s = args.profile.resolve("default")?;
     let (config, preset) = (s.config, s.preset);
-    let mut source = ScanFolder::open(input)?;
+    let mut source = Input::open(input, args.topic.as_deref())?;
     let out = std::env::temp_dir().join(format!("slamesh-bench-{}", std::process::id()));
     let opts = RunOptions {
         out: out.clone(),

@@ -8,10 +8,9 @@ use crate::say;
 use clap::Args;
 use indicatif::ProgressBar;
 use slamesh::io::mesh_spool::MeshFormat;
-use slamesh::io::scans::ScanFolder;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::run::capacity;
-use slamesh::run::{run, FrameRecord, FrameSource, RunOptions, Summary};
+use slamesh::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, Pose, SmallCapacity};
 use std::path::{Path, PathBuf};
 
@@ -19,8 +18,11 @@ use std::path::{Path, PathBuf};
 #[derive(Args, Debug)]
 pub struct RunArgs {
     /// A folder of scans (.bin, .pcd or .ply, read in natural order), a KITTI sequence folder,
-    /// or one scan file.
+    /// one scan file, or a recording: a ROS 1 bag, an MCAP file or a ROS 2 bag folder.
     pub input: PathBuf,
+    /// The recording's PointCloud2 topic (default: its only one).
+    #[arg(long, value_name = "NAME")]
+    pub topic: Option<String>,
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
@@ -109,7 +111,7 @@ fn run_with(
 ) -> Result<(), CliError> {
     let mut s = args.profile.resolve(default_preset)?;
     args.window.apply(&mut s.window)?;
-    let mut source = ScanFolder::open(&args.input)?;
+    let mut source = Input::open(&args.input, args.topic.as_deref())?;
     if let Some(p) = &given {
         if p.len() < source.frames() {
             log::warn!(
@@ -138,8 +140,8 @@ fn run_with(
     };
     let bar = progress(source.frames(), quiet);
     log::info!(
-        "{} frames from {} (preset {}), output in {}",
-        source.frames(),
+        "{} from {} (preset {}), output in {}",
+        source.describe(),
         args.input.display(),
         s.preset,
         args.out.display()
@@ -214,7 +216,7 @@ pub fn frame_messages(rec: &FrameRecord, bar: &ProgressBar, notices: &mut FrameN
 /// The smallest class for the first readable scan of `source` (of the first ten), counting
 /// its points within the configuration's range limits; the 64-beam class when none is
 /// readable.
-fn auto_capacity(source: &mut ScanFolder, opts: &RunOptions) -> CapacityFlag {
+fn auto_capacity(source: &mut impl FrameSource, opts: &RunOptions) -> CapacityFlag {
     let Some((i, n)) = (0..source.frames().min(10)).find_map(|i| {
         let scan = source.read(i).ok()?;
         Some((i, capacity::points_in_range(&scan, &opts.config.filter)))

@@ -11,6 +11,8 @@
 //! | PCD point clouds (with [`lzf`] for `binary_compressed`) | [`pcd`] |
 //! | PLY point clouds and meshes, read and written | [`ply`] |
 //! | OBJ meshes, written | [`obj`] |
+//! | `sensor_msgs/PointCloud2` messages (ROS 1 and CDR), any field layout | [`pointcloud2`] |
+//! | robot recordings: ROS 1 bags, MCAP, ROS 2 bag folders (feature `recordings`) | `recording` |
 //! | the run's mesh on its way to disk | [`mesh_spool`] |
 //! | trajectories, KITTI and TUM | [`trajectory`] |
 //! | TOML configuration files | [`config_file`] |
@@ -25,6 +27,9 @@ pub mod mesh_spool;
 pub mod obj;
 pub mod pcd;
 pub mod ply;
+pub mod pointcloud2;
+#[cfg(feature = "recordings")]
+pub mod recording;
 pub mod scans;
 pub mod topview;
 pub mod trajectory;

@@ -22,4 +22,4 @@ pub mod window;
 
 pub use report::{FrameRecord, Summary};
 pub use session::{run, Run, RunError, RunOptions};
-pub use source::FrameSource;
+pub use source::{FrameSource, Input};

@@ -1,5 +1,6 @@
-//! Where a run's frames come from: [`FrameSource`], and its implementation for a folder of
-//! scans (and, with the `sim` feature, for a simulated drive).
+//! Where a run's frames come from: [`FrameSource`], its implementation for a folder of scans
+//! (and, with the `sim` feature, for a simulated drive), and [`Input`], the command's input:
+//! a folder of scans or a robot recording, told apart by content.
 
 use crate::io::error::FileError;
 use crate::io::scans::{read_scan, ScanFolder};
@@ -15,6 +16,74 @@ pub trait FrameSource {
     fn stamp(&self, i: usize) -> f64;
     /// The points of frame `i`, in the sensor frame.
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError>;
+}
+
+/// What the command reads: a folder of scans (or one scan file), or a robot recording.
+pub enum Input {
+    /// Scan files.
+    Folder(ScanFolder),
+    /// A ROS 1 bag, an MCAP file or a ROS 2 bag folder.
+    #[cfg(feature = "recordings")]
+    Recording(crate::io::recording::Recording),
+}
+
+impl Input {
+    /// Opens `path`: a recording if its content says so (reading `topic`, or the only
+    /// PointCloud2 topic), otherwise scan files. `topic` given for scan files is an error.
+    pub fn open(path: &std::path::Path, topic: Option<&str>) -> Result<Self, FileError> {
+        #[cfg(feature = "recordings")]
+        if let Some(container) = crate::io::recording::Container::detect(path) {
+            let rec = crate::io::recording::Recording::open(container?, topic)?;
+            return Ok(Input::Recording(rec));
+        }
+        if topic.is_some() {
+            return Err(FileError::at(
+                path,
+                "--topic is for recordings (ROS 1 bags, MCAP, ROS 2 bag folders), and this is not one",
+            ));
+        }
+        ScanFolder::open(path).map(Input::Folder)
+    }
+
+    /// What was opened, for the log: "12 frames of /points" or "12 scan files".
+    pub fn describe(&self) -> String {
+        match self {
+            Input::Folder(f) => format!("{} scan files", f.len()),
+            #[cfg(feature = "recordings")]
+            Input::Recording(r) => format!("{} frames of topic {}", r.frames(), r.topic.name),
+        }
+    }
+}
+
+impl FrameSource for Input {
+    fn frames(&self) -> usize {
+        match self {
+            Input::Folder(f) => f.frames(),
+            #[cfg(feature = "recordings")]
+            Input::Recording(r) => r.frames(),
+        }
+    }
+    fn label(&self, i: usize) -> String {
+        match self {
+            Input::Folder(f) => f.label(i),
+            #[cfg(feature = "recordings")]
+            Input::Recording(r) => r.label(i),
+        }
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        match self {
+            Input::Folder(f) => f.stamp(i),
+            #[cfg(feature = "recordings")]
+            Input::Recording(r) => r.stamp(i),
+        }
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
+        match self {
+            Input::Folder(f) => f.read(i),
+            #[cfg(feature = "recordings")]
+            Input::Recording(r) => r.read(i),
+        }
+    }
 }
 
 impl FrameSource for ScanFolder {

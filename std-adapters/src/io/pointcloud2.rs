@@ -1,0 +1,761 @@
+//! `sensor_msgs/PointCloud2`: the message, in both serialisations robots record it in (ROS 1
+//! and ROS 2's CDR), and its points, for any field layout.
+//!
+//! [`Cloud::parse_ros1`] and [`Cloud::parse_cdr`] read the message without copying its data;
+//! [`Cloud::decode`] turns the points into a [`DecodedScan`]: fields are found by name, with
+//! their offset and datatype (INT8 to FLOAT64), across `point_step`, `row_step`, organised
+//! clouds and either byte order. A point with a non-finite coordinate, or at the origin (no
+//! return), is dropped and counted. Every error is a sentence for the caller to put after the
+//! file, topic and message index.
+//!
+//! Per-point time, relative to the message's header stamp, in seconds:
+//!
+//! | field | datatype | unit and reference | written by |
+//! |---|---|---|---|
+//! | `t`, `offset_time` | any integer | nanoseconds since the stamp | Ouster (`t`), Livox (`offset_time`) |
+//! | `time`, `t` | FLOAT32 or FLOAT64, all below 1e6 | seconds relative to the stamp | Velodyne (`time`), converters (`t`) |
+//! | `timestamp`, `time_stamp` | FLOAT64 over 1e15 | absolute nanoseconds | Livox (`timestamp`) |
+//! | `timestamp`, `time_stamp`, `time` | FLOAT64 over 1e6 | absolute seconds | Hesai (`timestamp`) |
+//!
+//! The first field found in the order `t`, `time`, `timestamp`, `time_stamp`, `offset_time`
+//! is used. Relative times must lie within [`MAX_SWEEP_S`] of the stamp; a field whose values
+//! fit no row of the table is an error naming the field, its datatype and its range.
+
+use slamesh_core::Point;
+
+/// How far from the header stamp a point's time may be (seconds): a sweep takes 0.05 to 0.5 s.
+pub const MAX_SWEEP_S: f64 = 1.0;
+
+/// The datatype codes of `sensor_msgs/PointField`.
+pub mod datatype {
+    /// Signed 8-bit.
+    pub const INT8: u8 = 1;
+    /// Unsigned 8-bit.
+    pub const UINT8: u8 = 2;
+    /// Signed 16-bit.
+    pub const INT16: u8 = 3;
+    /// Unsigned 16-bit.
+    pub const UINT16: u8 = 4;
+    /// Signed 32-bit.
+    pub const INT32: u8 = 5;
+    /// Unsigned 32-bit.
+    pub const UINT32: u8 = 6;
+    /// 32-bit float.
+    pub const FLOAT32: u8 = 7;
+    /// 64-bit float.
+    pub const FLOAT64: u8 = 8;
+}
+
+/// The names searched for a per-point time, in order.
+pub const TIME_FIELDS: [&str; 5] = ["t", "time", "timestamp", "time_stamp", "offset_time"];
+
+/// One `sensor_msgs/PointField`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Field {
+    /// The field's name (`x`, `intensity`, `t`, ...).
+    pub name: String,
+    /// Byte offset within a point.
+    pub offset: u32,
+    /// One of [`datatype`].
+    pub datatype: u8,
+    /// Number of elements (1 for every field read here).
+    pub count: u32,
+}
+
+impl Field {
+    /// Size in bytes of one element, or `None` for an unknown datatype.
+    pub fn size(&self) -> Option<usize> {
+        Some(match self.datatype {
+            datatype::INT8 | datatype::UINT8 => 1,
+            datatype::INT16 | datatype::UINT16 => 2,
+            datatype::INT32 | datatype::UINT32 | datatype::FLOAT32 => 4,
+            datatype::FLOAT64 => 8,
+            _ => return None,
+        })
+    }
+
+    fn is_integer(&self) -> bool {
+        (datatype::INT8..=datatype::UINT32).contains(&self.datatype)
+    }
+}
+
+/// A `sensor_msgs/PointCloud2` message, borrowing its point data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cloud<'a> {
+    /// Header stamp, seconds.
+    pub stamp: f64,
+    /// Header frame id.
+    pub frame_id: String,
+    /// Rows (1 for an unorganised cloud).
+    pub height: u32,
+    /// Points per row.
+    pub width: u32,
+    /// The point fields.
+    pub fields: Vec<Field>,
+    /// Byte order of the point data.
+    pub is_bigendian: bool,
+    /// Bytes per point.
+    pub point_step: u32,
+    /// Bytes per row.
+    pub row_step: u32,
+    /// The point data.
+    pub data: &'a [u8],
+}
+
+/// The points of one cloud, with what else each point carries.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DecodedScan {
+    /// The kept points, in the sensor frame.
+    pub points: Vec<Point>,
+    /// Each kept point's time relative to the stamp (seconds), if the cloud has a time field.
+    pub times: Option<Vec<f32>>,
+    /// Each kept point's `intensity`, if present.
+    pub intensity: Option<Vec<f32>>,
+    /// Each kept point's `ring`, if present.
+    pub ring: Option<Vec<u16>>,
+    /// Points dropped for a non-finite coordinate.
+    pub dropped_non_finite: usize,
+    /// Points dropped for lying at the origin (no return).
+    pub dropped_zero: usize,
+}
+
+/// Reads little- or big-endian values off a byte slice, with bounds checks.
+struct Bytes<'a> {
+    buf: &'a [u8],
+    pos: usize,
+    /// Alignment origin (CDR aligns relative to the end of its 4-byte header); `None` packs.
+    align_from: Option<usize>,
+    big: bool,
+}
+
+impl<'a> Bytes<'a> {
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
+        if let Some(origin) = self.align_from {
+            let a = n.min(8);
+            if a > 1 {
+                let rel = self.pos - origin;
+                self.pos += (a - rel % a) % a;
+            }
+        }
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.buf.len());
+        let end = end.ok_or_else(|| format!("message ends inside {what}"))?;
+        let s = &self.buf[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+    fn u8(&mut self, what: &str) -> Result<u8, String> {
+        Ok(self.take(1, what)?[0])
+    }
+    fn u32(&mut self, what: &str) -> Result<u32, String> {
+        let b: [u8; 4] = self.take(4, what)?.try_into().expect("4 bytes");
+        Ok(if self.big {
+            u32::from_be_bytes(b)
+        } else {
+            u32::from_le_bytes(b)
+        })
+    }
+    /// A string: a u32 length, then bytes (CDR counts and drops a trailing NUL).
+    fn string(&mut self, what: &str) -> Result<String, String> {
+        let n = self.u32(what)? as usize;
+        let b = self.bytes_of(n, what)?;
+        let b = b.strip_suffix(&[0]).unwrap_or(b);
+        Ok(String::from_utf8_lossy(b).into_owned())
+    }
+    fn bytes_of(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
+        let save = self.align_from.take();
+        let r = self.take(n, what);
+        self.align_from = save;
+        r
+    }
+}
+
+impl<'a> Cloud<'a> {
+    /// Parses a ROS 1 serialised message (little-endian, packed).
+    pub fn parse_ros1(buf: &'a [u8]) -> Result<Self, String> {
+        let mut b = Bytes {
+            buf,
+            pos: 0,
+            align_from: None,
+            big: false,
+        };
+        let _seq = b.u32("header.seq")?;
+        let sec = b.u32("header.stamp")?;
+        let nsec = b.u32("header.stamp")?;
+        Self::parse_rest(&mut b, sec as f64 + nsec as f64 * 1e-9)
+    }
+
+    /// Parses a ROS 2 message in CDR (either byte order, as its 4-byte header says).
+    pub fn parse_cdr(buf: &'a [u8]) -> Result<Self, String> {
+        if buf.len() < 4 {
+            return Err("message shorter than its CDR header".into());
+        }
+        let big = match buf[1] {
+            0 | 2 => true,
+            1 | 3 => false,
+            k => return Err(format!("unknown CDR representation {k}")),
+        };
+        let mut b = Bytes {
+            buf,
+            pos: 4,
+            align_from: Some(4),
+            big,
+        };
+        let sec = b.u32("header.stamp")? as i32;
+        let nsec = b.u32("header.stamp")?;
+        Self::parse_rest(&mut b, sec as f64 + nsec as f64 * 1e-9)
+    }
+
+    fn parse_rest(b: &mut Bytes<'a>, stamp: f64) -> Result<Self, String> {
+        let frame_id = b.string("header.frame_id")?;
+        let height = b.u32("height")?;
+        let width = b.u32("width")?;
+        let n = b.u32("fields")? as usize;
+        // Each field takes at least 13 bytes: a bad count must not reserve memory.
+        if n > (b.buf.len() - b.pos) / 13 {
+            return Err(format!("{n} fields do not fit in the message"));
+        }
+        let mut fields = Vec::with_capacity(n);
+        for _ in 0..n {
+            let name = b.string("a field name")?;
+            let offset = b.u32("a field offset")?;
+            let datatype = b.u8("a field datatype")?;
+            let count = b.u32("a field count")?;
+            fields.push(Field {
+                name,
+                offset,
+                datatype,
+                count,
+            });
+        }
+        let is_bigendian = b.u8("is_bigendian")? != 0;
+        let point_step = b.u32("point_step")?;
+        let row_step = b.u32("row_step")?;
+        let len = b.u32("data")? as usize;
+        let data = b.bytes_of(len, "data")?;
+        Ok(Cloud {
+            stamp,
+            frame_id,
+            height,
+            width,
+            fields,
+            is_bigendian,
+            point_step,
+            row_step,
+            data,
+        })
+    }
+
+    /// The field called `name`, checked to fit in `point_step`.
+    fn field(&self, name: &str) -> Result<Option<&Field>, String> {
+        let Some(f) = self.fields.iter().find(|f| f.name == name) else {
+            return Ok(None);
+        };
+        let size = f
+            .size()
+            .ok_or_else(|| format!("field {name} has unknown datatype {}", f.datatype))?;
+        if f.offset as usize + size > self.point_step as usize {
+            return Err(format!(
+                "field {name} (offset {}, {size} bytes) lies past point_step {}",
+                f.offset, self.point_step
+            ));
+        }
+        Ok(Some(f))
+    }
+
+    /// Decodes the points and what they carry. Errors say what is malformed.
+    pub fn decode(&self) -> Result<DecodedScan, String> {
+        let xyz = ["x", "y", "z"].map(|n| self.field(n));
+        let [x, y, z] = match xyz {
+            [Ok(Some(x)), Ok(Some(y)), Ok(Some(z))] => [x, y, z],
+            [a, b, c] => {
+                a?;
+                b?;
+                c?;
+                return Err("no x, y and z fields".into());
+            }
+        };
+        let intensity = self.field("intensity")?;
+        let ring = self.field("ring")?;
+        let time = TIME_FIELDS
+            .iter()
+            .map(|n| self.field(n))
+            .find_map(|r| r.transpose())
+            .transpose()?;
+        let (w, h, step) = (
+            self.width as usize,
+            self.height as usize,
+            self.point_step as usize,
+        );
+        let row = self.row_step as usize;
+        if step == 0 && w * h > 0 {
+            return Err("point_step is 0".into());
+        }
+        if row < w.saturating_mul(step) {
+            return Err(format!(
+                "row_step {row} is shorter than width {w} x point_step {step}"
+            ));
+        }
+        let need = h
+            .checked_sub(1)
+            .map_or(Some(0), |r| r.checked_mul(row)?.checked_add(w * step));
+        match need {
+            Some(n) if n <= self.data.len() => {}
+            _ => {
+                return Err(format!(
+                    "data holds {} bytes, fewer than {h} rows of {w} points of {step} bytes",
+                    self.data.len()
+                ))
+            }
+        }
+        let big = self.is_bigendian;
+        let mut out = DecodedScan::default();
+        let mut raw_times = Vec::new();
+        let mut inten = Vec::new();
+        let mut rings = Vec::new();
+        for r in 0..h {
+            for c in 0..w {
+                let p = &self.data[r * row + c * step..][..step];
+                let v = [x, y, z].map(|f| read_value(p, f, big));
+                if !v.iter().all(|c| c.is_finite()) {
+                    out.dropped_non_finite += 1;
+                    continue;
+                }
+                if v == [0.0; 3] {
+                    out.dropped_zero += 1;
+                    continue;
+                }
+                out.points.push(v.map(|c| c as f32));
+                if let Some(f) = time {
+                    raw_times.push(read_value(p, f, big));
+                }
+                if let Some(f) = intensity {
+                    inten.push(read_value(p, f, big) as f32);
+                }
+                if let Some(f) = ring {
+                    rings.push(read_value(p, f, big).clamp(0.0, u16::MAX as f64) as u16);
+                }
+            }
+        }
+        if let Some(f) = time {
+            out.times = Some(relative_times(f, &raw_times, self.stamp)?);
+        }
+        out.intensity = intensity.map(|_| inten);
+        out.ring = ring.map(|_| rings);
+        Ok(out)
+    }
+}
+
+/// One value of field `f` in point `p` (whose length covers the field, checked by
+/// [`Cloud::field`]), as `f64`.
+fn read_value(p: &[u8], f: &Field, big: bool) -> f64 {
+    let o = f.offset as usize;
+    macro_rules! get {
+        ($t:ty, $n:expr) => {{
+            let b: [u8; $n] = p[o..o + $n].try_into().expect("checked size");
+            if big {
+                <$t>::from_be_bytes(b) as f64
+            } else {
+                <$t>::from_le_bytes(b) as f64
+            }
+        }};
+    }
+    match f.datatype {
+        datatype::INT8 => p[o] as i8 as f64,
+        datatype::UINT8 => p[o] as f64,
+        datatype::INT16 => get!(i16, 2),
+        datatype::UINT16 => get!(u16, 2),
+        datatype::INT32 => get!(i32, 4),
+        datatype::UINT32 => get!(u32, 4),
+        datatype::FLOAT32 => get!(f32, 4),
+        _ => get!(f64, 8),
+    }
+}
+
+/// Times relative to `stamp` in seconds, by the table in the module's docs.
+fn relative_times(f: &Field, raw: &[f64], stamp: f64) -> Result<Vec<f32>, String> {
+    let (lo, hi) = raw
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    if raw.is_empty() {
+        return Ok(Vec::new());
+    }
+    let (scale, offset, unit) = if f.is_integer() {
+        (1e-9, 0.0, "nanoseconds since the stamp")
+    } else if lo.abs().max(hi.abs()) < 1e6 {
+        (1.0, 0.0, "seconds since the stamp")
+    } else if f.datatype == datatype::FLOAT64 && lo > 1e15 {
+        (1e-9, -stamp, "absolute nanoseconds")
+    } else if f.datatype == datatype::FLOAT64 {
+        (1.0, -stamp, "absolute seconds")
+    } else {
+        return Err(format!(
+            "time field {} (FLOAT32) runs from {lo} to {hi}: too large for relative seconds, \
+             too coarse for absolute ones",
+            f.name
+        ));
+    };
+    let rel = |v: f64| v * scale + offset;
+    let (a, b) = (rel(lo), rel(hi));
+    if !(a.is_finite() && b.is_finite()) || a < -MAX_SWEEP_S || b > MAX_SWEEP_S {
+        return Err(format!(
+            "time field {} (datatype {}) read as {unit} gives {a:.3} to {b:.3} s from the stamp, \
+             outside +-{MAX_SWEEP_S} s; no reading in the table fits",
+            f.name, f.datatype
+        ));
+    }
+    Ok(raw.iter().map(|&v| rel(v) as f32).collect())
+}
+
+/// Writes messages, for tests, fixtures and the fuzz targets' seeds. Not a general writer: it
+/// writes exactly the layouts it is given.
+#[doc(hidden)]
+pub mod encode {
+    use super::Field;
+
+    /// A PointCloud2 in ROS 1 serialisation.
+    #[allow(clippy::too_many_arguments)]
+    pub fn ros1(
+        stamp: (u32, u32),
+        frame_id: &str,
+        height: u32,
+        width: u32,
+        fields: &[Field],
+        is_bigendian: bool,
+        point_step: u32,
+        row_step: u32,
+        data: &[u8],
+    ) -> Vec<u8> {
+        let mut o = Vec::new();
+        let u32le = |o: &mut Vec<u8>, v: u32| o.extend_from_slice(&v.to_le_bytes());
+        u32le(&mut o, 0);
+        u32le(&mut o, stamp.0);
+        u32le(&mut o, stamp.1);
+        u32le(&mut o, frame_id.len() as u32);
+        o.extend_from_slice(frame_id.as_bytes());
+        u32le(&mut o, height);
+        u32le(&mut o, width);
+        u32le(&mut o, fields.len() as u32);
+        for f in fields {
+            u32le(&mut o, f.name.len() as u32);
+            o.extend_from_slice(f.name.as_bytes());
+            u32le(&mut o, f.offset);
+            o.push(f.datatype);
+            u32le(&mut o, f.count);
+        }
+        o.push(is_bigendian as u8);
+        u32le(&mut o, point_step);
+        u32le(&mut o, row_step);
+        u32le(&mut o, data.len() as u32);
+        o.extend_from_slice(data);
+        o.push(1);
+        o
+    }
+
+    /// A PointCloud2 in little-endian CDR, as ROS 2 records it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn cdr(
+        stamp: (i32, u32),
+        frame_id: &str,
+        height: u32,
+        width: u32,
+        fields: &[Field],
+        is_bigendian: bool,
+        point_step: u32,
+        row_step: u32,
+        data: &[u8],
+    ) -> Vec<u8> {
+        let mut o = vec![0, 1, 0, 0];
+        let u32le = |o: &mut Vec<u8>, v: u32| {
+            while (o.len() - 4) % 4 != 0 {
+                o.push(0);
+            }
+            o.extend_from_slice(&v.to_le_bytes());
+        };
+        let string = |o: &mut Vec<u8>, s: &str| {
+            u32le(o, s.len() as u32 + 1);
+            o.extend_from_slice(s.as_bytes());
+            o.push(0);
+        };
+        u32le(&mut o, stamp.0 as u32);
+        u32le(&mut o, stamp.1);
+        string(&mut o, frame_id);
+        u32le(&mut o, height);
+        u32le(&mut o, width);
+        u32le(&mut o, fields.len() as u32);
+        for f in fields {
+            string(&mut o, &f.name);
+            u32le(&mut o, f.offset);
+            o.push(f.datatype);
+            u32le(&mut o, f.count);
+        }
+        o.push(is_bigendian as u8);
+        u32le(&mut o, point_step);
+        u32le(&mut o, row_step);
+        u32le(&mut o, data.len() as u32);
+        o.extend_from_slice(data);
+        o.push(1);
+        o
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::datatype::*;
+    use super::*;
+
+    fn field(name: &str, offset: u32, datatype: u8) -> Field {
+        Field {
+            name: name.into(),
+            offset,
+            datatype,
+            count: 1,
+        }
+    }
+
+    fn xyz_f32() -> Vec<Field> {
+        vec![
+            field("x", 0, FLOAT32),
+            field("y", 4, FLOAT32),
+            field("z", 8, FLOAT32),
+        ]
+    }
+
+    #[test]
+    fn a_ros1_cloud_parses_and_decodes() {
+        let mut data = Vec::new();
+        for p in [
+            [1.0f32, 2.0, 3.0],
+            [f32::NAN, 0.0, 0.0],
+            [0.0; 3],
+            [4.0, 5.0, 6.0],
+        ] {
+            p.iter()
+                .for_each(|v| data.extend_from_slice(&v.to_le_bytes()));
+        }
+        let msg = encode::ros1(
+            (10, 500_000_000),
+            "velo",
+            1,
+            4,
+            &xyz_f32(),
+            false,
+            12,
+            48,
+            &data,
+        );
+        let c = Cloud::parse_ros1(&msg).unwrap();
+        assert_eq!((c.stamp, c.frame_id.as_str()), (10.5, "velo"));
+        let d = c.decode().unwrap();
+        assert_eq!(d.points, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!((d.dropped_non_finite, d.dropped_zero), (1, 1));
+        assert!(d.times.is_none() && d.intensity.is_none());
+    }
+
+    #[test]
+    fn malformed_clouds_say_what_is_wrong() {
+        let data = vec![0u8; 24];
+        let short = encode::ros1((0, 0), "", 1, 4, &xyz_f32(), false, 12, 48, &data);
+        let e = Cloud::parse_ros1(&short).unwrap().decode().unwrap_err();
+        assert!(e.contains("data holds 24 bytes"), "{e}");
+        let past = vec![
+            field("x", 0, FLOAT32),
+            field("y", 4, FLOAT32),
+            field("z", 10, FLOAT32),
+        ];
+        let m = encode::ros1((0, 0), "", 1, 2, &past, false, 12, 24, &data);
+        let e = Cloud::parse_ros1(&m).unwrap().decode().unwrap_err();
+        assert!(
+            e.contains("field z") && e.contains("past point_step 12"),
+            "{e}"
+        );
+        let no_x = vec![
+            field("a", 0, FLOAT32),
+            field("y", 4, FLOAT32),
+            field("z", 8, FLOAT32),
+        ];
+        let m = encode::ros1((0, 0), "", 1, 2, &no_x, false, 12, 24, &data);
+        let e = Cloud::parse_ros1(&m).unwrap().decode().unwrap_err();
+        assert_eq!(e, "no x, y and z fields");
+        let e = Cloud::parse_ros1(&m[..73]).unwrap_err();
+        assert_eq!(e, "message ends inside point_step");
+        let e = Cloud::parse_ros1(&m[..30]).unwrap_err();
+        assert_eq!(e, "3 fields do not fit in the message");
+    }
+
+    #[test]
+    fn time_fields_follow_the_table() {
+        let case = |dt: u8, name: &str, vals: &[f64], stamp: u32| {
+            let size = field("", 0, dt).size().unwrap() as u32;
+            let mut fields = xyz_f32();
+            fields.push(field(name, 12, dt));
+            let step = 12 + size;
+            let mut data = Vec::new();
+            for (i, v) in vals.iter().enumerate() {
+                [1.0f32 + i as f32, 1.0, 1.0]
+                    .iter()
+                    .for_each(|c| data.extend_from_slice(&c.to_le_bytes()));
+                match dt {
+                    UINT32 => data.extend_from_slice(&(*v as u32).to_le_bytes()),
+                    FLOAT32 => data.extend_from_slice(&(*v as f32).to_le_bytes()),
+                    _ => data.extend_from_slice(&v.to_le_bytes()),
+                }
+            }
+            let n = vals.len() as u32;
+            let m = encode::ros1((stamp, 0), "", 1, n, &fields, false, step, step * n, &data);
+            Cloud::parse_ros1(&m)
+                .unwrap()
+                .decode()
+                .map(|d| d.times.unwrap())
+        };
+        assert_eq!(
+            case(UINT32, "t", &[0.0, 5e7], 100).unwrap(),
+            vec![0.0, 0.05]
+        );
+        assert_eq!(
+            case(FLOAT32, "time", &[-0.1, 0.0], 100).unwrap(),
+            vec![-0.1, 0.0]
+        );
+        let abs = case(
+            FLOAT64,
+            "timestamp",
+            &[1_700_000_000.0, 1_700_000_000.05],
+            1_700_000_000,
+        );
+        let abs = abs.unwrap();
+        assert!((abs[1] - 0.05).abs() < 1e-6, "{abs:?}");
+        let ns = case(FLOAT64, "timestamp", &[1.7e18, 1.7e18 + 2e7], 1_700_000_000).unwrap();
+        assert!((ns[1] - 0.02).abs() < 1e-6, "{ns:?}");
+        let e = case(FLOAT64, "timestamp", &[1.6e9], 1_700_000_000).unwrap_err();
+        assert!(e.contains("timestamp") && e.contains("no reading"), "{e}");
+        let e = case(FLOAT32, "t", &[2e7], 0).unwrap_err();
+        assert!(e.contains("FLOAT32"), "{e}");
+    }
+
+    /// One layout of the same points: field order, padding, byte order, xyz type and rows.
+    struct Layout {
+        order: [usize; 5],
+        pad: u32,
+        big: bool,
+        xyz: u8,
+        rows: u32,
+    }
+
+    /// The points `pts` (with intensity `i * 10` and time `i * 1 ms` in Ouster's `t`) laid out
+    /// as `l` says, with a NaN point after every row's points in an organised cloud.
+    fn laid_out(pts: &[[f32; 3]], l: &Layout) -> Vec<u8> {
+        let xyz_size = if l.xyz == FLOAT64 { 8 } else { 4 };
+        let sizes = [xyz_size, xyz_size, xyz_size, 4, 4];
+        let names = ["x", "y", "z", "intensity", "t"];
+        let types = [l.xyz, l.xyz, l.xyz, FLOAT32, UINT32];
+        let mut fields = Vec::new();
+        let mut off = 0;
+        for &k in &l.order {
+            fields.push(field(names[k], off, types[k]));
+            off += sizes[k] + l.pad;
+        }
+        let step = off;
+        let cols = pts.len() as u32 / l.rows + u32::from(l.rows > 1);
+        let mut data = vec![0u8; (step * cols * l.rows) as usize];
+        let put = |data: &mut Vec<u8>, at: usize, dt: u8, v: f64| {
+            let b: Vec<u8> = match (dt, l.big) {
+                (FLOAT64, false) => v.to_le_bytes().to_vec(),
+                (FLOAT64, true) => v.to_be_bytes().to_vec(),
+                (FLOAT32, false) => (v as f32).to_le_bytes().to_vec(),
+                (FLOAT32, true) => (v as f32).to_be_bytes().to_vec(),
+                (_, false) => (v as u32).to_le_bytes().to_vec(),
+                (_, true) => (v as u32).to_be_bytes().to_vec(),
+            };
+            data[at..at + b.len()].copy_from_slice(&b);
+        };
+        let per_row = pts.len() / l.rows as usize;
+        for r in 0..l.rows as usize {
+            for c in 0..cols as usize {
+                let at = (r * cols as usize + c) * step as usize;
+                let i = r * per_row + c;
+                let vals = if c < per_row {
+                    let p = pts[i];
+                    [
+                        p[0] as f64,
+                        p[1] as f64,
+                        p[2] as f64,
+                        i as f64 * 10.0,
+                        i as f64 * 1e6,
+                    ]
+                } else {
+                    [f64::NAN, 0.0, 0.0, 0.0, 0.0]
+                };
+                for (k, f) in fields.iter().enumerate() {
+                    let which = l.order[k];
+                    put(&mut data, at + f.offset as usize, f.datatype, vals[which]);
+                }
+            }
+        }
+        encode::cdr(
+            (5, 0),
+            "os",
+            l.rows,
+            cols,
+            &fields,
+            l.big,
+            step,
+            step * cols,
+            &data,
+        )
+    }
+
+    #[test]
+    fn every_layout_decodes_to_the_same_points() {
+        let pts: Vec<[f32; 3]> = (0..6)
+            .map(|i| [i as f32 + 0.5, -2.0 * i as f32, 0.25])
+            .collect();
+        let base = Layout {
+            order: [0, 1, 2, 3, 4],
+            pad: 0,
+            big: false,
+            xyz: FLOAT32,
+            rows: 1,
+        };
+        let want = Cloud::parse_cdr(&laid_out(&pts, &base))
+            .unwrap()
+            .decode()
+            .unwrap();
+        assert_eq!(want.points, pts);
+        assert_eq!(want.intensity.as_ref().unwrap()[5], 50.0);
+        assert!((want.times.as_ref().unwrap()[5] - 0.005).abs() < 1e-9);
+        let variants = [
+            Layout {
+                order: [4, 3, 2, 0, 1],
+                ..base
+            },
+            Layout { pad: 4, ..base },
+            Layout { big: true, ..base },
+            Layout {
+                xyz: FLOAT64,
+                ..base
+            },
+            Layout { rows: 2, ..base },
+            Layout {
+                order: [3, 1, 4, 0, 2],
+                pad: 2,
+                big: true,
+                xyz: FLOAT64,
+                rows: 3,
+            },
+        ];
+        for (k, l) in variants.iter().enumerate() {
+            let got = Cloud::parse_cdr(&laid_out(&pts, l))
+                .unwrap()
+                .decode()
+                .unwrap();
+            assert_eq!(got.points, want.points, "variant {k}");
+            assert_eq!(got.intensity, want.intensity, "variant {k}");
+            assert_eq!(got.times, want.times, "variant {k}");
+            assert_eq!(
+                got.dropped_non_finite,
+                if l.rows > 1 { l.rows as usize } else { 0 }
+            );
+        }
+    }
+}
