@@ -34,7 +34,13 @@ fn every_container_gives_the_folder_runs_outputs() {
     let tum = std::fs::read_to_string(folder.join("poses_tum.txt")).unwrap();
     // The folder's times.txt holds the recordings' header stamps (KITTI's times after an
     // epoch); the TUM file must carry them, not the frame index.
-    assert!(tum.lines().nth(2).unwrap().starts_with("1317000000.103736 "), "{tum}");
+    assert!(
+        tum.lines()
+            .nth(2)
+            .unwrap()
+            .starts_with("1317000000.103736 "),
+        "{tum}"
+    );
     for rec in RECORDINGS {
         let out = dir.join(rec.replace('/', "-"));
         slamesh_run_ok(&fixtures().join(rec), &out, &["--no-picture"]);
@@ -67,7 +73,10 @@ fn a_malformed_cloud_is_skipped_with_its_reason() {
     assert_eq!(summary["used"], 2);
     let skipped = summary["skipped"].as_array().unwrap();
     assert_eq!(skipped.len(), 1);
-    assert!(skipped[0].as_str().unwrap().contains("message 1: data holds 3896 bytes"));
+    assert!(skipped[0]
+        .as_str()
+        .unwrap()
+        .contains("message 1: data holds 3896 bytes"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -64,3 +64,19 @@ moved = cm(near, 0.1).replace(b"\xfe", b"\xfd")
 put("core_scan", "two_scans", b"\x01" + scan + b"\xfe" + moved)
 put("core_scan", "meshing", b"\x07" + scan + b"\xfe" + moved + b"\xfe" + scan)
 put("core_scan", "raw", b"\x00" + b"".join(struct.pack("<3f", *p) for p in near[:100]))
+
+# Recordings: the small malformed-fixture MCAP files (made by tests/fixtures/recordings/make.py)
+# without their magic (the target puts it back, choosing by the first byte: odd for MCAP), and
+# their PointCloud2 messages for the decoder.
+fixtures = "../tests/fixtures/recordings/bad"
+for name in ["two-clouds.mcap", "short-data.mcap"]:
+    mcap = open(f"{fixtures}/{name}", "rb").read()
+    put("recording", name, b"\x01" + mcap[8:])
+try:
+    from mcap.reader import make_reader
+    with open(f"{fixtures}/two-clouds.mcap", "rb") as f:
+        for k, (_, channel, message) in enumerate(make_reader(f).iter_messages()):
+            if channel.topic.endswith("points"):
+                put("pointcloud2", f"cdr{k}", message.data)
+except ImportError:
+    print("pip install mcap for the pointcloud2 seeds", file=sys.stderr)

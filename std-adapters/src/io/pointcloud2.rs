@@ -468,7 +468,7 @@ pub mod encode {
     ) -> Vec<u8> {
         let mut o = vec![0, 1, 0, 0];
         let u32le = |o: &mut Vec<u8>, v: u32| {
-            while (o.len() - 4) % 4 != 0 {
+            while !(o.len() - 4).is_multiple_of(4) {
                 o.push(0);
             }
             o.extend_from_slice(&v.to_le_bytes());

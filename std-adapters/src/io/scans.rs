@@ -1,8 +1,11 @@
 //! Scan inputs: a folder of point-cloud files (KITTI `.bin`, `.pcd`, `.ply`) read one frame at
 //! a time in natural file order (`2.pcd` before `10.pcd`), or a single such file.
 //!
-//! A KITTI sequence folder may be given instead of its `velodyne/` folder. A sequence folder
-//! with a `times.txt` (KITTI) gives the frames' timestamps; otherwise frames are 0.1 s apart.
+//! A KITTI sequence folder may be given instead of its `velodyne/` folder. The frames'
+//! timestamps come from, in order: a `times.txt` (KITTI: one number a line); file names that
+//! are all numbers, increasing (seconds, or nanoseconds when over 1e15, as in
+//! `1700000000.123456.pcd` or `1700000000123456789.bin`); otherwise 10 Hz is assumed
+//! ([`Stamps`] says which).
 
 use crate::io::error::FileError;
 use crate::io::{kitti, pcd, ply};
@@ -13,6 +16,17 @@ use std::path::{Path, PathBuf};
 /// The extensions read as scans.
 pub const EXTENSIONS: [&str; 3] = ["bin", "pcd", "ply"];
 
+/// Where a folder's timestamps came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stamps {
+    /// The sequence's `times.txt`.
+    TimesTxt,
+    /// The file names.
+    FileNames,
+    /// Neither: frames 0.1 s apart.
+    Assumed10Hz,
+}
+
 /// The scan files of an input.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScanFolder {
@@ -20,15 +34,21 @@ pub struct ScanFolder {
     pub paths: Vec<PathBuf>,
     /// One timestamp per file (seconds).
     pub stamps: Vec<f64>,
+    /// Where they came from.
+    pub stamps_from: Stamps,
 }
 
 impl ScanFolder {
     /// Lists the scans of `input` (a folder, a KITTI sequence folder, or one file).
     pub fn open(input: &Path) -> Result<Self, FileError> {
         if input.is_file() {
+            let (stamps, stamps_from) =
+                file_name_stamps(std::slice::from_ref(&input.to_path_buf()))
+                    .map_or((vec![0.0], Stamps::Assumed10Hz), |s| (s, Stamps::FileNames));
             return Ok(ScanFolder {
                 paths: vec![input.to_path_buf()],
-                stamps: vec![0.0],
+                stamps,
+                stamps_from,
             });
         }
         if !input.exists() {
@@ -52,9 +72,21 @@ impl ScanFolder {
                 "no scans in this folder (looked for .bin, .pcd and .ply files)",
             ));
         }
-        let stamps = read_times(&kitti::sequence_folder(&dir).join("times.txt"), paths.len())
-            .unwrap_or_else(|| (0..paths.len()).map(|i| i as f64 * 0.1).collect());
-        Ok(ScanFolder { paths, stamps })
+        let (stamps, stamps_from) = if let Some(t) =
+            read_times(&kitti::sequence_folder(&dir).join("times.txt"), paths.len())
+        {
+            (t, Stamps::TimesTxt)
+        } else if let Some(t) = file_name_stamps(&paths) {
+            (t, Stamps::FileNames)
+        } else {
+            let t = (0..paths.len()).map(|i| i as f64 * 0.1).collect();
+            (t, Stamps::Assumed10Hz)
+        };
+        Ok(ScanFolder {
+            paths,
+            stamps,
+            stamps_from,
+        })
     }
 
     /// Number of frames.
@@ -97,6 +129,22 @@ fn read_times(path: &Path, frames: usize) -> Option<Vec<f64>> {
         .map(|w| w.parse().ok())
         .collect::<Option<_>>()?;
     (t.len() >= frames).then(|| t[..frames].to_vec())
+}
+
+/// Timestamps from file names that are all numbers and increase: seconds, or nanoseconds
+/// when over 1e15.
+fn file_name_stamps(paths: &[PathBuf]) -> Option<Vec<f64>> {
+    let t: Vec<f64> = paths
+        .iter()
+        .map(|p| {
+            let v: f64 = p.file_stem()?.to_str()?.parse().ok()?;
+            (v.is_finite() && v > 0.0).then_some(if v > 1e15 { v * 1e-9 } else { v })
+        })
+        .collect::<Option<_>>()?;
+    // Frame numbers (0, 1, 2, ... as KITTI names them) are not times.
+    let numbered = t.iter().enumerate().all(|(i, &v)| v == i as f64);
+    let increasing = t.windows(2).all(|w| w[1] > w[0]);
+    (increasing && !numbered && t[0] > 1e6).then_some(t)
 }
 
 /// Natural order: runs of digits compare as numbers, everything else as text.
@@ -156,6 +204,42 @@ mod tests {
             ]
         );
         assert_eq!(natural_cmp("000009.bin", "000010.bin"), Ordering::Less);
+    }
+
+    #[test]
+    fn stamps_come_from_times_txt_or_file_names_or_are_assumed() {
+        let dir = crate::test_support::scratch_dir("stamps");
+        for name in ["1700000000.100000.pcd", "1700000000.200000.pcd"] {
+            std::fs::write(dir.join(name), "").unwrap();
+        }
+        let f = ScanFolder::open(&dir).unwrap();
+        assert_eq!(f.stamps_from, Stamps::FileNames);
+        assert_eq!(f.stamps, vec![1_700_000_000.1, 1_700_000_000.2]);
+        std::fs::write(dir.join("times.txt"), "5\n6\n").unwrap();
+        let f = ScanFolder::open(&dir).unwrap();
+        assert_eq!(
+            (f.stamps_from, f.stamps),
+            (Stamps::TimesTxt, vec![5.0, 6.0])
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+        let dir = crate::test_support::scratch_dir("stamps-ns");
+        for name in ["1700000000100000000.bin", "1700000000250000000.bin"] {
+            std::fs::write(dir.join(name), "").unwrap();
+        }
+        let f = ScanFolder::open(&dir).unwrap();
+        assert_eq!(f.stamps_from, Stamps::FileNames);
+        assert!((f.stamps[1] - 1_700_000_000.25).abs() < 1e-6);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let dir = crate::test_support::scratch_dir("stamps-none");
+        for name in ["000000.bin", "000001.bin"] {
+            std::fs::write(dir.join(name), "").unwrap();
+        }
+        let f = ScanFolder::open(&dir).unwrap();
+        assert_eq!(
+            (f.stamps_from, f.stamps),
+            (Stamps::Assumed10Hz, vec![0.0, 0.1])
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -48,7 +48,16 @@ impl Input {
     /// What was opened, for the log: "12 frames of /points" or "12 scan files".
     pub fn describe(&self) -> String {
         match self {
-            Input::Folder(f) => format!("{} scan files", f.len()),
+            Input::Folder(f) => format!(
+                "{} scan files (times {})",
+                f.len(),
+                match f.stamps_from {
+                    crate::io::scans::Stamps::TimesTxt => "from times.txt",
+                    crate::io::scans::Stamps::FileNames => "from the file names",
+                    crate::io::scans::Stamps::Assumed10Hz =>
+                        "assumed 10 Hz: no times.txt, and the file names are not times",
+                }
+            ),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => format!("{} frames of topic {}", r.frames(), r.topic.name),
         }

@@ -11,8 +11,10 @@
 //! |---|---|---|
 //! | ROS 1 bag (`#ROSBAG V2.0`) | [`rosbag1`] | none, bz2, lz4 |
 //! | MCAP, ROS 2 (`cdr`) or ROS 1 (`ros1`) messages | [`mcap`] | none, zstd, lz4 |
-//! | ROS 2 bag folder: `metadata.yaml` and `.db3` or `.mcap` files | [`ros2`] | as its files |
+//! | ROS 2 bag folder: `metadata.yaml` and `.db3` (`db3`) or `.mcap` files | [`ros2`] | as its files |
 
+#[cfg(feature = "db3")]
+pub mod db3;
 pub mod mcap;
 pub mod ros2;
 pub mod rosbag1;
@@ -142,10 +144,13 @@ impl Container {
                 let topic = topic.to_owned();
                 Box::new(files.clone().into_iter().flat_map(move |f| {
                     let it: Messages = if has_magic(&f, ros2::SQLITE_MAGIC) {
-                        match ros2::Db3Messages::new(&f, &topic) {
+                        #[cfg(feature = "db3")]
+                        match db3::Db3Messages::new(&f, &topic) {
                             Ok(m) => Box::new(m),
                             Err(e) => Box::new(std::iter::once(Err(e))),
                         }
+                        #[cfg(not(feature = "db3"))]
+                        Box::new(std::iter::once(Err("built without the db3 feature".into())))
                     } else {
                         match mcap::messages(&f, &topic) {
                             Ok(m) => Box::new(m),
