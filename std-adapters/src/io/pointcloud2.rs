@@ -308,14 +308,25 @@ impl<'a> Cloud<'a> {
             }
         }
         let big = self.is_bigendian;
-        let mut out = DecodedScan::default();
-        let mut raw_times = Vec::new();
-        let mut inten = Vec::new();
-        let mut rings = Vec::new();
+        let n = w * h;
+        let mut out = DecodedScan {
+            points: Vec::with_capacity(n),
+            ..DecodedScan::default()
+        };
+        let room = |f: Option<&Field>| if f.is_some() { n } else { 0 };
+        let mut raw_times: Vec<f64> = Vec::with_capacity(room(time));
+        let mut inten: Vec<f32> = Vec::with_capacity(room(intensity));
+        let mut rings: Vec<u16> = Vec::with_capacity(room(ring));
+        // The common layout, float32 coordinates in the machine's byte order, read as such.
+        let f32_xyz = [x, y, z].iter().all(|f| f.datatype == datatype::FLOAT32) && !big;
         for r in 0..h {
             for c in 0..w {
                 let p = &self.data[r * row + c * step..][..step];
-                let v = [x, y, z].map(|f| read_value(p, f, big));
+                let v: [f32; 3] = if f32_xyz {
+                    [x, y, z].map(|f| read_f32_le(p, f.offset as usize))
+                } else {
+                    [x, y, z].map(|f| read_value(p, f, big) as f32)
+                };
                 if !v.iter().all(|c| c.is_finite()) {
                     out.dropped_non_finite += 1;
                     continue;
@@ -324,15 +335,19 @@ impl<'a> Cloud<'a> {
                     out.dropped_zero += 1;
                     continue;
                 }
-                out.points.push(v.map(|c| c as f32));
+                out.points.push(v);
                 if let Some(f) = time {
                     raw_times.push(read_value(p, f, big));
                 }
                 if let Some(f) = intensity {
-                    inten.push(read_value(p, f, big) as f32);
+                    inten.push(if f.datatype == datatype::FLOAT32 && !big {
+                        read_f32_le(p, f.offset as usize)
+                    } else {
+                        read_value(p, f, big) as f32
+                    });
                 }
                 if let Some(f) = ring {
-                    rings.push(read_value(p, f, big).clamp(0.0, u16::MAX as f64) as u16);
+                    rings.push(read_ring(p, f, big));
                 }
             }
         }
@@ -345,8 +360,35 @@ impl<'a> Cloud<'a> {
     }
 }
 
+/// A ring number: unsigned 8 or 16 bits read as they are, anything else through `f64`, clamped.
+#[inline]
+fn read_ring(p: &[u8], f: &Field, big: bool) -> u16 {
+    let o = f.offset as usize;
+    match (f.datatype, big) {
+        (datatype::UINT8, _) => p[o] as u16,
+        (datatype::UINT16, false) => u16::from_le_bytes([p[o], p[o + 1]]),
+        (datatype::UINT16, true) => u16::from_be_bytes([p[o], p[o + 1]]),
+        _ => {
+            let v = read_value(p, f, big);
+            if v > 0.0 {
+                v.min(u16::MAX as f64) as u16
+            } else {
+                0
+            }
+        }
+    }
+}
+
+/// A little-endian float32 at `o` in point `p` (whose length covers it).
+#[inline]
+fn read_f32_le(p: &[u8], o: usize) -> f32 {
+    let b: [u8; 4] = p[o..o + 4].try_into().expect("checked size");
+    f32::from_le_bytes(b)
+}
+
 /// One value of field `f` in point `p` (whose length covers the field, checked by
 /// [`Cloud::field`]), as `f64`.
+#[inline]
 fn read_value(p: &[u8], f: &Field, big: bool) -> f64 {
     let o = f.offset as usize;
     macro_rules! get {

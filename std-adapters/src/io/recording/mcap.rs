@@ -68,7 +68,7 @@ pub fn messages(
     path: &Path,
     topic: &str,
 ) -> Result<impl Iterator<Item = Result<RawMessage, String>>, String> {
-    let file = BufReader::new(File::open(path).map_err(|e| e.to_string())?);
+    let file = BufReader::with_capacity(1 << 16, File::open(path).map_err(|e| e.to_string())?);
     let topic = topic.to_owned();
     Ok(mcap::io::MessageReader::new(file).filter_map(move |m| {
         let m = match m {
