@@ -1,10 +1,12 @@
 //! `slamesh bench`: the pipeline timed stage by stage over a folder of scans.
 
 use crate::cli::error::CliError;
+use crate::cli::run::parse_bin_fields;
 use crate::cli::settings::Profile;
 use crate::say;
 use clap::Args;
 use slamesh::io::config_file::WindowSettings;
+use slamesh::io::kitti::BinFields;
 use slamesh::run::report::spreads;
 use slamesh::run::timing::StageMs;
 use slamesh::run::{run, Input, RunOptions};
@@ -19,6 +21,10 @@ pub struct BenchArgs {
     /// The recording's PointCloud2 topic (default: its only one).
     #[arg(long, value_name = "NAME")]
     pub topic: Option<String>,
+    /// The float32 fields of each `.bin` point, in order (x, y and z are read): x,y,z,i is
+    /// KITTI's, x,y,z,i,ring nuScenes'.
+    #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = parse_bin_fields)]
+    pub bin_fields: BinFields,
     /// The preset or configuration file (its [window] section is not used: bench times the
     /// pipeline without eviction).
     #[command(flatten)]
@@ -39,7 +45,7 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     let (input, threads, repeat, json) = (&args.input, args.threads, args.repeat, args.json);
     let s = args.profile.resolve("default")?;
     let (config, preset) = (s.config, s.preset);
-    let mut source = Input::open(input, args.topic.as_deref())?;
+    let mut source = Input::open(input, args.topic.as_deref(), args.bin_fields.clone())?;
     let out = std::env::temp_dir().join(format!("slamesh-bench-{}", std::process::id()));
     let opts = RunOptions {
         out: out.clone(),

@@ -7,6 +7,7 @@ use crate::cli::settings::{Profile, WindowFlags};
 use crate::say;
 use clap::Args;
 use indicatif::ProgressBar;
+use slamesh::io::kitti::BinFields;
 use slamesh::io::mesh_spool::MeshFormat;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::run::capacity;
@@ -23,6 +24,10 @@ pub struct RunArgs {
     /// The recording's PointCloud2 topic (default: its only one).
     #[arg(long, value_name = "NAME")]
     pub topic: Option<String>,
+    /// The float32 fields of each `.bin` point, in order (x, y and z are read): x,y,z,i is
+    /// KITTI's, x,y,z,i,ring nuScenes'.
+    #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = parse_bin_fields)]
+    pub bin_fields: BinFields,
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
@@ -111,7 +116,7 @@ fn run_with(
 ) -> Result<(), CliError> {
     let mut s = args.profile.resolve(default_preset)?;
     args.window.apply(&mut s.window)?;
-    let mut source = Input::open(&args.input, args.topic.as_deref())?;
+    let mut source = Input::open(&args.input, args.topic.as_deref(), args.bin_fields.clone())?;
     if let Some(p) = &given {
         if p.len() < source.frames() {
             log::warn!(
@@ -291,4 +296,9 @@ pub fn read_given_poses(path: &Path, calib: Option<&Path>) -> Result<Vec<Pose>, 
         Some(c) => kitti::lidar_poses(&poses, &kitti::read_calib_tr(c)?),
         None => poses,
     })
+}
+
+/// `--bin-fields`.
+pub fn parse_bin_fields(list: &str) -> Result<BinFields, String> {
+    BinFields::parse(list)
 }

@@ -12,31 +12,101 @@ fn err(path: &Path, line: Option<usize>, reason: impl Into<String>) -> FileError
     FileError::new(path, line, reason)
 }
 
+/// The record of a `.bin` scan: little-endian float32 fields, in order. KITTI's is
+/// `x,y,z,i` (the default); nuScenes' is `x,y,z,i,ring`. Only `x`, `y` and `z` are read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BinFields {
+    /// The field names, in order.
+    pub names: Vec<String>,
+    /// The float index of x, y and z.
+    xyz: [usize; 3],
+}
+
+impl Default for BinFields {
+    fn default() -> Self {
+        Self::parse("x,y,z,i").expect("KITTI's layout")
+    }
+}
+
+impl BinFields {
+    /// Parses a comma-separated list of field names; it must name `x`, `y` and `z` once each.
+    pub fn parse(list: &str) -> Result<Self, String> {
+        let names: Vec<String> = list.split(',').map(|n| n.trim().to_owned()).collect();
+        let find = |c: &str| match names.iter().filter(|n| *n == c).count() {
+            1 => Ok(names.iter().position(|n| n == c).expect("counted")),
+            0 => Err(format!("--bin-fields {list:?} has no {c}")),
+            _ => Err(format!("--bin-fields {list:?} names {c} twice")),
+        };
+        if names.iter().any(String::is_empty) {
+            return Err(format!("--bin-fields {list:?} has an empty name"));
+        }
+        Ok(BinFields {
+            xyz: [find("x")?, find("y")?, find("z")?],
+            names,
+        })
+    }
+
+    /// Bytes per point.
+    pub fn record_bytes(&self) -> usize {
+        4 * self.names.len()
+    }
+}
+
 /// Reads a Velodyne scan: little-endian `f32` x, y, z, reflectance per point.
 pub fn read_bin(path: &Path) -> Result<Vec<Point>, FileError> {
+    read_bin_as(path, &BinFields::default())
+}
+
+/// Reads a `.bin` scan whose records are `fields`.
+pub fn read_bin_as(path: &Path, fields: &BinFields) -> Result<Vec<Point>, FileError> {
     let bytes = std::fs::read(path).map_err(|e| err(path, None, e.to_string()))?;
-    parse_bin(path, &bytes)
+    parse_bin_as(path, &bytes, fields)
 }
 
 /// Parses the bytes of a Velodyne scan read from `path` (named in errors).
 pub fn parse_bin(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
+    parse_bin_as(path, bytes, &BinFields::default())
+}
+
+/// Parses the bytes of a `.bin` scan whose records are `fields`.
+pub fn parse_bin_as(
+    path: &Path,
+    bytes: &[u8],
+    fields: &BinFields,
+) -> Result<Vec<Point>, FileError> {
     if bytes.is_empty() {
         return Err(err(path, None, "empty file"));
     }
-    if !bytes.len().is_multiple_of(16) {
+    let size = fields.record_bytes();
+    if !bytes.len().is_multiple_of(size) {
+        let other: Vec<String> = [16, 20, 24]
+            .into_iter()
+            .filter(|s| *s != size && bytes.len().is_multiple_of(*s))
+            .map(|s| format!("{} floats", s / 4))
+            .collect();
+        let hint = if other.is_empty() {
+            "the file may be cut short".to_owned()
+        } else {
+            format!(
+                "its size fits records of {}: set --bin-fields (x,y,z,i,ring is nuScenes' 5 floats)",
+                other.join(" or ")
+            )
+        };
         return Err(err(
             path,
             None,
             format!(
-                "truncated: {} bytes is not a whole number of 16-byte points",
-                bytes.len()
+                "{} bytes is not a whole number of {size}-byte points ({}); {hint}",
+                bytes.len(),
+                fields.names.join(",")
             ),
         ));
     }
     let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+    let [x, y, z] = fields.xyz.map(|k| 4 * k);
     Ok(bytes
-        .chunks_exact(16)
-        .map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12])])
+        .chunks_exact(size)
+        .map(|c| [f(&c[x..x + 4]), f(&c[y..y + 4]), f(&c[z..z + 4])])
         .collect())
 }
 
@@ -96,9 +166,34 @@ mod tests {
         let p = dir.join("000000.bin");
         std::fs::write(&p, [0u8; 20]).unwrap();
         let e = read_bin(&p).unwrap_err();
-        assert!(e.to_string().contains("000000.bin") && e.reason.contains("truncated"));
+        assert!(e.to_string().contains("000000.bin"), "{e}");
+        assert_eq!(
+            e.reason,
+            "20 bytes is not a whole number of 16-byte points (x,y,z,i); its size fits \
+             records of 5 floats: set --bin-fields (x,y,z,i,ring is nuScenes' 5 floats)"
+        );
+        std::fs::write(&p, [0u8; 18]).unwrap();
+        assert!(read_bin(&p)
+            .unwrap_err()
+            .reason
+            .ends_with("the file may be cut short"));
         std::fs::write(&p, []).unwrap();
         assert!(read_bin(&p).unwrap_err().reason.contains("empty"));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bin_fields_pick_the_coordinates_out_of_any_float_record() {
+        let ring_first = BinFields::parse("ring,x,y,z,i").unwrap();
+        let bytes: Vec<u8> = [7.0f32, 1.0, 2.0, 3.0, 0.5, 8.0, 4.0, 5.0, 6.0, 0.5]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let pts = parse_bin_as(Path::new("a.bin"), &bytes, &ring_first).unwrap();
+        assert_eq!(pts, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert!(BinFields::parse("x,y,i").unwrap_err().contains("has no z"));
+        assert!(BinFields::parse("x,y,z,x")
+            .unwrap_err()
+            .contains("names x twice"));
     }
 }

@@ -36,6 +36,8 @@ pub struct ScanFolder {
     pub stamps: Vec<f64>,
     /// Where they came from.
     pub stamps_from: Stamps,
+    /// The record layout of `.bin` files.
+    pub bin_fields: kitti::BinFields,
 }
 
 impl ScanFolder {
@@ -49,6 +51,7 @@ impl ScanFolder {
                 paths: vec![input.to_path_buf()],
                 stamps,
                 stamps_from,
+                bin_fields: kitti::BinFields::default(),
             });
         }
         if !input.exists() {
@@ -86,6 +89,7 @@ impl ScanFolder {
             paths,
             stamps,
             stamps_from,
+            bin_fields: kitti::BinFields::default(),
         })
     }
 
@@ -107,14 +111,19 @@ pub fn is_scan(path: &Path) -> bool {
         .is_some_and(|e| EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
 }
 
-/// Reads one scan by its extension.
+/// Reads one scan by its extension (`.bin` files as KITTI's `x,y,z,i`).
 pub fn read_scan(path: &Path) -> Result<Vec<Point>, FileError> {
+    read_scan_as(path, &kitti::BinFields::default())
+}
+
+/// Reads one scan by its extension, `.bin` files as `bin_fields`.
+pub fn read_scan_as(path: &Path, bin_fields: &kitti::BinFields) -> Result<Vec<Point>, FileError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
-        Some("bin") => kitti::read_bin(path),
+        Some("bin") => kitti::read_bin_as(path, bin_fields),
         Some("pcd") => pcd::read_pcd(path),
         Some("ply") => ply::read_ply_points(path),
         _ => Err(FileError::at(path, "not a scan file (.bin, .pcd or .ply)")),

@@ -3,7 +3,8 @@
 //! a folder of scans or a robot recording, told apart by content.
 
 use crate::io::error::FileError;
-use crate::io::scans::{read_scan, ScanFolder};
+use crate::io::kitti::BinFields;
+use crate::io::scans::{read_scan_as, ScanFolder};
 use slamesh_core::Point;
 
 /// Frames to run over.
@@ -29,8 +30,13 @@ pub enum Input {
 
 impl Input {
     /// Opens `path`: a recording if its content says so (reading `topic`, or the only
-    /// PointCloud2 topic), otherwise scan files. `topic` given for scan files is an error.
-    pub fn open(path: &std::path::Path, topic: Option<&str>) -> Result<Self, FileError> {
+    /// PointCloud2 topic), otherwise scan files (`.bin` ones as `bin_fields`). `topic` given
+    /// for scan files is an error.
+    pub fn open(
+        path: &std::path::Path,
+        topic: Option<&str>,
+        bin_fields: BinFields,
+    ) -> Result<Self, FileError> {
         #[cfg(feature = "recordings")]
         if let Some(container) = crate::io::recording::Container::detect(path) {
             let rec = crate::io::recording::Recording::open(container?, topic)?;
@@ -42,7 +48,9 @@ impl Input {
                 "--topic is for recordings (ROS 1 bags, MCAP, ROS 2 bag folders), and this is not one",
             ));
         }
-        ScanFolder::open(path).map(Input::Folder)
+        let mut folder = ScanFolder::open(path)?;
+        folder.bin_fields = bin_fields;
+        Ok(Input::Folder(folder))
     }
 
     /// What was opened, for the log: "12 frames of /points" or "12 scan files".
@@ -106,7 +114,7 @@ impl FrameSource for ScanFolder {
         self.stamps[i]
     }
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
-        read_scan(&self.paths[i])
+        read_scan_as(&self.paths[i], &self.bin_fields)
     }
 }
 
