@@ -106,7 +106,7 @@ fn bad_frames_are_reported_and_skipped_and_the_run_completes() {
     let err = text(&o.stderr);
     for (file, reason) in [
         ("000001.bin", "empty file"),
-        ("000003.bin", "truncated"),
+        ("000003.bin", "not a whole number of 16-byte points"),
         ("000005.pcd", "not a PCD header line"),
     ] {
         assert!(

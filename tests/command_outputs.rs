@@ -300,7 +300,10 @@ fn mesh_mode_with_fewer_poses_than_frames_meshes_those_and_skips_the_rest() {
         "-q",
     ]);
     assert!(
-        text(&o.stderr).contains("2 poses for 4 frames; frames without a pose are skipped"),
+        text(&o.stderr).contains(
+            "2 poses for 4 frames, matched to frames by time (within 0.050 s); frames without \
+             a pose are skipped"
+        ) && text(&o.stderr).contains("frame 2: no given pose within 0.050 s of its time 0.2"),
         "{}",
         text(&o.stderr)
     );

@@ -166,7 +166,10 @@ fn verbosity_follows_v_q_and_rust_log() {
         text(&c.output().unwrap().stderr)
     };
     let normal = run(&[], None);
-    assert!(normal.contains("slamesh: 4 frames from"), "{normal}");
+    assert!(
+        normal.contains("slamesh: 4 scan files (times assumed 10 Hz"),
+        "{normal}"
+    );
     assert!(!normal.contains("slamesh: debug: "), "{normal}");
     let verbose = run(&["-v"], None);
     assert!(

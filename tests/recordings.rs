@@ -43,7 +43,12 @@ fn every_container_gives_the_folder_runs_outputs() {
     );
     for rec in RECORDINGS {
         let out = dir.join(rec.replace('/', "-"));
-        slamesh_run_ok(&fixtures().join(rec), &out, &["--no-picture"]);
+        // The folder's scans have no point times: compare without deskewing.
+        slamesh_run_ok(
+            &fixtures().join(rec),
+            &out,
+            &["--no-picture", "--deskew", "off"],
+        );
         for f in ["poses_kitti.txt", "poses_tum.txt", "mesh.ply"] {
             let (a, b) = (
                 std::fs::read(folder.join(f)).unwrap(),
@@ -52,6 +57,35 @@ fn every_container_gives_the_folder_runs_outputs() {
             assert!(a == b, "{rec}: {f} differs from the folder run's");
         }
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Points deskewed in each frame of a run on `rec` with `--deskew auto`.
+fn deskewed(rec: &str, out: &Path) -> Vec<u64> {
+    slamesh_run_ok(&fixtures().join(rec), out, &["--no-picture"]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    report["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["deskewed_points"].as_u64().unwrap())
+        .collect()
+}
+
+#[test]
+fn clouds_with_point_times_are_deskewed_once_the_motion_is_known() {
+    let dir = scratch("recordings-deskew");
+    // Velodyne's `time` (float32 seconds), Ouster's `t` (uint32 nanoseconds): the third frame
+    // is the first with two frames before it, so a motion to extrapolate.
+    for rec in ["bag/lz4.bag", "mcap/cdr-zstd.mcap", "ros2-mcap"] {
+        let d = deskewed(rec, &dir.join(rec.replace('/', "-")));
+        assert_eq!(d.len(), 3);
+        assert_eq!(d[..2], [0, 0], "{rec}");
+        assert!(d[2] > 3_000, "{rec}: {d:?}");
+    }
+    // No time field: nothing to deskew.
+    assert_eq!(deskewed("ros2-db3", &dir.join("db3")), vec![0, 0, 0]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -47,6 +47,7 @@ pub mod bucket;
 pub mod capacity;
 pub mod cell;
 pub mod config;
+pub mod deskew;
 pub mod executor;
 pub mod filter;
 pub mod fusion;

@@ -60,6 +60,24 @@ pub fn se3_exp(xi: &Twist) -> Pose {
     )
 }
 
+/// The logarithm of SE(3), the inverse of [`se3_exp`]: `ξ = (ω, ρ)` with `ω` the rotation's
+/// scaled axis (|ω| < π) and `ρ = V⁻¹ t`, where
+/// `V⁻¹ = I - ω^/2 + (1 - θ sin θ / (2 (1 - cos θ)))/θ² ω^²` (series near θ = 0).
+pub fn se3_log(pose: &Pose) -> Twist {
+    let omega = pose.rotation.scaled_axis();
+    let theta2 = omega.norm_squared();
+    let theta = libm::sqrt(theta2);
+    let w = skew(&omega);
+    let c = if theta < 1e-4 {
+        1.0 / 12.0 + theta2 / 720.0
+    } else {
+        (1.0 - theta * libm::sin(theta) / (2.0 * (1.0 - libm::cos(theta)))) / theta2
+    };
+    let v_inv = Mat3::identity() - w * 0.5 + w * w * c;
+    let rho = v_inv * pose.translation.vector;
+    Twist::new(omega.x, omega.y, omega.z, rho.x, rho.y, rho.z)
+}
+
 /// `pose` with its rotation quaternion scaled back to unit length.
 ///
 /// Composing poses loses a few ulps of the quaternion's norm each time, and the constant
@@ -247,6 +265,19 @@ mod tests {
         }
         assert!(worst <= 2.0, "sqrt_f32: {worst} ulp");
         assert!(sqrt_f32(0.0) < 1e-18 && sqrt_f32(-1.0).is_nan() && sqrt_f32(f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn log_inverts_exp() {
+        for xi in [
+            Twist::new(0.0, 0.0, 0.0, 1.0, -2.0, 0.5),
+            Twist::new(0.3, -0.2, 0.9, 1.0, -2.0, 0.5),
+            Twist::new(1e-7, 0.0, -2e-7, 0.1, 0.0, 0.0),
+            Twist::new(0.0, 2.5, 0.0, 0.0, 0.0, 3.0),
+        ] {
+            let back = se3_log(&se3_exp(&xi));
+            assert!((back - xi).norm() < 1e-9, "{xi} -> {back}");
+        }
     }
 
     #[test]

@@ -3,6 +3,7 @@
 use crate::lidar::Lidar;
 use crate::scene::Scene;
 use nalgebra::{Point3, Translation3, UnitQuaternion};
+use slamesh_core::math::{se3_exp, se3_log};
 use slamesh_core::random::SplitMix64;
 use slamesh_core::{Point, Pose};
 
@@ -30,6 +31,10 @@ pub struct Drive {
     pub dropout: f64,
     /// Seed of the noise and dropouts (frame `i` uses `seed + i`).
     pub seed: u64,
+    /// A rolling sweep of this many seconds (the frame period, 0.1 s at 10 Hz): each firing
+    /// from the pose at its own time, moving from `poses[i]` towards `poses[i + 1]`
+    /// ([`Drive::scan_timed`]). `None`: every firing from `poses[i]`.
+    pub sweep_s: Option<f64>,
 }
 
 impl Drive {
@@ -53,6 +58,7 @@ impl Drive {
             noise_m: 0.02,
             dropout: 0.0,
             seed,
+            sweep_s: None,
         }
     }
 
@@ -71,7 +77,17 @@ impl Drive {
             noise_m: 0.02,
             dropout: 0.05,
             seed,
+            sweep_s: None,
         }
+    }
+
+    /// [`Drive::town`] with a car's smooth attitude ([`crate::town::car_poses`]): for rolling
+    /// sweeps, where a jittery pitch and roll would be motion no scanner deskews without an
+    /// IMU.
+    pub fn car(frames: usize, seed: u64) -> Self {
+        let mut d = Self::town(frames, seed);
+        d.poses = crate::town::car_poses(&d.scene, frames);
+        d
     }
 
     /// Up to `frames` scans (2 a second) of a rig carried through [`crate::town`]'s town as
@@ -94,6 +110,7 @@ impl Drive {
             noise_m: 0.02,
             dropout: 0.05,
             seed,
+            sweep_s: None,
         }
     }
 
@@ -113,13 +130,44 @@ impl Drive {
 
     /// The noisy scan of frame `i` in the sensor frame: the [`Lidar`]'s returns, a share
     /// `dropout` of them lost and Gaussian noise of `noise_m` along each ray, from seed
-    /// `seed + i` (the same scan every time).
+    /// `seed + i` (the same scan every time). With a rolling sweep, each point is in the
+    /// sensor frame of its own time ([`Drive::scan_timed`] gives the times).
     pub fn scan(&self, i: usize) -> Vec<Point> {
+        self.scan_timed(i).0
+    }
+
+    /// [`Drive::scan`] with each point's time after the frame's stamp (seconds): all 0 without
+    /// a rolling sweep.
+    pub fn scan_timed(&self, i: usize) -> (Vec<Point>, Vec<f32>) {
         let mut rng = SplitMix64(self.seed.wrapping_add(i as u64));
-        let mut points = self.lidar.scan(&self.scene, &self.poses[i]);
+        let (mut points, mut times) = match self.sweep_s {
+            None => {
+                let p = self.lidar.scan(&self.scene, &self.poses[i]);
+                let n = p.len();
+                (p, vec![0.0; n])
+            }
+            Some(period) => {
+                let (from, to) = match (self.poses.get(i + 1), i.checked_sub(1)) {
+                    (Some(next), _) => (self.poses[i], *next),
+                    // The last frame: the step before, repeated.
+                    (None, Some(prev)) => {
+                        let p = self.poses[i];
+                        (p, p * (self.poses[prev].inverse() * p))
+                    }
+                    (None, None) => (self.poses[i], self.poses[i]),
+                };
+                let step = se3_log(&(from.inverse() * to));
+                let pose_at = |t: f64| from * se3_exp(&(step * (t / period)));
+                self.lidar.scan_rolling(&self.scene, pose_at, period)
+            }
+        };
         if self.dropout > 0.0 {
             let dropout = self.dropout;
-            points.retain(|_| rng.next_f64() >= dropout);
+            let keep: Vec<bool> = points.iter().map(|_| rng.next_f64() >= dropout).collect();
+            let mut k = keep.iter();
+            points.retain(|_| *k.next().expect("one flag a point"));
+            let mut k = keep.iter();
+            times.retain(|_| *k.next().expect("one flag a point"));
         }
         for p in &mut points {
             // Box-Muller: one Gaussian sample along the ray.
@@ -129,6 +177,6 @@ impl Drive {
             let k = ((r + n) / r) as f32;
             *p = p.map(|c| c * k);
         }
-        points
+        (points, times)
     }
 }

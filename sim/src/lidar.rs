@@ -57,4 +57,45 @@ impl Lidar {
         }
         out
     }
+
+    /// One noise-free rolling sweep: firing by firing round the turn, each cast from the pose
+    /// the sensor has at its own time, `pose_at(t)` for `t` from 0 to `period_s` (the start of
+    /// the sweep is the scan's stamp). Each point is in the sensor frame of its own time, as a
+    /// real spinning LiDAR reports it, with that time (seconds after the stamp).
+    pub fn scan_rolling(
+        &self,
+        scene: &Scene,
+        pose_at: impl Fn(f64) -> Pose,
+        period_s: f64,
+    ) -> (Vec<Point>, Vec<f32>) {
+        let (start, end) = (pose_at(0.0), pose_at(period_s));
+        let travel = (end.translation.vector - start.translation.vector).norm();
+        let scene = Prepared::new(scene, &start.translation.vector, self.max_range_m + travel);
+        let mut points = Vec::with_capacity(self.beams * self.azimuth_steps);
+        let mut times = Vec::with_capacity(self.beams * self.azimuth_steps);
+        for step in 0..self.azimuth_steps {
+            let t = period_s * step as f64 / self.azimuth_steps as f64;
+            let pose = pose_at(t);
+            let origin = pose.translation.vector;
+            let az = std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
+            for beam in 0..self.beams {
+                let f = if self.beams > 1 {
+                    beam as f64 / (self.beams - 1) as f64
+                } else {
+                    0.0
+                };
+                let el = (self.elevation_min_deg
+                    + f * (self.elevation_max_deg - self.elevation_min_deg))
+                    .to_radians();
+                let dir_s = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                let dir_w = pose.rotation * dir_s;
+                if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
+                    let p = dir_s * range;
+                    points.push([p.x as f32, p.y as f32, p.z as f32]);
+                    times.push(t as f32);
+                }
+            }
+        }
+        (points, times)
+    }
 }

@@ -38,13 +38,21 @@ pub struct Terrain {
 impl Terrain {
     /// Height above `ground_z` at `(x, y)`.
     pub fn height(&self, x: f64, y: f64) -> f64 {
+        self.hills(x, y) + self.rough(x, y)
+    }
+
+    /// The hills alone: what a car body follows, its suspension taking up the roughness.
+    pub fn hills(&self, x: f64, y: f64) -> f64 {
         let k = std::f64::consts::TAU / self.hill_wavelength_m;
-        let hills = self.hill_m * (k * x).sin() * (0.8 * k * y + 0.5).cos();
-        let rough = self.roughness_m
+        self.hill_m * (k * x).sin() * (0.8 * k * y + 0.5).cos()
+    }
+
+    /// The roughness alone.
+    fn rough(&self, x: f64, y: f64) -> f64 {
+        self.roughness_m
             * (0.5 * (1.3 * x + 0.4 * y).sin()
                 + 0.3 * (0.9 * y - 1.7).sin()
-                + 0.2 * (2.0 * x - 1.1 * y + 0.7).sin());
-        hills + rough
+                + 0.2 * (2.0 * x - 1.1 * y + 0.7).sin())
     }
 
     /// An upper bound on the slope `|∇h|`.

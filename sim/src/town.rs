@@ -208,6 +208,28 @@ pub fn route() -> Vec<[f64; 2]> {
 /// The sensor sits `SENSOR_HEIGHT_M` above the ground, level with it (pitch and roll follow
 /// the slope).
 pub fn drive_poses(scene: &Scene, frames: usize) -> Vec<Pose> {
+    poses_along_route(frames, |x, y| scene.ground_height(x, y))
+}
+
+/// [`drive_poses`] for a car body: its height, pitch and roll follow the hills only (the
+/// suspension takes up the few centimetres of roughness), over a 2.7 m wheelbase and a 1.6 m
+/// track. A smooth attitude, as a car's is, which a constant-velocity model predicts well.
+pub fn car_poses(scene: &Scene, frames: usize) -> Vec<Pose> {
+    let ground = scene.ground_z;
+    match scene.terrain {
+        Some(t) => poses_along_route_with(frames, |x, y| ground + t.hills(x, y), [1.35, 0.8]),
+        None => poses_along_route_with(frames, |_, _| ground, [1.35, 0.8]),
+    }
+}
+
+/// Poses along the route over the ground `h`, the attitude from `h` 0.5 m either side.
+fn poses_along_route(frames: usize, h: impl Fn(f64, f64) -> f64) -> Vec<Pose> {
+    poses_along_route_with(frames, h, [0.5, 0.5])
+}
+
+/// Poses along the route over the ground `h`, the pitch from `h` `half[0]` m ahead and behind,
+/// the roll from `h` `half[1]` m to each side.
+fn poses_along_route_with(frames: usize, h: impl Fn(f64, f64) -> f64, half: [f64; 2]) -> Vec<Pose> {
     let path = route();
     let mut cum = vec![0.0];
     for w in path.windows(2) {
@@ -237,11 +259,10 @@ pub fn drive_poses(scene: &Scene, frames: usize) -> Vec<Pose> {
     let mut poses = Vec::with_capacity(frames);
     while poses.len() < frames && s < total {
         let ([x, y], yaw) = at(s);
-        let h = |x: f64, y: f64| scene.ground_height(x, y);
         let (c, sn) = (yaw.cos(), yaw.sin());
-        let e = 0.5;
+        let [e, w] = half;
         let slope_fwd = (h(x + e * c, y + e * sn) - h(x - e * c, y - e * sn)) / (2.0 * e);
-        let slope_left = (h(x - e * sn, y + e * c) - h(x + e * sn, y - e * c)) / (2.0 * e);
+        let slope_left = (h(x - w * sn, y + w * c) - h(x + w * sn, y - w * c)) / (2.0 * w);
         let rotation = UnitQuaternion::from_euler_angles(slope_left.atan(), -slope_fwd.atan(), yaw);
         poses.push(Pose::from_parts(
             Translation3::new(x, y, h(x, y) + SENSOR_HEIGHT_M),

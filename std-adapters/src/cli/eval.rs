@@ -100,20 +100,41 @@ fn trajectory_errors(
     calib: Option<&Path>,
     json: bool,
 ) -> Result<(), CliError> {
-    let est = trajectory::read(estimate)?.poses;
-    let reference = if reference.is_dir() {
-        kitti::reference_lidar_poses(reference)
+    let est_t = trajectory::read(estimate)?;
+    let ref_t = if reference.is_dir() {
+        kitti_reference(reference)?
     } else {
-        read_given_poses(reference, calib)
-    }?;
-    if est.len() != reference.len() {
+        read_given_poses(reference, calib)?
+    };
+    // Matched by time when both carry times (TUM files, a KITTI folder's times.txt), so that
+    // frames a run skipped do not shift the pairs; by line otherwise.
+    let (pairs, missing) = est_t.pair_with(&ref_t);
+    if !missing.is_empty() {
+        let named: Vec<String> = missing
+            .iter()
+            .take(5)
+            .map(|&i| match &est_t.stamps {
+                Some(s) => format!("line {} (time {:.6})", i + 1, s[i]),
+                None => format!("line {}", i + 1),
+            })
+            .collect();
         log::warn!(
-            "{} estimated poses, {} reference poses; comparing the first {}",
-            est.len(),
-            reference.len(),
-            est.len().min(reference.len())
+            "{} estimated poses have no reference pose{}: {}{}",
+            missing.len(),
+            if est_t.stamps.is_some() && ref_t.stamps.is_some() {
+                format!(
+                    " within {:.3} s",
+                    est_t.tolerance_s().max(ref_t.tolerance_s())
+                )
+            } else {
+                String::new()
+            },
+            named.join(", "),
+            if missing.len() > 5 { ", ..." } else { "" }
         );
     }
+    let est: Vec<_> = pairs.iter().map(|&(i, _)| est_t.poses[i]).collect();
+    let reference: Vec<_> = pairs.iter().map(|&(_, k)| ref_t.poses[k]).collect();
     let e = consecutive_errors(&est, &reference);
     let n = est.len().min(reference.len());
     let path_m = eval::path_length(&reference[..n]);
@@ -224,4 +245,23 @@ fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
         out.display()
     );
     Ok(())
+}
+
+/// A KITTI sequence folder's LiDAR poses, with its `times.txt` as their times when it has
+/// one time a pose.
+fn kitti_reference(sequence: &Path) -> Result<trajectory::Trajectory, slamesh::io::FileError> {
+    let poses = kitti::reference_lidar_poses(sequence)?;
+    let stamps = std::fs::read_to_string(sequence.join("times.txt"))
+        .ok()
+        .and_then(|t| {
+            t.split_whitespace()
+                .map(|w| w.parse::<f64>().ok())
+                .collect::<Option<Vec<_>>>()
+        })
+        .filter(|s| s.len() == poses.len());
+    Ok(trajectory::Trajectory {
+        format: trajectory::Format::Kitti,
+        stamps,
+        poses,
+    })
 }

@@ -9,10 +9,12 @@ use clap::Args;
 use indicatif::ProgressBar;
 use slamesh::io::kitti::BinFields;
 use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::io::trajectory::Trajectory;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::run::capacity;
+use slamesh::run::session::Deskew;
 use slamesh::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
-use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, Pose, SmallCapacity};
+use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use std::path::{Path, PathBuf};
 
 /// `slamesh run`'s arguments (and most of `slamesh mesh`'s).
@@ -54,6 +56,11 @@ pub struct RunArgs {
     /// the same.
     #[arg(long)]
     pub strict: bool,
+    /// Deskew scans whose points carry times (recordings with a `t`, `time`, `timestamp` or
+    /// `offset_time` field) with the motion between the last two frames: auto does whenever
+    /// the times exist.
+    #[arg(long, value_enum, default_value_t = DeskewFlag::Auto)]
+    pub deskew: DeskewFlag,
     /// Do not draw topview.png (the mesh from above with the path; 7 MB while it is drawn).
     #[arg(long)]
     pub no_picture: bool,
@@ -63,6 +70,15 @@ pub struct RunArgs {
     /// within range with a quarter to spare.
     #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
     pub capacity: CapacityFlag,
+}
+
+/// `--deskew`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DeskewFlag {
+    /// Whenever the points carry times.
+    Auto,
+    /// Never.
+    Off,
 }
 
 /// `--capacity`.
@@ -111,19 +127,28 @@ pub fn run_command(args: &RunArgs, quiet: bool) -> Result<(), CliError> {
 fn run_with(
     args: &RunArgs,
     default_preset: &str,
-    given: Option<Vec<Pose>>,
+    given: Option<Trajectory>,
     quiet: bool,
 ) -> Result<(), CliError> {
     let mut s = args.profile.resolve(default_preset)?;
     args.window.apply(&mut s.window)?;
     let mut source = Input::open(&args.input, args.topic.as_deref(), args.bin_fields.clone())?;
     if let Some(p) = &given {
-        if p.len() < source.frames() {
+        let how = match p.stamps {
+            Some(_) => format!(
+                "matched to frames by time (within {:.3} s)",
+                p.tolerance_s()
+            ),
+            None => "taken in line order".to_string(),
+        };
+        if p.poses.len() < source.frames() {
             log::warn!(
-                "{} poses for {} frames; frames without a pose are skipped",
-                p.len(),
+                "{} poses for {} frames, {how}; frames without a pose are skipped",
+                p.poses.len(),
                 source.frames()
             );
+        } else {
+            log::info!("{} poses, {how}", p.poses.len());
         }
     }
     let mut mesh_formats = vec![MeshFormat::Ply];
@@ -142,6 +167,10 @@ fn run_with(
         checkpoint_every: args.checkpoint_every.map(|n| n as usize),
         resume: args.resume,
         picture: !args.no_picture,
+        deskew: match args.deskew {
+            DeskewFlag::Auto => Deskew::Auto,
+            DeskewFlag::Off => Deskew::Off,
+        },
     };
     let bar = progress(source.frames(), quiet);
     log::info!(
@@ -289,13 +318,14 @@ pub fn print_summary(s: &Summary, out: &Path) {
     );
 }
 
-/// LiDAR poses from a trajectory file; with `calib`, KITTI camera poses turned into LiDAR ones.
-pub fn read_given_poses(path: &Path, calib: Option<&Path>) -> Result<Vec<Pose>, FileError> {
-    let poses = trajectory::read(path)?.poses;
-    Ok(match calib {
-        Some(c) => kitti::lidar_poses(&poses, &kitti::read_calib_tr(c)?),
-        None => poses,
-    })
+/// LiDAR poses from a trajectory file (with its stamps, if TUM); with `calib`, KITTI camera
+/// poses turned into LiDAR ones.
+pub fn read_given_poses(path: &Path, calib: Option<&Path>) -> Result<Trajectory, FileError> {
+    let mut t = trajectory::read(path)?;
+    if let Some(c) = calib {
+        t.poses = kitti::lidar_poses(&t.poses, &kitti::read_calib_tr(c)?);
+    }
+    Ok(t)
 }
 
 /// `--bin-fields`.

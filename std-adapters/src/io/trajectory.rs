@@ -116,6 +116,71 @@ pub fn read(path: &Path) -> Result<Trajectory, FileError> {
     })
 }
 
+impl Trajectory {
+    /// Half the median spacing of the stamps (seconds): how far a frame's time may be from a
+    /// pose's for them to match. 0.05 s (half of 10 Hz) without two stamps.
+    pub fn tolerance_s(&self) -> f64 {
+        let Some(s) = &self.stamps else { return 0.05 };
+        let mut d: Vec<f64> = s.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+        if d.is_empty() {
+            return 0.05;
+        }
+        d.sort_by(f64::total_cmp);
+        d[d.len() / 2] / 2.0
+    }
+
+    /// The pose of frame `i` recorded at `stamp`: with TUM stamps, the pose whose stamp is
+    /// nearest, if within [`Self::tolerance_s`]; without, line `i`.
+    pub fn pose_at(&self, i: usize, stamp: f64) -> Option<Pose> {
+        let Some(s) = &self.stamps else {
+            return self.poses.get(i).copied();
+        };
+        let tol = self.tolerance_s();
+        let k = nearest(s, stamp)?;
+        ((s[k] - stamp).abs() <= tol).then(|| self.poses[k])
+    }
+
+    /// Pairs of (line in `self`, line in `other`) for the same instant: by nearest stamp when
+    /// both have stamps (within `self`'s tolerance, each of `other`'s lines used once), by
+    /// line order otherwise. Lines of `self` left unpaired are listed second.
+    pub fn pair_with(&self, other: &Trajectory) -> (Vec<(usize, usize)>, Vec<usize>) {
+        match (&self.stamps, &other.stamps) {
+            (Some(a), Some(b)) => {
+                let tol = self.tolerance_s().max(other.tolerance_s());
+                let mut pairs = Vec::new();
+                let mut missing = Vec::new();
+                let mut last = None;
+                for (i, &t) in a.iter().enumerate() {
+                    match nearest(b, t).filter(|&k| (b[k] - t).abs() <= tol && Some(k) != last) {
+                        Some(k) => {
+                            pairs.push((i, k));
+                            last = Some(k);
+                        }
+                        None => missing.push(i),
+                    }
+                }
+                (pairs, missing)
+            }
+            _ => {
+                let n = self.poses.len().min(other.poses.len());
+                (
+                    (0..n).map(|i| (i, i)).collect(),
+                    (n..self.poses.len()).collect(),
+                )
+            }
+        }
+    }
+}
+
+/// The index of the stamp nearest `t` in `s` (sorted ascending, as recorded), if any.
+fn nearest(s: &[f64], t: f64) -> Option<usize> {
+    let k = s.partition_point(|&x| x < t);
+    [k.checked_sub(1), (k < s.len()).then_some(k)]
+        .into_iter()
+        .flatten()
+        .min_by(|&a, &b| (s[a] - t).abs().total_cmp(&(s[b] - t).abs()))
+}
+
 /// Reads a KITTI trajectory (an error if the file is TUM).
 pub fn read_kitti(path: &Path) -> Result<Vec<Pose>, FileError> {
     let t = read(path)?;
@@ -188,5 +253,34 @@ mod tests {
             "{e}"
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn tum_poses_match_frames_by_time_not_line() {
+        let at = |x: f64| Pose::translation(x, 0.0, 0.0);
+        let t = Trajectory {
+            format: Format::Tum,
+            stamps: Some(vec![100.0, 100.1, 100.3, 100.4]),
+            poses: vec![at(0.0), at(1.0), at(3.0), at(4.0)],
+        };
+        assert!((t.tolerance_s() - 0.05).abs() < 1e-9);
+        // Frame 2 (at 100.2) has no pose: the trajectory skipped it.
+        assert_eq!(t.pose_at(2, 100.2), None);
+        assert_eq!(t.pose_at(3, 100.31), Some(at(3.0)));
+        assert_eq!(t.pose_at(0, 99.0), None);
+        let frames = Trajectory {
+            stamps: Some(vec![100.0, 100.1, 100.2, 100.3, 100.4]),
+            ..t.clone()
+        };
+        let (pairs, missing) = frames.pair_with(&t);
+        assert_eq!(pairs, vec![(0, 0), (1, 1), (3, 2), (4, 3)]);
+        assert_eq!(missing, vec![2]);
+        let kitti = Trajectory {
+            format: Format::Kitti,
+            stamps: None,
+            poses: vec![at(0.0); 3],
+        };
+        assert_eq!(kitti.pose_at(1, 55.0), Some(at(0.0)));
+        assert_eq!(kitti.pair_with(&t).0, vec![(0, 0), (1, 1), (2, 2)]);
     }
 }

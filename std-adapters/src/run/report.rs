@@ -58,6 +58,8 @@ pub struct FrameRecord {
     pub degenerate_directions: usize,
     /// Resident memory after the frame (MB).
     pub rss_mb: Option<f64>,
+    /// Points moved by deskewing (0: the scan had no point times, or was not deskewed).
+    pub deskewed_points: usize,
 }
 
 impl FrameRecord {
@@ -82,6 +84,7 @@ impl FrameRecord {
             conditioning: 0.0,
             degenerate_directions: 0,
             rss_mb: None,
+            deskewed_points: 0,
         }
     }
 }

@@ -15,6 +15,7 @@ use crate::io::atomic::open_cut;
 use crate::io::config_file::WindowSettings;
 use crate::io::error::FileError;
 use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
+use crate::io::trajectory::Trajectory;
 use crate::parallel::Workers;
 use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
@@ -26,6 +27,7 @@ use crate::run::report::{
 use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
+use slamesh_core::deskew;
 use slamesh_core::layer::Shown;
 use slamesh_core::{Capacity, Config, ConfigError, Pipeline, Pose};
 use std::fmt;
@@ -50,8 +52,9 @@ pub struct RunOptions {
     pub threads: usize,
     /// Mesh files to write (`mesh.ply`, `mesh.obj`; none: no mesh file).
     pub mesh_formats: Vec<MeshFormat>,
-    /// Poses to mesh with instead of estimating them (meshing only), one per frame.
-    pub given_poses: Option<Vec<Pose>>,
+    /// Poses to mesh with instead of estimating them (meshing only): matched to frames by
+    /// time when the trajectory has stamps (TUM), by line otherwise.
+    pub given_poses: Option<Trajectory>,
     /// What the input was (for the report).
     pub input: String,
     /// Write a checkpoint after every this many frames ([`crate::run::checkpoint`]).
@@ -60,6 +63,19 @@ pub struct RunOptions {
     pub resume: bool,
     /// Also write `topview.png`: the mesh from above, coloured by height, with the path.
     pub picture: bool,
+    /// Whether to deskew scans whose points carry times.
+    pub deskew: Deskew,
+}
+
+/// `--deskew`: whether scans whose points carry times are deskewed before registration
+/// ([`slamesh_core::deskew`]), with the motion between the last two used frames.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Deskew {
+    /// Whenever the points have times and two frames were used before.
+    #[default]
+    Auto,
+    /// Never.
+    Off,
 }
 
 /// Why a run could not start or finish.
@@ -248,6 +264,17 @@ impl<'a, C: Capacity> Run<'a, C> {
         &self.pipeline
     }
 
+    /// The body-frame motion between the last two used frames and the seconds between their
+    /// stamps: what deskewing extrapolates. `None` before two frames were used.
+    fn last_motion(&self, source: &impl FrameSource) -> Option<(Pose, f64)> {
+        let (before, last) = self.pipeline.motion().history();
+        let [.., (a, _), (b, _)] = self.progress.poses[..] else {
+            return None;
+        };
+        let dt = source.stamp(b) - source.stamp(a);
+        Some((before?.inverse() * last?, dt))
+    }
+
     /// Runs frame `i`: reads it, estimates its pose (or takes the given one), counts the
     /// triangles it updated, applies the window, spools its record and, when one is due,
     /// writes a checkpoint. A frame that cannot be read or used is recorded as skipped with
@@ -259,42 +286,79 @@ impl<'a, C: Capacity> Run<'a, C> {
     ) -> Result<FrameRecord, RunError> {
         let mut rec = FrameRecord::skipped(i, source.label(i));
         let t_read = Instant::now();
-        let scan = source.read(i);
+        let scan = source.read_timed(i);
         let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
+        let motion = self.last_motion(source);
         let (pipeline, workers, timer) = (&mut self.pipeline, &self.workers, &mut self.timer);
         let filter = &self.opts.config.filter;
-        let outcome = scan.map_err(|e| e.to_string()).and_then(|points| {
-            rec.points = points.len();
-            if points.len() > C::POINTS {
-                let n = capacity::points_in_range(&points, filter);
-                if n > C::POINTS {
-                    let advice = match capacity::class_holding(n) {
-                        Some(c) => format!("run with --capacity {}", c.flag),
-                        None => "no class holds it: thin the scan, or narrow \
-                                 filter.range_min_m and filter.range_max_m"
-                            .to_string(),
-                    };
-                    return Err(format!(
-                        "{}: frame {i}: {n} points within range, more than the {} capacity \
-                         holds ({}): {advice}",
-                        source.label(i),
-                        C::NAME,
-                        C::POINTS
-                    ));
+        let deskew = self.opts.deskew;
+        // The motion, interval and reference time a deskewed scan was moved with: its pose is
+        // the reference time's, and the trajectory takes it back to the stamp.
+        let mut to_stamp: Option<(Pose, f64, f64)> = None;
+        let outcome = scan
+            .map_err(|e| e.to_string())
+            .and_then(|(mut points, times)| {
+                rec.points = points.len();
+                if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &times, motion) {
+                    let t = Instant::now();
+                    let d = deskew::deskew(&mut points, times, &m, dt).map_err(|e| {
+                        format!("{}: frame {i}: cannot deskew: {e:?}", source.label(i))
+                    })?;
+                    rec.deskewed_points = d.moved;
+                    rec.ms.deskew = t.elapsed().as_secs_f64() * 1e3;
+                    // The points now sit in the sensor frame at `reference_s`.
+                    to_stamp = (d.moved > 0).then_some((m, dt, d.reference_s));
                 }
-            }
-            let given = match &self.opts.given_poses {
-                Some(p) => Some(p.get(i).ok_or("no given pose for this frame")?),
-                None => None,
-            };
-            let r = match given {
-                Some(pose) => pipeline.integrate_scan_with(&points, pose, workers, timer),
-                None => pipeline.process_scan_with(&points, workers, timer),
-            };
-            r.map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))
-        });
+                if points.len() > C::POINTS {
+                    let n = capacity::points_in_range(&points, filter);
+                    if n > C::POINTS {
+                        let advice = match capacity::class_holding(n) {
+                            Some(c) => format!("run with --capacity {}", c.flag),
+                            None => "no class holds it: thin the scan, or narrow \
+                                 filter.range_min_m and filter.range_max_m"
+                                .to_string(),
+                        };
+                        return Err(format!(
+                            "{}: frame {i}: {n} points within range, more than the {} capacity \
+                         holds ({}): {advice}",
+                            source.label(i),
+                            C::NAME,
+                            C::POINTS
+                        ));
+                    }
+                }
+                let given = match &self.opts.given_poses {
+                    Some(p) => Some(p.pose_at(i, source.stamp(i)).ok_or_else(
+                        || match p.stamps {
+                            Some(_) => format!(
+                                "{}: frame {i}: no given pose within {:.3} s of its time {:.6}",
+                                source.label(i),
+                                p.tolerance_s(),
+                                source.stamp(i)
+                            ),
+                            None => format!(
+                                "{}: frame {i}: no given pose (line {})",
+                                source.label(i),
+                                i + 1
+                            ),
+                        },
+                    )?),
+                    None => None,
+                };
+                // A given pose is the stamp's; a deskewed scan is fused at its reference time.
+                let given = given.map(|g| match to_stamp {
+                    Some((m, dt, reference)) => deskew::pose_at(&g, &m, dt, reference),
+                    None => g,
+                });
+                let r = match given {
+                    Some(pose) => pipeline.integrate_scan_with(&points, &pose, workers, timer),
+                    None => pipeline.process_scan_with(&points, workers, timer),
+                };
+                r.map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))
+            });
         rec.ms = StageMs {
             read: read_ms,
+            deskew: rec.ms.deskew,
             ..self.timer.take()
         };
         match outcome {
@@ -330,7 +394,19 @@ impl<'a, C: Capacity> Run<'a, C> {
                 }
                 rec.ms.evict = t.elapsed().as_secs_f64() * 1e3;
                 rec.ms.total = rec.ms.pipeline() + rec.ms.evict;
-                self.progress.poses.push((i, o.t_world_sensor));
+                // The pose of a deskewed scan is its reference time's (the middle of the sweep);
+                // the stamp lies between it and the previous frame's, so the motion between
+                // the two estimates interpolates it (the predicted motion would extrapolate).
+                let at_stamp = match (to_stamp, self.pipeline.motion().history()) {
+                    (Some((_, dt, reference)), (Some(before), Some(last))) => deskew::pose_at(
+                        &o.t_world_sensor,
+                        &(before.inverse() * last),
+                        dt,
+                        -reference,
+                    ),
+                    _ => o.t_world_sensor,
+                };
+                self.progress.poses.push((i, at_stamp));
                 self.progress.used_ms.push(rec.ms);
             }
             Err(e) => {
@@ -483,7 +559,7 @@ fn fingerprint<C: Capacity>(source: &impl FrameSource, opts: &RunOptions) -> Str
         std::any::type_name::<C>(),
         opts.config,
         opts.window,
-        opts.given_poses.as_ref().map_or(0, Vec::len)
+        opts.given_poses.as_ref().map_or(0, |t| t.poses.len())
     )
 }
 

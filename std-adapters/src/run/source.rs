@@ -17,6 +17,11 @@ pub trait FrameSource {
     fn stamp(&self, i: usize) -> f64;
     /// The points of frame `i`, in the sensor frame.
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError>;
+    /// The points of frame `i` with each one's time relative to the frame's stamp (seconds),
+    /// when the source records them; by default, [`read`](Self::read) and no times.
+    fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        Ok((self.read(i)?, None))
+    }
 }
 
 /// What the command reads: a folder of scans (or one scan file), or a robot recording.
@@ -101,6 +106,13 @@ impl FrameSource for Input {
             Input::Recording(r) => r.read(i),
         }
     }
+    fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        match self {
+            Input::Folder(f) => f.read_timed(i),
+            #[cfg(feature = "recordings")]
+            Input::Recording(r) => r.read_timed(i),
+        }
+    }
 }
 
 impl FrameSource for ScanFolder {
@@ -132,5 +144,9 @@ impl FrameSource for slamesh_sim::Drive {
     }
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
         Ok(self.scan(i))
+    }
+    fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        let (points, times) = self.scan_timed(i);
+        Ok((points, self.sweep_s.map(|_| times)))
     }
 }

@@ -8,6 +8,8 @@ use std::time::{Duration, Instant};
 pub struct StageMs {
     /// Reading the scan file.
     pub read: f64,
+    /// Deskewing (0 for scans without point times).
+    pub deskew: f64,
     /// Range filter and down-sampling.
     pub filter: f64,
     /// Bucketing (all rounds).
@@ -30,8 +32,9 @@ pub struct StageMs {
 
 impl StageMs {
     /// The field names, in [`values`](Self::values) order.
-    pub const NAMES: [&'static str; 10] = [
+    pub const NAMES: [&'static str; 11] = [
         "read",
+        "deskew",
         "filter",
         "bucket",
         "reconstruct",
@@ -44,9 +47,10 @@ impl StageMs {
     ];
 
     /// The fields in [`NAMES`](Self::NAMES) order.
-    pub fn values(&self) -> [f64; 10] {
+    pub fn values(&self) -> [f64; 11] {
         [
             self.read,
+            self.deskew,
             self.filter,
             self.bucket,
             self.reconstruct,
@@ -60,10 +64,12 @@ impl StageMs {
     }
 
     /// The times from their [`values`](Self::values).
-    pub fn from_values(v: [f64; 10]) -> Self {
-        let [read, filter, bucket, reconstruct, associate, solve, update, mesh, evict, total] = v;
+    pub fn from_values(v: [f64; 11]) -> Self {
+        let [read, deskew, filter, bucket, reconstruct, associate, solve, update, mesh, evict, total] =
+            v;
         StageMs {
             read,
+            deskew,
             filter,
             bucket,
             reconstruct,
@@ -76,9 +82,10 @@ impl StageMs {
         }
     }
 
-    /// The per-scan pipeline time: filter to mesh (no reading, no eviction).
+    /// The per-scan pipeline time: deskew to mesh (no reading, no eviction).
     pub fn pipeline(&self) -> f64 {
-        self.filter
+        self.deskew
+            + self.filter
             + self.bucket
             + self.reconstruct
             + self.associate

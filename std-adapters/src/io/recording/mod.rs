@@ -323,4 +323,10 @@ impl crate::run::FrameSource for Recording {
     fn read(&mut self, i: usize) -> Result<Vec<slamesh_core::Point>, FileError> {
         self.read_decoded(i).map(|d| d.points)
     }
+    fn read_timed(
+        &mut self,
+        i: usize,
+    ) -> Result<(Vec<slamesh_core::Point>, Option<Vec<f32>>), FileError> {
+        self.read_decoded(i).map(|d| (d.points, d.times))
+    }
 }
