@@ -362,7 +362,7 @@ mod tests {
             skipped: vec!["frame 1: empty file".into()],
             evicted_cells: 3,
             used_ms: vec![StageMs::from_values([
-                1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0,
+                1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0,
             ])],
             seconds: 0.75,
             report_bytes: 1234,

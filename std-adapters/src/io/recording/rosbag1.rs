@@ -20,8 +20,9 @@ const OP_CHUNK: u8 = 0x05;
 const OP_CHUNK_INFO: u8 = 0x06;
 const OP_CONNECTION: u8 = 0x07;
 
-/// Records larger than this are refused as corrupt (a chunk is rarely over a few MB).
-const MAX_RECORD: usize = 1 << 30;
+/// Records and chunks larger than this are refused as corrupt (a chunk is rarely over a few
+/// MB; the same limit as MCAP's, [`super::mcap::MAX_RECORD_BYTES`]).
+const MAX_RECORD: usize = super::mcap::MAX_RECORD_BYTES;
 
 /// One record: its header fields and its data.
 struct Record {
@@ -267,7 +268,8 @@ fn decompress(kind: &str, data: &[u8], size: usize) -> Result<Vec<u8>, String> {
     if size > MAX_RECORD {
         return Err(format!("a chunk claims {size} bytes"));
     }
-    let mut out = Vec::with_capacity(size);
+    // Reserved as the data arrives beyond 16 MB: a corrupt size costs no memory.
+    let mut out = Vec::with_capacity(size.min(16 << 20));
     match kind {
         "none" => out.extend_from_slice(data),
         "bz2" => {
