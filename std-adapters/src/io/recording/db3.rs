@@ -111,6 +111,7 @@ impl Iterator for Db3Messages {
             if let Some((t, id, data)) = self.page.next() {
                 self.after = (t, id);
                 return Some(Ok(RawMessage {
+                    start: 0,
                     data,
                     encoding: self.encoding,
                     log_time_ns: t.max(0) as u64,

@@ -36,12 +36,22 @@ pub enum Encoding {
 /// One message as the container holds it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RawMessage {
-    /// The serialised message.
+    /// The serialised message, from byte `start` (what comes before is the container's record
+    /// header, kept rather than copied away).
     pub data: Vec<u8>,
+    /// Where the message starts in `data`.
+    pub start: usize,
     /// Its serialisation.
     pub encoding: Encoding,
     /// When it was recorded (nanoseconds since the epoch).
     pub log_time_ns: u64,
+}
+
+impl RawMessage {
+    /// The serialised message.
+    pub fn bytes(&self) -> &[u8] {
+        self.data.get(self.start..).unwrap_or(&[])
+    }
 }
 
 /// A topic of a recording.
@@ -289,8 +299,8 @@ impl Recording {
             }
         };
         let cloud = match msg.encoding {
-            Encoding::Ros1 => Cloud::parse_ros1(&msg.data),
-            Encoding::Cdr => Cloud::parse_cdr(&msg.data),
+            Encoding::Ros1 => Cloud::parse_ros1(msg.bytes()),
+            Encoding::Cdr => Cloud::parse_cdr(msg.bytes()),
         };
         let stamp = cloud
             .as_ref()

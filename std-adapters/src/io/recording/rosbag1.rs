@@ -336,6 +336,7 @@ impl Iterator for Messages {
                             return Some(Ok((
                                 conn,
                                 RawMessage {
+                                    start: 0,
                                     data: rec.data,
                                     encoding: Encoding::Ros1,
                                     log_time_ns: ns,
