@@ -28,6 +28,7 @@ fn drive(scene: Scene, frames: usize, step_m: f64, max_range_m: f64) -> Drive {
         noise_m: 0.02,
         dropout: 0.0,
         seed: 11,
+        sweep_s: None,
     }
 }
 

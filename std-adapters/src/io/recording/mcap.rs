@@ -330,10 +330,25 @@ impl<R: Read> Messages<R> {
     }
 }
 
+/// A message with its channel's topic, encoding and schema.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Named {
+    /// The channel's topic.
+    pub topic: String,
+    /// The channel's message encoding (`cdr`, `ros1`, ...).
+    pub encoding: String,
+    /// The channel's schema name.
+    pub schema: String,
+    /// When it was recorded (ns).
+    pub log_time: u64,
+    /// The message is `data[start..]`.
+    pub data: Vec<u8>,
+    /// See `data`.
+    pub start: usize,
+}
+
 impl<R: Read> Iterator for Messages<R> {
-    /// The message's topic, its channel's encoding and schema, its log time, and the message
-    /// as `data[start..]`.
-    type Item = Result<(String, String, String, u64, Vec<u8>, usize), String>;
+    type Item = Result<Named, String>;
 
     fn next(&mut self) -> Option<Self::Item> {
         match self.next_message() {
@@ -341,14 +356,14 @@ impl<R: Read> Iterator for Messages<R> {
                 let Some(c) = self.registry.channels.get(&m.channel) else {
                     return Some(Err(format!("a message on unknown channel {}", m.channel)));
                 };
-                Some(Ok((
-                    c.topic.clone(),
-                    c.encoding.clone(),
-                    c.schema.clone(),
-                    m.log_time,
-                    m.data,
-                    m.start,
-                )))
+                Some(Ok(Named {
+                    topic: c.topic.clone(),
+                    encoding: c.encoding.clone(),
+                    schema: c.schema.clone(),
+                    log_time: m.log_time,
+                    data: m.data,
+                    start: m.start,
+                }))
             }
             Ok(None) => None,
             Err(e) => {
@@ -389,15 +404,18 @@ pub fn topics(path: &Path) -> Result<Vec<Topic>, String> {
     }
     let file = File::open(path).map_err(|e| e.to_string())?;
     for m in Messages::new(BufReader::new(file))? {
-        let (topic, _, schema, ..) = m?;
-        add(&topic, &schema, 1);
+        let m = m?;
+        add(&m.topic, &m.schema, 1);
     }
     Ok(out)
 }
 
+/// Messages per channel id.
+type ChannelCounts = HashMap<u16, u64>;
+
 /// The summary section's schemas, channels and per-channel message counts, if the footer
 /// points at a summary with statistics.
-fn summary(path: &Path) -> Result<Option<(Registry, HashMap<u16, u64>)>, String> {
+fn summary(path: &Path) -> Result<Option<(Registry, ChannelCounts)>, String> {
     let mut file = File::open(path).map_err(|e| e.to_string())?;
     let size = file.metadata().map_err(|e| e.to_string())?.len();
     // The footer (opcode, length 20, summary start, summary offset start, CRC) and the magic.
@@ -452,14 +470,14 @@ pub fn messages(
     let file = BufReader::new(File::open(path).map_err(|e| e.to_string())?);
     let topic = topic.to_owned();
     Ok(Messages::new(file)?.filter_map(move |m| {
-        let (t, encoding, _, log_time_ns, data, start) = match m {
+        let m = match m {
             Ok(m) => m,
             Err(e) => return Some(Err(e)),
         };
-        if t != topic {
+        if m.topic != topic {
             return None;
         }
-        let encoding = match encoding.as_str() {
+        let encoding = match m.encoding.as_str() {
             "cdr" => Encoding::Cdr,
             "ros1" => Encoding::Ros1,
             other => {
@@ -469,10 +487,10 @@ pub fn messages(
             }
         };
         Some(Ok(RawMessage {
-            data,
-            start,
+            data: m.data,
+            start: m.start,
             encoding,
-            log_time_ns,
+            log_time_ns: m.log_time,
         }))
     }))
 }
@@ -534,8 +552,14 @@ mod tests {
             messages_of(&fixture(name))
                 .unwrap()
                 .map(|m| {
-                    let (topic, encoding, schema, time, data, start) = m.unwrap();
-                    (topic, encoding, schema, time, data[start..].to_vec())
+                    let m = m.unwrap();
+                    (
+                        m.topic,
+                        m.encoding,
+                        m.schema,
+                        m.log_time,
+                        m.data[m.start..].to_vec(),
+                    )
                 })
                 .collect()
         };
