@@ -65,6 +65,12 @@ fn deskewed(rec: &str, out: &Path) -> Vec<u64> {
     slamesh_run_ok(&fixtures().join(rec), out, &["--no-picture"]);
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    // Each frame's time in the report is its header stamp (make.py: 1317000000 + times.txt).
+    let stamp = report["frames"][2]["stamp"].as_f64().unwrap();
+    assert!(
+        (stamp - 1_317_000_000.207_338).abs() < 1e-5,
+        "{rec}: {stamp}"
+    );
     report["frames"]
         .as_array()
         .unwrap()

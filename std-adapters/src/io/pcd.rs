@@ -4,6 +4,7 @@
 
 use crate::io::error::FileError;
 use crate::io::lzf;
+use crate::io::pointcloud2;
 use slamesh_core::Point;
 use std::path::Path;
 
@@ -181,6 +182,26 @@ pub fn read_pcd(path: &Path) -> Result<Vec<Point>, FileError> {
 
 /// Parses the bytes of a PCD file read from `path` (named in errors).
 pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
+    parse_pcd_timed(path, bytes, None).map(|(p, _)| p)
+}
+
+/// Reads a PCD file's points and, if it has a time field (`t`, `time`, `timestamp`,
+/// `time_stamp` or `offset_time`), each point's time relative to `stamp` (seconds) by the
+/// table in [`crate::io::pointcloud2`].
+pub fn read_pcd_timed(
+    path: &Path,
+    stamp: f64,
+) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+    let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    parse_pcd_timed(path, &bytes, Some(stamp))
+}
+
+/// [`parse_pcd`], with the points' times when `stamp` is given and the file has a time field.
+pub fn parse_pcd_timed(
+    path: &Path,
+    bytes: &[u8],
+    stamp: Option<f64>,
+) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
     if bytes.is_empty() {
         return Err(FileError::at(path, "empty file"));
     }
@@ -191,10 +212,49 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
             .position(|f| f.name == name)
             .ok_or_else(|| FileError::at(path, format!("PCD has no {name} field")))
     };
-    let xyz = [index("x")?, index("y")?, index("z")?];
-    let body = &bytes[h.start..];
+    let mut wanted = vec![index("x")?, index("y")?, index("z")?];
+    let time = stamp.and_then(|s| {
+        let k = pointcloud2::TIME_FIELDS
+            .iter()
+            .find_map(|n| h.fields.iter().position(|f| f.name == *n))?;
+        Some((k, s))
+    });
+    if let Some((k, _)) = time {
+        wanted.push(k);
+    }
+    let rows = values(path, &h, &wanted, &bytes[h.start..])?;
+    let n = wanted.len();
+    let points = rows
+        .chunks_exact(n)
+        .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32])
+        .collect();
+    let Some((k, stamp)) = time else {
+        return Ok((points, None));
+    };
+    let f = &h.fields[k];
+    let datatype = match (f.kind, f.size) {
+        (b'F', 4) => pointcloud2::datatype::FLOAT32,
+        (b'F', _) => pointcloud2::datatype::FLOAT64,
+        _ => pointcloud2::datatype::UINT32,
+    };
+    let raw: Vec<f64> = rows.chunks_exact(n).map(|r| r[3]).collect();
+    // Absolute times that do not fit the folder's stamp (assumed 10 Hz, or another clock) are
+    // taken from the scan's earliest point: deskewing needs only their differences.
+    let first = raw.iter().copied().fold(f64::INFINITY, f64::min);
+    let times = pointcloud2::relative_times(&f.name, datatype, &raw, stamp)
+        .or_else(|e| match first {
+            t if t > 1e15 => pointcloud2::relative_times(&f.name, datatype, &raw, t * 1e-9),
+            t if t > 1e6 => pointcloud2::relative_times(&f.name, datatype, &raw, t),
+            _ => Err(e),
+        })
+        .map_err(|e| FileError::at(path, e))?;
+    Ok((points, Some(times)))
+}
+
+/// The values of fields `wanted` (first elements), point by point: `wanted.len()` a point.
+fn values(path: &Path, h: &Header, wanted: &[usize], body: &[u8]) -> Result<Vec<f64>, FileError> {
     match h.data {
-        Data::Ascii => read_ascii(path, &h, xyz, body),
+        Data::Ascii => read_ascii(path, h, wanted, body),
         Data::Binary => {
             let record: usize = h.fields.iter().map(Field::bytes).sum();
             let offsets = offsets(&h.fields);
@@ -211,7 +271,7 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
             }
             Ok(body[..need]
                 .chunks_exact(record.max(1))
-                .map(|r| xyz.map(|k| h.fields[k].value(&r[offsets[k]..]) as f32))
+                .flat_map(|r| wanted.iter().map(|&k| h.fields[k].value(&r[offsets[k]..])))
                 .collect())
         }
         Data::Compressed => {
@@ -251,10 +311,11 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
                 at += f.bytes() * h.points;
             }
             Ok((0..h.points)
-                .map(|i| {
-                    xyz.map(|k| {
+                .flat_map(|i| {
+                    let (raw, column) = (&raw, &column);
+                    wanted.iter().map(move |&k| {
                         let f = &h.fields[k];
-                        f.value(&raw[column[k] + i * f.bytes()..]) as f32
+                        f.value(&raw[column[k] + i * f.bytes()..])
                     })
                 })
                 .collect())
@@ -277,9 +338,9 @@ fn offsets(fields: &[Field]) -> Vec<usize> {
 fn read_ascii(
     path: &Path,
     h: &Header,
-    xyz: [usize; 3],
+    wanted: &[usize],
     body: &[u8],
-) -> Result<Vec<Point>, FileError> {
+) -> Result<Vec<f64>, FileError> {
     let text =
         std::str::from_utf8(body).map_err(|_| FileError::at(path, "ascii data is not text"))?;
     // Column of each field's first element.
@@ -293,37 +354,41 @@ fn read_ascii(
         })
         .collect();
     // The header's count is untrusted: reserve no more than the text has lines for.
-    let mut out = Vec::with_capacity(h.points.min(body.len() / 2));
+    let mut out = Vec::with_capacity(h.points.min(body.len() / 2) * wanted.len());
+    let mut read = 0;
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() {
             continue;
         }
         let words: Vec<&str> = line.split_whitespace().collect();
-        let mut p = [0f32; 3];
-        for (c, &k) in xyz.iter().enumerate() {
+        for &k in wanted {
             let w = words.get(columns[k]).ok_or_else(|| {
                 FileError::at(
                     path,
                     format!("data line {} has only {} values", i + 1, words.len()),
                 )
             })?;
-            p[c] = w.parse::<f32>().map_err(|_| {
-                FileError::at(path, format!("data line {}: not a number: {w:?}", i + 1))
-            })?;
+            let bad = |_| FileError::at(path, format!("data line {}: not a number: {w:?}", i + 1));
+            // Coordinates parse as f32 (a decimal rounded once), a time as f64.
+            let v = if out.len() % wanted.len() < 3 {
+                w.parse::<f32>().map_err(bad)? as f64
+            } else {
+                w.parse::<f64>().map_err(bad)?
+            };
+            out.push(v);
         }
-        out.push(p);
-        if out.len() == h.points {
+        read += 1;
+        if read == h.points {
             break;
         }
     }
-    if out.len() < h.points {
+    if read < h.points {
         return Err(FileError::at(
             path,
             format!(
                 "truncated: {} points declared, {} data lines",
-                h.points,
-                out.len()
+                h.points, read
             ),
         ));
     }
@@ -400,6 +465,42 @@ COUNT 1 2 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n"
         assert_eq!(
             read_pcd(&tmp("mixed.pcd", &b)).unwrap(),
             vec![[1.25, -3.0, 9.5]]
+        );
+    }
+
+    #[test]
+    fn a_time_field_gives_each_points_time() {
+        let head =
+            "FIELDS x y z t\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nPOINTS 2\nDATA ascii\n";
+        let b = format!("{head}1 2 3 0\n4 5 6 50000000\n");
+        let (p, t) = parse_pcd_timed(Path::new("a.pcd"), b.as_bytes(), Some(9.0)).unwrap();
+        assert_eq!(p, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!(
+            t,
+            Some(vec![0.0, 0.05]),
+            "Ouster's t: nanoseconds since the stamp"
+        );
+        let abs = b"FIELDS x y z timestamp\nSIZE 4 4 4 8\nTYPE F F F F\nCOUNT 1 1 1 1\n\
+                    POINTS 2\nDATA ascii\n1 2 3 1700000000.0\n4 5 6 1700000000.1\n";
+        let t = parse_pcd_timed(Path::new("a.pcd"), abs, Some(1_700_000_000.0))
+            .unwrap()
+            .1;
+        assert!((t.unwrap()[1] - 0.1).abs() < 1e-6, "absolute seconds");
+        // A folder without times: from the earliest point.
+        let t = parse_pcd_timed(Path::new("a.pcd"), abs, Some(0.2))
+            .unwrap()
+            .1;
+        assert!((t.unwrap()[1] - 0.1).abs() < 1e-6);
+        let far = b"FIELDS x y z time\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\n\
+                    POINTS 2\nDATA ascii\n1 2 3 0\n4 5 6 30\n";
+        let e = parse_pcd_timed(Path::new("a.pcd"), far, Some(0.0)).unwrap_err();
+        assert!(
+            e.to_string().contains("a.pcd") && e.reason.contains("time field time"),
+            "{e}"
+        );
+        assert_eq!(
+            parse_pcd_timed(Path::new("a.pcd"), abs, None).unwrap().1,
+            None
         );
     }
 

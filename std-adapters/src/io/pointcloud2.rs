@@ -262,8 +262,15 @@ impl<'a> Cloud<'a> {
         Ok(Some(f))
     }
 
-    /// Decodes the points and what they carry. Errors say what is malformed.
+    /// Decodes the points and everything they carry (times, intensity, ring). Errors say what
+    /// is malformed.
     pub fn decode(&self) -> Result<DecodedScan, String> {
+        self.decode_with(true)
+    }
+
+    /// Decodes the points and their times, and with `extras` their intensity and ring (a run
+    /// does not use them yet, and leaving them out saves a third of the decoding).
+    pub fn decode_with(&self, extras: bool) -> Result<DecodedScan, String> {
         let xyz = ["x", "y", "z"].map(|n| self.field(n));
         let [x, y, z] = match xyz {
             [Ok(Some(x)), Ok(Some(y)), Ok(Some(z))] => [x, y, z],
@@ -274,8 +281,8 @@ impl<'a> Cloud<'a> {
                 return Err("no x, y and z fields".into());
             }
         };
-        let intensity = self.field("intensity")?;
-        let ring = self.field("ring")?;
+        let intensity = self.field("intensity")?.filter(|_| extras);
+        let ring = self.field("ring")?.filter(|_| extras);
         let time = TIME_FIELDS
             .iter()
             .map(|n| self.field(n))
@@ -352,7 +359,7 @@ impl<'a> Cloud<'a> {
             }
         }
         if let Some(f) = time {
-            out.times = Some(relative_times(f, &raw_times, self.stamp)?);
+            out.times = Some(relative_times(&f.name, f.datatype, &raw_times, self.stamp)?);
         }
         out.intensity = intensity.map(|_| inten);
         out.ring = ring.map(|_| rings);
@@ -413,8 +420,20 @@ fn read_value(p: &[u8], f: &Field, big: bool) -> f64 {
     }
 }
 
-/// Times relative to `stamp` in seconds, by the table in the module's docs.
-fn relative_times(f: &Field, raw: &[f64], stamp: f64) -> Result<Vec<f32>, String> {
+/// The values `raw` of the time field `name` (a [`datatype`]) as times relative to `stamp` in
+/// seconds, by the table in the module's docs; an error says which reading failed and why.
+pub fn relative_times(
+    name: &str,
+    datatype: u8,
+    raw: &[f64],
+    stamp: f64,
+) -> Result<Vec<f32>, String> {
+    let f = Field {
+        name: name.to_owned(),
+        offset: 0,
+        datatype,
+        count: 1,
+    };
     let (lo, hi) = raw
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {

@@ -59,7 +59,12 @@ pub struct FrameRecord {
     /// Resident memory after the frame (MB).
     pub rss_mb: Option<f64>,
     /// Points moved by deskewing (0: the scan had no point times, or was not deskewed).
+    #[serde(default)]
     pub deskewed_points: usize,
+    /// The frame's time (seconds): a recording's header stamp, a folder's `times.txt` or file
+    /// name, or the assumed 10 Hz.
+    #[serde(default)]
+    pub stamp: f64,
 }
 
 impl FrameRecord {
@@ -85,6 +90,7 @@ impl FrameRecord {
             degenerate_directions: 0,
             rss_mb: None,
             deskewed_points: 0,
+            stamp: 0.0,
         }
     }
 }

@@ -128,6 +128,18 @@ impl FrameSource for ScanFolder {
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
         read_scan_as(&self.paths[i], &self.bin_fields)
     }
+    /// PCD files with a time field give their points' times; other files none.
+    fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        let path = &self.paths[i];
+        let pcd = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("pcd"));
+        if pcd {
+            crate::io::pcd::read_pcd_timed(path, self.stamps[i])
+        } else {
+            Ok((self.read(i)?, None))
+        }
+    }
 }
 
 /// A simulated drive: its noisy scans, made on demand, 10 frames a second.

@@ -276,6 +276,11 @@ impl Recording {
 
     /// Frame `i`'s cloud, decoded, with its times, intensity and ring where the cloud has them.
     pub fn read_decoded(&mut self, i: usize) -> Result<DecodedScan, FileError> {
+        self.read_with(i, true)
+    }
+
+    /// Frame `i`'s cloud; its intensity and ring only with `extras`.
+    fn read_with(&mut self, i: usize, extras: bool) -> Result<DecodedScan, FileError> {
         if self.stream.is_none() || i < self.next {
             self.stream = Some(self.container.messages(&self.topic.name)?);
             self.next = 0;
@@ -308,7 +313,9 @@ impl Recording {
         if let Some(s) = self.stamps.get_mut(i) {
             *s = Some(stamp);
         }
-        cloud.and_then(|c| c.decode()).map_err(|e| self.error(i, e))
+        cloud
+            .and_then(|c| c.decode_with(extras))
+            .map_err(|e| self.error(i, e))
     }
 }
 
@@ -331,12 +338,12 @@ impl crate::run::FrameSource for Recording {
             .unwrap_or(i as f64 * 0.1)
     }
     fn read(&mut self, i: usize) -> Result<Vec<slamesh_core::Point>, FileError> {
-        self.read_decoded(i).map(|d| d.points)
+        self.read_with(i, false).map(|d| d.points)
     }
     fn read_timed(
         &mut self,
         i: usize,
     ) -> Result<(Vec<slamesh_core::Point>, Option<Vec<f32>>), FileError> {
-        self.read_decoded(i).map(|d| (d.points, d.times))
+        self.read_with(i, false).map(|d| (d.points, d.times))
     }
 }
