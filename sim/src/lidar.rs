@@ -31,23 +31,28 @@ impl Lidar {
         }
     }
 
+    /// The unit ray of `beam` (evenly spread between the two elevations) at firing `step` of
+    /// the turn, in the sensor frame.
+    fn direction(&self, beam: usize, step: usize) -> Vector3<f64> {
+        let f = if self.beams > 1 {
+            beam as f64 / (self.beams - 1) as f64
+        } else {
+            0.0
+        };
+        let el = (self.elevation_min_deg + f * (self.elevation_max_deg - self.elevation_min_deg))
+            .to_radians();
+        let az = std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
+        Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin())
+    }
+
     /// One noise-free scan of `scene` from `t_world_sensor`, in the sensor frame.
     pub fn scan(&self, scene: &Scene, t_world_sensor: &Pose) -> Vec<Point> {
         let origin = t_world_sensor.translation.vector;
         let scene = Prepared::new(scene, &origin, self.max_range_m);
         let mut out = Vec::with_capacity(self.beams * self.azimuth_steps);
         for beam in 0..self.beams {
-            let f = if self.beams > 1 {
-                beam as f64 / (self.beams - 1) as f64
-            } else {
-                0.0
-            };
-            let el = (self.elevation_min_deg
-                + f * (self.elevation_max_deg - self.elevation_min_deg))
-                .to_radians();
             for step in 0..self.azimuth_steps {
-                let az = std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
-                let dir_s = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                let dir_s = self.direction(beam, step);
                 let dir_w = t_world_sensor.rotation * dir_s;
                 if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
                     let p = Point3::from(dir_s * range);
@@ -77,17 +82,8 @@ impl Lidar {
             let t = period_s * step as f64 / self.azimuth_steps as f64;
             let pose = pose_at(t);
             let origin = pose.translation.vector;
-            let az = std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
             for beam in 0..self.beams {
-                let f = if self.beams > 1 {
-                    beam as f64 / (self.beams - 1) as f64
-                } else {
-                    0.0
-                };
-                let el = (self.elevation_min_deg
-                    + f * (self.elevation_max_deg - self.elevation_min_deg))
-                    .to_radians();
-                let dir_s = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                let dir_s = self.direction(beam, step);
                 let dir_w = pose.rotation * dir_s;
                 if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
                     let p = dir_s * range;

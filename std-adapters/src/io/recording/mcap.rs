@@ -9,7 +9,7 @@
 //! fuzzer asked it for 2.5 and 3.5 GB), which aborts a process on a small computer.
 //! CRCs are not checked; a corrupt chunk gives a decompression or parse error.
 
-use super::{Encoding, RawMessage, Topic};
+use super::{decompress, Compression, Encoding, RawMessage, Topic};
 use std::collections::HashMap;
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
@@ -184,46 +184,28 @@ fn chunk_records(body: Vec<u8>) -> Result<(Vec<u8>, std::ops::Range<usize>), Str
         usize::try_from(len).unwrap_or(usize::MAX),
         "a chunk's records",
     )?;
-    if size > MAX_RECORD_BYTES as u64 {
-        return Err(format!(
-            "a chunk decompressing to {size} bytes, over the {MAX_RECORD_BYTES}-byte limit"
-        ));
-    }
-    let size = size as usize;
-    if compression.is_empty() {
-        if data.len() != size {
-            return Err(format!(
-                "an uncompressed chunk holds {} bytes, not the {size} its header says",
-                data.len()
-            ));
+    // A size over the limit is refused by `decompress`; here it must not wrap either.
+    let size = usize::try_from(size).unwrap_or(usize::MAX);
+    let kind = match compression.as_str() {
+        "" => {
+            if data.len() != size {
+                return Err(format!(
+                    "an uncompressed chunk holds {} bytes, not the {size} its header says",
+                    data.len()
+                ));
+            }
+            let start = body.len() - f.b.len() - data.len();
+            return Ok((body, start..start + size));
         }
-        let start = body.len() - f.b.len() - data.len();
-        return Ok((body, start..start + size));
-    }
-    let mut out = Vec::with_capacity(size.min(16 << 20));
-    match compression.as_str() {
-        "zstd" => {
-            zstd::stream::read::Decoder::new(data)
-                .and_then(|d| d.take(size as u64).read_to_end(&mut out))
-                .map_err(|e| format!("a zstd chunk does not decompress: {e}"))?;
-        }
-        "lz4" => {
-            lz4::Decoder::new(data)
-                .and_then(|d| d.take(size as u64).read_to_end(&mut out))
-                .map_err(|e| format!("an lz4 chunk does not decompress: {e}"))?;
-        }
+        "zstd" => Compression::Zstd,
+        "lz4" => Compression::Lz4,
         other => {
             return Err(format!(
                 "chunk compression {other:?} is not none, zstd or lz4"
             ))
         }
-    }
-    if out.len() != size {
-        return Err(format!(
-            "a chunk decompresses to {} bytes, not the {size} its header says",
-            out.len()
-        ));
-    }
+    };
+    let out = decompress(kind, data, size)?;
     let n = out.len();
     Ok((out, 0..n))
 }

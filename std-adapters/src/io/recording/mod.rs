@@ -86,6 +86,51 @@ pub enum Container {
     Ros2(Vec<PathBuf>),
 }
 
+/// The chunk compressions robot recordings use: ROS 1 bags bz2 and lz4, MCAP zstd and lz4
+/// (lz4 as frames in both).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Compression {
+    /// bzip2.
+    Bz2,
+    /// The LZ4 frame format.
+    Lz4,
+    /// Zstandard.
+    Zstd,
+}
+
+/// Decompresses a chunk that its header says holds `size` bytes (at most
+/// [`mcap::MAX_RECORD_BYTES`]): the output is reserved as it arrives beyond 16 MB, so a corrupt
+/// size costs no memory, and decompression stops at `size`.
+pub fn decompress(kind: Compression, data: &[u8], size: usize) -> Result<Vec<u8>, String> {
+    if size > mcap::MAX_RECORD_BYTES {
+        return Err(format!(
+            "a chunk decompressing to {size} bytes, over the {}-byte limit",
+            mcap::MAX_RECORD_BYTES
+        ));
+    }
+    let mut out = Vec::with_capacity(size.min(16 << 20));
+    let limit = size as u64;
+    let read = match kind {
+        Compression::Bz2 => bzip2::read::BzDecoder::new(data)
+            .take(limit)
+            .read_to_end(&mut out),
+        Compression::Lz4 => {
+            lz4::Decoder::new(data).and_then(|d| d.take(limit).read_to_end(&mut out))
+        }
+        Compression::Zstd => {
+            zstd::stream::read::Decoder::new(data).and_then(|d| d.take(limit).read_to_end(&mut out))
+        }
+    };
+    read.map_err(|e| format!("a {kind:?} chunk does not decompress: {e}"))?;
+    if out.len() != size {
+        return Err(format!(
+            "a chunk decompresses to {} bytes, not the {size} its header says",
+            out.len()
+        ));
+    }
+    Ok(out)
+}
+
 /// True if `path` is a file starting with `magic`.
 pub fn has_magic(path: &Path, magic: &[u8]) -> bool {
     let mut head = vec![0u8; magic.len()];
