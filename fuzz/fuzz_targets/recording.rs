@@ -1,17 +1,21 @@
-//! The ROS 1 bag and MCAP readers on arbitrary files (the first byte picks the container's
-//! magic, the rest follows it): listing the topics and reading every message of each returns
-//! messages or errors, never panics. ROS 2 `.db3` files are SQLite's to check, and SQLite is
-//! fuzzed upstream.
+//! The ROS 1 bag, MCAP and ROS 2 `.db3` readers on arbitrary files (the first byte picks the
+//! container's magic, the rest follows it): listing the topics and reading every message of
+//! each returns messages or errors, never panics. (SQLite itself is fuzzed upstream; this
+//! exercises our queries and what we do with what they return.)
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::recording::{mcap, rosbag1, Container};
+use slamesh::io::recording::{mcap, ros2, rosbag1, Container};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, rest)) = data.split_first() else {
         return;
     };
-    let magic = if pick % 2 == 0 { rosbag1::MAGIC } else { mcap::MAGIC };
+    let magic = match pick % 3 {
+        0 => rosbag1::MAGIC,
+        1 => mcap::MAGIC,
+        _ => ros2::SQLITE_MAGIC,
+    };
     let path = std::env::temp_dir().join(format!("slamesh-fuzz-recording-{}", std::process::id()));
     std::fs::write(&path, [magic, rest].concat()).unwrap();
     if let Some(Ok(container)) = Container::detect(&path) {

@@ -72,6 +72,9 @@ fixtures = "../tests/fixtures/recordings/bad"
 for name in ["two-clouds.mcap", "short-data.mcap"]:
     mcap = open(f"{fixtures}/{name}", "rb").read()
     put("recording", name, b"\x01" + mcap[8:])
+# A ROS 2 .db3 file (SQLite; the first byte 2 picks its magic, 16 bytes).
+db3 = open("../tests/fixtures/recordings/ros2-db3/split_1.db3", "rb").read()
+put("recording", "split_1.db3", b"\x02" + db3[16:])
 try:
     from mcap.reader import make_reader
     with open(f"{fixtures}/two-clouds.mcap", "rb") as f:

@@ -238,15 +238,7 @@ pub fn parse_pcd_timed(
         _ => pointcloud2::datatype::UINT32,
     };
     let raw: Vec<f64> = rows.chunks_exact(n).map(|r| r[3]).collect();
-    // Absolute times that do not fit the folder's stamp (assumed 10 Hz, or another clock) are
-    // taken from the scan's earliest point: deskewing needs only their differences.
-    let first = raw.iter().copied().fold(f64::INFINITY, f64::min);
-    let times = pointcloud2::relative_times(&f.name, datatype, &raw, stamp)
-        .or_else(|e| match first {
-            t if t > 1e15 => pointcloud2::relative_times(&f.name, datatype, &raw, t * 1e-9),
-            t if t > 1e6 => pointcloud2::relative_times(&f.name, datatype, &raw, t),
-            _ => Err(e),
-        })
+    let times = pointcloud2::file_relative_times(&f.name, datatype, &raw, stamp)
         .map_err(|e| FileError::at(path, e))?;
     Ok((points, Some(times)))
 }

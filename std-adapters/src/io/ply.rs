@@ -10,6 +10,7 @@
 //! ([`write_mesh_records`]: binary little-endian, a per-vertex `variance`).
 
 use crate::io::error::FileError;
+use crate::io::pointcloud2;
 use slamesh_core::Point;
 use std::io::{Read, Write};
 use std::path::Path;
@@ -163,16 +164,34 @@ pub fn read_ply_points(path: &Path) -> Result<Vec<Point>, FileError> {
 
 /// Parses the vertex positions of PLY bytes read from `path` (named in errors).
 pub fn parse_ply_points(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
-    let Header {
-        format,
-        elements,
-        start: pos,
-    } = read_header(path, bytes)?;
-    let vi = elements
+    parse_ply_timed(path, bytes, None).map(|(p, _)| p)
+}
+
+/// Reads a PLY file's vertices and, if they have a time property (`t`, `time`, `timestamp`,
+/// `time_stamp` or `offset_time`), each one's time relative to `stamp` (seconds) by the table
+/// in [`crate::io::pointcloud2`].
+pub fn read_ply_timed(
+    path: &Path,
+    stamp: f64,
+) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+    let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    parse_ply_timed(path, &bytes, Some(stamp))
+}
+
+/// [`parse_ply_points`], with the vertices' times when `stamp` is given and they have a time
+/// property.
+pub fn parse_ply_timed(
+    path: &Path,
+    bytes: &[u8],
+    stamp: Option<f64>,
+) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+    let header = read_header(path, bytes)?;
+    let vi = header
+        .elements
         .iter()
         .position(|e| e.name == "vertex")
         .ok_or_else(|| FileError::at(path, "PLY has no vertex element"))?;
-    let vertex = &elements[vi];
+    let vertex = &header.elements[vi];
     let index = |n: &str| {
         vertex
             .properties
@@ -180,21 +199,70 @@ pub fn parse_ply_points(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileErr
             .position(|(p, _)| p == n)
             .ok_or_else(|| FileError::at(path, format!("PLY vertex has no {n} property")))
     };
-    let xyz = [index("x")?, index("y")?, index("z")?];
+    let mut wanted = vec![index("x")?, index("y")?, index("z")?];
+    let time = stamp.and_then(|s| {
+        let k = pointcloud2::TIME_FIELDS.iter().find_map(|n| {
+            vertex
+                .properties
+                .iter()
+                .position(|(p, t)| p == n && t.is_some())
+        })?;
+        Some((k, s))
+    });
+    if let Some((k, _)) = time {
+        wanted.push(k);
+    }
+    let rows = vertex_values(path, &header, vi, &wanted, bytes)?;
+    let n = wanted.len();
+    let points = rows
+        .chunks_exact(n)
+        .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32])
+        .collect();
+    let Some((k, stamp)) = time else {
+        return Ok((points, None));
+    };
+    let (name, t) = &vertex.properties[k];
+    let datatype = match t.as_deref() {
+        Some("float" | "float32") => pointcloud2::datatype::FLOAT32,
+        Some("double" | "float64") => pointcloud2::datatype::FLOAT64,
+        _ => pointcloud2::datatype::UINT32,
+    };
+    let raw: Vec<f64> = rows.chunks_exact(n).map(|r| r[3]).collect();
+    let times = pointcloud2::file_relative_times(name, datatype, &raw, stamp)
+        .map_err(|e| FileError::at(path, e))?;
+    Ok((points, Some(times)))
+}
+
+/// The values of vertex properties `wanted`, vertex by vertex (`wanted.len()` a vertex); the
+/// first three (the coordinates) through `f32`, as they always were read.
+fn vertex_values(
+    path: &Path,
+    header: &Header,
+    vi: usize,
+    wanted: &[usize],
+    bytes: &[u8],
+) -> Result<Vec<f64>, FileError> {
+    let Header {
+        format,
+        elements,
+        start: pos,
+    } = header;
+    let format = *format;
+    let vertex = &elements[vi];
     let fixed_size = |e: &Element| -> Option<usize> {
         e.properties
             .iter()
             .map(|(_, t)| t.as_deref().and_then(type_size))
             .sum()
     };
-    let body = &bytes[pos..];
+    let body = &bytes[*pos..];
     if format == Format::Ascii {
         let text = std::str::from_utf8(body)
             .map_err(|_| FileError::at(path, "ascii PLY data is not text"))?;
         let skip: usize = elements[..vi].iter().map(|e| e.count).sum();
         let mut lines = text.lines().filter(|l| !l.trim().is_empty()).skip(skip);
         // The header's count is untrusted: reserve no more than the text has lines for.
-        let mut out = Vec::with_capacity(vertex.count.min(body.len() / 2));
+        let mut out = Vec::with_capacity(vertex.count.min(body.len() / 2) * wanted.len());
         for i in 0..vertex.count {
             let line = lines.next().ok_or_else(|| {
                 FileError::at(
@@ -203,16 +271,17 @@ pub fn parse_ply_points(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileErr
                 )
             })?;
             let words: Vec<&str> = line.split_whitespace().collect();
-            let mut p = [0f32; 3];
-            for (c, &k) in xyz.iter().enumerate() {
+            for (c, &k) in wanted.iter().enumerate() {
                 let w = words.get(k).ok_or_else(|| {
                     FileError::at(path, format!("vertex {i} has only {} values", words.len()))
                 })?;
-                p[c] = w
-                    .parse::<f32>()
-                    .map_err(|_| FileError::at(path, format!("vertex {i}: not a number: {w:?}")))?;
+                let bad = |_| FileError::at(path, format!("vertex {i}: not a number: {w:?}"));
+                out.push(if c < 3 {
+                    w.parse::<f32>().map_err(bad)? as f64
+                } else {
+                    w.parse::<f64>().map_err(bad)?
+                });
             }
-            out.push(p);
         }
         return Ok(out);
     }
@@ -248,12 +317,18 @@ pub fn parse_ply_points(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileErr
             ),
         ));
     }
+    let offsets = &offsets;
     Ok(body[start..need]
         .chunks_exact(record.max(1))
-        .map(|r| {
-            xyz.map(|k| {
+        .flat_map(|r| {
+            wanted.iter().enumerate().map(move |(c, &k)| {
                 let t = vertex.properties[k].1.as_deref().unwrap_or("float");
-                scalar(t, &r[offsets[k]..], format) as f32
+                let v = scalar(t, &r[offsets[k]..], format);
+                if c < 3 {
+                    v as f32 as f64
+                } else {
+                    v
+                }
             })
         })
         .collect())
@@ -464,6 +539,34 @@ property float y\nproperty float z\nelement face 0\nproperty list uchar int vert
                 want
             );
         }
+    }
+
+    #[test]
+    fn a_time_property_gives_each_vertexs_time() {
+        let ascii = b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n\
+                      property float y\nproperty float z\nproperty float time\nend_header\n\
+                      1 2 3 -0.05\n4 5 6 0.05\n";
+        let (p, t) = parse_ply_timed(Path::new("a.ply"), ascii, Some(3.0)).unwrap();
+        assert_eq!(p, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!(
+            t,
+            Some(vec![-0.05, 0.05]),
+            "Velodyne's time: seconds from the stamp"
+        );
+        let mut binary = b"ply\nformat binary_big_endian 1.0\nelement vertex 1\n\
+                           property uint t\nproperty float x\nproperty float y\n\
+                           property float z\nend_header\n"
+            .to_vec();
+        binary.extend(20_000_000u32.to_be_bytes());
+        for v in [1.0f32, 2.0, 3.0] {
+            binary.extend(v.to_be_bytes());
+        }
+        let (p, t) = parse_ply_timed(Path::new("b.ply"), &binary, Some(3.0)).unwrap();
+        assert_eq!((p, t), (vec![[1.0, 2.0, 3.0]], Some(vec![0.02])));
+        assert_eq!(
+            parse_ply_timed(Path::new("a.ply"), ascii, None).unwrap().1,
+            None
+        );
     }
 
     #[test]

@@ -469,6 +469,23 @@ pub fn relative_times(
     Ok(raw.iter().map(|&v| rel(v) as f32).collect())
 }
 
+/// [`relative_times`] for a point-cloud file (PCD, PLY) whose stamp comes from its folder:
+/// absolute times that do not fit that stamp (assumed 10 Hz, or another clock) are taken
+/// from the scan's earliest point instead, as deskewing needs only their differences.
+pub fn file_relative_times(
+    name: &str,
+    datatype: u8,
+    raw: &[f64],
+    stamp: f64,
+) -> Result<Vec<f32>, String> {
+    let first = raw.iter().copied().fold(f64::INFINITY, f64::min);
+    relative_times(name, datatype, raw, stamp).or_else(|e| match first {
+        t if t > 1e15 => relative_times(name, datatype, raw, t * 1e-9),
+        t if t > 1e6 => relative_times(name, datatype, raw, t),
+        _ => Err(e),
+    })
+}
+
 /// Writes messages, for tests, fixtures and the fuzz targets' seeds. Not a general writer: it
 /// writes exactly the layouts it is given.
 #[doc(hidden)]

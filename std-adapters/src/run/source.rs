@@ -128,16 +128,17 @@ impl FrameSource for ScanFolder {
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
         read_scan_as(&self.paths[i], &self.bin_fields)
     }
-    /// PCD files with a time field give their points' times; other files none.
+    /// PCD and PLY files with a time field give their points' times; `.bin` files none.
     fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
         let path = &self.paths[i];
-        let pcd = path
+        let ext = path
             .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("pcd"));
-        if pcd {
-            crate::io::pcd::read_pcd_timed(path, self.stamps[i])
-        } else {
-            Ok((self.read(i)?, None))
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("pcd") => crate::io::pcd::read_pcd_timed(path, self.stamps[i]),
+            Some("ply") => crate::io::ply::read_ply_timed(path, self.stamps[i]),
+            _ => Ok((self.read(i)?, None)),
         }
     }
 }
