@@ -37,6 +37,9 @@ pub struct FrameRecord {
     pub ms: StageMs,
     /// Points read.
     pub points: usize,
+    /// Points the reader dropped before: a recording's NaN and no-return (all-zero) points.
+    #[serde(default)]
+    pub points_dropped_by_reader: usize,
     /// Points after filtering and down-sampling.
     pub points_kept: usize,
     /// Cells of the scan reconstructed.
@@ -79,6 +82,7 @@ impl FrameRecord {
             reason: None,
             ms: StageMs::default(),
             points: 0,
+            points_dropped_by_reader: 0,
             points_kept: 0,
             scan_cells: 0,
             scan_layers: 0,

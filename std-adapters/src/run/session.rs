@@ -290,6 +290,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
         // After the read: a recording knows a frame's stamp once it has read the message.
         rec.stamp = source.stamp(i);
+        rec.points_dropped_by_reader = source.dropped_by_reader();
         let motion = self.last_motion(source);
         let (pipeline, workers, timer) = (&mut self.pipeline, &self.workers, &mut self.timer);
         let filter = &self.opts.config.filter;

@@ -22,6 +22,11 @@ pub trait FrameSource {
     fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
         Ok((self.read(i)?, None))
     }
+    /// Points the last read dropped before handing them over (a recording's NaN and no-return
+    /// points); by default none.
+    fn dropped_by_reader(&self) -> usize {
+        0
+    }
 }
 
 /// What the command reads: a folder of scans (or one scan file), or a robot recording.
@@ -111,6 +116,13 @@ impl FrameSource for Input {
             Input::Folder(f) => f.read_timed(i),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.read_timed(i),
+        }
+    }
+    fn dropped_by_reader(&self) -> usize {
+        match self {
+            Input::Folder(f) => f.dropped_by_reader(),
+            #[cfg(feature = "recordings")]
+            Input::Recording(r) => r.dropped_by_reader(),
         }
     }
 }

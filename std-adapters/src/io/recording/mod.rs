@@ -284,6 +284,8 @@ pub struct Recording {
     next: usize,
     /// Each frame's time (header stamp, else the recorded time), once read.
     stamps: Vec<Option<f64>>,
+    /// Points the last decoded cloud dropped (NaN or no return).
+    last_dropped: usize,
 }
 
 impl Recording {
@@ -304,6 +306,7 @@ impl Recording {
             topic,
             stream: None,
             next: 0,
+            last_dropped: 0,
         })
     }
 
@@ -358,9 +361,12 @@ impl Recording {
         if let Some(s) = self.stamps.get_mut(i) {
             *s = Some(stamp);
         }
-        cloud
+        self.last_dropped = 0;
+        let decoded = cloud
             .and_then(|c| c.decode_with(extras))
-            .map_err(|e| self.error(i, e))
+            .map_err(|e| self.error(i, e))?;
+        self.last_dropped = decoded.dropped_non_finite + decoded.dropped_zero;
+        Ok(decoded)
     }
 }
 
@@ -390,5 +396,8 @@ impl crate::run::FrameSource for Recording {
         i: usize,
     ) -> Result<(Vec<slamesh_core::Point>, Option<Vec<f32>>), FileError> {
         self.read_with(i, false).map(|d| (d.points, d.times))
+    }
+    fn dropped_by_reader(&self) -> usize {
+        self.last_dropped
     }
 }
