@@ -213,34 +213,19 @@ pub fn parse_pcd_timed(
             .ok_or_else(|| FileError::at(path, format!("PCD has no {name} field")))
     };
     let mut wanted = vec![index("x")?, index("y")?, index("z")?];
-    let time = stamp.and_then(|s| {
-        let k = pointcloud2::TIME_FIELDS
-            .iter()
-            .find_map(|n| h.fields.iter().position(|f| f.name == *n))?;
-        Some((k, s))
-    });
-    if let Some((k, _)) = time {
+    let time = stamp.and_then(|stamp| {
+        let k = pointcloud2::file_time_field(|n| h.fields.iter().position(|f| f.name == n))?;
         wanted.push(k);
-    }
+        let f = &h.fields[k];
+        let datatype = match (f.kind, f.size) {
+            (b'F', 4) => pointcloud2::datatype::FLOAT32,
+            (b'F', _) => pointcloud2::datatype::FLOAT64,
+            _ => pointcloud2::datatype::UINT32,
+        };
+        Some((f.name.as_str(), datatype, stamp))
+    });
     let rows = values(path, &h, &wanted, &bytes[h.start..])?;
-    let n = wanted.len();
-    let points = rows
-        .chunks_exact(n)
-        .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32])
-        .collect();
-    let Some((k, stamp)) = time else {
-        return Ok((points, None));
-    };
-    let f = &h.fields[k];
-    let datatype = match (f.kind, f.size) {
-        (b'F', 4) => pointcloud2::datatype::FLOAT32,
-        (b'F', _) => pointcloud2::datatype::FLOAT64,
-        _ => pointcloud2::datatype::UINT32,
-    };
-    let raw: Vec<f64> = rows.chunks_exact(n).map(|r| r[3]).collect();
-    let times = pointcloud2::file_relative_times(&f.name, datatype, &raw, stamp)
-        .map_err(|e| FileError::at(path, e))?;
-    Ok((points, Some(times)))
+    pointcloud2::file_points_and_times(&rows, time).map_err(|e| FileError::at(path, e))
 }
 
 /// The values of fields `wanted` (first elements), point by point: `wanted.len()` a point.

@@ -200,37 +200,24 @@ pub fn parse_ply_timed(
             .ok_or_else(|| FileError::at(path, format!("PLY vertex has no {n} property")))
     };
     let mut wanted = vec![index("x")?, index("y")?, index("z")?];
-    let time = stamp.and_then(|s| {
-        let k = pointcloud2::TIME_FIELDS.iter().find_map(|n| {
+    let time = stamp.and_then(|stamp| {
+        let k = pointcloud2::file_time_field(|n| {
             vertex
                 .properties
                 .iter()
                 .position(|(p, t)| p == n && t.is_some())
         })?;
-        Some((k, s))
-    });
-    if let Some((k, _)) = time {
         wanted.push(k);
-    }
+        let (name, t) = &vertex.properties[k];
+        let datatype = match t.as_deref() {
+            Some("float" | "float32") => pointcloud2::datatype::FLOAT32,
+            Some("double" | "float64") => pointcloud2::datatype::FLOAT64,
+            _ => pointcloud2::datatype::UINT32,
+        };
+        Some((name.as_str(), datatype, stamp))
+    });
     let rows = vertex_values(path, &header, vi, &wanted, bytes)?;
-    let n = wanted.len();
-    let points = rows
-        .chunks_exact(n)
-        .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32])
-        .collect();
-    let Some((k, stamp)) = time else {
-        return Ok((points, None));
-    };
-    let (name, t) = &vertex.properties[k];
-    let datatype = match t.as_deref() {
-        Some("float" | "float32") => pointcloud2::datatype::FLOAT32,
-        Some("double" | "float64") => pointcloud2::datatype::FLOAT64,
-        _ => pointcloud2::datatype::UINT32,
-    };
-    let raw: Vec<f64> = rows.chunks_exact(n).map(|r| r[3]).collect();
-    let times = pointcloud2::file_relative_times(name, datatype, &raw, stamp)
-        .map_err(|e| FileError::at(path, e))?;
-    Ok((points, Some(times)))
+    pointcloud2::file_points_and_times(&rows, time).map_err(|e| FileError::at(path, e))
 }
 
 /// The values of vertex properties `wanted`, vertex by vertex (`wanted.len()` a vertex); the

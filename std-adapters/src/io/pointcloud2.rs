@@ -469,6 +469,34 @@ pub fn relative_times(
     Ok(raw.iter().map(|&v| rel(v) as f32).collect())
 }
 
+/// A point-cloud file's (PCD, PLY) time field: the first of [`TIME_FIELDS`] that `position`
+/// finds among its fields.
+pub fn file_time_field(position: impl Fn(&str) -> Option<usize>) -> Option<usize> {
+    TIME_FIELDS.iter().find_map(|n| position(n))
+}
+
+/// A point-cloud file's values, read `x, y, z` (and the time, when `time` names its field, its
+/// [`datatype`] and the file's stamp) a point, as points and times relative to the stamp by
+/// [`file_relative_times`].
+pub fn file_points_and_times(
+    rows: &[f64],
+    time: Option<(&str, u8, f64)>,
+) -> Result<(Vec<Point>, Option<Vec<f32>>), String> {
+    let n = if time.is_some() { 4 } else { 3 };
+    let points = rows
+        .chunks_exact(n)
+        .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32])
+        .collect();
+    let Some((name, datatype, stamp)) = time else {
+        return Ok((points, None));
+    };
+    let raw: Vec<f64> = rows.chunks_exact(n).map(|r| r[3]).collect();
+    Ok((
+        points,
+        Some(file_relative_times(name, datatype, &raw, stamp)?),
+    ))
+}
+
 /// [`relative_times`] for a point-cloud file (PCD, PLY) whose stamp comes from its folder:
 /// absolute times that do not fit that stamp (assumed 10 Hz, or another clock) are taken
 /// from the scan's earliest point instead, as deskewing needs only their differences.
