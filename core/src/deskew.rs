@@ -13,9 +13,8 @@
 //! the motion then bends the scan symmetrically, points before the middle one way and points
 //! after it the other, and registration's pose keeps no bias from it. Deskewed to one end
 //! of the sweep, every point would move the same way, the estimate would take half of `δ`
-//! into the next motion, and the loop between the two oscillates: on the simulated town at
-//! 10 m/s, mean frame-to-frame errors went from 2.5 cm (not deskewed) to 46 cm. A caller that
-//! wants the pose at the stamp moves it there with [`pose_at`].
+//! into the next motion, and the loop between the two oscillates (docs/design.md §1.9). A
+//! caller that wants the pose at the stamp moves it there with [`pose_at`].
 //!
 //! The exponential is evaluated at [`STEPS`] + 1 instants spread over the scan's times, and
 //! each point is interpolated linearly between the two transforms around its time: for a
