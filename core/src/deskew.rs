@@ -18,7 +18,7 @@
 //!
 //! The exponential is evaluated at [`STEPS`] + 1 instants spread over the scan's times, and
 //! each point is interpolated linearly between the two transforms around its time: for a
-//! sweep that turns 0.3 rad, the interpolation is off by under 0.2 mm at 50 m. No allocation:
+//! sweep that turns 0.3 rad, the interpolation is off by at most (0.3/64)²/8 · 50 m = 0.14 mm at 50 m. No allocation:
 //! the table is on the stack (about 3 KB).
 
 use crate::math::{renormalized, se3_exp, se3_log, Point, Pose};
