@@ -315,25 +315,71 @@ impl<'a> Cloud<'a> {
             }
         }
         let big = self.is_bigendian;
-        let n = w * h;
-        let mut out = DecodedScan {
-            points: Vec::with_capacity(n),
-            ..DecodedScan::default()
-        };
-        let room = |f: Option<&Field>| if f.is_some() { n } else { 0 };
-        let mut raw_times: Vec<f64> = Vec::with_capacity(room(time));
-        let mut inten: Vec<f32> = Vec::with_capacity(room(intensity));
-        let mut rings: Vec<u16> = Vec::with_capacity(room(ring));
-        // The common layout, float32 coordinates in the machine's byte order, read as such.
+        let mut out = DecodedScan::default();
+        let mut raw_times: Vec<f64> = Vec::new();
+        // The common layouts (float32 coordinates in the machine's byte order; a float32,
+        // uint32 or float64 time) get a loop of their own, with no datatype dispatch per point.
+        let [ox, oy, oz] = [x, y, z].map(|f| f.offset as usize);
         let f32_xyz = [x, y, z].iter().all(|f| f.datatype == datatype::FLOAT32) && !big;
+        let fast = |p: &[u8]| [ox, oy, oz].map(|o| read_f32_le(p, o));
+        let general = |p: &[u8]| [x, y, z].map(|f| read_value(p, f, big) as f32);
+        let extras = (intensity, ring);
+        let times = &mut raw_times;
+        match (f32_xyz, time.map(|f| (f.datatype, f.offset as usize))) {
+            (true, None) => self.gather(fast, None::<fn(&[u8]) -> f64>, extras, &mut out, times),
+            (true, Some((datatype::FLOAT32, o))) if !big => {
+                let t = move |p: &[u8]| read_f32_le(p, o) as f64;
+                self.gather(fast, Some(t), extras, &mut out, times)
+            }
+            (true, Some((datatype::UINT32, o))) if !big => {
+                let t = move |p: &[u8]| u32::from_le_bytes(array(p, o)) as f64;
+                self.gather(fast, Some(t), extras, &mut out, times)
+            }
+            (true, Some((datatype::FLOAT64, o))) if !big => {
+                let t = move |p: &[u8]| f64::from_le_bytes(array(p, o));
+                self.gather(fast, Some(t), extras, &mut out, times)
+            }
+            _ => {
+                let t = time.map(|f| move |p: &[u8]| read_value(p, f, big));
+                self.gather(general, t, extras, &mut out, times)
+            }
+        }
+        if let Some(f) = time {
+            out.times = Some(relative_times(&f.name, f.datatype, &raw_times, self.stamp)?);
+        }
+        Ok(out)
+    }
+
+    /// Reads every point of the (size-checked) data with `xyz`, and its time with `time` into
+    /// `raw_times`, dropping and counting those at the origin or not finite; the `extras`
+    /// (intensity, ring) are read where given.
+    #[inline(always)]
+    fn gather(
+        &self,
+        xyz: impl Fn(&[u8]) -> [f32; 3],
+        time: Option<impl Fn(&[u8]) -> f64>,
+        (intensity, ring): (Option<&Field>, Option<&Field>),
+        out: &mut DecodedScan,
+        raw_times: &mut Vec<f64>,
+    ) {
+        let (w, h, step, row) = (
+            self.width as usize,
+            self.height as usize,
+            self.point_step as usize,
+            self.row_step as usize,
+        );
+        let n = w * h;
+        out.points.reserve_exact(n);
+        if time.is_some() {
+            raw_times.reserve_exact(n);
+        }
+        let big = self.is_bigendian;
+        let mut inten: Vec<f32> = Vec::with_capacity(if intensity.is_some() { n } else { 0 });
+        let mut rings: Vec<u16> = Vec::with_capacity(if ring.is_some() { n } else { 0 });
         for r in 0..h {
-            for c in 0..w {
-                let p = &self.data[r * row + c * step..][..step];
-                let v: [f32; 3] = if f32_xyz {
-                    [x, y, z].map(|f| read_f32_le(p, f.offset as usize))
-                } else {
-                    [x, y, z].map(|f| read_value(p, f, big) as f32)
-                };
+            let points = &self.data[r * row..][..w * step];
+            for p in points.chunks_exact(step.max(1)) {
+                let v = xyz(p);
                 if !v.iter().all(|c| c.is_finite()) {
                     out.dropped_non_finite += 1;
                     continue;
@@ -343,27 +389,19 @@ impl<'a> Cloud<'a> {
                     continue;
                 }
                 out.points.push(v);
-                if let Some(f) = time {
-                    raw_times.push(read_value(p, f, big));
+                if let Some(t) = &time {
+                    raw_times.push(t(p));
                 }
                 if let Some(f) = intensity {
-                    inten.push(if f.datatype == datatype::FLOAT32 && !big {
-                        read_f32_le(p, f.offset as usize)
-                    } else {
-                        read_value(p, f, big) as f32
-                    });
+                    inten.push(read_value(p, f, big) as f32);
                 }
                 if let Some(f) = ring {
                     rings.push(read_ring(p, f, big));
                 }
             }
         }
-        if let Some(f) = time {
-            out.times = Some(relative_times(&f.name, f.datatype, &raw_times, self.stamp)?);
-        }
         out.intensity = intensity.map(|_| inten);
         out.ring = ring.map(|_| rings);
-        Ok(out)
     }
 }
 
@@ -386,11 +424,16 @@ fn read_ring(p: &[u8], f: &Field, big: bool) -> u16 {
     }
 }
 
+/// The `N` bytes at `o` in point `p` (whose length covers them, checked by [`Cloud::field`]).
+#[inline(always)]
+fn array<const N: usize>(p: &[u8], o: usize) -> [u8; N] {
+    p[o..o + N].try_into().expect("checked size")
+}
+
 /// A little-endian float32 at `o` in point `p` (whose length covers it).
-#[inline]
+#[inline(always)]
 fn read_f32_le(p: &[u8], o: usize) -> f32 {
-    let b: [u8; 4] = p[o..o + 4].try_into().expect("checked size");
-    f32::from_le_bytes(b)
+    f32::from_le_bytes(array(p, o))
 }
 
 /// One value of field `f` in point `p` (whose length covers the field, checked by
