@@ -11,7 +11,7 @@
 //! new to the map, the LM iterations and the conditioning. The town's car drive (10 Hz) is
 //! added as a drive that tracks.
 //!
-//! `cargo run --release --example hard_motion -- [--frames N] [--preset NAME] [--seed S] [--steps] [--signals]`
+//! `cargo run --release --example hard_motion -- [--frames N] [--preset NAME | --config FILE] [--seed S] [--steps] [--signals]`
 
 use slamesh::eval::odometry::{ate_rmse, consecutive_errors};
 use slamesh::io::config_file;
@@ -35,7 +35,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let signals = args.iter().any(|a| a == "--signals");
     // Per step: tracked or not, and the signals.
     let mut seen: Vec<(bool, [f64; 4])> = Vec::new();
-    let config = config_file::preset(preset).ok_or("unknown preset")?;
+    let config = match value("--config") {
+        Some(path) => config_file::read(std::path::Path::new(path))?.config,
+        None => config_file::preset(preset).ok_or("unknown preset")?,
+    };
     let workers = Workers::new(0)?;
     let drives = [
         ("hand-held", Some(Carried::HANDHELD)),
@@ -59,6 +62,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut estimate = Vec::with_capacity(frames);
         let mut statuses: BTreeMap<String, usize> = BTreeMap::new();
         let mut step_signals = vec![[f64::NAN; 4]; frames];
+        let mut frame_status = Vec::with_capacity(frames);
         for (i, signals_i) in step_signals.iter_mut().enumerate() {
             let status = match pipeline.process_scan_with(&drive.scan(i), &workers, &mut NoProbe) {
                 Ok(o) => {
@@ -73,13 +77,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         st.conditioning,
                     ];
                     format!("{:?}", o.status)
+                        + &match st.recovery_attempts {
+                            0 => String::new(),
+                            n => format!(" after {n} guesses"),
+                        }
                 }
                 Err(e) => {
                     estimate.push(*estimate.last().unwrap_or(&Pose::identity()));
                     format!("rejected ({e})")
                 }
             };
-            *statuses.entry(status).or_default() += 1;
+            let kind = status
+                .split(" after")
+                .next()
+                .unwrap_or_default()
+                .to_string();
+            *statuses.entry(kind).or_default() += 1;
+            frame_status.push(status);
         }
         let mut good = 0;
         for i in 1..frames {
@@ -93,8 +107,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             seen.push((t <= 0.05 && r <= 0.5, step_signals[i]));
             if steps {
                 println!(
-                    "{name} step {i}: turn {turn:.1} deg; error {:.2} cm, {r:.3} deg",
-                    t * 100.0
+                    "{name} step {i}: turn {turn:.1} deg; error {:.2} cm, {r:.3} deg; {}",
+                    t * 100.0,
+                    frame_status[i]
                 );
             }
         }

@@ -89,6 +89,31 @@ pub struct RegisterConfig {
     pub coarse_half_cells: bool,
     /// The solver.
     pub lm: LmConfig,
+    /// Recovery when a registration did not converge.
+    pub recovery: RecoveryConfig,
+}
+
+/// Recovery from motion the prediction got wrong (docs/design.md §1.11, [`crate::recovery`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RecoveryConfig {
+    /// Try other initial guesses when a registration did not converge. Default `true`.
+    pub enabled: bool,
+    /// Yaw between guesses (degrees; 0: only the last pose). Default 15.
+    pub yaw_step_deg: f64,
+    /// Largest yaw tried either way (degrees). Default 180.
+    pub yaw_max_deg: f64,
+    /// Registration rounds from each guess (all but the last with the initial reach). Default 6.
+    pub rounds: usize,
+    /// A last round that ran LM to its limit with fewer of the scan's layers matched than this
+    /// share did not converge; one that stopped before the limit with at least this share
+    /// surely did. Default 0.85.
+    pub confirm_share: f64,
+    /// A last round that moved the pose by more than this (metres) has not settled. Default
+    /// 0.05 (KITTI's last rounds move it by at most 1.5 cm).
+    pub settle_m: f64,
+    /// As `settle_m`, in degrees. Default 0.5 (KITTI: at most 0.07).
+    pub settle_deg: f64,
 }
 
 /// Map update (docs/design.md §1.5).
@@ -172,6 +197,15 @@ impl Default for Config {
                     huber_delta_m: 0.1,
                     degenerate_ratio: 0.012,
                     min_residuals: 10,
+                },
+                recovery: RecoveryConfig {
+                    enabled: true,
+                    yaw_step_deg: 15.0,
+                    yaw_max_deg: 180.0,
+                    rounds: 6,
+                    confirm_share: 0.85,
+                    settle_m: 0.15,
+                    settle_deg: 1.0,
                 },
             },
             map: MapConfig {
@@ -313,6 +347,33 @@ impl Config {
                 reason: "must be at least 6 (six unknowns)",
             });
         }
+        let rc = &r.recovery;
+        if rc.rounds == 0 || rc.rounds > 50 {
+            return Err(ConfigError {
+                field: "register.recovery.rounds",
+                reason: "must be 1 to 50",
+            });
+        }
+        if !(rc.yaw_step_deg.is_finite() && (0.0..=180.0).contains(&rc.yaw_step_deg)) {
+            return Err(ConfigError {
+                field: "register.recovery.yaw_step_deg",
+                reason: "must be 0 to 180 degrees",
+            });
+        }
+        if !(rc.yaw_max_deg.is_finite() && (0.0..=180.0).contains(&rc.yaw_max_deg)) {
+            return Err(ConfigError {
+                field: "register.recovery.yaw_max_deg",
+                reason: "must be 0 to 180 degrees",
+            });
+        }
+        if !(rc.confirm_share.is_finite() && (0.0..=1.0).contains(&rc.confirm_share)) {
+            return Err(ConfigError {
+                field: "register.recovery.confirm_share",
+                reason: "must be in [0, 1]",
+            });
+        }
+        positive("register.recovery.settle_m", rc.settle_m)?;
+        positive("register.recovery.settle_deg", rc.settle_deg)?;
         positive("map.variance_update", self.map.variance_update)?;
         positive("mesh.variance_show", self.mesh.variance_show)?;
         if !(self.mesh.max_slope_deg > 0.0 && self.mesh.max_slope_deg <= 90.0) {

@@ -64,6 +64,7 @@ pub mod pca;
 pub mod pipeline;
 pub mod random;
 pub mod reconstruct;
+pub mod recovery;
 pub mod sort;
 pub mod stage;
 

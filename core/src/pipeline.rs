@@ -1,12 +1,12 @@
 //! The pipeline: composes the stages for each scan (docs/design.md §1.1). Holds no math of its own.
 //!
-//! Per scan: filter → predict → (bucket → reconstruct → associate → LM) × rounds → bucket →
-//! reconstruct → fuse; or, without `MapConfig::reconstruct_at_final_pose`, the last round's
+//! Per scan: filter → predict → (bucket → reconstruct → associate → LM) × rounds (from other
+//! guesses as well when that did not converge: [`register`]) → bucket → reconstruct → fuse; or, without `MapConfig::reconstruct_at_final_pose`, the last round's
 //! reconstruction moved to the final pose → fuse. [`Pipeline::process_scan`] estimates the
 //! pose; [`Pipeline::integrate_scan`] meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
 //! the capacities of `C`; nothing is allocated afterwards.
 
-use crate::associate::{associate, AssociateStats};
+use crate::associate::AssociateStats;
 use crate::bounded::BoundedVec;
 use crate::bucket::{bucket, BucketStats, CellSpan, Placement};
 use crate::capacity::{Capacity, KittiCapacity};
@@ -16,16 +16,18 @@ use crate::executor::{Executor, Serial};
 use crate::filter::{filter_and_downsample, FilterStats};
 use crate::fusion::{integrate, FusionStats};
 use crate::layer::ScanLayer;
-use crate::lm::{self, LmError, Residual};
+use crate::lm::Residual;
 use crate::map::MeshMap;
-use crate::math::{renormalized, Point, Pose};
+use crate::math::{Point, Pose};
 use crate::mesh::{self, Triangle};
 use crate::motion::ConstantVelocity;
-use crate::reconstruct::{reconstruct_cells, Purpose};
+use crate::reconstruct::{reconstruct_cells, Purpose, ReconstructStats};
 use crate::sort::KeySorter;
 use crate::stage::{NoProbe, Probe, Stage};
 use core::fmt;
 use core::marker::PhantomData;
+
+mod register;
 
 /// How registration of one scan ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,6 +46,12 @@ pub enum RegistrationStatus {
     TooFewResiduals,
     /// The solver met non-finite numbers: as for `Degenerate`.
     SolverFailed,
+    /// Registration from the motion prediction did not converge; it did from another guess
+    /// (docs/design.md §1.11). The pose is that guess's.
+    Recovered,
+    /// Registration converged from no guess: the pose is the best attempt's by
+    /// [`Verdict::score`](crate::recovery::Verdict::score), and may be wrong.
+    NotConverged,
     /// The pose was given ([`Pipeline::integrate_scan`]).
     Given,
 }
@@ -131,6 +139,9 @@ pub struct ScanStats {
     pub conditioning: f64,
     /// Directions the last solved round left to the motion prediction (0 to 6).
     pub degenerate_directions: usize,
+    /// Guesses registered from after the prediction's registration did not converge
+    /// (docs/design.md §1.11); 0 on a frame that converged.
+    pub recovery_attempts: usize,
     /// Map update.
     pub fusion: FusionStats,
 }
@@ -257,61 +268,14 @@ impl<C: Capacity> Pipeline<C> {
             } else {
                 (r.initial_iterations, r.initial_cross_cell_overlap)
             };
-            status = RegistrationStatus::Converged;
-            let reuse_last = !self.config.map.reconstruct_at_final_pose;
-            for round in 0..rounds {
-                let last = round + 1 == rounds;
-                let reach = if last { 0 } else { reach };
-                // Every layer with exact variances: registration pairs the same vertices as
-                // with `Register` (it only compares variances with its threshold).
-                let purpose = if last && reuse_last {
-                    Purpose::Update
-                } else {
-                    Purpose::Register {
-                        reach,
-                        half_cells: reach > 0 && r.coarse_half_cells,
-                    }
-                };
-                let (b, dropped) = self.reconstruct(&pose, exec, purpose, probe);
-                stats.dropped_layers += dropped;
-                if purpose == Purpose::Update {
-                    for_update = Some((b, pose));
-                }
-                probe.enter(Stage::Associate);
-                stats.associate = associate(
-                    &self.scan,
-                    &self.map,
-                    reach,
-                    r.variance_register,
-                    &mut self.residuals,
-                    exec,
-                );
-                stats.rounds += 1;
-                probe.enter(Stage::Solve);
-                match lm::solve(&self.residuals, &r.lm) {
-                    Ok(sol) => {
-                        pose = renormalized(sol.correction * pose);
-                        stats.lm_iterations += sol.iterations;
-                        stats.conditioning = sol.conditioning;
-                        stats.degenerate_directions = sol.degenerate_directions;
-                        if sol.degenerate_directions > 0 {
-                            status = RegistrationStatus::Degenerate;
-                        }
-                    }
-                    Err(e) => {
-                        status = match e {
-                            LmError::TooFewResiduals { .. } => RegistrationStatus::TooFewResiduals,
-                            LmError::Degenerate { conditioning } => {
-                                stats.conditioning = conditioning;
-                                stats.degenerate_directions = 6;
-                                RegistrationStatus::Degenerate
-                            }
-                            LmError::NotFinite => RegistrationStatus::SolverFailed,
-                        };
-                        break;
-                    }
-                }
+            let mut best = self.register(pose, rounds, reach, exec, probe, &mut stats);
+            if r.recovery.enabled && best.verdict.is_lost(&r.recovery) {
+                best = self.recover(best, exec, probe, &mut stats);
             }
+            stats.associate = best.associate;
+            stats.conditioning = best.conditioning;
+            stats.degenerate_directions = best.degenerate_directions;
+            (pose, status, for_update) = (best.pose, best.status, best.for_update);
         }
         match for_update {
             Some((b, made_at)) => self.move_and_fuse(made_at, pose, b, probe, &mut stats),
@@ -407,7 +371,7 @@ impl<C: Capacity> Pipeline<C> {
         exec: &impl Executor,
         purpose: Purpose,
         probe: &mut impl Probe,
-    ) -> (BucketStats, usize) {
+    ) -> (BucketStats, ReconstructStats) {
         probe.enter(Stage::Bucket);
         let g = &self.config.grid;
         let b = bucket(
@@ -421,7 +385,7 @@ impl<C: Capacity> Pipeline<C> {
         );
         self.scan.clear();
         probe.enter(Stage::Reconstruct);
-        let dropped = reconstruct_cells(
+        let made = reconstruct_cells(
             &self.cells,
             &self.work,
             &self.map,
@@ -430,7 +394,7 @@ impl<C: Capacity> Pipeline<C> {
             &mut self.scan,
             exec,
         );
-        (b, dropped)
+        (b, made)
     }
 
     /// Final reconstruction at `pose`, map update, motion update.
@@ -441,8 +405,8 @@ impl<C: Capacity> Pipeline<C> {
         probe: &mut impl Probe,
         stats: &mut ScanStats,
     ) {
-        let (b, dropped) = self.reconstruct(&pose, exec, Purpose::Update, probe);
-        stats.dropped_layers += dropped;
+        let (b, made) = self.reconstruct(&pose, exec, Purpose::Update, probe);
+        stats.dropped_layers += made.dropped;
         probe.enter(Stage::Update);
         self.fuse(pose, b, stats);
         probe.enter(Stage::Done);

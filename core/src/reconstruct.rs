@@ -34,6 +34,25 @@ pub enum Purpose {
     Update,
 }
 
+/// One cell's reconstruction.
+#[derive(Debug, Clone, Default)]
+pub struct CellLayers {
+    /// Its layers (at most three).
+    pub layers: heapless::Vec<ScanLayer, 3>,
+    /// Layers its surface called for that a registration round left out for having no map
+    /// layer within reach: with the layers paired, the scan's overlap with the map.
+    pub unpaired: usize,
+}
+
+/// What [`reconstruct_cells`] did besides filling its output.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReconstructStats {
+    /// Layers that did not fit the output.
+    pub dropped: usize,
+    /// Layers left out for having no map layer within reach (see [`CellLayers::unpaired`]).
+    pub unpaired: usize,
+}
+
 /// Reconstructs the layers of cell `key` from its cell-local `points` (at most three layers;
 /// a layer whose GP fails is left out, and so is one `purpose` has no use for). `scratch` is
 /// the GP's working memory (any content: the result does not depend on it).
@@ -44,13 +63,13 @@ pub fn reconstruct_cell(
     map: &MeshMap,
     cfg: &Config,
     purpose: Purpose,
-) -> heapless::Vec<ScanLayer, 3> {
+) -> CellLayers {
     if let Purpose::Register {
         half_cells: true, ..
     } = purpose
     {
         if !in_checkerboard(key) {
-            return heapless::Vec::new();
+            return CellLayers::default();
         }
     }
     let mut axes = heapless::Vec::<Axis, 3>::new();
@@ -66,10 +85,11 @@ pub fn reconstruct_cell(
         Shape::Unclear => {}
     }
     let lattice = cfg.lattice();
-    let mut out = heapless::Vec::new();
+    let mut out = CellLayers::default();
     for axis in axes {
         if let Purpose::Register { reach, .. } = purpose {
             if !crate::associate::has_candidates(map, key, axis, reach) {
+                out.unpaired += 1;
                 continue;
             }
         }
@@ -80,7 +100,7 @@ pub fn reconstruct_cell(
         let samples = gp::select_training(points, axis, lattice.cell_size);
         if let Ok(layer) = gp::predict_in(scratch, &samples, &lattice, &cfg.gp, variances) {
             // At most three axes: cannot overflow.
-            let _ = out.push(ScanLayer { key, axis, layer });
+            let _ = out.layers.push(ScanLayer { key, axis, layer });
         }
     }
     out
@@ -94,8 +114,7 @@ pub fn in_checkerboard(key: CellKey) -> bool {
 }
 
 /// Reconstructs `cells` (spans into `bucketed`), one [`reconstruct_cell`] per cell run by
-/// `exec`, and appends their layers to `out` in cell order via [`append_layers`]; returns how
-/// many layers did not fit.
+/// `exec`, and appends their layers to `out` in cell order via [`append_layers`].
 pub fn reconstruct_cells(
     cells: &[CellSpan],
     bucketed: &[(CellKey, Point)],
@@ -104,15 +123,18 @@ pub fn reconstruct_cells(
     purpose: Purpose,
     out: &mut BoundedVec<ScanLayer>,
     exec: &impl Executor,
-) -> usize {
-    let mut dropped = 0;
+) -> ReconstructStats {
+    let mut stats = ReconstructStats::default();
     exec.map_in_order(
         cells,
         GpScratch::new,
         |scratch, c| reconstruct_cell(scratch, c.points(bucketed), c.key, map, cfg, purpose),
-        |layers| dropped += append_layers(out, layers),
+        |cell| {
+            stats.dropped += append_layers(out, cell.layers);
+            stats.unpaired += cell.unpaired;
+        },
     );
-    dropped
+    stats
 }
 
 /// Appends one cell's layers to `out`; layers that do not fit are dropped (the scan keeps its
@@ -168,8 +190,11 @@ mod tests {
         }
         let points = ground();
         let mut scratch = GpScratch::new();
-        let mut layers =
-            |key, purpose| reconstruct_cell(&mut scratch, &points, key, &map, &cfg, purpose).len();
+        let mut layers = |key, purpose| {
+            reconstruct_cell(&mut scratch, &points, key, &map, &cfg, purpose)
+                .layers
+                .len()
+        };
         let coarse = Purpose::Register {
             reach: 1,
             half_cells: true,

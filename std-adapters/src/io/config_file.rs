@@ -129,6 +129,13 @@ parameters! {
     "register.lm" register.lm.huber_delta_m: float as fv, "Huber loss threshold (metres).";
     "register.lm" register.lm.degenerate_ratio: float as fv, "A direction whose mean squared normal component is below this is left to the motion model.";
     "register.lm" register.lm.min_residuals: count as uv, "Fewer residuals than this and the scan keeps the motion prediction.";
+    "register.recovery" register.recovery.enabled: boolean as Value::Boolean, "Try other initial guesses (the last pose, turned in yaw) when a registration did not converge.";
+    "register.recovery" register.recovery.yaw_step_deg: float as fv, "Yaw between the guesses (degrees; 0: the last pose only).";
+    "register.recovery" register.recovery.yaw_max_deg: float as fv, "Largest yaw tried either way (degrees).";
+    "register.recovery" register.recovery.rounds: count as uv, "Registration rounds from each guess.";
+    "register.recovery" register.recovery.confirm_share: float as fv, "A last round at LM's limit matching fewer of the scan's layers than this did not converge; one before the limit matching at least this did.";
+    "register.recovery" register.recovery.settle_m: float as fv, "A last round that moved the pose by more than this (metres) has not settled: the frame goes to recovery.";
+    "register.recovery" register.recovery.settle_deg: float as fv, "As settle_m, in degrees.";
     "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
     "map" map.add_missing_layers: boolean as Value::Boolean, "Add a layer that a known cell lacks.";
     "map" map.reconstruct_at_final_pose: boolean as Value::Boolean, "Reconstruct the scan again at its final pose before fusing it (false: move the last round's reconstruction there instead; about a quarter faster, a little less accurate).";
@@ -326,12 +333,14 @@ mod tests {
             changed.register.lm.huber_delta_m = 0.25;
             changed.grid.min_points = 7;
             changed.map.reconstruct_at_final_pose = !c.map.reconstruct_at_final_pose;
+            changed.register.recovery.yaw_step_deg = 10.0;
+            changed.register.recovery.enabled = false;
             let text = documented_toml(&changed, name);
             let s = parse(&text).unwrap_or_else(|e| panic!("{name}: {e}\n{text}"));
             assert_eq!(s.config, changed, "{name}");
             assert_eq!(s.preset, name);
         }
-        assert_eq!(PARAMETERS.len(), 24);
+        assert_eq!(PARAMETERS.len(), 31);
     }
 
     #[test]

@@ -31,7 +31,7 @@ pub struct FrameRecord {
     /// Why it was skipped.
     pub error: Option<String>,
     /// Why it was not registered normally (statuses `Degenerate`, `TooFewResiduals`,
-    /// `SolverFailed`), naming the parameter involved.
+    /// `SolverFailed`, `Recovered`, `NotConverged`), naming the parameter involved.
     pub reason: Option<String>,
     /// Milliseconds per stage.
     pub ms: StageMs,
@@ -152,6 +152,10 @@ pub struct Summary {
 /// pose. Any other status, and a skipped frame, is a frame not registered normally.
 pub const NORMAL_STATUSES: [&str; 3] = ["FirstScan", "Converged", "Given"];
 
+/// Statuses of a frame registered, normally or not: a recovered frame is named on the
+/// terminal and counted, but is not among [`Health::not_registered`] (nor fails `--strict`).
+pub const REGISTERED_STATUSES: [&str; 4] = ["FirstScan", "Converged", "Given", "Recovered"];
+
 /// How the run's frames went.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Health {
@@ -181,13 +185,15 @@ impl Health {
     pub fn of<R: std::borrow::Borrow<FrameRecord>>(
         records: impl IntoIterator<Item = Result<R, FileError>>,
     ) -> Result<Self, FileError> {
-        const ORDER: [&str; 7] = [
+        const ORDER: [&str; 9] = [
             "FirstScan",
             "Converged",
             "Given",
             "Degenerate",
             "TooFewResiduals",
             "SolverFailed",
+            "Recovered",
+            "NotConverged",
             "Skipped",
         ];
         let mut counts = [0usize; ORDER.len()];
@@ -203,7 +209,7 @@ impl Health {
                     None => other.push((r.status.clone(), 1)),
                 },
             }
-            if !NORMAL_STATUSES.contains(&r.status.as_str()) {
+            if !REGISTERED_STATUSES.contains(&r.status.as_str()) {
                 not_registered.push(NotRegistered {
                     frame: r.frame,
                     file: r.file.clone(),
@@ -282,6 +288,21 @@ pub fn registration_reason(
         RegistrationStatus::SolverFailed => {
             Some("the solver's correction was not finite; the pose is the motion prediction".into())
         }
+        RegistrationStatus::Recovered => Some(format!(
+            "registration from the motion prediction did not converge; it did from guess {} of \
+             register.recovery (1: the same pose with more rounds; later: the last pose turned \
+             in yaw), {} surface matches",
+            stats.recovery_attempts, stats.associate.residuals
+        )),
+        RegistrationStatus::NotConverged => Some(format!(
+            "registration converged neither from the motion prediction nor from {} guesses of \
+             register.recovery; the pose is the best attempt's ({} surface matches for {} layers, \
+             under register.recovery.confirm_share = {}) and may be wrong",
+            stats.recovery_attempts,
+            stats.associate.residuals,
+            stats.scan_layers,
+            config.register.recovery.confirm_share
+        )),
     }
 }
 

@@ -1,0 +1,189 @@
+//! Registration of one scan (docs/design.md §1.4): rounds from one initial guess, and the
+//! recovery that tries other guesses when the prediction's did not converge (§1.11). Leaves
+//! the map alone; the pipeline fuses the attempt it returns.
+
+use super::{Pipeline, RegistrationStatus, ScanStats};
+use crate::associate::{associate, AssociateStats};
+use crate::bucket::BucketStats;
+use crate::capacity::Capacity;
+use crate::executor::Executor;
+use crate::lm::{self, LmError};
+use crate::math::{renormalized, Pose};
+use crate::reconstruct::Purpose;
+use crate::recovery::{self, Verdict};
+use crate::stage::{Probe, Stage};
+
+/// One registration from one initial guess.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Attempt {
+    pub(super) pose: Pose,
+    pub(super) status: RegistrationStatus,
+    pub(super) verdict: Verdict,
+    /// Association of the last round.
+    pub(super) associate: AssociateStats,
+    pub(super) conditioning: f64,
+    pub(super) degenerate_directions: usize,
+    /// Without `MapConfig::reconstruct_at_final_pose`: the last round's bucketing and the pose
+    /// its reconstruction (left in the scan's buffer) was made at.
+    pub(super) for_update: Option<(BucketStats, Pose)>,
+}
+
+impl<C: Capacity> Pipeline<C> {
+    /// Registers the filtered scan from `start` in `rounds` rounds, all but the last with
+    /// cross-cell `reach` (docs/design.md §1.4). Counts rounds, iterations and dropped layers
+    /// into `stats`; leaves the map alone.
+    pub(super) fn register(
+        &mut self,
+        start: Pose,
+        rounds: usize,
+        reach: u32,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+        stats: &mut ScanStats,
+    ) -> Attempt {
+        let r = self.config.register;
+        let reuse_last = !self.config.map.reconstruct_at_final_pose;
+        let mut a = Attempt {
+            pose: start,
+            status: RegistrationStatus::Converged,
+            verdict: Verdict::default(),
+            associate: AssociateStats::default(),
+            conditioning: 0.0,
+            degenerate_directions: 0,
+            for_update: None,
+        };
+        for round in 0..rounds {
+            let last = round + 1 == rounds;
+            let reach = if last { 0 } else { reach };
+            // Every layer with exact variances: registration pairs the same vertices as
+            // with `Register` (it only compares variances with its threshold).
+            let purpose = if last && reuse_last {
+                Purpose::Update
+            } else {
+                Purpose::Register {
+                    reach,
+                    half_cells: reach > 0 && r.coarse_half_cells,
+                }
+            };
+            let (b, made) = self.reconstruct(&a.pose, exec, purpose, probe);
+            stats.dropped_layers += made.dropped;
+            if purpose == Purpose::Update {
+                a.for_update = Some((b, a.pose));
+            }
+            probe.enter(Stage::Associate);
+            a.associate = associate(
+                &self.scan,
+                &self.map,
+                reach,
+                r.variance_register,
+                &mut self.residuals,
+                exec,
+            );
+            stats.rounds += 1;
+            probe.enter(Stage::Solve);
+            let verdict = |iterations, correction: &Pose| {
+                Verdict::of(
+                    a.associate.residuals,
+                    self.scan.len() + made.unpaired,
+                    iterations,
+                    r.lm.max_iterations,
+                    correction,
+                    &r.recovery,
+                )
+            };
+            match lm::solve(&self.residuals, &r.lm) {
+                Ok(sol) => {
+                    a.verdict = verdict(sol.iterations, &sol.correction);
+                    a.pose = renormalized(sol.correction * a.pose);
+                    stats.lm_iterations += sol.iterations;
+                    a.conditioning = sol.conditioning;
+                    a.degenerate_directions = sol.degenerate_directions;
+                    if sol.degenerate_directions > 0 {
+                        a.status = RegistrationStatus::Degenerate;
+                    }
+                }
+                Err(e) => {
+                    // A scan too degenerate to solve is not lost, nor one with too few layers
+                    // to pair from any guess; one that found too little to pair, or numbers
+                    // that blew up, may be.
+                    a.verdict = verdict(r.lm.max_iterations, &Pose::identity());
+                    a.status = match e {
+                        LmError::TooFewResiduals { .. } => {
+                            a.verdict.hit_limit =
+                                self.scan.len() + made.unpaired >= r.lm.min_residuals;
+                            RegistrationStatus::TooFewResiduals
+                        }
+                        LmError::Degenerate { conditioning } => {
+                            a.verdict.hit_limit = false;
+                            a.conditioning = conditioning;
+                            a.degenerate_directions = 6;
+                            RegistrationStatus::Degenerate
+                        }
+                        LmError::NotFinite => RegistrationStatus::SolverFailed,
+                    };
+                    break;
+                }
+            }
+        }
+        a
+    }
+
+    /// Registers the scan again from the guesses of [`recovery::guesses`] around the last
+    /// pose, after `first` (from the prediction) did not converge; stops at the first sure
+    /// attempt and returns the best by [`Verdict::score`] (docs/design.md §1.11).
+    pub(super) fn recover(
+        &mut self,
+        first: Attempt,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+        stats: &mut ScanStats,
+    ) -> Attempt {
+        let r = self.config.register;
+        let rc = r.recovery;
+        let last = self.motion.last().unwrap_or(first.pose);
+        let start = self.motion.predict();
+        // First from where the prediction's attempt ended (more rounds, wider reach), then
+        // from the last pose turned.
+        let guesses = core::iter::once(first.pose).chain(recovery::guesses(&last, &rc));
+        let mut best = first;
+        // The scan's buffers hold the attempt run last: the best's reconstruction is reusable
+        // for the map update only while it is that one.
+        let mut best_ran_last = true;
+        for guess in guesses {
+            if guess == start {
+                continue;
+            }
+            stats.recovery_attempts += 1;
+            let a = self.register(
+                guess,
+                rc.rounds,
+                r.initial_cross_cell_overlap,
+                exec,
+                probe,
+                stats,
+            );
+            let sure = a.verdict.is_sure(&rc);
+            best_ran_last = a.verdict.score(&rc) > best.verdict.score(&rc);
+            if best_ran_last {
+                best = a;
+            }
+            if sure {
+                break;
+            }
+        }
+        if !best_ran_last {
+            best.for_update = None;
+        }
+        if matches!(
+            best.status,
+            RegistrationStatus::Converged | RegistrationStatus::Degenerate
+        ) {
+            best.status = if best.verdict.is_sure(&rc) {
+                RegistrationStatus::Recovered
+            } else {
+                RegistrationStatus::NotConverged
+            };
+        }
+        best
+    }
+}

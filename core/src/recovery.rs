@@ -1,0 +1,180 @@
+//! Recovery from motion the prediction got wrong (docs/design.md §1.11): the rule that tells a
+//! registration that did not converge, the score that ranks attempts, and the initial guesses
+//! tried when the constant-velocity one failed.
+//!
+//! The rule and its thresholds come from the hard-motion signal study (docs/benchmarks.md,
+//! "Which signal tells a lost step"): every lost step ran its last round to LM's iteration
+//! limit and no tracked step did; the share of the scan's layers that found a match in the map
+//! confirms it (tracked steps 0.73 to 1.0, lost ones 0.04 to 0.82). Both are counts the
+//! registration has anyway, so a frame that converges pays nothing.
+//!
+//! The guesses keep the last pose's position and turn it about the world's vertical: a
+//! hand-held rig or a drone turns fastest in yaw, and position and tilt errors of the size
+//! they make between scans are within the coarse rounds' reach (two cells).
+
+use crate::config::RecoveryConfig;
+use crate::math::{rotation_angle, Pose};
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// What one registration attempt ended with, enough to judge it and compare it with others.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Verdict {
+    /// The last round's LM ran to its iteration limit.
+    pub hit_limit: bool,
+    /// Share of the scan's layers that found a match in the map in the last round.
+    pub matched_share: f64,
+    /// The last round's correction was within `settle_m` and `settle_deg`: the rounds agree.
+    pub settled: bool,
+}
+
+impl Verdict {
+    /// The verdict of a last round that paired `residuals` of `layers` scan layers, ran LM
+    /// for `iterations` of at most `max_iterations`, and corrected the pose by `correction`.
+    pub fn of(
+        residuals: usize,
+        layers: usize,
+        iterations: usize,
+        max_iterations: usize,
+        correction: &Pose,
+        cfg: &RecoveryConfig,
+    ) -> Self {
+        Self {
+            hit_limit: iterations >= max_iterations,
+            matched_share: if layers == 0 {
+                0.0
+            } else {
+                residuals as f64 / layers as f64
+            },
+            settled: correction.translation.vector.norm() <= cfg.settle_m
+                && rotation_angle(correction) <= cfg.settle_deg.to_radians(),
+        }
+    }
+
+    /// True when the attempt did not converge: its last round ran to the iteration limit with
+    /// less than `cfg.confirm_share` of its layers matched, or it still moved the pose by
+    /// more than the settling limits. This is what sends a frame to recovery.
+    pub fn is_lost(&self, cfg: &RecoveryConfig) -> bool {
+        (self.hit_limit && self.matched_share < cfg.confirm_share) || !self.settled
+    }
+
+    /// True when the attempt surely converged: its last round stopped before the limit, with
+    /// at least `cfg.confirm_share` of its layers matched, and settled. A guess that does this
+    /// ends recovery.
+    pub fn is_sure(&self, cfg: &RecoveryConfig) -> bool {
+        !self.hit_limit && self.settled && self.matched_share >= cfg.confirm_share
+    }
+
+    /// The score that ranks attempts: the matched share, with a sure attempt above every
+    /// other.
+    pub fn score(&self, cfg: &RecoveryConfig) -> f64 {
+        self.matched_share + if self.is_sure(cfg) { 1.0 } else { 0.0 }
+    }
+}
+
+/// The initial guesses to try after the prediction failed, in order: the last pose itself
+/// (no motion), then turned about the world's vertical by `±step`, `±2·step`, ... up to
+/// `yaw_max_deg`, nearest first. At most [`MAX_GUESSES`].
+pub fn guesses(last: &Pose, cfg: &RecoveryConfig) -> impl Iterator<Item = Pose> {
+    let step = cfg.yaw_step_deg.to_radians();
+    let turns = if step > 0.0 {
+        libm::floor(cfg.yaw_max_deg / cfg.yaw_step_deg + 1e-9) as usize
+    } else {
+        0
+    };
+    let turns = turns.min((MAX_GUESSES - 1) / 2);
+    let last = *last;
+    (0..=2 * turns).map(move |i| {
+        // 0, +1, -1, +2, -2, ... steps.
+        let k = i.div_ceil(2) as f64 * if i % 2 == 1 { 1.0 } else { -1.0 };
+        let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), k * step);
+        Pose::from_parts(last.translation, yaw * last.rotation)
+    })
+}
+
+/// Most guesses [`guesses`] gives (the last pose and 24 turns each way: 7.5° steps all round).
+pub const MAX_GUESSES: usize = 49;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use alloc::vec::Vec;
+    use nalgebra::Translation3;
+
+    fn cfg() -> RecoveryConfig {
+        RecoveryConfig {
+            enabled: true,
+            yaw_step_deg: 15.0,
+            yaw_max_deg: 180.0,
+            rounds: 6,
+            confirm_share: 0.85,
+            settle_m: 0.05,
+            settle_deg: 0.5,
+        }
+    }
+
+    #[test]
+    fn guesses_turn_the_last_pose_about_the_vertical_nearest_first() {
+        let last = Pose::from_parts(
+            Translation3::new(1.0, 2.0, 3.0),
+            UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
+        );
+        let g: Vec<Pose> = guesses(&last, &cfg()).collect();
+        assert_eq!(g.len(), 25);
+        assert_eq!(g[0], last);
+        let turns: Vec<f64> = g
+            .iter()
+            .map(|p| {
+                let d = p.rotation * last.rotation.inverse();
+                let axis = d.axis().map_or(1.0, |a| a.z.signum());
+                (axis * d.angle()).to_degrees()
+            })
+            .collect();
+        for (i, t) in turns.iter().enumerate().skip(1) {
+            let k = i.div_ceil(2) as f64 * if i % 2 == 1 { 1.0 } else { -1.0 };
+            assert!(
+                (t - 15.0 * k).abs() < 1e-6 || (t.abs() - 180.0).abs() < 1e-6,
+                "{i}: {t}"
+            );
+            assert_eq!(g[i].translation, last.translation);
+            // A turn about the vertical keeps the tilt: the sensor's z axis keeps its height.
+            let up = |p: &Pose| (p.rotation * Vector3::z()).z;
+            assert!((up(&g[i]) - up(&last)).abs() < 1e-12);
+        }
+        assert!(rotation_angle(&(g[1].inverse() * g[2])) > 0.5);
+    }
+
+    #[test]
+    fn no_step_gives_the_last_pose_only_and_the_count_is_bounded() {
+        let mut c = cfg();
+        c.yaw_step_deg = 0.0;
+        assert_eq!(guesses(&Pose::identity(), &c).count(), 1);
+        c.yaw_step_deg = 0.001;
+        assert_eq!(guesses(&Pose::identity(), &c).count(), MAX_GUESSES);
+    }
+
+    #[test]
+    fn a_lost_attempt_ran_to_the_limit_and_matched_little_or_did_not_settle() {
+        let c = cfg();
+        let still = Pose::identity();
+        let v = |res, layers, it, corr: &Pose| Verdict::of(res, layers, it, 10, corr, &c);
+        assert!(v(40, 100, 10, &still).is_lost(&c));
+        assert!(!v(90, 100, 10, &still).is_lost(&c));
+        assert!(!v(40, 100, 9, &still).is_lost(&c));
+        assert!(v(0, 0, 10, &still).is_lost(&c));
+        // A last round that still moved the pose by 10 cm, or by a degree, did not settle.
+        let moved = Pose::translation(0.1, 0.0, 0.0);
+        let turned = Pose::rotation(Vector3::z() * 1f64.to_radians());
+        assert!(v(95, 100, 3, &moved).is_lost(&c));
+        assert!(v(95, 100, 3, &turned).is_lost(&c));
+        assert!(!v(95, 100, 3, &Pose::translation(0.04, 0.0, 0.0)).is_lost(&c));
+        // Sure: stopped before the limit, settled, with most layers matched; it ranks above
+        // the rest.
+        assert!(v(90, 100, 3, &still).is_sure(&c));
+        assert!(!v(40, 100, 3, &still).is_sure(&c));
+        assert!(!v(90, 100, 10, &still).is_sure(&c));
+        assert!(!v(90, 100, 3, &moved).is_sure(&c));
+        assert!(v(86, 100, 3, &still).score(&c) > v(99, 100, 10, &still).score(&c));
+        assert!(v(60, 100, 10, &still).score(&c) > v(40, 100, 3, &still).score(&c));
+    }
+}
