@@ -185,3 +185,44 @@ fn verbosity_follows_v_q_and_rust_log() {
     assert!(!only_errors.contains("slamesh: warning: "), "{only_errors}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn recovered_frames_are_named_and_counted_but_do_not_fail_a_strict_run() {
+    let dir = scratch("health-recovered");
+    let scans = dir.join("scans");
+    std::fs::create_dir_all(&scans).unwrap();
+    let drive = slamesh_sim::Drive::carried(6, slamesh_sim::town::Carried::HANDHELD, 1);
+    for i in 0..6 {
+        write_bin(&scans.join(format!("{i:03}.bin")), &drive.scan(i));
+    }
+    let out = dir.join("out");
+    let o = slamesh_run(&scans, &out, &["--strict"]);
+    let (stdout, stderr) = (text(&o.stdout), text(&o.stderr));
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr
+            .lines()
+            .any(|l| l.starts_with("slamesh: warning: frame ")
+                && l.contains(
+                    ".bin): Recovered: registration from the motion prediction did not converge"
+                )
+                && l.contains("register.recovery")),
+        "{stderr}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let health = &report["summary"]["health"];
+    let recovered = health["counts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c[0] == "Recovered")
+        .and_then(|c| c[1].as_u64())
+        .unwrap_or(0);
+    assert!(recovered >= 1, "{health}");
+    assert!(
+        stdout.contains(&format!("{recovered} Recovered")),
+        "{stdout}"
+    );
+    assert_eq!(health["not_registered"], serde_json::json!([]));
+}

@@ -109,6 +109,10 @@ pub struct RecoveryConfig {
     /// share did not converge; one that stopped before the limit with at least this share
     /// surely did. Default 0.85.
     pub confirm_share: f64,
+    /// When no guess surely converged, the best one that converged and settled with at least
+    /// this share matched is kept as recovered (a turn into unseen space leaves fewer layers
+    /// with a match); below it the frame is `NotConverged`. Default 0.6.
+    pub accept_share: f64,
     /// A last round that moved the pose by more than this (metres) has not settled. Default
     /// 0.05 (KITTI's last rounds move it by at most 1.5 cm).
     pub settle_m: f64,
@@ -204,6 +208,7 @@ impl Default for Config {
                     yaw_max_deg: 180.0,
                     rounds: 6,
                     confirm_share: 0.85,
+                    accept_share: 0.6,
                     settle_m: 0.15,
                     settle_deg: 1.0,
                 },
@@ -370,6 +375,12 @@ impl Config {
             return Err(ConfigError {
                 field: "register.recovery.confirm_share",
                 reason: "must be in [0, 1]",
+            });
+        }
+        if !(rc.accept_share.is_finite() && (0.0..=rc.confirm_share).contains(&rc.accept_share)) {
+            return Err(ConfigError {
+                field: "register.recovery.accept_share",
+                reason: "must be in [0, register.recovery.confirm_share]",
             });
         }
         positive("register.recovery.settle_m", rc.settle_m)?;

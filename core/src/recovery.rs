@@ -65,10 +65,24 @@ impl Verdict {
         !self.hit_limit && self.settled && self.matched_share >= cfg.confirm_share
     }
 
-    /// The score that ranks attempts: the matched share, with a sure attempt above every
-    /// other.
+    /// True when the attempt converged and settled with at least `cfg.accept_share` of its
+    /// layers matched: when no guess was sure, such a one is kept as recovered (a turn into
+    /// unseen space leaves fewer layers with a match).
+    pub fn is_plausible(&self, cfg: &RecoveryConfig) -> bool {
+        !self.hit_limit && self.settled && self.matched_share >= cfg.accept_share
+    }
+
+    /// The score that ranks attempts: the matched share, a sure attempt above every other and
+    /// a plausible one above the rest.
     pub fn score(&self, cfg: &RecoveryConfig) -> f64 {
-        self.matched_share + if self.is_sure(cfg) { 1.0 } else { 0.0 }
+        self.matched_share
+            + if self.is_sure(cfg) {
+                2.0
+            } else if self.is_plausible(cfg) {
+                1.0
+            } else {
+                0.0
+            }
     }
 }
 
@@ -108,6 +122,7 @@ mod tests {
             yaw_max_deg: 180.0,
             rounds: 6,
             confirm_share: 0.85,
+            accept_share: 0.6,
             settle_m: 0.05,
             settle_deg: 0.5,
         }
@@ -176,5 +191,12 @@ mod tests {
         assert!(!v(90, 100, 3, &moved).is_sure(&c));
         assert!(v(86, 100, 3, &still).score(&c) > v(99, 100, 10, &still).score(&c));
         assert!(v(60, 100, 10, &still).score(&c) > v(40, 100, 3, &still).score(&c));
+        // Plausible: converged and settled with a share between the two thresholds; it ranks
+        // between the sure ones and the rest.
+        assert!(v(70, 100, 3, &still).is_plausible(&c) && !v(70, 100, 3, &still).is_sure(&c));
+        assert!(!v(50, 100, 3, &still).is_plausible(&c));
+        assert!(!v(70, 100, 3, &moved).is_plausible(&c));
+        assert!(v(86, 100, 3, &still).score(&c) > v(70, 100, 3, &still).score(&c));
+        assert!(v(70, 100, 3, &still).score(&c) > v(84, 100, 10, &still).score(&c));
     }
 }

@@ -178,7 +178,7 @@ impl<C: Capacity> Pipeline<C> {
             best.status,
             RegistrationStatus::Converged | RegistrationStatus::Degenerate
         ) {
-            best.status = if best.verdict.is_sure(&rc) {
+            best.status = if best.verdict.is_plausible(&rc) {
                 RegistrationStatus::Recovered
             } else {
                 RegistrationStatus::NotConverged

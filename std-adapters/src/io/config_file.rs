@@ -134,6 +134,7 @@ parameters! {
     "register.recovery" register.recovery.yaw_max_deg: float as fv, "Largest yaw tried either way (degrees).";
     "register.recovery" register.recovery.rounds: count as uv, "Registration rounds from each guess.";
     "register.recovery" register.recovery.confirm_share: float as fv, "A last round at LM's limit matching fewer of the scan's layers than this did not converge; one before the limit matching at least this did.";
+    "register.recovery" register.recovery.accept_share: float as fv, "When no guess was sure, the best that converged and settled with at least this share matched is kept as recovered.";
     "register.recovery" register.recovery.settle_m: float as fv, "A last round that moved the pose by more than this (metres) has not settled: the frame goes to recovery.";
     "register.recovery" register.recovery.settle_deg: float as fv, "As settle_m, in degrees.";
     "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
@@ -340,7 +341,7 @@ mod tests {
             assert_eq!(s.config, changed, "{name}");
             assert_eq!(s.preset, name);
         }
-        assert_eq!(PARAMETERS.len(), 31);
+        assert_eq!(PARAMETERS.len(), 32);
     }
 
     #[test]

@@ -296,12 +296,13 @@ pub fn registration_reason(
         )),
         RegistrationStatus::NotConverged => Some(format!(
             "registration converged neither from the motion prediction nor from {} guesses of \
-             register.recovery; the pose is the best attempt's ({} surface matches for {} layers, \
-             under register.recovery.confirm_share = {}) and may be wrong",
+             register.recovery (none settled with register.recovery.accept_share = {} of its \
+             layers matched); the pose is the best attempt's ({} surface matches for {} layers) \
+             and may be wrong",
             stats.recovery_attempts,
+            config.register.recovery.accept_share,
             stats.associate.residuals,
             stats.scan_layers,
-            config.register.recovery.confirm_share
         )),
     }
 }
