@@ -90,12 +90,14 @@ impl Drive {
         d
     }
 
-    /// Up to `frames` scans (2 a second) of a rig carried through [`crate::town`]'s town as
-    /// `how` says (a hand-held scanner, a drone: [`crate::town::Carried`]), seen by a 32-beam
+    /// Up to `frames` scans (2 a second) of a rig carried through [`crate::town`]'s town and
+    /// an indoor hall over its first street ([`crate::town::hall`]) as `how` says (a hand-held scanner, a drone: [`crate::town::Carried`]), seen by a 32-beam
     /// sensor (Ouster OS-32 like: 32 beams over ±22.5 degrees, 1 024 firings a turn, 80 m),
     /// 2 cm range noise, 5 % dropouts.
     pub fn carried(frames: usize, how: crate::town::Carried, seed: u64) -> Self {
-        let scene = crate::town::scene(seed);
+        let mut scene = crate::town::scene(seed);
+        let hall = crate::town::hall(&scene);
+        scene.boxes.extend(hall);
         let poses = crate::town::carried_poses(&scene, frames, how, seed);
         Drive {
             scene,

@@ -305,7 +305,7 @@ impl Carried {
         max_look_deg: 90.0,
         tilt_deg: 15.0,
     };
-    /// A small drone: 1.5 m/s, 5 m up, yawing by up to 45 degrees between scans, pitching and
+    /// A small drone: 1.5 m/s, 5 m up (2 m under a hall's roof), yawing by up to 45 degrees between scans, pitching and
     /// rolling by up to 15 degrees.
     pub const DRONE: Carried = Carried {
         speed_m_s: 1.5,
@@ -314,6 +314,55 @@ impl Carried {
         max_look_deg: 120.0,
         tilt_deg: 15.0,
     };
+}
+
+/// An indoor hall over the start of [`route`], for the carried rigs: 30 m long, 12 m wide and
+/// 7 m high, across the first street from 20 m after the route's start, with 4 m wide, 6 m
+/// high doors in both end walls where the route passes (a hand-held rig is inside from about
+/// its 33rd scan to its 83rd, a drone from its 27th to its 67th). The street's lights, cars and
+/// shelters in it stand in as furniture. Not part of [`scene`]: the car drives keep the open
+/// street.
+pub fn hall(scene: &Scene) -> Vec<OrientedBox> {
+    // The route starts mid-street at (2.5 pitches, 1 pitch), heading along +x.
+    let (start, y) = (2.5 * PITCH_M, PITCH_M);
+    let (x0, x1) = (start + 20.0, start + 50.0);
+    let (half_width, height, door_half, door_height, wall) = (6.0, 7.0, 2.0, 6.0, 0.15);
+    let base = scene.ground_height((x0 + x1) / 2.0, y) - 1.0;
+    let top = base + 1.0 + height;
+    let slab = |xa: f64, xb: f64, ya: f64, yb: f64, za: f64, zb: f64| OrientedBox {
+        centre: [(xa + xb) / 2.0, (ya + yb) / 2.0, (za + zb) / 2.0],
+        half: [(xb - xa) / 2.0, (yb - ya) / 2.0, (zb - za) / 2.0],
+        yaw: 0.0,
+    };
+    let (ya, yb) = (y - half_width, y + half_width);
+    let mut boxes = vec![
+        // Side walls and the roof.
+        slab(x0, x1, ya - wall, ya + wall, base, top),
+        slab(x0, x1, yb - wall, yb + wall, base, top),
+        slab(
+            x0 - wall,
+            x1 + wall,
+            ya - wall,
+            yb + wall,
+            top,
+            top + 2.0 * wall,
+        ),
+    ];
+    for x in [x0, x1] {
+        // An end wall either side of its door, and the lintel over it.
+        boxes.push(slab(x - wall, x + wall, ya, y - door_half, base, top));
+        boxes.push(slab(x - wall, x + wall, y + door_half, yb, base, top));
+        let lintel = base + 1.0 + door_height;
+        boxes.push(slab(
+            x - wall,
+            x + wall,
+            y - door_half,
+            y + door_half,
+            lintel,
+            top,
+        ));
+    }
+    boxes
 }
 
 /// Scans a second of [`carried_poses`].
@@ -394,6 +443,30 @@ mod tests {
             assert!((t.z - s.ground_height(t.x, t.y) - SENSOR_HEIGHT_M).abs() < 1e-9);
         }
         assert_eq!(scene(1), s);
+    }
+
+    #[test]
+    fn the_hall_roofs_the_route_from_20_to_50_m_with_doors_at_both_ends() {
+        let mut s = scene(1);
+        s.boxes.extend(hall(&s));
+        let poses = carried_poses(&s, 100, Carried::HANDHELD, 1);
+        let up = nalgebra::Vector3::z();
+        let roofed = |p: &Pose| s.cast(&p.translation.vector, &up, 20.0).is_some();
+        let inside: Vec<usize> = (0..100).filter(|&k| roofed(&poses[k])).collect();
+        // 0.6 m a scan from 2.5 pitches: inside from 20 m to 50 m along the route.
+        assert_eq!(inside.first(), Some(&34), "{inside:?}");
+        assert_eq!(inside.last(), Some(&83), "{inside:?}");
+        assert_eq!(inside.len(), 50);
+        // Through the door: nothing ahead of the route within a metre of the end wall, the
+        // wall 3 m to either side.
+        let at_door = poses[33].translation.vector;
+        let east = nalgebra::Vector3::x();
+        assert!(s.cast(&at_door, &east, 1.0).is_none());
+        for side in [3.0, -3.0] {
+            let beside = at_door + nalgebra::Vector3::y() * side;
+            let d = s.cast(&beside, &east, 1.0);
+            assert!(d.is_some(), "{side}: {d:?}");
+        }
     }
 
     #[test]
