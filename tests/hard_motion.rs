@@ -50,5 +50,11 @@ fn carried_rigs_are_tracked_with_recovery_and_lost_without() {
         let kept = tracked.iter().filter(|t| **t).count();
         assert!(kept <= 5, "{name} without recovery: {kept} of 15 tracked");
         assert!(!statuses.contains(&RegistrationStatus::Recovered));
+        // Still told: the lost steps are not `Converged`.
+        let not_converged = statuses
+            .iter()
+            .filter(|s| **s == RegistrationStatus::NotConverged)
+            .count();
+        assert!(not_converged >= 15 - kept - 1, "{name}: {statuses:?}");
     }
 }

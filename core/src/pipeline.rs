@@ -50,7 +50,8 @@ pub enum RegistrationStatus {
     /// (docs/design.md §1.11). The pose is that guess's.
     Recovered,
     /// Registration converged from no guess: the pose is the best attempt's by
-    /// [`Verdict::score`](crate::recovery::Verdict::score), and may be wrong.
+    /// [`Verdict::score`](crate::recovery::Verdict::score), and may be wrong. With recovery
+    /// off, the prediction's attempt that did not converge.
     NotConverged,
     /// The pose was given ([`Pipeline::integrate_scan`]).
     Given,
@@ -269,8 +270,12 @@ impl<C: Capacity> Pipeline<C> {
                 (r.initial_iterations, r.initial_cross_cell_overlap)
             };
             let mut best = self.register(pose, rounds, reach, exec, probe, &mut stats);
-            if r.recovery.enabled && best.verdict.is_lost(&r.recovery) {
-                best = self.recover(best, exec, probe, &mut stats);
+            if best.verdict.is_lost(&r.recovery) {
+                if r.recovery.enabled {
+                    best = self.recover(best, exec, probe, &mut stats);
+                } else if best.status == RegistrationStatus::Converged {
+                    best.status = RegistrationStatus::NotConverged;
+                }
             }
             stats.associate = best.associate;
             stats.conditioning = best.conditioning;
