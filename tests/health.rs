@@ -45,7 +45,9 @@ fn frames_not_registered_are_named_counted_reported_and_fail_a_strict_run() {
     let dir = scratch("health");
     let scans = write_frames(&dir, 2);
     let out = dir.join("out");
-    let o = slamesh_run(&scans, &out, &[]);
+    // The original's parameters (`fast`): the default preset fits the nearest range to the
+    // scene, and these messages name the configured one.
+    let o = slamesh_run(&scans, &out, &["--preset", "fast"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let (stdout, stderr) = (text(&o.stdout), text(&o.stderr));
     let named = |frame: usize| {
@@ -104,7 +106,7 @@ fn frames_not_registered_are_named_counted_reported_and_fail_a_strict_run() {
 
     // --strict: the outputs are written, the run fails and lists the frames.
     let strict = dir.join("strict");
-    let o = slamesh_run(&scans, &strict, &["--strict"]);
+    let o = slamesh_run(&scans, &strict, &["--strict", "--preset", "fast"]);
     assert!(!o.status.success());
     let stderr = text(&o.stderr);
     for frame in ["frame 2 (", "frame 3 (", "frame 4 ("] {

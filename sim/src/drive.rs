@@ -116,6 +116,21 @@ impl Drive {
         }
     }
 
+    /// Up to `frames` scans (10 a second) of a hand-held walk through [`crate::office`]'s
+    /// two rooms and corridor (ranges of 1 to 15 m), seen by a 16-beam sensor (VLP-16 like,
+    /// 900 firings a turn), 2 cm range noise, 5 % dropouts.
+    pub fn office(frames: usize, seed: u64) -> Self {
+        Drive {
+            scene: crate::office::scene(seed),
+            lidar: Lidar::vlp16(900),
+            poses: crate::office::walk_poses(frames),
+            noise_m: 0.02,
+            dropout: 0.05,
+            seed,
+            sweep_s: None,
+        }
+    }
+
     /// The noise-free, complete scan of frame `i` in the world frame: samples of the true
     /// surfaces where the sensor saw them (a reference for mesh accuracy).
     pub fn true_points(&self, i: usize) -> Vec<Point> {

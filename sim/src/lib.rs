@@ -10,11 +10,13 @@
 //! | a spinning multi-beam scanner | [`lidar`] |
 //! | true poses and the noisy scans along them | [`drive`] |
 //! | a procedural town and its loop | [`town`] |
+//! | an office floor and a walk through it | [`office`] |
 //! | the exact distance to the true surfaces (mesh precision) | [`truth`] |
 #![deny(missing_docs)]
 
 pub mod drive;
 pub mod lidar;
+pub mod office;
 pub mod scene;
 pub mod town;
 pub mod truth;

@@ -20,6 +20,17 @@ pub struct Lidar {
 }
 
 impl Lidar {
+    /// A VLP-16-like scanner: 16 beams from -15 to +15 degrees, 100 m.
+    pub fn vlp16(azimuth_steps: usize) -> Self {
+        Lidar {
+            beams: 16,
+            elevation_min_deg: -15.0,
+            elevation_max_deg: 15.0,
+            azimuth_steps,
+            max_range_m: 100.0,
+        }
+    }
+
     /// An HDL-64E-like scanner: 64 beams from -24.8 to +2 degrees.
     pub fn hdl64(azimuth_steps: usize) -> Self {
         Lidar {

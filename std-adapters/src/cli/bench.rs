@@ -43,9 +43,10 @@ pub struct BenchArgs {
 /// A warm-up pass, then `repeat` timed passes: per-stage median and 95th percentile.
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     let (input, threads, repeat, json) = (&args.input, args.threads, args.repeat, args.json);
-    let s = args.profile.resolve("default")?;
-    let (config, preset) = (s.config, s.preset);
+    let mut s = args.profile.resolve("default")?;
     let mut source = Input::open(input, args.topic.as_deref(), args.bin_fields.clone())?;
+    crate::cli::settings::fit_to_scene(&mut s, &mut source);
+    let (config, preset) = (s.config, s.preset);
     let out = std::env::temp_dir().join(format!("slamesh-bench-{}", std::process::id()));
     let opts = RunOptions {
         out: out.clone(),

@@ -133,6 +133,9 @@ fn run_with(
     let mut s = args.profile.resolve(default_preset)?;
     args.window.apply(&mut s.window)?;
     let mut source = Input::open(&args.input, args.topic.as_deref(), args.bin_fields.clone())?;
+    if given.is_none() {
+        crate::cli::settings::fit_to_scene(&mut s, &mut source);
+    }
     if let Some(p) = &given {
         let how = match p.stamps {
             Some(_) => format!(

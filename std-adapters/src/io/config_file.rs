@@ -3,7 +3,7 @@
 //! [`documented_toml`] prints a complete, commented file for any configuration.
 //!
 //! ```toml
-//! preset = "kitti"          # default | kitti | meshing
+//! preset = "kitti"          # default | fast | kitti | meshing | town
 //! [grid]
 //! cell_size_m = 1.6
 //! [register.lm]
@@ -23,28 +23,41 @@ use std::path::Path;
 use toml::Value;
 
 /// The named presets.
-pub const PRESETS: [&str; 4] = ["default", "kitti", "meshing", "town"];
+pub const PRESETS: [&str; 5] = ["default", "fast", "kitti", "meshing", "town"];
 
 /// Cell edge of the `town` preset (metres).
 pub const TOWN_CELL_M: f64 = 1.4;
 
 /// The configuration of a named preset.
 ///
-/// `town` is `meshing` with [`TOWN_CELL_M`] cells, for the simulated town of the demo (the
-/// original tunes the cell per dataset too: 1.6 m for KITTI, 1.5 m for the simulated Mai
-/// City); the comparison with 1.6 m cells is in docs/benchmarks.md (The demo).
+/// - `default`: the most accurate general setting measured (docs/benchmarks.md, "Presets"):
+///   `town`'s, fitted to the scene's scale by the run ([`scales_itself`],
+///   [`crate::run::scale`]).
+/// - `fast`: the original's KITTI parameters ([`Config::default`]): 1.6 m cells, the lattice
+///   at interval centres; about a quarter less time a scan, less accurate.
+/// - `kitti`: `fast` with KITTI's vertical-angle correction ([`Config::kitti`]).
+/// - `meshing`: [`Config::meshing`].
+/// - `town`: `meshing` with [`TOWN_CELL_M`] cells (the original tunes the cell per dataset
+///   too: 1.6 m for KITTI, 1.5 m for the simulated Mai City); the comparison with 1.6 m cells
+///   is in docs/benchmarks.md (The demo).
 pub fn preset(name: &str) -> Option<Config> {
     match name {
-        "default" => Some(Config::default()),
+        "fast" => Some(Config::default()),
         "kitti" => Some(Config::kitti()),
         "meshing" => Some(Config::meshing()),
-        "town" => {
+        "default" | "town" => {
             let mut c = Config::meshing();
             c.grid.cell_size_m = TOWN_CELL_M;
             Some(c)
         }
         _ => None,
     }
+}
+
+/// True for a preset that a run fits to the scale of its first usable scan
+/// ([`crate::run::scale`]) unless the cell, the kernel or the nearest range is set: `default`.
+pub fn scales_itself(name: &str) -> bool {
+    name == "default"
 }
 
 /// One tunable parameter: where it lives, what it means, how to read and write it.
@@ -153,6 +166,9 @@ pub struct Settings {
     pub preset: &'static str,
     /// Sliding-window rules (the memory cap as megabytes in `memory_cap_mb`).
     pub window: WindowSettings,
+    /// Fit the configuration to the scale of the first usable scan ([`crate::run::scale`]):
+    /// the preset [`scales_itself`] and none of the fields the fit sets is given.
+    pub scale_to_scene: bool,
 }
 
 /// The `[window]` section.
@@ -228,10 +244,20 @@ pub fn parse(text: &str) -> Result<Settings, String> {
     config
         .validate()
         .map_err(|e| format!("{}: {}", e.field, e.reason))?;
+    let given = |section: &str, name: &str| {
+        table
+            .get(section)
+            .and_then(Value::as_table)
+            .is_some_and(|t| t.contains_key(name))
+    };
+    let fitted_given = given("grid", "cell_size_m")
+        || given("gp", "kappa_per_m")
+        || given("filter", "range_min_m");
     Ok(Settings {
         config,
         preset: preset_name,
         window,
+        scale_to_scene: scales_itself(preset_name) && !fitted_given,
     })
 }
 
@@ -302,6 +328,13 @@ pub fn documented_toml(config: &Config, preset: &str) -> String {
          preset = \"{preset}\"  # one of: {}\n",
         PRESETS.join(", ")
     );
+    if scales_itself(preset) {
+        s.push_str(
+            "# A run fits this preset to the scale of its first scan (smaller cells indoors) when\n\
+             # the file leaves out grid.cell_size_m, gp.kappa_per_m and filter.range_min_m:\n\
+             # delete those three lines to keep the fit.\n",
+        );
+    }
     let mut section = "";
     for p in PARAMETERS {
         if p.section != section {
@@ -345,6 +378,28 @@ mod tests {
     }
 
     #[test]
+    fn the_default_preset_scales_itself_unless_a_fitted_field_is_given() {
+        assert!(parse("").unwrap().scale_to_scene);
+        assert!(
+            parse("preset = \"default\"\n[register]\niterations = 3\n")
+                .unwrap()
+                .scale_to_scene
+        );
+        for fixed in [
+            "[grid]\ncell_size_m = 1.0\n",
+            "[gp]\nkappa_per_m = 2.0\n",
+            "[filter]\nrange_min_m = 0.5\n",
+            "preset = \"town\"\n",
+            "preset = \"fast\"\n",
+        ] {
+            assert!(!parse(fixed).unwrap().scale_to_scene, "{fixed}");
+        }
+        // `default` is `town`'s settings before the fit; `fast` the original's.
+        assert_eq!(preset("default"), preset("town"));
+        assert_eq!(preset("fast"), Some(Config::default()));
+    }
+
+    #[test]
     fn sections_override_the_preset_and_the_window_is_read() {
         let s = parse(
             "preset = \"meshing\"\n[grid]\ncell_size_m = 2\n[register.lm]\nmax_iterations = 4\n\
@@ -373,7 +428,7 @@ mod tests {
             ),
             ("[grid]\nfull_cover = 1\n", "expected true or false"),
             ("[gird]\nx = 1\n", "[gird]: unknown section"),
-            ("preset = \"fast\"\n", "preset \"fast\" is not one of"),
+            ("preset = \"quick\"\n", "preset \"quick\" is not one of"),
             ("[grid]\ncell_size_m = -1.6\n", "cell_size_m"),
             (
                 "[window]\nradius_m = 0\n",

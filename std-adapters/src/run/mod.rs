@@ -15,6 +15,7 @@ pub mod capacity;
 pub mod checkpoint;
 pub mod memory;
 pub mod report;
+pub mod scale;
 pub mod session;
 pub mod source;
 pub mod timing;
