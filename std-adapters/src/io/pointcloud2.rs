@@ -321,7 +321,7 @@ impl<'a> Cloud<'a> {
         // uint32 or float64 time) get a loop of their own, with no datatype dispatch per point.
         let [ox, oy, oz] = [x, y, z].map(|f| f.offset as usize);
         let f32_xyz = [x, y, z].iter().all(|f| f.datatype == datatype::FLOAT32) && !big;
-        let fast = |p: &[u8]| [ox, oy, oz].map(|o| read_f32_le(p, o));
+        let fast = |p: &[u8]| [read_f32_le(p, ox), read_f32_le(p, oy), read_f32_le(p, oz)];
         let general = |p: &[u8]| [x, y, z].map(|f| read_value(p, f, big) as f32);
         let extras = (intensity, ring);
         let times = &mut raw_times;
@@ -369,28 +369,28 @@ impl<'a> Cloud<'a> {
             self.row_step as usize,
         );
         let n = w * h;
-        out.points.reserve_exact(n);
-        if time.is_some() {
-            raw_times.reserve_exact(n);
-        }
+        // Locals, not `out`'s fields, in the loop: their lengths and counts stay in registers.
+        let mut points: Vec<Point> = Vec::with_capacity(n);
+        let mut times: Vec<f64> = Vec::with_capacity(if time.is_some() { n } else { 0 });
+        let (mut non_finite, mut zero) = (0, 0);
         let big = self.is_bigendian;
         let mut inten: Vec<f32> = Vec::with_capacity(if intensity.is_some() { n } else { 0 });
         let mut rings: Vec<u16> = Vec::with_capacity(if ring.is_some() { n } else { 0 });
         for r in 0..h {
-            let points = &self.data[r * row..][..w * step];
-            for p in points.chunks_exact(step.max(1)) {
+            let row_points = &self.data[r * row..][..w * step];
+            for p in row_points.chunks_exact(step.max(1)) {
                 let v = xyz(p);
-                if !v.iter().all(|c| c.is_finite()) {
-                    out.dropped_non_finite += 1;
+                if !(v[0].is_finite() && v[1].is_finite() && v[2].is_finite()) {
+                    non_finite += 1;
                     continue;
                 }
                 if v == [0.0; 3] {
-                    out.dropped_zero += 1;
+                    zero += 1;
                     continue;
                 }
-                out.points.push(v);
+                points.push(v);
                 if let Some(t) = &time {
-                    raw_times.push(t(p));
+                    times.push(t(p));
                 }
                 if let Some(f) = intensity {
                     inten.push(read_value(p, f, big) as f32);
@@ -400,6 +400,10 @@ impl<'a> Cloud<'a> {
                 }
             }
         }
+        out.points = points;
+        out.dropped_non_finite = non_finite;
+        out.dropped_zero = zero;
+        *raw_times = times;
         out.intensity = intensity.map(|_| inten);
         out.ring = ring.map(|_| rings);
     }
