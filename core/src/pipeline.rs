@@ -200,6 +200,12 @@ impl<C: Capacity> Pipeline<C> {
         &self.scan
     }
 
+    /// The last scan's points as filtered and down-sampled, in the sensor frame (what it was
+    /// registered and fused with).
+    pub fn last_points(&self) -> &[Point] {
+        &self.points
+    }
+
     /// The configuration.
     pub fn config(&self) -> &Config {
         &self.config

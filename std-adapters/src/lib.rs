@@ -10,6 +10,7 @@
 //! | a run: frame source, run loop, report, window, checkpoint | [`run`] |
 //! | odometry and mesh accuracy | [`eval`] |
 //! | the simulated demo (feature `sim`) | `demo` |
+//! | the live view and its recording for the Foxglove app (feature `view`) | `view` |
 //!
 //! The `slamesh` command (`src/main.rs`, one file per subcommand in `src/cli/`) is built on
 //! these. The simulator is its own crate, `slamesh-sim`, linked only with the `sim` feature
@@ -23,6 +24,8 @@ pub mod eval;
 pub mod io;
 pub mod parallel;
 pub mod run;
+#[cfg(feature = "view")]
+pub mod view;
 
 #[cfg(test)]
 mod test_support;

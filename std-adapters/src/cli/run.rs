@@ -70,6 +70,15 @@ pub struct RunArgs {
     /// within range with a quarter to spare.
     #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
     pub capacity: CapacityFlag,
+    /// Serve a live view for the Foxglove app on ADDR (default 127.0.0.1:8765, this machine
+    /// only; reach it from a laptop through an SSH tunnel). It only publishes.
+    #[cfg(feature = "view")]
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = slamesh::view::DEFAULT_ADDRESS)]
+    pub view: Option<String>,
+    /// Record the view's channels to slam.mcap in the output folder (opens in the Foxglove app).
+    #[cfg(feature = "view")]
+    #[arg(long)]
+    pub record: bool,
 }
 
 /// `--deskew`.
@@ -173,6 +182,11 @@ fn run_with(
         deskew: match args.deskew {
             DeskewFlag::Auto => Deskew::Auto,
             DeskewFlag::Off => Deskew::Off,
+        },
+        #[cfg(feature = "view")]
+        view: slamesh::view::ViewOptions {
+            serve: args.view.clone(),
+            record: args.record,
         },
     };
     let bar = progress(source.frames(), quiet);

@@ -65,6 +65,9 @@ pub struct RunOptions {
     pub picture: bool,
     /// Whether to deskew scans whose points carry times.
     pub deskew: Deskew,
+    /// The live view and its recording (`--view`, `--record`).
+    #[cfg(feature = "view")]
+    pub view: crate::view::ViewOptions,
 }
 
 /// `--deskew`: whether scans whose points carry times are deskewed before registration
@@ -148,9 +151,28 @@ pub fn run<C: Capacity>(
     } else {
         Run::<C>::start(source, opts)?
     };
+    #[cfg(feature = "view")]
+    let mut view = crate::view::View::start(&opts.view, &opts.out, &opts.config)?;
+    #[cfg(feature = "view")]
+    if let Some(a) = view.as_ref().and_then(|v| v.address.as_ref()) {
+        log::info!("view: serving ws://{a} (Foxglove app: Open connection, Foxglove WebSocket)");
+    }
     for i in run.next_frame()..source.frames() {
         let record = run.step(source, i)?;
+        #[cfg(feature = "view")]
+        if let (Some(v), None) = (&mut view, &record.error) {
+            v.frame(&run.pipeline, i, record.stamp);
+        }
         on_frame(&record);
+    }
+    #[cfg(feature = "view")]
+    if let Some(v) = view {
+        let stats = v.finish()?;
+        log::info!(
+            "view: {} frames shown or recorded, {} dropped (the view was behind)",
+            stats.sent,
+            stats.dropped
+        );
     }
     run.finish(source)
 }

@@ -1,0 +1,253 @@
+//! The live view and its recording (feature `view`): a recorded run read back (channels,
+//! schemas, counts, one mesh update's content); a WebSocket client that subscribes and receives
+//! a scan and a mesh update; and clients that must not stall the run (garbage, never reading).
+
+use foxglove::messages::{PointCloud, SceneUpdate};
+use foxglove::Decode;
+use slamesh::io::recording::mcap::messages_of;
+use slamesh::run::{run, FrameRecord, RunOptions};
+use slamesh::view::{View, ViewOptions};
+use slamesh_core::{Config, KittiCapacity, Pipeline};
+use slamesh_sim::Drive;
+use std::collections::BTreeMap;
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+use tungstenite::{Message, WebSocket};
+
+fn scratch(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("slamesh-view-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
+    let out = scratch("record");
+    let frames = 12;
+    let mut drive = Drive::town(frames, 1);
+    let opts = RunOptions {
+        out: out.clone(),
+        config: Config::default(),
+        threads: 2,
+        view: ViewOptions {
+            serve: None,
+            record: true,
+        },
+        ..RunOptions::default()
+    };
+    let mut records: Vec<FrameRecord> = Vec::new();
+    run::<KittiCapacity>(&mut drive, &opts, |r| records.push(r.clone())).unwrap();
+    assert!(!out.join("slam.mcap.tmp").exists());
+    let bytes = std::fs::read(out.join("slam.mcap")).unwrap();
+
+    let mut counts: BTreeMap<String, (String, String, usize)> = BTreeMap::new();
+    let mut meshes = Vec::new();
+    let mut scans = Vec::new();
+    for m in messages_of(&bytes).unwrap() {
+        let m = m.unwrap();
+        let e = counts
+            .entry(m.topic.clone())
+            .or_insert((m.schema.clone(), m.encoding.clone(), 0));
+        e.2 += 1;
+        match m.topic.as_str() {
+            "/mesh" => meshes.push(SceneUpdate::decode(&m.data[m.start..]).unwrap()),
+            "/scan" => scans.push(PointCloud::decode(&m.data[m.start..]).unwrap()),
+            _ => {}
+        }
+    }
+    let schema = |t: &str| (counts[t].0.as_str(), counts[t].1.as_str(), counts[t].2);
+    assert_eq!(schema("/scan"), ("foxglove.PointCloud", "protobuf", frames));
+    assert_eq!(
+        schema("/tf"),
+        ("foxglove.FrameTransform", "protobuf", frames)
+    );
+    assert_eq!(
+        schema("/mesh"),
+        ("foxglove.SceneUpdate", "protobuf", frames)
+    );
+    // Every 10th frame and the last: frames 0 and 10, then the end.
+    assert_eq!(
+        schema("/trajectory"),
+        ("foxglove.PosesInFrame", "protobuf", 3)
+    );
+
+    // One mesh update: an entity per layer the frame fused, 36 vertices each, whole triangles.
+    let (i, update) = (5, &meshes[5]);
+    assert_eq!(update.entities.len(), records[i].scan_layers, "frame {i}");
+    let mut triangles = 0;
+    for e in &update.entities {
+        assert_eq!(e.frame_id, "world");
+        assert_eq!(e.id.split(',').count(), 4, "{}", e.id);
+        let t = &e.triangles[0];
+        assert_eq!(t.points.len(), 36);
+        assert_eq!(t.indices.len() % 3, 0);
+        assert!(t.indices.iter().all(|&j| j < 36));
+        assert!(t.points.iter().all(|p| p.x.is_finite() && p.z.is_finite()));
+        triangles += t.indices.len() / 3;
+    }
+    assert_eq!(triangles, records[i].triangles_updated, "frame {i}");
+    // The scan: float32 x, y, z in the world frame, as many points as the frame kept.
+    assert_eq!(scans[i].point_stride, 12);
+    assert_eq!(scans[i].data.len(), 12 * records[i].points_kept);
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+/// A WebSocket client of the view at `address`, with the Foxglove SDK's subprotocol.
+fn connect(address: &str) -> WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>> {
+    use tungstenite::client::IntoClientRequest;
+    let mut request = format!("ws://{address}").into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+    let (socket, _) = tungstenite::connect(request).unwrap();
+    if let tungstenite::stream::MaybeTlsStream::Plain(s) = socket.get_ref() {
+        s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    }
+    socket
+}
+
+/// Reads text messages until the channels `topics` are advertised; their ids.
+fn advertised(
+    ws: &mut WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>,
+    topics: &[&str],
+) -> BTreeMap<String, u64> {
+    let mut ids = BTreeMap::new();
+    while !topics.iter().all(|t| ids.contains_key(*t)) {
+        if let Message::Text(t) = ws.read().unwrap() {
+            let v: serde_json::Value = serde_json::from_str(&t).unwrap();
+            if v["op"] == "advertise" {
+                for c in v["channels"].as_array().unwrap() {
+                    ids.insert(
+                        c["topic"].as_str().unwrap().to_string(),
+                        c["id"].as_u64().unwrap(),
+                    );
+                }
+            }
+        }
+    }
+    ids
+}
+
+/// A few frames of the town through a pipeline, each offered to `view`.
+fn feed(
+    view: &mut View,
+    pipeline: &mut Pipeline<KittiCapacity>,
+    drive: &Drive,
+    frames: std::ops::Range<usize>,
+) {
+    for i in frames {
+        pipeline.process_scan(&drive.scan(i)).unwrap();
+        view.frame(pipeline, i, i as f64 * 0.1);
+    }
+}
+
+#[test]
+fn a_websocket_client_subscribes_and_receives_a_scan_and_a_mesh_update() {
+    let out = scratch("serve");
+    let opts = ViewOptions {
+        serve: Some("127.0.0.1:0".into()),
+        record: false,
+    };
+    let config = Config::default();
+    let mut view = View::start(&opts, &out, &config).unwrap().unwrap();
+    let address = view.address.clone().unwrap();
+    assert!(address.starts_with("127.0.0.1:"));
+    let mut ws = connect(&address);
+    let ids = advertised(&mut ws, &["/scan", "/mesh"]);
+    let subscribe = serde_json::json!({
+        "op": "subscribe",
+        "subscriptions": [
+            {"id": 1, "channelId": ids["/scan"]},
+            {"id": 2, "channelId": ids["/mesh"]},
+        ]
+    });
+    ws.send(Message::Text(subscribe.to_string().into()))
+        .unwrap();
+    // The server takes the subscription on its own threads: give it a moment before feeding.
+    std::thread::sleep(Duration::from_millis(300));
+    let drive = Drive::town(3, 1);
+    let mut pipeline = Pipeline::<KittiCapacity>::new(config).unwrap();
+    feed(&mut view, &mut pipeline, &drive, 0..3);
+    let (mut scan, mut mesh) = (None, None);
+    while scan.is_none() || mesh.is_none() {
+        if let Message::Binary(b) = ws.read().unwrap() {
+            // Opcode 1 (message data), subscription id (u32), log time (u64), payload.
+            assert_eq!(b[0], 1);
+            let sub = u32::from_le_bytes(b[1..5].try_into().unwrap());
+            let payload = &b[13..];
+            match sub {
+                1 => scan = Some(PointCloud::decode(payload).unwrap()),
+                2 => mesh = Some(SceneUpdate::decode(payload).unwrap()),
+                other => panic!("subscription {other}"),
+            }
+        }
+    }
+    assert!(!scan.unwrap().data.is_empty());
+    assert!(!mesh.unwrap().entities.is_empty());
+    let stats = view.finish().unwrap();
+    assert_eq!(stats.sent + stats.dropped, 3);
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn garbage_and_clients_that_never_read_do_not_stall_the_run() {
+    let out = scratch("hostile");
+    let opts = ViewOptions {
+        serve: Some("127.0.0.1:0".into()),
+        record: false,
+    };
+    let config = Config::default();
+    let mut view = View::start(&opts, &out, &config).unwrap().unwrap();
+    let address = view.address.clone().unwrap();
+    // A client that sends garbage, text and binary, and a publish it is not allowed.
+    let mut rude = connect(&address);
+    for m in [
+        Message::Text("{not json".into()),
+        Message::Text(r#"{"op":"advertise","channels":[{"id":1,"topic":"/x","encoding":"json","schemaName":"x"}]}"#.into()),
+        Message::Binary(vec![1, 0, 0, 0, 9, 9, 9].into()),
+        Message::Binary(vec![255; 4096].into()),
+    ] {
+        let _ = rude.send(m);
+    }
+    // A client that subscribes to everything and never reads again.
+    let mut stuck = connect(&address);
+    let ids = advertised(&mut stuck, &["/scan", "/mesh", "/tf", "/trajectory"]);
+    let subscriptions: Vec<_> = ids
+        .values()
+        .enumerate()
+        .map(|(k, id)| serde_json::json!({"id": k + 1, "channelId": id}))
+        .collect();
+    stuck
+        .send(Message::Text(
+            serde_json::json!({"op": "subscribe", "subscriptions": subscriptions})
+                .to_string()
+                .into(),
+        ))
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    // Many frames, each with its scan and the layers it changed: the loop's offers never wait.
+    let drive = Drive::town(40, 1);
+    let mut pipeline = Pipeline::<KittiCapacity>::new(config).unwrap();
+    let mut slowest = Duration::ZERO;
+    for i in 0..40 {
+        pipeline.process_scan(&drive.scan(i)).unwrap();
+        let t = Instant::now();
+        view.frame(&pipeline, i, i as f64 * 0.1);
+        slowest = slowest.max(t.elapsed());
+    }
+    assert!(
+        slowest < Duration::from_millis(200),
+        "an offer took {slowest:?}"
+    );
+    let t = Instant::now();
+    let stats = view.finish().unwrap();
+    assert!(
+        t.elapsed() < Duration::from_secs(20),
+        "finish took {:?}",
+        t.elapsed()
+    );
+    assert_eq!(stats.sent + stats.dropped, 40);
+    drop((rude, stuck));
+    std::fs::remove_dir_all(&out).unwrap();
+}
