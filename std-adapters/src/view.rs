@@ -183,6 +183,30 @@ impl View {
         }))
     }
 
+    /// The view `opts` asks for, started, its address said on the terminal.
+    pub fn for_run(opts: &crate::run::RunOptions) -> Result<Option<Self>, FileError> {
+        let view = Self::start(&opts.view, &opts.out, &opts.config)?;
+        if let Some(a) = view.as_ref().and_then(|v| v.address.as_ref()) {
+            log::info!(
+                "view: serving ws://{a} (Foxglove app: Open connection, Foxglove WebSocket)"
+            );
+        }
+        Ok(view)
+    }
+
+    /// Finishes `view` if there is one ([`View::finish`]) and says what it did.
+    pub fn close(view: Option<Self>) -> Result<(), FileError> {
+        if let Some(v) = view {
+            let stats = v.finish()?;
+            log::info!(
+                "view: {} frames shown or recorded, {} dropped (the view was behind)",
+                stats.sent,
+                stats.dropped
+            );
+        }
+        Ok(())
+    }
+
     /// Offers the last frame of `pipeline` to the view; never waits (a full queue drops it).
     pub fn frame<C: Capacity>(&mut self, pipeline: &Pipeline<C>, frame: usize, stamp_s: f64) {
         let (Some(tx), Some(update)) = (&self.tx, Update::of(pipeline, frame, stamp_s)) else {
@@ -423,7 +447,10 @@ mod tests {
             p.poses.iter().map(|q| q.position.unwrap().x).collect()
         };
         let few: Vec<FgPose> = (0..5).map(pose).collect();
-        assert_eq!(x(&poses_in_frame(&few, timestamp(1.0))), [0.0, 1.0, 2.0, 3.0, 4.0]);
+        assert_eq!(
+            x(&poses_in_frame(&few, timestamp(1.0))),
+            [0.0, 1.0, 2.0, 3.0, 4.0]
+        );
         let many: Vec<FgPose> = (0..3 * MAX_POSES + 2).map(pose).collect();
         let thinned = x(&poses_in_frame(&many, timestamp(1.0)));
         assert!(thinned.len() <= MAX_POSES + 1, "{}", thinned.len());

@@ -152,11 +152,7 @@ pub fn run<C: Capacity>(
         Run::<C>::start(source, opts)?
     };
     #[cfg(feature = "view")]
-    let mut view = crate::view::View::start(&opts.view, &opts.out, &opts.config)?;
-    #[cfg(feature = "view")]
-    if let Some(a) = view.as_ref().and_then(|v| v.address.as_ref()) {
-        log::info!("view: serving ws://{a} (Foxglove app: Open connection, Foxglove WebSocket)");
-    }
+    let mut view = crate::view::View::for_run(opts)?;
     for i in run.next_frame()..source.frames() {
         let record = run.step(source, i)?;
         #[cfg(feature = "view")]
@@ -166,14 +162,7 @@ pub fn run<C: Capacity>(
         on_frame(&record);
     }
     #[cfg(feature = "view")]
-    if let Some(v) = view {
-        let stats = v.finish()?;
-        log::info!(
-            "view: {} frames shown or recorded, {} dropped (the view was behind)",
-            stats.sent,
-            stats.dropped
-        );
-    }
+    crate::view::View::close(view)?;
     run.finish(source)
 }
 
