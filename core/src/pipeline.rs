@@ -1,7 +1,7 @@
 //! The pipeline: composes the stages for each scan (docs/design.md §1.1). Holds no math of its own.
 //!
 //! Per scan: filter → predict → (bucket → reconstruct → associate → LM) × rounds (from other
-//! guesses as well when that did not converge: [`register`]) → bucket → reconstruct → fuse; or, without `MapConfig::reconstruct_at_final_pose`, the last round's
+//! guesses as well when that did not converge: `pipeline/register.rs`) → bucket → reconstruct → fuse; or, without `MapConfig::reconstruct_at_final_pose`, the last round's
 //! reconstruction moved to the final pose → fuse. [`Pipeline::process_scan`] estimates the
 //! pose; [`Pipeline::integrate_scan`] meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
 //! the capacities of `C`; nothing is allocated afterwards.
@@ -136,7 +136,7 @@ pub struct ScanStats {
     /// LM iterations over all rounds.
     pub lm_iterations: usize,
     /// Conditioning of the last solved round: the mean squared normal component along its
-    /// weakest direction (see [`lm`]).
+    /// weakest direction (see [`crate::lm`]).
     pub conditioning: f64,
     /// Directions the last solved round left to the motion prediction (0 to 6).
     pub degenerate_directions: usize,
