@@ -142,17 +142,24 @@ fn feed(
     }
 }
 
-#[test]
-fn a_websocket_client_subscribes_and_receives_a_scan_and_a_mesh_update() {
-    let out = scratch("serve");
+/// A view serving on a free port of this machine (recording nothing), and its address.
+fn serving(out: &std::path::Path) -> (View, String) {
     let opts = ViewOptions {
         serve: Some("127.0.0.1:0".into()),
         record: false,
     };
-    let config = Config::default();
-    let mut view = View::start(&opts, &out, &config).unwrap().unwrap();
+    let view = View::start(&opts, out, &Config::default())
+        .unwrap()
+        .unwrap();
     let address = view.address.clone().unwrap();
-    assert!(address.starts_with("127.0.0.1:"));
+    assert!(address.starts_with("127.0.0.1:"), "{address}");
+    (view, address)
+}
+
+#[test]
+fn a_websocket_client_subscribes_and_receives_a_scan_and_a_mesh_update() {
+    let out = scratch("serve");
+    let (mut view, address) = serving(&out);
     let mut ws = connect(&address);
     let ids = advertised(&mut ws, &["/scan", "/mesh"]);
     let subscribe = serde_json::json!({
@@ -167,7 +174,7 @@ fn a_websocket_client_subscribes_and_receives_a_scan_and_a_mesh_update() {
     // The server takes the subscription on its own threads: give it a moment before feeding.
     std::thread::sleep(Duration::from_millis(300));
     let drive = Drive::town(3, 1);
-    let mut pipeline = Pipeline::<KittiCapacity>::new(config).unwrap();
+    let mut pipeline = Pipeline::<KittiCapacity>::new(Config::default()).unwrap();
     feed(&mut view, &mut pipeline, &drive, 0..3);
     let (mut scan, mut mesh) = (None, None);
     while scan.is_none() || mesh.is_none() {
@@ -193,13 +200,7 @@ fn a_websocket_client_subscribes_and_receives_a_scan_and_a_mesh_update() {
 #[test]
 fn garbage_and_clients_that_never_read_do_not_stall_the_run() {
     let out = scratch("hostile");
-    let opts = ViewOptions {
-        serve: Some("127.0.0.1:0".into()),
-        record: false,
-    };
-    let config = Config::default();
-    let mut view = View::start(&opts, &out, &config).unwrap().unwrap();
-    let address = view.address.clone().unwrap();
+    let (mut view, address) = serving(&out);
     // A client that sends garbage, text and binary, and a publish it is not allowed.
     let mut rude = connect(&address);
     for m in [
@@ -228,7 +229,7 @@ fn garbage_and_clients_that_never_read_do_not_stall_the_run() {
     std::thread::sleep(Duration::from_millis(300));
     // Many frames, each with its scan and the layers it changed: the loop's offers never wait.
     let drive = Drive::town(40, 1);
-    let mut pipeline = Pipeline::<KittiCapacity>::new(config).unwrap();
+    let mut pipeline = Pipeline::<KittiCapacity>::new(Config::default()).unwrap();
     let mut slowest = Duration::ZERO;
     for i in 0..40 {
         pipeline.process_scan(&drive.scan(i)).unwrap();

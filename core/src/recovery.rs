@@ -115,16 +115,12 @@ mod tests {
     use alloc::vec::Vec;
     use nalgebra::Translation3;
 
+    /// The defaults, with settling limits of 5 cm and 0.5° (round numbers for the cases).
     fn cfg() -> RecoveryConfig {
         RecoveryConfig {
-            enabled: true,
-            yaw_step_deg: 15.0,
-            yaw_max_deg: 180.0,
-            rounds: 6,
-            confirm_share: 0.85,
-            accept_share: 0.6,
             settle_m: 0.05,
             settle_deg: 0.5,
+            ..crate::config::Config::default().register.recovery
         }
     }
 
