@@ -114,9 +114,9 @@ pub fn decompress(kind: Compression, data: &[u8], size: usize) -> Result<Vec<u8>
         Compression::Bz2 => bzip2::read::BzDecoder::new(data)
             .take(limit)
             .read_to_end(&mut out),
-        Compression::Lz4 => {
-            lz4::Decoder::new(data).and_then(|d| d.take(limit).read_to_end(&mut out))
-        }
+        Compression::Lz4 => lz4_flex::frame::FrameDecoder::new(data)
+            .take(limit)
+            .read_to_end(&mut out),
         Compression::Zstd => {
             zstd::stream::read::Decoder::new(data).and_then(|d| d.take(limit).read_to_end(&mut out))
         }
