@@ -375,7 +375,11 @@ fn run_obj_writes_the_same_mesh_as_the_ply() {
     let numbers = |prefix: &str| -> Vec<Vec<f64>> {
         obj.lines()
             .filter_map(|l| l.strip_prefix(prefix))
-            .map(|l| l.split_whitespace().map(|w| w.parse().unwrap()).collect())
+            .map(|l| {
+                l.split_whitespace()
+                    .map(|w| w.split('/').next().unwrap().parse().unwrap())
+                    .collect()
+            })
             .collect()
     };
     let v = numbers("v ");
@@ -385,6 +389,17 @@ fn run_obj_writes_the_same_mesh_as_the_ply() {
         (v.len(), f.len()),
         (ply.vertices.len(), ply.triangles.len())
     );
+    // A unit normal per vertex, and each face corner names its vertex's normal.
+    let vn = numbers("vn ");
+    assert_eq!(vn.len(), v.len());
+    assert!(vn
+        .iter()
+        .all(|n| (n.iter().map(|c| c * c).sum::<f64>() - 1.0).abs() < 1e-4));
+    assert!(obj
+        .lines()
+        .filter_map(|l| l.strip_prefix("f "))
+        .flat_map(|l| l.split_whitespace())
+        .all(|w| w.split_once("//").is_some_and(|(p, n)| p == n)));
     for (a, b) in v.iter().zip(&ply.vertices) {
         assert_eq!(a.iter().map(|x| *x as f32).collect::<Vec<_>>(), b.to_vec());
     }

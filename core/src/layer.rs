@@ -27,6 +27,61 @@ impl Shown {
     }
 }
 
+/// Triangles of a layer's lattice: 5 x 5 quads, two each.
+pub const TRIANGLES: usize = 2 * (N - 1) * (N - 1);
+
+/// Triangle `t < TRIANGLES` of the lattice: of quad `q = t / 2` with corners `v00` at
+/// `(i_a, i_b)`, `v10` one step along `a`, `v01` along `b`: `[v00, v10, v11]` for even `t`,
+/// `[v00, v11, v01]` for odd.
+#[inline]
+pub const fn lattice_triangle(t: usize) -> [usize; 3] {
+    let q = t / 2;
+    let v00 = (q / (N - 1)) * N + q % (N - 1);
+    if t.is_multiple_of(2) {
+        [v00, v00 + N, v00 + N + 1]
+    } else {
+        [v00, v00 + N + 1, v00 + 1]
+    }
+}
+
+/// The triangles across the edges of triangle `t` (`None` past the lattice border).
+#[inline]
+pub const fn triangle_neighbours(t: usize) -> [Option<usize>; 3] {
+    let q = t / 2;
+    let (ia, ib) = (q / (N - 1), q % (N - 1));
+    if t.is_multiple_of(2) {
+        // [v00, v10, v11]: the diagonal, the -b side, the +a side.
+        [
+            Some(t + 1),
+            if ib > 0 {
+                Some(2 * (ia * (N - 1) + ib - 1) + 1)
+            } else {
+                None
+            },
+            if ia + 1 < N - 1 {
+                Some(2 * ((ia + 1) * (N - 1) + ib) + 1)
+            } else {
+                None
+            },
+        ]
+    } else {
+        // [v00, v11, v01]: the diagonal, the +b side, the -a side.
+        [
+            Some(t - 1),
+            if ib + 1 < N - 1 {
+                Some(2 * (ia * (N - 1) + ib + 1))
+            } else {
+                None
+            },
+            if ia > 0 {
+                Some(2 * ((ia - 1) * (N - 1) + ib))
+            } else {
+                None
+            },
+        ]
+    }
+}
+
 /// Predictions and variances at the `6 x 6` lattice of one layer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -146,24 +201,42 @@ impl Layer {
     }
 
     /// The lattice's triangles as vertex-index triples, counter-clockwise seen from `+axis`:
-    /// 5 x 5 quads, two triangles each, kept when `shown` accepts them (docs/design.md §1.6, plus the
-    /// slope rule of [`crate::config::MeshConfig::max_slope_deg`]).
+    /// 5 x 5 quads, two triangles each, kept as [`shown_mask`](Self::shown_mask) says.
     pub fn triangles<'a>(
         &'a self,
         lattice: &'a LatticeTable,
         shown: Shown,
     ) -> impl Iterator<Item = [usize; 3]> + 'a {
-        (0..(N - 1) * (N - 1)).flat_map(move |q| {
-            let (ia, ib) = (q / (N - 1), q % (N - 1));
-            let v00 = ia * N + ib;
-            let (v10, v01, v11) = (v00 + N, v00 + 1, v00 + N + 1);
-            [[v00, v10, v11], [v00, v11, v01]]
-                .into_iter()
-                .filter(move |t| {
-                    self.mean_variance(t) < shown.variance
-                        && self.within_slope(lattice, t, shown.min_axis_cosine)
-                })
-        })
+        let mask = self.shown_mask(lattice, shown);
+        (0..TRIANGLES)
+            .filter(move |t| mask & (1 << t) != 0)
+            .map(lattice_triangle)
+    }
+
+    /// Which of the lattice's [`TRIANGLES`] triangles are shown, bit `t` for
+    /// [`lattice_triangle`]`(t)` (docs/design.md §1.6): those of the
+    /// [`slope_mask`](Self::slope_mask) whose corners' mean variance is below
+    /// `shown.variance`.
+    pub fn shown_mask(&self, lattice: &LatticeTable, shown: Shown) -> u64 {
+        let mut mask = self.slope_mask(lattice, shown.min_axis_cosine);
+        for t in 0..TRIANGLES {
+            if !(self.mean_variance(&lattice_triangle(t)) < shown.variance) {
+                mask &= !(1 << t);
+            }
+        }
+        mask
+    }
+
+    /// The triangles no steeper than the slope limit (the cosine of their angle to the axis
+    /// at least `min_axis_cosine`), bit `t` for [`lattice_triangle`]`(t)`.
+    pub fn slope_mask(&self, lattice: &LatticeTable, min_axis_cosine: f32) -> u64 {
+        let mut mask = 0u64;
+        for t in 0..TRIANGLES {
+            if self.within_slope(lattice, &lattice_triangle(t), min_axis_cosine) {
+                mask |= 1 << t;
+            }
+        }
+        mask
     }
 
     /// Whether the cosine of the angle between triangle `t`'s normal and the layer's axis is
@@ -338,5 +411,29 @@ mod tests {
         let (slope, lat) = plane(|a, b| 1.5 - a - b);
         let shown = Shown::new(&crate::config::Config::default().mesh);
         assert_eq!(slope.triangles(&lat.table(), shown).count(), 50);
+    }
+
+    #[test]
+    fn triangle_neighbours_share_an_edge_both_ways() {
+        for t in 0..TRIANGLES {
+            let tri = lattice_triangle(t);
+            let around = triangle_neighbours(t);
+            for n in around.iter().flatten() {
+                let other = lattice_triangle(*n);
+                let shared = tri.iter().filter(|v| other.contains(v)).count();
+                assert_eq!(shared, 2, "{t} and {n}");
+                assert!(triangle_neighbours(*n).contains(&Some(t)));
+            }
+            // Every edge inside the lattice has a triangle across.
+            let inner = (0..3)
+                .filter(|&k| {
+                    let (p, q) = (tri[k], tri[(k + 1) % 3]);
+                    let (pa, pb, qa, qb) = (p / N, p % N, q / N, q % N);
+                    !((pa == qa && (pa == 0 || pa == N - 1))
+                        || (pb == qb && (pb == 0 || pb == N - 1)))
+                })
+                .count();
+            assert_eq!(around.iter().flatten().count(), inner, "{t}");
+        }
     }
 }

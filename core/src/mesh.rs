@@ -7,8 +7,7 @@
 //! [`MeshMap::layers`] and use [`Layer::triangles`](crate::layer::Layer::triangles) per layer.
 
 use crate::config::MeshConfig;
-use crate::lattice::N;
-use crate::layer::Shown;
+use crate::layer::{Shown, TRIANGLES};
 use crate::map::MeshMap;
 use crate::math::to_point;
 use crate::math::Point;
@@ -30,17 +29,13 @@ pub fn triangles<'a>(map: &'a MeshMap, cfg: &MeshConfig) -> impl Iterator<Item =
     map.layers().flat_map(move |l| {
         // The lattice table is copied into each layer's iterator (it is 56 bytes).
         let table = lattice;
-        let list: heapless::Vec<[usize; 3], MAX_TRIANGLES> =
-            l.layer.triangles(&table, shown).collect();
+        let list: heapless::Vec<[usize; 3], TRIANGLES> = l.layer.triangles(&table, shown).collect();
         list.into_iter().map(move |t| Triangle {
             vertices: t.map(|j| to_point(&l.layer.vertex(&table, &l.key, l.axis, j))),
             variance: l.layer.mean_variance(&t),
         })
     })
 }
-
-/// Triangles of one layer: 5 x 5 quads, two each.
-const MAX_TRIANGLES: usize = 2 * (N - 1) * (N - 1);
 
 /// Fills `buf` with shown triangles; returns how many were written (at most `buf.len()`; call
 /// [`triangles`]`(..).count()` for the total).

@@ -6,6 +6,7 @@ use crate::eval::odometry::{
     ate_rmse, consecutive_errors, end_drift, path_length, segment_errors, ConsecutiveErrors,
     SegmentError, KITTI_SEGMENTS,
 };
+use crate::io::mesh_spool::MeshFormat;
 use crate::io::topview::TopView;
 use crate::io::trajectory::write_kitti_line;
 use crate::io::{atomic::write_atomic, ply};
@@ -36,8 +37,9 @@ pub struct DemoReport {
 }
 
 /// Runs the demo: `frames` frames of [`Drive::town`] with seed `seed`, outputs into
-/// `opts.out` (`opts.given_poses` is ignored). Adds `poses_true_kitti.txt`, `reference.ply` (the
-/// true surfaces where the sensor saw them, one point per 5 cm) and `topview.png`.
+/// `opts.out` (`opts.given_poses` is ignored; `mesh.ply` is always written, and scored as
+/// written). Adds `poses_true_kitti.txt`, `reference.ply` (the true surfaces where the sensor
+/// saw them, one point per 5 cm) and `topview.png`.
 pub fn run_demo<C: Capacity>(
     frames: usize,
     seed: u64,
@@ -45,19 +47,25 @@ pub fn run_demo<C: Capacity>(
     on_frame: impl FnMut(&FrameRecord),
 ) -> Result<DemoReport, RunError> {
     let mut drive = Drive::town(frames, seed);
+    let mut mesh_formats = opts.mesh_formats.clone();
+    if !mesh_formats.contains(&MeshFormat::Ply) {
+        mesh_formats.push(MeshFormat::Ply);
+    }
     let opts = RunOptions {
         given_poses: None,
+        mesh_formats,
         ..opts.clone()
     };
-    // The run, step by step, so that the mesh is taken from the map before it is written
-    // (the demo evicts nothing, so the map's triangles are mesh.ply's).
     let mut on_frame = on_frame;
     let mut run = Run::<C>::start(&drive, &opts)?;
     for i in 0..drive.poses.len() {
         on_frame(&run.step(&mut drive, i)?);
     }
-    let triangles: Vec<[Point; 3]> = run.pipeline().triangles().map(|t| t.vertices).collect();
     let summary = run.finish(&drive)?;
+    // The mesh as written (welded), read back.
+    let triangles: Vec<[Point; 3]> = ply::read_ply_mesh(&opts.out.join("mesh.ply"))?
+        .triangle_corners()
+        .collect();
     let truth: Vec<Pose> = drive
         .poses
         .iter()

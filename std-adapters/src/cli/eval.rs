@@ -7,6 +7,7 @@ use crate::say;
 use clap::Args;
 use slamesh::eval::mesh as mesh_eval;
 use slamesh::eval::odometry::{self as eval, consecutive_errors};
+use slamesh::eval::topology::Topology;
 use slamesh::io::scans::{read_scan, ScanFolder};
 use slamesh::io::{kitti, ply, trajectory};
 use std::path::{Path, PathBuf};
@@ -21,8 +22,9 @@ pub struct EvalArgs {
     /// calib.txt, turned into LiDAR poses).
     #[arg(long, requires = "estimate")]
     pub reference: Option<PathBuf>,
-    /// A mesh (PLY) to score against --cloud: precision, recall and F1 at 0.1, 0.2, 0.3 m.
-    #[arg(long, requires = "cloud")]
+    /// A mesh (PLY): alone, its boundary edges and connected pieces; with --cloud, its
+    /// precision, recall and F1 at 0.1, 0.2, 0.3 m.
+    #[arg(long)]
     pub mesh: Option<PathBuf>,
     /// The reference point cloud for --mesh (PLY, PCD or KITTI .bin, world frame).
     #[arg(long, requires = "mesh")]
@@ -51,7 +53,7 @@ enum Mode<'a> {
     },
     Mesh {
         mesh: &'a Path,
-        cloud: &'a Path,
+        cloud: Option<&'a Path>,
     },
 }
 
@@ -68,7 +70,8 @@ impl EvalArgs {
                 reference,
             });
         }
-        if let (Some(mesh), Some(cloud)) = (&self.mesh, &self.cloud) {
+        if let Some(mesh) = &self.mesh {
+            let cloud = self.cloud.as_deref();
             modes.push(Mode::Mesh { mesh, cloud });
         }
         modes
@@ -88,7 +91,11 @@ pub fn eval(args: &EvalArgs) -> Result<(), CliError> {
                 estimate,
                 reference,
             } => trajectory_errors(estimate, reference, args.calib.as_deref(), args.json)?,
-            Mode::Mesh { mesh, cloud } => mesh_scores(mesh, cloud, args.json)?,
+            Mode::Mesh {
+                mesh,
+                cloud: Some(cloud),
+            } => mesh_scores(mesh, cloud, args.json)?,
+            Mode::Mesh { mesh, cloud: None } => mesh_topology(mesh, args.json)?,
         }
     }
     Ok(())
@@ -216,6 +223,33 @@ fn mesh_scores(mesh: &Path, cloud: &Path, json: bool) -> Result<(), CliError> {
                 s.f1
             );
         }
+    }
+    Ok(())
+}
+
+fn mesh_topology(mesh: &Path, json: bool) -> Result<(), CliError> {
+    let m = ply::read_ply_mesh(mesh)?;
+    let t = Topology::of(&m.triangles);
+    if json {
+        say!("{}", serde_json::to_string(&t).unwrap_or_default());
+    } else {
+        say!(
+            "mesh: {} vertices, {} triangles, {} edges",
+            m.vertices.len(),
+            t.triangles,
+            t.edges
+        );
+        say!(
+            "boundary edges: {} ({:.1} % of the edges); non-manifold edges: {}",
+            t.boundary_edges,
+            100.0 * t.boundary_share(),
+            t.non_manifold_edges
+        );
+        say!(
+            "connected pieces: {} (the largest has {} triangles)",
+            t.pieces,
+            t.largest_piece
+        );
     }
     Ok(())
 }

@@ -8,7 +8,7 @@ use crate::say;
 use clap::Args;
 use indicatif::ProgressBar;
 use slamesh::io::kitti::BinFields;
-use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::io::mesh_spool::{MeshColour, MeshFormat};
 use slamesh::io::trajectory::Trajectory;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::run::capacity;
@@ -41,6 +41,9 @@ pub struct RunArgs {
     /// Also write mesh.obj.
     #[arg(long)]
     pub obj: bool,
+    /// Colour mesh.ply's vertices (red, green, blue) by height or by variance.
+    #[arg(long, value_enum, default_value_t = ColourFlag::None)]
+    pub colour: ColourFlag,
     #[command(flatten)]
     pub window: WindowFlags,
     /// Save a checkpoint (the map and the run so far, `checkpoint.bin` in the output folder)
@@ -88,6 +91,17 @@ pub enum DeskewFlag {
     Auto,
     /// Never.
     Off,
+}
+
+/// `--colour`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ColourFlag {
+    /// No colour.
+    None,
+    /// Blue (lowest) to red (highest).
+    Height,
+    /// Blue (certain) to red (the variance at which triangles are hidden).
+    Variance,
 }
 
 /// `--capacity`.
@@ -174,6 +188,11 @@ fn run_with(
         window: s.window,
         threads: args.threads,
         mesh_formats,
+        mesh_colour: match args.colour {
+            ColourFlag::None => MeshColour::None,
+            ColourFlag::Height => MeshColour::Height,
+            ColourFlag::Variance => MeshColour::Variance,
+        },
         given_poses: given,
         input: args.input.display().to_string(),
         checkpoint_every: args.checkpoint_every.map(|n| n as usize),

@@ -5,6 +5,10 @@
 //! |---|---|
 //! | consecutive-frame errors, end-point drift, ATE, KITTI segment errors | [`odometry`] |
 //! | mesh precision, recall and F-score against a point cloud | [`mesh`] |
+//! | a mesh's boundary and non-manifold edges, and its connected pieces | [`topology`] |
+//! | why a welded mesh has boundary edges, edge by edge | [`seams`] |
 
 pub mod mesh;
 pub mod odometry;
+pub mod seams;
+pub mod topology;

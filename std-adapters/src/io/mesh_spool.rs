@@ -1,36 +1,113 @@
 //! The mesh on its way to disk.
 //!
-//! A [`MeshSpool`] collects layers as they come (cells evicted from a sliding-window map, then
-//! the map at the end) into two spool files next to the output, so that memory stays flat
-//! however long the run; [`MeshSpool::finish`] writes the final file atomically. Within a layer
-//! the lattice vertices are shared by its triangles; only vertices of shown triangles are
-//! written. Neighbouring cells predict their face vertices independently, so vertices are not
-//! merged across layers.
+//! A [`MeshSpool`] collects sets of layers as they come (the cells one eviction of a
+//! sliding-window map removes, then the map at the end) into spool files next to the output,
+//! so that memory stays flat however long the run; [`MeshSpool::finish`] writes the final
+//! files atomically. Each set is welded on its own ([`crate::io::mesh_weld`]): the vertices
+//! its neighbouring cells share are merged, and every vertex has a normal. Vertices of two
+//! different sets are not merged (a seam where an eviction cut the map).
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
+use crate::io::mesh_weld::{weld, WeldedMesh};
+use slamesh_core::cell::CellKey;
 use slamesh_core::config::MeshConfig;
-use slamesh_core::lattice::{Lattice, LatticeTable, VERTICES};
+use slamesh_core::lattice::Lattice;
 use slamesh_core::layer::Shown;
 use slamesh_core::map::{LayerRef, MeshMap};
 use slamesh_core::Point;
-use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
-/// Bytes of a spooled vertex: x, y, z, variance as little-endian `f32` (a PLY vertex record).
-pub const VERTEX_BYTES: usize = 16;
+/// Bytes of a spooled vertex: x, y, z, nx, ny, nz, variance as little-endian `f32` (a PLY
+/// vertex record without colour).
+pub const VERTEX_BYTES: usize = 28;
 /// Bytes of a spooled face: a `u8` 3 and three little-endian `u32` (a PLY face record).
 pub const FACE_BYTES: usize = 13;
+/// Bytes of a spooled set's end: vertices and faces spooled up to its end, as `u64`.
+const SET_BYTES: usize = 16;
+
+/// The most layers welded together: about 5 MB of welding at once, and 430 KB of vertex
+/// positions for [`MeshSpool::for_each_triangle`].
+pub const SET_LAYERS: usize = 1024;
+
+/// The Z-order (Morton) code of a cell: the bits of its three indices (their low 21, offset
+/// to be non-negative) interleaved, so that cells close in space are mostly close in order.
+fn z_order(key: &CellKey) -> u64 {
+    let spread = |v: i32| {
+        let mut x = u64::from((v as u32).wrapping_add(1 << 20) & 0x1f_ffff);
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        (x | x << 2) & 0x1249_2492_4924_9249
+    };
+    spread(key.x) | spread(key.y) << 1 | spread(key.z) << 2
+}
+
+/// Where the set starting at `start` of `layers` (sorted by Z-order code) ends: within
+/// [`SET_LAYERS`], at the boundary between the largest aligned blocks of cells, so that the
+/// seams between sets are few and straight (two codes first differ in a high bit where
+/// large blocks meet).
+fn set_end(layers: &[(u64, LayerRef<'_>)], start: usize) -> usize {
+    let last = layers.len().min(start + SET_LAYERS);
+    if last == layers.len() {
+        return last;
+    }
+    (start + 1..=last)
+        .max_by_key(|&e| {
+            let split = layers[e - 1].0 ^ layers[e].0;
+            (64 - split.leading_zeros(), e)
+        })
+        .unwrap_or(last)
+}
 
 /// Mesh file formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MeshFormat {
-    /// Binary little-endian PLY with a per-vertex variance.
+    /// Binary little-endian PLY with per-vertex normals and variance (and colour, if asked).
     Ply,
-    /// Wavefront OBJ (positions and faces; OBJ has no per-vertex scalar).
+    /// Wavefront OBJ (positions, normals and faces; OBJ has no per-vertex scalar).
     Obj,
+}
+
+/// What colours a PLY mesh's vertices (`red green blue`), on the blue-green-yellow-red ramp.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MeshColour {
+    /// No colour properties.
+    #[default]
+    None,
+    /// Height: from the lowest vertex (blue) to the highest (red).
+    Height,
+    /// Variance: from 0 (blue) to the largest a shown triangle may have (red).
+    Variance,
+}
+
+/// A colour ramp over one float of the vertex records, for the writers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VertexColour {
+    /// Which float of the record (2 for z, 6 for the variance).
+    pub field: usize,
+    /// The value at blue.
+    pub low: f32,
+    /// The value at red.
+    pub high: f32,
+}
+
+impl VertexColour {
+    /// The colour of a vertex record.
+    pub fn of(&self, record: &[u8; VERTEX_BYTES]) -> [u8; 3] {
+        let v = float(record, self.field);
+        let f = (v - self.low) / (self.high - self.low).max(1e-6);
+        crate::io::topview::ramp(f).map(|c| (c * 255.0).clamp(0.0, 255.0) as u8)
+    }
+}
+
+/// Float `k` of a little-endian record.
+fn float(rec: &[u8], k: usize) -> f32 {
+    let b = |i: usize| rec.get(4 * k + i).copied().unwrap_or(0);
+    f32::from_le_bytes([b(0), b(1), b(2), b(3)])
 }
 
 /// What a finished mesh file holds.
@@ -45,12 +122,16 @@ pub struct MeshCounts {
 /// Mesh pieces spooled to disk until [`finish`](Self::finish).
 #[derive(Debug)]
 pub struct MeshSpool {
-    lattice: LatticeTable,
+    lattice: Lattice,
     shown: Shown,
-    paths: [PathBuf; 2],
+    variance_show: f32,
+    colour: MeshColour,
+    paths: [PathBuf; 3],
     vertices: BufWriter<File>,
     faces: BufWriter<File>,
+    sets: BufWriter<File>,
     counts: MeshCounts,
+    merged: u64,
 }
 
 impl MeshSpool {
@@ -80,10 +161,8 @@ impl MeshSpool {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let paths = [
-            target.with_file_name(format!(".{name}.vertices.spool")),
-            target.with_file_name(format!(".{name}.faces.spool")),
-        ];
+        let paths = ["vertices", "faces", "sets"]
+            .map(|what| target.with_file_name(format!(".{name}.{what}.spool")));
         let open = |p: &Path, keep_bytes: Option<u64>| {
             let file = match keep_bytes {
                 None => File::create(p)
@@ -92,14 +171,34 @@ impl MeshSpool {
             };
             Ok::<_, FileError>(BufWriter::new(file))
         };
-        Ok(MeshSpool {
-            lattice: lattice.table(),
+        let kept_sets = match kept {
+            Some(k) => Some(sets_within(&paths[2], k)?),
+            None => None,
+        };
+        let mut spool = MeshSpool {
+            lattice,
             shown: Shown::new(shown),
+            variance_show: shown.variance_show as f32,
+            colour: MeshColour::None,
             vertices: open(&paths[0], kept.map(|k| k.vertices * VERTEX_BYTES as u64))?,
             faces: open(&paths[1], kept.map(|k| k.triangles * FACE_BYTES as u64))?,
+            sets: open(&paths[2], kept_sets.map(|(n, _)| n * SET_BYTES as u64))?,
             paths,
             counts: kept.unwrap_or_default(),
-        })
+            merged: 0,
+        };
+        // Records after the last whole set (a damaged spool) become a set of their own.
+        if let (Some(k), Some((_, end))) = (kept, kept_sets) {
+            if end != k {
+                spool.end_set()?;
+            }
+        }
+        Ok(spool)
+    }
+
+    /// Colours the PLY output's vertices (none unless asked).
+    pub fn colour_by(&mut self, colour: MeshColour) {
+        self.colour = colour;
     }
 
     /// Writes what is buffered to the spool files (before a checkpoint counts them).
@@ -107,6 +206,7 @@ impl MeshSpool {
         for (w, p) in [
             (&mut self.vertices, &self.paths[0]),
             (&mut self.faces, &self.paths[1]),
+            (&mut self.sets, &self.paths[2]),
         ] {
             w.flush()
                 .map_err(|e| FileError::at(p, format!("cannot write: {e}")))?;
@@ -119,51 +219,92 @@ impl MeshSpool {
         self.counts
     }
 
-    /// Adds the shown triangles of one layer, with the vertices they use.
-    pub fn add_layer(&mut self, l: LayerRef<'_>) -> Result<(), FileError> {
-        let mut index = [u32::MAX; VERTICES];
-        let mut next = self.counts.vertices;
-        let io = |e: std::io::Error, p: &Path| FileError::at(p, format!("cannot write: {e}"));
-        for t in l.layer.triangles(&self.lattice, self.shown) {
-            let mut face = [0u8; FACE_BYTES];
-            face[0] = 3;
-            for (k, &j) in t.iter().enumerate() {
-                if index[j] == u32::MAX {
-                    index[j] = next as u32;
-                    next += 1;
-                    let v = l.layer.vertex(&self.lattice, &l.key, l.axis, j);
-                    let mut rec = [0u8; VERTEX_BYTES];
-                    for (c, x) in [v.x as f32, v.y as f32, v.z as f32, l.layer.var[j]]
-                        .iter()
-                        .enumerate()
-                    {
-                        rec[4 * c..4 * c + 4].copy_from_slice(&x.to_le_bytes());
-                    }
-                    self.vertices
-                        .write_all(&rec)
-                        .map_err(|e| io(e, &self.paths[0]))?;
-                }
-                face[1 + 4 * k..5 + 4 * k].copy_from_slice(&index[j].to_le_bytes());
-            }
-            self.faces
-                .write_all(&face)
-                .map_err(|e| io(e, &self.paths[1]))?;
-            self.counts.triangles += 1;
+    /// Vertices merged into a neighbour's by welding, since this spool was opened.
+    pub fn merged(&self) -> u64 {
+        self.merged
+    }
+
+    /// Adds the shown triangles of `layers` with the vertices they use, welded in sets of at
+    /// most [`SET_LAYERS`] layers: in Z-order of their cells (nearby cells together), cut
+    /// where the largest aligned blocks of cells meet, so that welding holds a bounded
+    /// amount at once. Vertices on a cut between two sets are not merged.
+    pub fn add_layers<'a>(
+        &mut self,
+        layers: impl IntoIterator<Item = LayerRef<'a>>,
+    ) -> Result<(), FileError> {
+        let mut layers: Vec<(u64, LayerRef<'a>)> =
+            layers.into_iter().map(|l| (z_order(&l.key), l)).collect();
+        layers.sort_by_key(|(code, l)| (*code, l.key, l.axis));
+        let mut start = 0;
+        while start < layers.len() {
+            let end = set_end(&layers, start);
+            let set = layers[start..end].iter().map(|(_, l)| *l);
+            let mesh = weld(set, &self.lattice, self.shown);
+            self.add_mesh(&mesh)?;
+            start = end;
         }
-        self.counts.vertices = next;
         Ok(())
     }
 
     /// Adds every layer of `map`.
     pub fn add_map(&mut self, map: &MeshMap) -> Result<(), FileError> {
-        map.layers().try_for_each(|l| self.add_layer(l))
+        self.add_layers(map.layers())
+    }
+
+    fn add_mesh(&mut self, mesh: &WeldedMesh) -> Result<(), FileError> {
+        if mesh.triangles.is_empty() {
+            return Ok(());
+        }
+        let io = |e: std::io::Error, p: &Path| FileError::at(p, format!("cannot write: {e}"));
+        for v in &mesh.vertices {
+            let mut rec = [0u8; VERTEX_BYTES];
+            let floats = [
+                v.position[0],
+                v.position[1],
+                v.position[2],
+                v.normal[0],
+                v.normal[1],
+                v.normal[2],
+                v.variance,
+            ];
+            for (c, x) in floats.iter().enumerate() {
+                rec[4 * c..4 * c + 4].copy_from_slice(&x.to_le_bytes());
+            }
+            self.vertices
+                .write_all(&rec)
+                .map_err(|e| io(e, &self.paths[0]))?;
+        }
+        let base = self.counts.vertices;
+        for t in &mesh.triangles {
+            let mut face = [0u8; FACE_BYTES];
+            face[0] = 3;
+            for (k, &i) in t.iter().enumerate() {
+                let index = (base + u64::from(i)) as u32;
+                face[1 + 4 * k..5 + 4 * k].copy_from_slice(&index.to_le_bytes());
+            }
+            self.faces
+                .write_all(&face)
+                .map_err(|e| io(e, &self.paths[1]))?;
+        }
+        self.counts.vertices += mesh.vertices.len() as u64;
+        self.counts.triangles += mesh.triangles.len() as u64;
+        self.merged += mesh.merged;
+        self.end_set()
+    }
+
+    fn end_set(&mut self) -> Result<(), FileError> {
+        let mut rec = [0u8; SET_BYTES];
+        rec[..8].copy_from_slice(&self.counts.vertices.to_le_bytes());
+        rec[8..].copy_from_slice(&self.counts.triangles.to_le_bytes());
+        self.sets
+            .write_all(&rec)
+            .map_err(|e| FileError::at(&self.paths[2], format!("cannot write: {e}")))
     }
 
     /// Calls `each` with every triangle added so far, as its three corners, and the highest
     /// vertex `z` of the mesh (for colour scales), in the order they were added. Reads the
-    /// spool files (flushed first) without holding them in memory: a face uses only its
-    /// layer's vertices, at most [`VERTICES`] of them, all spooled before it, so the last
-    /// [`VERTICES`] vertices read are all a face can need.
+    /// spool files (flushed first) one welded set at a time: memory holds one set's vertex
+    /// positions, never the whole mesh.
     pub fn for_each_triangle(
         &mut self,
         mut each: impl FnMut([Point; 3], f32),
@@ -173,100 +314,149 @@ impl MeshSpool {
         let read_vertex = |r: &mut BufReader<File>| -> std::io::Result<Point> {
             let mut rec = [0u8; VERTEX_BYTES];
             r.read_exact(&mut rec)?;
-            let f = |c: usize| {
-                f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]])
-            };
-            Ok([f(0), f(1), f(2)])
+            Ok([float(&rec, 0), float(&rec, 1), float(&rec, 2)])
         };
-        // First pass: the highest vertex.
         let open = |p: &Path| File::open(p).map(BufReader::new).map_err(|e| io(e, p));
-        let mut vertices = open(&self.paths[0])?;
-        let mut z_top = f32::NEG_INFINITY;
-        for _ in 0..self.counts.vertices {
-            let v = read_vertex(&mut vertices).map_err(|e| io(e, &self.paths[0]))?;
-            z_top = z_top.max(v[2]);
-        }
-        // Second pass: faces, with the last VERTICES vertices read.
+        let (_, z_top) = self.z_range()?;
+        let sets = read_sets(&self.paths[2])?;
         let mut vertices = open(&self.paths[0])?;
         let mut faces = open(&self.paths[1])?;
-        let mut window: VecDeque<Point> = VecDeque::new();
-        let (mut base, mut next) = (0u64, 0u64);
-        for _ in 0..self.counts.triangles {
-            let mut rec = [0u8; FACE_BYTES];
-            faces
-                .read_exact(&mut rec)
-                .map_err(|e| io(e, &self.paths[1]))?;
-            let index = |k: usize| {
-                u64::from(u32::from_le_bytes([
-                    rec[1 + 4 * k],
-                    rec[2 + 4 * k],
-                    rec[3 + 4 * k],
-                    rec[4 + 4 * k],
-                ]))
-            };
-            let ids = [index(0), index(1), index(2)];
-            let (lo, hi) = (
-                ids.iter().min().copied().unwrap_or(0),
-                ids.iter().max().copied().unwrap_or(0),
-            );
-            if hi >= self.counts.vertices {
-                return Err(FileError::at(
-                    &self.paths[1],
-                    "a face refers to a vertex not spooled",
-                ));
+        let mut window: Vec<Point> = Vec::new();
+        let mut done = MeshCounts::default();
+        for end in sets {
+            window.clear();
+            for _ in done.vertices..end.vertices {
+                window.push(read_vertex(&mut vertices).map_err(|e| io(e, &self.paths[0]))?);
             }
-            while next <= hi {
-                window.push_back(read_vertex(&mut vertices).map_err(|e| io(e, &self.paths[0]))?);
-                next += 1;
+            for _ in done.triangles..end.triangles {
+                let mut rec = [0u8; FACE_BYTES];
+                faces
+                    .read_exact(&mut rec)
+                    .map_err(|e| io(e, &self.paths[1]))?;
+                let index = |k: usize| {
+                    u64::from(u32::from_le_bytes([
+                        rec[1 + 4 * k],
+                        rec[2 + 4 * k],
+                        rec[3 + 4 * k],
+                        rec[4 + 4 * k],
+                    ]))
+                };
+                let mut corners = [[0f32; 3]; 3];
+                for (k, c) in corners.iter_mut().enumerate() {
+                    *c = index(k)
+                        .checked_sub(done.vertices)
+                        .and_then(|i| window.get(i as usize))
+                        .copied()
+                        .ok_or_else(|| {
+                            FileError::at(&self.paths[1], "a face refers to another set's vertex")
+                        })?;
+                }
+                each(corners, z_top);
             }
-            while next - base > VERTICES as u64 {
-                window.pop_front();
-                base += 1;
-            }
-            if lo < base {
-                return Err(FileError::at(
-                    &self.paths[1],
-                    "a face refers to another layer's vertex",
-                ));
-            }
-            each(ids.map(|i| window[(i - base) as usize]), z_top);
+            done = end;
         }
         Ok(())
+    }
+
+    /// The lowest and highest vertex `z` spooled (infinite for none).
+    fn z_range(&mut self) -> Result<(f32, f32), FileError> {
+        self.flush()?;
+        let p = &self.paths[0];
+        let mut r = BufReader::new(
+            File::open(p).map_err(|e| FileError::at(p, format!("cannot read: {e}")))?,
+        );
+        let mut range = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut rec = [0u8; VERTEX_BYTES];
+        for _ in 0..self.counts.vertices {
+            r.read_exact(&mut rec)
+                .map_err(|e| FileError::at(p, format!("cannot read: {e}")))?;
+            let z = float(&rec, 2);
+            range = (range.0.min(z), range.1.max(z));
+        }
+        Ok(range)
     }
 
     /// Writes everything added to each `(path, format)` (atomically) and removes the spool.
     pub fn finish(mut self, outputs: &[(PathBuf, MeshFormat)]) -> Result<MeshCounts, FileError> {
         self.flush()?;
+        let colour = match self.colour {
+            MeshColour::None => None,
+            MeshColour::Height => {
+                let (low, high) = self.z_range()?;
+                Some(VertexColour {
+                    field: 2,
+                    low,
+                    high,
+                })
+            }
+            MeshColour::Variance => Some(VertexColour {
+                field: 6,
+                low: 0.0,
+                high: self.variance_show,
+            }),
+        };
         for (target, format) in outputs {
-            self.write(target, *format)?;
+            self.write(target, *format, colour)?;
         }
         Ok(self.counts)
     }
 
-    fn write(&self, target: &Path, format: MeshFormat) -> Result<(), FileError> {
+    fn write(
+        &self,
+        target: &Path,
+        format: MeshFormat,
+        colour: Option<VertexColour>,
+    ) -> Result<(), FileError> {
         let counts = self.counts;
         let paths = &self.paths;
         write_atomic(target, |w| {
             let mut vertices = BufReader::new(File::open(&paths[0])?);
             let mut faces = BufReader::new(File::open(&paths[1])?);
             match format {
-                MeshFormat::Ply => crate::io::ply::write_mesh_records(
-                    w,
-                    &mut vertices,
-                    &mut faces,
-                    counts.vertices,
-                    counts.triangles,
-                ),
-                MeshFormat::Obj => crate::io::obj::write_mesh_records(
-                    w,
-                    &mut vertices,
-                    &mut faces,
-                    counts.vertices,
-                    counts.triangles,
-                ),
+                MeshFormat::Ply => {
+                    crate::io::ply::write_mesh_records(w, &mut vertices, &mut faces, counts, colour)
+                }
+                MeshFormat::Obj => {
+                    crate::io::obj::write_mesh_records(w, &mut vertices, &mut faces, counts)
+                }
             }
         })
     }
+}
+
+/// The set ends spooled in `path` up to `kept` (how many, and the last end).
+fn sets_within(path: &Path, kept: MeshCounts) -> Result<(u64, MeshCounts), FileError> {
+    let sets = read_sets(path)?;
+    let within = sets
+        .iter()
+        .take_while(|s| s.vertices <= kept.vertices && s.triangles <= kept.triangles)
+        .count();
+    let last = within
+        .checked_sub(1)
+        .and_then(|i| sets.get(i))
+        .copied()
+        .unwrap_or_default();
+    Ok((within as u64, last))
+}
+
+/// Every set end spooled in `path`.
+fn read_sets(path: &Path) -> Result<Vec<MeshCounts>, FileError> {
+    let bytes =
+        std::fs::read(path).map_err(|e| FileError::at(path, format!("cannot read: {e}")))?;
+    Ok(bytes
+        .chunks_exact(SET_BYTES)
+        .map(|rec| {
+            let u = |i: usize| {
+                let mut b = [0u8; 8];
+                b.copy_from_slice(&rec[i..i + 8]);
+                u64::from_le_bytes(b)
+            };
+            MeshCounts {
+                vertices: u(0),
+                triangles: u(8),
+            }
+        })
+        .collect())
 }
 
 impl Drop for MeshSpool {
@@ -282,6 +472,7 @@ mod tests {
     use super::*;
     use crate::io::ply::read_ply_points;
     use slamesh_core::cell::{Axis, CellKey};
+    use slamesh_core::lattice::VERTICES;
     use slamesh_core::layer::Layer;
 
     /// Streaming the spool gives the map's triangles, corner for corner and in order, over
@@ -317,7 +508,11 @@ mod tests {
         };
         let dir = crate::test_support::scratch_dir("mesh-stream");
         let mut spool = MeshSpool::new(&dir.join("m.ply"), lattice, &cfg).unwrap();
-        spool.add_map(&map).unwrap();
+        // Two sets: the first four cells' layers, then the rest.
+        let layers: Vec<LayerRef<'_>> = map.layers().collect();
+        let (first, second) = layers.split_at(4);
+        spool.add_layers(first.iter().copied()).unwrap();
+        spool.add_layers(second.iter().copied()).unwrap();
         let mut streamed = Vec::new();
         let mut tops = Vec::new();
         spool
@@ -326,17 +521,46 @@ mod tests {
                 tops.push(z_top);
             })
             .unwrap();
-        let expected: Vec<[Point; 3]> = slamesh_core::mesh::triangles(&map, &cfg)
-            .map(|t| t.vertices)
-            .collect();
+        let shown = Shown::new(&cfg);
+        let mut expected: Vec<[Point; 3]> = Vec::new();
+        for set in [first, second] {
+            let m = weld(set.iter().copied(), &lattice, shown);
+            expected.extend(
+                m.triangles
+                    .iter()
+                    .map(|t| t.map(|i| m.vertices[i as usize].position)),
+            );
+        }
         assert!(expected.len() > 400, "{} triangles", expected.len());
-        assert_eq!(streamed, expected);
+        // The spool welds each set in Z-order of its cells: the same triangles, in another
+        // order.
+        let sorted = |mut v: Vec<[Point; 3]>| {
+            v.sort_by_key(|t| t.map(|p| p.map(f32::to_bits)));
+            v
+        };
+        assert_eq!(streamed.len(), expected.len());
+        assert!(sorted(streamed) == sorted(expected.clone()));
         let z_top = expected
             .iter()
             .flatten()
             .map(|v| v[2])
             .fold(f32::MIN, f32::max);
         assert!(tops.iter().all(|&z| z == z_top));
+        // Resumed at the end of the first set, the spool streams the first set alone.
+        let kept = {
+            let m = weld(first.iter().copied(), &lattice, shown);
+            MeshCounts {
+                vertices: m.vertices.len() as u64,
+                triangles: m.triangles.len() as u64,
+            }
+        };
+        // A killed run leaves its spool files behind.
+        std::mem::forget(spool);
+        let mut resumed = MeshSpool::resume(&dir.join("m.ply"), lattice, &cfg, kept).unwrap();
+        let mut again = 0;
+        resumed.for_each_triangle(|_, _| again += 1).unwrap();
+        assert_eq!(again as u64, kept.triangles);
+        drop(resumed);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
@@ -385,17 +609,20 @@ mod tests {
                 let mesh = crate::io::ply::read_ply_mesh(&target).unwrap();
                 assert_eq!((mesh.vertices.len(), mesh.triangles.len()), (36, 50));
                 assert!(pts.iter().all(|p| (p[2] - 0.5).abs() < 1e-6));
-                // The variance is the last float of each vertex record.
+                // The variance is the last float of each vertex record, after the normal.
                 let body = &text[text.len() - 50 * FACE_BYTES - 36 * VERTEX_BYTES..];
-                let var = |i: usize| {
-                    f32::from_le_bytes(body[i * 16 + 12..i * 16 + 16].try_into().unwrap())
-                };
+                let var = |i: usize| float(&body[i * VERTEX_BYTES..], 6);
+                assert!((0..36).all(|i| float(&body[i * VERTEX_BYTES..], 5) > 0.999));
                 let mut vars: Vec<f32> = (0..36).map(var).collect();
                 vars.sort_by(f32::total_cmp);
                 assert_eq!((vars[0], vars[35]), (0.01, 0.02));
             } else {
                 let text = String::from_utf8(text).unwrap();
                 assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), 36);
+                assert_eq!(
+                    text.lines().filter(|l| l.starts_with("vn 0 0 1")).count(),
+                    36
+                );
                 assert_eq!(text.lines().filter(|l| l.starts_with("f ")).count(), 50);
             }
             assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e
@@ -404,6 +631,48 @@ mod tests {
                 .to_string_lossy()
                 .ends_with(".spool")));
         }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn colour_by_variance_appends_red_green_blue_to_each_vertex() {
+        let lattice = Lattice {
+            cell_size: 1.0,
+            full_cover: true,
+        };
+        let mut map = MeshMap::with_capacity(4, 4, lattice);
+        let mut layer = Layer {
+            pred: [0.5; VERTICES],
+            var: [0.0; VERTICES],
+        };
+        layer.var[0] = 0.1;
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0)
+            .unwrap();
+        let dir = crate::test_support::scratch_dir("mesh-colour");
+        let target = dir.join("m.ply");
+        let cfg = MeshConfig {
+            variance_show: 0.1,
+            max_slope_deg: 60.0,
+        };
+        let mut spool = MeshSpool::new(&target, lattice, &cfg).unwrap();
+        spool.add_map(&map).unwrap();
+        spool.colour_by(MeshColour::Variance);
+        spool.finish(&[(target.clone(), MeshFormat::Ply)]).unwrap();
+        let text = std::fs::read(&target).unwrap();
+        let header_end = text.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+        let header = String::from_utf8_lossy(&text[..header_end]);
+        assert!(header.contains("property uchar red\nproperty uchar green\nproperty uchar blue\n"));
+        let mesh = crate::io::ply::read_ply_mesh(&target).unwrap();
+        assert!(mesh.vertices.iter().all(|p| (p[2] - 0.5).abs() < 1e-6));
+        // Vertex 0 (variance 0.1, the hiding limit) is red; the others (0) blue.
+        let record = VERTEX_BYTES + 3;
+        let colour = |i: usize| {
+            let at = header_end + i * record + VERTEX_BYTES;
+            [text[at], text[at + 1], text[at + 2]]
+        };
+        let (first, rest) = (colour(0), colour(1));
+        assert!(first[0] > 200 && first[2] < 80, "{first:?}");
+        assert!(rest[2] > 150 && rest[0] < 80, "{rest:?}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -10,6 +10,7 @@
 //! ([`write_mesh_records`]: binary little-endian, a per-vertex `variance`).
 
 use crate::io::error::FileError;
+use crate::io::mesh_spool::{MeshCounts, VertexColour, VERTEX_BYTES};
 use crate::io::pointcloud2;
 use slamesh_core::Point;
 use std::io::{Read, Write};
@@ -449,24 +450,44 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
 }
 
 /// Writes a binary little-endian PLY mesh from spooled records ([`crate::io::mesh_spool`]):
-/// `vertex_count` vertex records (x, y, z, variance as little-endian `f32`) and
-/// `triangle_count` face records (a `u8` 3 and three little-endian `u32`), which are PLY's own
-/// binary records, copied after the header.
+/// `counts.vertices` vertex records (x, y, z, nx, ny, nz, variance as little-endian `f32`,
+/// PLY's own binary records, copied after the header, with `red green blue` appended when
+/// `colour` is given) and `counts.triangles` face records (a `u8` 3 and three little-endian
+/// `u32`).
 pub fn write_mesh_records(
     w: &mut impl Write,
     vertices: &mut impl Read,
     faces: &mut impl Read,
-    vertex_count: u64,
-    triangle_count: u64,
+    counts: MeshCounts,
+    colour: Option<VertexColour>,
 ) -> std::io::Result<()> {
+    let colour_properties = if colour.is_some() {
+        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+    } else {
+        ""
+    };
     write!(
         w,
         "ply\nformat binary_little_endian 1.0\ncomment slamesh mesh\n\
-         element vertex {vertex_count}\nproperty float x\nproperty float y\n\
-         property float z\nproperty float variance\nelement face {triangle_count}\n\
-         property list uchar uint vertex_indices\nend_header\n"
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\n\
+         property float variance\n{colour_properties}element face {}\n\
+         property list uchar uint vertex_indices\nend_header\n",
+        counts.vertices, counts.triangles
     )?;
-    std::io::copy(vertices, w)?;
+    match colour {
+        None => {
+            std::io::copy(&mut vertices.take(counts.vertices * VERTEX_BYTES as u64), w)?;
+        }
+        Some(c) => {
+            let mut rec = [0u8; VERTEX_BYTES];
+            for _ in 0..counts.vertices {
+                vertices.read_exact(&mut rec)?;
+                w.write_all(&rec)?;
+                w.write_all(&c.of(&rec))?;
+            }
+        }
+    }
     std::io::copy(faces, w)?;
     Ok(())
 }

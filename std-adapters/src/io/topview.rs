@@ -68,10 +68,7 @@ impl TopView {
                 n[2].abs() / len
             };
             let z = (t[0][2] + t[1][2] + t[2][2]) / 3.0;
-            let colour = shade(
-                height_colour((z - z_lo) / (z_hi - z_lo).max(1e-3)),
-                0.45 + 0.55 * n,
-            );
+            let colour = shade(ramp((z - z_lo) / (z_hi - z_lo).max(1e-3)), 0.45 + 0.55 * n);
             let (x0, x1) = (
                 p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min),
                 p.iter().map(|q| q.0).fold(f64::NEG_INFINITY, f64::max),
@@ -152,8 +149,8 @@ impl TopView {
     }
 }
 
-/// A blue-green-yellow-red ramp over `f` in 0..1.
-fn height_colour(f: f32) -> [f32; 3] {
+/// A blue-green-yellow-red ramp over `f` in 0..1 (the picture's and the PLY colours).
+pub fn ramp(f: f32) -> [f32; 3] {
     let f = f.clamp(0.0, 1.0);
     let stops = [
         [0.15, 0.3, 0.8],

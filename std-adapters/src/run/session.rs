@@ -14,7 +14,7 @@
 use crate::io::atomic::open_cut;
 use crate::io::config_file::WindowSettings;
 use crate::io::error::FileError;
-use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
+use crate::io::mesh_spool::{MeshColour, MeshCounts, MeshFormat, MeshSpool};
 use crate::io::trajectory::Trajectory;
 use crate::parallel::Workers;
 use crate::run::capacity;
@@ -52,6 +52,8 @@ pub struct RunOptions {
     pub threads: usize,
     /// Mesh files to write (`mesh.ply`, `mesh.obj`; none: no mesh file).
     pub mesh_formats: Vec<MeshFormat>,
+    /// What colours the PLY mesh's vertices.
+    pub mesh_colour: MeshColour,
     /// Poses to mesh with instead of estimating them (meshing only): matched to frames by
     /// time when the trajectory has stamps (TUM), by line otherwise.
     pub given_poses: Option<Trajectory>,
@@ -389,21 +391,13 @@ impl<'a, C: Capacity> Run<'a, C> {
                 rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
                 let t = Instant::now();
                 if !self.window.is_off() {
-                    let (spool, save) = (&mut self.spool, self.opts.window.save_evicted);
-                    let mut spool_error = None;
-                    rec.evicted_cells = self.window.evict(
+                    let spool = self.opts.window.save_evicted.then_some(&mut self.spool);
+                    rec.evicted_cells = self.window.evict_to(
                         self.pipeline.map_mut(),
                         o.stats.frame,
                         &o.t_world_sensor,
-                        |l| {
-                            if save && spool_error.is_none() {
-                                spool_error = spool.add_layer(l).err();
-                            }
-                        },
-                    );
-                    if let Some(e) = spool_error {
-                        return Err(e.into());
-                    }
+                        spool,
+                    )?;
                     self.progress.evicted_cells += rec.evicted_cells;
                 }
                 rec.ms.evict = t.elapsed().as_secs_f64() * 1e3;
@@ -482,6 +476,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let out = &self.opts.out;
         write_trajectories(out, source, &poses)?;
         self.spool.add_map(self.pipeline.map())?;
+        self.spool.colour_by(self.opts.mesh_colour);
         if self.opts.picture {
             let path: Vec<Pose> = poses.iter().map(|(_, p)| *p).collect();
             write_topview(&mut self.spool, &path, &out.join("topview.png"))?;

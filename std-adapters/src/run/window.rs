@@ -10,8 +10,11 @@
 //! a cap in bytes into a layer budget, leaving room for one scan's worth of new layers, so that
 //! the map never holds more than the cap allows even in the middle of a scan.
 
+use crate::io::error::FileError;
+use crate::io::mesh_spool::MeshSpool;
 use slamesh_core::capacity::MAP_LAYER_BYTES;
-use slamesh_core::cell::CellKey;
+use slamesh_core::cell::{Axis, CellKey};
+use slamesh_core::layer::Layer;
 use slamesh_core::map::{LayerRef, MeshMap};
 use slamesh_core::{Capacity, Pose};
 
@@ -52,6 +55,30 @@ impl Window {
     /// True if no rule is set.
     pub fn is_off(&self) -> bool {
         self.max_age_frames.is_none() && self.radius_m.is_none() && self.max_layers.is_none()
+    }
+
+    /// [`evict`](Self::evict), adding what leaves to `spool` (when given) as one welded set
+    /// (docs/design.md §1.6).
+    pub fn evict_to(
+        &self,
+        map: &mut MeshMap,
+        frame: u32,
+        sensor: &Pose,
+        spool: Option<&mut MeshSpool>,
+    ) -> Result<usize, FileError> {
+        let Some(spool) = spool else {
+            return Ok(self.evict(map, frame, sensor, |_| {}));
+        };
+        let mut evicted: Vec<(CellKey, Axis, Layer)> = Vec::new();
+        let n = self.evict(map, frame, sensor, |l| {
+            evicted.push((l.key, l.axis, *l.layer))
+        });
+        spool.add_layers(evicted.iter().map(|(key, axis, layer)| LayerRef {
+            key: *key,
+            axis: *axis,
+            layer,
+        }))?;
+        Ok(n)
     }
 
     /// Applies the rules after scan `frame` seen from `sensor`; shows each evicted layer to

@@ -1,0 +1,312 @@
+//! Welding: one indexed mesh from a set of map layers, with the vertices that neighbouring
+//! cells share merged into one, and a normal at every vertex (docs/design.md §1.6).
+//!
+//! With the lattice on the cell faces (`full_cover`), a layer's border vertices sit where the
+//! border vertices of the same-axis layers of its neighbours sit. Along axis `d`, with
+//! location axes `(a, b)`, vertex `(i_a, i_b)` of cell `k` lies on the lattice line
+//! `U = k_a (N - 1) + i_a`, `V = k_b (N - 1) + i_b`, and each layer predicts the coordinate
+//! along `d` there on its own. Border vertices on one line `(d, U, V)` whose predictions are
+//! within half a lattice spacing of the first of them are one surface point: they become one
+//! vertex at their inverse-variance weighted mean, with the fused variance `1 / Σ 1/σ²`, as
+//! the map update fuses predictions ([`slamesh_core::fusion`]). The cells may be side by side
+//! or one above the other along `d` (a surface crossing the face between them). Interior
+//! vertices are never shared.
+//!
+//! What is not welded:
+//! - where layers of different axes meet (a wall standing on a floor), no vertex of one lies
+//!   on a lattice line of the other; the mesh keeps an open crease there;
+//! - with vertices at the interval centres (`full_cover = false`, the `fast` preset) no two
+//!   layers share a vertex place: every layer stays its own piece.
+//!
+//! A triangle that uses the same three vertices as an earlier one after welding is dropped.
+//! Normals are the area-weighted sums of the normals of the triangles around each vertex, on
+//! the side of the layer's `+axis` (a vertex in no usable triangle gets the axis itself).
+//!
+//! Memory: what is welded together is held at once, about 100 bytes a used vertex.
+
+use slamesh_core::cell::{Axis, CellKey};
+use slamesh_core::lattice::{Lattice, N, VERTICES};
+use slamesh_core::layer::Shown;
+use slamesh_core::map::LayerRef;
+use std::collections::HashSet;
+
+/// A vertex of a welded mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshVertex {
+    /// World position (metres).
+    pub position: [f32; 3],
+    /// Unit normal.
+    pub normal: [f32; 3],
+    /// GP variance (fused where vertices were welded).
+    pub variance: f32,
+}
+
+/// An indexed triangle mesh.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WeldedMesh {
+    /// The vertices, in the order their layers came.
+    pub vertices: Vec<MeshVertex>,
+    /// Triangles as indices into `vertices`, counter-clockwise seen from their layer's `+axis`.
+    pub triangles: Vec<[u32; 3]>,
+    /// Vertices that were merged into another one.
+    pub merged: u64,
+}
+
+/// A used vertex of one layer, before welding.
+struct Slot {
+    position: [f64; 3],
+    variance: f32,
+    axis: Axis,
+    /// `(d, U, V)` and the coordinate along `d`, for a border vertex of a face lattice.
+    line: Option<([i64; 3], f64)>,
+}
+
+fn component(key: &CellKey, i: usize) -> i64 {
+    i64::from(match i {
+        0 => key.x,
+        1 => key.y,
+        _ => key.z,
+    })
+}
+
+/// The welded mesh of `layers`' shown triangles (see the module's documentation).
+pub fn weld<'a>(
+    layers: impl IntoIterator<Item = LayerRef<'a>>,
+    lattice: &Lattice,
+    shown: Shown,
+) -> WeldedMesh {
+    let table = lattice.table();
+    let spacing = lattice.cell_size / (N - 1) as f64;
+    let mut slots: Vec<Slot> = Vec::new();
+    let mut corners: Vec<[u32; 3]> = Vec::new();
+    for l in layers {
+        let mut index = [u32::MAX; VERTICES];
+        let (a, b) = l.axis.locations();
+        let d = l.axis.index();
+        for t in l.layer.triangles(&table, shown) {
+            let mut tri = [0u32; 3];
+            for (k, &j) in t.iter().enumerate() {
+                if index[j] == u32::MAX {
+                    index[j] = slots.len() as u32;
+                    let p = l.layer.vertex(&table, &l.key, l.axis, j);
+                    let (ia, ib) = (j / N, j % N);
+                    let border = ia == 0 || ia == N - 1 || ib == 0 || ib == N - 1;
+                    let line = (lattice.full_cover && border).then(|| {
+                        let u = component(&l.key, a) * (N as i64 - 1) + ia as i64;
+                        let v = component(&l.key, b) * (N as i64 - 1) + ib as i64;
+                        ([d as i64, u, v], p[d])
+                    });
+                    slots.push(Slot {
+                        position: [p.x, p.y, p.z],
+                        variance: l.layer.var[j],
+                        axis: l.axis,
+                        line,
+                    });
+                }
+                tri[k] = index[j];
+            }
+            corners.push(tri);
+        }
+    }
+    // Clusters: each slot's first slot on its line within half a spacing of it.
+    let mut root: Vec<u32> = (0..slots.len() as u32).collect();
+    let mut on_lines: Vec<u32> = (0..slots.len() as u32)
+        .filter(|&s| slots[s as usize].line.is_some())
+        .collect();
+    let line_of = |s: u32| slots[s as usize].line.unwrap_or(([0; 3], 0.0));
+    on_lines.sort_by(|&p, &q| {
+        let ((lp, dp), (lq, dq)) = (line_of(p), line_of(q));
+        lp.cmp(&lq).then(dp.total_cmp(&dq)).then(p.cmp(&q))
+    });
+    let mut start = 0;
+    for i in 1..=on_lines.len() {
+        let same = i < on_lines.len() && {
+            let ((l0, d0), (l1, d1)) = (line_of(on_lines[start]), line_of(on_lines[i]));
+            l0 == l1 && d1 - d0 <= spacing / 2.0
+        };
+        if !same {
+            let members = &on_lines[start..i];
+            let first = members.iter().copied().min().unwrap_or(0);
+            for &m in members {
+                root[m as usize] = first;
+            }
+            start = i;
+        }
+    }
+    // Output vertices in slot order, each at its cluster's fused position.
+    let mut out_index = vec![u32::MAX; slots.len()];
+    let mut sums: Vec<([f64; 3], f64)> = Vec::new();
+    let mut axes: Vec<Axis> = Vec::new();
+    let mut merged = 0;
+    for (s, slot) in slots.iter().enumerate() {
+        let r = root[s] as usize;
+        if out_index[r] == u32::MAX {
+            out_index[r] = sums.len() as u32;
+            sums.push(([0.0; 3], 0.0));
+            axes.push(slot.axis);
+        } else {
+            merged += 1;
+        }
+        out_index[s] = out_index[r];
+        let w = 1.0 / f64::from(slot.variance).max(1e-6);
+        let sum = &mut sums[out_index[s] as usize];
+        for c in 0..3 {
+            sum.0[c] += w * slot.position[c];
+        }
+        sum.1 += w;
+    }
+    let positions: Vec<[f64; 3]> = sums.iter().map(|(p, w)| p.map(|c| c / w)).collect();
+    let mut seen = HashSet::new();
+    let mut triangles = Vec::with_capacity(corners.len());
+    let mut normals = vec![[0.0f64; 3]; positions.len()];
+    for c in &corners {
+        let t = c.map(|s| out_index[s as usize]);
+        let mut key = t;
+        key.sort_unstable();
+        if key[0] == key[1] || key[1] == key[2] || !seen.insert(key) {
+            continue;
+        }
+        let [p0, p1, p2] = t.map(|i| positions[i as usize]);
+        let (u, v) = (sub(p1, p0), sub(p2, p0));
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        for &i in &t {
+            for k in 0..3 {
+                normals[i as usize][k] += n[k];
+            }
+        }
+        triangles.push(t);
+    }
+    let vertices = positions
+        .iter()
+        .zip(&sums)
+        .zip(normals.iter().zip(&axes))
+        .map(|((p, (_, w)), (n, axis))| {
+            let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            let normal = if norm > 1e-12 {
+                n.map(|c| (c / norm) as f32)
+            } else {
+                let mut e = [0.0; 3];
+                e[axis.index()] = 1.0;
+                e
+            };
+            MeshVertex {
+                position: p.map(|c| c as f32),
+                normal,
+                variance: (1.0 / w) as f32,
+            }
+        })
+        .collect();
+    WeldedMesh {
+        vertices,
+        triangles,
+        merged,
+    }
+}
+
+fn sub(p: [f64; 3], q: [f64; 3]) -> [f64; 3] {
+    [p[0] - q[0], p[1] - q[1], p[2] - q[2]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slamesh_core::config::MeshConfig;
+    use slamesh_core::layer::Layer;
+    use slamesh_core::map::MeshMap;
+
+    fn shown() -> Shown {
+        Shown::new(&MeshConfig {
+            variance_show: 0.5,
+            max_slope_deg: 90.0,
+        })
+    }
+
+    fn flat(height: f32, var: f32) -> Layer {
+        Layer {
+            pred: [height; VERTICES],
+            var: [var; VERTICES],
+        }
+    }
+
+    const FACES: Lattice = Lattice {
+        cell_size: 1.0,
+        full_cover: true,
+    };
+
+    #[test]
+    fn two_floor_cells_side_by_side_share_their_face_vertices_at_the_fused_height() {
+        let mut map = MeshMap::with_capacity(4, 4, FACES);
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, flat(0.50, 0.01), 0)
+            .unwrap();
+        map.insert_layer(CellKey::new(1, 0, 0), Axis::Z, flat(0.53, 0.03), 0)
+            .unwrap();
+        let m = weld(map.layers(), &FACES, shown());
+        assert_eq!(m.vertices.len(), 2 * 36 - 6, "one shared column of six");
+        assert_eq!((m.merged, m.triangles.len()), (6, 100));
+        // Inverse-variance weights 100 and 33.3: 0.50 + 0.03 / 4.
+        let on_face: Vec<&MeshVertex> = m
+            .vertices
+            .iter()
+            .filter(|v| (v.position[0] - 1.0).abs() < 1e-6)
+            .collect();
+        assert_eq!(on_face.len(), 6);
+        for v in on_face {
+            assert!((v.position[2] - 0.5075).abs() < 1e-5, "{:?}", v.position);
+            assert!((v.variance - 0.0075).abs() < 1e-6, "{}", v.variance);
+        }
+        assert!(m.vertices.iter().all(|v| v.normal[2] > 0.99));
+        let edges = crate::eval::topology::Topology::of(&m.triangles);
+        assert_eq!(edges.pieces, 1);
+    }
+
+    #[test]
+    fn a_surface_crossing_the_face_between_stacked_cells_is_welded_there() {
+        // A slope rising 1 m over 2 m: in cell z = 0 for x in 0..1, in z = 1 beyond, and
+        // both cells predict 1.0 m at x = 1 (0.98 and 1.01: within half a spacing).
+        let mut low = flat(0.0, 0.01);
+        let mut high = flat(0.0, 0.01);
+        for j in 0..VERTICES {
+            let x = (j / N) as f32 / 5.0;
+            low.pred[j] = (0.5 + x / 2.0 - if j / N == N - 1 { 0.02 } else { 0.0 }).min(1.0);
+            high.pred[j] = (x / 2.0 + if j / N == 0 { 0.01 } else { 0.0 }).max(0.0);
+        }
+        let mut map = MeshMap::with_capacity(4, 4, FACES);
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, low, 0)
+            .unwrap();
+        map.insert_layer(CellKey::new(1, 0, 1), Axis::Z, high, 0)
+            .unwrap();
+        let m = weld(map.layers(), &FACES, shown());
+        assert_eq!((m.merged, m.vertices.len()), (6, 66));
+        assert_eq!(crate::eval::topology::Topology::of(&m.triangles).pieces, 1);
+    }
+
+    #[test]
+    fn far_apart_predictions_walls_on_floors_and_centre_lattices_stay_apart() {
+        let mut map = MeshMap::with_capacity(8, 8, FACES);
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, flat(0.2, 0.01), 0)
+            .unwrap();
+        // Half a metre higher next door: another surface (a kerb), not welded.
+        map.insert_layer(CellKey::new(1, 0, 0), Axis::Z, flat(0.7, 0.01), 0)
+            .unwrap();
+        // A wall along x = 0.5 in the first cell: its vertices lie on other lines.
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::X, flat(0.5, 0.01), 0)
+            .unwrap();
+        let m = weld(map.layers(), &FACES, shown());
+        assert_eq!((m.merged, m.vertices.len()), (0, 3 * 36));
+        assert_eq!(crate::eval::topology::Topology::of(&m.triangles).pieces, 3);
+        let centres = Lattice {
+            cell_size: 1.0,
+            full_cover: false,
+        };
+        let mut map = MeshMap::with_capacity(4, 4, centres);
+        for x in 0..2 {
+            map.insert_layer(CellKey::new(x, 0, 0), Axis::Z, flat(0.5, 0.01), 0)
+                .unwrap();
+        }
+        assert_eq!(weld(map.layers(), &centres, shown()).merged, 0);
+    }
+}
