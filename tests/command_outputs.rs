@@ -1,6 +1,7 @@
 //! Every subcommand and flag the README lists, checked by what it writes: `config`, `demo`,
 //! `eval` (trajectories against files and KITTI folders, `--calib`, `--mesh`/`--cloud`,
 //! `--build-reference`), `mesh` with `--calib` and with fewer poses than frames, `run --obj`,
+//! `render`,
 //! the window flags and the memory cap (and their refusals), and `bench --preset`. The data
 //! is simulated (a street with known surfaces), written to disk as a user's would be.
 
@@ -359,6 +360,35 @@ fn run_draws_a_picture_of_its_mesh_and_path() {
         mesh > pixels.len() / 20,
         "{mesh} of {} pixels show the mesh",
         pixels.len()
+    );
+    assert!(pixels.contains(&[255, 255, 255]), "a scale bar");
+    // `render` draws the same mesh from above and obliquely, with a scale bar.
+    let mesh_ply = out.join("mesh.ply");
+    for view in ["top", "oblique"] {
+        let png = out.join(format!("{view}.png"));
+        let args = ["render", s(&mesh_ply), "--view", view, "--out", s(&png)];
+        let o = slamesh_ok(&[&args[..], &["--pixels", "400"]].concat());
+        assert!(text(&o.stdout).contains("scale bar"), "{}", text(&o.stdout));
+        let (w, h, pixels) = png_pixels(&png);
+        assert_eq!(w.max(h), 401, "{view}: {w} x {h}");
+        let plain = [[24, 24, 28], [255, 255, 255], [0, 0, 0]];
+        let drawn = pixels.iter().filter(|p| !plain.contains(p)).count();
+        assert!(drawn > pixels.len() / 20, "{view}: {drawn} pixels drawn");
+        assert!(pixels.contains(&[255, 255, 255]), "{view}: a scale bar");
+    }
+    let o = slamesh(&[
+        "render",
+        s(&mesh_ply),
+        "--view",
+        "oblique",
+        "--elevation",
+        "95",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o.stderr).contains("between 5 and 90"),
+        "{}",
+        text(&o.stderr)
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

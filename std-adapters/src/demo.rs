@@ -124,6 +124,7 @@ pub fn run_demo<C: Capacity>(
     view.triangles(triangles.iter().copied(), z_lo, z_hi);
     view.path(&truth, [255, 255, 255]);
     view.path(&estimate, [230, 40, 40]);
+    view.scale_bar();
     view.write_png(&opts.out.join("topview.png"))?;
 
     Ok(DemoReport {

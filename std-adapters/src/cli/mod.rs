@@ -8,6 +8,7 @@ pub mod demo;
 pub mod error;
 pub mod eval;
 pub mod notices;
+pub mod render;
 pub mod run;
 pub mod settings;
 
@@ -63,6 +64,8 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Print a configuration file with every parameter and its documentation.
     Config(config::ConfigArgs),
+    /// Draw a picture of a PLY mesh: from above (hill-shaded, with a scale bar) or obliquely.
+    Render(render::RenderArgs),
 }
 
 impl Cli {
@@ -99,6 +102,7 @@ impl Cli {
             Command::Mesh(a) => run::mesh(a, quiet),
             Command::Eval(a) => eval::eval(a),
             Command::Bench(a) => bench::bench(a),
+            Command::Render(a) => render::render(a),
             #[cfg(feature = "sim")]
             Command::Demo(a) => demo::demo(a, quiet),
             Command::Config(a) => {

@@ -1,10 +1,60 @@
-//! A picture of the mesh from above: triangles rasterised top-down, coloured by height and
-//! shaded by slope, with trajectories drawn over it; written as PNG.
+//! A picture of the mesh: triangles rasterised from above (or obliquely), coloured by height,
+//! shaded, with trajectories and a scale bar drawn over it; written as PNG.
+//!
+//! From above, the shading is a hill-shade of the drawn heights (light from the north-west,
+//! 45 degrees up), so that walls, kerbs and objects read as edges; a triangle is also darker
+//! the steeper it is. Obliquely, each triangle is lit from the viewer.
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
 use slamesh_core::{Point, Pose};
 use std::path::Path;
+
+/// Where the picture is seen from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Projection {
+    /// Straight down, north (+y) up.
+    Top,
+    /// From the side the `azimuth_deg` (from +x, counter-clockwise) points to, looking down
+    /// at `elevation_deg`.
+    Oblique {
+        /// The viewer's direction from the scene, degrees counter-clockwise from +x.
+        azimuth_deg: f64,
+        /// How far the view looks down, degrees (90: from above).
+        elevation_deg: f64,
+    },
+}
+
+impl Projection {
+    /// A world point in picture coordinates: `x` to the right, `y` up, `z` toward the viewer.
+    pub fn apply(&self, p: Point) -> Point {
+        match *self {
+            Projection::Top => p,
+            Projection::Oblique {
+                azimuth_deg,
+                elevation_deg,
+            } => {
+                let (sa, ca) = (
+                    azimuth_deg.to_radians().sin(),
+                    azimuth_deg.to_radians().cos(),
+                );
+                let (se, ce) = (
+                    elevation_deg.to_radians().sin(),
+                    elevation_deg.to_radians().cos(),
+                );
+                let [x, y, z] = p.map(f64::from);
+                // Right: perpendicular to the viewer's direction; toward the viewer: the
+                // direction tilted up by the elevation; up: the third axis.
+                let (rx, ry) = (-sa, ca);
+                let toward = [ca * ce, sa * ce, se];
+                let right = rx * x + ry * y;
+                let depth = toward[0] * x + toward[1] * y + toward[2] * z;
+                let up = -se * (ca * x + sa * y) + ce * z;
+                [right as f32, up as f32, depth as f32]
+            }
+        }
+    }
+}
 
 /// An RGB image being drawn.
 pub struct TopView {
@@ -15,11 +65,13 @@ pub struct TopView {
     scale: f64,
     rgb: Vec<[u8; 3]>,
     top: Vec<f32>,
+    /// Whether the drawn heights are hill-shaded (from above) when first drawn over.
+    relief: bool,
 }
 
 impl TopView {
     /// An image of the x-y box `[min, max]` (with a margin), at most `max_pixels` on its long
-    /// side.
+    /// side, seen from above.
     pub fn new(min: [f64; 2], max: [f64; 2], max_pixels: usize) -> Self {
         let margin = 5.0;
         let (min, max) = (
@@ -34,8 +86,18 @@ impl TopView {
             height,
             origin: min,
             scale,
-            rgb: vec![[24, 24, 28]; width * height],
+            rgb: vec![BACKGROUND; width * height],
             top: vec![f32::NEG_INFINITY; width * height],
+            relief: true,
+        }
+    }
+
+    /// An image of the picture-plane box `[min, max]` of an oblique projection (no
+    /// hill-shade: triangles are lit from the viewer).
+    pub fn oblique(min: [f64; 2], max: [f64; 2], max_pixels: usize) -> Self {
+        TopView {
+            relief: false,
+            ..Self::new(min, max, max_pixels)
         }
     }
 
@@ -46,16 +108,29 @@ impl TopView {
         )
     }
 
-    /// Draws triangles coloured by height between `z_lo` and `z_hi`, the highest on top.
+    /// Draws triangles seen from above, coloured by height between `z_lo` and `z_hi`, the
+    /// highest on top.
     pub fn triangles(
         &mut self,
         triangles: impl IntoIterator<Item = [Point; 3]>,
         z_lo: f32,
         z_hi: f32,
     ) {
-        for t in triangles {
+        self.projected(triangles.into_iter().map(|t| (t, t)), z_lo, z_hi);
+    }
+
+    /// Draws triangles given as (picture coordinates from [`Projection::apply`], world
+    /// corners): coloured by world height between `z_lo` and `z_hi`, the nearest on top.
+    pub fn projected(
+        &mut self,
+        triangles: impl IntoIterator<Item = ([Point; 3], [Point; 3])>,
+        z_lo: f32,
+        z_hi: f32,
+    ) {
+        for (t, world) in triangles {
             let p = t.map(|v| self.pixel(v[0] as f64, v[1] as f64));
-            let n = {
+            // How directly the triangle faces the viewer (from above: how flat it is).
+            let facing = {
                 let (a, b, c) = (t[0], t[1], t[2]);
                 let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
                 let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
@@ -67,8 +142,12 @@ impl TopView {
                 let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-12);
                 n[2].abs() / len
             };
-            let z = (t[0][2] + t[1][2] + t[2][2]) / 3.0;
-            let colour = shade(ramp((z - z_lo) / (z_hi - z_lo).max(1e-3)), 0.45 + 0.55 * n);
+            let z = (world[0][2] + world[1][2] + world[2][2]) / 3.0;
+            let depth = (t[0][2] + t[1][2] + t[2][2]) / 3.0;
+            let colour = shade(
+                ramp((z - z_lo) / (z_hi - z_lo).max(1e-3)),
+                0.45 + 0.55 * facing,
+            );
             let (x0, x1) = (
                 p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min),
                 p.iter().map(|q| q.0).fold(f64::NEG_INFINITY, f64::max),
@@ -87,7 +166,7 @@ impl TopView {
                 {
                     let (cx, cy) = (px as f64 + 0.5, py as f64 + 0.5);
                     let inside = if area.abs() < 1e-12 {
-                        // Vertical or degenerate seen from above: its outline.
+                        // Seen edge-on (a wall from above): its outline.
                         (cx - p[0].0).abs() < 1.0 && (cy - p[0].1).abs() < 1.0
                     } else {
                         let e = |a: (f64, f64), b: (f64, f64)| {
@@ -96,8 +175,8 @@ impl TopView {
                         e(p[0], p[1]) >= 0.0 && e(p[1], p[2]) >= 0.0 && e(p[2], p[0]) >= 0.0
                     };
                     let k = py * self.width + px;
-                    if inside && z > self.top[k] {
-                        self.top[k] = z;
+                    if inside && depth > self.top[k] {
+                        self.top[k] = depth;
                         self.rgb[k] = colour;
                     }
                 }
@@ -105,8 +184,47 @@ impl TopView {
         }
     }
 
+    /// Shades the drawn heights once, before anything is drawn over them: a hill-shade with
+    /// light from the north-west at 45 degrees, 1 on flat ground, darker on slopes and steps
+    /// facing away, brighter on those facing the light.
+    fn shade_relief(&mut self) {
+        if !self.relief {
+            return;
+        }
+        self.relief = false;
+        let (w, h) = (self.width, self.height);
+        let light = [-0.5f64, 0.5, std::f64::consts::FRAC_1_SQRT_2];
+        let z = |x: usize, y: usize| {
+            let v = self.top[y * w + x];
+            v.is_finite().then_some(f64::from(v))
+        };
+        let mut factors = vec![1.0f32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let Some(c) = z(x, y) else { continue };
+                let at = |x: Option<usize>, y: Option<usize>| match (x, y) {
+                    (Some(x), Some(y)) if x < w && y < h => z(x, y).unwrap_or(c),
+                    _ => c,
+                };
+                // Image rows run southward: north is y - 1.
+                let dzdx =
+                    (at(Some(x + 1), Some(y)) - at(x.checked_sub(1), Some(y))) / (2.0 * self.scale);
+                let dzdy =
+                    (at(Some(x), y.checked_sub(1)) - at(Some(x), Some(y + 1))) / (2.0 * self.scale);
+                let n = [-dzdx, -dzdy, 1.0];
+                let len = (n[0] * n[0] + n[1] * n[1] + 1.0).sqrt();
+                let lit = (n[0] * light[0] + n[1] * light[1] + n[2] * light[2]) / len;
+                factors[y * w + x] = (0.25 + 0.75 * lit / light[2]).clamp(0.25, 1.3) as f32;
+            }
+        }
+        for (c, f) in self.rgb.iter_mut().zip(&factors) {
+            *c = c.map(|v| (f32::from(v) * f).min(255.0) as u8);
+        }
+    }
+
     /// Draws a trajectory as a line of `colour`.
     pub fn path(&mut self, poses: &[Pose], colour: [u8; 3]) {
+        self.shade_relief();
         for w in poses.windows(2) {
             let (a, b) = (w[0].translation.vector, w[1].translation.vector);
             let (pa, pb) = (self.pixel(a.x, a.y), self.pixel(b.x, b.y));
@@ -115,16 +233,69 @@ impl TopView {
                 let f = i as f64 / steps as f64;
                 let (x, y) = (pa.0 + f * (pb.0 - pa.0), pa.1 + f * (pb.1 - pa.1));
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                    let (px, py) = (x as i64 + dx, y as i64 + dy);
-                    if px >= 0
-                        && py >= 0
-                        && (px as usize) < self.width
-                        && (py as usize) < self.height
-                    {
-                        self.rgb[py as usize * self.width + px as usize] = colour;
+                    self.put(x as i64 + dx, y as i64 + dy, colour);
+                }
+            }
+        }
+    }
+
+    fn put(&mut self, x: i64, y: i64, colour: [u8; 3]) {
+        if x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height {
+            self.rgb[y as usize * self.width + x as usize] = colour;
+        }
+    }
+
+    /// Draws a scale bar in the lower-left corner: a round length (1, 2 or 5 times a power
+    /// of ten metres) near a fifth of the width, white on a dark outline, with its length in
+    /// metres written above it. Returns the length.
+    pub fn scale_bar(&mut self) -> f64 {
+        self.shade_relief();
+        let want = self.width as f64 * self.scale / 5.0;
+        let power = 10f64.powf(want.log10().floor());
+        let metres = [5.0, 2.0, 1.0]
+            .iter()
+            .map(|m| m * power)
+            .find(|&m| m <= want)
+            .unwrap_or(power);
+        let length = (metres / self.scale).round() as i64;
+        let (x0, y0) = (12i64, self.height as i64 - 14);
+        for x in x0 - 1..=x0 + length + 1 {
+            for y in y0 - 4..=y0 + 1 {
+                self.put(x, y, [0, 0, 0]);
+            }
+        }
+        for x in x0..=x0 + length {
+            for y in y0 - 3..=y0 {
+                self.put(x, y, [255, 255, 255]);
+            }
+        }
+        let label = if metres >= 1.0 {
+            format!("{metres:.0} m")
+        } else {
+            format!("{metres} m")
+        };
+        self.text(x0, y0 - 22, &label);
+        metres
+    }
+
+    /// Writes `text` (digits, `.`, `m` and spaces) in white 3 x 5 glyphs three pixels a dot,
+    /// its top-left corner at `(x, y)`.
+    fn text(&mut self, x: i64, y: i64, text: &str) {
+        let mut at = x;
+        for ch in text.chars() {
+            let rows = glyph(ch);
+            for (r, bits) in rows.iter().enumerate() {
+                for col in 0..3 {
+                    if bits & (0b100 >> col) != 0 {
+                        for dy in 0..3 {
+                            for dx in 0..3 {
+                                self.put(at + 3 * col + dx, y + 3 * r as i64 + dy, [255, 255, 255]);
+                            }
+                        }
                     }
                 }
             }
+            at += 12;
         }
     }
 
@@ -134,7 +305,8 @@ impl TopView {
     }
 
     /// Writes the image as an 8-bit RGB PNG (atomically).
-    pub fn write_png(&self, path: &Path) -> Result<(), FileError> {
+    pub fn write_png(&mut self, path: &Path) -> Result<(), FileError> {
+        self.shade_relief();
         write_atomic(path, |w| {
             let mut enc = png::Encoder::new(w, self.width as u32, self.height as u32);
             enc.set_color(png::ColorType::Rgb);
@@ -146,6 +318,28 @@ impl TopView {
                 .map_err(std::io::Error::other)?;
             writer.finish().map_err(std::io::Error::other)
         })
+    }
+}
+
+/// The picture's background.
+const BACKGROUND: [u8; 3] = [24, 24, 28];
+
+/// Rows of a 3 x 5 glyph, the high bit on the left (blank for a character without one).
+fn glyph(ch: char) -> [u8; 5] {
+    match ch {
+        '0' => [0b111, 0b101, 0b101, 0b101, 0b111],
+        '1' => [0b010, 0b110, 0b010, 0b010, 0b111],
+        '2' => [0b111, 0b001, 0b111, 0b100, 0b111],
+        '3' => [0b111, 0b001, 0b111, 0b001, 0b111],
+        '4' => [0b101, 0b101, 0b111, 0b001, 0b001],
+        '5' => [0b111, 0b100, 0b111, 0b001, 0b111],
+        '6' => [0b111, 0b100, 0b111, 0b101, 0b111],
+        '7' => [0b111, 0b001, 0b010, 0b010, 0b010],
+        '8' => [0b111, 0b101, 0b111, 0b101, 0b111],
+        '9' => [0b111, 0b101, 0b111, 0b001, 0b111],
+        '.' => [0, 0, 0, 0, 0b010],
+        'm' => [0, 0b110, 0b111, 0b101, 0b101],
+        _ => [0; 5],
     }
 }
 
@@ -181,7 +375,7 @@ mod tests {
     fn a_square_and_a_path_land_where_they_should_and_the_png_reads_back() {
         let mut v = TopView::new([0.0, 0.0], [10.0, 10.0], 200);
         let (w, h) = v.size();
-        let background = v.rgb[0];
+        let background = BACKGROUND;
         v.triangles(
             [[[0.0, 0.0, 1.0], [10.0, 0.0, 1.0], [10.0, 10.0, 1.0]]],
             0.0,
@@ -208,5 +402,69 @@ mod tests {
         ));
         let info = decoder.read_info().unwrap().info().clone();
         assert_eq!((info.width as usize, info.height as usize), (w, h));
+    }
+
+    #[test]
+    fn a_step_is_shaded_and_the_scale_bar_is_a_round_length() {
+        // A 1 m step down eastward at x = 5: its face looks east, away from the light in the
+        // north-west, and is drawn dark; the flat ground on both sides keeps its colour.
+        let mut v = TopView::new([0.0, 0.0], [10.0, 10.0], 200);
+        let quad = |x0: f32, x1: f32, z: f32| {
+            [
+                [[x0, 0.0, z], [x1, 0.0, z], [x1, 10.0, z]],
+                [[x0, 0.0, z], [x1, 10.0, z], [x0, 10.0, z]],
+            ]
+        };
+        v.triangles(
+            quad(0.0, 5.0, 1.0).into_iter().chain(quad(5.0, 10.0, 0.0)),
+            -1.0,
+            2.0,
+        );
+        let at = |v: &TopView, x: f64| {
+            let (px, py) = v.pixel(x, 5.0);
+            v.rgb[py as usize * v.width + px as usize]
+        };
+        let before = [2.0, 8.0].map(|x| at(&v, x));
+        let metres = v.scale_bar();
+        assert_eq!(
+            [2.0, 8.0].map(|x| at(&v, x)),
+            before,
+            "flat ground keeps its colour"
+        );
+        let sum = |c: [u8; 3]| c.iter().map(|&x| u32::from(x)).sum::<u32>();
+        let step = (0..8)
+            .map(|i| sum(at(&v, 4.7 + 0.08 * f64::from(i))))
+            .min()
+            .unwrap();
+        assert!(
+            2 * step < sum(before[0]).min(sum(before[1])),
+            "{step} against {before:?}"
+        );
+        // 20 m across 200-odd pixels: a fifth is 4 m, the bar 2 m.
+        assert_eq!(metres, 2.0);
+        let (w, h) = v.size();
+        let white = v.rgb.iter().filter(|&&c| c == [255, 255, 255]).count();
+        assert!(white > 40 && white < w * h / 20, "{white} white pixels");
+    }
+
+    #[test]
+    fn the_oblique_projection_keeps_lengths_and_looks_down() {
+        let p = Projection::Oblique {
+            azimuth_deg: -90.0,
+            elevation_deg: 30.0,
+        };
+        // The viewer is south of the scene: +x is to the right, a higher point is higher up
+        // the picture, and a point nearer the viewer (south) is nearer.
+        let o = p.apply([0.0, 0.0, 0.0]);
+        let right = p.apply([1.0, 0.0, 0.0]);
+        let high = p.apply([0.0, 0.0, 1.0]);
+        let south = p.apply([0.0, -1.0, 0.0]);
+        assert!((right[0] - o[0] - 1.0).abs() < 1e-6 && (right[1] - o[1]).abs() < 1e-6);
+        assert!(high[1] > o[1] && south[2] > o[2]);
+        let length = |a: Point, b: Point| {
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        };
+        assert!((length(o, south) - 1.0).abs() < 1e-6, "a rotation");
+        assert_eq!(Projection::Top.apply([1.0, 2.0, 3.0]), [1.0, 2.0, 3.0]);
     }
 }
