@@ -1,5 +1,5 @@
 //! Welding: one indexed mesh from a set of map layers, with the vertices that neighbouring
-//! cells share merged into one, and a normal at every vertex (docs/design.md §1.6).
+//! cells share merged into one, and a normal at every vertex (docs/design.md §1.10).
 //!
 //! With the lattice on the cell faces (`full_cover`), a layer's border vertices sit where the
 //! border vertices of the same-axis layers of its neighbours sit. Along axis `d`, with

@@ -58,7 +58,7 @@ impl Window {
     }
 
     /// [`evict`](Self::evict), adding what leaves to `spool` (when given) as one welded set
-    /// (docs/design.md §1.6).
+    /// (docs/design.md §1.10).
     pub fn evict_to(
         &self,
         map: &mut MeshMap,
