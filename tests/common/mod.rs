@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests: the real-data folder and the `slamesh` command.
 #![allow(dead_code)]
 
+use slamesh_core::{Point, Pose};
+use slamesh_sim::{sensor_pose, Lidar, Scene};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -117,4 +119,14 @@ pub fn slamesh_run_ok(input: &Path, out: &Path, extra: &[&str]) -> Output {
         String::from_utf8_lossy(&o.stderr)
     );
     o
+}
+
+/// True poses and scans of a drive down the simulated street (0.5 m and 1 degree a frame).
+pub fn street_drive(frames: usize) -> (Vec<Pose>, Vec<Vec<Point>>) {
+    let (scene, lidar) = (Scene::street(), Lidar::hdl64(900));
+    let poses: Vec<Pose> = (0..frames)
+        .map(|i| sensor_pose(0.5 * i as f64, 0.03 * i as f64, 1.73, 1.0 * i as f64))
+        .collect();
+    let scans = poses.iter().map(|p| lidar.scan(&scene, p)).collect();
+    (poses, scans)
 }
