@@ -81,14 +81,19 @@ def check_mesh(path):
     v, f = counts.get("vertex", 0), counts.get("face", 0)
     if v < 100 or f < 100:
         fail(f"{path}: only {v} vertices and {f} faces")
+    props = [line.split()[-1] for line in header.splitlines() if line.startswith("property float")]
+    if props != ["x", "y", "z", "nx", "ny", "nz", "variance"]:
+        fail(f"{path}: vertex properties {props}, not x y z nx ny nz variance")
     body = data[len(header):]
-    if len(body) != 16 * v + 13 * f:
+    if len(body) != 28 * v + 13 * f:
         fail(f"{path}: {len(body)} bytes of data for {v} vertices and {f} faces")
     for k in range(v):
-        x, y, z, var = struct.unpack_from("<4f", body, 16 * k)
-        if not all(math.isfinite(c) for c in (x, y, z, var)) or var < 0:
+        x, y, z, nx, ny, nz, var = struct.unpack_from("<7f", body, 28 * k)
+        if not all(math.isfinite(c) for c in (x, y, z, nx, ny, nz, var)) or var < 0:
             fail(f"{path}: vertex {k} is not finite or has a negative variance")
-    faces = body[16 * v:]
+        if abs(nx * nx + ny * ny + nz * nz - 1.0) > 1e-3:
+            fail(f"{path}: vertex {k} has a normal of length other than 1")
+    faces = body[28 * v:]
     for k in range(f):
         n, a, b, c = struct.unpack_from("<B3I", faces, 13 * k)
         if n != 3 or max(a, b, c) >= v:
