@@ -4,8 +4,6 @@
 # Fails when a target does not build, when cargo fuzz fails, and on a crash, a hang (over
 # 10 s on one input) or an allocation over 2 GB, which leave the input in
 # fuzz/artifacts/<target>/.
-# FUZZ_DEV=1 builds the targets unoptimised (cargo fuzz's --dev): about half the build time,
-# far fewer runs a second; enough for a smoke pass that replays the corpus.
 set -euo pipefail
 cd "$(dirname "$0")"
 seconds=${1:-600}
@@ -13,15 +11,13 @@ shift || true
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(kitti_bin pcd ply config_toml core_scan pointcloud2 recording)
 # One build for every target (cargo fuzz run would build each on its own).
-profile=()
-[ "${FUZZ_DEV:-0}" = 1 ] && profile=(--dev)
-cargo +nightly fuzz build "${profile[@]}"
+cargo +nightly fuzz build
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 for t in "${targets[@]}"; do
   echo "== $t: ${seconds} s"
   status=0
-  cargo +nightly fuzz run "${profile[@]}" "$t" "corpus/$t" -- \
+  cargo +nightly fuzz run "$t" "corpus/$t" -- \
     -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
     >"$log" 2>&1 || status=$?
   grep -E "^(#[0-9]+ *DONE|Done [0-9]+ runs|stat::number_of_executed_units|==[0-9]+== ERROR|SUMMARY)" "$log" || true
