@@ -218,10 +218,14 @@ impl Layer {
     /// [`slope_mask`](Self::slope_mask) whose corners' mean variance is below
     /// `shown.variance`.
     pub fn shown_mask(&self, lattice: &LatticeTable, shown: Shown) -> u64 {
-        let mut mask = self.slope_mask(lattice, shown.min_axis_cosine);
+        let mut mask = 0u64;
         for t in 0..TRIANGLES {
-            if !(self.mean_variance(&lattice_triangle(t)) < shown.variance) {
-                mask &= !(1 << t);
+            // The variance first: the slope's cross product only for triangles it lets by.
+            let tri = lattice_triangle(t);
+            if self.mean_variance(&tri) < shown.variance
+                && self.within_slope(lattice, &tri, shown.min_axis_cosine)
+            {
+                mask |= 1 << t;
             }
         }
         mask

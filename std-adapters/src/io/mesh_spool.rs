@@ -28,8 +28,9 @@ pub const FACE_BYTES: usize = 13;
 /// Bytes of a spooled set's end: vertices and faces spooled up to its end, as `u64`.
 const SET_BYTES: usize = 16;
 
-/// The most layers welded together: about 5 MB of welding at once, and 430 KB of vertex
-/// positions for [`MeshSpool::for_each_triangle`].
+/// The most layers welded together, so that what welding holds at once does not grow with
+/// the map (welding the whole map of `tests/memory.rs` at once took it 13 MB over its cap),
+/// and at most `SET_LAYERS × 36` vertex positions for [`MeshSpool::for_each_triangle`].
 pub const SET_LAYERS: usize = 1024;
 
 /// The Z-order (Morton) code of a cell: the bits of its three indices (their low 21, offset
@@ -132,6 +133,8 @@ pub struct MeshSpool {
     sets: BufWriter<File>,
     counts: MeshCounts,
     merged: u64,
+    /// The lowest and highest vertex `z` spooled (infinite for none), kept as vertices come.
+    z_range: (f32, f32),
 }
 
 impl MeshSpool {
@@ -186,7 +189,11 @@ impl MeshSpool {
             paths,
             counts: kept.unwrap_or_default(),
             merged: 0,
+            z_range: (f32::INFINITY, f32::NEG_INFINITY),
         };
+        if kept.is_some() {
+            spool.z_range = spool.read_z_range()?;
+        }
         // Records after the last whole set (a damaged spool) become a set of their own.
         if let (Some(k), Some((_, end))) = (kept, kept_sets) {
             if end != k {
@@ -289,6 +296,10 @@ impl MeshSpool {
         self.counts.vertices += mesh.vertices.len() as u64;
         self.counts.triangles += mesh.triangles.len() as u64;
         self.merged += mesh.merged;
+        for v in &mesh.vertices {
+            let z = v.position[2];
+            self.z_range = (self.z_range.0.min(z), self.z_range.1.max(z));
+        }
         self.end_set()
     }
 
@@ -317,7 +328,7 @@ impl MeshSpool {
             Ok([float(&rec, 0), float(&rec, 1), float(&rec, 2)])
         };
         let open = |p: &Path| File::open(p).map(BufReader::new).map_err(|e| io(e, p));
-        let (_, z_top) = self.z_range()?;
+        let z_top = self.z_range.1;
         let sets = read_sets(&self.paths[2])?;
         let mut vertices = open(&self.paths[0])?;
         let mut faces = open(&self.paths[1])?;
@@ -358,8 +369,9 @@ impl MeshSpool {
         Ok(())
     }
 
-    /// The lowest and highest vertex `z` spooled (infinite for none).
-    fn z_range(&mut self) -> Result<(f32, f32), FileError> {
+    /// The lowest and highest vertex `z` in the spool file (infinite for none): read once,
+    /// when a resumed run reopens it.
+    fn read_z_range(&mut self) -> Result<(f32, f32), FileError> {
         self.flush()?;
         let p = &self.paths[0];
         let mut r = BufReader::new(
@@ -382,7 +394,7 @@ impl MeshSpool {
         let colour = match self.colour {
             MeshColour::None => None,
             MeshColour::Height => {
-                let (low, high) = self.z_range()?;
+                let (low, high) = self.z_range;
                 Some(VertexColour {
                     field: 2,
                     low,
@@ -564,20 +576,27 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// A map of one flat floor layer at 0.5 m in cell (0, 0, 0), every vertex of variance
+    /// `var`, then `change` applied to it.
+    fn one_floor(lattice: Lattice, var: f32, change: impl FnOnce(&mut Layer)) -> MeshMap {
+        let mut map = MeshMap::with_capacity(4, 4, lattice);
+        let mut layer = Layer {
+            pred: [0.5; VERTICES],
+            var: [var; VERTICES],
+        };
+        change(&mut layer);
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0)
+            .unwrap();
+        map
+    }
+
     #[test]
     fn a_flat_layer_writes_36_shared_vertices_and_50_triangles() {
         let lattice = Lattice {
             cell_size: 1.0,
             full_cover: true,
         };
-        let mut map = MeshMap::with_capacity(4, 4, lattice);
-        let mut layer = Layer {
-            pred: [0.5; VERTICES],
-            var: [0.01; VERTICES],
-        };
-        layer.var[35] = 0.02;
-        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0)
-            .unwrap();
+        let map = one_floor(lattice, 0.01, |l| l.var[35] = 0.02);
         let dir = crate::test_support::scratch_dir("mesh");
         let outputs = [
             (dir.join("m.ply"), MeshFormat::Ply),
@@ -640,14 +659,7 @@ mod tests {
             cell_size: 1.0,
             full_cover: true,
         };
-        let mut map = MeshMap::with_capacity(4, 4, lattice);
-        let mut layer = Layer {
-            pred: [0.5; VERTICES],
-            var: [0.0; VERTICES],
-        };
-        layer.var[0] = 0.1;
-        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0)
-            .unwrap();
+        let map = one_floor(lattice, 0.0, |l| l.var[0] = 0.1);
         let dir = crate::test_support::scratch_dir("mesh-colour");
         let target = dir.join("m.ply");
         let cfg = MeshConfig {

@@ -22,7 +22,8 @@
 //! Normals are the area-weighted sums of the normals of the triangles around each vertex, on
 //! the side of the layer's `+axis` (a vertex in no usable triangle gets the axis itself).
 //!
-//! Memory: what is welded together is held at once, about 100 bytes a used vertex.
+//! Memory: what is welded together is held at once (each used vertex with its position,
+//! weld line and output index), so callers weld bounded sets ([`crate::io::mesh_spool`]).
 
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::lattice::{Lattice, N, VERTICES};

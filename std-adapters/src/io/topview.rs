@@ -198,7 +198,7 @@ impl TopView {
             let v = self.top[y * w + x];
             v.is_finite().then_some(f64::from(v))
         };
-        let mut factors = vec![1.0f32; w * h];
+        // A pixel's factor reads only the heights, so the colours are shaded in place.
         for y in 0..h {
             for x in 0..w {
                 let Some(c) = z(x, y) else { continue };
@@ -214,11 +214,10 @@ impl TopView {
                 let n = [-dzdx, -dzdy, 1.0];
                 let len = (n[0] * n[0] + n[1] * n[1] + 1.0).sqrt();
                 let lit = (n[0] * light[0] + n[1] * light[1] + n[2] * light[2]) / len;
-                factors[y * w + x] = (0.25 + 0.75 * lit / light[2]).clamp(0.25, 1.3) as f32;
+                let f = (0.25 + 0.75 * lit / light[2]).clamp(0.25, 1.3) as f32;
+                let k = y * w + x;
+                self.rgb[k] = self.rgb[k].map(|v| (f32::from(v) * f).min(255.0) as u8);
             }
-        }
-        for (c, f) in self.rgb.iter_mut().zip(&factors) {
-            *c = c.map(|v| (f32::from(v) * f).min(255.0) as u8);
         }
     }
 
@@ -245,6 +244,15 @@ impl TopView {
         }
     }
 
+    /// Sets the pixels from `(x0, y0)` to `(x1, y1)`, both corners included.
+    fn fill(&mut self, x0: i64, x1: i64, y0: i64, y1: i64, colour: [u8; 3]) {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                self.put(x, y, colour);
+            }
+        }
+    }
+
     /// Draws a scale bar in the lower-left corner: a round length (1, 2 or 5 times a power
     /// of ten metres) near a fifth of the width, white on a dark outline, with its length in
     /// metres written above it. Returns the length.
@@ -259,16 +267,8 @@ impl TopView {
             .unwrap_or(power);
         let length = (metres / self.scale).round() as i64;
         let (x0, y0) = (12i64, self.height as i64 - 14);
-        for x in x0 - 1..=x0 + length + 1 {
-            for y in y0 - 4..=y0 + 1 {
-                self.put(x, y, [0, 0, 0]);
-            }
-        }
-        for x in x0..=x0 + length {
-            for y in y0 - 3..=y0 {
-                self.put(x, y, [255, 255, 255]);
-            }
-        }
+        self.fill(x0 - 1, x0 + length + 1, y0 - 4, y0 + 1, [0, 0, 0]);
+        self.fill(x0, x0 + length, y0 - 3, y0, [255, 255, 255]);
         let label = if metres >= 1.0 {
             format!("{metres:.0} m")
         } else {
@@ -287,11 +287,8 @@ impl TopView {
             for (r, bits) in rows.iter().enumerate() {
                 for col in 0..3 {
                     if bits & (0b100 >> col) != 0 {
-                        for dy in 0..3 {
-                            for dx in 0..3 {
-                                self.put(at + 3 * col + dx, y + 3 * r as i64 + dy, [255, 255, 255]);
-                            }
-                        }
+                        let (px, py) = (at + 3 * col, y + 3 * r as i64);
+                        self.fill(px, px + 2, py, py + 2, [255, 255, 255]);
                     }
                 }
             }

@@ -366,7 +366,7 @@ const PICTURE_PIXELS: usize = 1000;
 /// Writes `file`, a PNG of the spooled mesh from above (coloured by height from 3 m below the
 /// first sensor pose to the mesh's top, at most 20 m above, and hill-shaded) with `path` in
 /// red and a scale bar, covering the path and [`PICTURE_MARGIN_M`] around it,
-/// [`PICTURE_PIXELS`] on its long side (11 bytes a pixel while it is shaded: 11 MB). Nothing
+/// [`PICTURE_PIXELS`] on its long side (7 bytes a pixel while it is drawn: 7 MB). Nothing
 /// is written for an empty path.
 pub(crate) fn write_topview(
     spool: &mut MeshSpool,
