@@ -294,7 +294,15 @@ impl<'a> Cloud<'a> {
             self.point_step as usize,
         );
         let row = self.row_step as usize;
-        if step == 0 && w * h > 0 {
+        if w == 0 || h == 0 {
+            // No points, whatever the other sizes say: rows of nothing are not walked (a
+            // height of 4 billion empty rows would take seconds).
+            return Ok(DecodedScan {
+                times: time.map(|_| Vec::new()),
+                ..DecodedScan::default()
+            });
+        }
+        if step == 0 {
             return Err("point_step is 0".into());
         }
         if row < w.saturating_mul(step) {
@@ -646,6 +654,16 @@ mod tests {
         assert_eq!(e, "message ends inside point_step");
         let e = Cloud::parse_ros1(&m[..30]).unwrap_err();
         assert_eq!(e, "3 fields do not fit in the message");
+    }
+
+    #[test]
+    fn a_cloud_of_empty_rows_decodes_at_once() {
+        // Found by the fuzzer: width 0 and 4 billion rows of 0 bytes walked every row.
+        let m = encode::ros1((0, 0), "", u32::MAX, 0, &xyz_f32(), false, 12, 0, &[]);
+        let start = std::time::Instant::now();
+        let d = Cloud::parse_ros1(&m).unwrap().decode().unwrap();
+        assert!(d.points.is_empty());
+        assert!(start.elapsed().as_secs() < 1, "{:?}", start.elapsed());
     }
 
     #[test]
