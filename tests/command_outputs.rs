@@ -406,9 +406,9 @@ fn window_flags_and_the_memory_cap_from_the_command_line() {
     assert!(!o.status.success());
     let e = text(&o.stderr);
     let needed: f64 = e
-        .split("needs with an empty map: ")
+        .split("needs: ")
         .nth(1)
-        .and_then(|r| r.trim().strip_suffix("MB"))
+        .and_then(|r| r.split(" MB").next())
         .unwrap_or_else(|| panic!("{e}"))
         .trim()
         .parse()
@@ -425,6 +425,10 @@ fn window_flags_and_the_memory_cap_from_the_command_line() {
     if count(&all, "map_layers") > budget {
         assert!(count(&capped, "evicted_cells") > 0);
     }
+    let peak = capped["summary"]["peak_rss_mb"]
+        .as_f64()
+        .expect("peak RSS (Linux)");
+    assert!(peak <= needed + 1.0, "peak {peak} MB over the cap {cap} MB");
     for (flag, value) in [("--evict-radius", "-3"), ("--memory-cap", "0")] {
         let o = slamesh_run(&scans_dir, &dir.join("bad"), &[&format!("{flag}={value}")]);
         assert!(!o.status.success());

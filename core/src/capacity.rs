@@ -46,24 +46,36 @@ pub trait Capacity {
         }
     }
 
-    /// Upper bound on the heap bytes of one pipeline with these capacities: the scan buffers,
-    /// the map's layer pool, and its hash table at [`MAP_TABLE_FACTOR`] times the cell count
-    /// (hashbrown control bytes and power-of-two rounding included).
-    fn memory_bytes() -> usize {
-        let scan = Self::POINTS * (size_of::<Point>() + size_of::<(CellKey, Point)>())
+    /// Bytes of the scan buffers (points, the sort's buffer, cells, layers and residuals),
+    /// allocated in full by [`Pipeline::new`](crate::Pipeline::new) and touched, page by page,
+    /// up to the largest scan seen.
+    fn scan_bytes() -> usize {
+        Self::POINTS * (size_of::<Point>() + size_of::<(CellKey, Point)>())
             + Self::sort_entries() * size_of::<(CellKey, Point)>()
             + Self::SCAN_CELLS * size_of::<CellSpan>()
-            + Self::SCAN_LAYERS * (size_of::<ScanLayer>() + size_of::<Residual>());
-        let buckets = (Self::MAP_CELLS * MAP_TABLE_FACTOR * 8 / 7).next_power_of_two();
-        let table = buckets * (size_of::<(CellKey, MapCell)>() + 1);
-        scan + table + Self::MAP_LAYERS * MAP_LAYER_BYTES
+            + Self::SCAN_LAYERS * (size_of::<ScanLayer>() + size_of::<Residual>())
     }
 
-    /// [`memory_bytes`](Self::memory_bytes) less the map's layer pool: what a pipeline costs
-    /// with an empty map (scan buffers and the hash table, counted in full).
-    fn fixed_bytes() -> usize {
-        Self::memory_bytes() - Self::MAP_LAYERS * MAP_LAYER_BYTES
+    /// Upper bound on the heap bytes of one pipeline with these capacities: the scan buffers
+    /// and a map of `MAP_CELLS` cells and `MAP_LAYERS` layers ([`map_bytes`]).
+    fn memory_bytes() -> usize {
+        Self::scan_bytes() + map_bytes(Self::MAP_CELLS, Self::MAP_LAYERS)
     }
+
+    /// Upper bound on the heap bytes of a pipeline built by
+    /// [`Pipeline::with_map_layers`](crate::Pipeline::with_map_layers)`(_, layers)`: the scan
+    /// buffers and a map sized for that many layers and cells (each clamped to this capacity).
+    fn memory_bytes_with_map_layers(layers: usize) -> usize {
+        Self::scan_bytes() + map_bytes(layers.min(Self::MAP_CELLS), layers.min(Self::MAP_LAYERS))
+    }
+}
+
+/// Upper bound on the heap bytes of a map for `cells` cells and `layers` layers: its hash
+/// table at [`MAP_TABLE_FACTOR`] times the cell count (hashbrown's control bytes and
+/// power-of-two rounding included) and its layer pool.
+pub fn map_bytes(cells: usize, layers: usize) -> usize {
+    let buckets = (cells.saturating_mul(MAP_TABLE_FACTOR) * 8 / 7).next_power_of_two();
+    buckets * (size_of::<(CellKey, MapCell)>() + 1) + layers * MAP_LAYER_BYTES
 }
 
 /// KITTI HDL-64E scans (about 125 000 points, 100 m range) and runs of a few kilometres

@@ -178,9 +178,19 @@ pub struct Pipeline<C: Capacity = KittiCapacity> {
 impl<C: Capacity> Pipeline<C> {
     /// A pipeline with an empty map, all buffers allocated now.
     pub fn new(config: Config) -> Result<Self, ConfigError> {
+        Self::with_map_layers(config, C::MAP_LAYERS)
+    }
+
+    /// A pipeline whose map holds at most `layers` layers and as many cells (each at most
+    /// the capacity's), all buffers allocated now: for a run that keeps its map small (a
+    /// sliding window under a memory cap), the map's table and pool are allocated for what it
+    /// will hold, and cost [`Capacity::memory_bytes_with_map_layers`] at most. A new layer or
+    /// cell past the limit is refused and counted, as past the capacity.
+    pub fn with_map_layers(config: Config, layers: usize) -> Result<Self, ConfigError> {
         config.validate()?;
+        let (cells, layers) = (layers.min(C::MAP_CELLS), layers.min(C::MAP_LAYERS));
         Ok(Self {
-            map: MeshMap::with_capacity(C::MAP_CELLS, C::MAP_LAYERS, config.lattice()),
+            map: MeshMap::with_capacity(cells, layers, config.lattice()),
             config,
             motion: ConstantVelocity::new(),
             frame: 0,

@@ -4,14 +4,15 @@
 use crate::cli::error::CliError;
 use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
-use crate::cli::run::{frame_messages, print_summary};
-use crate::cli::settings::Profile;
+use crate::cli::run::{auto_capacity, frame_messages, print_summary, CapacityFlag};
+use crate::cli::settings::{Profile, WindowFlags};
 use crate::say;
 use clap::Args;
-use slamesh::io::config_file::WindowSettings;
+use slamesh::demo::run_demo;
 use slamesh::io::mesh_spool::MeshFormat;
 use slamesh::run::RunOptions;
-use slamesh_core::KittiCapacity;
+use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
+use slamesh_sim::Drive;
 use std::path::PathBuf;
 
 /// `slamesh demo`'s arguments.
@@ -33,17 +34,24 @@ pub struct DemoArgs {
     /// Seed of the town and the sensor noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The sliding window, as for `run`.
+    #[command(flatten)]
+    pub window: WindowFlags,
+    /// The capacity class, as for `run` (auto: the smallest for the first scan).
+    #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
+    pub capacity: CapacityFlag,
 }
 
 /// Drives, runs SLAM, writes the outputs and prints the accuracy.
 pub fn demo(args: &DemoArgs, quiet: bool) -> Result<(), CliError> {
     let (out, frames, seed) = (&args.out, args.frames, args.seed);
-    let s = args.profile.resolve("town")?;
+    let mut s = args.profile.resolve("town")?;
+    args.window.apply(&mut s.window)?;
     let opts = RunOptions {
         out: out.clone(),
         config: s.config,
         preset: s.preset.to_string(),
-        window: WindowSettings::default(),
+        window: s.window,
         threads: args.threads,
         mesh_formats: vec![MeshFormat::Ply],
         given_poses: None,
@@ -56,11 +64,23 @@ pub fn demo(args: &DemoArgs, quiet: bool) -> Result<(), CliError> {
     );
     let bar = progress(frames, quiet);
     let mut notices = FrameNotices::default();
-    let r = slamesh::demo::run_demo::<KittiCapacity>(frames, seed, &opts, |rec| {
+    let on_frame = |rec: &_| {
         frame_messages(rec, &bar, &mut notices);
         bar.set_message(format!("{} ms", rec.ms.total.round()));
         bar.inc(1);
-    })?;
+    };
+    let flag = match args.capacity {
+        CapacityFlag::Auto => auto_capacity(&mut Drive::town(frames.min(10), seed), &opts),
+        given => given,
+    };
+    let r = match flag {
+        CapacityFlag::Tiny => run_demo::<SmallCapacity>(frames, seed, &opts, on_frame),
+        CapacityFlag::L16 => run_demo::<Lidar16Capacity>(frames, seed, &opts, on_frame),
+        CapacityFlag::L32 => run_demo::<Lidar32Capacity>(frames, seed, &opts, on_frame),
+        CapacityFlag::Auto | CapacityFlag::L64 => {
+            run_demo::<KittiCapacity>(frames, seed, &opts, on_frame)
+        }
+    }?;
     bar.finish_and_clear();
     notices.finish();
     print_summary(&r.summary, out);

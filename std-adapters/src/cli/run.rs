@@ -12,7 +12,7 @@ use slamesh::io::mesh_spool::{MeshColour, MeshFormat};
 use slamesh::io::trajectory::Trajectory;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::run::capacity;
-use slamesh::run::session::Deskew;
+use slamesh::run::session::{self, Deskew};
 use slamesh::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use std::path::{Path, PathBuf};
@@ -286,14 +286,32 @@ pub fn frame_messages(rec: &FrameRecord, bar: &ProgressBar, notices: &mut FrameN
 /// The smallest class for the first readable scan of `source` (of the first ten), counting
 /// its points within the configuration's range limits; the 64-beam class when none is
 /// readable.
-fn auto_capacity(source: &mut impl FrameSource, opts: &RunOptions) -> CapacityFlag {
+pub fn auto_capacity(source: &mut impl FrameSource, opts: &RunOptions) -> CapacityFlag {
     let Some((i, n)) = (0..source.frames().min(10)).find_map(|i| {
         let scan = source.read(i).ok()?;
         Some((i, capacity::points_in_range(&scan, &opts.config.filter)))
     }) else {
         return CapacityFlag::L64;
     };
-    let class = capacity::class_for(n);
+    let class = match opts.window.memory_cap_mb {
+        Some(cap) => {
+            let other = session::other_bytes();
+            let class = capacity::class_under_cap(n, (cap * 1e6) as usize, other);
+            let least = |c: &capacity::Class| (c.least_cap_bytes + other) as f64 / 1e6;
+            match capacity::class_holding(n) {
+                Some(h) if least(&class) > cap => log::warn!(
+                    "a memory cap of {cap} MB is too tight for frame {i}'s {n} points within \
+                     range: the smallest class that holds them, {} (--capacity {}), needs {:.0} MB",
+                    h.name,
+                    h.flag,
+                    least(&h)
+                ),
+                _ => {}
+            }
+            class
+        }
+        None => capacity::class_for(n),
+    };
     log::info!(
         "capacity {} (--capacity {}): frame {i} has {n} points within range",
         class.name,

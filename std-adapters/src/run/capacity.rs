@@ -5,6 +5,7 @@
 //! binary). A scan with more points within range than its class holds is refused with the
 //! class to use, rather than cut silently ([`Run::step`](crate::run::Run::step)).
 
+use crate::run::window::Window;
 use slamesh_core::config::FilterConfig;
 use slamesh_core::filter::Preparation;
 use slamesh_core::{
@@ -22,6 +23,9 @@ pub struct Class {
     pub points: usize,
     /// Its memory bound ([`Capacity::memory_bytes`]).
     pub bytes: usize,
+    /// What it needs under a memory cap, before the rest of the process
+    /// ([`Window::least_cap_bytes`]).
+    pub least_cap_bytes: usize,
 }
 
 impl Class {
@@ -31,6 +35,7 @@ impl Class {
             flag,
             points: C::POINTS,
             bytes: C::memory_bytes(),
+            least_cap_bytes: Window::least_cap_bytes::<C>(0),
         }
     }
 }
@@ -56,6 +61,19 @@ pub fn class_for(points: usize) -> Class {
     all.into_iter()
         .find(|c| c.points >= need)
         .unwrap_or(all[all.len() - 1])
+}
+
+/// [`class_for`] under a memory cap of `cap_bytes` with `other_bytes` for the rest of the
+/// process: when that class needs more than the cap and a smaller one holds `points` (with no
+/// headroom) and fits, the smaller one. Later scans with more points than it holds are then
+/// refused, each with the class to use: a tight cap is worth more than the spare room.
+pub fn class_under_cap(points: usize, cap_bytes: usize, other_bytes: usize) -> Class {
+    let fits = |c: &Class| c.least_cap_bytes + other_bytes <= cap_bytes;
+    let preferred = class_for(points);
+    match class_holding(points) {
+        Some(c) if !fits(&preferred) && fits(&c) => c,
+        _ => preferred,
+    }
 }
 
 /// The class that holds a scan of `points` within range (no headroom), if any does.
@@ -89,6 +107,23 @@ mod tests {
         );
         assert_eq!(class_holding(36_000).map(|c| c.flag), Some("16"));
         assert_eq!(class_holding(200_000), None);
+    }
+
+    #[test]
+    fn a_tight_cap_takes_the_smallest_class_that_holds_the_scan() {
+        let [_, l16, l32, l64] = classes();
+        // 60 000 points: the 64-beam class with a quarter to spare, the 32-beam without.
+        assert_eq!(class_for(60_000), l64);
+        let other = 10_000_000;
+        let roomy = l64.least_cap_bytes + other;
+        assert_eq!(class_under_cap(60_000, roomy, other), l64);
+        assert_eq!(class_under_cap(60_000, roomy - 1, other), l32);
+        assert!(l32.least_cap_bytes < l64.least_cap_bytes / 2 + 1_000_000);
+        // Too tight for any class that holds the scan: the preferred one (refused later).
+        assert_eq!(
+            class_under_cap(60_000, l16.least_cap_bytes + other, other),
+            l64
+        );
     }
 
     #[test]

@@ -94,6 +94,8 @@ pub enum RunError {
     MemoryCapTooSmall {
         /// The cap asked for (MB).
         cap_mb: f64,
+        /// The capacity class's name ([`Capacity::NAME`]).
+        class: &'static str,
         /// What the capacity needs with an empty map, the process's memory and headroom.
         needed_bytes: usize,
     },
@@ -108,10 +110,13 @@ impl fmt::Display for RunError {
             RunError::Threads(e) => write!(f, "configuration: threads: {e}"),
             RunError::MemoryCapTooSmall {
                 cap_mb,
+                class,
                 needed_bytes,
             } => write!(
                 f,
-                "configuration: memory cap {cap_mb} MB is below what this capacity needs with an empty map: {:.0} MB",
+                "configuration: memory cap {cap_mb} MB is below what the {class} capacity class \
+                 needs: {:.0} MB (its scan buffers, a map of two scans' layers, and the rest of \
+                 the process); a smaller class (--capacity) needs less, if the scans fit it",
                 *needed_bytes as f64 / 1e6
             ),
             RunError::File(e) => write!(f, "{e}"),
@@ -136,9 +141,17 @@ impl From<FileError> for RunError {
     }
 }
 
-/// Headroom for the rest of the process under a memory cap: IO buffers of a scan, thread
-/// stacks, the allocator's slack.
-pub const PROCESS_HEADROOM_BYTES: usize = 24 << 20;
+/// Headroom for the rest of the process under a memory cap, above its resident memory at the
+/// start: welding a set of evicted layers or of the final map (about 11 MB for a set of
+/// [`SET_LAYERS`](crate::io::mesh_spool::SET_LAYERS), measured in `tests/memory.rs`), IO
+/// buffers, thread stacks and the allocator's slack.
+pub const PROCESS_HEADROOM_BYTES: usize = 16 << 20;
+
+/// What a memory cap leaves to the rest of the process: its resident memory now and
+/// [`PROCESS_HEADROOM_BYTES`].
+pub fn other_bytes() -> usize {
+    memory::rss_bytes().unwrap_or(0) as usize + PROCESS_HEADROOM_BYTES
+}
 
 /// Runs over every frame of `source`; `on_frame` sees each record as it is made (for progress
 /// and messages). Writes the outputs into `opts.out`. With `opts.resume`, continues from the
@@ -538,17 +551,20 @@ impl<C: Capacity> Setup<C> {
         let mut window = opts.window.rules();
         let mut max_layers = None;
         if let Some(cap) = opts.window.memory_cap_mb {
-            let other = memory::rss_bytes().unwrap_or(0) as usize + PROCESS_HEADROOM_BYTES;
+            let other = other_bytes();
             let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
                 RunError::MemoryCapTooSmall {
                     cap_mb: cap,
+                    class: C::NAME,
                     needed_bytes: e.needed_bytes,
                 }
             })?;
             window.max_layers = Some(budget);
             max_layers = Some(budget);
         }
-        let pipeline = Pipeline::<C>::new(opts.config).map_err(RunError::Config)?;
+        let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
+        let pipeline =
+            Pipeline::<C>::with_map_layers(opts.config, map_layers).map_err(RunError::Config)?;
         Ok(Setup {
             pipeline,
             workers,

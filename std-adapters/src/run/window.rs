@@ -5,14 +5,17 @@
 //! holds more layers than a memory cap allows. Evicted layers can be shown to a callback first
 //! (the run appends them to the output mesh), so nothing is lost.
 //!
-//! The memory cap: the core's buffers except the layer pool are allocated up front and count in
-//! full ([`Capacity::fixed_bytes`]); the layer pool counts per layer in use. [`Window::max_layers`] turns
-//! a cap in bytes into a layer budget, leaving room for one scan's worth of new layers, so that
-//! the map never holds more than the cap allows even in the middle of a scan.
+//! The memory cap ([`Window::max_layers`]) becomes a layer budget: the map is kept at most at
+//! that many layers after each scan, and the pipeline is built with a map for the budget and
+//! one scan's worth of new layers more ([`Window::map_layers`],
+//! [`Pipeline::with_map_layers`](slamesh_core::Pipeline::with_map_layers)), so that the map
+//! never holds more than the cap allows, even in the middle of a scan. What counts against the
+//! cap: the scan buffers of the capacity class in full (a scan may fill them), the map's hash
+//! table and layer pool for that many layers ([`Capacity::memory_bytes_with_map_layers`]), and
+//! the rest of the process as the caller measures it.
 
 use crate::io::error::FileError;
 use crate::io::mesh_spool::MeshSpool;
-use slamesh_core::capacity::MAP_LAYER_BYTES;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::layer::Layer;
 use slamesh_core::map::{LayerRef, MeshMap};
@@ -38,18 +41,52 @@ pub struct CapTooSmall {
 
 impl Window {
     /// The layer budget under a memory cap of `cap_bytes`, of which `other_bytes` go to the
-    /// rest of the process (code, IO buffers, threads): what is left after the fixed buffers
-    /// and one scan's worth of layers (capped at the map's capacity).
+    /// rest of the process (code, IO buffers, threads): the most layers the map may keep
+    /// between scans with a pipeline of [`map_layers`](Self::map_layers) within the cap. At
+    /// least one scan's worth (a smaller cap is refused with the bytes it needs), at most the
+    /// capacity's.
     pub fn max_layers<C: Capacity>(
         cap_bytes: usize,
         other_bytes: usize,
     ) -> Result<usize, CapTooSmall> {
-        let reserved = C::fixed_bytes() + other_bytes + C::SCAN_LAYERS * MAP_LAYER_BYTES;
-        let needed_bytes = reserved + C::SCAN_LAYERS * MAP_LAYER_BYTES;
-        if cap_bytes < needed_bytes {
-            return Err(CapTooSmall { needed_bytes });
+        let needed = |budget: usize| {
+            C::memory_bytes_with_map_layers(Self::map_layers::<C>(budget)) + other_bytes
+        };
+        let (mut lo, mut hi) = (Self::least_budget::<C>(), C::MAP_LAYERS);
+        if cap_bytes < needed(lo) {
+            return Err(CapTooSmall {
+                needed_bytes: needed(lo),
+            });
         }
-        Ok(((cap_bytes - reserved) / MAP_LAYER_BYTES).min(C::MAP_LAYERS))
+        // The largest budget that fits: `needed` grows with the budget.
+        while lo < hi {
+            let mid = lo + (hi - lo).div_ceil(2);
+            if needed(mid) <= cap_bytes {
+                lo = mid;
+            } else {
+                hi = mid - 1;
+            }
+        }
+        Ok(lo)
+    }
+
+    /// The least memory cap for capacity `C` when `other_bytes` go to the rest of the
+    /// process: the budget of one scan's layers.
+    pub fn least_cap_bytes<C: Capacity>(other_bytes: usize) -> usize {
+        C::memory_bytes_with_map_layers(Self::map_layers::<C>(Self::least_budget::<C>()))
+            + other_bytes
+    }
+
+    /// The least layer budget: one scan's worth (a map that cannot hold what one scan sees
+    /// cannot register the next), at most the capacity's.
+    fn least_budget<C: Capacity>() -> usize {
+        C::SCAN_LAYERS.min(C::MAP_LAYERS)
+    }
+
+    /// The layers a pipeline's map needs for a layer budget of `budget`: the budget and one
+    /// scan's worth of new layers, at most the capacity's.
+    pub fn map_layers<C: Capacity>(budget: usize) -> usize {
+        budget.saturating_add(C::SCAN_LAYERS).min(C::MAP_LAYERS)
     }
 
     /// True if no rule is set.
@@ -138,6 +175,7 @@ fn oldest_cutoff(map: &MeshMap, budget: usize) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use slamesh_core::capacity::map_bytes;
     use slamesh_core::cell::Axis;
     use slamesh_core::lattice::{Lattice, VERTICES};
     use slamesh_core::layer::Layer;
@@ -200,18 +238,24 @@ mod tests {
 
     #[test]
     fn the_layer_budget_follows_the_cap() {
-        let fixed = KittiCapacity::fixed_bytes();
-        let scan = KittiCapacity::SCAN_LAYERS * MAP_LAYER_BYTES;
-        let e = Window::max_layers::<KittiCapacity>(fixed, 0).unwrap_err();
-        assert_eq!(e.needed_bytes, fixed + 2 * scan);
-        let n = Window::max_layers::<KittiCapacity>(fixed + 2 * scan + 1000 * MAP_LAYER_BYTES, 7)
-            .unwrap();
+        type K = KittiCapacity;
+        let scan = K::SCAN_LAYERS;
+        let bytes = |budget: usize| K::memory_bytes_with_map_layers(budget + scan);
+        let e = Window::max_layers::<K>(K::scan_bytes(), 0).unwrap_err();
+        assert_eq!(e.needed_bytes, bytes(scan), "one scan's worth is the least");
+        // The map is sized for the budget: less than the capacity's table alone would take.
+        assert!(e.needed_bytes < K::scan_bytes() + map_bytes(K::MAP_CELLS, 0));
+        let cap = bytes(scan + 10_000) + 7;
+        let n = Window::max_layers::<K>(cap, 7).unwrap();
         assert_eq!(
             n,
-            KittiCapacity::SCAN_LAYERS + 1000 - 1,
-            "7 bytes for the rest cost a layer"
+            scan + 10_000,
+            "7 bytes for the rest, and the budget fits exactly"
         );
+        let n = Window::max_layers::<K>(cap, 8).unwrap();
+        assert!(bytes(n) + 8 <= cap && bytes(n + 1) + 8 > cap, "{n}");
         let all = Window::max_layers::<SmallCapacity>(usize::MAX / 2, 0).unwrap();
         assert_eq!(all, SmallCapacity::MAP_LAYERS);
+        assert_eq!(Window::map_layers::<SmallCapacity>(all), all);
     }
 }
