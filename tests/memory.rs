@@ -69,8 +69,7 @@ fn the_window_keeps_memory_flat_and_the_cap_holds() {
         WindowSettings::default(),
         "warm-up",
     );
-    let other =
-        memory::rss_bytes().unwrap_or(0) as usize + slamesh::run::session::PROCESS_HEADROOM_BYTES;
+    let other = memory::other_bytes();
     let needed = Window::max_layers::<Test>(0, other)
         .unwrap_err()
         .needed_bytes;
@@ -107,7 +106,7 @@ fn the_window_keeps_memory_flat_and_the_cap_holds() {
     // peak above the frames' resident memory.
     let frames_max = records.iter().filter_map(|r| r.rss_mb).fold(0.0, f64::max);
     let above = peak as f64 / 1e6 - frames_max;
-    let headroom = slamesh::run::session::PROCESS_HEADROOM_BYTES as f64 / 1e6;
+    let headroom = memory::PROCESS_HEADROOM_BYTES as f64 / 1e6;
     println!(
         "peak {:.1} MB, {above:.1} MB above the frames' highest",
         peak as f64 / 1e6

@@ -8,10 +8,10 @@
 
 use crate::bucket::CellSpan;
 use crate::cell::CellKey;
+use crate::cell_table::{buckets_for, Bucket};
 use crate::layer::Layer;
 use crate::layer::ScanLayer;
 use crate::lm::Residual;
-use crate::map::{MapCell, MAP_TABLE_FACTOR};
 use crate::math::Point;
 use core::mem::size_of;
 
@@ -38,12 +38,11 @@ pub trait Capacity {
     const RADIX_SORT: bool = true;
 
     /// Entries of the radix sort's buffer: `POINTS` or none.
+    const SORT_ENTRIES: usize = if Self::RADIX_SORT { Self::POINTS } else { 0 };
+
+    /// [`SORT_ENTRIES`](Self::SORT_ENTRIES), as a function.
     fn sort_entries() -> usize {
-        if Self::RADIX_SORT {
-            Self::POINTS
-        } else {
-            0
-        }
+        Self::SORT_ENTRIES
     }
 
     /// Bytes of the scan buffers (points, the sort's buffer, cells, layers and residuals),
@@ -70,16 +69,14 @@ pub trait Capacity {
     }
 }
 
-/// Upper bound on the heap bytes of a map for `cells` cells and `layers` layers: its hash
-/// table at [`MAP_TABLE_FACTOR`] times the cell count (hashbrown's control bytes and
-/// power-of-two rounding included) and its layer pool.
-pub fn map_bytes(cells: usize, layers: usize) -> usize {
-    let buckets = (cells.saturating_mul(MAP_TABLE_FACTOR) * 8 / 7).next_power_of_two();
-    buckets * (size_of::<(CellKey, MapCell)>() + 1) + layers * MAP_LAYER_BYTES
+/// Bytes of a map for `cells` cells and `layers` layers: its hash table's buckets
+/// ([`buckets_for`] the cells) and its layer pool with the free list.
+pub const fn map_bytes(cells: usize, layers: usize) -> usize {
+    buckets_for(cells) * size_of::<Bucket>() + layers * MAP_LAYER_BYTES
 }
 
 /// KITTI HDL-64E scans (about 125 000 points, 100 m range) and runs of a few kilometres
-/// without eviction. [`Capacity::memory_bytes`]: 163 MB of address space, most of it the map's
+/// without eviction. [`Capacity::memory_bytes`]: 150 MB of address space, most of it the map's
 /// layer pool, touched (resident) only as the map fills.
 #[derive(Debug, Clone, Copy)]
 pub struct KittiCapacity;
@@ -95,7 +92,7 @@ impl Capacity for KittiCapacity {
 
 /// 32-beam sensors (a Velodyne VLP-32C's 60 000 points, an Ouster OS-32 at 2 048 columns'
 /// 65 536) and runs of a kilometre or two without eviction: half of [`KittiCapacity`]
-/// everywhere, 82 MB of address space.
+/// everywhere, 75 MB of address space.
 #[derive(Debug, Clone, Copy)]
 pub struct Lidar32Capacity;
 
@@ -109,7 +106,7 @@ impl Capacity for Lidar32Capacity {
 }
 
 /// 16-beam sensors (a Velodyne VLP-16's 29 000 points, an Ouster OS-16 at 2 048 columns'
-/// 32 768), indoors or on small robots: a quarter of [`KittiCapacity`], 41 MB of address space.
+/// 32 768), indoors or on small robots: a quarter of [`KittiCapacity`], 37.5 MB of address space.
 #[derive(Debug, Clone, Copy)]
 pub struct Lidar16Capacity;
 
@@ -122,7 +119,7 @@ impl Capacity for Lidar16Capacity {
     const MAP_LAYERS: usize = 98_304;
 }
 
-/// A sparse 16-beam sensor on a microcontroller-class board: a few hundred cells, 348 KB
+/// A sparse 16-beam sensor on a microcontroller-class board: a few hundred cells, 351 KB
 /// (the comparison sort: a scan of 2 048 points sorts quickly either way).
 #[derive(Debug, Clone, Copy)]
 pub struct SmallCapacity;
@@ -161,21 +158,21 @@ mod tests {
             "per scan layer"
         );
         assert_eq!(
-            size_of::<(CellKey, MapCell)>(),
-            28,
-            "per map cell, before the table's factor"
+            size_of::<Bucket>(),
+            32,
+            "per table bucket (two or more a map cell)"
         );
         assert_eq!(size_of::<Layer>() + size_of::<u32>(), 292, "per map layer");
         assert_eq!(size_of::<Layer>(), 288);
         // The documented figures, with 1 % slack for platform layout.
         let kitti = KittiCapacity::memory_bytes() as f64;
         assert!(
-            (kitti - 163.4e6).abs() < 1.6e6,
+            (kitti - 149.8e6).abs() < 1.5e6,
             "KittiCapacity: {kitti} bytes"
         );
         for (name, bytes, documented) in [
-            ("32", Lidar32Capacity::memory_bytes(), 82.0e6),
-            ("16", Lidar16Capacity::memory_bytes(), 41.0e6),
+            ("32", Lidar32Capacity::memory_bytes(), 75.0e6),
+            ("16", Lidar16Capacity::memory_bytes(), 37.5e6),
         ] {
             let bytes = bytes as f64;
             assert!(
@@ -185,7 +182,7 @@ mod tests {
         }
         let small = SmallCapacity::memory_bytes() as f64;
         assert!(
-            (small - 348.0e3).abs() < 3.5e3,
+            (small - 351.4e3).abs() < 3.5e3,
             "SmallCapacity: {small} bytes"
         );
     }

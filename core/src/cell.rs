@@ -142,7 +142,7 @@ pub struct CellHasher {
 impl core::hash::Hasher for CellHasher {
     #[inline]
     fn finish(&self) -> u64 {
-        // Final avalanche so that the table's top bits (hashbrown's tag) depend on all keys.
+        // Final avalanche so that every bit, the table's low ones too, depends on all keys.
         let mut h = self.hash;
         h ^= h >> 33;
         h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);

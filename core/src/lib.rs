@@ -23,12 +23,16 @@
 //! ## Guarantees
 //! - No panics on input data: bad points are dropped and counted, a full container returns an
 //!   error or drops by the rule its module documents.
-//! - Bounded memory: every buffer is allocated once, when a [`Pipeline`] is built, with the
+//! - Bounded memory: every buffer is taken once, when a [`Pipeline`] is built, with the
 //!   capacities of its [`Capacity`] type, and never grows ([`bounded`]). The map's hash table
-//!   is sized so that it never reallocates ([`map`]). The footprint is [`Capacity::memory_bytes`].
+//!   is sized so that it never reallocates ([`map`], [`cell_table`]). The footprint is
+//!   [`Capacity::memory_bytes`].
 //! - No clock, file, thread or randomness: the same scans give the same poses and mesh.
 //!
-//! The crate needs `alloc` (for the one-time allocation of its buffers) but not `std`.
+//! The crate needs no `std`. With the `alloc` feature (default) [`Pipeline::new`] takes its
+//! buffers from the global allocator; without it, [`Pipeline::in_storage`] builds a pipeline
+//! in memory the caller lends ([`storage`]: a `static` sized at compile time by the capacity
+//! type), and nothing in the crate can allocate.
 #![no_std]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -39,13 +43,17 @@
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
 )]
 
+#[cfg(any(feature = "alloc", test))]
 extern crate alloc;
+#[cfg(test)]
+extern crate std;
 
 pub mod associate;
 pub mod bounded;
 pub mod bucket;
 pub mod capacity;
 pub mod cell;
+pub mod cell_table;
 pub mod config;
 pub mod deskew;
 pub mod executor;
@@ -67,6 +75,7 @@ pub mod reconstruct;
 pub mod recovery;
 pub mod sort;
 pub mod stage;
+pub mod storage;
 
 pub use capacity::{Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 pub use config::{Config, ConfigError};

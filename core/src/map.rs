@@ -1,48 +1,23 @@
 //! The mesh map: world-fixed cells, each with up to three layers (docs/design.md §1.5).
 //!
-//! Owns its memory, all allocated once by [`MeshMap::with_capacity`]:
-//! - a hash table from [`CellKey`] to [`MapCell`], made for [`MAP_TABLE_FACTOR`] times the
-//!   cell capacity so that hashbrown never has to grow it (with at most half of its room used,
-//!   clearing deleted entries is always done in place);
+//! Owns its memory, all taken once when it is made, from the global allocator
+//! ([`MeshMap::with_capacity`], feature `alloc`) or from the caller's storage
+//! ([`MeshMap::in_storage`]):
+//! - a hash table from [`CellKey`] to [`MapCell`] ([`CellTable`]), made for
+//!   [`MAP_TABLE_FACTOR`] times the cell capacity, so that it never grows and at most half of
+//!   it is used;
 //! - a pool of [`Layer`]s with a free list; a cell refers to its layers by pool index.
 //!
 //! A new cell past the cell capacity, or a new layer past the layer capacity, is refused with
 //! [`MapError`]; nothing is overwritten. Iteration order is deterministic (a fixed hasher).
 
 use crate::bounded::BoundedVec;
-use crate::cell::{Axis, BuildCellHasher, CellKey};
+use crate::cell::{Axis, CellKey};
+use crate::cell_table::{Bucket, CellTable, NO_LAYER};
+pub use crate::cell_table::{MapCell, MAP_TABLE_FACTOR};
 use crate::lattice::Lattice;
 use crate::layer::Layer;
 use core::fmt;
-use hashbrown::HashMap;
-
-/// The hash table is made for this many times the cell capacity.
-pub const MAP_TABLE_FACTOR: usize = 2;
-const NO_LAYER: u32 = u32::MAX;
-
-/// A map cell: which pool slots hold its layers, and when it was last seen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct MapCell {
-    layers: [u32; 3],
-    /// Index of the last frame that observed this cell (for eviction).
-    pub last_seen: u32,
-}
-
-impl MapCell {
-    /// Whether the cell has a layer along `axis`.
-    #[inline]
-    pub fn has(&self, axis: Axis) -> bool {
-        self.layers
-            .get(axis.index())
-            .is_some_and(|&i| i != NO_LAYER)
-    }
-
-    /// The axes of the cell's layers.
-    pub fn axes(&self) -> impl Iterator<Item = Axis> + '_ {
-        Axis::ALL.into_iter().filter(|a| self.has(*a))
-    }
-}
 
 /// Why the map refused an insertion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -77,29 +52,60 @@ pub struct LayerRef<'a> {
 }
 
 /// World-fixed cells with their fused layers.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
+#[cfg_attr(feature = "alloc", derive(Clone))]
 pub struct MeshMap {
-    cells: HashMap<CellKey, MapCell, BuildCellHasher>,
+    cells: CellTable,
     pool: BoundedVec<Layer>,
     free: BoundedVec<u32>,
     max_cells: usize,
     lattice: Lattice,
 }
 
+/// The caller's memory for a map ([`MeshMap::in_storage`]).
+pub struct MapStorage {
+    /// The hash table's buckets ([`buckets_for`](crate::cell_table::buckets_for) of the cells).
+    pub table: &'static mut [Bucket],
+    /// The layer pool: one slot a layer.
+    pub pool: &'static mut [Layer],
+    /// The free list: as long as the pool.
+    pub free: &'static mut [u32],
+}
+
 impl MeshMap {
     /// An empty map for at most `max_cells` cells and `max_layers` layers, allocated now.
+    #[cfg(any(feature = "alloc", test))]
     pub fn with_capacity(max_cells: usize, max_layers: usize, lattice: Lattice) -> Self {
         let max_layers = max_layers.min(NO_LAYER as usize);
+        let cells = CellTable::with_capacity(max_cells);
         Self {
-            cells: HashMap::with_capacity_and_hasher(
-                max_cells.saturating_mul(MAP_TABLE_FACTOR),
-                BuildCellHasher::default(),
-            ),
+            max_cells: max_cells.min(cells.max_cells()),
+            cells,
             pool: BoundedVec::with_capacity(max_layers),
             free: BoundedVec::with_capacity(max_layers),
-            max_cells,
             lattice,
         }
+    }
+
+    /// An empty map in the caller's `storage`, for at most `max_cells` cells (and no more than
+    /// half the table's buckets) and as many layers as both the pool and the free list hold;
+    /// `None` when the table has fewer than two buckets.
+    pub fn in_storage(storage: MapStorage, max_cells: usize, lattice: Lattice) -> Option<Self> {
+        let cells = CellTable::in_slice(storage.table)?;
+        let layers = storage
+            .pool
+            .len()
+            .min(storage.free.len())
+            .min(NO_LAYER as usize);
+        let (pool, _) = storage.pool.split_at_mut(layers);
+        let (free, _) = storage.free.split_at_mut(layers);
+        Some(Self {
+            max_cells: max_cells.min(cells.max_cells()),
+            cells,
+            pool: BoundedVec::in_slice(pool),
+            free: BoundedVec::in_slice(free),
+            lattice,
+        })
     }
 
     /// The lattice the map's layers are placed on.
@@ -128,7 +134,7 @@ impl MeshMap {
 
     /// The cell at `key`.
     #[inline]
-    pub fn cell(&self, key: &CellKey) -> Option<&MapCell> {
+    pub fn cell(&self, key: &CellKey) -> Option<MapCell> {
         self.cells.get(key)
     }
 
@@ -141,9 +147,13 @@ impl MeshMap {
 
     /// The layer along `axis` in cell `key`, mutably; marks the cell seen at `frame`.
     pub fn layer_mut(&mut self, key: &CellKey, axis: Axis, frame: u32) -> Option<&mut Layer> {
-        let cell = self.cells.get_mut(key)?;
-        cell.last_seen = cell.last_seen.max(frame);
-        let slot = *cell.layers.get(axis.index())?;
+        let slot = self.cells.update(key, |cell| {
+            cell.last_seen = cell.last_seen.max(frame);
+            cell.layers.get(axis.index()).copied()
+        })??;
+        if slot == NO_LAYER {
+            return None;
+        }
         self.pool.get_mut(slot as usize)
     }
 
@@ -160,7 +170,7 @@ impl MeshMap {
             *existing = layer;
             return Ok(());
         }
-        if !self.cells.contains_key(&key) && self.cells.len() >= self.max_cells {
+        if !self.cells.contains(&key) && self.cells.len() >= self.max_cells {
             return Err(MapError::CellsFull);
         }
         let slot = if let Some(&slot) = self.free.last() {
@@ -174,13 +184,20 @@ impl MeshMap {
             self.pool.push(layer).map_err(|_| MapError::LayersFull)?;
             slot
         };
-        let cell = self.cells.entry(key).or_insert(MapCell {
+        let new = MapCell {
             layers: [NO_LAYER; 3],
             last_seen: frame,
+        };
+        let stored = self.cells.upsert(&key, new, |cell| {
+            cell.last_seen = cell.last_seen.max(frame);
+            if let Some(s) = cell.layers.get_mut(axis.index()) {
+                *s = slot;
+            }
         });
-        cell.last_seen = cell.last_seen.max(frame);
-        if let Some(s) = cell.layers.get_mut(axis.index()) {
-            *s = slot;
+        if !stored {
+            // Not reached (the cell limit is checked above): give the slot back.
+            let _ = self.free.push(slot);
+            return Err(MapError::CellsFull);
         }
         Ok(())
     }
@@ -191,7 +208,7 @@ impl MeshMap {
             Axis::ALL.into_iter().filter_map(move |axis| {
                 let slot = *cell.layers.get(axis.index())?;
                 Some(LayerRef {
-                    key: *key,
+                    key,
                     axis,
                     layer: self.pool.get(slot as usize)?,
                 })
@@ -200,7 +217,7 @@ impl MeshMap {
     }
 
     /// Every cell with its key, in the map's deterministic order.
-    pub fn cells(&self) -> impl Iterator<Item = (&CellKey, &MapCell)> + '_ {
+    pub fn cells(&self) -> impl Iterator<Item = (CellKey, MapCell)> + '_ {
         self.cells.iter()
     }
 
@@ -279,18 +296,16 @@ mod tests {
     }
 
     #[test]
-    fn table_never_reallocates_under_churn() {
-        // `capacity()` counts tombstones against the room left and so moves with the group
-        // width (16 on x86-64, 8 on aarch64); the allocation itself must not change.
+    fn the_map_keeps_its_limits_under_churn() {
         let mut m = MeshMap::with_capacity(64, 64, LAT);
-        let size = m.cells.allocation_size();
         for round in 0..50u32 {
             for i in 0..64 {
                 let key = CellKey::new(i + 64 * round as i32, 0, 0);
                 m.insert_layer(key, Axis::Z, Layer::UNKNOWN, round).unwrap();
             }
+            assert_eq!((m.cell_count(), m.layer_count()), (64, 64));
             m.evict_where(|_, c| c.last_seen == round, |_| {});
-            assert_eq!(m.cells.allocation_size(), size);
+            assert!(m.is_empty());
         }
     }
 }

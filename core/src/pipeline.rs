@@ -11,7 +11,9 @@ use crate::bounded::BoundedVec;
 use crate::bucket::{bucket, BucketStats, CellSpan, Placement};
 use crate::capacity::{Capacity, KittiCapacity};
 use crate::cell::CellKey;
-use crate::config::{Config, ConfigError};
+use crate::config::Config;
+#[cfg(any(feature = "alloc", test))]
+use crate::config::ConfigError;
 use crate::executor::{Executor, Serial};
 use crate::filter::{filter_and_downsample, FilterStats};
 use crate::fusion::{integrate, FusionStats};
@@ -158,9 +160,10 @@ pub struct ScanOutcome {
     pub stats: ScanStats,
 }
 
-/// LiDAR odometry and meshing with capacities `C`. Cloning copies the map and every buffer
-/// (it allocates, like [`Pipeline::new`]).
-#[derive(Debug, Clone)]
+/// LiDAR odometry and meshing with capacities `C`. Cloning (feature `alloc`) copies the map
+/// and every buffer into memory from the global allocator, like [`Pipeline::new`].
+#[derive(Debug)]
+#[cfg_attr(feature = "alloc", derive(Clone))]
 pub struct Pipeline<C: Capacity = KittiCapacity> {
     config: Config,
     map: MeshMap,
@@ -176,7 +179,9 @@ pub struct Pipeline<C: Capacity = KittiCapacity> {
 }
 
 impl<C: Capacity> Pipeline<C> {
-    /// A pipeline with an empty map, all buffers allocated now.
+    /// A pipeline with an empty map, all buffers allocated now (feature `alloc`; see
+    /// [`in_storage`](Self::in_storage) for none).
+    #[cfg(any(feature = "alloc", test))]
     pub fn new(config: Config) -> Result<Self, ConfigError> {
         Self::with_map_layers(config, C::MAP_LAYERS)
     }
@@ -186,22 +191,47 @@ impl<C: Capacity> Pipeline<C> {
     /// sliding window under a memory cap), the map's table and pool are allocated for what it
     /// will hold, and cost [`Capacity::memory_bytes_with_map_layers`] at most. A new layer or
     /// cell past the limit is refused and counted, as past the capacity.
+    #[cfg(any(feature = "alloc", test))]
     pub fn with_map_layers(config: Config, layers: usize) -> Result<Self, ConfigError> {
         config.validate()?;
         let (cells, layers) = (layers.min(C::MAP_CELLS), layers.min(C::MAP_LAYERS));
-        Ok(Self {
-            map: MeshMap::with_capacity(cells, layers, config.lattice()),
+        Ok(Self::assemble(
+            config,
+            MeshMap::with_capacity(cells, layers, config.lattice()),
+            (
+                BoundedVec::with_capacity(C::POINTS),
+                BoundedVec::with_capacity(C::POINTS),
+            ),
+            KeySorter::with_capacity(C::sort_entries()),
+            BoundedVec::with_capacity(C::SCAN_CELLS),
+            BoundedVec::with_capacity(C::SCAN_LAYERS),
+            BoundedVec::with_capacity(C::SCAN_LAYERS),
+        ))
+    }
+
+    /// A pipeline from its map and buffers.
+    pub(crate) fn assemble(
+        config: Config,
+        map: MeshMap,
+        (points, work): (BoundedVec<Point>, BoundedVec<(CellKey, Point)>),
+        sorter: KeySorter,
+        cells: BoundedVec<CellSpan>,
+        scan: BoundedVec<ScanLayer>,
+        residuals: BoundedVec<Residual>,
+    ) -> Self {
+        Self {
+            map,
             config,
             motion: ConstantVelocity::new(),
             frame: 0,
-            points: BoundedVec::with_capacity(C::POINTS),
-            work: BoundedVec::with_capacity(C::POINTS),
-            sorter: KeySorter::with_capacity(C::sort_entries()),
-            cells: BoundedVec::with_capacity(C::SCAN_CELLS),
-            scan: BoundedVec::with_capacity(C::SCAN_LAYERS),
-            residuals: BoundedVec::with_capacity(C::SCAN_LAYERS),
+            points,
+            work,
+            sorter,
+            cells,
+            scan,
+            residuals,
             _capacity: PhantomData,
-        })
+        }
     }
 
     /// The layers fused from the last accepted scan, at its final pose: the cells it
@@ -528,6 +558,9 @@ mod log {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cell_table::buckets_for;
+    use crate::map::MapStorage;
+    use crate::storage::Storage;
     use alloc::vec::Vec;
 
     /// Deliberately small capacities, to hit every limit.
@@ -648,6 +681,46 @@ mod tests {
         // The map holds four cells: the others are refused, not inserted.
         assert_eq!(p.map().cell_count(), Tiny::MAP_CELLS);
         assert!(out.stats.fusion.refused > 0);
+    }
+
+    /// `Tiny`'s buffers in leaked memory, the map's table `short` buckets short.
+    fn tiny_storage(short: usize) -> Storage {
+        use crate::bounded::Empty;
+        fn leak<T: Empty>(n: usize) -> &'static mut [T] {
+            std::vec![T::EMPTY; n].leak()
+        }
+        Storage {
+            points: leak(Tiny::POINTS),
+            work: leak(Tiny::POINTS),
+            sort: leak(Tiny::SORT_ENTRIES),
+            cells: leak(Tiny::SCAN_CELLS),
+            scan: leak(Tiny::SCAN_LAYERS),
+            residuals: leak(Tiny::SCAN_LAYERS),
+            map: MapStorage {
+                table: leak(buckets_for(Tiny::MAP_CELLS) - short),
+                pool: leak(Tiny::MAP_LAYERS),
+                free: leak(Tiny::MAP_LAYERS),
+            },
+        }
+    }
+
+    #[test]
+    fn a_pipeline_in_caller_storage_works_as_one_from_the_allocator() {
+        let mut lent = Pipeline::<Tiny>::in_storage(Config::default(), tiny_storage(0)).unwrap();
+        let mut own = Pipeline::<Tiny>::new(Config::default()).unwrap();
+        for (i, z) in [-1.0, -1.02, -1.04].into_iter().enumerate() {
+            let mut scan = patch(3.2, 1.5, z, 0.1);
+            scan.extend(patch(1.0 + 0.05 * i as f32, 1.5, -1.3, 0.1));
+            let (a, b) = (lent.process_scan(&scan), own.process_scan(&scan));
+            assert_eq!(
+                a.map(|o| (o.status, o.t_world_sensor)),
+                b.map(|o| (o.status, o.t_world_sensor))
+            );
+        }
+        assert_eq!(lent.map().layer_count(), own.map().layer_count());
+        assert!(lent.map().layer_count() > 0);
+        let e = Pipeline::<Tiny>::in_storage(Config::default(), tiny_storage(1)).unwrap_err();
+        assert_eq!(e.field, "storage.map.table");
     }
 
     #[test]

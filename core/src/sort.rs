@@ -26,16 +26,25 @@ pub type Histogram = [u32; RADIX];
 pub type Entry = (CellKey, Point);
 
 /// A reusable radix sorter for up to its capacity of entries (it owns one spare buffer).
-#[derive(Debug, Clone)]
+#[derive(Debug)]
+#[cfg_attr(feature = "alloc", derive(Clone))]
 pub struct KeySorter {
     spare: BoundedVec<Entry>,
 }
 
 impl KeySorter {
     /// A sorter for up to `capacity` entries (its buffer is allocated now).
+    #[cfg(any(feature = "alloc", test))]
     pub fn with_capacity(capacity: usize) -> Self {
         Self {
             spare: BoundedVec::with_capacity(capacity),
+        }
+    }
+
+    /// A sorter whose buffer is `spare`, the caller's.
+    pub fn in_slice(spare: &'static mut [Entry]) -> Self {
+        Self {
+            spare: BoundedVec::in_slice(spare),
         }
     }
 

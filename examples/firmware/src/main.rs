@@ -1,21 +1,18 @@
-//! slamesh-core on a Cortex-M4F: a fixed-capacity pipeline (`Sparse16`, under 1 MB) tracks a
-//! simulated 16-beam sensor through a small room and prints, over semihosting, each estimated
-//! pose next to the true one. Ends with `PASS` (and exit status 0) when every position is
-//! within `TOLERANCE_M` and every orientation within `TOLERANCE_DEG` of the truth, else `FAIL`.
+//! slamesh-core on a Cortex-M4F with no allocator: a fixed-capacity pipeline (`Sparse16`,
+//! under 1 MB) lives in a `static` (zeroed RAM, `.bss`), tracks a simulated 16-beam sensor
+//! through a small room and prints, over semihosting, each estimated pose next to the true
+//! one. Ends with `PASS` (and exit status 0) when every position is within `TOLERANCE_M` and
+//! every orientation within `TOLERANCE_DEG` of the truth, else `FAIL`.
 //!
 //! Run it under QEMU (`qemu-system-arm`, board `mps2-an386`): `cargo run --release` in this
-//! folder (the runner is set in `.cargo/config.toml`).
+//! folder (the runner is set in `.cargo/config.toml`). The link writes
+//! `target/slamesh-firmware.map`, whose section sizes `.ci/run` prints as the footprint.
 #![no_std]
 #![no_main]
 
-extern crate alloc;
-
-use alloc::vec::Vec;
-use core::mem::MaybeUninit;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use embedded_alloc::LlffHeap as Heap;
-use slamesh_core::{Capacity, Config, Pipeline, Point, Pose};
+use slamesh_core::{storage_for, Capacity, Config, Pipeline, Point, Pose};
 
 /// Capacities for a 16-beam sensor with 360 firings a turn in rooms and corridors: a few
 /// hundred cells per scan and in the map.
@@ -26,24 +23,35 @@ impl Capacity for Sparse16 {
     const SCAN_LAYERS: usize = 384;
     const MAP_CELLS: usize = 512;
     const MAP_LAYERS: usize = 768;
-    // The comparison sort: 147 KB less heap, and 6 144 points sort quickly either way.
+    // The comparison sort: 147 KB less RAM, and 6 144 points sort quickly either way.
     const RADIX_SORT: bool = false;
 }
+
+/// The pipeline's memory, sized at compile time by `Sparse16`.
+type Memory = storage_for!(Sparse16);
 
 /// Cell edge (metres).
 const CELL_M: f64 = 0.8;
 /// Firings per turn of the simulated sensor.
 const FIRINGS: usize = 360;
-/// The heap: the pipeline's one-time allocation, a scan, and margin.
-const HEAP_BYTES: usize = 1536 * 1024;
+/// Points of one simulated scan at most.
+const SCAN_POINTS: usize = 16 * FIRINGS;
 /// Acceptance: position error (metres) and orientation error (degrees) of every frame.
 const TOLERANCE_M: f64 = 0.03;
 const TOLERANCE_DEG: f64 = 1.0;
 /// Frames driven.
 const FRAMES: usize = 6;
 
-#[global_allocator]
-static HEAP: Heap = Heap::empty();
+/// Everything this program keeps: the pipeline's buffers and one scan.
+struct Statics {
+    memory: Memory,
+    scan: [Point; SCAN_POINTS],
+}
+
+static mut STATICS: Statics = Statics {
+    memory: Memory::new(),
+    scan: [[0.0; 3]; SCAN_POINTS],
+};
 
 /// An axis-aligned box: min and max corners.
 type Aabb = ([f64; 3], [f64; 3]);
@@ -94,9 +102,10 @@ fn pose(x: f64, y: f64, z: f64, yaw: f64) -> Pose {
 }
 
 /// A 16-beam scan (-30 to +30 degrees, `FIRINGS` a turn) from `t_world_sensor`, in the
-/// sensor frame, with uniform ±1 cm range noise from a seeded generator.
-fn scan(t: &Pose, seed: u64, out: &mut Vec<Point>) {
-    out.clear();
+/// sensor frame, with uniform ±1 cm range noise from a seeded generator, written into `out`;
+/// returns the number of points.
+fn scan(t: &Pose, seed: u64, out: &mut [Point; SCAN_POINTS]) -> usize {
+    let mut n = 0;
     let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
     let mut noise = move || {
         // xorshift64*: uniform in [-1, 1).
@@ -119,24 +128,29 @@ fn scan(t: &Pose, seed: u64, out: &mut Vec<Point>) {
             let r = cast(&[o.x, o.y, o.z], &[dw.x, dw.y, dw.z]);
             if r.is_finite() && r < 30.0 {
                 let r = r + 0.01 * noise();
-                out.push([(ds.x * r) as f32, (ds.y * r) as f32, (ds.z * r) as f32]);
+                if let Some(p) = out.get_mut(n) {
+                    *p = [(ds.x * r) as f32, (ds.y * r) as f32, (ds.z * r) as f32];
+                    n += 1;
+                }
             }
         }
     }
+    n
 }
 
 #[entry]
 fn main() -> ! {
-    {
-        static mut MEMORY: [MaybeUninit<u8>; HEAP_BYTES] = [MaybeUninit::uninit(); HEAP_BYTES];
-        // SAFETY: the heap is initialised once, before any allocation, with memory only it uses.
-        #[allow(static_mut_refs)]
-        unsafe {
-            HEAP.init(MEMORY.as_ptr() as usize, HEAP_BYTES)
-        }
-    }
+    // SAFETY: `main` runs once and never returns; this is the only place `STATICS` is named,
+    // so the reference is the only one there ever is.
+    #[allow(unsafe_code)]
+    let statics: &'static mut Statics = unsafe { &mut *core::ptr::addr_of_mut!(STATICS) };
+    let Statics {
+        memory,
+        scan: points,
+    } = statics;
     hprintln!(
-        "slamesh-core on Cortex-M4F: Sparse16 capacity, {} bytes (POINTS {}, SCAN_CELLS {}, MAP_CELLS {}, MAP_LAYERS {})",
+        "slamesh-core on Cortex-M4F, no allocator: Sparse16 capacity in a static of {} bytes (Capacity::memory_bytes {}; POINTS {}, SCAN_CELLS {}, MAP_CELLS {}, MAP_LAYERS {})",
+        core::mem::size_of::<Memory>(),
         Sparse16::memory_bytes(),
         Sparse16::POINTS,
         Sparse16::SCAN_CELLS,
@@ -146,26 +160,13 @@ fn main() -> ! {
     // Indoors, at a few metres' range: cells of 0.8 m instead of KITTI's 1.6 m.
     let mut config = Config::default();
     config.grid.cell_size_m = CELL_M;
-    let mut pipeline = match Pipeline::<Sparse16>::new(config) {
+    let mut pipeline = match Pipeline::<Sparse16>::in_storage(config, memory.lend()) {
         Ok(p) => p,
         Err(e) => {
             hprintln!("FAIL: configuration {}: {}", e.field, e.reason);
             finish(false)
         }
     };
-    // The one-time allocation stays within the capacity's bound (plus the allocator's
-    // bookkeeping).
-    let used = HEAP.used();
-    hprintln!(
-        "heap after Pipeline::new: {} bytes (bound {})",
-        used,
-        Sparse16::memory_bytes()
-    );
-    if used > Sparse16::memory_bytes() + 1024 {
-        hprintln!("FAIL: the pipeline allocated more than Capacity::memory_bytes");
-        debug::exit(debug::EXIT_FAILURE);
-    }
-    let mut points = Vec::with_capacity(16 * FIRINGS);
     let start = pose(-0.8, -0.4, 1.2, 0.1);
     let mut ok = true;
     for i in 0..FRAMES {
@@ -175,9 +176,9 @@ fn main() -> ! {
             1.2,
             0.1 + 0.035 * i as f64,
         );
-        scan(&truth, i as u64 + 1, &mut points);
+        let n = scan(&truth, i as u64 + 1, points);
         let relative = start.inverse() * truth;
-        match pipeline.process_scan(&points) {
+        match pipeline.process_scan(&points[..n]) {
             Ok(out) => {
                 let e = out.t_world_sensor.translation.vector - relative.translation.vector;
                 let yaw_err = (out.t_world_sensor.rotation.inverse() * relative.rotation)
@@ -188,7 +189,7 @@ fn main() -> ! {
                 hprintln!(
                     "frame {}: {} points, {:?}; estimate ({:.3}, {:.3}, {:.3}) truth ({:.3}, {:.3}, {:.3}); error {:.2} cm, {:.3} deg",
                     i,
-                    points.len(),
+                    n,
                     out.status,
                     t.x, t.y, t.z, r.x, r.y, r.z,
                     e.norm() * 100.0,

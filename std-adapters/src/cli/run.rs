@@ -12,7 +12,8 @@ use slamesh::io::mesh_spool::{MeshColour, MeshFormat};
 use slamesh::io::trajectory::Trajectory;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::run::capacity;
-use slamesh::run::session::{self, Deskew};
+use slamesh::run::memory;
+use slamesh::run::session::Deskew;
 use slamesh::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use std::path::{Path, PathBuf};
@@ -68,8 +69,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub no_picture: bool,
     /// The capacity class: how many points a scan may keep within range, and how large the
-    /// map may grow (tiny: 2 048 points, 0.35 MB; 16: 36 000, 41 MB; 32: 72 000, 82 MB;
-    /// 64: 140 000, 163 MB). auto takes the smallest that holds the first scan's points
+    /// map may grow (tiny: 2 048 points, 0.35 MB; 16: 36 000, 37.5 MB; 32: 72 000, 75 MB;
+    /// 64: 140 000, 150 MB). auto takes the smallest that holds the first scan's points
     /// within range with a quarter to spare.
     #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
     pub capacity: CapacityFlag,
@@ -295,7 +296,7 @@ pub fn auto_capacity(source: &mut impl FrameSource, opts: &RunOptions) -> Capaci
     };
     let class = match opts.window.memory_cap_mb {
         Some(cap) => {
-            let other = session::other_bytes();
+            let other = memory::other_bytes();
             let class = capacity::class_under_cap(n, (cap * 1e6) as usize, other);
             let least = |c: &capacity::Class| (c.least_cap_bytes + other) as f64 / 1e6;
             match capacity::class_holding(n) {

@@ -129,7 +129,7 @@ pub fn write(file: &Path, progress: &Progress, map: &MeshMap) -> Result<(), File
         e.push(axes.len() as u8);
         for axis in axes {
             e.push(axis.index() as u8);
-            let layer = map.layer(key, axis).copied().unwrap_or(Layer::UNKNOWN);
+            let layer = map.layer(&key, axis).copied().unwrap_or(Layer::UNKNOWN);
             for v in layer.pred.iter().chain(&layer.var) {
                 e.extend_from_slice(&v.to_le_bytes());
             }
@@ -384,11 +384,11 @@ mod tests {
         assert_eq!(read(&file, &mut back).unwrap(), progress);
         let mut a: Vec<_> = map
             .cells()
-            .flat_map(|(k, c)| c.axes().map(move |x| (*k, x, c.last_seen)))
+            .flat_map(|(k, c)| c.axes().map(|x| (k, x, c.last_seen)).collect::<Vec<_>>())
             .collect();
         let mut b: Vec<_> = back
             .cells()
-            .flat_map(|(k, c)| c.axes().map(move |x| (*k, x, c.last_seen)))
+            .flat_map(|(k, c)| c.axes().map(|x| (k, x, c.last_seen)).collect::<Vec<_>>())
             .collect();
         a.sort();
         b.sort();

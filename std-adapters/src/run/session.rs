@@ -141,18 +141,6 @@ impl From<FileError> for RunError {
     }
 }
 
-/// Headroom for the rest of the process under a memory cap, above its resident memory at the
-/// start: welding a set of evicted layers or of the final map (about 11 MB for a set of
-/// [`SET_LAYERS`](crate::io::mesh_spool::SET_LAYERS), measured in `tests/memory.rs`), IO
-/// buffers, thread stacks and the allocator's slack.
-pub const PROCESS_HEADROOM_BYTES: usize = 16 << 20;
-
-/// What a memory cap leaves to the rest of the process: its resident memory now and
-/// [`PROCESS_HEADROOM_BYTES`].
-pub fn other_bytes() -> usize {
-    memory::rss_bytes().unwrap_or(0) as usize + PROCESS_HEADROOM_BYTES
-}
-
 /// Runs over every frame of `source`; `on_frame` sees each record as it is made (for progress
 /// and messages). Writes the outputs into `opts.out`. With `opts.resume`, continues from the
 /// checkpoint there.
@@ -551,7 +539,7 @@ impl<C: Capacity> Setup<C> {
         let mut window = opts.window.rules();
         let mut max_layers = None;
         if let Some(cap) = opts.window.memory_cap_mb {
-            let other = other_bytes();
+            let other = memory::other_bytes();
             let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
                 RunError::MemoryCapTooSmall {
                     cap_mb: cap,
