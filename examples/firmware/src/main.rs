@@ -1,14 +1,19 @@
 //! slamesh-core on a Cortex-M4F with no allocator: a fixed-capacity pipeline (`Sparse16`,
 //! under 1 MB) lives in a `static` (zeroed RAM, `.bss`), tracks a simulated 16-beam sensor
 //! through a small room and prints, over semihosting, each estimated pose next to the true
-//! one. Ends with `PASS` (and exit status 0) when every position is within `TOLERANCE_M` and
-//! every orientation within `TOLERANCE_DEG` of the truth, else `FAIL`.
+//! one; then tracks real scans cut down to 16 beams ([`kitti16`]) against their reference.
+//! Ends with `PASS` (and exit status 0) when every position is within `TOLERANCE_M` and every
+//! orientation within `TOLERANCE_DEG` of the truth and every real step within its tolerance,
+//! else `FAIL`.
 //!
 //! Run it under QEMU (`qemu-system-arm`, board `mps2-an386`): `cargo run --release` in this
 //! folder (the runner is set in `.cargo/config.toml`). The link writes
 //! `target/slamesh-firmware.map`, whose section sizes `.ci/run` prints as the footprint.
 #![no_std]
 #![no_main]
+
+mod clock;
+mod kitti16;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
@@ -42,15 +47,19 @@ const TOLERANCE_DEG: f64 = 1.0;
 /// Frames driven.
 const FRAMES: usize = 6;
 
-/// Everything this program keeps: the pipeline's buffers and one scan.
+/// Everything this program keeps: the pipelines' buffers and a scan for each.
 struct Statics {
     memory: Memory,
     scan: [Point; SCAN_POINTS],
+    kitti: kitti16::Memory,
+    kitti_scan: [Point; kitti16::POINTS],
 }
 
 static mut STATICS: Statics = Statics {
     memory: Memory::new(),
     scan: [[0.0; 3]; SCAN_POINTS],
+    kitti: kitti16::Memory::new(),
+    kitti_scan: [[0.0; 3]; kitti16::POINTS],
 };
 
 /// An axis-aligned box: min and max corners.
@@ -147,7 +156,13 @@ fn main() -> ! {
     let Statics {
         memory,
         scan: points,
+        kitti,
+        kitti_scan,
     } = statics;
+    match cortex_m::Peripherals::take() {
+        Some(mut p) => clock::start(&mut p.SYST),
+        None => hprintln!("no SysTick: instruction counts will read 0"),
+    }
     hprintln!(
         "slamesh-core on Cortex-M4F, no allocator: Sparse16 capacity in a static of {} bytes (Capacity::memory_bytes {}; POINTS {}, SCAN_CELLS {}, MAP_CELLS {}, MAP_LAYERS {})",
         core::mem::size_of::<Memory>(),
@@ -210,6 +225,7 @@ fn main() -> ! {
         TOLERANCE_M * 100.0,
         TOLERANCE_DEG
     );
+    ok &= kitti16::run(kitti, kitti_scan);
     hprintln!("{}", if ok { "PASS" } else { "FAIL" });
     finish(ok)
 }
