@@ -28,9 +28,10 @@ pub const FACE_BYTES: usize = 13;
 /// Bytes of a spooled set's end: vertices and faces spooled up to its end, as `u64`.
 const SET_BYTES: usize = 16;
 
-/// The most layers welded together, so that what welding holds at once does not grow with
-/// the map (welding the whole map of `tests/memory.rs` at once took it 13 MB over its cap),
-/// and at most `SET_LAYERS × 36` vertex positions for [`MeshSpool::for_each_triangle`].
+/// The most layers welded together by default ([`MeshSpool::set_layers`] sets another), so
+/// that what welding holds at once does not grow with the map (welding the whole map of
+/// `tests/memory.rs` at once took it 13 MB over its cap), and at most `SET_LAYERS × 36` vertex
+/// positions for [`MeshSpool::for_each_triangle`].
 pub const SET_LAYERS: usize = 1024;
 
 /// The Z-order (Morton) code of a cell: the bits of its three indices (their low 21, offset
@@ -48,11 +49,11 @@ fn z_order(key: &CellKey) -> u64 {
 }
 
 /// Where the set starting at `start` of `layers` (sorted by Z-order code) ends: within
-/// [`SET_LAYERS`], at the boundary between the largest aligned blocks of cells, so that the
+/// `most` layers, at the boundary between the largest aligned blocks of cells, so that the
 /// seams between sets are few and straight (two codes first differ in a high bit where
 /// large blocks meet).
-fn set_end(layers: &[(u64, LayerRef<'_>)], start: usize) -> usize {
-    let last = layers.len().min(start + SET_LAYERS);
+fn set_end(layers: &[(u64, LayerRef<'_>)], start: usize, most: usize) -> usize {
+    let last = layers.len().min(start + most.max(1));
     if last == layers.len() {
         return last;
     }
@@ -135,6 +136,8 @@ pub struct MeshSpool {
     merged: u64,
     /// The lowest and highest vertex `z` spooled (infinite for none), kept as vertices come.
     z_range: (f32, f32),
+    /// The most layers welded together ([`SET_LAYERS`] unless set).
+    set_layers: usize,
 }
 
 impl MeshSpool {
@@ -190,6 +193,7 @@ impl MeshSpool {
             counts: kept.unwrap_or_default(),
             merged: 0,
             z_range: (f32::INFINITY, f32::NEG_INFINITY),
+            set_layers: SET_LAYERS,
         };
         if kept.is_some() {
             spool.z_range = spool.read_z_range()?;
@@ -244,13 +248,19 @@ impl MeshSpool {
         layers.sort_by_key(|(code, l)| (*code, l.key, l.axis));
         let mut start = 0;
         while start < layers.len() {
-            let end = set_end(&layers, start);
+            let end = set_end(&layers, start, self.set_layers);
             let set = layers[start..end].iter().map(|(_, l)| *l);
             let mesh = weld(set, &self.lattice, self.shown);
             self.add_mesh(&mesh)?;
             start = end;
         }
         Ok(())
+    }
+
+    /// Welds at most `layers` layers together from now on (at least one): fewer hold less
+    /// memory at once and leave more seams between sets.
+    pub fn set_layers(&mut self, layers: usize) {
+        self.set_layers = layers.max(1);
     }
 
     /// Adds every layer of `map`.

@@ -19,11 +19,27 @@ pub fn peak_rss_bytes() -> Option<u64> {
     status_bytes("VmHWM:")
 }
 
+/// Bytes welding holds a layer of a set at most: its slots, clusters, sums, triangles and
+/// welded vertices (a set of 1 024 layers took 11.4 MB above the frames' resident memory at
+/// the end of `tests/memory.rs`'s run).
+pub const WELD_BYTES_PER_LAYER: usize = 12 * 1024;
+
+/// Layers welded together under a memory cap ([`MeshSpool::set_layers`]): a quarter of a run's
+/// usual [`SET_LAYERS`], so that welding holds about 3 MB at once (for more seams between
+/// sets).
+///
+/// [`MeshSpool::set_layers`]: crate::io::mesh_spool::MeshSpool::set_layers
+/// [`SET_LAYERS`]: crate::io::mesh_spool::SET_LAYERS
+pub const CAPPED_SET_LAYERS: usize = 256;
+
+/// The rest of the process's growth under a memory cap, beside the pipeline and welding: IO
+/// buffers, thread stacks, the allocator's slack.
+pub const OTHER_GROWTH_BYTES: usize = 4 << 20;
+
 /// Headroom for the rest of the process under a memory cap, above its resident memory at the
-/// start: welding a set of evicted layers or of the final map (about 11 MB for a set of
-/// [`SET_LAYERS`](crate::io::mesh_spool::SET_LAYERS), measured in `tests/memory.rs`), IO
-/// buffers, thread stacks and the allocator's slack.
-pub const PROCESS_HEADROOM_BYTES: usize = 16 << 20;
+/// start: welding a set of [`CAPPED_SET_LAYERS`] and [`OTHER_GROWTH_BYTES`].
+pub const PROCESS_HEADROOM_BYTES: usize =
+    CAPPED_SET_LAYERS * WELD_BYTES_PER_LAYER + OTHER_GROWTH_BYTES;
 
 /// What a memory cap leaves to the rest of the process: its resident memory now and
 /// [`PROCESS_HEADROOM_BYTES`].

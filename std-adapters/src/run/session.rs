@@ -247,10 +247,13 @@ impl<'a, C: Capacity> Run<'a, C> {
     fn assemble(
         opts: &'a RunOptions,
         setup: Setup<C>,
-        spool: MeshSpool,
+        mut spool: MeshSpool,
         frames: File,
         progress: Progress,
     ) -> Self {
+        if setup.max_layers.is_some() {
+            spool.set_layers(memory::CAPPED_SET_LAYERS);
+        }
         Run {
             opts,
             pipeline: setup.pipeline,
