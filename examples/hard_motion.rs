@@ -116,7 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let c = consecutive_errors(&estimate, &truth);
         println!(
             "{name} ({preset}, {frames} scans at {} Hz): {good} of {} steps within 5 cm and 0.5 deg; \
-             mean step error {:.2} cm, worst {:.2} cm, {:.3} deg; ATE {:.2} m; {statuses:?}",
+             mean step error {:.2} cm, worst {:.2} cm, {:.3} deg; ATE {:.3} m; {statuses:?}",
             if how.is_some() { 2 } else { 10 },
             frames - 1,
             c.mean_translation_m * 100.0,
