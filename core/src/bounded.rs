@@ -69,12 +69,12 @@ impl<T> BoundedVec<T> {
 impl<T: Empty> BoundedVec<T> {
     /// Room for `capacity` items, in leaked memory.
     pub fn with_capacity(capacity: usize) -> Self {
-        Self::in_slice(std::vec![T::EMPTY; capacity].leak())
+        Self::in_slice(alloc::vec![T::EMPTY; capacity].leak())
     }
 
     /// `len` copies of `value`, in leaked memory.
     pub fn filled(len: usize, value: T) -> Self {
-        Self::in_slice_filled(std::vec![value; len].leak(), value)
+        Self::in_slice_filled(alloc::vec![value; len].leak(), value)
     }
 }
 
@@ -217,7 +217,7 @@ mod tests {
     use super::*;
 
     fn lend<T: Clone>(n: usize, value: T) -> &'static mut [T] {
-        std::vec![value; n].leak()
+        alloc::vec![value; n].leak()
     }
 
     #[test]

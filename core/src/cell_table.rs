@@ -283,7 +283,7 @@ impl CellTable {
 mod tests {
     use super::*;
     use crate::random::SplitMix64;
-    use std::collections::BTreeMap;
+    use alloc::collections::BTreeMap;
 
     fn cell(seen: u32) -> MapCell {
         MapCell {
@@ -294,7 +294,7 @@ mod tests {
 
     #[test]
     fn it_agrees_with_an_ordered_map_under_churn() {
-        let slots: &'static mut [Bucket] = std::vec![EMPTY; 256].leak();
+        let slots: &'static mut [Bucket] = alloc::vec![EMPTY; 256].leak();
         let mut t = CellTable::in_slice(slots).unwrap();
         assert_eq!(t.max_cells(), 128);
         let mut truth = BTreeMap::new();
@@ -334,9 +334,9 @@ mod tests {
         assert_eq!(buckets_for(0), 2);
         assert_eq!(buckets_for(384), 1024);
         assert_eq!(buckets_for(262_144), 524_288);
-        let odd: &'static mut [Bucket] = std::vec![EMPTY; 100].leak();
+        let odd: &'static mut [Bucket] = alloc::vec![EMPTY; 100].leak();
         assert_eq!(CellTable::in_slice(odd).unwrap().max_cells(), 32);
-        let none: &'static mut [Bucket] = std::vec![EMPTY; 1].leak();
+        let none: &'static mut [Bucket] = alloc::vec![EMPTY; 1].leak();
         assert!(CellTable::in_slice(none).is_none());
     }
 }

@@ -45,8 +45,6 @@
 
 #[cfg(any(feature = "alloc", test))]
 extern crate alloc;
-#[cfg(test)]
-extern crate std;
 
 pub mod associate;
 pub mod bounded;

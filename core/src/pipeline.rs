@@ -687,7 +687,7 @@ mod tests {
     fn tiny_storage(short: usize) -> Storage {
         use crate::bounded::Empty;
         fn leak<T: Empty>(n: usize) -> &'static mut [T] {
-            std::vec![T::EMPTY; n].leak()
+            alloc::vec![T::EMPTY; n].leak()
         }
         Storage {
             points: leak(Tiny::POINTS),
