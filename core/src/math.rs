@@ -4,7 +4,7 @@
 //! points into the world. Points are stored as `f32` ([`Point`]); all estimation math is `f64`.
 //! Tangent vectors of SE(3) are ordered `(ω, ρ)`: rotation first, as in docs/design.md §1.4.
 
-use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 /// A 3-D point as stored in buffers (metres, `f32`).
 pub type Point = [f32; 3];
@@ -76,6 +76,21 @@ pub fn se3_log(pose: &Pose) -> Twist {
     let v_inv = Mat3::identity() - w * 0.5 + w * w * c;
     let rho = v_inv * pose.translation.vector;
     Twist::new(omega.x, omega.y, omega.z, rho.x, rho.y, rho.z)
+}
+
+/// A pose from 12 row-major `[R | t]` numbers; `None` if not finite. The rotation is
+/// re-orthonormalised (KITTI files carry 9 significant digits).
+pub fn pose_from_row(v: &[f64]) -> Option<Pose> {
+    if v.len() != 12 || !v.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let m = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
+    let r = Rotation3::from_matrix_eps(&m, 1e-12, 100, Rotation3::identity());
+    let t = Translation3::new(v[3], v[7], v[11]);
+    Some(Pose::from_parts(
+        t,
+        UnitQuaternion::from_rotation_matrix(&r),
+    ))
 }
 
 /// `pose` with its rotation quaternion scaled back to unit length.

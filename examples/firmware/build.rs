@@ -8,8 +8,8 @@
 //! - only the front half is kept (azimuth within ±90°), and every second point of it;
 //! - coordinates are stored as little-endian `i16` centimetres (KITTI's ranges end near 80 m).
 //!
-//! The reference poses are the LiDAR's, `inv(Tr) * P_i * Tr` from `poses.txt` and
-//! `calib.txt`, relative to the first scan, as 12 numbers (row-major `[R|t]`).
+//! The reference poses are `poses.txt`'s camera poses `P_i` and `calib.txt`'s `Tr`, as 12
+//! numbers each (row-major `[R|t]`); the firmware takes the LiDAR's, `inv(Tr) * P_i * Tr`.
 //!
 //! The data folder is `SLAMESH_DATA` (a relative path is taken from the repository's root, as
 //! the tests take it). Without it the fixture is empty and the firmware says it skipped the
@@ -28,7 +28,7 @@ fn main() {
 
     let mut points: Vec<u8> = Vec::new();
     let mut ends: Vec<usize> = Vec::new();
-    let mut poses: Vec<[f64; 12]> = Vec::new();
+    let (mut poses, mut tr): (Vec<[f64; 12]>, [f64; 12]) = (Vec::new(), [0.0; 12]);
     if let Some(data) = env::var_os("SLAMESH_DATA") {
         let mut data = PathBuf::from(data);
         if data.is_relative() {
@@ -44,7 +44,7 @@ fn main() {
             cut(&bytes, &mut points);
             ends.push(points.len() / 6);
         }
-        poses = lidar_poses(&seq);
+        (poses, tr) = camera_poses_and_tr(&seq);
     }
     fs::write(out.join("kitti16.bin"), &points).expect("write kitti16.bin");
     let mut rs = String::from("// Made by build.rs from kitti-mini 00.\n");
@@ -53,7 +53,11 @@ fn main() {
         ends.len(),
         ends
     );
-    rs += &format!("const KITTI16_POSES: [[f64; 12]; {}] = [\n", poses.len());
+    rs += &format!("const KITTI16_TR: [f64; 12] = {tr:?};\n");
+    rs += &format!(
+        "const KITTI16_CAMERA_POSES: [[f64; 12]; {}] = [\n",
+        poses.len()
+    );
     for p in &poses {
         rs += &format!("    {p:?},\n");
     }
@@ -85,8 +89,9 @@ fn cut(bytes: &[u8], out: &mut Vec<u8>) {
     }
 }
 
-/// The LiDAR's poses relative to the first scan.
-fn lidar_poses(seq: &std::path::Path) -> Vec<[f64; 12]> {
+/// The first [`SCANS`] lines of `poses.txt` (the camera's poses) and `calib.txt`'s `Tr`,
+/// 12 numbers each; the firmware turns them into the LiDAR's poses.
+fn camera_poses_and_tr(seq: &std::path::Path) -> (Vec<[f64; 12]>, [f64; 12]) {
     let read = |name: &str| {
         let file = seq.join(name);
         println!("cargo:rerun-if-changed={}", file.display());
@@ -101,45 +106,12 @@ fn lidar_poses(seq: &std::path::Path) -> Vec<[f64; 12]> {
             .unwrap_or_else(|_| panic!("not 12 numbers: {line}"))
     };
     let calib = read("calib.txt");
-    let tr_line = calib
+    let tr = calib
         .lines()
         .find_map(|l| l.strip_prefix("Tr:"))
+        .map(numbers)
         .expect("calib.txt has no Tr: line");
-    let tr = numbers(tr_line);
-    let poses = read("poses.txt");
-    let lidar: Vec<[f64; 12]> = poses
-        .lines()
-        .take(SCANS)
-        .map(|l| mul(&mul(&inverse(&tr), &numbers(l)), &tr))
-        .collect();
-    assert_eq!(lidar.len(), SCANS, "poses.txt has fewer than {SCANS} lines");
-    let first = inverse(&lidar[0]);
-    lidar.iter().map(|p| mul(&first, p)).collect()
-}
-
-/// `a * b` of two rigid transforms as row-major `[R|t]`.
-fn mul(a: &[f64; 12], b: &[f64; 12]) -> [f64; 12] {
-    let mut c = [0.0; 12];
-    for r in 0..3 {
-        for k in 0..4 {
-            let mut s = if k == 3 { a[r * 4 + 3] } else { 0.0 };
-            for j in 0..3 {
-                s += a[r * 4 + j] * b[j * 4 + k];
-            }
-            c[r * 4 + k] = s;
-        }
-    }
-    c
-}
-
-/// The inverse of a rigid transform `[R|t]`: `[Rᵀ|-Rᵀt]`.
-fn inverse(a: &[f64; 12]) -> [f64; 12] {
-    let mut c = [0.0; 12];
-    for r in 0..3 {
-        for k in 0..3 {
-            c[r * 4 + k] = a[k * 4 + r];
-        }
-        c[r * 4 + 3] = -(0..3).map(|j| a[j * 4 + r] * a[j * 4 + 3]).sum::<f64>();
-    }
-    c
+    let poses: Vec<[f64; 12]> = read("poses.txt").lines().take(SCANS).map(numbers).collect();
+    assert_eq!(poses.len(), SCANS, "poses.txt has fewer than {SCANS} lines");
+    (poses, tr)
 }

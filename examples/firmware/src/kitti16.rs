@@ -5,6 +5,7 @@
 
 use crate::clock;
 use cortex_m_semihosting::hprintln;
+use slamesh_core::math::pose_from_row;
 use slamesh_core::{storage_for, Capacity, Config, Pipeline, Point, Pose};
 
 /// Capacities for the cut KITTI scans: under 8 500 points, 250 cells and 310 layers a scan,
@@ -33,12 +34,10 @@ static SCANS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/kitti16.bin"));
 const STEP_TOLERANCE_M: f64 = 0.05;
 const STEP_TOLERANCE_DEG: f64 = 0.5;
 
-/// A pose from 12 numbers, row-major `[R|t]`.
-fn pose(p: &[f64; 12]) -> Pose {
-    let r = nalgebra::Matrix3::new(p[0], p[1], p[2], p[4], p[5], p[6], p[8], p[9], p[10]);
-    let rotation =
-        nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix(&r));
-    Pose::from_parts(nalgebra::Translation3::new(p[3], p[7], p[11]), rotation)
+/// The LiDAR's reference pose of scan `i`: `inv(Tr) * P_i * Tr`; `None` for a non-finite one.
+fn lidar_reference(i: usize) -> Option<Pose> {
+    let tr = pose_from_row(&KITTI16_TR)?;
+    Some(tr.inverse() * pose_from_row(KITTI16_CAMERA_POSES.get(i)?)? * tr)
 }
 
 /// Decodes scan points `[start, end)` into `out`; returns how many.
@@ -82,7 +81,11 @@ pub fn run(memory: &'static mut Memory, buffer: &mut [Point; POINTS]) -> bool {
     for (i, &end) in KITTI16_ENDS.iter().enumerate() {
         let n = decode(start, end, buffer);
         start = end;
-        let reference = pose(&KITTI16_POSES[i]);
+        let Some(reference) = lidar_reference(i) else {
+            hprintln!("real scan {}: its reference pose is not finite", i);
+            ok = false;
+            continue;
+        };
         let t0 = clock::ticks();
         let result = pipeline.process_scan(&buffer[..n]);
         instructions[i] = (clock::ticks() - t0) * clock::INSTRUCTIONS_PER_TICK;

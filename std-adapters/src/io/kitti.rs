@@ -4,7 +4,8 @@
 //! Every error names the file and, where it applies, the line and the reason.
 
 use crate::io::error::FileError;
-use crate::io::trajectory::{parse_numbers, pose_from_row};
+use crate::io::trajectory::parse_numbers;
+use slamesh_core::math::pose_from_row;
 use slamesh_core::{Point, Pose};
 use std::path::{Path, PathBuf};
 

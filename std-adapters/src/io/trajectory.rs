@@ -2,7 +2,8 @@
 //! (`timestamp tx ty tz qx qy qz qw`). Reading detects the format from the first pose line.
 
 use crate::io::error::FileError;
-use nalgebra::{Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use slamesh_core::math::pose_from_row;
 use slamesh_core::Pose;
 use std::io::Write;
 use std::path::Path;
@@ -39,21 +40,6 @@ pub(crate) fn parse_numbers(
                 .map_err(|_| FileError::new(path, Some(line_no), format!("not a number: {w:?}")))
         })
         .collect()
-}
-
-/// A pose from 12 row-major `[R | t]` numbers; `None` if not finite. The rotation is
-/// re-orthonormalised (KITTI files carry 9 significant digits).
-pub(crate) fn pose_from_row(v: &[f64]) -> Option<Pose> {
-    if v.len() != 12 || !v.iter().all(|x| x.is_finite()) {
-        return None;
-    }
-    let m = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
-    let r = Rotation3::from_matrix_eps(&m, 1e-12, 100, Rotation3::identity());
-    let t = Translation3::new(v[3], v[7], v[11]);
-    Some(Pose::from_parts(
-        t,
-        UnitQuaternion::from_rotation_matrix(&r),
-    ))
 }
 
 /// Reads a trajectory, KITTI or TUM, by the count of numbers on its first pose line (`#`
