@@ -40,17 +40,12 @@ pub trait Capacity {
     /// Entries of the radix sort's buffer: `POINTS` or none.
     const SORT_ENTRIES: usize = if Self::RADIX_SORT { Self::POINTS } else { 0 };
 
-    /// [`SORT_ENTRIES`](Self::SORT_ENTRIES), as a function.
-    fn sort_entries() -> usize {
-        Self::SORT_ENTRIES
-    }
-
     /// Bytes of the scan buffers (points, the sort's buffer, cells, layers and residuals),
     /// allocated in full by [`Pipeline::new`](crate::Pipeline::new) and touched, page by page,
     /// up to the largest scan seen.
     fn scan_bytes() -> usize {
         Self::POINTS * (size_of::<Point>() + size_of::<(CellKey, Point)>())
-            + Self::sort_entries() * size_of::<(CellKey, Point)>()
+            + Self::SORT_ENTRIES * size_of::<(CellKey, Point)>()
             + Self::SCAN_CELLS * size_of::<CellSpan>()
             + Self::SCAN_LAYERS * (size_of::<ScanLayer>() + size_of::<Residual>())
     }
@@ -148,7 +143,7 @@ mod tests {
         );
         assert_eq!(size_of::<(CellKey, Point)>(), 24, "per radix-sort entry");
         assert_eq!(
-            (KittiCapacity::sort_entries(), SmallCapacity::sort_entries()),
+            (KittiCapacity::SORT_ENTRIES, SmallCapacity::SORT_ENTRIES),
             (KittiCapacity::POINTS, 0)
         );
         assert_eq!(size_of::<CellSpan>(), 20, "per scan cell");
