@@ -4,11 +4,8 @@
 //! storage allocates nothing at all, not even when it is built. One test per binary, so no
 //! other test's allocations are counted.
 
-use slamesh_core::bounded::Empty;
-use slamesh_core::cell_table::buckets_for;
-use slamesh_core::map::MapStorage;
 use slamesh_core::storage::Storage;
-use slamesh_core::{Capacity, Config, KittiCapacity, Pipeline, Pose};
+use slamesh_core::{Config, KittiCapacity, Pipeline, Pose};
 use slamesh_sim::{sensor_pose, Lidar, Scene};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -45,23 +42,7 @@ fn processing_scans_allocates_nothing_after_construction() {
     bad.extend([[f32::NAN; 3]; 10]);
     let mut pipeline = Pipeline::<KittiCapacity>::new(Config::default()).unwrap();
     // Caller storage, lent before the count starts.
-    type K = KittiCapacity;
-    fn leak<T: Empty>(n: usize) -> &'static mut [T] {
-        vec![T::EMPTY; n].leak()
-    }
-    let storage = Storage {
-        points: leak(K::POINTS),
-        work: leak(K::POINTS),
-        sort: leak(K::SORT_ENTRIES),
-        cells: leak(K::SCAN_CELLS),
-        scan: leak(K::SCAN_LAYERS),
-        residuals: leak(K::SCAN_LAYERS),
-        map: MapStorage {
-            table: leak(buckets_for(K::MAP_CELLS)),
-            pool: leak(K::MAP_LAYERS),
-            free: leak(K::MAP_LAYERS),
-        },
-    };
+    let storage = Storage::leak::<KittiCapacity>();
     let mut meshing = Pipeline::<KittiCapacity>::new(Config::meshing()).unwrap();
 
     let before = ALLOCATIONS.load(Ordering::SeqCst);

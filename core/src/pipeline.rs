@@ -202,7 +202,7 @@ impl<C: Capacity> Pipeline<C> {
                 BoundedVec::with_capacity(C::POINTS),
                 BoundedVec::with_capacity(C::POINTS),
             ),
-            KeySorter::with_capacity(C::sort_entries()),
+            KeySorter::with_capacity(C::SORT_ENTRIES),
             BoundedVec::with_capacity(C::SCAN_CELLS),
             BoundedVec::with_capacity(C::SCAN_LAYERS),
             BoundedVec::with_capacity(C::SCAN_LAYERS),
@@ -558,8 +558,6 @@ mod log {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cell_table::buckets_for;
-    use crate::map::MapStorage;
     use crate::storage::Storage;
     use alloc::vec::Vec;
 
@@ -685,23 +683,10 @@ mod tests {
 
     /// `Tiny`'s buffers in leaked memory, the map's table `short` buckets short.
     fn tiny_storage(short: usize) -> Storage {
-        use crate::bounded::Empty;
-        fn leak<T: Empty>(n: usize) -> &'static mut [T] {
-            alloc::vec![T::EMPTY; n].leak()
-        }
-        Storage {
-            points: leak(Tiny::POINTS),
-            work: leak(Tiny::POINTS),
-            sort: leak(Tiny::SORT_ENTRIES),
-            cells: leak(Tiny::SCAN_CELLS),
-            scan: leak(Tiny::SCAN_LAYERS),
-            residuals: leak(Tiny::SCAN_LAYERS),
-            map: MapStorage {
-                table: leak(buckets_for(Tiny::MAP_CELLS) - short),
-                pool: leak(Tiny::MAP_LAYERS),
-                free: leak(Tiny::MAP_LAYERS),
-            },
-        }
+        let mut s = Storage::leak::<Tiny>();
+        let table = core::mem::take(&mut s.map.table);
+        s.map.table = &mut table[short..];
+        s
     }
 
     #[test]

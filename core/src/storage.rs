@@ -15,7 +15,7 @@
 //! ```
 //!
 //! The core itself has no `unsafe`: taking a `&'static mut` out of a `static` is the
-//! caller's one step (or `cortex_m::singleton!`, `static_cell`, or `Box::leak` with an
+//! caller's one step (or `cortex_m::singleton!`, `static_cell`, or [`Storage::leak`] with an
 //! allocator).
 
 use crate::bounded::BoundedVec;
@@ -98,6 +98,30 @@ pub struct Storage {
     pub residuals: &'static mut [Residual],
     /// The map: its table, layer pool and free list.
     pub map: MapStorage,
+}
+
+impl Storage {
+    /// Every buffer capacity `C` asks for, from the global allocator and never freed: for a
+    /// program that builds its one pipeline at start and keeps it for good, and for tests.
+    #[cfg(any(feature = "alloc", test))]
+    pub fn leak<C: Capacity>() -> Self {
+        fn slots<T: Empty>(n: usize) -> &'static mut [T] {
+            alloc::vec![T::EMPTY; n].leak()
+        }
+        Storage {
+            points: slots(C::POINTS),
+            work: slots(C::POINTS),
+            sort: slots(C::SORT_ENTRIES),
+            cells: slots(C::SCAN_CELLS),
+            scan: slots(C::SCAN_LAYERS),
+            residuals: slots(C::SCAN_LAYERS),
+            map: MapStorage {
+                table: slots(buckets_for(C::MAP_CELLS)),
+                pool: slots(C::MAP_LAYERS),
+                free: slots(C::MAP_LAYERS),
+            },
+        }
+    }
 }
 
 impl<C: Capacity> Pipeline<C> {
