@@ -4,8 +4,8 @@
 //! `mesh.ply` has it (welded in sets of at most `SET_LAYERS` layers); then the open edges of
 //! the one-set mesh by cause (`slamesh::eval::seams`).
 //!
-//! `cargo run --release --example mesh_seams -- [--frames N] [--preset NAME] [--variance-show V]`
-//! (100 frames and the demo's preset, `town`, by default).
+//! `cargo run --release --example mesh_seams -- [--frames N] [--preset NAME] [--variance-show V]
+//! [--seed S]` (100 frames, the demo's preset, `town`, and seed 1 by default).
 
 use slamesh::eval::seams::seam_causes;
 use slamesh::eval::topology::Topology;
@@ -31,7 +31,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(v) = value("--variance-show") {
         config.mesh.variance_show = v.parse()?;
     }
-    let drive = Drive::town(frames, 1);
+    let seed: u64 = value("--seed").map_or(Ok(1), |v| v.parse())?;
+    let drive = Drive::town(frames, seed);
     let workers = Workers::new(0)?;
     let mut pipeline = Pipeline::<KittiCapacity>::new(config)?;
     for i in 0..drive.poses.len() {

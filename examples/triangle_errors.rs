@@ -15,7 +15,16 @@ use slamesh_core::{KittiCapacity, NoProbe, Pipeline};
 use slamesh_sim::{Drive, SurfaceDistance};
 
 /// Upper ends of the variance bins, as multiples of `variance_show`.
-const BINS: [f32; 8] = [1.0 / 3.0, 2.0 / 3.0, 1.0, 4.0 / 3.0, 5.0 / 3.0, 2.0, 3.0, f32::INFINITY];
+const BINS: [f32; 8] = [
+    1.0 / 3.0,
+    2.0 / 3.0,
+    1.0,
+    4.0 / 3.0,
+    5.0 / 3.0,
+    2.0,
+    3.0,
+    f32::INFINITY,
+];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

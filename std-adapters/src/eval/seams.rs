@@ -1,9 +1,10 @@
 //! Why a welded mesh has boundary edges: each edge of a shown triangle that no other shown
 //! triangle shares after welding ([`crate::io::mesh_weld`]), put down to one cause.
 //!
-//! An edge inside a layer's lattice is open when the lattice triangle across it is hidden:
-//! by its slope (`max_slope_deg`, whatever its variance), or else by its variance
-//! (`variance_show`). An edge on a cell
+//! What a layer shows is what it shows in the welded mesh (its own `shown_mask`, and the
+//! border triangles shown for their corners' fused variance). An edge inside a layer's
+//! lattice is open when the lattice triangle across it is hidden: by its slope
+//! (`max_slope_deg`, whatever its variance), or else by its variance (`variance_show`). An edge on a cell
 //! face is open when, across the face (the neighbour cell, or the one above or below it
 //! along the layer's axis):
 //! - no cell has a layer at all: the edge of what was seen;
@@ -16,6 +17,7 @@
 //! the welded mesh's boundary count (clusters of three or more vertices, dropped duplicate
 //! triangles).
 
+use crate::io::mesh_weld::weld;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::lattice::{Lattice, LatticeTable, N};
 use slamesh_core::layer::{lattice_triangle, triangle_neighbours, Layer, Shown, TRIANGLES};
@@ -62,9 +64,9 @@ struct Masks {
 }
 
 impl Masks {
-    fn of(layer: &Layer, table: &LatticeTable, shown: Shown) -> Self {
+    fn of(layer: &Layer, shown_mask: u64, table: &LatticeTable, shown: Shown) -> Self {
         Masks {
-            shown: layer.shown_mask(table, shown),
+            shown: shown_mask,
             slope_ok: layer.slope_mask(table, shown.min_axis_cosine),
         }
     }
@@ -86,15 +88,20 @@ pub fn seam_causes<'a>(
     shown: Shown,
 ) -> SeamCauses {
     let layers: Vec<LayerRef<'a>> = layers.into_iter().collect();
-    let by_place: HashMap<(CellKey, Axis), &Layer> =
-        layers.iter().map(|l| ((l.key, l.axis), l.layer)).collect();
+    // What each layer shows in the welded mesh.
+    let shown_masks = weld(layers.iter().copied(), lattice, shown).shown;
+    let by_place: HashMap<(CellKey, Axis), (&Layer, u64)> = layers
+        .iter()
+        .zip(&shown_masks)
+        .map(|(l, &m)| ((l.key, l.axis), (l.layer, m)))
+        .collect();
     let table = lattice.table();
     let tolerance = (lattice.cell_size / (N - 1) as f64 / 2.0) as f32;
     let mut c = SeamCauses::default();
-    for l in &layers {
+    for (l, &shown_mask) in layers.iter().zip(&shown_masks) {
         let (a, b) = l.axis.locations();
         let d = l.axis.index();
-        let masks = Masks::of(l.layer, &table, shown);
+        let masks = Masks::of(l.layer, shown_mask, &table, shown);
         for t in (0..TRIANGLES).filter(|&t| masks.shown & (1 << t) != 0) {
             let tri = lattice_triangle(t);
             for k in 0..3 {
@@ -138,7 +145,7 @@ pub fn seam_causes<'a>(
                     let Some(key) = side.offset(l.axis, up) else {
                         continue;
                     };
-                    let Some(n) = by_place.get(&(key, l.axis)) else {
+                    let Some(&(n, n_mask)) = by_place.get(&(key, l.axis)) else {
                         continue;
                     };
                     let close = mirror.iter().zip(&here).all(|(&m, &h)| {
@@ -146,7 +153,7 @@ pub fn seam_causes<'a>(
                         (theirs - world(&l.key, h)).abs() <= f64::from(tolerance)
                     });
                     let state = on_border(mirror[0], mirror[1])
-                        .map_or(Err(true), |t| Masks::of(n, &table, shown).state(t));
+                        .map_or(Err(true), |t| Masks::of(n, n_mask, &table, shown).state(t));
                     if state.is_ok() && close {
                         merged = true;
                         break;

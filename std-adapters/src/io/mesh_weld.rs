@@ -18,6 +18,13 @@
 //! - with vertices at the interval centres (`full_cover = false`, the `fast` preset) no two
 //!   layers share a vertex place: every layer stays its own piece.
 //!
+//! Which triangles are shown follows [`Layer::shown_mask`](slamesh_core::layer::Layer::shown_mask)
+//! with the welded variances: a triangle with a corner on its layer's border, within the
+//! slope limit, that its layer hides for its variance is shown when the mean of its corners'
+//! fused variances is below the limit (two cells that each saw a face poorly may together
+//! see it well). A corner's cluster takes in the predictions of every layer's border
+//! triangles within the slope limit, shown or not.
+//!
 //! A triangle that uses the same three vertices as an earlier one after welding is dropped.
 //! Normals are the area-weighted sums of the normals of the triangles around each vertex, on
 //! the side of the layer's `+axis` (a vertex in no usable triangle gets the axis itself).
@@ -27,7 +34,7 @@
 
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::lattice::{Lattice, N, VERTICES};
-use slamesh_core::layer::Shown;
+use slamesh_core::layer::{lattice_triangle, Shown, TRIANGLES};
 use slamesh_core::map::LayerRef;
 use std::collections::HashSet;
 
@@ -51,6 +58,10 @@ pub struct WeldedMesh {
     pub triangles: Vec<[u32; 3]>,
     /// Vertices that were merged into another one.
     pub merged: u64,
+    /// Which lattice triangles each layer showed, in the order the layers came (bit `t` for
+    /// `lattice_triangle(t)`): its own [`Layer::shown_mask`](slamesh_core::layer::Layer::shown_mask)
+    /// and the border triangles shown for their fused variance.
+    pub shown: Vec<u64>,
 }
 
 /// A used vertex of one layer, before welding.
@@ -78,15 +89,26 @@ pub fn weld<'a>(
 ) -> WeldedMesh {
     let table = lattice.table();
     let spacing = lattice.cell_size / (N - 1) as f64;
+    let on_border = if lattice.full_cover {
+        border_triangles()
+    } else {
+        0
+    };
     let mut slots: Vec<Slot> = Vec::new();
-    let mut corners: Vec<[u32; 3]> = Vec::new();
-    for l in layers {
+    // Each triangle's slots, whether it waits for the fused variance of its corners, and its
+    // layer and lattice triangle.
+    let mut corners: Vec<([u32; 3], bool, usize, usize)> = Vec::new();
+    let mut shown_masks = Vec::new();
+    for (layer, l) in layers.into_iter().enumerate() {
+        shown_masks.push(0u64);
         let mut index = [u32::MAX; VERTICES];
         let (a, b) = l.axis.locations();
         let d = l.axis.index();
-        for t in l.layer.triangles(&table, shown) {
+        let mask = l.layer.shown_mask(&table, shown);
+        let tentative = l.layer.slope_mask(&table, shown.min_axis_cosine) & !mask & on_border;
+        for t in (0..TRIANGLES).filter(|t| (mask | tentative) & (1 << t) != 0) {
             let mut tri = [0u32; 3];
-            for (k, &j) in t.iter().enumerate() {
+            for (k, &j) in lattice_triangle(t).iter().enumerate() {
                 if index[j] == u32::MAX {
                     index[j] = slots.len() as u32;
                     let p = l.layer.vertex(&table, &l.key, l.axis, j);
@@ -106,7 +128,7 @@ pub fn weld<'a>(
                 }
                 tri[k] = index[j];
             }
-            corners.push(tri);
+            corners.push((tri, tentative & (1 << t) != 0, layer, t));
         }
     }
     // Clusters: each slot's first slot on its line within half a spacing of it.
@@ -134,6 +156,28 @@ pub fn weld<'a>(
             start = i;
         }
     }
+    // A triangle on the border that its own layer hides for its variance is shown when the
+    // mean of its corners' fused variances is below the limit.
+    let mut weight = vec![0.0f64; slots.len()];
+    for (s, slot) in slots.iter().enumerate() {
+        weight[root[s] as usize] += 1.0 / f64::from(slot.variance).max(1e-6);
+    }
+    let corners: Vec<[u32; 3]> = corners
+        .into_iter()
+        .filter(|(tri, tentative, _, _)| {
+            let fused = |s: u32| 1.0 / weight[root[s as usize] as usize];
+            !tentative
+                || tri.iter().map(|&s| fused(s)).sum::<f64>() / 3.0 < f64::from(shown.variance)
+        })
+        .map(|(tri, _, layer, t)| {
+            shown_masks[layer] |= 1 << t;
+            tri
+        })
+        .collect();
+    let mut used = vec![false; slots.len()];
+    for &s in corners.iter().flatten() {
+        used[root[s as usize] as usize] = true;
+    }
     // Output vertices in slot order, each at its cluster's fused position.
     let mut out_index = vec![u32::MAX; slots.len()];
     let mut sums: Vec<([f64; 3], f64)> = Vec::new();
@@ -141,6 +185,9 @@ pub fn weld<'a>(
     let mut merged = 0;
     for (s, slot) in slots.iter().enumerate() {
         let r = root[s] as usize;
+        if !used[r] {
+            continue;
+        }
         if out_index[r] == u32::MAX {
             out_index[r] = sums.len() as u32;
             sums.push(([0.0; 3], 0.0));
@@ -205,7 +252,19 @@ pub fn weld<'a>(
         vertices,
         triangles,
         merged,
+        shown: shown_masks,
     }
+}
+
+/// The lattice triangles with a corner on the lattice's border, bit `t` for triangle `t`.
+fn border_triangles() -> u64 {
+    let on_border = |j: usize| {
+        let (ia, ib) = (j / N, j % N);
+        ia == 0 || ia == N - 1 || ib == 0 || ib == N - 1
+    };
+    (0..TRIANGLES)
+        .filter(|&t| lattice_triangle(t).into_iter().any(on_border))
+        .fold(0, |mask, t| mask | 1 << t)
 }
 
 fn sub(p: [f64; 3], q: [f64; 3]) -> [f64; 3] {
@@ -262,6 +321,37 @@ mod tests {
         assert!(m.vertices.iter().all(|v| v.normal[2] > 0.99));
         let edges = crate::eval::topology::Topology::of(&m.triangles);
         assert_eq!(edges.pieces, 1);
+    }
+
+    #[test]
+    fn border_triangles_show_for_the_fused_variance_of_their_corners() {
+        // Two floor cells side by side, uncertain (0.9) on their shared face and confident
+        // (0.4) elsewhere, against a limit of 0.5: alone, each hides the ten triangles along
+        // that face (mean variances 0.73 and 0.57); welded, the face's variance is 0.45 and
+        // all of them show.
+        let layer = |face_column: usize| {
+            let mut l = flat(0.5, 0.4);
+            for j in (0..VERTICES).filter(|j| j / N == face_column) {
+                l.var[j] = 0.9;
+            }
+            l
+        };
+        let mut map = MeshMap::with_capacity(4, 4, FACES);
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer(N - 1), 0)
+            .unwrap();
+        map.insert_layer(CellKey::new(1, 0, 0), Axis::Z, layer(0), 0)
+            .unwrap();
+        let alone = weld(map.layers().take(1), &FACES, shown());
+        assert_eq!(alone.triangles.len(), 40);
+        let m = weld(map.layers(), &FACES, shown());
+        assert_eq!(m.triangles.len(), 100);
+        assert_eq!(m.shown, vec![(1u64 << 50) - 1; 2]);
+        assert_eq!(crate::eval::topology::Topology::of(&m.triangles).pieces, 1);
+        let on_face = m
+            .vertices
+            .iter()
+            .filter(|v| (v.position[0] - 1.0).abs() < 1e-6);
+        assert!(on_face.map(|v| v.variance).all(|v| (v - 0.45).abs() < 1e-6));
     }
 
     #[test]
