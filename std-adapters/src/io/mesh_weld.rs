@@ -18,12 +18,11 @@
 //! - with vertices at the interval centres (`full_cover = false`, the `fast` preset) no two
 //!   layers share a vertex place: every layer stays its own piece.
 //!
-//! Which triangles are shown follows [`Layer::shown_mask`](slamesh_core::layer::Layer::shown_mask)
-//! with the welded variances: a triangle with a corner on its layer's border, within the
-//! slope limit, that its layer hides for its variance is shown when the mean of its corners'
-//! fused variances is below the limit (two cells that each saw a face poorly may together
-//! see it well). A corner's cluster takes in the predictions of every layer's border
-//! triangles within the slope limit, shown or not.
+//! Which triangles are shown is [`Layer::shown_mask`](slamesh_core::layer::Layer::shown_mask)
+//! of each layer with the welded variances: a merged vertex has its cluster's fused
+//! variance, so two cells that each saw a face poorly may together show it (and the notch
+//! and speck rules apply to the result). Clusters take in the vertices of every triangle
+//! within the slope limit, shown or not.
 //!
 //! A triangle that uses the same three vertices as an earlier one after welding is dropped.
 //! Normals are the area-weighted sums of the normals of the triangles around each vertex, on
@@ -89,47 +88,37 @@ pub fn weld<'a>(
 ) -> WeldedMesh {
     let table = lattice.table();
     let spacing = lattice.cell_size / (N - 1) as f64;
-    let on_border = if lattice.full_cover {
-        border_triangles()
-    } else {
-        0
-    };
     let mut slots: Vec<Slot> = Vec::new();
-    // Each triangle's slots, whether it waits for the fused variance of its corners, and its
-    // layer and lattice triangle.
-    let mut corners: Vec<([u32; 3], bool, usize, usize)> = Vec::new();
-    let mut shown_masks = Vec::new();
-    for (layer, l) in layers.into_iter().enumerate() {
-        shown_masks.push(0u64);
+    // Each layer with the slot of each vertex of its triangles within the slope limit.
+    let mut placed: Vec<(LayerRef<'a>, [u32; VERTICES])> = Vec::new();
+    for l in layers {
         let mut index = [u32::MAX; VERTICES];
         let (a, b) = l.axis.locations();
         let d = l.axis.index();
-        let mask = l.layer.shown_mask(&table, shown);
-        let tentative = l.layer.slope_mask(&table, shown.min_axis_cosine) & !mask & on_border;
-        for t in (0..TRIANGLES).filter(|t| (mask | tentative) & (1 << t) != 0) {
-            let mut tri = [0u32; 3];
-            for (k, &j) in lattice_triangle(t).iter().enumerate() {
-                if index[j] == u32::MAX {
-                    index[j] = slots.len() as u32;
-                    let p = l.layer.vertex(&table, &l.key, l.axis, j);
-                    let (ia, ib) = (j / N, j % N);
-                    let border = ia == 0 || ia == N - 1 || ib == 0 || ib == N - 1;
-                    let line = (lattice.full_cover && border).then(|| {
-                        let u = component(&l.key, a) * (N as i64 - 1) + ia as i64;
-                        let v = component(&l.key, b) * (N as i64 - 1) + ib as i64;
-                        ([d as i64, u, v], p[d])
-                    });
-                    slots.push(Slot {
-                        position: [p.x, p.y, p.z],
-                        variance: l.layer.var[j],
-                        axis: l.axis,
-                        line,
-                    });
+        let slope = l.layer.slope_mask(&table, shown.min_axis_cosine);
+        for t in (0..TRIANGLES).filter(|t| slope & (1 << t) != 0) {
+            for j in lattice_triangle(t) {
+                if index[j] != u32::MAX {
+                    continue;
                 }
-                tri[k] = index[j];
+                index[j] = slots.len() as u32;
+                let p = l.layer.vertex(&table, &l.key, l.axis, j);
+                let (ia, ib) = (j / N, j % N);
+                let border = ia == 0 || ia == N - 1 || ib == 0 || ib == N - 1;
+                let line = (lattice.full_cover && border).then(|| {
+                    let u = component(&l.key, a) * (N as i64 - 1) + ia as i64;
+                    let v = component(&l.key, b) * (N as i64 - 1) + ib as i64;
+                    ([d as i64, u, v], p[d])
+                });
+                slots.push(Slot {
+                    position: [p.x, p.y, p.z],
+                    variance: l.layer.var[j],
+                    axis: l.axis,
+                    line,
+                });
             }
-            corners.push((tri, tentative & (1 << t) != 0, layer, t));
         }
+        placed.push((l, index));
     }
     // Clusters: each slot's first slot on its line within half a spacing of it.
     let mut root: Vec<u32> = (0..slots.len() as u32).collect();
@@ -156,24 +145,35 @@ pub fn weld<'a>(
             start = i;
         }
     }
-    // A triangle on the border that its own layer hides for its variance is shown when the
-    // mean of its corners' fused variances is below the limit.
-    let mut weight = vec![0.0f64; slots.len()];
+    // Each cluster's fused inverse variance and size.
+    let mut weight = vec![(0.0f64, 0u32); slots.len()];
     for (s, slot) in slots.iter().enumerate() {
-        weight[root[s] as usize] += 1.0 / f64::from(slot.variance).max(1e-6);
+        let w = &mut weight[root[s] as usize];
+        *w = (w.0 + 1.0 / f64::from(slot.variance).max(1e-6), w.1 + 1);
     }
-    let corners: Vec<[u32; 3]> = corners
-        .into_iter()
-        .filter(|(tri, tentative, _, _)| {
-            let fused = |s: u32| 1.0 / weight[root[s as usize] as usize];
-            !tentative
-                || tri.iter().map(|&s| fused(s)).sum::<f64>() / 3.0 < f64::from(shown.variance)
-        })
-        .map(|(tri, _, layer, t)| {
-            shown_masks[layer] |= 1 << t;
-            tri
-        })
-        .collect();
+    // What each layer shows: its shown_mask with the fused variances of its merged vertices.
+    let mut corners: Vec<[u32; 3]> = Vec::new();
+    let mut shown_masks = Vec::with_capacity(placed.len());
+    for (l, index) in &placed {
+        let mut welded = *l.layer;
+        for (var, &s) in welded.var.iter_mut().zip(index) {
+            if let Some(&(w, members)) =
+                weight.get(root.get(s as usize).copied().unwrap_or(u32::MAX) as usize)
+            {
+                if members > 1 {
+                    *var = (1.0 / w) as f32;
+                }
+            }
+        }
+        let mask = welded.shown_mask(&table, shown);
+        shown_masks.push(mask);
+        corners.extend(
+            (0..TRIANGLES)
+                .filter(|t| mask & (1 << t) != 0)
+                .map(|t| lattice_triangle(t).map(|j| index[j]))
+                .filter(|tri| !tri.contains(&u32::MAX)),
+        );
+    }
     let mut used = vec![false; slots.len()];
     for &s in corners.iter().flatten() {
         used[root[s as usize] as usize] = true;
@@ -254,17 +254,6 @@ pub fn weld<'a>(
         merged,
         shown: shown_masks,
     }
-}
-
-/// The lattice triangles with a corner on the lattice's border, bit `t` for triangle `t`.
-fn border_triangles() -> u64 {
-    let on_border = |j: usize| {
-        let (ia, ib) = (j / N, j % N);
-        ia == 0 || ia == N - 1 || ib == 0 || ib == N - 1
-    };
-    (0..TRIANGLES)
-        .filter(|&t| lattice_triangle(t).into_iter().any(on_border))
-        .fold(0, |mask, t| mask | 1 << t)
 }
 
 fn sub(p: [f64; 3], q: [f64; 3]) -> [f64; 3] {
