@@ -3,13 +3,17 @@
 //! A [`MeshSpool`] collects sets of layers as they come (the cells one eviction of a
 //! sliding-window map removes, then the map at the end) into spool files next to the output,
 //! so that memory stays flat however long the run; [`MeshSpool::finish`] writes the final
-//! files atomically. Each set is welded on its own ([`crate::io::mesh_weld`]): the vertices
-//! its neighbouring cells share are merged, and every vertex has a normal. Vertices of two
-//! different sets are not merged (a seam where an eviction cut the map).
+//! files atomically. Each set is welded ([`crate::io::mesh_weld`]) with its neighbours in
+//! the other sets of the same call: the vertices neighbouring cells share are merged, across
+//! sets too, and every vertex has a normal. Vertices of layers added by different calls are
+//! not merged (a seam where an eviction cut the map).
+//!
+//! A face may use a vertex of an earlier set; the spool keeps that vertex's position once
+//! more, in face order, so that [`MeshSpool::for_each_triangle`] reads one set at a time.
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
-use crate::io::mesh_weld::{weld, WeldedMesh};
+use crate::io::mesh_weld::{weld_set, Neighbour, SeamLinks, WeldedMesh};
 use slamesh_core::cell::CellKey;
 use slamesh_core::config::MeshConfig;
 use slamesh_core::lattice::Lattice;
@@ -25,6 +29,8 @@ use std::path::{Path, PathBuf};
 pub const VERTEX_BYTES: usize = 28;
 /// Bytes of a spooled face: a `u8` 3 and three little-endian `u32` (a PLY face record).
 pub const FACE_BYTES: usize = 13;
+/// Bytes of an imported position: x, y, z as little-endian `f32`.
+const IMPORT_BYTES: usize = 12;
 /// Bytes of a spooled set's end: vertices and faces spooled up to its end, as `u64`.
 const SET_BYTES: usize = 16;
 
@@ -128,10 +134,12 @@ pub struct MeshSpool {
     shown: Shown,
     variance_show: f32,
     colour: MeshColour,
-    paths: [PathBuf; 3],
+    paths: [PathBuf; 4],
     vertices: BufWriter<File>,
     faces: BufWriter<File>,
     sets: BufWriter<File>,
+    /// Positions of earlier sets' vertices that faces use (x, y, z as `f32`), in face order.
+    imports: BufWriter<File>,
     counts: MeshCounts,
     merged: u64,
     /// The lowest and highest vertex `z` spooled (infinite for none), kept as vertices come.
@@ -167,7 +175,7 @@ impl MeshSpool {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let paths = ["vertices", "faces", "sets"]
+        let paths = ["vertices", "faces", "sets", "imports"]
             .map(|what| target.with_file_name(format!(".{name}.{what}.spool")));
         let open = |p: &Path, keep_bytes: Option<u64>| {
             let file = match keep_bytes {
@@ -181,6 +189,10 @@ impl MeshSpool {
             Some(k) => Some(sets_within(&paths[2], k)?),
             None => None,
         };
+        let kept_imports = match kept {
+            Some(k) => Some(imports_within(&paths[1], &read_sets(&paths[2])?, k)?),
+            None => None,
+        };
         let mut spool = MeshSpool {
             lattice,
             shown: Shown::new(shown),
@@ -189,6 +201,7 @@ impl MeshSpool {
             vertices: open(&paths[0], kept.map(|k| k.vertices * VERTEX_BYTES as u64))?,
             faces: open(&paths[1], kept.map(|k| k.triangles * FACE_BYTES as u64))?,
             sets: open(&paths[2], kept_sets.map(|(n, _)| n * SET_BYTES as u64))?,
+            imports: open(&paths[3], kept_imports.map(|n| n * IMPORT_BYTES as u64))?,
             paths,
             counts: kept.unwrap_or_default(),
             merged: 0,
@@ -218,6 +231,7 @@ impl MeshSpool {
             (&mut self.vertices, &self.paths[0]),
             (&mut self.faces, &self.paths[1]),
             (&mut self.sets, &self.paths[2]),
+            (&mut self.imports, &self.paths[3]),
         ] {
             w.flush()
                 .map_err(|e| FileError::at(p, format!("cannot write: {e}")))?;
@@ -238,7 +252,8 @@ impl MeshSpool {
     /// Adds the shown triangles of `layers` with the vertices they use, welded in sets of at
     /// most [`SET_LAYERS`] layers: in Z-order of their cells (nearby cells together), cut
     /// where the largest aligned blocks of cells meet, so that welding holds a bounded
-    /// amount at once. Vertices on a cut between two sets are not merged.
+    /// amount at once. Each set is welded with the layers of the other sets next to it, so
+    /// that the vertices on a cut are merged too.
     pub fn add_layers<'a>(
         &mut self,
         layers: impl IntoIterator<Item = LayerRef<'a>>,
@@ -246,11 +261,21 @@ impl MeshSpool {
         let mut layers: Vec<(u64, LayerRef<'a>)> =
             layers.into_iter().map(|l| (z_order(&l.key), l)).collect();
         layers.sort_by_key(|(code, l)| (*code, l.key, l.axis));
+        let mut links = SeamLinks::default();
         let mut start = 0;
         while start < layers.len() {
             let end = set_end(&layers, start, self.set_layers);
             let set = layers[start..end].iter().map(|(_, l)| *l);
-            let mesh = weld(set, &self.lattice, self.shown);
+            let neighbours = neighbours(&layers, start..end);
+            let first = u32::try_from(self.counts.vertices).unwrap_or(u32::MAX);
+            let mesh = weld_set(
+                set,
+                &neighbours,
+                &mut links,
+                first,
+                &self.lattice,
+                self.shown,
+            );
             self.add_mesh(&mesh)?;
             start = end;
         }
@@ -291,17 +316,24 @@ impl MeshSpool {
                 .write_all(&rec)
                 .map_err(|e| io(e, &self.paths[0]))?;
         }
-        let base = self.counts.vertices;
         for t in &mesh.triangles {
             let mut face = [0u8; FACE_BYTES];
             face[0] = 3;
             for (k, &i) in t.iter().enumerate() {
-                let index = (base + u64::from(i)) as u32;
-                face[1 + 4 * k..5 + 4 * k].copy_from_slice(&index.to_le_bytes());
+                face[1 + 4 * k..5 + 4 * k].copy_from_slice(&i.to_le_bytes());
             }
             self.faces
                 .write_all(&face)
                 .map_err(|e| io(e, &self.paths[1]))?;
+        }
+        for p in &mesh.imported {
+            let mut rec = [0u8; IMPORT_BYTES];
+            for (c, x) in p.iter().enumerate() {
+                rec[4 * c..4 * c + 4].copy_from_slice(&x.to_le_bytes());
+            }
+            self.imports
+                .write_all(&rec)
+                .map_err(|e| io(e, &self.paths[3]))?;
         }
         self.counts.vertices += mesh.vertices.len() as u64;
         self.counts.triangles += mesh.triangles.len() as u64;
@@ -342,6 +374,7 @@ impl MeshSpool {
         let sets = read_sets(&self.paths[2])?;
         let mut vertices = open(&self.paths[0])?;
         let mut faces = open(&self.paths[1])?;
+        let mut imports = open(&self.paths[3])?;
         let mut window: Vec<Point> = Vec::new();
         let mut done = MeshCounts::default();
         for end in sets {
@@ -354,23 +387,22 @@ impl MeshSpool {
                 faces
                     .read_exact(&mut rec)
                     .map_err(|e| io(e, &self.paths[1]))?;
-                let index = |k: usize| {
-                    u64::from(u32::from_le_bytes([
-                        rec[1 + 4 * k],
-                        rec[2 + 4 * k],
-                        rec[3 + 4 * k],
-                        rec[4 + 4 * k],
-                    ]))
-                };
                 let mut corners = [[0f32; 3]; 3];
-                for (k, c) in corners.iter_mut().enumerate() {
-                    *c = index(k)
-                        .checked_sub(done.vertices)
-                        .and_then(|i| window.get(i as usize))
-                        .copied()
-                        .ok_or_else(|| {
-                            FileError::at(&self.paths[1], "a face refers to another set's vertex")
-                        })?;
+                for (c, index) in corners.iter_mut().zip(face_indices(&rec)) {
+                    *c = if index < done.vertices {
+                        let mut rec = [0u8; IMPORT_BYTES];
+                        imports
+                            .read_exact(&mut rec)
+                            .map_err(|e| io(e, &self.paths[3]))?;
+                        [float(&rec, 0), float(&rec, 1), float(&rec, 2)]
+                    } else {
+                        window
+                            .get((index - done.vertices) as usize)
+                            .copied()
+                            .ok_or_else(|| {
+                                FileError::at(&self.paths[1], "a face refers to a later vertex")
+                            })?
+                    };
                 }
                 each(corners, z_top);
             }
@@ -461,6 +493,69 @@ fn sets_within(path: &Path, kept: MeshCounts) -> Result<(u64, MeshCounts), FileE
     Ok((within as u64, last))
 }
 
+/// How many imported positions the first `kept` faces in `faces` use (their corners below
+/// the first vertex of their set, with `sets` the set ends).
+fn imports_within(faces: &Path, sets: &[MeshCounts], kept: MeshCounts) -> Result<u64, FileError> {
+    let io = |e: std::io::Error| FileError::at(faces, format!("cannot read: {e}"));
+    let mut r = BufReader::new(File::open(faces).map_err(io)?);
+    let (mut count, mut set, mut start) = (0, 0, 0);
+    for f in 0..kept.triangles {
+        while sets.get(set).is_some_and(|s| f >= s.triangles) {
+            start = sets[set].vertices;
+            set += 1;
+        }
+        let mut rec = [0u8; FACE_BYTES];
+        r.read_exact(&mut rec).map_err(io)?;
+        count += face_indices(&rec).iter().filter(|&&i| i < start).count() as u64;
+    }
+    Ok(count)
+}
+
+/// The three vertex indices of a spooled face.
+fn face_indices(rec: &[u8; FACE_BYTES]) -> [u64; 3] {
+    [0, 1, 2].map(|k| {
+        let b = |i: usize| rec[1 + 4 * k + i];
+        u64::from(u32::from_le_bytes([b(0), b(1), b(2), b(3)]))
+    })
+}
+
+/// The layers next to `layers[set]` (same axis, cells that touch) outside it, each with
+/// whether it comes after the set; `layers` sorted by their cells' Z-order codes.
+fn neighbours<'a>(
+    layers: &[(u64, LayerRef<'a>)],
+    set: std::ops::Range<usize>,
+) -> Vec<Neighbour<'a>> {
+    let mut found: Vec<usize> = Vec::new();
+    for (_, l) in &layers[set.clone()] {
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let key = CellKey::new(l.key.x + dx, l.key.y + dy, l.key.z + dz);
+                    let code = z_order(&key);
+                    let from = layers.partition_point(|(c, _)| *c < code);
+                    found.extend(
+                        (from..layers.len())
+                            .take_while(|&i| layers[i].0 == code)
+                            .filter(|&i| {
+                                let n = &layers[i].1;
+                                n.key == key && n.axis == l.axis && !set.contains(&i)
+                            }),
+                    );
+                }
+            }
+        }
+    }
+    found.sort_unstable();
+    found.dedup();
+    found
+        .into_iter()
+        .map(|i| Neighbour {
+            layer: layers[i].1,
+            later: i >= set.end,
+        })
+        .collect()
+}
+
 /// Every set end spooled in `path`.
 fn read_sets(path: &Path) -> Result<Vec<MeshCounts>, FileError> {
     let bytes =
@@ -492,7 +587,9 @@ impl Drop for MeshSpool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::ply::read_ply_points;
+    use crate::eval::topology::Topology;
+    use crate::io::mesh_weld::weld;
+    use crate::io::ply::{read_ply_mesh, read_ply_points};
     use slamesh_core::cell::{Axis, CellKey};
     use slamesh_core::lattice::VERTICES;
     use slamesh_core::layer::Layer;
@@ -583,6 +680,87 @@ mod tests {
         resumed.for_each_triangle(|_, _| again += 1).unwrap();
         assert_eq!(again as u64, kept.triangles);
         drop(resumed);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Welded in sets of two layers, a 3 x 3 floor of cells is the mesh one set makes: one
+    /// piece, the same vertices and triangles; faces that use an earlier set's vertex draw
+    /// it from the imported positions, also after a resume.
+    #[test]
+    fn the_sets_of_one_call_are_welded_across_their_cuts() {
+        let lattice = Lattice {
+            cell_size: 1.0,
+            full_cover: true,
+        };
+        let mut map = MeshMap::with_capacity(16, 16, lattice);
+        for x in 0..3 {
+            for y in 0..3 {
+                let h = 0.5 + 0.01 * (x + y) as f32;
+                let layer = Layer {
+                    pred: [h; VERTICES],
+                    var: [0.01; VERTICES],
+                };
+                map.insert_layer(CellKey::new(x, y, 0), Axis::Z, layer, 0)
+                    .unwrap();
+            }
+        }
+        let cfg = MeshConfig {
+            variance_show: 0.3,
+            max_slope_deg: 90.0,
+        };
+        let whole = weld(map.layers(), &lattice, Shown::new(&cfg));
+        let dir = crate::test_support::scratch_dir("mesh-cuts");
+        let target = dir.join("m.ply");
+        let mut spool = MeshSpool::new(&target, lattice, &cfg).unwrap();
+        spool.set_layers(2);
+        spool.add_map(&map).unwrap();
+        let counts = MeshCounts {
+            vertices: whole.vertices.len() as u64,
+            triangles: whole.triangles.len() as u64,
+        };
+        assert_eq!((spool.counts(), counts.triangles), (counts, 9 * 50));
+        let mut streamed = Vec::new();
+        spool.for_each_triangle(|t, _| streamed.push(t)).unwrap();
+        let corners = |t: &[Point; 3]| {
+            let mut c = t.map(|p| p.map(|x| (x * 1e4).round() as i64));
+            c.sort_unstable();
+            c
+        };
+        let mut expected: Vec<_> = whole
+            .triangles
+            .iter()
+            .map(|t| corners(&t.map(|i| whole.vertices[i as usize].position)))
+            .collect();
+        let mut got: Vec<_> = streamed.iter().map(corners).collect();
+        expected.sort_unstable();
+        got.sort_unstable();
+        assert_eq!(got, expected);
+        // Resumed after its second set (whose faces use the first set's vertices).
+        spool.flush().unwrap();
+        let sets = read_sets(&spool.paths[2]).unwrap();
+        assert_eq!(sets.len(), 5);
+        let imports = imports_within(&spool.paths[1], &sets, sets[1]).unwrap();
+        assert!(imports > 0);
+        let paths = spool.paths.clone();
+        std::mem::forget(spool);
+        let mut resumed = MeshSpool::resume(&target, lattice, &cfg, sets[1]).unwrap();
+        let mut again = 0;
+        resumed.for_each_triangle(|_, _| again += 1).unwrap();
+        assert_eq!(again, sets[1].triangles);
+        assert_eq!(
+            std::fs::metadata(&paths[3]).unwrap().len(),
+            imports * IMPORT_BYTES as u64
+        );
+        resumed
+            .finish(&[(target.clone(), MeshFormat::Ply)])
+            .unwrap();
+        // The whole mesh, written: one piece.
+        let mut spool = MeshSpool::new(&target, lattice, &cfg).unwrap();
+        spool.set_layers(2);
+        spool.add_map(&map).unwrap();
+        spool.finish(&[(target.clone(), MeshFormat::Ply)]).unwrap();
+        let written = read_ply_mesh(&target).unwrap();
+        assert_eq!(Topology::of(&written.triangles).pieces, 1);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

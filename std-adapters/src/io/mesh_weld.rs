@@ -35,7 +35,7 @@ use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::lattice::{Lattice, N, VERTICES};
 use slamesh_core::layer::{lattice_triangle, Shown, TRIANGLES};
 use slamesh_core::map::LayerRef;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 /// A vertex of a welded mesh.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,8 +53,13 @@ pub struct MeshVertex {
 pub struct WeldedMesh {
     /// The vertices, in the order their layers came.
     pub vertices: Vec<MeshVertex>,
-    /// Triangles as indices into `vertices`, counter-clockwise seen from their layer's `+axis`.
+    /// Triangles as indices into the whole mesh (`vertices` from the set's first index on;
+    /// lower ones are earlier sets' vertices), counter-clockwise seen from their layer's
+    /// `+axis`.
     pub triangles: Vec<[u32; 3]>,
+    /// The position of each corner of `triangles`, in order, that is an earlier set's
+    /// vertex (so that a reader of one set at a time can draw them).
+    pub imported: Vec<[f32; 3]>,
     /// Vertices that were merged into another one.
     pub merged: u64,
     /// Which lattice triangles each layer showed, in the order the layers came (bit `t` for
@@ -63,13 +68,47 @@ pub struct WeldedMesh {
     pub shown: Vec<u64>,
 }
 
-/// A used vertex of one layer, before welding.
+/// A vertex of a layer, by its cell, axis and lattice index.
+type VertexId = (CellKey, Axis, u8);
+
+/// Where a set's vertex went, for the sets welded after it ([`weld_set`]): for a vertex of
+/// a later set merged into one this set wrote, that vertex's index and position. Entries
+/// are taken when the later set is welded.
+#[derive(Debug, Default)]
+pub struct SeamLinks {
+    written: HashMap<VertexId, (u32, [f32; 3])>,
+}
+
+/// A layer next to a set but outside it, welded with the set's vertices (its predictions
+/// join their clusters) without its triangles.
+#[derive(Debug, Clone, Copy)]
+pub struct Neighbour<'a> {
+    /// The layer.
+    pub layer: LayerRef<'a>,
+    /// Whether its set is welded after this one.
+    pub later: bool,
+}
+
+/// A vertex of one layer, before welding.
 struct Slot {
     position: [f64; 3],
     variance: f32,
     axis: Axis,
+    id: VertexId,
+    /// For a neighbour's vertex: whether its set comes later.
+    neighbour: Option<bool>,
     /// `(d, U, V)` and the coordinate along `d`, for a border vertex of a face lattice.
     line: Option<([i64; 3], f64)>,
+}
+
+/// Where a cluster of slots goes in the output.
+#[derive(Clone, Copy)]
+enum Out {
+    Unused,
+    /// This set's vertex `i`.
+    Here(u32),
+    /// A vertex an earlier set wrote: its index and position.
+    Written(u32, [f32; 3]),
 }
 
 fn component(key: &CellKey, i: usize) -> i64 {
@@ -86,25 +125,38 @@ pub fn weld<'a>(
     lattice: &Lattice,
     shown: Shown,
 ) -> WeldedMesh {
+    weld_set(layers, &[], &mut SeamLinks::default(), 0, lattice, shown)
+}
+
+/// The welded mesh of one set of layers, with their `neighbours` in other sets: vertices
+/// shared with a set welded earlier are that set's (from `links`), and vertices this set
+/// writes that later sets share go into `links`. Triangle indices count from `first`, the
+/// index of this set's first vertex in the whole mesh.
+pub fn weld_set<'a>(
+    layers: impl IntoIterator<Item = LayerRef<'a>>,
+    neighbours: &[Neighbour<'a>],
+    links: &mut SeamLinks,
+    first: u32,
+    lattice: &Lattice,
+    shown: Shown,
+) -> WeldedMesh {
     let table = lattice.table();
     let spacing = lattice.cell_size / (N - 1) as f64;
     let mut slots: Vec<Slot> = Vec::new();
-    // Each layer with the slot of each vertex of its triangles within the slope limit.
-    let mut placed: Vec<(LayerRef<'a>, [u32; VERTICES])> = Vec::new();
-    for l in layers {
+    let mut add_slots = |l: &LayerRef<'a>, neighbour: Option<bool>| {
         let mut index = [u32::MAX; VERTICES];
         let (a, b) = l.axis.locations();
         let d = l.axis.index();
         let slope = l.layer.slope_mask(&table, shown.min_axis_cosine);
         for t in (0..TRIANGLES).filter(|t| slope & (1 << t) != 0) {
             for j in lattice_triangle(t) {
-                if index[j] != u32::MAX {
+                let (ia, ib) = (j / N, j % N);
+                let border = ia == 0 || ia == N - 1 || ib == 0 || ib == N - 1;
+                if index[j] != u32::MAX || (neighbour.is_some() && !border) {
                     continue;
                 }
                 index[j] = slots.len() as u32;
                 let p = l.layer.vertex(&table, &l.key, l.axis, j);
-                let (ia, ib) = (j / N, j % N);
-                let border = ia == 0 || ia == N - 1 || ib == 0 || ib == N - 1;
                 let line = (lattice.full_cover && border).then(|| {
                     let u = component(&l.key, a) * (N as i64 - 1) + ia as i64;
                     let v = component(&l.key, b) * (N as i64 - 1) + ib as i64;
@@ -114,11 +166,21 @@ pub fn weld<'a>(
                     position: [p.x, p.y, p.z],
                     variance: l.layer.var[j],
                     axis: l.axis,
+                    id: (l.key, l.axis, j as u8),
+                    neighbour,
                     line,
                 });
             }
         }
-        placed.push((l, index));
+        index
+    };
+    // Each layer with the slot of each vertex of its triangles within the slope limit.
+    let placed: Vec<(LayerRef<'a>, [u32; VERTICES])> = layers
+        .into_iter()
+        .map(|l| (l, add_slots(&l, None)))
+        .collect();
+    for n in neighbours {
+        add_slots(&n.layer, Some(n.later));
     }
     // Clusters: each slot's first slot on its line within half a spacing of it.
     let mut root: Vec<u32> = (0..slots.len() as u32).collect();
@@ -145,11 +207,16 @@ pub fn weld<'a>(
             start = i;
         }
     }
-    // Each cluster's fused inverse variance and size.
-    let mut weight = vec![(0.0f64, 0u32); slots.len()];
+    // Each cluster's fused position (weighted sum), inverse variance and size.
+    let mut sums = vec![([0.0f64; 3], 0.0f64, 0u32); slots.len()];
     for (s, slot) in slots.iter().enumerate() {
-        let w = &mut weight[root[s] as usize];
-        *w = (w.0 + 1.0 / f64::from(slot.variance).max(1e-6), w.1 + 1);
+        let w = 1.0 / f64::from(slot.variance).max(1e-6);
+        let sum = &mut sums[root[s] as usize];
+        for c in 0..3 {
+            sum.0[c] += w * slot.position[c];
+        }
+        sum.1 += w;
+        sum.2 += 1;
     }
     // What each layer shows: its shown_mask with the fused variances of its merged vertices.
     let mut corners: Vec<[u32; 3]> = Vec::new();
@@ -157,9 +224,8 @@ pub fn weld<'a>(
     for (l, index) in &placed {
         let mut welded = *l.layer;
         for (var, &s) in welded.var.iter_mut().zip(index) {
-            if let Some(&(w, members)) =
-                weight.get(root.get(s as usize).copied().unwrap_or(u32::MAX) as usize)
-            {
+            let cluster = root.get(s as usize).and_then(|&r| sums.get(r as usize));
+            if let Some(&(_, w, members)) = cluster {
                 if members > 1 {
                     *var = (1.0 / w) as f32;
                 }
@@ -174,65 +240,102 @@ pub fn weld<'a>(
                 .filter(|tri| !tri.contains(&u32::MAX)),
         );
     }
-    let mut used = vec![false; slots.len()];
+    let mut out = vec![Out::Unused; slots.len()];
     for &s in corners.iter().flatten() {
-        used[root[s as usize] as usize] = true;
+        out[root[s as usize] as usize] = Out::Here(0);
     }
-    // Output vertices in slot order, each at its cluster's fused position.
-    let mut out_index = vec![u32::MAX; slots.len()];
-    let mut sums: Vec<([f64; 3], f64)> = Vec::new();
-    let mut axes: Vec<Axis> = Vec::new();
-    let mut merged = 0;
+    // A used cluster with a vertex an earlier set wrote is that vertex.
     for (s, slot) in slots.iter().enumerate() {
         let r = root[s] as usize;
-        if !used[r] {
+        if slot.neighbour.is_some() {
             continue;
         }
-        if out_index[r] == u32::MAX {
-            out_index[r] = sums.len() as u32;
-            sums.push(([0.0; 3], 0.0));
-            axes.push(slot.axis);
-        } else {
-            merged += 1;
+        if let Some((i, p)) = links.written.remove(&slot.id) {
+            if matches!(out[r], Out::Here(_)) {
+                out[r] = Out::Written(i, p);
+            }
         }
-        out_index[s] = out_index[r];
-        let w = 1.0 / f64::from(slot.variance).max(1e-6);
-        let sum = &mut sums[out_index[s] as usize];
-        for c in 0..3 {
-            sum.0[c] += w * slot.position[c];
-        }
-        sum.1 += w;
     }
-    let positions: Vec<[f64; 3]> = sums.iter().map(|(p, w)| p.map(|c| c / w)).collect();
+    // The others are this set's vertices, in slot order.
+    let mut axes: Vec<Axis> = Vec::new();
+    let mut positions: Vec<[f64; 3]> = Vec::new();
+    let mut variances: Vec<f32> = Vec::new();
+    let mut merged = 0;
+    let mut placed_root = vec![false; slots.len()];
+    for (s, slot) in slots.iter().enumerate() {
+        let r = root[s] as usize;
+        if slot.neighbour.is_some() || matches!(out[r], Out::Unused) {
+            continue;
+        }
+        if std::mem::replace(&mut placed_root[r], true) {
+            merged += 1;
+            continue;
+        }
+        match out[r] {
+            Out::Here(_) => {
+                let (sum, w, _) = sums[r];
+                out[r] = Out::Here(positions.len() as u32);
+                positions.push(sum.map(|c| c / w));
+                variances.push((1.0 / w) as f32);
+                axes.push(slot.axis);
+            }
+            _ => merged += 1,
+        }
+    }
+    // Vertices later sets share: where they went.
+    for (s, slot) in slots.iter().enumerate() {
+        if slot.neighbour != Some(true) {
+            continue;
+        }
+        let at = match out[root[s] as usize] {
+            Out::Here(i) => (first + i, positions[i as usize].map(|c| c as f32)),
+            Out::Written(i, p) => (i, p),
+            Out::Unused => continue,
+        };
+        links.written.insert(slot.id, at);
+    }
     let mut seen = HashSet::new();
     let mut triangles = Vec::with_capacity(corners.len());
+    let mut imported = Vec::new();
     let mut normals = vec![[0.0f64; 3]; positions.len()];
     for c in &corners {
-        let t = c.map(|s| out_index[s as usize]);
+        let o = c.map(|s| out[root[s as usize] as usize]);
+        let at = o.map(|o| match o {
+            Out::Here(i) => (first + i, positions[i as usize]),
+            Out::Written(i, p) => (i, p.map(f64::from)),
+            Out::Unused => (u32::MAX, [0.0; 3]),
+        });
+        let t = at.map(|(i, _)| i);
         let mut key = t;
         key.sort_unstable();
         if key[0] == key[1] || key[1] == key[2] || !seen.insert(key) {
             continue;
         }
-        let [p0, p1, p2] = t.map(|i| positions[i as usize]);
+        let [p0, p1, p2] = at.map(|(_, p)| p);
         let (u, v) = (sub(p1, p0), sub(p2, p0));
         let n = [
             u[1] * v[2] - u[2] * v[1],
             u[2] * v[0] - u[0] * v[2],
             u[0] * v[1] - u[1] * v[0],
         ];
-        for &i in &t {
-            for k in 0..3 {
-                normals[i as usize][k] += n[k];
+        for o in o {
+            match o {
+                Out::Here(i) => {
+                    for k in 0..3 {
+                        normals[i as usize][k] += n[k];
+                    }
+                }
+                Out::Written(_, p) => imported.push(p),
+                Out::Unused => {}
             }
         }
         triangles.push(t);
     }
     let vertices = positions
         .iter()
-        .zip(&sums)
+        .zip(&variances)
         .zip(normals.iter().zip(&axes))
-        .map(|((p, (_, w)), (n, axis))| {
+        .map(|((p, &variance), (n, axis))| {
             let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
             let normal = if norm > 1e-12 {
                 n.map(|c| (c / norm) as f32)
@@ -244,13 +347,14 @@ pub fn weld<'a>(
             MeshVertex {
                 position: p.map(|c| c as f32),
                 normal,
-                variance: (1.0 / w) as f32,
+                variance,
             }
         })
         .collect();
     WeldedMesh {
         vertices,
         triangles,
+        imported,
         merged,
         shown: shown_masks,
     }
