@@ -3,14 +3,18 @@
 //! more than 0.1 m from the true surfaces (the mean distance of four points on it), by the
 //! mean variance of its corners and by how many of its lattice neighbours pass the variance
 //! limit. This is the measurement behind `Layer::shown_mask`'s notch and speck rules
-//! (docs/design.md §1.6).
+//! (docs/design.md §1.6). Then the same for the triangles each layer shows by its own
+//! variances and those it shows only in the welded mesh, by its corners' fused variances
+//! (§1.10).
 //!
 //! `cargo run --release --example triangle_errors -- [--frames N] [--preset NAME]`
 //! (100 frames and the `default` preset by default).
 
 use slamesh::io::config_file;
+use slamesh::io::mesh_weld::weld;
 use slamesh::parallel::Workers;
 use slamesh_core::layer::{lattice_triangle, triangle_neighbours, Shown, TRIANGLES};
+use slamesh_core::map::LayerRef;
 use slamesh_core::{KittiCapacity, NoProbe, Pipeline};
 use slamesh_sim::{Drive, SurfaceDistance};
 
@@ -46,6 +50,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let truth = SurfaceDistance::new(&drive.scene);
     let table = config.lattice().table();
     let shown = Shown::new(&config.mesh);
+    // The mean distance of four points of lattice triangle `t` of `l` to the true surfaces.
+    let off_truth = |l: &LayerRef<'_>, t: usize| {
+        let v = lattice_triangle(t).map(|j| l.layer.vertex(&table, &l.key, l.axis, j));
+        [(1.0, 1.0), (4.0, 1.0), (1.0, 4.0), (1.0, 1.0 / 4.0)]
+            .iter()
+            .map(|&(a, b)| {
+                let (a, b) = (a / 6.0, b / 6.0);
+                let p = v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b;
+                truth.distance(&(drive.poses[0] * nalgebra::Point3::from(p)).coords)
+            })
+            .sum::<f64>()
+            / 4.0
+    };
     // [bin][confident neighbours] = (triangles, off by more than 0.1 m)
     let mut counts = [[(0u64, 0u64); 4]; BINS.len()];
     for l in pipeline.map().layers() {
@@ -53,16 +70,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let variance = |t: usize| l.layer.mean_variance(&lattice_triangle(t));
         let confident = |t: usize| slope & (1 << t) != 0 && variance(t) < shown.variance;
         for t in (0..TRIANGLES).filter(|&t| slope & (1 << t) != 0) {
-            let v = lattice_triangle(t).map(|j| l.layer.vertex(&table, &l.key, l.axis, j));
-            let error = [(1.0, 1.0), (4.0, 1.0), (1.0, 4.0), (1.0, 1.0 / 4.0)]
-                .iter()
-                .map(|&(a, b)| {
-                    let (a, b) = (a / 6.0, b / 6.0);
-                    let p = v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b;
-                    truth.distance(&(drive.poses[0] * nalgebra::Point3::from(p)).coords)
-                })
-                .sum::<f64>()
-                / 4.0;
+            let error = off_truth(&l, t);
             let bin = BINS
                 .iter()
                 .position(|&hi| variance(t) < hi * shown.variance)
@@ -86,6 +94,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         println!();
         lo = *hi;
+    }
+    // Welded: the layers' own shown triangles against those shown by the fused variances.
+    let welded = weld(pipeline.map().layers(), &config.lattice(), shown);
+    let mut by_rule = [(0u64, 0u64, 0u64); 2];
+    for (l, &mask) in pipeline.map().layers().zip(&welded.shown) {
+        let own = l.layer.shown_mask(&table, shown);
+        for t in (0..TRIANGLES).filter(|&t| mask & (1 << t) != 0) {
+            let error = off_truth(&l, t);
+            let c = &mut by_rule[usize::from(own & (1 << t) == 0)];
+            *c = (
+                c.0 + 1,
+                c.1 + u64::from(error > 0.1),
+                c.2 + u64::from(error > 0.2),
+            );
+        }
+    }
+    for (name, (n, off1, off2)) in ["own variances", "fused only"].iter().zip(by_rule) {
+        let share = |k: u64| 100.0 * k as f64 / n.max(1) as f64;
+        println!(
+            "welded, shown by {name:13}: {n:7} triangles, {:4.1} % > 0.1 m off, {:4.1} % > 0.2 m",
+            share(off1),
+            share(off2)
+        );
     }
     Ok(())
 }

@@ -19,10 +19,10 @@ pub fn peak_rss_bytes() -> Option<u64> {
     status_bytes("VmHWM:")
 }
 
-/// Bytes welding holds a layer of a set at most: its slots, clusters, sums, triangles and
-/// welded vertices (a set of 1 024 layers took 11.4 MB above the frames' resident memory at
-/// the end of `tests/memory.rs`'s run).
-pub const WELD_BYTES_PER_LAYER: usize = 12 * 1024;
+/// Bytes welding holds a layer of a set at most: its slots (its neighbours' border vertices
+/// too), clusters, sums, triangles and welded vertices (a set of 1 024 layers took 13.2 MB
+/// above the frames' resident memory at the end of `tests/memory.rs`'s run).
+pub const WELD_BYTES_PER_LAYER: usize = 14 * 1024;
 
 /// Layers welded together under a memory cap ([`MeshSpool::set_layers`]): a quarter of a run's
 /// usual [`SET_LAYERS`], so that welding holds about 3 MB at once (for more seams between
