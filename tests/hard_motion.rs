@@ -11,6 +11,16 @@ use slamesh_sim::Drive;
 
 /// Per step: within 5 cm and 0.5 degree of the truth; and the statuses.
 fn track(how: Carried, frames: usize, config: Config) -> (Vec<bool>, Vec<RegistrationStatus>) {
+    let (tracked, statuses, _) = track_with_errors(how, frames, config);
+    (tracked, statuses)
+}
+
+/// As [`track`], with the mean step translation error (metres).
+fn track_with_errors(
+    how: Carried,
+    frames: usize,
+    config: Config,
+) -> (Vec<bool>, Vec<RegistrationStatus>, f64) {
     let drive = Drive::carried(frames, how, 1);
     let workers = Workers::new(2).unwrap();
     let mut pipeline = Pipeline::<Lidar32Capacity>::new(config).unwrap();
@@ -23,14 +33,37 @@ fn track(how: Carried, frames: usize, config: Config) -> (Vec<bool>, Vec<Registr
         poses.push(o.t_world_sensor);
         statuses.push(o.status);
     }
-    let tracked = (1..frames)
+    let errors: Vec<Pose> = (1..frames)
         .map(|i| {
             let step = |p: &[Pose], q: &[Pose]| p[i - 1].inverse() * q[i];
-            let e = step(&drive.poses, &drive.poses).inverse() * step(&poses, &poses);
-            e.translation.vector.norm() <= 0.05 && e.rotation.angle().to_degrees() <= 0.5
+            step(&drive.poses, &drive.poses).inverse() * step(&poses, &poses)
         })
         .collect();
-    (tracked, statuses)
+    let tracked = errors
+        .iter()
+        .map(|e| e.translation.vector.norm() <= 0.05 && e.rotation.angle().to_degrees() <= 0.5)
+        .collect();
+    let mean = errors
+        .iter()
+        .map(|e| e.translation.vector.norm())
+        .sum::<f64>()
+        / errors.len().max(1) as f64;
+    (tracked, statuses, mean)
+}
+
+#[test]
+fn polishing_after_a_fast_turn_cuts_the_step_error_by_a_third() {
+    // The `default` preset's registration (1.4 m face lattice), with and without the polish:
+    // 4.8 against 7.2 mm (hand-held) and 7.5 against 11.0 mm (drone) when written.
+    for (name, how) in [("hand-held", Carried::HANDHELD), ("drone", Carried::DRONE)] {
+        let mut config = Config::meshing();
+        config.grid.cell_size_m = 1.4;
+        let (_, _, polished) = track_with_errors(how, 24, config);
+        config.register.recovery.polish_rounds = 0;
+        let (_, _, plain) = track_with_errors(how, 24, config);
+        println!("{name}: mean step error {polished:.4} m polished, {plain:.4} m without");
+        assert!(polished < 0.8 * plain, "{name}: {polished} against {plain}");
+    }
 }
 
 #[test]

@@ -7,7 +7,8 @@
 #   tools/same_outputs.sh [BASE]        # SLAMESH_DATA defaults to ../shared/data
 set -euo pipefail
 cd "$(dirname "$0")/.."
-base=${1:-HEAD}
+# Resolved here: inside the worktree, HEAD would name the worktree's own commit.
+base=$(git rev-parse --verify "${1:-HEAD}^{commit}")
 data=${SLAMESH_DATA:-../shared/data}
 work=target/same-outputs
 rm -rf "$work/runs"

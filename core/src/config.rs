@@ -119,6 +119,17 @@ pub struct RecoveryConfig {
     /// As `settle_m`, in degrees. Default 1.0: KITTI's last rounds turn it by at most 0.07°,
     /// the town's by 0.22°; hand-held steps that ended wrong had turned by 2° to 5°.
     pub settle_deg: f64,
+    /// Rounds that refine a recovered pose, or a converged one after a turn of more than
+    /// `polish_turn_deg` (at no cross-cell reach, with `polish_huber_delta_m`); 0: none.
+    /// Default 2.
+    pub polish_rounds: usize,
+    /// A frame that converged from a prediction turning more than this from the last pose
+    /// (degrees) is polished too. Default 5: cars at 10 Hz turn less (KITTI by at most 1.5°
+    /// a frame), hand-held rigs and drones at 2 Hz by 10° to 45°.
+    pub polish_turn_deg: f64,
+    /// LM's Huber threshold in the polishing rounds (metres): tighter than the search's, for a
+    /// pose already close. Default 0.05.
+    pub polish_huber_delta_m: f64,
 }
 
 /// Map update (docs/design.md §1.5).
@@ -212,6 +223,9 @@ impl Default for Config {
                     accept_share: 0.6,
                     settle_m: 0.5,
                     settle_deg: 1.0,
+                    polish_rounds: 2,
+                    polish_turn_deg: 5.0,
+                    polish_huber_delta_m: 0.05,
                 },
             },
             map: MapConfig {
@@ -386,6 +400,16 @@ impl Config {
         }
         positive("register.recovery.settle_m", rc.settle_m)?;
         positive("register.recovery.settle_deg", rc.settle_deg)?;
+        positive(
+            "register.recovery.polish_huber_delta_m",
+            rc.polish_huber_delta_m,
+        )?;
+        if !(rc.polish_turn_deg.is_finite() && rc.polish_turn_deg >= 0.0) {
+            return Err(ConfigError {
+                field: "register.recovery.polish_turn_deg",
+                reason: "must be finite and at least 0",
+            });
+        }
         positive("map.variance_update", self.map.variance_update)?;
         positive("mesh.variance_show", self.mesh.variance_show)?;
         if !(self.mesh.max_slope_deg > 0.0 && self.mesh.max_slope_deg <= 90.0) {

@@ -309,20 +309,7 @@ impl<C: Capacity> Pipeline<C> {
         // `MapConfig::reconstruct_at_final_pose`): its bucketing and the pose it was made at.
         let mut for_update: Option<(BucketStats, Pose)> = None;
         if !self.map.is_empty() {
-            let r = self.config.register;
-            let (rounds, reach) = if self.motion.velocity_known() {
-                (r.iterations, r.cross_cell_overlap)
-            } else {
-                (r.initial_iterations, r.initial_cross_cell_overlap)
-            };
-            let mut best = self.register(pose, rounds, reach, exec, probe, &mut stats);
-            if best.verdict.is_lost(&r.recovery) {
-                if r.recovery.enabled {
-                    best = self.recover(best, exec, probe, &mut stats);
-                } else if best.status == RegistrationStatus::Converged {
-                    best.status = RegistrationStatus::NotConverged;
-                }
-            }
+            let best = self.register_scan(pose, exec, probe, &mut stats);
             stats.associate = best.associate;
             stats.conditioning = best.conditioning;
             stats.degenerate_directions = best.degenerate_directions;

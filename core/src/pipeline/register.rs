@@ -6,9 +6,10 @@ use super::{Pipeline, RegistrationStatus, ScanStats};
 use crate::associate::{associate, AssociateStats};
 use crate::bucket::BucketStats;
 use crate::capacity::Capacity;
+use crate::config::LmConfig;
 use crate::executor::Executor;
 use crate::lm::{self, LmError};
-use crate::math::{renormalized, Pose};
+use crate::math::{renormalized, rotation_angle, Pose};
 use crate::reconstruct::Purpose;
 use crate::recovery::{self, Verdict};
 use crate::stage::{Probe, Stage};
@@ -29,14 +30,55 @@ pub(super) struct Attempt {
 }
 
 impl<C: Capacity> Pipeline<C> {
+    /// Registers the filtered scan from the prediction `predicted`: the rounds of
+    /// docs/design.md §1.4, then, when they did not converge, recovery (§1.11); a frame that
+    /// converged from a prediction turning more than `polish_turn_deg` is polished, as a
+    /// recovered one is.
+    pub(super) fn register_scan(
+        &mut self,
+        predicted: Pose,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+        stats: &mut ScanStats,
+    ) -> Attempt {
+        let r = self.config.register;
+        let (rounds, reach) = if self.motion.velocity_known() {
+            (r.iterations, r.cross_cell_overlap)
+        } else {
+            (r.initial_iterations, r.initial_cross_cell_overlap)
+        };
+        let mut best = self.register(predicted, rounds, reach, &r.lm, exec, probe, stats);
+        let turn = self
+            .motion
+            .last()
+            .map_or(0.0, |last| rotation_angle(&(last.inverse() * predicted)));
+        if turn > r.recovery.polish_turn_deg.to_radians()
+            && best.status == RegistrationStatus::Converged
+            && !best.verdict.is_lost(&r.recovery)
+        {
+            // Polished first: a polish that ends lost sends the frame to recovery.
+            best = self.polish(best, exec, probe, stats);
+        }
+        if best.verdict.is_lost(&r.recovery) {
+            if r.recovery.enabled {
+                best = self.recover(best, exec, probe, stats);
+            } else if best.status == RegistrationStatus::Converged {
+                best.status = RegistrationStatus::NotConverged;
+            }
+        }
+        best
+    }
+
     /// Registers the filtered scan from `start` in `rounds` rounds, all but the last with
-    /// cross-cell `reach` (docs/design.md §1.4). Counts rounds, iterations and dropped layers
-    /// into `stats`; leaves the map alone.
+    /// cross-cell `reach` (docs/design.md §1.4), LM with `lm_config`. Counts rounds,
+    /// iterations and dropped layers into `stats`; leaves the map alone.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn register(
         &mut self,
         start: Pose,
         rounds: usize,
         reach: u32,
+        lm_config: &LmConfig,
         exec: &impl Executor,
         probe: &mut impl Probe,
         stats: &mut ScanStats,
@@ -86,12 +128,12 @@ impl<C: Capacity> Pipeline<C> {
                     a.associate.residuals,
                     self.scan.len() + made.unpaired,
                     iterations,
-                    r.lm.max_iterations,
+                    lm_config.max_iterations,
                     correction,
                     &r.recovery,
                 )
             };
-            match lm::solve(&self.residuals, &r.lm) {
+            match lm::solve(&self.residuals, lm_config) {
                 Ok(sol) => {
                     a.verdict = verdict(sol.iterations, &sol.correction);
                     a.pose = renormalized(sol.correction * a.pose);
@@ -106,11 +148,11 @@ impl<C: Capacity> Pipeline<C> {
                     // A scan too degenerate to solve is not lost, nor one with too few layers
                     // to pair from any guess; one that found too little to pair, or numbers
                     // that blew up, may be.
-                    a.verdict = verdict(r.lm.max_iterations, &Pose::identity());
+                    a.verdict = verdict(lm_config.max_iterations, &Pose::identity());
                     a.status = match e {
                         LmError::TooFewResiduals { .. } => {
                             a.verdict.hit_limit =
-                                self.scan.len() + made.unpaired >= r.lm.min_residuals;
+                                self.scan.len() + made.unpaired >= lm_config.min_residuals;
                             RegistrationStatus::TooFewResiduals
                         }
                         LmError::Degenerate { conditioning } => {
@@ -158,6 +200,7 @@ impl<C: Capacity> Pipeline<C> {
                 guess,
                 rc.rounds,
                 r.initial_cross_cell_overlap,
+                &r.lm,
                 exec,
                 probe,
                 stats,
@@ -184,6 +227,50 @@ impl<C: Capacity> Pipeline<C> {
                 RegistrationStatus::NotConverged
             };
         }
+        if best.status == RegistrationStatus::Recovered {
+            best = self.polish(best, exec, probe, stats);
+        }
         best
+    }
+
+    /// Refines an attempt after a fast turn (recovered, or converged from a prediction that
+    /// turned far): `polish_rounds` rounds from its pose with no cross-cell reach and LM's
+    /// Huber threshold at `polish_huber_delta_m`, kept (with the attempt's status) when they
+    /// converge and settle (docs/design.md §1.11). The search's wide threshold lets it reach a
+    /// pose far from the guess; near it, the tight one gives wrong pairs less pull.
+    fn polish(
+        &mut self,
+        attempt: Attempt,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+        stats: &mut ScanStats,
+    ) -> Attempt {
+        let rc = self.config.register.recovery;
+        if rc.polish_rounds == 0 {
+            return attempt;
+        }
+        let lm_config = LmConfig {
+            huber_delta_m: rc.polish_huber_delta_m,
+            ..self.config.register.lm
+        };
+        let mut polished = self.register(
+            attempt.pose,
+            rc.polish_rounds,
+            0,
+            &lm_config,
+            exec,
+            probe,
+            stats,
+        );
+        if polished.status == RegistrationStatus::Converged && polished.verdict.settled {
+            polished.status = attempt.status;
+            polished
+        } else {
+            // The scan's buffers hold the polishing rounds now, not the recovered attempt's.
+            Attempt {
+                for_update: None,
+                ..attempt
+            }
+        }
     }
 }

@@ -150,6 +150,9 @@ parameters! {
     "register.recovery" register.recovery.accept_share: float as fv, "When no guess was sure, the best that converged and settled with at least this share matched is kept as recovered.";
     "register.recovery" register.recovery.settle_m: float as fv, "A last round that moved the pose by more than this (metres) has not settled: the frame goes to recovery.";
     "register.recovery" register.recovery.settle_deg: float as fv, "As settle_m, in degrees.";
+    "register.recovery" register.recovery.polish_rounds: count as uv, "Rounds that refine a recovered pose, or a converged one after a turn above polish_turn_deg (no cross-cell reach, polish_huber_delta_m); 0: none.";
+    "register.recovery" register.recovery.polish_turn_deg: float as fv, "A frame that converged from a prediction turning more than this (degrees) is polished too.";
+    "register.recovery" register.recovery.polish_huber_delta_m: float as fv, "LM's Huber threshold in the polishing rounds (metres).";
     "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
     "map" map.add_missing_layers: boolean as Value::Boolean, "Add a layer that a known cell lacks.";
     "map" map.reconstruct_at_final_pose: boolean as Value::Boolean, "Reconstruct the scan again at its final pose before fusing it (false: move the last round's reconstruction there instead; about a quarter faster, a little less accurate).";
@@ -369,12 +372,13 @@ mod tests {
             changed.map.reconstruct_at_final_pose = !c.map.reconstruct_at_final_pose;
             changed.register.recovery.yaw_step_deg = 10.0;
             changed.register.recovery.enabled = false;
+            changed.register.recovery.polish_turn_deg = 7.5;
             let text = documented_toml(&changed, name);
             let s = parse(&text).unwrap_or_else(|e| panic!("{name}: {e}\n{text}"));
             assert_eq!(s.config, changed, "{name}");
             assert_eq!(s.preset, name);
         }
-        assert_eq!(PARAMETERS.len(), 32);
+        assert_eq!(PARAMETERS.len(), 35);
     }
 
     #[test]
