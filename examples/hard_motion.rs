@@ -13,6 +13,10 @@
 //!
 //! `cargo run --release --example hard_motion -- [--frames N] [--preset NAME | --config FILE] [--seed S] [--steps] [--signals]`
 
+#[path = "common/flags.rs"]
+mod flags;
+
+use flags::Flags;
 use slamesh::eval::odometry::{ate_rmse, consecutive_errors};
 use slamesh::io::config_file;
 use slamesh::parallel::Workers;
@@ -22,20 +26,15 @@ use slamesh_sim::Drive;
 use std::collections::BTreeMap;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-    };
-    let frames: usize = value("--frames").map_or(Ok(60), |v| v.parse())?;
-    let seed: u64 = value("--seed").map_or(Ok(1), |v| v.parse())?;
-    let preset = value("--preset").map_or("default", |v| v.as_str());
-    let steps = args.iter().any(|a| a == "--steps");
-    let signals = args.iter().any(|a| a == "--signals");
+    let flags = Flags::from_env();
+    let frames: usize = flags.parse_or("--frames", 60)?;
+    let seed: u64 = flags.parse_or("--seed", 1)?;
+    let preset = flags.value("--preset").unwrap_or("default");
+    let steps = flags.has("--steps");
+    let signals = flags.has("--signals");
     // Per step: tracked or not, and the signals.
     let mut seen: Vec<(bool, [f64; 4])> = Vec::new();
-    let config = match value("--config") {
+    let config = match flags.value("--config") {
         Some(path) => config_file::read(std::path::Path::new(path))?.config,
         None => config_file::preset(preset).ok_or("unknown preset")?,
     };

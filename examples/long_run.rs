@@ -9,6 +9,10 @@
 //! the map's cells and layers, the current and the peak resident memory, and at the end the
 //! summary. Outputs go to a temporary folder, removed afterwards.
 
+#[path = "common/flags.rs"]
+mod flags;
+
+use flags::Flags;
 use slamesh::io::config_file::WindowSettings;
 use slamesh::io::mesh_spool::MeshFormat;
 use slamesh::run::{memory, FrameSource};
@@ -17,19 +21,13 @@ use slamesh_core::{Config, KittiCapacity};
 use slamesh_sim::Drive;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| -> Option<&str> {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-            .map(String::as_str)
-    };
-    let frames: usize = value("--frames").unwrap_or("1000").parse()?;
-    let every: usize = value("--every").unwrap_or("500").parse()?;
-    let threads: usize = value("--threads").unwrap_or("0").parse()?;
+    let flags = Flags::from_env();
+    let frames: usize = flags.parse_or("--frames", 1000)?;
+    let every: usize = flags.parse_or("--every", 500)?;
+    let threads: usize = flags.parse_or("--threads", 0)?;
     let window = WindowSettings {
-        max_age_frames: value("--evict-after").map(str::parse).transpose()?,
-        memory_cap_mb: value("--memory-cap").map(str::parse).transpose()?,
+        max_age_frames: flags.value("--evict-after").map(str::parse).transpose()?,
+        memory_cap_mb: flags.value("--memory-cap").map(str::parse).transpose()?,
         ..WindowSettings::default()
     };
     let mut drive = Drive::long_street(frames, 1.0, 7);

@@ -7,6 +7,10 @@
 //! `cargo run --release --example mesh_seams -- [--frames N] [--preset NAME] [--variance-show V]
 //! [--seed S]` (100 frames, the demo's preset, `town`, and seed 1 by default).
 
+#[path = "common/flags.rs"]
+mod flags;
+
+use flags::Flags;
 use slamesh::eval::seams::seam_causes;
 use slamesh::eval::topology::Topology;
 use slamesh::io::config_file;
@@ -19,19 +23,14 @@ use slamesh_core::{KittiCapacity, NoProbe, Pipeline};
 use slamesh_sim::Drive;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-    };
-    let frames: usize = value("--frames").map_or(Ok(100), |v| v.parse())?;
-    let preset = value("--preset").map_or("town", |v| v.as_str());
+    let flags = Flags::from_env();
+    let frames: usize = flags.parse_or("--frames", 100)?;
+    let preset = flags.value("--preset").unwrap_or("town");
     let mut config = config_file::preset(preset).ok_or("unknown preset")?;
-    if let Some(v) = value("--variance-show") {
+    if let Some(v) = flags.value("--variance-show") {
         config.mesh.variance_show = v.parse()?;
     }
-    let seed: u64 = value("--seed").map_or(Ok(1), |v| v.parse())?;
+    let seed: u64 = flags.parse_or("--seed", 1)?;
     let drive = Drive::town(frames, seed);
     let workers = Workers::new(0)?;
     let mut pipeline = Pipeline::<KittiCapacity>::new(config)?;

@@ -7,6 +7,10 @@
 //! `cargo run --release --example presets -- [--frames N] [--presets a,b,...] [--sets a,b,...]`
 //! (sets: office, hand-held, drone, car; N scans each, 300 by default, 120 for the 2 Hz ones).
 
+#[path = "common/flags.rs"]
+mod flags;
+
+use flags::Flags;
 use slamesh::eval::odometry::{ate_rmse, consecutive_errors};
 use slamesh::io::config_file;
 use slamesh::parallel::Workers;
@@ -17,16 +21,12 @@ use slamesh_sim::Drive;
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-    };
-    let frames: usize = value("--frames").map_or(Ok(300), |v| v.parse())?;
+    let flags = Flags::from_env();
+    let frames: usize = flags.parse_or("--frames", 300)?;
     let list = |flag: &str, all: &str| -> Vec<String> {
-        value(flag)
-            .map_or(all, |v| v.as_str())
+        flags
+            .value(flag)
+            .unwrap_or(all)
             .split(',')
             .map(str::to_owned)
             .collect()

@@ -12,6 +12,10 @@
 //!
 //! `cargo run --release --example rolling_sweep -- [--frames N] [--preset NAME] [--seed S] [--town]`
 
+#[path = "common/flags.rs"]
+mod flags;
+
+use flags::Flags;
 use slamesh::eval::odometry::{consecutive_errors, segment_errors};
 use slamesh::io::{config_file, trajectory};
 use slamesh::run::session::Deskew;
@@ -20,18 +24,13 @@ use slamesh_core::{KittiCapacity, Pose};
 use slamesh_sim::Drive;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-    };
-    let frames: usize = value("--frames").map_or(Ok(300), |v| v.parse())?;
-    let seed: u64 = value("--seed").map_or(Ok(1), |v| v.parse())?;
-    let preset = value("--preset").map_or("default", |v| v.as_str());
+    let flags = Flags::from_env();
+    let frames: usize = flags.parse_or("--frames", 300)?;
+    let seed: u64 = flags.parse_or("--seed", 1)?;
+    let preset = flags.value("--preset").unwrap_or("default");
     let config = config_file::preset(preset).ok_or("unknown preset")?;
     // `--town`: the town drive's own attitude, which jitters with the road's roughness.
-    let town = args.iter().any(|a| a == "--town");
+    let town = flags.has("--town");
     let what = if town { "town drive" } else { "car drive" };
     println!("{what}, {frames} frames, preset {preset}, seed {seed}");
     println!("run       mean step cm  worst cm  mean rot deg  100 m segment %");

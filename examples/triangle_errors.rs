@@ -10,6 +10,10 @@
 //! `cargo run --release --example triangle_errors -- [--frames N] [--preset NAME]`
 //! (100 frames and the `default` preset by default).
 
+#[path = "common/flags.rs"]
+mod flags;
+
+use flags::Flags;
 use slamesh::io::config_file;
 use slamesh::io::mesh_weld::weld;
 use slamesh::parallel::Workers;
@@ -31,14 +35,9 @@ const BINS: [f32; 8] = [
 ];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-    };
-    let frames: usize = value("--frames").map_or(Ok(100), |v| v.parse())?;
-    let preset = value("--preset").map_or("default", |v| v.as_str());
+    let flags = Flags::from_env();
+    let frames: usize = flags.parse_or("--frames", 100)?;
+    let preset = flags.value("--preset").unwrap_or("default");
     let config = config_file::preset(preset).ok_or("unknown preset")?;
     let drive = Drive::town(frames, 1);
     let workers = Workers::new(0)?;
