@@ -75,7 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     println!("vertices merged by welding: {}", welded.merged);
-    let c = seam_causes(map.layers(), &lattice, shown);
+    let c = seam_causes(map.layers(), &welded.shown, &lattice, shown);
     let share = |n: u64| 100.0 * n as f64 / c.open().max(1) as f64;
     println!("open edges by cause ({} in all):", c.open());
     for (cause, n) in [

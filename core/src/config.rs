@@ -124,8 +124,9 @@ pub struct RecoveryConfig {
     /// Default 2.
     pub polish_rounds: usize,
     /// A frame that converged from a prediction turning more than this from the last pose
-    /// (degrees) is polished too. Default 5: cars at 10 Hz turn less (KITTI by at most 1.5°
-    /// a frame), hand-held rigs and drones at 2 Hz by 10° to 45°.
+    /// (degrees) is polished too. Default 5: cars at 10 Hz turn less (kitti-mini's reference
+    /// poses by at most 2.7° a frame), the simulated hand-held rig and drone at 2 Hz by 8° to
+    /// 48°.
     pub polish_turn_deg: f64,
     /// LM's Huber threshold in the polishing rounds (metres): tighter than the search's, for a
     /// pose already close. Default 0.05.

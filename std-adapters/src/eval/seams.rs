@@ -1,8 +1,8 @@
 //! Why a welded mesh has boundary edges: each edge of a shown triangle that no other shown
 //! triangle shares after welding ([`crate::io::mesh_weld`]), put down to one cause.
 //!
-//! What a layer shows is what it shows in the welded mesh (its own `shown_mask`, and the
-//! border triangles shown for their corners' fused variance). An edge inside a layer's
+//! What a layer shows is what it shows in the welded mesh (its `shown_mask` with the fused
+//! variances of its merged vertices). An edge inside a layer's
 //! lattice is open when the lattice triangle across it is hidden: by its slope
 //! (`max_slope_deg`, whatever its variance), or else by its variance (`variance_show`). An edge on a cell
 //! face is open when, across the face (the neighbour cell, or the one above or below it
@@ -17,7 +17,6 @@
 //! the welded mesh's boundary count (clusters of three or more vertices, dropped duplicate
 //! triangles).
 
-use crate::io::mesh_weld::weld;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::lattice::{Lattice, LatticeTable, N};
 use slamesh_core::layer::{lattice_triangle, triangle_neighbours, Layer, Shown, TRIANGLES};
@@ -81,24 +80,25 @@ impl Masks {
     }
 }
 
-/// Counts the open edges of `layers`' shown triangles by cause.
+/// Counts the open edges of `layers`' shown triangles by cause, with `shown_masks` what each
+/// layer shows in their welded mesh ([`WeldedMesh::shown`](crate::io::mesh_weld::WeldedMesh::shown) of
+/// `weld(layers, ..)`).
 pub fn seam_causes<'a>(
     layers: impl IntoIterator<Item = LayerRef<'a>>,
+    shown_masks: &[u64],
     lattice: &Lattice,
     shown: Shown,
 ) -> SeamCauses {
     let layers: Vec<LayerRef<'a>> = layers.into_iter().collect();
-    // What each layer shows in the welded mesh.
-    let shown_masks = weld(layers.iter().copied(), lattice, shown).shown;
     let by_place: HashMap<(CellKey, Axis), (&Layer, u64)> = layers
         .iter()
-        .zip(&shown_masks)
+        .zip(shown_masks)
         .map(|(l, &m)| ((l.key, l.axis), (l.layer, m)))
         .collect();
     let table = lattice.table();
     let tolerance = (lattice.cell_size / (N - 1) as f64 / 2.0) as f32;
     let mut c = SeamCauses::default();
-    for (l, &shown_mask) in layers.iter().zip(&shown_masks) {
+    for (l, &shown_mask) in layers.iter().zip(shown_masks) {
         let (a, b) = l.axis.locations();
         let d = l.axis.index();
         let masks = Masks::of(l.layer, shown_mask, &table, shown);
@@ -194,6 +194,7 @@ pub fn seam_causes<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::mesh_weld::weld;
     use slamesh_core::config::MeshConfig;
     use slamesh_core::lattice::VERTICES;
     use slamesh_core::map::MeshMap;
@@ -212,11 +213,15 @@ mod tests {
             pred: [h; VERTICES],
             var: [0.01; VERTICES],
         };
+        let causes = |map: &MeshMap| {
+            let welded = weld(map.layers(), &lattice, shown);
+            seam_causes(map.layers(), &welded.shown, &lattice, shown)
+        };
         // One floor cell alone: its 20 rim edges face nothing.
         let mut map = MeshMap::with_capacity(8, 8, lattice);
         map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, flat(0.5), 0)
             .unwrap();
-        let c = seam_causes(map.layers(), &lattice, shown);
+        let c = causes(&map);
         assert_eq!((c.edges, c.unseen, c.open()), (150, 20, 20));
         // A neighbour 5 cm higher welds the face between them (5 edges on each side); one
         // 40 cm higher does not. 40 rim edges are left facing nothing.
@@ -224,7 +229,7 @@ mod tests {
             .unwrap();
         map.insert_layer(CellKey::new(-1, 0, 0), Axis::Z, flat(0.9), 0)
             .unwrap();
-        let c = seam_causes(map.layers(), &lattice, shown);
+        let c = causes(&map);
         assert_eq!((c.not_merged, c.unseen, c.open()), (10, 40, 50), "{c:?}");
         // A wall in the cell beyond the floor's +y face: that face turns (5 edges); the
         // wall's own rim faces nothing.
@@ -233,7 +238,7 @@ mod tests {
             .unwrap();
         map.insert_layer(CellKey::new(0, 1, 0), Axis::Y, flat(0.1), 0)
             .unwrap();
-        let c = seam_causes(map.layers(), &lattice, shown);
+        let c = causes(&map);
         assert_eq!((c.orientation, c.unseen), (5, 35), "{c:?}");
         // A hole: one vertex too uncertain hides its six triangles, whose outer edges open.
         let mut holed = flat(0.5);
@@ -241,7 +246,7 @@ mod tests {
         let mut map = MeshMap::with_capacity(8, 8, lattice);
         map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, holed, 0)
             .unwrap();
-        let c = seam_causes(map.layers(), &lattice, shown);
+        let c = causes(&map);
         assert_eq!(
             (c.hidden_variance, c.unseen, c.edges),
             (6, 20, 132),

@@ -14,7 +14,7 @@
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
 use crate::io::mesh_weld::{weld_set, Neighbour, SeamLinks, WeldedMesh};
-use slamesh_core::cell::CellKey;
+use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::config::MeshConfig;
 use slamesh_core::lattice::Lattice;
 use slamesh_core::layer::Shown;
@@ -185,13 +185,15 @@ impl MeshSpool {
             };
             Ok::<_, FileError>(BufWriter::new(file))
         };
-        let kept_sets = match kept {
-            Some(k) => Some(sets_within(&paths[2], k)?),
-            None => None,
-        };
-        let kept_imports = match kept {
-            Some(k) => Some(imports_within(&paths[1], &read_sets(&paths[2])?, k)?),
-            None => None,
+        let (kept_sets, kept_imports) = match kept {
+            Some(k) => {
+                let sets = read_sets(&paths[2])?;
+                (
+                    Some(sets_within(&sets, k)),
+                    Some(imports_within(&paths[1], &sets, k)?),
+                )
+            }
+            None => (None, None),
         };
         let mut spool = MeshSpool {
             lattice,
@@ -478,9 +480,8 @@ impl MeshSpool {
     }
 }
 
-/// The set ends spooled in `path` up to `kept` (how many, and the last end).
-fn sets_within(path: &Path, kept: MeshCounts) -> Result<(u64, MeshCounts), FileError> {
-    let sets = read_sets(path)?;
+/// The set ends of `sets` up to `kept` (how many, and the last end).
+fn sets_within(sets: &[MeshCounts], kept: MeshCounts) -> (u64, MeshCounts) {
     let within = sets
         .iter()
         .take_while(|s| s.vertices <= kept.vertices && s.triangles <= kept.triangles)
@@ -490,7 +491,7 @@ fn sets_within(path: &Path, kept: MeshCounts) -> Result<(u64, MeshCounts), FileE
         .and_then(|i| sets.get(i))
         .copied()
         .unwrap_or_default();
-    Ok((within as u64, last))
+    (within as u64, last)
 }
 
 /// How many imported positions the first `kept` faces in `faces` use (their corners below
@@ -530,7 +531,14 @@ fn neighbours<'a>(
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    let key = CellKey::new(l.key.x + dx, l.key.y + dy, l.key.z + dz);
+                    let Some(key) = l
+                        .key
+                        .offset(Axis::X, dx)
+                        .and_then(|k| k.offset(Axis::Y, dy))
+                        .and_then(|k| k.offset(Axis::Z, dz))
+                    else {
+                        continue;
+                    };
                     let code = z_order(&key);
                     let from = layers.partition_point(|(c, _)| *c < code);
                     found.extend(

@@ -63,8 +63,8 @@ pub struct WeldedMesh {
     /// Vertices that were merged into another one.
     pub merged: u64,
     /// Which lattice triangles each layer showed, in the order the layers came (bit `t` for
-    /// `lattice_triangle(t)`): its own [`Layer::shown_mask`](slamesh_core::layer::Layer::shown_mask)
-    /// and the border triangles shown for their fused variance.
+    /// `lattice_triangle(t)`): its [`Layer::shown_mask`](slamesh_core::layer::Layer::shown_mask)
+    /// with the fused variances of its merged vertices.
     pub shown: Vec<u64>,
 }
 
@@ -105,6 +105,8 @@ struct Slot {
 #[derive(Clone, Copy)]
 enum Out {
     Unused,
+    /// Used by a shown triangle, not yet placed.
+    Used,
     /// This set's vertex `i`.
     Here(u32),
     /// A vertex an earlier set wrote: its index and position.
@@ -242,7 +244,7 @@ pub fn weld_set<'a>(
     }
     let mut out = vec![Out::Unused; slots.len()];
     for &s in corners.iter().flatten() {
-        out[root[s as usize] as usize] = Out::Here(0);
+        out[root[s as usize] as usize] = Out::Used;
     }
     // A used cluster with a vertex an earlier set wrote is that vertex.
     for (s, slot) in slots.iter().enumerate() {
@@ -251,7 +253,7 @@ pub fn weld_set<'a>(
             continue;
         }
         if let Some((i, p)) = links.written.remove(&slot.id) {
-            if matches!(out[r], Out::Here(_)) {
+            if matches!(out[r], Out::Used) {
                 out[r] = Out::Written(i, p);
             }
         }
@@ -272,7 +274,7 @@ pub fn weld_set<'a>(
             continue;
         }
         match out[r] {
-            Out::Here(_) => {
+            Out::Used => {
                 let (sum, w, _) = sums[r];
                 out[r] = Out::Here(positions.len() as u32);
                 positions.push(sum.map(|c| c / w));
@@ -290,7 +292,7 @@ pub fn weld_set<'a>(
         let at = match out[root[s] as usize] {
             Out::Here(i) => (first + i, positions[i as usize].map(|c| c as f32)),
             Out::Written(i, p) => (i, p),
-            Out::Unused => continue,
+            Out::Unused | Out::Used => continue,
         };
         links.written.insert(slot.id, at);
     }
@@ -303,7 +305,7 @@ pub fn weld_set<'a>(
         let at = o.map(|o| match o {
             Out::Here(i) => (first + i, positions[i as usize]),
             Out::Written(i, p) => (i, p.map(f64::from)),
-            Out::Unused => (u32::MAX, [0.0; 3]),
+            Out::Unused | Out::Used => (u32::MAX, [0.0; 3]),
         });
         let t = at.map(|(i, _)| i);
         let mut key = t;
@@ -326,7 +328,7 @@ pub fn weld_set<'a>(
                     }
                 }
                 Out::Written(_, p) => imported.push(p),
-                Out::Unused => {}
+                Out::Unused | Out::Used => {}
             }
         }
         triangles.push(t);
