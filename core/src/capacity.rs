@@ -44,10 +44,17 @@ pub trait Capacity {
     /// allocated in full by [`Pipeline::new`](crate::Pipeline::new) and touched, page by page,
     /// up to the largest scan seen.
     fn scan_bytes() -> usize {
-        Self::POINTS * (size_of::<Point>() + size_of::<(CellKey, Point)>())
-            + Self::SORT_ENTRIES * size_of::<(CellKey, Point)>()
+        Self::filter_bytes()
             + Self::SCAN_CELLS * size_of::<CellSpan>()
             + Self::SCAN_LAYERS * (size_of::<ScanLayer>() + size_of::<Residual>())
+    }
+
+    /// Bytes of the filter's buffers (points, the work buffer, the sort's buffer): part of
+    /// [`scan_bytes`](Self::scan_bytes), and all of a
+    /// [`ScanFilter`](crate::filter::ScanFilter)'s.
+    fn filter_bytes() -> usize {
+        Self::POINTS * (size_of::<Point>() + size_of::<(CellKey, Point)>())
+            + Self::SORT_ENTRIES * size_of::<(CellKey, Point)>()
     }
 
     /// Upper bound on the heap bytes of one pipeline with these capacities: the scan buffers

@@ -5,8 +5,9 @@
 //! points are dropped in input order. Everything dropped is counted in [`FilterStats`].
 
 use crate::bounded::BoundedVec;
+use crate::capacity::Capacity;
 use crate::cell::CellKey;
-use crate::config::FilterConfig;
+use crate::config::{Config, FilterConfig};
 use crate::executor::Executor;
 use crate::math::{to_point, to_vec3, Point, Vec3};
 use crate::sort::KeySorter;
@@ -231,6 +232,56 @@ pub fn downsample(
         let _ = out.push(to_point(&(sum / count as f64)));
     }
     stats.kept = out.len();
+}
+
+/// A scan filtered apart from a pipeline, for
+/// [`Pipeline::process_filtered_with`](crate::Pipeline::process_filtered_with): its points
+/// (sensor frame, one per voxel, in voxel-key order) and what the filter did.
+#[derive(Debug, Clone, Copy)]
+pub struct Filtered<'a> {
+    /// The down-sampled points.
+    pub points: &'a [Point],
+    /// What the filter kept and dropped.
+    pub stats: FilterStats,
+}
+
+/// The filter with buffers of its own, at the capacities of a pipeline's (`C`): filters the
+/// next scan, on another thread, while a pipeline registers this one. Its result is the
+/// pipeline's own filter's, to the bit (same function, same capacities).
+#[derive(Debug)]
+pub struct ScanFilter {
+    work: BoundedVec<(CellKey, Point)>,
+    sorter: KeySorter,
+    points: BoundedVec<Point>,
+}
+
+impl ScanFilter {
+    /// A filter with the buffers of capacity `C` ([`Capacity::filter_bytes`]), allocated now.
+    #[cfg(any(feature = "alloc", test))]
+    pub fn new<C: Capacity>() -> Self {
+        Self {
+            work: BoundedVec::with_capacity(C::POINTS),
+            sorter: KeySorter::with_capacity(C::SORT_ENTRIES),
+            points: BoundedVec::with_capacity(C::POINTS),
+        }
+    }
+
+    /// Filters and down-samples `raw` (sensor frame) as a pipeline with `config` would.
+    pub fn filter(&mut self, raw: &[Point], config: &Config, exec: &impl Executor) -> Filtered<'_> {
+        let stats = filter_and_downsample(
+            raw,
+            &config.filter,
+            config.voxel_leaf_m(),
+            &mut self.work,
+            &mut self.sorter,
+            &mut self.points,
+            exec,
+        );
+        Filtered {
+            points: &self.points,
+            stats,
+        }
+    }
 }
 
 #[cfg(test)]

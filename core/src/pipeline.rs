@@ -6,7 +6,6 @@
 //! pose; [`Pipeline::integrate_scan`] meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
 //! the capacities of `C`; nothing is allocated afterwards.
 
-use crate::associate::AssociateStats;
 use crate::bounded::BoundedVec;
 use crate::bucket::{bucket, BucketStats, CellSpan, Placement};
 use crate::capacity::{Capacity, KittiCapacity};
@@ -15,8 +14,8 @@ use crate::config::Config;
 #[cfg(any(feature = "alloc", test))]
 use crate::config::ConfigError;
 use crate::executor::{Executor, Serial};
-use crate::filter::{filter_and_downsample, FilterStats};
-use crate::fusion::{integrate, FusionStats};
+use crate::filter::{filter_and_downsample, FilterStats, Filtered};
+use crate::fusion::integrate;
 use crate::layer::ScanLayer;
 use crate::lm::Residual;
 use crate::map::MeshMap;
@@ -26,139 +25,12 @@ use crate::motion::ConstantVelocity;
 use crate::reconstruct::{reconstruct_cells, Purpose, ReconstructStats};
 use crate::sort::KeySorter;
 use crate::stage::{NoProbe, Probe, Stage};
-use core::fmt;
 use core::marker::PhantomData;
 
+mod outcome;
 mod register;
 
-/// How registration of one scan ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum RegistrationStatus {
-    /// The map was empty: the scan started it at the predicted pose.
-    FirstScan,
-    /// Every round solved.
-    Converged,
-    /// The geometry left some direction unconstrained (a tunnel, a plane): the pose was
-    /// corrected only in the directions the scan constrains and keeps the motion prediction
-    /// in the others ([`ScanStats::degenerate_directions`] says how many). If it constrained
-    /// none, the pose keeps the rounds before (the motion prediction if it was the first).
-    Degenerate,
-    /// A round had too few residuals: as for `Degenerate`.
-    TooFewResiduals,
-    /// The solver met non-finite numbers: as for `Degenerate`.
-    SolverFailed,
-    /// Registration from the motion prediction did not converge; it did from another guess
-    /// (docs/design.md §1.11). The pose is that guess's.
-    Recovered,
-    /// Registration converged from no guess: the pose is the best attempt's by
-    /// [`Verdict::score`](crate::recovery::Verdict::score), and may be wrong. With recovery
-    /// off, the prediction's attempt that did not converge.
-    NotConverged,
-    /// The pose was given ([`Pipeline::integrate_scan`]).
-    Given,
-}
-
-/// Why a scan was not used. The map and motion model are unchanged.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum ScanError {
-    /// No point survived the filter (all non-finite, out of range, or none given).
-    EmptyScan {
-        /// What the filter did.
-        stats: FilterStats,
-        /// The range limits it applied, `filter.range_min_m` and `filter.range_max_m` (m).
-        range_m: [f64; 2],
-    },
-    /// The given pose is not finite.
-    BadPose,
-}
-
-impl fmt::Display for ScanError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ScanError::EmptyScan { stats: s, range_m } => {
-                write!(f, "empty scan: none of {} points usable", s.input)?;
-                let far = s.out_of_range - s.too_near;
-                let mut parts = 0;
-                let mut part = |f: &mut fmt::Formatter<'_>, n: usize, what: fmt::Arguments| {
-                    if n == 0 {
-                        return Ok(());
-                    }
-                    parts += 1;
-                    write!(f, "{}{n} {what}", if parts == 1 { " (" } else { ", " })
-                };
-                part(f, s.non_finite, format_args!("not finite"))?;
-                part(
-                    f,
-                    s.too_near,
-                    format_args!(
-                        "closer than filter.range_min_m = {} m: lower it for a sensor this close",
-                        range_m[0]
-                    ),
-                )?;
-                part(
-                    f,
-                    far,
-                    format_args!(
-                        "farther than filter.range_max_m = {} m: raise it for a scene this large",
-                        range_m[1]
-                    ),
-                )?;
-                if parts > 0 {
-                    write!(f, ")")?;
-                }
-                Ok(())
-            }
-            ScanError::BadPose => write!(f, "the given pose is not finite"),
-        }
-    }
-}
-
-impl core::error::Error for ScanError {}
-
-/// What happened to one scan, stage by stage.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ScanStats {
-    /// Index of the scan (counts every call, accepted or not).
-    pub frame: u32,
-    /// Range filter and down-sampling.
-    pub filter: FilterStats,
-    /// Bucketing of the reconstruction fused into the map.
-    pub bucket: BucketStats,
-    /// Layers fused into the map.
-    pub scan_layers: usize,
-    /// Layers dropped because the scan's layer buffer was full (summed over rounds).
-    pub dropped_layers: usize,
-    /// Association of the last round.
-    pub associate: AssociateStats,
-    /// Registration rounds run.
-    pub rounds: usize,
-    /// LM iterations over all rounds.
-    pub lm_iterations: usize,
-    /// Conditioning of the last solved round: the mean squared normal component along its
-    /// weakest direction (see [`crate::lm`]).
-    pub conditioning: f64,
-    /// Directions the last solved round left to the motion prediction (0 to 6).
-    pub degenerate_directions: usize,
-    /// Guesses registered from after the prediction's registration did not converge
-    /// (docs/design.md §1.11); 0 on a frame that converged.
-    pub recovery_attempts: usize,
-    /// Map update.
-    pub fusion: FusionStats,
-}
-
-/// The result of [`Pipeline::process_scan`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ScanOutcome {
-    /// The estimated sensor pose in the world (the first scan's frame).
-    pub t_world_sensor: Pose,
-    /// How registration ended.
-    pub status: RegistrationStatus,
-    /// Per-stage counts.
-    pub stats: ScanStats,
-}
+pub use outcome::{RegistrationStatus, ScanError, ScanOutcome, ScanStats};
 
 /// LiDAR odometry and meshing with capacities `C`. Cloning (feature `alloc`) copies the map
 /// and every buffer into memory from the global allocator, like [`Pipeline::new`].
@@ -302,7 +174,29 @@ impl<C: Capacity> Pipeline<C> {
         exec: &impl Executor,
         probe: &mut impl Probe,
     ) -> Result<ScanOutcome, ScanError> {
-        let mut stats = self.begin(points_sensor, exec, probe)?;
+        let stats = self.begin(points_sensor, exec, probe)?;
+        Ok(self.estimate(stats, exec, probe))
+    }
+
+    /// [`process_scan_with`](Self::process_scan_with) for a scan already filtered by a
+    /// [`ScanFilter`](crate::filter::ScanFilter) (on another thread, say): the same result.
+    pub fn process_filtered_with(
+        &mut self,
+        filtered: Filtered<'_>,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+    ) -> Result<ScanOutcome, ScanError> {
+        let stats = self.begin_filtered(filtered)?;
+        Ok(self.estimate(stats, exec, probe))
+    }
+
+    /// Registration of the filtered scan, then the map update.
+    fn estimate(
+        &mut self,
+        mut stats: ScanStats,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+    ) -> ScanOutcome {
         let mut pose = self.motion.predict();
         let mut status = RegistrationStatus::FirstScan;
         // The last round's reconstruction when it is also the map update's (see
@@ -319,14 +213,7 @@ impl<C: Capacity> Pipeline<C> {
             Some((b, made_at)) => self.move_and_fuse(made_at, pose, b, probe, &mut stats),
             None => self.finish(pose, exec, probe, &mut stats),
         }
-        let outcome = ScanOutcome {
-            t_world_sensor: pose,
-            status,
-            stats,
-        };
-        #[cfg(feature = "defmt")]
-        log::scan_done(&outcome);
-        Ok(outcome)
+        self.outcome(pose, status, stats)
     }
 
     /// Meshing only: fuses a scan into the map at a pose the caller knows (ground truth, an
@@ -347,20 +234,56 @@ impl<C: Capacity> Pipeline<C> {
         exec: &impl Executor,
         probe: &mut impl Probe,
     ) -> Result<ScanOutcome, ScanError> {
-        if !pose_is_finite(t_world_sensor) {
-            self.frame = self.frame.saturating_add(1);
-            return Err(ScanError::BadPose);
+        self.check_given(t_world_sensor)?;
+        let stats = self.begin(points_sensor, exec, probe)?;
+        Ok(self.integrate(t_world_sensor, stats, exec, probe))
+    }
+
+    /// [`integrate_scan_with`](Self::integrate_scan_with) for a scan already filtered by a
+    /// [`ScanFilter`](crate::filter::ScanFilter): the same result.
+    pub fn integrate_filtered_with(
+        &mut self,
+        filtered: Filtered<'_>,
+        t_world_sensor: &Pose,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+    ) -> Result<ScanOutcome, ScanError> {
+        self.check_given(t_world_sensor)?;
+        let stats = self.begin_filtered(filtered)?;
+        Ok(self.integrate(t_world_sensor, stats, exec, probe))
+    }
+
+    /// A given pose that is not finite counts the frame and refuses it.
+    fn check_given(&mut self, t_world_sensor: &Pose) -> Result<(), ScanError> {
+        if pose_is_finite(t_world_sensor) {
+            return Ok(());
         }
-        let mut stats = self.begin(points_sensor, exec, probe)?;
+        self.frame = self.frame.saturating_add(1);
+        Err(ScanError::BadPose)
+    }
+
+    /// The map update at a given pose.
+    fn integrate(
+        &mut self,
+        t_world_sensor: &Pose,
+        mut stats: ScanStats,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+    ) -> ScanOutcome {
         self.finish(*t_world_sensor, exec, probe, &mut stats);
+        self.outcome(*t_world_sensor, RegistrationStatus::Given, stats)
+    }
+
+    /// The outcome, logged (feature `defmt`).
+    fn outcome(&self, pose: Pose, status: RegistrationStatus, stats: ScanStats) -> ScanOutcome {
         let outcome = ScanOutcome {
-            t_world_sensor: *t_world_sensor,
-            status: RegistrationStatus::Given,
+            t_world_sensor: pose,
+            status,
             stats,
         };
         #[cfg(feature = "defmt")]
         log::scan_done(&outcome);
-        Ok(outcome)
+        outcome
     }
 
     /// Counts the frame and filters the scan into `points`.
@@ -371,8 +294,6 @@ impl<C: Capacity> Pipeline<C> {
         probe: &mut impl Probe,
     ) -> Result<ScanStats, ScanError> {
         probe.enter(Stage::Filter);
-        let frame = self.frame;
-        self.frame = self.frame.saturating_add(1);
         let filter = filter_and_downsample(
             points_sensor,
             &self.config.filter,
@@ -382,8 +303,29 @@ impl<C: Capacity> Pipeline<C> {
             &mut self.points,
             exec,
         );
+        probe.enter(Stage::Done);
+        self.accept(filter)
+    }
+
+    /// Counts the frame and copies the filtered scan into `points` (points past their
+    /// capacity are dropped, and counted as over capacity).
+    fn begin_filtered(&mut self, filtered: Filtered<'_>) -> Result<ScanStats, ScanError> {
+        let mut filter = filtered.stats;
+        self.points.clear();
+        for p in filtered.points {
+            if self.points.push(*p).is_err() {
+                filter.over_capacity += 1;
+            }
+        }
+        filter.kept = self.points.len();
+        self.accept(filter)
+    }
+
+    /// Counts the frame; refuses it when no point survived the filter.
+    fn accept(&mut self, filter: FilterStats) -> Result<ScanStats, ScanError> {
+        let frame = self.frame;
+        self.frame = self.frame.saturating_add(1);
         if filter.kept == 0 {
-            probe.enter(Stage::Done);
             let error = ScanError::EmptyScan {
                 stats: filter,
                 range_m: [
@@ -693,6 +635,38 @@ mod tests {
         assert!(lent.map().layer_count() > 0);
         let e = Pipeline::<Tiny>::in_storage(Config::default(), tiny_storage(1)).unwrap_err();
         assert_eq!(e.field, "storage.map.table");
+    }
+
+    #[test]
+    fn a_scan_filtered_apart_gives_what_the_pipeline_filtering_it_gives() {
+        let mut apart = Pipeline::<Tiny>::new(Config::default()).unwrap();
+        let mut own = Pipeline::<Tiny>::new(Config::default()).unwrap();
+        let mut filter = crate::filter::ScanFilter::new::<Tiny>();
+        let config = Config::default();
+        for (i, z) in [-1.0, -1.02, -1.04, f32::NAN].into_iter().enumerate() {
+            // Over the capacity of 600 points; last, a scan whose first patch is not finite.
+            let mut scan = patch(3.2, 2.5, z, 0.1);
+            scan.extend(patch(1.0 + 0.05 * i as f32, 1.5, -1.3, 0.1));
+            let a = apart.process_filtered_with(
+                filter.filter(&scan, &config, &Serial),
+                &Serial,
+                &mut NoProbe,
+            );
+            let b = own.process_scan(&scan);
+            assert_eq!(a, b);
+            assert_eq!(apart.last_points(), own.last_points());
+        }
+        assert!(apart.map().layer_count() > 0);
+        let given = Pose::translation(0.1, 0.0, 0.0);
+        let scan = patch(3.2, 1.5, -1.0, 0.1);
+        let a = apart.integrate_filtered_with(
+            filter.filter(&scan, &config, &Serial),
+            &given,
+            &Serial,
+            &mut NoProbe,
+        );
+        assert_eq!(a, own.integrate_scan(&scan, &given));
+        assert_eq!(apart.map().layer_count(), own.map().layer_count());
     }
 
     #[test]

@@ -1,0 +1,139 @@
+//! What processing one scan reports: how its registration ended ([`RegistrationStatus`]), why
+//! a scan was refused ([`ScanError`]), and its per-stage counts ([`ScanStats`],
+//! [`ScanOutcome`]).
+
+use crate::associate::AssociateStats;
+use crate::bucket::BucketStats;
+use crate::filter::FilterStats;
+use crate::fusion::FusionStats;
+use crate::math::Pose;
+use core::fmt;
+
+/// How registration of one scan ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RegistrationStatus {
+    /// The map was empty: the scan started it at the predicted pose.
+    FirstScan,
+    /// Every round solved.
+    Converged,
+    /// The geometry left some direction unconstrained (a tunnel, a plane): the pose was
+    /// corrected only in the directions the scan constrains and keeps the motion prediction
+    /// in the others ([`ScanStats::degenerate_directions`] says how many). If it constrained
+    /// none, the pose keeps the rounds before (the motion prediction if it was the first).
+    Degenerate,
+    /// A round had too few residuals: as for `Degenerate`.
+    TooFewResiduals,
+    /// The solver met non-finite numbers: as for `Degenerate`.
+    SolverFailed,
+    /// Registration from the motion prediction did not converge; it did from another guess
+    /// (docs/design.md §1.11). The pose is that guess's.
+    Recovered,
+    /// Registration converged from no guess: the pose is the best attempt's by
+    /// [`Verdict::score`](crate::recovery::Verdict::score), and may be wrong. With recovery
+    /// off, the prediction's attempt that did not converge.
+    NotConverged,
+    /// The pose was given ([`Pipeline::integrate_scan`]).
+    Given,
+}
+
+/// Why a scan was not used. The map and motion model are unchanged.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ScanError {
+    /// No point survived the filter (all non-finite, out of range, or none given).
+    EmptyScan {
+        /// What the filter did.
+        stats: FilterStats,
+        /// The range limits it applied, `filter.range_min_m` and `filter.range_max_m` (m).
+        range_m: [f64; 2],
+    },
+    /// The given pose is not finite.
+    BadPose,
+}
+
+impl fmt::Display for ScanError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ScanError::EmptyScan { stats: s, range_m } => {
+                write!(f, "empty scan: none of {} points usable", s.input)?;
+                let far = s.out_of_range - s.too_near;
+                let mut parts = 0;
+                let mut part = |f: &mut fmt::Formatter<'_>, n: usize, what: fmt::Arguments| {
+                    if n == 0 {
+                        return Ok(());
+                    }
+                    parts += 1;
+                    write!(f, "{}{n} {what}", if parts == 1 { " (" } else { ", " })
+                };
+                part(f, s.non_finite, format_args!("not finite"))?;
+                part(
+                    f,
+                    s.too_near,
+                    format_args!(
+                        "closer than filter.range_min_m = {} m: lower it for a sensor this close",
+                        range_m[0]
+                    ),
+                )?;
+                part(
+                    f,
+                    far,
+                    format_args!(
+                        "farther than filter.range_max_m = {} m: raise it for a scene this large",
+                        range_m[1]
+                    ),
+                )?;
+                if parts > 0 {
+                    write!(f, ")")?;
+                }
+                Ok(())
+            }
+            ScanError::BadPose => write!(f, "the given pose is not finite"),
+        }
+    }
+}
+
+impl core::error::Error for ScanError {}
+
+/// What happened to one scan, stage by stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ScanStats {
+    /// Index of the scan (counts every call, accepted or not).
+    pub frame: u32,
+    /// Range filter and down-sampling.
+    pub filter: FilterStats,
+    /// Bucketing of the reconstruction fused into the map.
+    pub bucket: BucketStats,
+    /// Layers fused into the map.
+    pub scan_layers: usize,
+    /// Layers dropped because the scan's layer buffer was full (summed over rounds).
+    pub dropped_layers: usize,
+    /// Association of the last round.
+    pub associate: AssociateStats,
+    /// Registration rounds run.
+    pub rounds: usize,
+    /// LM iterations over all rounds.
+    pub lm_iterations: usize,
+    /// Conditioning of the last solved round: the mean squared normal component along its
+    /// weakest direction (see [`crate::lm`]).
+    pub conditioning: f64,
+    /// Directions the last solved round left to the motion prediction (0 to 6).
+    pub degenerate_directions: usize,
+    /// Guesses registered from after the prediction's registration did not converge
+    /// (docs/design.md §1.11); 0 on a frame that converged.
+    pub recovery_attempts: usize,
+    /// Map update.
+    pub fusion: FusionStats,
+}
+
+/// The result of [`Pipeline::process_scan`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanOutcome {
+    /// The estimated sensor pose in the world (the first scan's frame).
+    pub t_world_sensor: Pose,
+    /// How registration ended.
+    pub status: RegistrationStatus,
+    /// Per-stage counts.
+    pub stats: ScanStats,
+}
