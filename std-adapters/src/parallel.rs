@@ -16,7 +16,7 @@ use slamesh_core::sort::{moves_nothing, Entry, Histogram, KeySorter, RADIX};
 /// Raw points per task of the parallel filter.
 const POINTS_PER_TASK: usize = 8192;
 /// Fewest entries per part of a parallel sort (fewer are sorted serially).
-const MIN_SORT_PART: usize = 8192;
+const MIN_SORT_PART: usize = 65_536;
 
 /// Reconstructs cells on a dedicated rayon pool.
 #[derive(Debug)]

@@ -13,7 +13,9 @@
 
 pub mod capacity;
 pub mod checkpoint;
+pub mod lookahead;
 pub mod memory;
+pub mod options;
 pub mod report;
 pub mod scale;
 pub mod session;

@@ -12,10 +12,8 @@
 //! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
 
 use crate::io::atomic::open_cut;
-use crate::io::config_file::WindowSettings;
 use crate::io::error::FileError;
-use crate::io::mesh_spool::{MeshColour, MeshCounts, MeshFormat, MeshSpool};
-use crate::io::trajectory::Trajectory;
+use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
@@ -24,122 +22,19 @@ use crate::run::report::{
     registration_reason, spreads, write_report, write_topview, write_trajectories, FrameRecord,
     Health, Summary,
 };
+use crate::run::lookahead::{LookAhead, Scan};
 use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
 use slamesh_core::deskew;
 use slamesh_core::layer::Shown;
-use slamesh_core::{Capacity, Config, ConfigError, Pipeline, Pose};
-use std::fmt;
+use slamesh_core::{Capacity, Pipeline, Pose};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// How to run. The default is the default configuration, one thread per core, no mesh file,
-/// no window, no checkpoints.
-#[derive(Debug, Clone, Default)]
-pub struct RunOptions {
-    /// Output folder (created if missing).
-    pub out: PathBuf,
-    /// Pipeline configuration.
-    pub config: Config,
-    /// Name of the preset it came from (for the report).
-    pub preset: String,
-    /// Sliding-window eviction.
-    pub window: WindowSettings,
-    /// Reconstruction threads (1: serial; 0: one per core).
-    pub threads: usize,
-    /// Mesh files to write (`mesh.ply`, `mesh.obj`; none: no mesh file).
-    pub mesh_formats: Vec<MeshFormat>,
-    /// What colours the PLY mesh's vertices.
-    pub mesh_colour: MeshColour,
-    /// Poses to mesh with instead of estimating them (meshing only): matched to frames by
-    /// time when the trajectory has stamps (TUM), by line otherwise.
-    pub given_poses: Option<Trajectory>,
-    /// What the input was (for the report).
-    pub input: String,
-    /// Write a checkpoint after every this many frames ([`crate::run::checkpoint`]).
-    pub checkpoint_every: Option<usize>,
-    /// Continue from the checkpoint in `out` instead of starting over.
-    pub resume: bool,
-    /// Also write `topview.png`: the mesh from above, coloured by height, with the path.
-    pub picture: bool,
-    /// Whether to deskew scans whose points carry times.
-    pub deskew: Deskew,
-    /// The live view and its recording (`--view`, `--record`).
-    #[cfg(feature = "view")]
-    pub view: crate::view::ViewOptions,
-}
-
-/// `--deskew`: whether scans whose points carry times are deskewed before registration
-/// ([`slamesh_core::deskew`]), with the motion between the last two used frames.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum Deskew {
-    /// Whenever the points have times and two frames were used before.
-    #[default]
-    Auto,
-    /// Never.
-    Off,
-}
-
-/// Why a run could not start or finish.
-#[derive(Debug)]
-pub enum RunError {
-    /// The pipeline's configuration is invalid.
-    Config(ConfigError),
-    /// The worker threads could not be started.
-    Threads(rayon::ThreadPoolBuildError),
-    /// The memory cap is below what the capacity needs with an empty map.
-    MemoryCapTooSmall {
-        /// The cap asked for (MB).
-        cap_mb: f64,
-        /// The capacity class's name ([`Capacity::NAME`]).
-        class: &'static str,
-        /// What the capacity needs with an empty map, the process's memory and headroom.
-        needed_bytes: usize,
-    },
-    /// An input or output file could not be read or written.
-    File(FileError),
-}
-
-impl fmt::Display for RunError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            RunError::Config(e) => write!(f, "configuration: {}: {}", e.field, e.reason),
-            RunError::Threads(e) => write!(f, "configuration: threads: {e}"),
-            RunError::MemoryCapTooSmall {
-                cap_mb,
-                class,
-                needed_bytes,
-            } => write!(
-                f,
-                "configuration: memory cap {cap_mb} MB is below what the {class} capacity class \
-                 needs: {:.0} MB (its scan buffers, a map of two scans' layers, and the rest of \
-                 the process); a smaller class (--capacity) needs less, if the scans fit it",
-                *needed_bytes as f64 / 1e6
-            ),
-            RunError::File(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for RunError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            RunError::Config(e) => Some(e),
-            RunError::Threads(e) => Some(e),
-            RunError::File(e) => Some(e),
-            RunError::MemoryCapTooSmall { .. } => None,
-        }
-    }
-}
-
-impl From<FileError> for RunError {
-    fn from(e: FileError) -> Self {
-        RunError::File(e)
-    }
-}
+pub use crate::run::options::{Deskew, RunError, RunOptions};
 
 /// Runs over every frame of `source`; `on_frame` sees each record as it is made (for progress
 /// and messages). Writes the outputs into `opts.out`. With `opts.resume`, continues from the
@@ -186,6 +81,7 @@ pub struct Run<'a, C: Capacity> {
     /// What a checkpoint saves: poses, skipped frames, totals.
     progress: Progress,
     timer: StageTimer,
+    ahead: LookAhead,
     started: Instant,
     /// Loop seconds before this process (from the checkpoint when resuming).
     seconds_before: f64,
@@ -267,6 +163,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             seconds_before: progress.seconds,
             progress,
             timer: StageTimer::new(),
+            ahead: setup.ahead,
             started: Instant::now(),
         }
     }
@@ -302,26 +199,43 @@ impl<'a, C: Capacity> Run<'a, C> {
         i: usize,
     ) -> Result<FrameRecord, RunError> {
         let mut rec = FrameRecord::skipped(i, source.label(i));
-        let t_read = Instant::now();
-        let scan = source.read_timed(i);
-        let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
+        let read = self.ahead.take(source, i);
+        let deskew = self.opts.deskew;
+        // The next frame is read now and filtered while this one registers, unless it is to
+        // be deskewed (with this frame's motion) or is larger than the capacity.
+        self.ahead.read_ahead(source, i + 1, |points, times| {
+            (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
+        });
         // After the read: a recording knows a frame's stamp once it has read the message.
         rec.stamp = source.stamp(i);
-        rec.points_dropped_by_reader = source.dropped_by_reader();
+        rec.points_dropped_by_reader = read.dropped_by_reader;
         let motion = self.last_motion(source);
         let (pipeline, workers, timer) = (&mut self.pipeline, &self.workers, &mut self.timer);
         let filter = &self.opts.config.filter;
-        let deskew = self.opts.deskew;
         // The motion, interval and reference time a deskewed scan was moved with: its pose is
         // the reference time's, and the trajectory takes it back to the stamp.
         let mut to_stamp: Option<(Pose, f64, f64)> = None;
-        let outcome = scan
+        let mut ahead = None;
+        let outcome = read
+            .scan
             .map_err(|e| e.to_string())
-            .and_then(|(mut points, times)| {
-                rec.points = points.len();
-                if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &times, motion) {
+            .and_then(|scan| {
+                let mut points = match scan {
+                    Scan::Raw { points, times } => (points, times),
+                    Scan::Ahead { points } => {
+                        rec.points = points;
+                        ahead = Some(self.ahead.filtered().map_err(|e| {
+                            format!("{}: frame {i}: {e}", source.label(i))
+                        })?);
+                        (Vec::new(), None)
+                    }
+                };
+                if ahead.is_none() {
+                    rec.points = points.0.len();
+                }
+                if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &points.1, motion) {
                     let t = Instant::now();
-                    let d = deskew::deskew(&mut points, times, &m, dt).map_err(|e| {
+                    let d = deskew::deskew(&mut points.0, times, &m, dt).map_err(|e| {
                         format!("{}: frame {i}: cannot deskew: {e:?}", source.label(i))
                     })?;
                     rec.deskewed_points = d.moved;
@@ -329,6 +243,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                     // The points now sit in the sensor frame at `reference_s`.
                     to_stamp = (d.moved > 0).then_some((m, dt, d.reference_s));
                 }
+                let points = points.0;
                 if points.len() > C::POINTS {
                     let n = capacity::points_in_range(&points, filter);
                     if n > C::POINTS {
@@ -370,17 +285,29 @@ impl<'a, C: Capacity> Run<'a, C> {
                     Some((m, dt, reference)) => deskew::pose_at(&g, &m, dt, reference),
                     None => g,
                 });
-                let r = match given {
-                    Some(pose) => pipeline.integrate_scan_with(&points, &pose, workers, timer),
-                    None => pipeline.process_scan_with(&points, workers, timer),
+                let r = match (given, &ahead) {
+                    (Some(pose), None) => {
+                        pipeline.integrate_scan_with(&points, &pose, workers, timer)
+                    }
+                    (None, None) => pipeline.process_scan_with(&points, workers, timer),
+                    (Some(pose), Some(a)) => {
+                        pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
+                    }
+                    (None, Some(a)) => pipeline.process_filtered_with(a.filtered(), workers, timer),
                 };
                 r.map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))
             });
         rec.ms = StageMs {
-            read: read_ms,
+            read: read.ms,
             deskew: rec.ms.deskew,
             ..self.timer.take()
         };
+        // A filter run ahead counts in the total only for the time this step waited for it.
+        let mut not_waited = 0.0;
+        if let Some(a) = &ahead {
+            rec.ms.filter = a.filter_ms;
+            not_waited = a.filter_ms - a.wait_ms;
+        }
         match outcome {
             Ok(o) => {
                 rec.status = format!("{:?}", o.status);
@@ -405,7 +332,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                     self.progress.evicted_cells += rec.evicted_cells;
                 }
                 rec.ms.evict = t.elapsed().as_secs_f64() * 1e3;
-                rec.ms.total = rec.ms.pipeline() + rec.ms.evict;
+                rec.ms.total = rec.ms.pipeline() + rec.ms.evict - not_waited;
                 // The pose of a deskewed scan is its reference time's (the middle of the sweep);
                 // the stamp lies between it and the previous frame's, so the motion between
                 // the two estimates interpolates it (the predicted motion would extrapolate).
@@ -531,6 +458,7 @@ struct Setup<C: Capacity> {
     workers: Workers,
     window: Window,
     max_layers: Option<usize>,
+    ahead: LookAhead,
 }
 
 impl<C: Capacity> Setup<C> {
@@ -541,8 +469,10 @@ impl<C: Capacity> Setup<C> {
         let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
         let mut window = opts.window.rules();
         let mut max_layers = None;
+        // With two threads or more, the next frame is filtered on a thread of its own.
+        let ahead = workers.threads() > 1;
         if let Some(cap) = opts.window.memory_cap_mb {
-            let other = memory::other_bytes();
+            let other = memory::other_bytes() + if ahead { LookAhead::bytes::<C>() } else { 0 };
             let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
                 RunError::MemoryCapTooSmall {
                     cap_mb: cap,
@@ -561,6 +491,11 @@ impl<C: Capacity> Setup<C> {
             workers,
             window,
             max_layers,
+            ahead: if ahead {
+                LookAhead::new::<C>(opts.config)
+            } else {
+                LookAhead::off()
+            },
         })
     }
 }

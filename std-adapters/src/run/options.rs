@@ -1,0 +1,115 @@
+//! What a run is asked to do ([`RunOptions`], [`Deskew`]) and why it may not start or finish
+//! ([`RunError`]).
+
+use crate::io::config_file::WindowSettings;
+use crate::io::error::FileError;
+use crate::io::mesh_spool::{MeshColour, MeshFormat};
+use crate::io::trajectory::Trajectory;
+use slamesh_core::{Config, ConfigError};
+use std::fmt;
+use std::path::PathBuf;
+
+/// How to run. The default is the default configuration, one thread per core, no mesh file,
+/// no window, no checkpoints.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Output folder (created if missing).
+    pub out: PathBuf,
+    /// Pipeline configuration.
+    pub config: Config,
+    /// Name of the preset it came from (for the report).
+    pub preset: String,
+    /// Sliding-window eviction.
+    pub window: WindowSettings,
+    /// Reconstruction threads (1: serial; 0: one per core).
+    pub threads: usize,
+    /// Mesh files to write (`mesh.ply`, `mesh.obj`; none: no mesh file).
+    pub mesh_formats: Vec<MeshFormat>,
+    /// What colours the PLY mesh's vertices.
+    pub mesh_colour: MeshColour,
+    /// Poses to mesh with instead of estimating them (meshing only): matched to frames by
+    /// time when the trajectory has stamps (TUM), by line otherwise.
+    pub given_poses: Option<Trajectory>,
+    /// What the input was (for the report).
+    pub input: String,
+    /// Write a checkpoint after every this many frames ([`crate::run::checkpoint`]).
+    pub checkpoint_every: Option<usize>,
+    /// Continue from the checkpoint in `out` instead of starting over.
+    pub resume: bool,
+    /// Also write `topview.png`: the mesh from above, coloured by height, with the path.
+    pub picture: bool,
+    /// Whether to deskew scans whose points carry times.
+    pub deskew: Deskew,
+    /// The live view and its recording (`--view`, `--record`).
+    #[cfg(feature = "view")]
+    pub view: crate::view::ViewOptions,
+}
+
+/// `--deskew`: whether scans whose points carry times are deskewed before registration
+/// ([`slamesh_core::deskew`]), with the motion between the last two used frames.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Deskew {
+    /// Whenever the points have times and two frames were used before.
+    #[default]
+    Auto,
+    /// Never.
+    Off,
+}
+
+/// Why a run could not start or finish.
+#[derive(Debug)]
+pub enum RunError {
+    /// The pipeline's configuration is invalid.
+    Config(ConfigError),
+    /// The worker threads could not be started.
+    Threads(rayon::ThreadPoolBuildError),
+    /// The memory cap is below what the capacity needs with an empty map.
+    MemoryCapTooSmall {
+        /// The cap asked for (MB).
+        cap_mb: f64,
+        /// The capacity class's name ([`Capacity::NAME`]).
+        class: &'static str,
+        /// What the capacity needs with an empty map, the process's memory and headroom.
+        needed_bytes: usize,
+    },
+    /// An input or output file could not be read or written.
+    File(FileError),
+}
+
+impl fmt::Display for RunError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RunError::Config(e) => write!(f, "configuration: {}: {}", e.field, e.reason),
+            RunError::Threads(e) => write!(f, "configuration: threads: {e}"),
+            RunError::MemoryCapTooSmall {
+                cap_mb,
+                class,
+                needed_bytes,
+            } => write!(
+                f,
+                "configuration: memory cap {cap_mb} MB is below what the {class} capacity class \
+                 needs: {:.0} MB (its scan buffers, a map of two scans' layers, and the rest of \
+                 the process); a smaller class (--capacity) needs less, if the scans fit it",
+                *needed_bytes as f64 / 1e6
+            ),
+            RunError::File(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for RunError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            RunError::Config(e) => Some(e),
+            RunError::Threads(e) => Some(e),
+            RunError::File(e) => Some(e),
+            RunError::MemoryCapTooSmall { .. } => None,
+        }
+    }
+}
+
+impl From<FileError> for RunError {
+    fn from(e: FileError) -> Self {
+        RunError::File(e)
+    }
+}
