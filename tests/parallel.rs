@@ -1,4 +1,5 @@
-//! The serial and parallel cell loops give bit-identical poses and meshes.
+//! The serial and parallel cell loops give bit-identical poses and meshes, and so does the run
+//! loop reading and filtering ahead.
 
 use slamesh::parallel::Rayon;
 use slamesh_core::executor::{Executor, Serial};
@@ -66,7 +67,8 @@ fn the_parallel_sort_orders_entries_exactly_as_the_serial_one() {
             .wrapping_add(1_442_695_040_888_963_407);
         (seed >> 33) as i32
     };
-    let capacity = 70_000;
+    // Parts of at least 65 536 entries: three parts from 196 608, two from 131 072.
+    let capacity = 200_000;
     let (mut serial_sorter, mut parallel_sorter) = (
         KeySorter::with_capacity(capacity),
         KeySorter::with_capacity(capacity),
@@ -74,12 +76,12 @@ fn the_parallel_sort_orders_entries_exactly_as_the_serial_one() {
     // (entries, spread of x and y, spread of z, step of x): a step of 2048 (with y and z
     // fixed) leaves the first pass's digit the same for every entry.
     for (n, spread, z, step) in [
-        (70_000, 4, 0, 1),
-        (70_000, 700, 3, 1),
-        (50_000, 100_000, 5, 1),
-        (16_383, 300, 1, 1),
-        (16_384, 300, 1, 1),
-        (40_000, 3, 0, 2048),
+        (200_000, 4, 0, 1),
+        (200_000, 700, 3, 1),
+        (150_000, 100_000, 5, 1),
+        (131_071, 300, 1, 1),
+        (131_072, 300, 1, 1),
+        (140_000, 3, 0, 2048),
         (25_000, 1, 0, 1),
     ] {
         let mut serial = BoundedVec::with_capacity(capacity);
@@ -98,5 +100,44 @@ fn the_parallel_sort_orders_entries_exactly_as_the_serial_one() {
             "{n} entries, spread {spread}"
         );
         assert!(serial.windows(2).all(|w| w[0].0 <= w[1].0));
+    }
+}
+
+/// With two threads the run loop filters the next frame on a thread of its own
+/// (`run/lookahead.rs`): the same poses and mesh as one thread, which filters in line; and a
+/// rolling sweep's frames, deskewed before filtering, are filtered in line.
+#[test]
+fn the_run_loop_filtering_ahead_writes_what_one_thread_writes() {
+    use slamesh::run::{run, RunOptions};
+    use slamesh_sim::Drive;
+    for sweep in [None, Some(0.1)] {
+        let outputs: Vec<(String, Vec<u8>, usize)> = [1, 2]
+            .iter()
+            .map(|&threads| {
+                let mut drive = Drive::car(12, 3);
+                drive.sweep_s = sweep;
+                let out = std::env::temp_dir().join(format!(
+                    "slamesh-ahead-{threads}-{}-{}",
+                    sweep.is_some(),
+                    std::process::id()
+                ));
+                let opts = RunOptions {
+                    out: out.clone(),
+                    threads,
+                    input: "simulated car".into(),
+                    mesh_formats: vec![slamesh::io::mesh_spool::MeshFormat::Ply],
+                    ..RunOptions::default()
+                };
+                let mut used = 0;
+                run::<KittiCapacity>(&mut drive, &opts, |r| used += usize::from(r.error.is_none()))
+                    .unwrap();
+                let poses = std::fs::read_to_string(out.join("poses_kitti.txt")).unwrap();
+                let mesh = std::fs::read(out.join("mesh.ply")).unwrap();
+                std::fs::remove_dir_all(&out).unwrap();
+                (poses, mesh, used)
+            })
+            .collect();
+        assert_eq!(outputs[0].2, 12);
+        assert_eq!(outputs[0], outputs[1], "sweep {sweep:?}");
     }
 }

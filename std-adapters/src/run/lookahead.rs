@@ -226,3 +226,85 @@ fn read(source: &mut impl FrameSource, i: usize) -> Read {
         dropped_by_reader: source.dropped_by_reader(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slamesh_core::KittiCapacity;
+
+    /// Frame `i` is a row of `10 + i` points 2 m ahead; frame 2 cannot be read.
+    struct Rows;
+
+    impl FrameSource for Rows {
+        fn frames(&self) -> usize {
+            6
+        }
+        fn label(&self, i: usize) -> String {
+            format!("row {i}")
+        }
+        fn stamp(&self, i: usize) -> f64 {
+            i as f64
+        }
+        fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
+            if i == 2 {
+                return Err(FileError::at(std::path::Path::new("row 2"), "unreadable"));
+            }
+            Ok((0..10 + i).map(|k| [2.0, k as f32 * 0.5, 0.0]).collect())
+        }
+    }
+
+    fn raw_len(r: &Read) -> Option<usize> {
+        match &r.scan {
+            Ok(Scan::Raw { points, .. }) => Some(points.len()),
+            _ => None,
+        }
+    }
+
+    #[test]
+    fn frames_come_back_in_order_filtered_ahead_raw_or_failed() {
+        let config = Config::default();
+        let mut ahead = LookAhead::new::<KittiCapacity>(config);
+        let mut source = Rows;
+        let yes = |_: &[Point], _: &Option<Vec<f32>>| true;
+        // Nothing ahead: read now, raw.
+        let first = ahead.take(&mut source, 0);
+        assert_eq!((first.frame, raw_len(&first)), (0, Some(10)));
+        // Ahead: the filter thread's result is the core filter's.
+        ahead.read_ahead(&mut source, 1, yes);
+        let second = ahead.take(&mut source, 1);
+        assert!(matches!(second.scan, Ok(Scan::Ahead { points: 11 })));
+        let got = ahead.filtered().unwrap();
+        let raw = Rows.read(1).unwrap();
+        let mut own = ScanFilter::new::<KittiCapacity>();
+        let want = own.filter(&raw, &config, &Serial);
+        assert_eq!((got.points.as_slice(), got.stats), (want.points, want.stats));
+        // A frame that cannot be read is handed over as its error.
+        ahead.read_ahead(&mut source, 2, yes);
+        assert!(ahead.take(&mut source, 2).scan.is_err());
+        // A frame read ahead but not asked for is dropped, its filtering too: the next one
+        // filtered ahead is the next one received.
+        ahead.read_ahead(&mut source, 3, yes);
+        let fourth = ahead.take(&mut source, 4);
+        assert_eq!(raw_len(&fourth), Some(14));
+        ahead.read_ahead(&mut source, 5, yes);
+        assert!(matches!(
+            ahead.take(&mut source, 5).scan,
+            Ok(Scan::Ahead { points: 15 })
+        ));
+        assert_eq!(ahead.filtered().unwrap().stats.input, 15);
+        // A frame the step must filter itself, and past the end: nothing ahead.
+        ahead.read_ahead(&mut source, 4, |_, _| false);
+        assert_eq!(raw_len(&ahead.take(&mut source, 4)), Some(14));
+        ahead.read_ahead(&mut source, 6, yes);
+        assert!(ahead.next.is_none());
+    }
+
+    #[test]
+    fn off_reads_each_frame_when_asked() {
+        let mut ahead = LookAhead::off();
+        ahead.read_ahead(&mut Rows, 1, |_, _| true);
+        assert!(ahead.next.is_none());
+        assert_eq!(raw_len(&ahead.take(&mut Rows, 1)), Some(11));
+        assert!(ahead.filtered().is_err());
+    }
+}
