@@ -127,7 +127,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let points = filter.filter(&raw, &config, &Serial).points.to_vec();
         let placement = Placement::new(&Pose::identity(), config.grid.cell_size_m);
         let min_points = config.grid.min_points;
-        bucket(&points, &placement, min_points, &mut work, &mut sorter, &mut cells, &Serial);
+        bucket(
+            &points,
+            &placement,
+            min_points,
+            &mut work,
+            &mut sorter,
+            &mut cells,
+            &Serial,
+        );
         for c in cells.iter() {
             let pts = c.points(&work);
             if let Shape::Surface(axes) = choose_layers(pts) {
@@ -139,10 +147,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let scans = folder.paths.len() as f64;
     let mean_m = layers.iter().map(|s| s.len() as f64).sum::<f64>() / layers.len() as f64;
-    let w = layers.iter().fold(Work::default(), |w, s| w.add(Work::of(s.len())));
+    let w = layers
+        .iter()
+        .fold(Work::default(), |w, s| w.add(Work::of(s.len())));
     let n = layers.len() as f64;
     let flops = w.f64_ops + w.f32_ops;
-    println!("{dir}: {:.0} layers a scan, {mean_m:.1} samples a layer", n / scans);
+    println!(
+        "{dir}: {:.0} layers a scan, {mean_m:.1} samples a layer",
+        n / scans
+    );
     println!(
         "a layer: {:.0} additions and multiplications ({:.0} in f64), {:.0} exp and as many \
          square roots ({:.0} in f64)",

@@ -129,8 +129,10 @@ fn the_run_loop_filtering_ahead_writes_what_one_thread_writes() {
                     ..RunOptions::default()
                 };
                 let mut used = 0;
-                run::<KittiCapacity>(&mut drive, &opts, |r| used += usize::from(r.error.is_none()))
-                    .unwrap();
+                run::<KittiCapacity>(&mut drive, &opts, |r| {
+                    used += usize::from(r.error.is_none())
+                })
+                .unwrap();
                 let poses = std::fs::read_to_string(out.join("poses_kitti.txt")).unwrap();
                 let mesh = std::fs::read(out.join("mesh.ply")).unwrap();
                 std::fs::remove_dir_all(&out).unwrap();

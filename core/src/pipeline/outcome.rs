@@ -33,7 +33,7 @@ pub enum RegistrationStatus {
     /// [`Verdict::score`](crate::recovery::Verdict::score), and may be wrong. With recovery
     /// off, the prediction's attempt that did not converge.
     NotConverged,
-    /// The pose was given ([`Pipeline::integrate_scan`]).
+    /// The pose was given ([`Pipeline::integrate_scan`](super::Pipeline::integrate_scan)).
     Given,
 }
 
@@ -127,7 +127,7 @@ pub struct ScanStats {
     pub fusion: FusionStats,
 }
 
-/// The result of [`Pipeline::process_scan`].
+/// The result of [`Pipeline::process_scan`](super::Pipeline::process_scan).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanOutcome {
     /// The estimated sensor pose in the world (the first scan's frame).

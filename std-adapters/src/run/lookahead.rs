@@ -277,7 +277,10 @@ mod tests {
         let raw = Rows.read(1).unwrap();
         let mut own = ScanFilter::new::<KittiCapacity>();
         let want = own.filter(&raw, &config, &Serial);
-        assert_eq!((got.points.as_slice(), got.stats), (want.points, want.stats));
+        assert_eq!(
+            (got.points.as_slice(), got.stats),
+            (want.points, want.stats)
+        );
         // A frame that cannot be read is handed over as its error.
         ahead.read_ahead(&mut source, 2, yes);
         assert!(ahead.take(&mut source, 2).scan.is_err());

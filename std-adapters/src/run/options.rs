@@ -67,7 +67,7 @@ pub enum RunError {
     MemoryCapTooSmall {
         /// The cap asked for (MB).
         cap_mb: f64,
-        /// The capacity class's name ([`Capacity::NAME`]).
+        /// The capacity class's name ([`Capacity::NAME`](slamesh_core::Capacity::NAME)).
         class: &'static str,
         /// What the capacity needs with an empty map, the process's memory and headroom.
         needed_bytes: usize,

@@ -17,12 +17,12 @@ use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
+use crate::run::lookahead::{LookAhead, Scan};
 use crate::run::memory;
 use crate::run::report::{
     registration_reason, spreads, write_report, write_topview, write_trajectories, FrameRecord,
     Health, Summary,
 };
-use crate::run::lookahead::{LookAhead, Scan};
 use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
@@ -216,55 +216,54 @@ impl<'a, C: Capacity> Run<'a, C> {
         // the reference time's, and the trajectory takes it back to the stamp.
         let mut to_stamp: Option<(Pose, f64, f64)> = None;
         let mut ahead = None;
-        let outcome = read
-            .scan
-            .map_err(|e| e.to_string())
-            .and_then(|scan| {
-                let mut points = match scan {
-                    Scan::Raw { points, times } => (points, times),
-                    Scan::Ahead { points } => {
-                        rec.points = points;
-                        ahead = Some(self.ahead.filtered().map_err(|e| {
-                            format!("{}: frame {i}: {e}", source.label(i))
-                        })?);
-                        (Vec::new(), None)
-                    }
-                };
-                if ahead.is_none() {
-                    rec.points = points.0.len();
+        let outcome = read.scan.map_err(|e| e.to_string()).and_then(|scan| {
+            let mut points = match scan {
+                Scan::Raw { points, times } => (points, times),
+                Scan::Ahead { points } => {
+                    rec.points = points;
+                    ahead = Some(
+                        self.ahead
+                            .filtered()
+                            .map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))?,
+                    );
+                    (Vec::new(), None)
                 }
-                if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &points.1, motion) {
-                    let t = Instant::now();
-                    let d = deskew::deskew(&mut points.0, times, &m, dt).map_err(|e| {
-                        format!("{}: frame {i}: cannot deskew: {e:?}", source.label(i))
-                    })?;
-                    rec.deskewed_points = d.moved;
-                    rec.ms.deskew = t.elapsed().as_secs_f64() * 1e3;
-                    // The points now sit in the sensor frame at `reference_s`.
-                    to_stamp = (d.moved > 0).then_some((m, dt, d.reference_s));
-                }
-                let points = points.0;
-                if points.len() > C::POINTS {
-                    let n = capacity::points_in_range(&points, filter);
-                    if n > C::POINTS {
-                        let advice = match capacity::class_holding(n) {
-                            Some(c) => format!("run with --capacity {}", c.flag),
-                            None => "no class holds it: thin the scan, or narrow \
+            };
+            if ahead.is_none() {
+                rec.points = points.0.len();
+            }
+            if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &points.1, motion) {
+                let t = Instant::now();
+                let d = deskew::deskew(&mut points.0, times, &m, dt)
+                    .map_err(|e| format!("{}: frame {i}: cannot deskew: {e:?}", source.label(i)))?;
+                rec.deskewed_points = d.moved;
+                rec.ms.deskew = t.elapsed().as_secs_f64() * 1e3;
+                // The points now sit in the sensor frame at `reference_s`.
+                to_stamp = (d.moved > 0).then_some((m, dt, d.reference_s));
+            }
+            let points = points.0;
+            if points.len() > C::POINTS {
+                let n = capacity::points_in_range(&points, filter);
+                if n > C::POINTS {
+                    let advice = match capacity::class_holding(n) {
+                        Some(c) => format!("run with --capacity {}", c.flag),
+                        None => "no class holds it: thin the scan, or narrow \
                                  filter.range_min_m and filter.range_max_m"
-                                .to_string(),
-                        };
-                        return Err(format!(
-                            "{}: frame {i}: {n} points within range, more than the {} capacity \
+                            .to_string(),
+                    };
+                    return Err(format!(
+                        "{}: frame {i}: {n} points within range, more than the {} capacity \
                          holds ({}): {advice}",
-                            source.label(i),
-                            C::NAME,
-                            C::POINTS
-                        ));
-                    }
+                        source.label(i),
+                        C::NAME,
+                        C::POINTS
+                    ));
                 }
-                let given = match &self.opts.given_poses {
-                    Some(p) => Some(p.pose_at(i, source.stamp(i)).ok_or_else(
-                        || match p.stamps {
+            }
+            let given = match &self.opts.given_poses {
+                Some(p) => Some(
+                    p.pose_at(i, source.stamp(i))
+                        .ok_or_else(|| match p.stamps {
                             Some(_) => format!(
                                 "{}: frame {i}: no given pose within {:.3} s of its time {:.6}",
                                 source.label(i),
@@ -276,27 +275,25 @@ impl<'a, C: Capacity> Run<'a, C> {
                                 source.label(i),
                                 i + 1
                             ),
-                        },
-                    )?),
-                    None => None,
-                };
-                // A given pose is the stamp's; a deskewed scan is fused at its reference time.
-                let given = given.map(|g| match to_stamp {
-                    Some((m, dt, reference)) => deskew::pose_at(&g, &m, dt, reference),
-                    None => g,
-                });
-                let r = match (given, &ahead) {
-                    (Some(pose), None) => {
-                        pipeline.integrate_scan_with(&points, &pose, workers, timer)
-                    }
-                    (None, None) => pipeline.process_scan_with(&points, workers, timer),
-                    (Some(pose), Some(a)) => {
-                        pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
-                    }
-                    (None, Some(a)) => pipeline.process_filtered_with(a.filtered(), workers, timer),
-                };
-                r.map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))
+                        })?,
+                ),
+                None => None,
+            };
+            // A given pose is the stamp's; a deskewed scan is fused at its reference time.
+            let given = given.map(|g| match to_stamp {
+                Some((m, dt, reference)) => deskew::pose_at(&g, &m, dt, reference),
+                None => g,
             });
+            let r = match (given, &ahead) {
+                (Some(pose), None) => pipeline.integrate_scan_with(&points, &pose, workers, timer),
+                (None, None) => pipeline.process_scan_with(&points, workers, timer),
+                (Some(pose), Some(a)) => {
+                    pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
+                }
+                (None, Some(a)) => pipeline.process_filtered_with(a.filtered(), workers, timer),
+            };
+            r.map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))
+        });
         rec.ms = StageMs {
             read: read.ms,
             deskew: rec.ms.deskew,
