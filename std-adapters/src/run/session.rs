@@ -469,7 +469,7 @@ impl<C: Capacity> Setup<C> {
         // With two threads or more, the next frame is filtered on a thread of its own.
         let ahead = workers.threads() > 1;
         if let Some(cap) = opts.window.memory_cap_mb {
-            let other = memory::other_bytes() + if ahead { LookAhead::bytes::<C>() } else { 0 };
+            let other = memory::other_bytes();
             let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
                 RunError::MemoryCapTooSmall {
                     cap_mb: cap,

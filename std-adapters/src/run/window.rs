@@ -11,11 +11,13 @@
 //! [`Pipeline::with_map_layers`](slamesh_core::Pipeline::with_map_layers)), so that the map
 //! never holds more than the cap allows, even in the middle of a scan. What counts against the
 //! cap: the scan buffers of the capacity class in full (a scan may fill them), the map's hash
-//! table and layer pool for that many layers ([`Capacity::memory_bytes_with_map_layers`]), and
-//! the rest of the process as the caller measures it.
+//! table and layer pool for that many layers ([`Capacity::memory_bytes_with_map_layers`]), the
+//! look-ahead's filter buffers ([`LookAhead::bytes`], counted whether or not the run has the
+//! second thread it needs), and the rest of the process as the caller measures it.
 
 use crate::io::error::FileError;
 use crate::io::mesh_spool::MeshSpool;
+use crate::run::lookahead::LookAhead;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::layer::Layer;
 use slamesh_core::map::{LayerRef, MeshMap};
@@ -49,9 +51,7 @@ impl Window {
         cap_bytes: usize,
         other_bytes: usize,
     ) -> Result<usize, CapTooSmall> {
-        let needed = |budget: usize| {
-            C::memory_bytes_with_map_layers(Self::map_layers::<C>(budget)) + other_bytes
-        };
+        let needed = |budget: usize| Self::run_bytes::<C>(budget) + other_bytes;
         let (mut lo, mut hi) = (Self::least_budget::<C>(), C::MAP_LAYERS);
         if cap_bytes < needed(lo) {
             return Err(CapTooSmall {
@@ -73,8 +73,12 @@ impl Window {
     /// The least memory cap for capacity `C` when `other_bytes` go to the rest of the
     /// process: the budget of one scan's layers.
     pub fn least_cap_bytes<C: Capacity>(other_bytes: usize) -> usize {
-        C::memory_bytes_with_map_layers(Self::map_layers::<C>(Self::least_budget::<C>()))
-            + other_bytes
+        Self::run_bytes::<C>(Self::least_budget::<C>()) + other_bytes
+    }
+
+    /// The run's own bytes for a layer budget of `budget`: the pipeline's and the look-ahead's.
+    fn run_bytes<C: Capacity>(budget: usize) -> usize {
+        C::memory_bytes_with_map_layers(Self::map_layers::<C>(budget)) + LookAhead::bytes::<C>()
     }
 
     /// The least layer budget: one scan's worth (a map that cannot hold what one scan sees
@@ -239,7 +243,10 @@ mod tests {
     fn the_layer_budget_follows_the_cap() {
         type K = KittiCapacity;
         let scan = K::SCAN_LAYERS;
-        let bytes = |budget: usize| K::memory_bytes_with_map_layers(budget + scan);
+        // The pipeline with a map for the budget and one scan more, and the look-ahead.
+        let bytes = |budget: usize| {
+            K::memory_bytes_with_map_layers(budget + scan) + LookAhead::bytes::<K>()
+        };
         let e = Window::max_layers::<K>(K::scan_bytes(), 0).unwrap_err();
         assert_eq!(e.needed_bytes, bytes(scan), "one scan's worth is the least");
         // The map is sized for the budget: under a third of the capacity's bound.
