@@ -47,7 +47,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{:>7} {:>9} {:>9} {:>8} {:>9}",
         "frame", "cells", "layers", "RSS MB", "peak MB"
     );
+    let mut statuses = std::collections::BTreeMap::<String, usize>::new();
     let summary = run::<KittiCapacity>(&mut drive, &opts, |rec| {
+        *statuses.entry(rec.status.clone()).or_default() += 1;
         if (rec.frame + 1) % every == 0 {
             println!(
                 "{:>7} {:>9} {:>9} {:>8.0} {:>9.0}",
@@ -81,6 +83,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         end.unwrap_or(f64::NAN),
         (frames.saturating_sub(1)) as f64,
     );
+    println!("frames by status: {statuses:?}");
     std::fs::remove_dir_all(&out)?;
     Ok(())
 }

@@ -113,8 +113,10 @@ pub struct RecoveryConfig {
     /// this share matched is kept as recovered (a turn into unseen space leaves fewer layers
     /// with a match); below it the frame is `NotConverged`. Default 0.6.
     pub accept_share: f64,
-    /// A last round that moved the pose by more than this (metres) has not settled. Default
-    /// 0.5: the simulated town's last rounds move it by up to 0.32 m and still end right.
+    /// A last round that moved the sensor by more than this (metres) has not settled.
+    /// Default 0.5, chosen when the measure was LM's correction about the world's origin (the
+    /// simulated town's last rounds moved that by up to 0.32 m and still ended right), which
+    /// overstates the sensor's motion away from the origin.
     pub settle_m: f64,
     /// As `settle_m`, in degrees. Default 1.0: KITTI's last rounds turn it by at most 0.07°,
     /// the town's by 0.22°; hand-held steps that ended wrong had turned by 2° to 5°.

@@ -24,21 +24,28 @@ pub struct Verdict {
     pub hit_limit: bool,
     /// Share of the scan's layers that found a match in the map in the last round.
     pub matched_share: f64,
-    /// The last round's correction was within `settle_m` and `settle_deg`: the rounds agree.
+    /// The last round moved the sensor by at most `settle_m` and turned it by at most
+    /// `settle_deg`: the rounds agree.
     pub settled: bool,
 }
 
 impl Verdict {
     /// The verdict of a last round that paired `residuals` of `layers` scan layers, ran LM
-    /// for `iterations` of at most `max_iterations`, and corrected the pose by `correction`.
+    /// for `iterations` of at most `max_iterations`, and took the sensor from pose `before` to
+    /// `after`. Settling is judged on how far the sensor moved and turned, wherever the
+    /// world's origin lies (a correction's own translation, about the world's origin, grows
+    /// with the distance from it).
+    #[allow(clippy::too_many_arguments)]
     pub fn of(
         residuals: usize,
         layers: usize,
         iterations: usize,
         max_iterations: usize,
-        correction: &Pose,
+        before: &Pose,
+        after: &Pose,
         cfg: &RecoveryConfig,
     ) -> Self {
+        let motion = before.inverse() * after;
         Self {
             hit_limit: iterations >= max_iterations,
             matched_share: if layers == 0 {
@@ -46,13 +53,13 @@ impl Verdict {
             } else {
                 residuals as f64 / layers as f64
             },
-            settled: correction.translation.vector.norm() <= cfg.settle_m
-                && rotation_angle(correction) <= cfg.settle_deg.to_radians(),
+            settled: motion.translation.vector.norm() <= cfg.settle_m
+                && rotation_angle(&motion) <= cfg.settle_deg.to_radians(),
         }
     }
 
     /// True when the attempt did not converge: its last round ran to the iteration limit with
-    /// less than `cfg.confirm_share` of its layers matched, or it still moved the pose by
+    /// less than `cfg.confirm_share` of its layers matched, or it still moved the sensor by
     /// more than the settling limits. This is what sends a frame to recovery.
     pub fn is_lost(&self, cfg: &RecoveryConfig) -> bool {
         (self.hit_limit && self.matched_share < cfg.confirm_share) || !self.settled
@@ -165,15 +172,28 @@ mod tests {
     }
 
     #[test]
+    fn a_small_turn_settles_as_well_far_from_the_world_origin_as_near_it() {
+        let c = cfg();
+        // The same step, a tenth of a degree in yaw, at the origin and 3 km from it.
+        let turn = Pose::rotation(Vector3::z() * 0.1f64.to_radians());
+        let far = Pose::translation(3000.0, 0.0, 0.0);
+        // As a correction about the world's origin, the far one translates by over 5 m.
+        assert!((far * turn * far.inverse()).translation.vector.norm() > 5.0);
+        for at in [Pose::identity(), far] {
+            assert!(Verdict::of(95, 100, 3, 10, &at, &(at * turn), &c).settled);
+        }
+    }
+
+    #[test]
     fn a_lost_attempt_ran_to_the_limit_and_matched_little_or_did_not_settle() {
         let c = cfg();
         let still = Pose::identity();
-        let v = |res, layers, it, corr: &Pose| Verdict::of(res, layers, it, 10, corr, &c);
+        let v = |res, layers, it, corr: &Pose| Verdict::of(res, layers, it, 10, &still, corr, &c);
         assert!(v(40, 100, 10, &still).is_lost(&c));
         assert!(!v(90, 100, 10, &still).is_lost(&c));
         assert!(!v(40, 100, 9, &still).is_lost(&c));
         assert!(v(0, 0, 10, &still).is_lost(&c));
-        // A last round that still moved the pose by 10 cm, or by a degree, did not settle.
+        // A last round that still moved the sensor by 10 cm, or by a degree, did not settle.
         let moved = Pose::translation(0.1, 0.0, 0.0);
         let turned = Pose::rotation(Vector3::z() * 1f64.to_radians());
         assert!(v(95, 100, 3, &moved).is_lost(&c));

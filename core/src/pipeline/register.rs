@@ -123,20 +123,22 @@ impl<C: Capacity> Pipeline<C> {
             );
             stats.rounds += 1;
             probe.enter(Stage::Solve);
-            let verdict = |iterations, correction: &Pose| {
+            let verdict = |iterations, before: &Pose, after: &Pose| {
                 Verdict::of(
                     a.associate.residuals,
                     self.scan.len() + made.unpaired,
                     iterations,
                     lm_config.max_iterations,
-                    correction,
+                    before,
+                    after,
                     &r.recovery,
                 )
             };
             match lm::solve(&self.residuals, lm_config) {
                 Ok(sol) => {
-                    a.verdict = verdict(sol.iterations, &sol.correction);
-                    a.pose = renormalized(sol.correction * a.pose);
+                    let pose = renormalized(sol.correction * a.pose);
+                    a.verdict = verdict(sol.iterations, &a.pose, &pose);
+                    a.pose = pose;
                     stats.lm_iterations += sol.iterations;
                     a.conditioning = sol.conditioning;
                     a.degenerate_directions = sol.degenerate_directions;
@@ -148,7 +150,7 @@ impl<C: Capacity> Pipeline<C> {
                     // A scan too degenerate to solve is not lost, nor one with too few layers
                     // to pair from any guess; one that found too little to pair, or numbers
                     // that blew up, may be.
-                    a.verdict = verdict(lm_config.max_iterations, &Pose::identity());
+                    a.verdict = verdict(lm_config.max_iterations, &a.pose, &a.pose);
                     a.status = match e {
                         LmError::TooFewResiduals { .. } => {
                             a.verdict.hit_limit =

@@ -148,7 +148,7 @@ parameters! {
     "register.recovery" register.recovery.rounds: count as uv, "Registration rounds from each guess.";
     "register.recovery" register.recovery.confirm_share: float as fv, "A last round at LM's limit matching fewer of the scan's layers than this did not converge; one before the limit matching at least this did.";
     "register.recovery" register.recovery.accept_share: float as fv, "When no guess was sure, the best that converged and settled with at least this share matched is kept as recovered.";
-    "register.recovery" register.recovery.settle_m: float as fv, "A last round that moved the pose by more than this (metres) has not settled: the frame goes to recovery.";
+    "register.recovery" register.recovery.settle_m: float as fv, "A last round that moved the sensor by more than this (metres) has not settled: the frame goes to recovery.";
     "register.recovery" register.recovery.settle_deg: float as fv, "As settle_m, in degrees.";
     "register.recovery" register.recovery.polish_rounds: count as uv, "Rounds that refine a recovered pose, or a converged one after a turn above polish_turn_deg (no cross-cell reach, polish_huber_delta_m); 0: none.";
     "register.recovery" register.recovery.polish_turn_deg: float as fv, "A frame that converged from a prediction turning more than this (degrees) is polished too.";
