@@ -40,10 +40,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     poses.flush()?;
     times.flush()?;
-    fs::write(
-        out.join("calib.txt"),
-        "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n",
-    )?;
-    println!("{} frames of the town (seed {seed}) in {}", drive.poses.len(), out.display());
+    fs::write(out.join("calib.txt"), "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n")?;
+    println!(
+        "{} frames of the town (seed {seed}) in {}",
+        drive.poses.len(),
+        out.display()
+    );
     Ok(())
 }

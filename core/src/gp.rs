@@ -173,7 +173,7 @@ fn closest_per_bin(
 /// which vectorizes.
 #[inline]
 fn kernel_exponent(kappa: f64, da: f64, db: f64) -> f64 {
-    -kappa * libm::sqrt(da * da + db * db)
+    -kappa * crate::math::sqrt(da * da + db * db)
 }
 
 /// `Σ a_i b_i` with four running sums: independent additions pipeline (and vectorize), and the
@@ -342,7 +342,7 @@ pub fn predict_in(
         if !(diag > 0.0 && diag.is_finite()) {
             return Err(GpError::NotPositiveDefinite);
         }
-        l[ri + i] = libm::sqrt(diag);
+        l[ri + i] = crate::math::sqrt(diag);
         inv_diag[i] = 1.0 / l[ri + i];
     }
     // α = (K + σ² I)⁻¹ (f - m(u)): forward, then backward substitution.

@@ -178,6 +178,48 @@ pub fn exp_f32(x: f32) -> f32 {
     p * f32::from_bits((k_int.wrapping_add(127) as u32) << 23)
 }
 
+/// `√q` in `f64`: `libm::sqrt`, except in a build for AVX (`-C target-cpu=x86-64-v3` or
+/// `native` on x86-64), which takes [`sqrt_soft`].
+///
+/// `libm::sqrt` is one `sqrtsd` in inline assembly, and its legacy SSE encoding among the AVX
+/// instructions of such a build stalls Intel CPUs at every call: the GP's kernel took 5.6
+/// times as long (docs/benchmarks.md, "Built for the CPU at hand, again"). Elsewhere the one
+/// instruction is the fastest root, so the default build's results are `libm`'s to the bit.
+#[inline]
+pub fn sqrt(q: f64) -> f64 {
+    #[cfg(not(target_feature = "avx"))]
+    {
+        libm::sqrt(q)
+    }
+    #[cfg(target_feature = "avx")]
+    {
+        sqrt_soft(q)
+    }
+}
+
+/// `√q` in `f64` for `q ≥ 0`, within 1 ulp, branch-free (NaN for NaN or negative `q`; 0 for
+/// `q` below 1e-300, so that no step meets a subnormal number, which Intel CPUs take a hundred
+/// times as long over): [`sqrt_f32`]'s method, the bit-level estimate of `1/√q` and four
+/// Newton steps, times `q`, then one Newton step on the root.
+#[inline]
+pub fn sqrt_soft(q: f64) -> f64 {
+    const TINY: f64 = 1e-300;
+    let q_safe = q.max(TINY);
+    let mut r = f64::from_bits(0x5fe6_eb50_c7b5_37a9_u64.wrapping_sub(q_safe.to_bits() >> 1));
+    for _ in 0..4 {
+        r *= 1.5 - 0.5 * q_safe * r * r;
+    }
+    let y = q_safe * r;
+    let root = y + 0.5 * r * (q_safe - y * y);
+    if q >= TINY {
+        root
+    } else if q >= 0.0 {
+        0.0
+    } else {
+        f64::NAN
+    }
+}
+
 /// `√q` in `f32` for `q ≥ 0`, within 2 ulp, branch-free (NaN for NaN or negative `q`).
 ///
 /// `core` has no `sqrt` (and `libm::sqrtf` is one scalar instruction a call, which keeps
@@ -261,7 +303,7 @@ mod tests {
     }
 
     #[test]
-    fn f32_exp_and_sqrt_are_within_two_ulp() {
+    fn f32_exp_and_the_square_roots_are_within_their_ulp() {
         let ulp = |v: f32| f64::from(f32::EPSILON) * libm::fabs(f64::from(v));
         let mut worst = 0.0f64;
         for i in -100_000..=100_000 {
@@ -280,6 +322,18 @@ mod tests {
         }
         assert!(worst <= 2.0, "sqrt_f32: {worst} ulp");
         assert!(sqrt_f32(0.0) < 1e-18 && sqrt_f32(-1.0).is_nan() && sqrt_f32(f32::NAN).is_nan());
+        // f64 over twelve decades: squared distances in m² and the Cholesky diagonal.
+        let ulp64 = |v: f64| f64::from_bits(v.to_bits() + 1) - v;
+        let mut worst = 0.0f64;
+        for i in 0..1_200_000 {
+            let q = libm::exp10(i as f64 * 1e-5 - 6.0) * (1.0 + 1e-3 * (i % 7) as f64);
+            worst = worst.max(libm::fabs(sqrt_soft(q) - libm::sqrt(q)) / ulp64(libm::sqrt(q)));
+        }
+        assert!(worst <= 1.0, "sqrt_soft: {worst} ulp");
+        for r in [sqrt, sqrt_soft] {
+            assert!(r(0.0) == 0.0 && r(-1.0).is_nan() && r(f64::NAN).is_nan());
+            assert_eq!(r(4.0), 2.0);
+        }
     }
 
     #[test]
