@@ -5,7 +5,6 @@
 //! points are dropped in input order. Everything dropped is counted in [`FilterStats`].
 
 use crate::bounded::BoundedVec;
-use crate::capacity::Capacity;
 use crate::cell::CellKey;
 use crate::config::{Config, FilterConfig};
 use crate::executor::Executor;
@@ -256,9 +255,10 @@ pub struct ScanFilter {
 }
 
 impl ScanFilter {
-    /// A filter with the buffers of capacity `C` ([`Capacity::filter_bytes`]), allocated now.
+    /// A filter with the buffers of capacity `C`
+    /// ([`Capacity::filter_bytes`](crate::capacity::Capacity::filter_bytes)), allocated now.
     #[cfg(any(feature = "alloc", test))]
-    pub fn new<C: Capacity>() -> Self {
+    pub fn new<C: crate::capacity::Capacity>() -> Self {
         Self {
             work: BoundedVec::with_capacity(C::POINTS),
             sorter: KeySorter::with_capacity(C::SORT_ENTRIES),
