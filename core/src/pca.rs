@@ -4,7 +4,7 @@
 //! (an eigen-decomposition that does not converge gives [`Shape::Unclear`]).
 
 use crate::cell::{Axis, CellKey};
-use crate::math::{to_vec3, Mat3, Point, Vec3};
+use crate::math::{symmetric_eigen3, to_vec3, Mat3, Point, Vec3};
 use heapless::Vec as HVec;
 use nalgebra::SymmetricEigen;
 
@@ -46,24 +46,15 @@ pub fn choose_layers(points: &[(CellKey, Point)]) -> Shape {
         let d = to_vec3(p) - mean;
         s + d * d.transpose()
     }) / n;
-    let Some(eig) = SymmetricEigen::try_new(cov, 1e-12, 64) else {
+    let Some(([_, l2, l3], normal)) = symmetric_eigen3(&cov).or_else(|| iterative(cov)) else {
         return Shape::Unclear;
     };
-    let mut order = [0usize, 1, 2];
-    order.sort_unstable_by(|&i, &j| {
-        eig.eigenvalues[i]
-            .total_cmp(&eig.eigenvalues[j])
-            .then(i.cmp(&j))
-    });
-    let [i1, i2, i3] = order;
-    let (l2, l3) = (eig.eigenvalues[i2], eig.eigenvalues[i3]);
     if !(l3 > 1e-12) {
         return Shape::Unclear;
     }
     if !(l2 > 0.0) || l3 / l2 > LINE_RATIO {
         return Shape::LineLike;
     }
-    let normal = eig.eigenvectors.column(i1);
     // Angle of the normal to each axis, folded into [0, π/2], sorted with a real sort.
     let mut angles: [(f64, Axis); 3] = core::array::from_fn(|k| {
         (
@@ -83,6 +74,22 @@ pub fn choose_layers(points: &[(CellKey, Point)]) -> Shape {
         }
     }
     Shape::Surface(axes)
+}
+
+/// nalgebra's iterative decomposition, for what [`symmetric_eigen3`] refuses (the two smallest
+/// eigenvalues nearly equal): eigenvalues smallest first and the smallest's eigenvector.
+fn iterative(cov: Mat3) -> Option<([f64; 3], Vec3)> {
+    let eig = SymmetricEigen::try_new(cov, 1e-12, 64)?;
+    let mut order = [0usize, 1, 2];
+    order.sort_unstable_by(|&i, &j| {
+        eig.eigenvalues[i]
+            .total_cmp(&eig.eigenvalues[j])
+            .then(i.cmp(&j))
+    });
+    Some((
+        order.map(|i| eig.eigenvalues[i]),
+        eig.eigenvectors.column(order[0]).into_owned(),
+    ))
 }
 
 #[cfg(test)]
