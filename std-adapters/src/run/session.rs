@@ -81,6 +81,7 @@ pub struct Run<'a, C: Capacity> {
     /// What a checkpoint saves: poses, skipped frames, totals.
     progress: Progress,
     timer: StageTimer,
+    /// The next frame, read and filtered ahead (with two threads or more).
     ahead: LookAhead,
     started: Instant,
     /// Loop seconds before this process (from the checkpoint when resuming).
@@ -217,7 +218,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let mut to_stamp: Option<(Pose, f64, f64)> = None;
         let mut ahead = None;
         let outcome = read.scan.map_err(|e| e.to_string()).and_then(|scan| {
-            let mut points = match scan {
+            let (mut points, times) = match scan {
                 Scan::Raw { points, times } => (points, times),
                 Scan::Ahead { points } => {
                     rec.points = points;
@@ -230,18 +231,17 @@ impl<'a, C: Capacity> Run<'a, C> {
                 }
             };
             if ahead.is_none() {
-                rec.points = points.0.len();
+                rec.points = points.len();
             }
-            if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &points.1, motion) {
+            if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &times, motion) {
                 let t = Instant::now();
-                let d = deskew::deskew(&mut points.0, times, &m, dt)
+                let d = deskew::deskew(&mut points, times, &m, dt)
                     .map_err(|e| format!("{}: frame {i}: cannot deskew: {e:?}", source.label(i)))?;
                 rec.deskewed_points = d.moved;
                 rec.ms.deskew = t.elapsed().as_secs_f64() * 1e3;
                 // The points now sit in the sensor frame at `reference_s`.
                 to_stamp = (d.moved > 0).then_some((m, dt, d.reference_s));
             }
-            let points = points.0;
             if points.len() > C::POINTS {
                 let n = capacity::points_in_range(&points, filter);
                 if n > C::POINTS {

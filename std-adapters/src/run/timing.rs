@@ -26,7 +26,8 @@ pub struct StageMs {
     pub mesh: f64,
     /// Sliding-window eviction.
     pub evict: f64,
-    /// Everything above but reading.
+    /// Everything above but reading; a filter run ahead on its own thread
+    /// ([`crate::run::lookahead`]) counts only for the time the run waited for it.
     pub total: f64,
 }
 
