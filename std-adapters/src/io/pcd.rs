@@ -150,6 +150,8 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
                         count,
                     })
                     .collect::<Vec<_>>();
+                // A record's bytes, summed here once so that no later sum can overflow.
+                let mut record = 0usize;
                 for f in &fields {
                     let ok = match f.kind {
                         b'F' => f.size == 4 || f.size == 8,
@@ -161,6 +163,16 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
                             f.name, f.size, f.count
                         )));
                     }
+                    record = f
+                        .size
+                        .checked_mul(f.count)
+                        .and_then(|b| record.checked_add(b))
+                        .ok_or_else(|| {
+                            bad(format!(
+                                "field {}: a count of {} makes a record too large",
+                                f.name, f.count
+                            ))
+                        })?;
                 }
                 return Ok(Header {
                     fields,
@@ -483,7 +495,7 @@ COUNT 1 2 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n"
 
     #[test]
     fn bad_files_are_errors_naming_the_file_and_reason() {
-        let cases: [(&str, Vec<u8>, &str); 5] = [
+        let cases: [(&str, Vec<u8>, &str); 6] = [
             ("empty.pcd", vec![], "empty"),
             (
                 "garbage.pcd",
@@ -507,6 +519,13 @@ COUNT 1 2 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n"
                 "nodata.pcd",
                 b"FIELDS x y z\nSIZE 4 4 4\n".to_vec(),
                 "ends before",
+            ),
+            (
+                // Found by the fuzzer: the record's size overflowed.
+                "hugecount.pcd",
+                b"FIELDS x y z\nSIZE 8 4 4\nTYPE F F F\nCOUNT 1 1 13367767333989954681\nPOINTS 1\nDATA binary\n"
+                    .to_vec(),
+                "too large",
             ),
         ];
         for (name, bytes, reason) in cases {
