@@ -56,6 +56,8 @@ struct Header {
     data: Data,
     /// Byte offset of the data.
     start: usize,
+    /// Bytes of one point's record (every field, every element): checked against overflow.
+    record: usize,
 }
 
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
@@ -150,7 +152,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
                         count,
                     })
                     .collect::<Vec<_>>();
-                // A record's bytes, summed here once so that no later sum can overflow.
+                // A record's bytes, summed once here, where an overflow is an error.
                 let mut record = 0usize;
                 for f in &fields {
                     let ok = match f.kind {
@@ -179,6 +181,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
                     points,
                     data,
                     start: pos,
+                    record,
                 });
             }
             _ => return Err(bad(format!("not a PCD header line: {line:?}"))),
@@ -245,7 +248,7 @@ fn values(path: &Path, h: &Header, wanted: &[usize], body: &[u8]) -> Result<Vec<
     match h.data {
         Data::Ascii => read_ascii(path, h, wanted, body),
         Data::Binary => {
-            let record: usize = h.fields.iter().map(Field::bytes).sum();
+            let record = h.record;
             let offsets = offsets(&h.fields);
             let need = record.saturating_mul(h.points);
             if body.len() < need {
@@ -280,7 +283,7 @@ fn values(path: &Path, h: &Header, wanted: &[usize], body: &[u8]) -> Result<Vec<
                     ),
                 )
             })?;
-            let record: usize = h.fields.iter().map(Field::bytes).sum();
+            let record = h.record;
             if unpacked != record.saturating_mul(h.points) {
                 return Err(FileError::at(
                     path,

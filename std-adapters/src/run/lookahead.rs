@@ -83,7 +83,8 @@ pub struct LookAhead {
 /// The filter thread: raw scans in, filtered ones out, in order.
 #[derive(Debug)]
 struct Worker {
-    jobs: mpsc::Sender<Vec<Point>>,
+    /// `None` once dropped: closing the queue ends the thread's loop.
+    jobs: Option<mpsc::Sender<Vec<Point>>>,
     done: mpsc::Receiver<(Vec<Point>, FilterStats, f64)>,
     thread: Option<thread::JoinHandle<()>>,
 }
@@ -115,7 +116,7 @@ impl LookAhead {
         match thread {
             Ok(thread) => Self {
                 worker: Some(Worker {
-                    jobs,
+                    jobs: Some(jobs),
                     done,
                     thread: Some(thread),
                 }),
@@ -164,7 +165,8 @@ impl LookAhead {
         if let Ok(Scan::Raw { points, times }) = &mut r.scan {
             if can_filter(points, times) {
                 let n = points.len();
-                if worker.jobs.send(std::mem::take(points)).is_ok() {
+                let sent = worker.jobs.as_ref().map(|j| j.send(std::mem::take(points)));
+                if matches!(sent, Some(Ok(()))) {
                     r.scan = Ok(Scan::Ahead { points: n });
                 }
             }
@@ -190,9 +192,7 @@ impl LookAhead {
 
 impl Drop for Worker {
     fn drop(&mut self) {
-        // Closing the job queue ends the thread's loop.
-        let (closed, _) = mpsc::channel();
-        self.jobs = closed;
+        self.jobs = None;
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
