@@ -4,6 +4,7 @@
 //! it the constant-velocity guess loses the track from the first fast turn. The figures of
 //! longer drives are in docs/benchmarks.md ("Hard motion").
 
+use slamesh::io::config_file::preset;
 use slamesh::parallel::Workers;
 use slamesh_core::{Config, Lidar32Capacity, Pipeline, Pose, RegistrationStatus};
 use slamesh_sim::town::Carried;
@@ -56,8 +57,7 @@ fn polishing_after_a_fast_turn_cuts_the_step_error_by_a_third() {
     // The `default` preset's registration (1.4 m face lattice), with and without the polish:
     // 4.8 against 7.2 mm (hand-held) and 7.5 against 11.0 mm (drone) when written.
     for (name, how) in [("hand-held", Carried::HANDHELD), ("drone", Carried::DRONE)] {
-        let mut config = Config::meshing();
-        config.grid.cell_size_m = 1.4;
+        let mut config = preset("default").expect("the default preset");
         let (_, _, polished) = track_with_errors(how, 24, config);
         config.register.recovery.polish_rounds = 0;
         let (_, _, plain) = track_with_errors(how, 24, config);
