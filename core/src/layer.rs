@@ -89,6 +89,40 @@ pub const fn triangle_neighbours(t: usize) -> [Option<usize>; 3] {
     }
 }
 
+/// Per triangle `t`, the bits of the triangles across its edges ([`triangle_neighbours`]).
+const NEIGHBOUR_MASKS: [u64; TRIANGLES] = {
+    let mut masks = [0u64; TRIANGLES];
+    let mut t = 0;
+    while t < TRIANGLES {
+        let around = triangle_neighbours(t);
+        let mut k = 0;
+        while k < 3 {
+            if let Some(n) = around[k] {
+                masks[t] |= 1 << n;
+            }
+            k += 1;
+        }
+        t += 1;
+    }
+    masks
+};
+
+/// Every triangle of a lattice.
+const ALL_TRIANGLES: u64 = (1 << TRIANGLES) - 1;
+
+/// The triangles with a neighbour across each of their three edges (none on the border).
+const INTERIOR: u64 = {
+    let mut mask = 0u64;
+    let mut t = 0;
+    while t < TRIANGLES {
+        if NEIGHBOUR_MASKS[t].count_ones() == 3 {
+            mask |= 1 << t;
+        }
+        t += 1;
+    }
+    mask
+};
+
 /// Predictions and variances at the `6 x 6` lattice of one layer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -231,34 +265,24 @@ impl Layer {
     ///   whose three neighbours are all hidden.
     pub fn shown_mask(&self, lattice: &LatticeTable, shown: Shown) -> u64 {
         let notch_variance = shown.variance * NOTCH_VARIANCE_FACTOR;
+        // Every triangle's tests, without branches (the slope's where the variance
+        // already hides it too: the mask is the same).
+        let slope = self.slope_mask(lattice, shown.min_axis_cosine);
         let (mut confident, mut notch) = (0u64, 0u64);
         for t in 0..TRIANGLES {
-            // The variance first: the slope's cross product only for triangles it lets by.
-            let tri = lattice_triangle(t);
-            let variance = self.mean_variance(&tri);
-            if variance < notch_variance && self.within_slope(lattice, &tri, shown.min_axis_cosine)
-            {
-                if variance < shown.variance {
-                    confident |= 1 << t;
-                } else {
-                    notch |= 1 << t;
-                }
-            }
+            let variance = self.mean_variance(&lattice_triangle(t));
+            let below_notch = variance < notch_variance;
+            confident |= u64::from(below_notch && variance < shown.variance) << t;
+            notch |= u64::from(below_notch) << t;
         }
+        confident &= slope;
+        notch &= slope & !confident;
         let mut mask = confident;
-        for t in 0..TRIANGLES {
-            let around = triangle_neighbours(t);
-            let shown_around = around
-                .iter()
-                .flatten()
-                .filter(|&&n| confident & (1 << n) != 0)
-                .count();
+        for (t, around) in NEIGHBOUR_MASKS.iter().enumerate() {
+            let shown_around = (confident & around).count_ones();
             if notch & (1 << t) != 0 && shown_around >= 2 {
                 mask |= 1 << t;
-            } else if confident & (1 << t) != 0
-                && shown_around == 0
-                && around.iter().all(Option::is_some)
-            {
+            } else if confident & (1 << t) != 0 && shown_around == 0 && INTERIOR & (1 << t) != 0 {
                 mask &= !(1 << t);
             }
         }
@@ -268,39 +292,26 @@ impl Layer {
     /// The triangles no steeper than the slope limit (the cosine of their angle to the axis
     /// at least `min_axis_cosine`), bit `t` for [`lattice_triangle`]`(t)`.
     pub fn slope_mask(&self, lattice: &LatticeTable, min_axis_cosine: f32) -> u64 {
+        if min_axis_cosine <= 0.0 {
+            return ALL_TRIANGLES;
+        }
+        let cos_sq = min_axis_cosine * min_axis_cosine;
+        let at: [f32; N] = core::array::from_fn(|i| lattice.coordinates[i] as f32);
+        let point = |j: usize| [at[j / N], at[j % N], self.pred[j]];
         let mut mask = 0u64;
         for t in 0..TRIANGLES {
-            if self.within_slope(lattice, &lattice_triangle(t), min_axis_cosine) {
-                mask |= 1 << t;
-            }
+            let [p0, p1, p2] = lattice_triangle(t).map(point);
+            let u = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
+            let v = [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]];
+            let n = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            let norm_sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+            mask |= u64::from(n[2] * n[2] >= cos_sq * norm_sq) << t;
         }
         mask
-    }
-
-    /// Whether the cosine of the angle between triangle `t`'s normal and the layer's axis is
-    /// at least `min_cosine` (compared squared: no root per triangle).
-    fn within_slope(&self, lattice: &LatticeTable, t: &[usize; 3], min_cosine: f32) -> bool {
-        if min_cosine <= 0.0 {
-            return true;
-        }
-        let at = |i: usize| lattice.coordinates.get(i).copied().unwrap_or(0.0) as f32;
-        let p = |j: usize| {
-            [
-                at(j / N),
-                at(j % N),
-                self.pred.get(j).copied().unwrap_or(0.0),
-            ]
-        };
-        let (p0, p1, p2) = (p(t[0]), p(t[1]), p(t[2]));
-        let u = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
-        let v = [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]];
-        let n = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
-        let norm_sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-        n[2] * n[2] >= min_cosine * min_cosine * norm_sq
     }
 
     /// Mean variance of three vertices (`INFINITY` for an index out of range).
