@@ -47,7 +47,8 @@ pub struct Pipeline<C: Capacity = KittiCapacity> {
     cells: BoundedVec<CellSpan>,
     scan: BoundedVec<ScanLayer>,
     residuals: BoundedVec<Residual>,
-    _capacity: PhantomData<C>,
+    /// The capacity is a type only: the pipeline holds none of it (and is `Send` whatever it is).
+    _capacity: PhantomData<fn() -> C>,
 }
 
 impl<C: Capacity> Pipeline<C> {

@@ -37,6 +37,12 @@ impl Rayon {
     pub fn threads(&self) -> usize {
         self.pool.current_num_threads()
     }
+
+    /// Runs `job` on the pool, as a task of its own: a thread that takes it works on it
+    /// until it is done, and the pool's other threads share what else comes meanwhile.
+    pub fn spawn(&self, job: impl FnOnce() + Send + 'static) {
+        self.pool.spawn(job);
+    }
 }
 
 impl Executor for Rayon {
@@ -188,6 +194,16 @@ impl Workers {
         match self {
             Workers::Serial => 1,
             Workers::Pool(r) => r.threads(),
+        }
+    }
+
+    /// Runs `f` on one of the pool's threads (on this thread for [`Workers::Serial`]): its
+    /// parallel loops then run inside the pool, and its serial parts leave no thread
+    /// waiting beside the pool's.
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match self {
+            Workers::Serial => f(),
+            Workers::Pool(r) => r.pool.install(f),
         }
     }
 

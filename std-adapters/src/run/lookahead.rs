@@ -1,7 +1,9 @@
 //! Reading and filtering ahead: while the pipeline registers frame `i`, frame `i + 1` is read
-//! (on the run's thread: a source need not be `Send`) and filtered on a thread of its own by
-//! the core's [`ScanFilter`]. The filter runs on one core; ahead, it runs while the pipeline's
-//! serial stages (bucketing, the solve, the update) leave the other core idle.
+//! (on the run's thread: a source need not be `Send`) and filtered by the core's
+//! [`ScanFilter`] as one task on the run's rayon pool. The thread that takes the task filters
+//! on one core; the pipeline, run on the pool too ([`Workers::install`]), has the other, and
+//! its parallel loops get both again once the filter is done. No thread of the run waits
+//! beside the pool's, so the scheduler has no more threads than cores to share out.
 //!
 //! What it guarantees:
 //! - the same filtered points as the pipeline's own filter (the same function at the same
@@ -10,14 +12,15 @@
 //!   (its motion is known only once frame `i` is registered) and one with more raw points
 //!   than the capacity (whose refusal the step words);
 //! - at most one frame ahead, its buffers counted by [`LookAhead::bytes`];
-//! - off ([`LookAhead::off`]) with one thread: nothing ahead, no thread.
+//! - off ([`LookAhead::off`]) or with one thread (no pool): nothing ahead.
 
 use crate::io::error::FileError;
+use crate::parallel::Workers;
 use crate::run::source::FrameSource;
 use slamesh_core::filter::{FilterStats, Filtered, ScanFilter};
 use slamesh_core::{Capacity, Config, Point, Serial};
+use std::path::Path;
 use std::sync::mpsc;
-use std::thread;
 use std::time::Instant;
 
 /// A frame's points as the step gets them.
@@ -30,10 +33,18 @@ pub enum Scan {
         /// Their times relative to the frame's stamp (seconds).
         times: Option<Vec<f32>>,
     },
-    /// Being filtered ahead: [`LookAhead::filtered`] waits for the result.
+    /// Being filtered ahead (only between [`LookAhead::read_ahead`] and
+    /// [`LookAhead::take`], which waits for the result).
     Ahead {
         /// How many raw points were read.
         points: usize,
+    },
+    /// Filtered ahead.
+    Filtered {
+        /// How many raw points were read.
+        points: usize,
+        /// The filtered scan.
+        ahead: Ahead,
     },
 }
 
@@ -57,7 +68,7 @@ pub struct Ahead {
     pub points: Vec<Point>,
     /// What the filter did.
     pub stats: FilterStats,
-    /// Time the filter thread spent on it (ms).
+    /// Time the filter job took (ms).
     pub filter_ms: f64,
     /// Time the run waited for it (ms).
     pub wait_ms: f64,
@@ -73,21 +84,20 @@ impl Ahead {
     }
 }
 
-/// The filter thread and the frame read ahead.
+/// The filter run ahead on the pool, and the frame read ahead.
 #[derive(Debug, Default)]
 pub struct LookAhead {
-    worker: Option<Worker>,
+    /// The filter's buffers while no frame is being filtered; `None` when off, or while
+    /// a job holds them.
+    filter: Option<Box<ScanFilter>>,
+    /// Where a job sends its result and hands the filter back.
+    done: Option<(mpsc::Sender<Job>, mpsc::Receiver<Job>)>,
     next: Option<Read>,
 }
 
-/// The filter thread: raw scans in, filtered ones out, in order.
-#[derive(Debug)]
-struct Worker {
-    /// `None` once dropped: closing the queue ends the thread's loop.
-    jobs: Option<mpsc::Sender<Vec<Point>>>,
-    done: mpsc::Receiver<(Vec<Point>, FilterStats, f64)>,
-    thread: Option<thread::JoinHandle<()>>,
-}
+/// What a filter job hands back: the filter, the down-sampled points, what it did and the
+/// time it took (ms).
+type Job = (Box<ScanFilter>, Vec<Point>, FilterStats, f64);
 
 impl LookAhead {
     /// No look-ahead: every frame is read when its step comes, and filtered in line.
@@ -95,35 +105,13 @@ impl LookAhead {
         Self::default()
     }
 
-    /// A look-ahead with a filter thread for a pipeline of capacity `C` and `config`.
-    pub fn new<C: Capacity>(config: Config) -> Self {
-        let (jobs, inbox) = mpsc::channel::<Vec<Point>>();
-        let (outbox, done) = mpsc::channel();
-        let thread = thread::Builder::new()
-            .name("slamesh-filter".into())
-            .spawn(move || {
-                run_when_idle();
-                let mut filter = ScanFilter::new::<C>();
-                for raw in inbox {
-                    let t = Instant::now();
-                    let f = filter.filter(&raw, &config, &Serial);
-                    let ms = t.elapsed().as_secs_f64() * 1e3;
-                    if outbox.send((f.points.to_vec(), f.stats, ms)).is_err() {
-                        break;
-                    }
-                }
-            });
-        match thread {
-            Ok(thread) => Self {
-                worker: Some(Worker {
-                    jobs: Some(jobs),
-                    done,
-                    thread: Some(thread),
-                }),
-                next: None,
-            },
-            // No thread to be had: the run filters in line, as with one thread.
-            Err(_) => Self::off(),
+    /// A look-ahead for a pipeline of capacity `C` and `config`, filtering on the pool of
+    /// the run's workers.
+    pub fn new<C: Capacity>() -> Self {
+        Self {
+            filter: Some(Box::new(ScanFilter::new::<C>())),
+            done: Some(mpsc::channel()),
+            next: None,
         }
     }
 
@@ -132,10 +120,22 @@ impl LookAhead {
         C::filter_bytes() + C::POINTS * size_of::<Point>()
     }
 
-    /// Frame `i`: the one read ahead if it is `i`, otherwise read now (raw).
+    /// Frame `i`: the one read ahead if it is `i` (waiting for its filter job), otherwise
+    /// read now (raw).
     pub fn take(&mut self, source: &mut impl FrameSource, i: usize) -> Read {
         match self.next.take() {
-            Some(read) if read.frame == i => read,
+            Some(mut read) if read.frame == i => {
+                if let Ok(Scan::Ahead { points }) = read.scan {
+                    read.scan = match self.filtered() {
+                        Ok(ahead) => Ok(Scan::Filtered { points, ahead }),
+                        Err(e) => Err(FileError::at(
+                            Path::new(&source.label(i)),
+                            format!("frame {i}: {e}"),
+                        )),
+                    };
+                }
+                read
+            }
             stale => {
                 if let Some(Read {
                     scan: Ok(Scan::Ahead { .. }),
@@ -149,24 +149,35 @@ impl LookAhead {
         }
     }
 
-    /// Reads frame `i` now, and starts filtering it when `can_filter` says its points may be.
-    /// Does nothing when off or past the last frame.
+    /// Reads frame `i` now, and starts filtering it on `workers`' pool with `config` when
+    /// `can_filter` says its points may be. Does nothing when off or past the last frame.
     pub fn read_ahead(
         &mut self,
         source: &mut impl FrameSource,
         i: usize,
+        workers: &Workers,
+        config: &Config,
         can_filter: impl Fn(&[Point], &Option<Vec<f32>>) -> bool,
     ) {
-        let Some(worker) = &self.worker else { return };
+        let (Some((outbox, _)), Workers::Pool(pool)) = (&self.done, workers) else {
+            return;
+        };
         if i >= source.frames() {
             return;
         }
         let mut r = read(source, i);
         if let Ok(Scan::Raw { points, times }) = &mut r.scan {
             if can_filter(points, times) {
-                let n = points.len();
-                let sent = worker.jobs.as_ref().map(|j| j.send(std::mem::take(points)));
-                if matches!(sent, Some(Ok(()))) {
+                if let Some(mut filter) = self.filter.take() {
+                    let n = points.len();
+                    let (raw, outbox, config) = (std::mem::take(points), outbox.clone(), *config);
+                    pool.spawn(move || {
+                        let t = Instant::now();
+                        let f = filter.filter(&raw, &config, &Serial);
+                        let (points, stats) = (f.points.to_vec(), f.stats);
+                        let ms = t.elapsed().as_secs_f64() * 1e3;
+                        let _ = outbox.send((filter, points, stats, ms));
+                    });
                     r.scan = Ok(Scan::Ahead { points: n });
                 }
             }
@@ -174,42 +185,22 @@ impl LookAhead {
         self.next = Some(r);
     }
 
-    /// Waits for the frame being filtered ahead.
-    pub fn filtered(&mut self) -> Result<Ahead, String> {
+    /// Waits for the frame being filtered ahead, and takes the filter back.
+    fn filtered(&mut self) -> Result<Ahead, String> {
         let t = Instant::now();
-        let received = self.worker.as_ref().map(|w| w.done.recv());
+        let received = self.done.as_ref().map(|(_, inbox)| inbox.recv());
         match received {
-            Some(Ok((points, stats, filter_ms))) => Ok(Ahead {
-                points,
-                stats,
-                filter_ms,
-                wait_ms: t.elapsed().as_secs_f64() * 1e3,
-            }),
-            _ => Err("the filter thread stopped".into()),
+            Some(Ok((filter, points, stats, filter_ms))) => {
+                self.filter = Some(filter);
+                Ok(Ahead {
+                    points,
+                    stats,
+                    filter_ms,
+                    wait_ms: t.elapsed().as_secs_f64() * 1e3,
+                })
+            }
+            _ => Err("the filter job stopped".into()),
         }
-    }
-}
-
-impl Drop for Worker {
-    fn drop(&mut self) {
-        self.jobs = None;
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-/// Puts the calling thread in Linux's idle scheduling class, so that it runs on a core only
-/// when nothing else would: the filter fills the gaps the pipeline's serial stages leave
-/// instead of slowing its parallel ones. Elsewhere, or if refused, the thread runs as any.
-/// The crate's one `unsafe`: a libc call with no pointer but to a local.
-#[allow(unsafe_code)]
-fn run_when_idle() {
-    #[cfg(target_os = "linux")]
-    {
-        let param = libc::sched_param { sched_priority: 0 };
-        // SAFETY: pid 0 is the calling thread; `param` is a valid `sched_param` for the call.
-        let _ = unsafe { libc::sched_setscheduler(0, libc::SCHED_IDLE, &param) };
     }
 }
 
@@ -260,20 +251,29 @@ mod tests {
         }
     }
 
+    /// The frame's points filtered ahead, or why not.
+    fn filtered(r: Read) -> Ahead {
+        match r.scan {
+            Ok(Scan::Filtered { ahead, .. }) => ahead,
+            other => panic!("not filtered ahead: {other:?}"),
+        }
+    }
+
     #[test]
     fn frames_come_back_in_order_filtered_ahead_raw_or_failed() {
         let config = Config::default();
-        let mut ahead = LookAhead::new::<KittiCapacity>(config);
+        let workers = Workers::new(2).unwrap();
+        let mut ahead = LookAhead::new::<KittiCapacity>();
         let mut source = Rows;
         let yes = |_: &[Point], _: &Option<Vec<f32>>| true;
         // Nothing ahead: read now, raw.
         let first = ahead.take(&mut source, 0);
         assert_eq!((first.frame, raw_len(&first)), (0, Some(10)));
-        // Ahead: the filter thread's result is the core filter's.
-        ahead.read_ahead(&mut source, 1, yes);
+        // Ahead: the filter job's result is the core filter's.
+        ahead.read_ahead(&mut source, 1, &workers, &config, yes);
         let second = ahead.take(&mut source, 1);
-        assert!(matches!(second.scan, Ok(Scan::Ahead { points: 11 })));
-        let got = ahead.filtered().unwrap();
+        assert!(matches!(second.scan, Ok(Scan::Filtered { points: 11, .. })));
+        let got = filtered(second);
         let raw = Rows.read(1).unwrap();
         let mut own = ScanFilter::new::<KittiCapacity>();
         let want = own.filter(&raw, &config, &Serial);
@@ -282,32 +282,33 @@ mod tests {
             (want.points, want.stats)
         );
         // A frame that cannot be read is handed over as its error.
-        ahead.read_ahead(&mut source, 2, yes);
+        ahead.read_ahead(&mut source, 2, &workers, &config, yes);
         assert!(ahead.take(&mut source, 2).scan.is_err());
-        // A frame read ahead but not asked for is dropped, its filtering too: the next one
-        // filtered ahead is the next one received.
-        ahead.read_ahead(&mut source, 3, yes);
+        // A frame read ahead but not asked for is dropped once its filtering is done: the
+        // filter is back for the next one.
+        ahead.read_ahead(&mut source, 3, &workers, &config, yes);
         let fourth = ahead.take(&mut source, 4);
         assert_eq!(raw_len(&fourth), Some(14));
-        ahead.read_ahead(&mut source, 5, yes);
-        assert!(matches!(
-            ahead.take(&mut source, 5).scan,
-            Ok(Scan::Ahead { points: 15 })
-        ));
-        assert_eq!(ahead.filtered().unwrap().stats.input, 15);
+        ahead.read_ahead(&mut source, 5, &workers, &config, yes);
+        assert_eq!(filtered(ahead.take(&mut source, 5)).stats.input, 15);
         // A frame the step must filter itself, and past the end: nothing ahead.
-        ahead.read_ahead(&mut source, 4, |_, _| false);
+        ahead.read_ahead(&mut source, 4, &workers, &config, |_, _| false);
         assert_eq!(raw_len(&ahead.take(&mut source, 4)), Some(14));
-        ahead.read_ahead(&mut source, 6, yes);
+        ahead.read_ahead(&mut source, 6, &workers, &config, yes);
         assert!(ahead.next.is_none());
     }
 
     #[test]
-    fn off_reads_each_frame_when_asked() {
-        let mut ahead = LookAhead::off();
-        ahead.read_ahead(&mut Rows, 1, |_, _| true);
-        assert!(ahead.next.is_none());
-        assert_eq!(raw_len(&ahead.take(&mut Rows, 1)), Some(11));
-        assert!(ahead.filtered().is_err());
+    fn off_or_on_one_thread_reads_each_frame_when_asked() {
+        let (config, yes) = (Config::default(), |_: &[Point], _: &Option<Vec<f32>>| true);
+        for (mut ahead, threads) in [
+            (LookAhead::off(), 2),
+            (LookAhead::new::<KittiCapacity>(), 1),
+        ] {
+            let workers = Workers::new(threads).unwrap();
+            ahead.read_ahead(&mut Rows, 1, &workers, &config, yes);
+            assert!(ahead.next.is_none());
+            assert_eq!(raw_len(&ahead.take(&mut Rows, 1)), Some(11));
+        }
     }
 }

@@ -204,9 +204,11 @@ impl<'a, C: Capacity> Run<'a, C> {
         let deskew = self.opts.deskew;
         // The next frame is read now and filtered while this one registers, unless it is to
         // be deskewed (with this frame's motion) or is larger than the capacity.
-        self.ahead.read_ahead(source, i + 1, |points, times| {
-            (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
-        });
+        let (workers, config) = (&self.workers, &self.opts.config);
+        self.ahead
+            .read_ahead(source, i + 1, workers, config, |points, times| {
+                (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
+            });
         // After the read: a recording knows a frame's stamp once it has read the message.
         rec.stamp = source.stamp(i);
         rec.points_dropped_by_reader = read.dropped_by_reader;
@@ -220,14 +222,14 @@ impl<'a, C: Capacity> Run<'a, C> {
         let outcome = read.scan.map_err(|e| e.to_string()).and_then(|scan| {
             let (mut points, times) = match scan {
                 Scan::Raw { points, times } => (points, times),
-                Scan::Ahead { points } => {
+                Scan::Filtered { points, ahead: a } => {
                     rec.points = points;
-                    ahead = Some(
-                        self.ahead
-                            .filtered()
-                            .map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))?,
-                    );
+                    ahead = Some(a);
                     (Vec::new(), None)
+                }
+                // `take` waits for a frame being filtered ahead.
+                Scan::Ahead { .. } => {
+                    return Err(format!("{}: frame {i}: not filtered", source.label(i)))
                 }
             };
             if ahead.is_none() {
@@ -284,14 +286,16 @@ impl<'a, C: Capacity> Run<'a, C> {
                 Some((m, dt, reference)) => deskew::pose_at(&g, &m, dt, reference),
                 None => g,
             });
-            let r = match (given, &ahead) {
+            // On a worker of the pool: its serial stages then leave the pool's other thread
+            // to the filter job, not to a thread waiting for work.
+            let r = workers.install(|| match (given, &ahead) {
                 (Some(pose), None) => pipeline.integrate_scan_with(&points, &pose, workers, timer),
                 (None, None) => pipeline.process_scan_with(&points, workers, timer),
                 (Some(pose), Some(a)) => {
                     pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
                 }
                 (None, Some(a)) => pipeline.process_filtered_with(a.filtered(), workers, timer),
-            };
+            });
             r.map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))
         });
         rec.ms = StageMs {
@@ -466,7 +470,7 @@ impl<C: Capacity> Setup<C> {
         let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
         let mut window = opts.window.rules();
         let mut max_layers = None;
-        // With two threads or more, the next frame is filtered on a thread of its own.
+        // With two threads or more, the next frame is filtered ahead on the pool.
         let ahead = workers.threads() > 1;
         if let Some(cap) = opts.window.memory_cap_mb {
             let other = memory::other_bytes();
@@ -489,7 +493,7 @@ impl<C: Capacity> Setup<C> {
             window,
             max_layers,
             ahead: if ahead {
-                LookAhead::new::<C>(opts.config)
+                LookAhead::new::<C>()
             } else {
                 LookAhead::off()
             },
