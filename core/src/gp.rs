@@ -116,8 +116,16 @@ pub const MIN_OUTLIER_DISTANCE_M: f64 = 0.15;
 fn outlier_threshold(samples: &[Sample], plane: &PlaneMean) -> f64 {
     let mut r = [0.0f64; MAX_TRAINING];
     let n = samples.len().min(MAX_TRAINING);
+    let mut at_minimum = 0;
     for (ri, s) in r.iter_mut().zip(samples) {
         *ri = libm::fabs(s[2] - plane.at(s[0], s[1]));
+        at_minimum += usize::from(3.0 * 1.4826 * *ri <= MIN_OUTLIER_DISTANCE_M);
+    }
+    // The threshold grows with the median: when more than half the residuals give the
+    // minimum, the median does too, and need not be found (most layers: their noise is a
+    // few centimetres).
+    if at_minimum > n / 2 {
+        return MIN_OUTLIER_DISTANCE_M;
     }
     let r = &mut r[..n];
     // The median alone: selection, not a sort (the same value).
@@ -139,7 +147,10 @@ fn closest_per_bin(
     let (ia, ib) = axis.locations();
     let bin = cell_size / N as f64;
     let per_metre = N as f64 / cell_size;
-    let mut best: [Option<(f64, Sample)>; VERTICES] = [None; VERTICES];
+    // Per bin, the squared distance of its closest point so far and that point (infinitely
+    // far and none at first: the points are finite, so the first one is closer).
+    let mut best_dist = [f64::INFINITY; VERTICES];
+    let mut best = [[0.0f64; 3]; VERTICES];
     for (_, p) in points {
         let (Some(&a), Some(&b), Some(&d)) = (p.get(ia), p.get(ib), p.get(axis.index())) else {
             continue;
@@ -154,18 +165,21 @@ fn closest_per_bin(
         let (i, j) = (index(a), index(b));
         let (ca, cb) = ((i as f64 + 0.5) * bin, (j as f64 + 0.5) * bin);
         let dist = (a - ca) * (a - ca) + (b - cb) * (b - cb);
-        if let Some(slot) = best.get_mut(i * N + j) {
-            if slot.is_none_or(|(dd, _)| dist < dd) {
-                *slot = Some((dist, sample));
-            }
+        let k = i * N + j;
+        if dist < best_dist[k] {
+            best_dist[k] = dist;
+            best[k] = sample;
         }
     }
-    let mut out = heapless::Vec::new();
-    for (_, s) in best.iter().flatten() {
-        // At most VERTICES bins: cannot overflow.
-        let _ = out.push(*s);
+    // The bins with a point, in order, without a branch a bin.
+    let mut kept = [[0.0f64; 3]; VERTICES];
+    let mut n = 0;
+    for (dist, s) in best_dist.iter().zip(&best) {
+        kept[n.min(VERTICES - 1)] = *s;
+        n += usize::from(*dist < f64::INFINITY);
     }
-    out
+    // At most VERTICES bins: the slice fits.
+    heapless::Vec::from_slice(&kept[..n]).unwrap_or_default()
 }
 
 /// The exponent of the kernel `k(u, v) = exp(-κ |u - v|)` for `u - v = (da, db)`. Callers
