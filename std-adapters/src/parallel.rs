@@ -207,6 +207,27 @@ impl Workers {
         }
     }
 
+    /// Runs `f` on one of the pool's threads while this thread runs `here` (for
+    /// [`Workers::Serial`], `here` then `f`, both on this thread); `f`'s result. `here` need
+    /// not be `Send`: reading the next frame from a source, say.
+    pub fn install_beside<R: Send>(&self, f: impl FnOnce() -> R + Send, here: impl FnOnce()) -> R {
+        match self {
+            Workers::Serial => {
+                here();
+                f()
+            }
+            Workers::Pool(r) => {
+                let mut out = None;
+                r.pool.in_place_scope(|s| {
+                    s.spawn(|_| out = Some(f()));
+                    here();
+                });
+                // The scope returns once its task has run (or passes on its panic).
+                out.expect("a rayon scope waits for its tasks")
+            }
+        }
+    }
+
     /// `Σ count(item)` over `items` (a sum of integers: the same in any order).
     pub fn sum<T: Sync>(&self, items: &[T], count: impl Fn(&T) -> usize + Sync) -> usize {
         match self {

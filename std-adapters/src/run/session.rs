@@ -199,21 +199,26 @@ impl<'a, C: Capacity> Run<'a, C> {
         source: &mut impl FrameSource,
         i: usize,
     ) -> Result<FrameRecord, RunError> {
-        let mut rec = FrameRecord::skipped(i, source.label(i));
+        let label = source.label(i);
+        let mut rec = FrameRecord::skipped(i, label.clone());
         let read = self.ahead.take(source, i);
         let deskew = self.opts.deskew;
-        // The next frame is read now and filtered while this one registers, unless it is to
-        // be deskewed (with this frame's motion) or is larger than the capacity.
-        let (workers, config) = (&self.workers, &self.opts.config);
-        self.ahead
-            .read_ahead(source, i + 1, workers, config, |points, times| {
-                (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
-            });
         // After the read: a recording knows a frame's stamp once it has read the message.
-        rec.stamp = source.stamp(i);
+        let stamp = source.stamp(i);
+        rec.stamp = stamp;
         rec.points_dropped_by_reader = read.dropped_by_reader;
         let motion = self.last_motion(source);
-        let (pipeline, workers, timer) = (&mut self.pipeline, &self.workers, &mut self.timer);
+        // The next frame is read (on this thread) while this one registers (on the pool), and
+        // filtered ahead unless it is to be deskewed (with this frame's motion) or is larger
+        // than the capacity.
+        let (workers, config) = (&self.workers, &self.opts.config);
+        let look_ahead = &mut self.ahead;
+        let mut read_next = Some(|| {
+            look_ahead.read_ahead(source, i + 1, workers, config, |points, times| {
+                (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
+            })
+        });
+        let (pipeline, timer) = (&mut self.pipeline, &mut self.timer);
         let filter = &self.opts.config.filter;
         // The motion, interval and reference time a deskewed scan was moved with: its pose is
         // the reference time's, and the trajectory takes it back to the stamp.
@@ -228,9 +233,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                     (Vec::new(), None)
                 }
                 // `take` waits for a frame being filtered ahead.
-                Scan::Ahead { .. } => {
-                    return Err(format!("{}: frame {i}: not filtered", source.label(i)))
-                }
+                Scan::Ahead { .. } => return Err(format!("{}: frame {i}: not filtered", label)),
             };
             if ahead.is_none() {
                 rec.points = points.len();
@@ -238,7 +241,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &times, motion) {
                 let t = Instant::now();
                 let d = deskew::deskew(&mut points, times, &m, dt)
-                    .map_err(|e| format!("{}: frame {i}: cannot deskew: {e:?}", source.label(i)))?;
+                    .map_err(|e| format!("{}: frame {i}: cannot deskew: {e:?}", label))?;
                 rec.deskewed_points = d.moved;
                 rec.ms.deskew = t.elapsed().as_secs_f64() * 1e3;
                 // The points now sit in the sensor frame at `reference_s`.
@@ -256,29 +259,22 @@ impl<'a, C: Capacity> Run<'a, C> {
                     return Err(format!(
                         "{}: frame {i}: {n} points within range, more than the {} capacity \
                          holds ({}): {advice}",
-                        source.label(i),
+                        label,
                         C::NAME,
                         C::POINTS
                     ));
                 }
             }
             let given = match &self.opts.given_poses {
-                Some(p) => Some(
-                    p.pose_at(i, source.stamp(i))
-                        .ok_or_else(|| match p.stamps {
-                            Some(_) => format!(
-                                "{}: frame {i}: no given pose within {:.3} s of its time {:.6}",
-                                source.label(i),
-                                p.tolerance_s(),
-                                source.stamp(i)
-                            ),
-                            None => format!(
-                                "{}: frame {i}: no given pose (line {})",
-                                source.label(i),
-                                i + 1
-                            ),
-                        })?,
-                ),
+                Some(p) => Some(p.pose_at(i, stamp).ok_or_else(|| match p.stamps {
+                    Some(_) => format!(
+                        "{}: frame {i}: no given pose within {:.3} s of its time {:.6}",
+                        label,
+                        p.tolerance_s(),
+                        stamp
+                    ),
+                    None => format!("{}: frame {i}: no given pose (line {})", label, i + 1),
+                })?),
                 None => None,
             };
             // A given pose is the stamp's; a deskewed scan is fused at its reference time.
@@ -288,16 +284,25 @@ impl<'a, C: Capacity> Run<'a, C> {
             });
             // On a worker of the pool: its serial stages then leave the pool's other thread
             // to the filter job, not to a thread waiting for work.
-            let r = workers.install(|| match (given, &ahead) {
-                (Some(pose), None) => pipeline.integrate_scan_with(&points, &pose, workers, timer),
-                (None, None) => pipeline.process_scan_with(&points, workers, timer),
-                (Some(pose), Some(a)) => {
-                    pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
-                }
-                (None, Some(a)) => pipeline.process_filtered_with(a.filtered(), workers, timer),
-            });
-            r.map_err(|e| format!("{}: frame {i}: {e}", source.label(i)))
+            let r = workers.install_beside(
+                || match (given, &ahead) {
+                    (Some(pose), None) => {
+                        pipeline.integrate_scan_with(&points, &pose, workers, timer)
+                    }
+                    (None, None) => pipeline.process_scan_with(&points, workers, timer),
+                    (Some(pose), Some(a)) => {
+                        pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
+                    }
+                    (None, Some(a)) => pipeline.process_filtered_with(a.filtered(), workers, timer),
+                },
+                || read_next.take().map_or((), |mut next| next()),
+            );
+            r.map_err(|e| format!("{}: frame {i}: {e}", label))
         });
+        // A frame that did not reach the pipeline: the next one is read now.
+        if let Some(mut next) = read_next.take() {
+            next();
+        }
         rec.ms = StageMs {
             read: read.ms,
             deskew: rec.ms.deskew,
