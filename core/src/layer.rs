@@ -297,19 +297,35 @@ impl Layer {
         }
         let cos_sq = min_axis_cosine * min_axis_cosine;
         let at: [f32; N] = core::array::from_fn(|i| lattice.coordinates[i] as f32);
-        let point = |j: usize| [at[j / N], at[j % N], self.pred[j]];
-        let mut mask = 0u64;
-        for t in 0..TRIANGLES {
-            let [p0, p1, p2] = lattice_triangle(t).map(point);
-            let u = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
-            let v = [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]];
-            let n = [
-                u[1] * v[2] - u[2] * v[1],
-                u[2] * v[0] - u[0] * v[2],
-                u[0] * v[1] - u[1] * v[0],
-            ];
+        let steep_enough = |n: [f32; 3]| {
             let norm_sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-            mask |= u64::from(n[2] * n[2] >= cos_sq * norm_sq) << t;
+            n[2] * n[2] >= cos_sq * norm_sq
+        };
+        let mut mask = 0u64;
+        // Quad by quad: with `ha`, `hb` its sides and `d..` its corners' predictions, the
+        // cross product of the edges from `v00` has the terms below; the ones left out are
+        // products with an exact zero (a side along one axis), so the bits are those of the
+        // full product.
+        for ia in 0..N - 1 {
+            let ha = at[ia + 1] - at[ia];
+            for ib in 0..N - 1 {
+                let hb = at[ib + 1] - at[ib];
+                let v00 = ia * N + ib;
+                let d00 = self.pred[v00];
+                let (d10, d11, d01) = (
+                    self.pred[v00 + N],
+                    self.pred[v00 + N + 1],
+                    self.pred[v00 + 1],
+                );
+                // [v00, v10, v11]: edges (ha, 0, d10 - d00) and (ha, hb, d11 - d00).
+                let (du, dv) = (d10 - d00, d11 - d00);
+                let even = steep_enough([-(du * hb), du * ha - ha * dv, ha * hb]);
+                // [v00, v11, v01]: edges (ha, hb, d11 - d00) and (0, hb, d01 - d00).
+                let (du, dv) = (d11 - d00, d01 - d00);
+                let odd = steep_enough([hb * dv - du * hb, -(ha * dv), ha * hb]);
+                let t = 2 * (ia * (N - 1) + ib);
+                mask |= (u64::from(even) | u64::from(odd) << 1) << t;
+            }
         }
         mask
     }
