@@ -52,6 +52,12 @@ impl KeySorter {
     /// order when the comparison sort takes over). `entries` may come back in the sorter's
     /// buffer: both have the sorter's capacity, then.
     pub fn sort(&mut self, entries: &mut BoundedVec<Entry>) {
+        self.sort_pausing(entries, || {});
+    }
+
+    /// [`sort`](Self::sort), calling `pause` between its passes over the entries (the same
+    /// order): a sort run beside other work can give way to it there.
+    pub fn sort_pausing(&mut self, entries: &mut BoundedVec<Entry>, mut pause: impl FnMut()) {
         let Some((plan, spare)) = self.radix(entries) else {
             entries.sort_unstable_by_key(|e| e.0.sort_value());
             return;
@@ -63,6 +69,7 @@ impl KeySorter {
                 count[plan.digit(&e.0, p)] += 1;
             }
         }
+        pause();
         for (p, count) in counts.iter_mut().enumerate().take(plan.passes) {
             if moves_nothing(&[count]) {
                 continue;
@@ -80,6 +87,7 @@ impl KeySorter {
                 *slot += 1;
             }
             core::mem::swap(entries, spare);
+            pause();
         }
     }
 
@@ -238,6 +246,23 @@ mod tests {
                 .collect();
             check(entries, &mut sorter, true);
         }
+    }
+
+    #[test]
+    fn pausing_sorts_the_same_and_pauses_after_each_pass_over_the_entries() {
+        let mut seed = 7;
+        let mut entries = BoundedVec::with_capacity(3000);
+        for i in 0..3000u32 {
+            let mut c = || (lcg(&mut seed) % 900) as i32 - 450;
+            let _ = entries.push((CellKey::new(c(), c(), c()), [i as f32, 0.0, 0.0]));
+        }
+        let mut plain = entries.clone();
+        KeySorter::with_capacity(3000).sort(&mut plain);
+        let mut pauses = 0;
+        KeySorter::with_capacity(3000).sort_pausing(&mut entries, || pauses += 1);
+        assert_eq!(entries[..], plain[..]);
+        // Keys of 10 bits an axis: the counting pass, then three passes of 11 bits.
+        assert_eq!(pauses, 4);
     }
 
     #[test]

@@ -170,6 +170,45 @@ impl Executor for Rayon {
     }
 }
 
+/// The core's serial loops for a task run on the pool beside the pipeline (the look-ahead's
+/// filter): between pieces of its work (a task's worth of points, a pass of the sort) the
+/// thread runs what the pool has waiting (`rayon::yield_now`), so the pipeline's parallel
+/// loops still get both threads, and the task's own work fills the stretches where the
+/// pipeline runs serially. The same results as [`Serial`], in the same order.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Yielding;
+
+impl Executor for Yielding {
+    fn filter_map_into<T, U, A>(
+        &self,
+        src: &[T],
+        dst: &mut BoundedVec<U>,
+        unit: impl Fn(&T, &mut A) -> Option<U> + Sync + Send,
+        mut tally: impl FnMut(A),
+    ) -> bool
+    where
+        T: Sync,
+        U: Default + Clone + Send,
+        A: Default + Send,
+    {
+        if src.len() > dst.capacity() - dst.len() {
+            return false;
+        }
+        for part in src.chunks(POINTS_PER_TASK) {
+            // Fits: the whole did.
+            Serial.filter_map_into(part, dst, &unit, &mut tally);
+            rayon::yield_now();
+        }
+        true
+    }
+
+    fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
+        sorter.sort_pausing(entries, || {
+            rayon::yield_now();
+        });
+    }
+}
+
 /// The executor for a thread count: the core's serial loops for one thread, a rayon pool for
 /// more (0: one thread per core).
 #[derive(Debug)]

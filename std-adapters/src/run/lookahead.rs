@@ -1,9 +1,11 @@
 //! Reading and filtering ahead: while the pipeline registers frame `i`, frame `i + 1` is read
 //! (on the run's thread: a source need not be `Send`) and filtered by the core's
-//! [`ScanFilter`] as one task on the run's rayon pool. The thread that takes the task filters
-//! on one core; the pipeline, run on the pool too ([`Workers::install`]), has the other, and
-//! its parallel loops get both again once the filter is done. No thread of the run waits
-//! beside the pool's, so the scheduler has no more threads than cores to share out.
+//! [`ScanFilter`] as one task on the run's rayon pool. The pipeline runs on the pool too
+//! ([`Workers::install_beside`]), so no thread of the run waits beside the pool's and the
+//! scheduler has no more threads than cores to share out. The filter runs with the
+//! [`Yielding`] executor: between pieces of its work it runs the pipeline's waiting parallel
+//! tasks first, so its own work lands where the pipeline runs serially (bucketing, the
+//! solve, the update).
 //!
 //! What it guarantees:
 //! - the same filtered points as the pipeline's own filter (the same function at the same
@@ -15,10 +17,10 @@
 //! - off ([`LookAhead::off`]) or with one thread (no pool): nothing ahead.
 
 use crate::io::error::FileError;
-use crate::parallel::Workers;
+use crate::parallel::{Workers, Yielding};
 use crate::run::source::FrameSource;
 use slamesh_core::filter::{FilterStats, Filtered, ScanFilter};
-use slamesh_core::{Capacity, Config, Point, Serial};
+use slamesh_core::{Capacity, Config, Point};
 use std::path::Path;
 use std::sync::mpsc;
 use std::time::Instant;
@@ -173,7 +175,7 @@ impl LookAhead {
                     let (raw, outbox, config) = (std::mem::take(points), outbox.clone(), *config);
                     pool.spawn(move || {
                         let t = Instant::now();
-                        let f = filter.filter(&raw, &config, &Serial);
+                        let f = filter.filter(&raw, &config, &Yielding);
                         let (points, stats) = (f.points.to_vec(), f.stats);
                         let ms = t.elapsed().as_secs_f64() * 1e3;
                         let _ = outbox.send((filter, points, stats, ms));
@@ -221,7 +223,7 @@ fn read(source: &mut impl FrameSource, i: usize) -> Read {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use slamesh_core::KittiCapacity;
+    use slamesh_core::{KittiCapacity, Serial};
 
     /// Frame `i` is a row of `10 + i` points 2 m ahead; frame 2 cannot be read.
     struct Rows;
