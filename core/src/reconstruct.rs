@@ -130,7 +130,7 @@ pub fn reconstruct_cells(
         GpScratch::new,
         |scratch, c| reconstruct_cell(scratch, c.points(bucketed), c.key, map, cfg, purpose),
         |cell| {
-            stats.dropped += append_layers(out, cell.layers);
+            stats.dropped += append_layers(out, &cell.layers);
             stats.unpaired += cell.unpaired;
         },
     );
@@ -139,11 +139,8 @@ pub fn reconstruct_cells(
 
 /// Appends one cell's layers to `out`; layers that do not fit are dropped (the scan keeps its
 /// first cells in key order) and counted in the return value.
-pub fn append_layers(
-    out: &mut BoundedVec<ScanLayer>,
-    layers: heapless::Vec<ScanLayer, 3>,
-) -> usize {
-    layers.into_iter().filter(|l| out.push(*l).is_err()).count()
+pub fn append_layers(out: &mut BoundedVec<ScanLayer>, layers: &[ScanLayer]) -> usize {
+    layers.iter().filter(|l| out.push(**l).is_err()).count()
 }
 
 #[cfg(test)]
