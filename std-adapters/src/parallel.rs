@@ -7,6 +7,10 @@
 //! in input order. The radix sort's passes take their plan, digits and skip rule from the core's
 //! [`KeySorter::radix`], [`RadixPlan`](slamesh_core::sort::RadixPlan) and [`moves_nothing`];
 //! only the parts run at once. All give bit-identical results (`tests/parallel.rs`).
+//!
+//! Besides: [`Yielding`], the serial loops for a task that runs on the pool beside the
+//! pipeline and gives way to its parallel loops, and [`Workers::install_beside`], which runs
+//! the pipeline on the pool while the calling thread does something else.
 
 use rayon::prelude::*;
 use slamesh_core::bounded::BoundedVec;
@@ -236,19 +240,10 @@ impl Workers {
         }
     }
 
-    /// Runs `f` on one of the pool's threads (on this thread for [`Workers::Serial`]): its
-    /// parallel loops then run inside the pool, and its serial parts leave no thread
-    /// waiting beside the pool's.
-    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
-        match self {
-            Workers::Serial => f(),
-            Workers::Pool(r) => r.pool.install(f),
-        }
-    }
-
     /// Runs `f` on one of the pool's threads while this thread runs `here` (for
-    /// [`Workers::Serial`], `here` then `f`, both on this thread); `f`'s result. `here` need
-    /// not be `Send`: reading the next frame from a source, say.
+    /// [`Workers::Serial`], `here` then `f`, both on this thread); `f`'s result. On the pool,
+    /// `f`'s parallel loops run inside it and its serial parts leave no thread waiting beside
+    /// the pool's; `here` need not be `Send`: reading the next frame from a source, say.
     pub fn install_beside<R: Send>(&self, f: impl FnOnce() -> R + Send, here: impl FnOnce()) -> R {
         match self {
             Workers::Serial => {
