@@ -250,13 +250,15 @@ mod tests {
 
     #[test]
     fn pausing_sorts_the_same_and_pauses_after_each_pass_over_the_entries() {
-        let mut seed = 7;
-        let mut entries = BoundedVec::with_capacity(3000);
-        for i in 0..3000u32 {
-            let mut c = || (lcg(&mut seed) % 900) as i32 - 450;
-            let _ = entries.push((CellKey::new(c(), c(), c()), [i as f32, 0.0, 0.0]));
-        }
-        let mut plain = entries.clone();
+        let entries = || {
+            let (mut seed, mut out) = (7, BoundedVec::with_capacity(3000));
+            for i in 0..3000u32 {
+                let mut c = || (lcg(&mut seed) % 900) as i32 - 450;
+                let _ = out.push((CellKey::new(c(), c(), c()), [i as f32, 0.0, 0.0]));
+            }
+            out
+        };
+        let (mut entries, mut plain) = (entries(), entries());
         KeySorter::with_capacity(3000).sort(&mut plain);
         let mut pauses = 0;
         KeySorter::with_capacity(3000).sort_pausing(&mut entries, || pauses += 1);
