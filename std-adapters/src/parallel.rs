@@ -313,3 +313,50 @@ impl Executor for Workers {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::Cell;
+
+    #[test]
+    fn install_beside_runs_both_and_returns_the_pool_task_s_result() {
+        for threads in [1, 2] {
+            let workers = Workers::new(threads).unwrap();
+            // `here` holds a `Cell` (not `Sync`): it stays on this thread.
+            let read = Cell::new(false);
+            let on_pool = workers.install_beside(
+                || rayon::current_thread_index().is_some(),
+                || read.set(true),
+            );
+            assert!(read.get());
+            assert_eq!(on_pool, threads > 1, "{threads} thread(s)");
+        }
+    }
+
+    #[test]
+    fn the_yielding_loops_give_the_serial_ones_results() {
+        let pool = Rayon::new(2).unwrap();
+        let src: Vec<u32> = (0..20_000).collect();
+        let unit = |x: &u32, n: &mut usize| {
+            *n += 1;
+            (!x.is_multiple_of(3)).then_some(x * 2)
+        };
+        let (mut serial, mut yielding) = (
+            BoundedVec::with_capacity(src.len()),
+            BoundedVec::with_capacity(src.len()),
+        );
+        let (mut seen_serial, mut seen_yielding) = (0, 0);
+        assert!(Serial.filter_map_into(&src, &mut serial, unit, |n| seen_serial += n));
+        pool.pool.install(|| {
+            assert!(Yielding.filter_map_into(&src, &mut yielding, unit, |n| seen_yielding += n));
+        });
+        assert_eq!(
+            (serial[..].to_vec(), seen_serial),
+            (yielding[..].to_vec(), seen_yielding)
+        );
+        // Too many for the room left: refused, as the serial loop refuses.
+        let mut small = BoundedVec::with_capacity(10);
+        assert!(!Yielding.filter_map_into(&src, &mut small, unit, |_| {}));
+    }
+}
