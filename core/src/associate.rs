@@ -55,12 +55,8 @@ fn candidates(
 
 /// Whether a scan layer of `axis` in cell `key` has anything to pair with at `reach`.
 pub fn has_candidates(map: &MeshMap, key: CellKey, axis: Axis, reach: u32) -> bool {
-    let reach = reach.min(MAX_REACH) as i32;
     // The cell itself first: where the map has the layer (most cells) one lookup decides.
-    core::iter::once(0)
-        .chain((-reach..=reach).filter(|&i| i != 0))
-        .filter_map(|i| key.offset(axis, i))
-        .any(|k| map.layer(&k, axis).is_some())
+    map.layer(&key, axis).is_some() || !candidates(map, key, axis, reach).is_empty()
 }
 
 /// Writes one combined residual per scan layer that has map pairs into `out` (cleared first),

@@ -111,6 +111,10 @@ const OUTLIER_ROUNDS: usize = 3;
 /// within a cell and sensor noise stay in.
 pub const MIN_OUTLIER_DISTANCE_M: f64 = 0.15;
 
+/// Three robust standard deviations in medians of absolute residuals (1.4826 of them is one
+/// standard deviation of a normal distribution).
+const OUTLIER_SPREADS: f64 = 3.0 * 1.4826;
+
 /// Farther from `plane` than this is an outlier: three robust standard deviations (from the
 /// median absolute residual), at least [`MIN_OUTLIER_DISTANCE_M`].
 fn outlier_threshold(samples: &[Sample], plane: &PlaneMean) -> f64 {
@@ -119,7 +123,7 @@ fn outlier_threshold(samples: &[Sample], plane: &PlaneMean) -> f64 {
     let mut at_minimum = 0;
     for (ri, s) in r.iter_mut().zip(samples) {
         *ri = libm::fabs(s[2] - plane.at(s[0], s[1]));
-        at_minimum += usize::from(3.0 * 1.4826 * *ri <= MIN_OUTLIER_DISTANCE_M);
+        at_minimum += usize::from(OUTLIER_SPREADS * *ri <= MIN_OUTLIER_DISTANCE_M);
     }
     // The threshold grows with the median: when more than half the residuals give the
     // minimum, the median does too, and need not be found (most layers: their noise is a
@@ -134,7 +138,7 @@ fn outlier_threshold(samples: &[Sample], plane: &PlaneMean) -> f64 {
     } else {
         *r.select_nth_unstable_by(n / 2, f64::total_cmp).1
     };
-    (3.0 * 1.4826 * median).max(MIN_OUTLIER_DISTANCE_M)
+    (OUTLIER_SPREADS * median).max(MIN_OUTLIER_DISTANCE_M)
 }
 
 /// Per lattice bin of `axis`, the point closest to the bin centre among those `keep` accepts.
