@@ -35,12 +35,6 @@ pub enum Scan {
         /// Their times relative to the frame's stamp (seconds).
         times: Option<Vec<f32>>,
     },
-    /// Being filtered ahead (only between [`LookAhead::read_ahead`] and
-    /// [`LookAhead::take`], which waits for the result).
-    Ahead {
-        /// How many raw points were read.
-        points: usize,
-    },
     /// Filtered ahead.
     Filtered {
         /// How many raw points were read.
@@ -91,15 +85,18 @@ impl Ahead {
 pub struct LookAhead {
     /// The filter's buffers while no frame is being filtered; `None` when off, or while
     /// a job holds them.
-    filter: Option<Box<ScanFilter>>,
+    filter: Option<ScanFilter>,
     /// Where a job sends its result and hands the filter back.
     done: Option<(mpsc::Sender<Job>, mpsc::Receiver<Job>)>,
+    /// The frame read ahead; while a job filters it, its raw points are the job's and
+    /// `filtering` holds how many there were.
     next: Option<Read>,
+    filtering: Option<usize>,
 }
 
 /// What a filter job hands back: the filter, the down-sampled points, what it did and the
 /// time it took (ms).
-type Job = (Box<ScanFilter>, Vec<Point>, FilterStats, f64);
+type Job = (ScanFilter, Vec<Point>, FilterStats, f64);
 
 impl LookAhead {
     /// No look-ahead: every frame is read when its step comes, and filtered in line.
@@ -107,13 +104,13 @@ impl LookAhead {
         Self::default()
     }
 
-    /// A look-ahead for a pipeline of capacity `C` and `config`, filtering on the pool of
-    /// the run's workers.
+    /// A look-ahead for a pipeline of capacity `C`, filtering on the pool of the run's
+    /// workers ([`read_ahead`](Self::read_ahead)).
     pub fn new<C: Capacity>() -> Self {
         Self {
-            filter: Some(Box::new(ScanFilter::new::<C>())),
+            filter: Some(ScanFilter::new::<C>()),
             done: Some(mpsc::channel()),
-            next: None,
+            ..Self::default()
         }
     }
 
@@ -125,9 +122,10 @@ impl LookAhead {
     /// Frame `i`: the one read ahead if it is `i` (waiting for its filter job), otherwise
     /// read now (raw).
     pub fn take(&mut self, source: &mut impl FrameSource, i: usize) -> Read {
+        let filtering = self.filtering.take();
         match self.next.take() {
             Some(mut read) if read.frame == i => {
-                if let Ok(Scan::Ahead { points }) = read.scan {
+                if let Some(points) = filtering {
                     read.scan = match self.filtered() {
                         Ok(ahead) => Ok(Scan::Filtered { points, ahead }),
                         Err(e) => Err(FileError::at(
@@ -138,12 +136,9 @@ impl LookAhead {
                 }
                 read
             }
-            stale => {
-                if let Some(Read {
-                    scan: Ok(Scan::Ahead { .. }),
-                    ..
-                }) = stale
-                {
+            _ => {
+                // A stale frame's job still hands the filter back.
+                if filtering.is_some() {
                     let _ = self.filtered();
                 }
                 read(source, i)
@@ -180,7 +175,7 @@ impl LookAhead {
                         let ms = t.elapsed().as_secs_f64() * 1e3;
                         let _ = outbox.send((filter, points, stats, ms));
                     });
-                    r.scan = Ok(Scan::Ahead { points: n });
+                    self.filtering = Some(n);
                 }
             }
         }

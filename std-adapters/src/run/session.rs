@@ -232,8 +232,6 @@ impl<'a, C: Capacity> Run<'a, C> {
                     ahead = Some(a);
                     (Vec::new(), None)
                 }
-                // `take` waits for a frame being filtered ahead.
-                Scan::Ahead { .. } => return Err(format!("{}: frame {i}: not filtered", label)),
             };
             if ahead.is_none() {
                 rec.points = points.len();
