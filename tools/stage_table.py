@@ -2,7 +2,7 @@
 """Per-stage time of `slamesh bench` on kitti-mini 00-04, with 1 and 2 threads, for one or
 more builds run alternately (docs/benchmarks.md, "Where the second core goes").
 
-    tools/stage_table.py [--rounds N] [--config FILE] BIN[=CONFIG] [BIN[=CONFIG] ...]
+    tools/stage_table.py [--rounds N] [--config FILE] [--ceiling] BIN[=CONFIG] [BIN[=CONFIG] ...]
 
 Each round runs every build on every sequence with `--threads 1` and `--threads 2`
 (`--repeat 3`, so a warm-up and three timed passes); a stage's figure for a sequence is its
@@ -10,6 +10,12 @@ median ms a scan averaged over the rounds, and the table gives the median over t
 sequences, then the 1-thread over 2-thread speed-up by sequence. `BIN=CONFIG` runs that build
 with its own configuration file (one build under two presets, or an older build whose preset
 names differ); `--config` is for the others. SLAMESH_DATA defaults to ../shared/data.
+
+`--ceiling` also measures, in each round and on each sequence, what this machine's two cores
+deliver at that moment: the first build runs `--threads 1` alone, then as two processes at
+once, and the ceiling is the sum of the two processes' speeds relative to the one alone (2.0
+for two whole cores; less when the cores share a physical core or the host is busy). No
+speed-up can exceed it; the table then adds each sequence's speed-up over its ceiling.
 """
 import argparse
 import json
@@ -21,28 +27,53 @@ STAGES = ["read", "filter", "bucket", "reconstruct", "associate", "solve", "upda
 SEQUENCES = ["00", "01", "02", "03", "04"]
 
 
-def bench(binary, seq, threads, config):
+def bench_cmd(binary, seq, threads, config):
     data = os.environ.get("SLAMESH_DATA", "../shared/data")
     cmd = [binary, "bench", f"{data}/kitti-mini/{seq}", "--threads", str(threads), "--repeat", "3", "--json"]
     if config:
         cmd += ["--config", config]
-    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    return cmd
+
+
+def stages_of(out):
     stages = json.loads(out.strip().splitlines()[-1])["stages"]
     return {s: stages[s]["median_ms"] for s in STAGES if s in stages}
+
+
+def bench(binary, seq, threads, config):
+    out = subprocess.run(bench_cmd(binary, seq, threads, config), check=True, capture_output=True, text=True)
+    return stages_of(out.stdout)
+
+
+def ceiling(binary, seq, config):
+    """The two cores' speed on this sequence relative to one core's, measured now: one
+    single-thread run alone, then two at once."""
+    alone = bench(binary, seq, 1, config)["total"]
+    cmd = bench_cmd(binary, seq, 1, config)
+    pair = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) for _ in range(2)]
+    totals = [stages_of(p.communicate()[0])["total"] for p in pair]
+    if any(p.returncode != 0 for p in pair):
+        raise SystemExit(f"{binary} bench failed on {seq}")
+    return sum(alone / t for t in totals)
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--config")
+    ap.add_argument("--ceiling", action="store_true")
     ap.add_argument("binaries", nargs="+", metavar="BIN[=CONFIG]")
     args = ap.parse_args()
     # Each build with its configuration: its own after `=`, else --config.
     config_of = {b: (b.split("=", 1)[1] if "=" in b else args.config) for b in args.binaries}
     # runs[binary][threads][seq] = list of per-round stage dicts
     runs = {b: {t: {s: [] for s in SEQUENCES} for t in (1, 2)} for b in args.binaries}
+    ceilings = {s: [] for s in SEQUENCES}
+    first = args.binaries[0]
     for _ in range(args.rounds):
         for seq in SEQUENCES:
+            if args.ceiling:
+                ceilings[seq].append(ceiling(first.split("=", 1)[0], seq, config_of[first]))
             for threads in (1, 2):
                 for b in args.binaries:
                     binary = b.split("=", 1)[0]
@@ -64,6 +95,15 @@ def main():
                 f"{statistics.mean(r['total'] for r in runs[b][t][s]):.1f}" for s in SEQUENCES
             )
             print(f"\ntotals by sequence, {t} thread(s): {totals} ms")
+        if args.ceiling:
+            speedup = {
+                s: statistics.mean(r["total"] for r in runs[b][1][s])
+                / statistics.mean(r["total"] for r in runs[b][2][s])
+                for s in SEQUENCES
+            }
+            ceil = {s: statistics.mean(ceilings[s]) for s in SEQUENCES}
+            print("\ntwo cores' ceiling by sequence: " + " / ".join(f"{ceil[s]:.2f}" for s in SEQUENCES))
+            print("speed-up over ceiling by sequence: " + " / ".join(f"{speedup[s] / ceil[s]:.2f}" for s in SEQUENCES))
 
 
 if __name__ == "__main__":

@@ -15,6 +15,8 @@ use crate::math::Point;
 
 /// Bits sorted per radix pass.
 const DIGIT_BITS: u32 = 11;
+/// Entries between two pauses of [`KeySorter::sort_pausing`].
+const PAUSE_EVERY: usize = 16_384;
 /// Passes for a 64-bit key.
 const MAX_PASSES: usize = 64usize.div_ceil(DIGIT_BITS as usize);
 /// The values one digit takes.
@@ -55,8 +57,8 @@ impl KeySorter {
         self.sort_pausing(entries, || {});
     }
 
-    /// [`sort`](Self::sort), calling `pause` between its passes over the entries (the same
-    /// order): a sort run beside other work can give way to it there.
+    /// [`sort`](Self::sort), calling `pause` after every 16 384 entries of each pass over them
+    /// (the same order): a sort run beside other work can give way to it there.
     pub fn sort_pausing(&mut self, entries: &mut BoundedVec<Entry>, mut pause: impl FnMut()) {
         let Some((plan, spare)) = self.radix(entries) else {
             entries.sort_unstable_by_key(|e| e.0.sort_value());
@@ -64,12 +66,14 @@ impl KeySorter {
         };
         // One pass over the entries counts the digits of every pass.
         let mut counts = [[0u32; RADIX]; MAX_PASSES];
-        for e in entries.iter() {
-            for (p, count) in counts.iter_mut().enumerate().take(plan.passes) {
-                count[plan.digit(&e.0, p)] += 1;
+        for piece in entries.chunks(PAUSE_EVERY) {
+            for e in piece {
+                for (p, count) in counts.iter_mut().enumerate().take(plan.passes) {
+                    count[plan.digit(&e.0, p)] += 1;
+                }
             }
+            pause();
         }
-        pause();
         for (p, count) in counts.iter_mut().enumerate().take(plan.passes) {
             if moves_nothing(&[count]) {
                 continue;
@@ -79,15 +83,17 @@ impl KeySorter {
             for c in count.iter_mut() {
                 (*c, sum) = (sum, sum + *c);
             }
-            for e in entries.iter() {
-                let slot = &mut count[plan.digit(&e.0, p)];
-                if let Some(t) = spare.get_mut(*slot as usize) {
-                    *t = *e;
+            for piece in entries.chunks(PAUSE_EVERY) {
+                for e in piece {
+                    let slot = &mut count[plan.digit(&e.0, p)];
+                    if let Some(t) = spare.get_mut(*slot as usize) {
+                        *t = *e;
+                    }
+                    *slot += 1;
                 }
-                *slot += 1;
+                pause();
             }
             core::mem::swap(entries, spare);
-            pause();
         }
     }
 
@@ -249,22 +255,24 @@ mod tests {
     }
 
     #[test]
-    fn pausing_sorts_the_same_and_pauses_after_each_pass_over_the_entries() {
+    fn pausing_sorts_the_same_and_pauses_after_every_piece_of_each_pass() {
+        const N: usize = 40_000;
         let entries = || {
-            let (mut seed, mut out) = (7, BoundedVec::with_capacity(3000));
-            for i in 0..3000u32 {
+            let (mut seed, mut out) = (7, BoundedVec::with_capacity(N));
+            for i in 0..N as u32 {
                 let mut c = || (lcg(&mut seed) % 900) as i32 - 450;
                 let _ = out.push((CellKey::new(c(), c(), c()), [i as f32, 0.0, 0.0]));
             }
             out
         };
         let (mut entries, mut plain) = (entries(), entries());
-        KeySorter::with_capacity(3000).sort(&mut plain);
+        KeySorter::with_capacity(N).sort(&mut plain);
         let mut pauses = 0;
-        KeySorter::with_capacity(3000).sort_pausing(&mut entries, || pauses += 1);
+        KeySorter::with_capacity(N).sort_pausing(&mut entries, || pauses += 1);
         assert_eq!(entries[..], plain[..]);
-        // Keys of 10 bits an axis: the counting pass, then three passes of 11 bits.
-        assert_eq!(pauses, 4);
+        // Keys of 10 bits an axis: the counting pass, then three passes of 11 bits, each in
+        // three pieces (16 384, 16 384 and 7 232 entries).
+        assert_eq!(pauses, 4 * 3);
     }
 
     #[test]

@@ -175,8 +175,8 @@ impl Executor for Rayon {
 }
 
 /// The core's serial loops for a task run on the pool beside the pipeline (the look-ahead's
-/// filter): between pieces of its work (a task's worth of points, a pass of the sort) the
-/// thread runs what the pool has waiting (`rayon::yield_now`), so the pipeline's parallel
+/// filter): between pieces of its work (a task's worth of points, 16 384 entries of a pass of
+/// the sort) the thread runs all the pool has waiting (`give_way`), so the pipeline's parallel
 /// loops still get both threads, and the task's own work fills the stretches where the
 /// pipeline runs serially. The same results as [`Serial`], in the same order.
 #[derive(Debug, Clone, Copy, Default)]
@@ -201,16 +201,19 @@ impl Executor for Yielding {
         for part in src.chunks(POINTS_PER_TASK) {
             // Fits: the whole did.
             Serial.filter_map_into(part, dst, &unit, &mut tally);
-            rayon::yield_now();
+            give_way();
         }
         true
     }
 
     fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
-        sorter.sort_pausing(entries, || {
-            rayon::yield_now();
-        });
+        sorter.sort_pausing(entries, give_way);
     }
+}
+
+/// Runs what the pool has waiting, until nothing is: the pipeline's parallel loops go first.
+fn give_way() {
+    while rayon::yield_now() == Some(rayon::Yield::Executed) {}
 }
 
 /// The executor for a thread count: the core's serial loops for one thread, a rayon pool for
