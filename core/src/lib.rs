@@ -71,6 +71,7 @@ pub mod pipeline;
 pub mod random;
 pub mod reconstruct;
 pub mod recovery;
+pub mod refresh;
 pub mod sort;
 pub mod stage;
 pub mod storage;
