@@ -187,7 +187,6 @@ mod tests {
             key: CellKey::new(0, 0, 0),
             axis: Axis::Z,
             layer: flat(1.5),
-            trained: Default::default(),
         }];
         let mut out = BoundedVec::with_capacity(4);
         assert_eq!(
@@ -215,7 +214,6 @@ mod tests {
             key: CellKey::new(0, 0, 0),
             axis: Axis::Z,
             layer: flat(0.5),
-            trained: Default::default(),
         }];
         let mut out = BoundedVec::with_capacity(4);
         assert_eq!(

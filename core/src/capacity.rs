@@ -39,17 +39,6 @@ pub trait Capacity {
 
     /// Entries of the radix sort's buffer: `POINTS` or none.
     const SORT_ENTRIES: usize = if Self::RADIX_SORT { Self::POINTS } else { 0 };
-    /// Whether the map update may take the last registration round's layers where they keep
-    /// their training samples ([`crate::refresh`], `MapConfig::reuse_unchanged_layers`), at
-    /// the cost of a second buffer of `SCAN_LAYERS` layers; `false` reconstructs every layer
-    /// again, for the smallest memories.
-    const REUSE_LAYERS: bool = true;
-    /// Layers of the buffer that keeps the last round's layers: `SCAN_LAYERS` or none.
-    const LAST_ROUND_LAYERS: usize = if Self::REUSE_LAYERS {
-        Self::SCAN_LAYERS
-    } else {
-        0
-    };
 
     /// Bytes of the scan buffers (points, the sort's buffer, cells, layers and residuals),
     /// allocated in full by [`Pipeline::new`](crate::Pipeline::new) and touched, page by page,
@@ -58,7 +47,6 @@ pub trait Capacity {
         Self::filter_bytes()
             + Self::SCAN_CELLS * size_of::<CellSpan>()
             + Self::SCAN_LAYERS * (size_of::<ScanLayer>() + size_of::<Residual>())
-            + Self::LAST_ROUND_LAYERS * size_of::<ScanLayer>()
     }
 
     /// Bytes of the filter's buffers (points, the work buffer, the sort's buffer): part of
@@ -90,7 +78,7 @@ pub const fn map_bytes(cells: usize, layers: usize) -> usize {
 }
 
 /// KITTI HDL-64E scans (about 125 000 points, 100 m range) and runs of a few kilometres
-/// without eviction. [`Capacity::memory_bytes`]: 158 MB of address space, most of it the map's
+/// without eviction. [`Capacity::memory_bytes`]: 150 MB of address space, most of it the map's
 /// layer pool, touched (resident) only as the map fills.
 #[derive(Debug, Clone, Copy)]
 pub struct KittiCapacity;
@@ -106,7 +94,7 @@ impl Capacity for KittiCapacity {
 
 /// 32-beam sensors (a Velodyne VLP-32C's 60 000 points, an Ouster OS-32 at 2 048 columns'
 /// 65 536) and runs of a kilometre or two without eviction: half of [`KittiCapacity`]
-/// everywhere, 79 MB of address space.
+/// everywhere, 75 MB of address space.
 #[derive(Debug, Clone, Copy)]
 pub struct Lidar32Capacity;
 
@@ -120,7 +108,7 @@ impl Capacity for Lidar32Capacity {
 }
 
 /// 16-beam sensors (a Velodyne VLP-16's 29 000 points, an Ouster OS-16 at 2 048 columns'
-/// 32 768), indoors or on small robots: a quarter of [`KittiCapacity`], 39.6 MB of address space.
+/// 32 768), indoors or on small robots: a quarter of [`KittiCapacity`], 37.5 MB of address space.
 #[derive(Debug, Clone, Copy)]
 pub struct Lidar16Capacity;
 
@@ -133,9 +121,8 @@ impl Capacity for Lidar16Capacity {
     const MAP_LAYERS: usize = 98_304;
 }
 
-/// A sparse 16-beam sensor on a microcontroller-class board: a few hundred cells, 355 KB
-/// (the comparison sort: a scan of 2 048 points sorts quickly either way; every layer
-/// reconstructed again at the final pose).
+/// A sparse 16-beam sensor on a microcontroller-class board: a few hundred cells, 351 KB
+/// (the comparison sort: a scan of 2 048 points sorts quickly either way).
 #[derive(Debug, Clone, Copy)]
 pub struct SmallCapacity;
 
@@ -147,7 +134,6 @@ impl Capacity for SmallCapacity {
     const MAP_CELLS: usize = 384;
     const MAP_LAYERS: usize = 512;
     const RADIX_SORT: bool = false;
-    const REUSE_LAYERS: bool = false;
 }
 
 #[cfg(test)]
@@ -170,11 +156,9 @@ mod tests {
         assert_eq!(size_of::<CellSpan>(), 20, "per scan cell");
         assert_eq!(
             size_of::<ScanLayer>() + size_of::<Residual>(),
-            400,
+            384,
             "per scan layer"
         );
-        assert_eq!(size_of::<ScanLayer>(), 320, "per last round's layer");
-
         assert_eq!(
             size_of::<Bucket>(),
             32,
@@ -185,12 +169,12 @@ mod tests {
         // The documented figures, with 1 % slack for platform layout.
         let kitti = KittiCapacity::memory_bytes() as f64;
         assert!(
-            (kitti - 158.0e6).abs() < 1.6e6,
+            (kitti - 149.8e6).abs() < 1.5e6,
             "KittiCapacity: {kitti} bytes"
         );
         for (name, bytes, documented) in [
-            ("32", Lidar32Capacity::memory_bytes(), 79.1e6),
-            ("16", Lidar16Capacity::memory_bytes(), 39.6e6),
+            ("32", Lidar32Capacity::memory_bytes(), 75.0e6),
+            ("16", Lidar16Capacity::memory_bytes(), 37.5e6),
         ] {
             let bytes = bytes as f64;
             assert!(
@@ -200,7 +184,7 @@ mod tests {
         }
         let small = SmallCapacity::memory_bytes() as f64;
         assert!(
-            (small - 355.2e3).abs() < 3.5e3,
+            (small - 351.4e3).abs() < 3.5e3,
             "SmallCapacity: {small} bytes"
         );
     }

@@ -150,11 +150,6 @@ pub struct MapConfig {
     /// bucketing and the costliest of the scan's reconstructions at a small cost in accuracy
     /// (both measured in docs/benchmarks.md, Speed). Default `true`.
     pub reconstruct_at_final_pose: bool,
-    /// When reconstructing at the final pose: take the last round's layer, moved there, where
-    /// its cell kept its points and the layer its training samples, and reconstruct only the
-    /// rest ([`crate::refresh`]). The last round then reconstructs every layer with exact
-    /// variances. Default `true`.
-    pub reuse_unchanged_layers: bool,
 }
 
 /// Mesh export (docs/design.md §1.6).
@@ -240,7 +235,6 @@ impl Default for Config {
                 variance_update: 0.5,
                 add_missing_layers: true,
                 reconstruct_at_final_pose: true,
-                reuse_unchanged_layers: true,
             },
             mesh: MeshConfig {
                 variance_show: 1.0,

@@ -123,7 +123,6 @@ mod tests {
             variance_update: 0.5,
             add_missing_layers: true,
             reconstruct_at_final_pose: true,
-            reuse_unchanged_layers: true,
         };
         let (truth, sigma) = (0.5f64, 0.02f64);
         let key = CellKey::new(3, -2, 0);
@@ -152,7 +151,6 @@ mod tests {
                 key,
                 axis: Axis::Z,
                 layer,
-                trained: Default::default(),
             }];
             let stats = integrate(&mut map, &scan, &cfg, k);
             assert_eq!(

@@ -105,44 +105,6 @@ pub fn select_training(
     })
 }
 
-/// What a layer was trained on, in brief: how many samples and their sum (cell-local
-/// metres, `(a, b, d)` of the layer's axis). Two layers of one cell with the same brief were,
-/// for all a registration can tell, trained on the same points.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct TrainingBrief {
-    /// Samples.
-    pub count: u32,
-    /// Their sum.
-    pub sum: [f32; 3],
-}
-
-impl TrainingBrief {
-    /// The brief of `samples`.
-    pub fn of(samples: &[Sample]) -> Self {
-        let sum = samples
-            .iter()
-            .fold([0.0f64; 3], |t, s| [t[0] + s[0], t[1] + s[1], t[2] + s[2]]);
-        Self {
-            // At most MAX_TRAINING samples.
-            count: samples.len() as u32,
-            sum: sum.map(|v| v as f32),
-        }
-    }
-
-    /// True when `other` has as many samples and its sum is within `tolerance_m` a sample of
-    /// this one's in each coordinate.
-    pub fn matches(&self, other: &Self, tolerance_m: f64) -> bool {
-        let limit = tolerance_m * f64::from(self.count);
-        self.count == other.count
-            && self
-                .sum
-                .iter()
-                .zip(&other.sum)
-                .all(|(a, b)| libm::fabs(f64::from(*a) - f64::from(*b)) <= limit)
-    }
-}
-
 /// Rounds of plane fitting and outlier rejection in [`select_training`].
 const OUTLIER_ROUNDS: usize = 3;
 /// Samples within this distance of the fitted plane are never outliers (metres): curvature

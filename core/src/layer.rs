@@ -350,8 +350,6 @@ pub struct ScanLayer {
     pub axis: Axis,
     /// Its predictions and variances.
     pub layer: Layer,
-    /// What its GP was trained on.
-    pub trained: crate::gp::TrainingBrief,
 }
 
 #[cfg(test)]

@@ -71,7 +71,6 @@ pub mod pipeline;
 pub mod random;
 pub mod reconstruct;
 pub mod recovery;
-pub mod refresh;
 pub mod sort;
 pub mod stage;
 pub mod storage;

@@ -22,8 +22,7 @@ use crate::map::MeshMap;
 use crate::math::{Point, Pose};
 use crate::mesh::{self, Triangle};
 use crate::motion::ConstantVelocity;
-use crate::reconstruct::{reconstruct_cells, run_cells, Purpose, ReconstructStats};
-use crate::refresh::{refresh_cell, Before};
+use crate::reconstruct::{reconstruct_cells, Purpose, ReconstructStats};
 use crate::sort::KeySorter;
 use crate::stage::{NoProbe, Probe, Stage};
 use core::marker::PhantomData;
@@ -47,9 +46,6 @@ pub struct Pipeline<C: Capacity = KittiCapacity> {
     sorter: KeySorter,
     cells: BoundedVec<CellSpan>,
     scan: BoundedVec<ScanLayer>,
-    /// The last registration round's layers while the map update's reconstruction takes what
-    /// it can from them (`MapConfig::reuse_unchanged_layers`).
-    before: BoundedVec<ScanLayer>,
     residuals: BoundedVec<Residual>,
     /// The capacity is a type only: the pipeline holds none of it (and is `Send` whatever it is).
     _capacity: PhantomData<fn() -> C>,
@@ -81,10 +77,7 @@ impl<C: Capacity> Pipeline<C> {
             ),
             KeySorter::with_capacity(C::SORT_ENTRIES),
             BoundedVec::with_capacity(C::SCAN_CELLS),
-            [
-                BoundedVec::with_capacity(C::SCAN_LAYERS),
-                BoundedVec::with_capacity(C::LAST_ROUND_LAYERS),
-            ],
+            BoundedVec::with_capacity(C::SCAN_LAYERS),
             BoundedVec::with_capacity(C::SCAN_LAYERS),
         ))
     }
@@ -96,7 +89,7 @@ impl<C: Capacity> Pipeline<C> {
         (points, work): (BoundedVec<Point>, BoundedVec<(CellKey, Point)>),
         sorter: KeySorter,
         cells: BoundedVec<CellSpan>,
-        [scan, before]: [BoundedVec<ScanLayer>; 2],
+        scan: BoundedVec<ScanLayer>,
         residuals: BoundedVec<Residual>,
     ) -> Self {
         Self {
@@ -109,7 +102,6 @@ impl<C: Capacity> Pipeline<C> {
             sorter,
             cells,
             scan,
-            before,
             residuals,
             _capacity: PhantomData,
         }
@@ -219,10 +211,7 @@ impl<C: Capacity> Pipeline<C> {
             (pose, status, for_update) = (best.pose, best.status, best.for_update);
         }
         match for_update {
-            Some((b, made_at)) if !self.config.map.reconstruct_at_final_pose => {
-                self.move_and_fuse(made_at, pose, b, probe, &mut stats)
-            }
-            Some((_, made_at)) => self.refresh(made_at, pose, exec, probe, &mut stats),
+            Some((b, made_at)) => self.move_and_fuse(made_at, pose, b, probe, &mut stats),
             None => self.finish(pose, exec, probe, &mut stats),
         }
         self.outcome(pose, status, stats)
@@ -364,32 +353,6 @@ impl<C: Capacity> Pipeline<C> {
         purpose: Purpose,
         probe: &mut impl Probe,
     ) -> (BucketStats, ReconstructStats) {
-        let b = self.bucket_at(pose, exec, probe);
-        probe.enter(Stage::Reconstruct);
-        let made = reconstruct_cells(
-            &self.cells,
-            &self.work,
-            &self.map,
-            &self.config,
-            purpose,
-            &mut self.scan,
-            exec,
-        );
-        (b, made)
-    }
-
-    /// Whether the map update can take the last round's layers (`Capacity::REUSE_LAYERS`).
-    fn keeps_last_round(&self) -> bool {
-        self.before.capacity() >= self.scan.capacity()
-    }
-
-    /// Buckets the scan at `pose` into `work` and `cells`, and empties `scan` for its layers.
-    fn bucket_at(
-        &mut self,
-        pose: &Pose,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-    ) -> BucketStats {
         probe.enter(Stage::Bucket);
         let g = &self.config.grid;
         let b = bucket(
@@ -402,40 +365,17 @@ impl<C: Capacity> Pipeline<C> {
             exec,
         );
         self.scan.clear();
-        b
-    }
-
-    /// The map update's reconstruction at `pose` from the last round's, made at `made_at` and
-    /// left in `scan` ([`crate::refresh`]); map update, motion update.
-    fn refresh(
-        &mut self,
-        made_at: Pose,
-        pose: Pose,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-        stats: &mut ScanStats,
-    ) {
-        core::mem::swap(&mut self.scan, &mut self.before);
-        let b = self.bucket_at(&pose, exec, probe);
         probe.enter(Stage::Reconstruct);
-        let before = Before {
-            layers: &self.before,
-            motion: pose * made_at.inverse(),
-            lattice: self.config.lattice().table(),
-        };
-        let (map, cfg) = (&self.map, &self.config);
-        let made = run_cells(
+        let made = reconstruct_cells(
             &self.cells,
             &self.work,
+            &self.map,
+            &self.config,
+            purpose,
             &mut self.scan,
             exec,
-            |scratch, points, key| refresh_cell(scratch, points, key, map, cfg, &before),
         );
-        stats.dropped_layers += made.dropped;
-        stats.reused_layers = made.reused;
-        probe.enter(Stage::Update);
-        self.fuse(pose, b, stats);
-        probe.enter(Stage::Done);
+        (b, made)
     }
 
     /// Final reconstruction at `pose`, map update, motion update.

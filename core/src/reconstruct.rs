@@ -29,9 +29,6 @@ pub enum Purpose {
         /// Only the cells of [`in_checkerboard`] (a coarse round with
         /// [`RegisterConfig::coarse_half_cells`](crate::config::RegisterConfig::coarse_half_cells)).
         half_cells: bool,
-        /// Exact variances everywhere (association pairs the same vertices either way): the
-        /// last round's layers, which the map update may take ([`crate::refresh`]).
-        exact_variances: bool,
     },
     /// The map update: every layer.
     Update,
@@ -45,9 +42,6 @@ pub struct CellLayers {
     /// Layers its surface called for that a registration round left out for having no map
     /// layer within reach: with the layers paired, the scan's overlap with the map.
     pub unpaired: usize,
-    /// Layers taken from the last registration round instead of reconstructed
-    /// ([`refresh_cell`](crate::refresh::refresh_cell)).
-    pub reused: usize,
 }
 
 /// What [`reconstruct_cells`] did besides filling its output.
@@ -57,8 +51,6 @@ pub struct ReconstructStats {
     pub dropped: usize,
     /// Layers left out for having no map layer within reach (see [`CellLayers::unpaired`]).
     pub unpaired: usize,
-    /// Layers taken from the last registration round (see [`CellLayers::reused`]).
-    pub reused: usize,
 }
 
 /// Reconstructs the layers of cell `key` from its cell-local `points` (at most three layers;
@@ -80,9 +72,21 @@ pub fn reconstruct_cell(
             return CellLayers::default();
         }
     }
+    let mut axes = heapless::Vec::<Axis, 3>::new();
+    match choose_layers(points) {
+        Shape::Surface(a) => axes = a,
+        Shape::LineLike => {
+            if let Some(cell) = map.cell(&key) {
+                for a in cell.axes() {
+                    let _ = axes.push(a);
+                }
+            }
+        }
+        Shape::Unclear => {}
+    }
     let lattice = cfg.lattice();
     let mut out = CellLayers::default();
-    for axis in layer_axes(points, key, map) {
+    for axis in axes {
         if let Purpose::Register { reach, .. } = purpose {
             if !crate::associate::has_candidates(map, key, axis, reach) {
                 out.unpaired += 1;
@@ -90,46 +94,16 @@ pub fn reconstruct_cell(
             }
         }
         let variances = match purpose {
-            Purpose::Register {
-                exact_variances: false,
-                ..
-            } => gp::Variances::Below(cfg.register.variance_register),
-            _ => gp::Variances::Exact,
+            Purpose::Register { .. } => gp::Variances::Below(cfg.register.variance_register),
+            Purpose::Update => gp::Variances::Exact,
         };
         let samples = gp::select_training(points, axis, lattice.cell_size);
         if let Ok(layer) = gp::predict_in(scratch, &samples, &lattice, &cfg.gp, variances) {
-            let trained = gp::TrainingBrief::of(&samples);
             // At most three axes: cannot overflow.
-            let _ = out.layers.push(ScanLayer {
-                key,
-                axis,
-                layer,
-                trained,
-            });
+            let _ = out.layers.push(ScanLayer { key, axis, layer });
         }
     }
     out
-}
-
-/// The axes of the layers cell `key` gets from its `points` ([`choose_layers`]); a line-like
-/// cell gets the layers the map already has there, an unclear one none.
-pub fn layer_axes(
-    points: &[(CellKey, Point)],
-    key: CellKey,
-    map: &MeshMap,
-) -> heapless::Vec<Axis, 3> {
-    let mut axes = heapless::Vec::new();
-    match choose_layers(points) {
-        Shape::Surface(a) => axes = a,
-        Shape::LineLike => {
-            for a in map.cell(&key).iter().flat_map(|cell| cell.axes()) {
-                // Three axes at most: cannot overflow.
-                let _ = axes.push(a);
-            }
-        }
-        Shape::Unclear => {}
-    }
-    axes
 }
 
 /// Half the cells, every other one along each axis: those whose indices sum to an even number.
@@ -150,29 +124,14 @@ pub fn reconstruct_cells(
     out: &mut BoundedVec<ScanLayer>,
     exec: &impl Executor,
 ) -> ReconstructStats {
-    run_cells(cells, bucketed, out, exec, |scratch, points, key| {
-        reconstruct_cell(scratch, points, key, map, cfg, purpose)
-    })
-}
-
-/// Runs `unit` (a cell's scratch, its points, its key) over `cells` (spans into `bucketed`) on
-/// `exec`, and appends the cells' layers to `out` in cell order via [`append_layers`].
-pub fn run_cells(
-    cells: &[CellSpan],
-    bucketed: &[(CellKey, Point)],
-    out: &mut BoundedVec<ScanLayer>,
-    exec: &impl Executor,
-    unit: impl Fn(&mut GpScratch, &[(CellKey, Point)], CellKey) -> CellLayers + Sync + Send,
-) -> ReconstructStats {
     let mut stats = ReconstructStats::default();
     exec.map_in_order(
         cells,
         GpScratch::new,
-        |scratch, c| unit(scratch, c.points(bucketed), c.key),
+        |scratch, c| reconstruct_cell(scratch, c.points(bucketed), c.key, map, cfg, purpose),
         |cell| {
             stats.dropped += append_layers(out, &cell.layers);
             stats.unpaired += cell.unpaired;
-            stats.reused += cell.reused;
         },
     );
     stats
@@ -236,12 +195,10 @@ mod tests {
         let coarse = Purpose::Register {
             reach: 1,
             half_cells: true,
-            exact_variances: false,
         };
         let all = Purpose::Register {
             reach: 1,
             half_cells: false,
-            exact_variances: false,
         };
         assert_eq!(layers(even, coarse), 1);
         assert_eq!(layers(odd, coarse), 0);

@@ -66,10 +66,6 @@ impl Empty for ScanLayer {
         key: CellKey::new(0, 0, 0),
         axis: Axis::X,
         layer: Layer::EMPTY,
-        trained: crate::gp::TrainingBrief {
-            count: 0,
-            sum: [0.0; 3],
-        },
     };
 }
 impl Empty for Residual {
@@ -98,8 +94,6 @@ pub struct Storage {
     pub cells: &'static mut [CellSpan],
     /// The layers of a scan (`SCAN_LAYERS`).
     pub scan: &'static mut [ScanLayer],
-    /// The last registration round's layers, kept for the map update (`LAST_ROUND_LAYERS`).
-    pub scan_before: &'static mut [ScanLayer],
     /// The residuals of a registration (`SCAN_LAYERS`).
     pub residuals: &'static mut [Residual],
     /// The map: its table, layer pool and free list.
@@ -120,7 +114,6 @@ impl Storage {
             sort: slots(C::SORT_ENTRIES),
             cells: slots(C::SCAN_CELLS),
             scan: slots(C::SCAN_LAYERS),
-            scan_before: slots(C::LAST_ROUND_LAYERS),
             residuals: slots(C::SCAN_LAYERS),
             map: MapStorage {
                 table: slots(buckets_for(C::MAP_CELLS)),
@@ -156,7 +149,6 @@ impl<C: Capacity> Pipeline<C> {
             sort,
             cells,
             scan,
-            scan_before,
             residuals,
             map,
         } = storage;
@@ -165,7 +157,6 @@ impl<C: Capacity> Pipeline<C> {
         let sort = part(sort, C::SORT_ENTRIES, "storage.sort")?;
         let cells = part(cells, C::SCAN_CELLS, "storage.cells")?;
         let scan = part(scan, C::SCAN_LAYERS, "storage.scan")?;
-        let scan_before = part(scan_before, C::LAST_ROUND_LAYERS, "storage.scan_before")?;
         let residuals = part(residuals, C::SCAN_LAYERS, "storage.residuals")?;
         let table = part(map.table, buckets_for(C::MAP_CELLS), "storage.map.table")?;
         let pool = part(map.pool, C::MAP_LAYERS, "storage.map.pool")?;
@@ -185,10 +176,7 @@ impl<C: Capacity> Pipeline<C> {
             (BoundedVec::in_slice(points), BoundedVec::in_slice(work)),
             KeySorter::in_slice(sort),
             BoundedVec::in_slice(cells),
-            [
-                BoundedVec::in_slice(scan),
-                BoundedVec::in_slice(scan_before),
-            ],
+            BoundedVec::in_slice(scan),
             BoundedVec::in_slice(residuals),
         ))
     }
@@ -201,7 +189,6 @@ pub struct StaticStorage<
     const SORT: usize,
     const SCAN_CELLS: usize,
     const SCAN_LAYERS: usize,
-    const LAST_ROUND_LAYERS: usize,
     const BUCKETS: usize,
     const MAP_LAYERS: usize,
 > {
@@ -210,7 +197,6 @@ pub struct StaticStorage<
     sort: [(CellKey, Point); SORT],
     cells: [CellSpan; SCAN_CELLS],
     scan: [ScanLayer; SCAN_LAYERS],
-    scan_before: [ScanLayer; LAST_ROUND_LAYERS],
     residuals: [Residual; SCAN_LAYERS],
     table: [Bucket; BUCKETS],
     pool: [Layer; MAP_LAYERS],
@@ -222,10 +208,9 @@ impl<
         const SORT: usize,
         const SCAN_CELLS: usize,
         const SCAN_LAYERS: usize,
-        const LAST_ROUND_LAYERS: usize,
         const BUCKETS: usize,
         const MAP_LAYERS: usize,
-    > StaticStorage<POINTS, SORT, SCAN_CELLS, SCAN_LAYERS, LAST_ROUND_LAYERS, BUCKETS, MAP_LAYERS>
+    > StaticStorage<POINTS, SORT, SCAN_CELLS, SCAN_LAYERS, BUCKETS, MAP_LAYERS>
 {
     /// All zeroes (for a `static`).
     #[allow(clippy::new_without_default)]
@@ -236,7 +221,6 @@ impl<
             sort: [<(CellKey, Point)>::EMPTY; SORT],
             cells: [CellSpan::EMPTY; SCAN_CELLS],
             scan: [ScanLayer::EMPTY; SCAN_LAYERS],
-            scan_before: [ScanLayer::EMPTY; LAST_ROUND_LAYERS],
             residuals: [Residual::EMPTY; SCAN_LAYERS],
             table: [EMPTY_BUCKET; BUCKETS],
             pool: [Layer::EMPTY; MAP_LAYERS],
@@ -252,7 +236,6 @@ impl<
             sort: &mut self.sort,
             cells: &mut self.cells,
             scan: &mut self.scan,
-            scan_before: &mut self.scan_before,
             residuals: &mut self.residuals,
             map: MapStorage {
                 table: &mut self.table,
@@ -273,7 +256,6 @@ macro_rules! storage_for {
             { <$capacity as $crate::Capacity>::SORT_ENTRIES },
             { <$capacity as $crate::Capacity>::SCAN_CELLS },
             { <$capacity as $crate::Capacity>::SCAN_LAYERS },
-            { <$capacity as $crate::Capacity>::LAST_ROUND_LAYERS },
             { $crate::cell_table::buckets_for(<$capacity as $crate::Capacity>::MAP_CELLS) },
             { <$capacity as $crate::Capacity>::MAP_LAYERS },
         >

@@ -109,9 +109,6 @@ pub struct ScanStats {
     pub scan_layers: usize,
     /// Layers dropped because the scan's layer buffer was full (summed over rounds).
     pub dropped_layers: usize,
-    /// Layers of the map update taken from the last registration round, moved
-    /// (`MapConfig::reuse_unchanged_layers`), not reconstructed.
-    pub reused_layers: usize,
     /// Association of the last round.
     pub associate: AssociateStats,
     /// Registration rounds run.

@@ -24,9 +24,8 @@ pub(super) struct Attempt {
     pub(super) associate: AssociateStats,
     pub(super) conditioning: f64,
     pub(super) degenerate_directions: usize,
-    /// Without `MapConfig::reconstruct_at_final_pose`, or with `reuse_unchanged_layers`: the
-    /// last round's bucketing and the pose its reconstruction (left in the scan's buffers) was
-    /// made at.
+    /// Without `MapConfig::reconstruct_at_final_pose`: the last round's bucketing and the pose
+    /// its reconstruction (left in the scan's buffer) was made at.
     pub(super) for_update: Option<(BucketStats, Pose)>,
 }
 
@@ -85,11 +84,7 @@ impl<C: Capacity> Pipeline<C> {
         stats: &mut ScanStats,
     ) -> Attempt {
         let r = self.config.register;
-        let m = self.config.map;
-        // The last round's layers for the map update: all of them, moved
-        // (`reconstruct_at_final_pose = false`), or those that keep their training samples.
-        let move_last = !m.reconstruct_at_final_pose;
-        let keep_last = move_last || (m.reuse_unchanged_layers && self.keeps_last_round());
+        let reuse_last = !self.config.map.reconstruct_at_final_pose;
         let mut a = Attempt {
             pose: start,
             status: RegistrationStatus::Converged,
@@ -102,20 +97,19 @@ impl<C: Capacity> Pipeline<C> {
         for round in 0..rounds {
             let last = round + 1 == rounds;
             let reach = if last { 0 } else { reach };
-            // Exact variances (every layer, to move them all): registration pairs the same
-            // vertices as without (it only compares variances with its threshold).
-            let purpose = if last && move_last {
+            // Every layer with exact variances: registration pairs the same vertices as
+            // with `Register` (it only compares variances with its threshold).
+            let purpose = if last && reuse_last {
                 Purpose::Update
             } else {
                 Purpose::Register {
                     reach,
                     half_cells: reach > 0 && r.coarse_half_cells,
-                    exact_variances: last && keep_last,
                 }
             };
             let (b, made) = self.reconstruct(&a.pose, exec, purpose, probe);
             stats.dropped_layers += made.dropped;
-            if last && keep_last {
+            if purpose == Purpose::Update {
                 a.for_update = Some((b, a.pose));
             }
             probe.enter(Stage::Associate);

@@ -30,8 +30,6 @@ impl Capacity for Sparse16 {
     const MAP_LAYERS: usize = 768;
     // The comparison sort: 147 KB less RAM, and 6 144 points sort quickly either way.
     const RADIX_SORT: bool = false;
-    // Every layer reconstructed again at the final pose: 123 KB less RAM.
-    const REUSE_LAYERS: bool = false;
 }
 
 /// The pipeline's memory, sized at compile time by `Sparse16`.

@@ -156,7 +156,6 @@ parameters! {
     "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
     "map" map.add_missing_layers: boolean as Value::Boolean, "Add a layer that a known cell lacks.";
     "map" map.reconstruct_at_final_pose: boolean as Value::Boolean, "Reconstruct the scan again at its final pose before fusing it (false: move the last round's reconstruction there instead; about a quarter faster, a little less accurate).";
-    "map" map.reuse_unchanged_layers: boolean as Value::Boolean, "Reconstructing at the final pose, take the last round's layer moved there where its cell kept its points and its training samples (the same result to the motion's second order; faster).";
     "mesh" mesh.variance_show: float as fv, "Triangles whose mean vertex variance is at or above this are not shown.";
     "mesh" mesh.max_slope_deg: float as fv, "Triangles steeper than this against their layer's axis (degrees) are not shown (90: all shown).";
 }
@@ -371,7 +370,6 @@ mod tests {
             changed.register.lm.huber_delta_m = 0.25;
             changed.grid.min_points = 7;
             changed.map.reconstruct_at_final_pose = !c.map.reconstruct_at_final_pose;
-            changed.map.reuse_unchanged_layers = !c.map.reuse_unchanged_layers;
             changed.register.recovery.yaw_step_deg = 10.0;
             changed.register.recovery.enabled = false;
             changed.register.recovery.polish_turn_deg = 7.5;
