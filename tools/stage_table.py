@@ -51,10 +51,10 @@ def ceiling(binary, seq, config):
     alone = bench(binary, seq, 1, config)["total"]
     cmd = bench_cmd(binary, seq, 1, config)
     pair = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) for _ in range(2)]
-    totals = [stages_of(p.communicate()[0])["total"] for p in pair]
+    outs = [p.communicate()[0] for p in pair]
     if any(p.returncode != 0 for p in pair):
         raise SystemExit(f"{binary} bench failed on {seq}")
-    return sum(alone / t for t in totals)
+    return sum(alone / stages_of(out)["total"] for out in outs)
 
 
 def main():
@@ -64,46 +64,42 @@ def main():
     ap.add_argument("--ceiling", action="store_true")
     ap.add_argument("binaries", nargs="+", metavar="BIN[=CONFIG]")
     args = ap.parse_args()
-    # Each build with its configuration: its own after `=`, else --config.
-    config_of = {b: (b.split("=", 1)[1] if "=" in b else args.config) for b in args.binaries}
-    # runs[binary][threads][seq] = list of per-round stage dicts
-    runs = {b: {t: {s: [] for s in SEQUENCES} for t in (1, 2)} for b in args.binaries}
+    # Each build as given, its binary, and its configuration: its own after `=`, else --config.
+    builds = [(b, *(b.split("=", 1) if "=" in b else (b, args.config))) for b in args.binaries]
+    # runs[build][threads][seq] = list of per-round stage dicts
+    runs = {b: {t: {s: [] for s in SEQUENCES} for t in (1, 2)} for b, _, _ in builds}
     ceilings = {s: [] for s in SEQUENCES}
-    first = args.binaries[0]
     for _ in range(args.rounds):
         for seq in SEQUENCES:
             if args.ceiling:
-                ceilings[seq].append(ceiling(first.split("=", 1)[0], seq, config_of[first]))
+                _, binary, config = builds[0]
+                ceilings[seq].append(ceiling(binary, seq, config))
             for threads in (1, 2):
-                for b in args.binaries:
-                    binary = b.split("=", 1)[0]
-                    runs[b][threads][seq].append(bench(binary, seq, threads, config_of[b]))
-    for b in args.binaries:
+                for b, binary, config in builds:
+                    runs[b][threads][seq].append(bench(binary, seq, threads, config))
+    for b, _, _ in builds:
         print(f"\n{b}\n")
         print("| stage | 1 thread | 2 threads | speed-up | by sequence " + " / ".join(SEQUENCES) + " |")
         print("|---|---|---|---|---|")
+        # mean[stage][threads][seq]: the stage's median averaged over the rounds.
+        mean = {
+            stage: {t: {s: statistics.mean(r[stage] for r in runs[b][t][s]) for s in SEQUENCES} for t in (1, 2)}
+            for stage in STAGES
+        }
         for stage in STAGES:
-            mean = {t: {s: statistics.mean(r[stage] for r in runs[b][t][s]) for s in SEQUENCES} for t in (1, 2)}
-            med = {t: statistics.median(mean[t].values()) for t in (1, 2)}
-            by_seq = " / ".join(
-                f"{mean[1][s] / mean[2][s]:.2f}" if mean[2][s] > 0 else "-" for s in SEQUENCES
-            )
+            m = mean[stage]
+            med = {t: statistics.median(m[t].values()) for t in (1, 2)}
+            by_seq = " / ".join(f"{m[1][s] / m[2][s]:.2f}" if m[2][s] > 0 else "-" for s in SEQUENCES)
             up = med[1] / med[2] if med[2] > 0 else float("nan")
             print(f"| {stage} | {med[1]:.2f} | {med[2]:.2f} | {up:.2f} | {by_seq} |")
         for t in (1, 2):
-            totals = " / ".join(
-                f"{statistics.mean(r['total'] for r in runs[b][t][s]):.1f}" for s in SEQUENCES
-            )
+            totals = " / ".join(f"{mean['total'][t][s]:.1f}" for s in SEQUENCES)
             print(f"\ntotals by sequence, {t} thread(s): {totals} ms")
         if args.ceiling:
-            speedup = {
-                s: statistics.mean(r["total"] for r in runs[b][1][s])
-                / statistics.mean(r["total"] for r in runs[b][2][s])
-                for s in SEQUENCES
-            }
             ceil = {s: statistics.mean(ceilings[s]) for s in SEQUENCES}
+            over = " / ".join(f"{mean['total'][1][s] / mean['total'][2][s] / ceil[s]:.2f}" for s in SEQUENCES)
             print("\ntwo cores' ceiling by sequence: " + " / ".join(f"{ceil[s]:.2f}" for s in SEQUENCES))
-            print("speed-up over ceiling by sequence: " + " / ".join(f"{speedup[s] / ceil[s]:.2f}" for s in SEQUENCES))
+            print("speed-up over ceiling by sequence: " + over)
 
 
 if __name__ == "__main__":
