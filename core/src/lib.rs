@@ -63,6 +63,7 @@ pub mod layer;
 pub mod lm;
 pub mod log;
 pub mod map;
+pub mod map_file;
 pub mod math;
 pub mod mesh;
 pub mod motion;
