@@ -72,6 +72,7 @@ pub mod pipeline;
 pub mod random;
 pub mod reconstruct;
 pub mod recovery;
+pub mod relocalize;
 pub mod sort;
 pub mod stage;
 pub mod storage;

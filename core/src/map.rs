@@ -49,6 +49,8 @@ pub struct LayerRef<'a> {
     pub axis: Axis,
     /// Its predictions and variances.
     pub layer: &'a Layer,
+    /// The frame its cell was last seen in.
+    pub last_seen: u32,
 }
 
 /// World-fixed cells with their fused layers.
@@ -211,6 +213,7 @@ impl MeshMap {
                     key,
                     axis,
                     layer: self.pool.get(slot as usize)?,
+                    last_seen: cell.last_seen,
                 })
             })
         })
@@ -244,6 +247,7 @@ impl MeshMap {
                         key: *key,
                         axis,
                         layer,
+                        last_seen: cell.last_seen,
                     });
                     // The free list has the pool's capacity: it cannot be full.
                     let _ = free.push(slot);

@@ -29,8 +29,10 @@ use core::marker::PhantomData;
 
 mod outcome;
 mod register;
+mod relocalize;
 
 pub use outcome::{RegistrationStatus, ScanError, ScanOutcome, ScanStats};
+pub use relocalize::Relocalized;
 
 /// LiDAR odometry and meshing with capacities `C`. Cloning (feature `alloc`) copies the map
 /// and every buffer into memory from the global allocator, like [`Pipeline::new`].
@@ -47,6 +49,8 @@ pub struct Pipeline<C: Capacity = KittiCapacity> {
     cells: BoundedVec<CellSpan>,
     scan: BoundedVec<ScanLayer>,
     residuals: BoundedVec<Residual>,
+    /// Whether scans are fused into the map (off: localization in a fixed map).
+    map_updates: bool,
     /// The capacity is a type only: the pipeline holds none of it (and is `Send` whatever it is).
     _capacity: PhantomData<fn() -> C>,
 }
@@ -103,6 +107,7 @@ impl<C: Capacity> Pipeline<C> {
             cells,
             scan,
             residuals,
+            map_updates: true,
             _capacity: PhantomData,
         }
     }
@@ -150,6 +155,17 @@ impl<C: Capacity> Pipeline<C> {
     pub fn restore_progress(&mut self, frames: u32, motion: ConstantVelocity) {
         self.frame = frames;
         self.motion = motion;
+    }
+
+    /// Whether scans are fused into the map (the default), or only registered against it:
+    /// localization in a fixed map, which also skips the map update's reconstruction.
+    pub fn set_map_updates(&mut self, on: bool) {
+        self.map_updates = on;
+    }
+
+    /// See [`set_map_updates`](Self::set_map_updates).
+    pub fn map_updates(&self) -> bool {
+        self.map_updates
     }
 
     /// The newest pose, if any scan was accepted.
@@ -211,6 +227,10 @@ impl<C: Capacity> Pipeline<C> {
             (pose, status, for_update) = (best.pose, best.status, best.for_update);
         }
         match for_update {
+            _ if !self.map_updates => {
+                stats.scan_layers = self.scan.len();
+                self.motion.push(pose);
+            }
             Some((b, made_at)) => self.move_and_fuse(made_at, pose, b, probe, &mut stats),
             None => self.finish(pose, exec, probe, &mut stats),
         }
@@ -467,7 +487,7 @@ mod log {
     pub(super) fn scan_done(outcome: &super::ScanOutcome) {
         use super::RegistrationStatus as S;
         match outcome.status {
-            S::FirstScan | S::Converged | S::Given => {
+            S::FirstScan | S::Converged | S::Given | S::Relocalized => {
                 defmt::debug!("scan {}: {}", outcome.stats.frame, outcome)
             }
             _ => defmt::warn!(

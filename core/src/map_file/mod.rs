@@ -494,7 +494,7 @@ pub fn read_tile(bytes: &[u8]) -> Result<TileBlock<'_>, MapFileError> {
 
 /// One cell as read: its key, when it was last seen, its layers by axis index.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ReadCell {
+pub struct StoredCell {
     /// The cell.
     pub key: CellKey,
     /// The frame it was last seen in.
@@ -510,7 +510,7 @@ pub struct TileCells<'a> {
 }
 
 impl TileCells<'_> {
-    fn next_record(&mut self) -> Option<Result<(usize, ReadCell), MapFileError>> {
+    fn next_record(&mut self) -> Option<Result<(usize, StoredCell), MapFileError>> {
         if self.r.rest().is_empty() {
             return None;
         }
@@ -518,7 +518,7 @@ impl TileCells<'_> {
         Some(self.read().map(|c| (at, c)))
     }
 
-    fn read(&mut self) -> Result<ReadCell, MapFileError> {
+    fn read(&mut self) -> Result<StoredCell, MapFileError> {
         let key = self.r.key()?;
         let last_seen = self.r.u32()?;
         let at = TILE_PREFIX_BYTES + self.r.pos;
@@ -558,7 +558,7 @@ impl TileCells<'_> {
             }
             *slot = Some(layer);
         }
-        Ok(ReadCell {
+        Ok(StoredCell {
             key,
             last_seen,
             layers,
@@ -567,9 +567,9 @@ impl TileCells<'_> {
 }
 
 impl Iterator for TileCells<'_> {
-    type Item = ReadCell;
+    type Item = StoredCell;
     /// The next cell (the block was checked when read: a record that does not read ends it).
-    fn next(&mut self) -> Option<ReadCell> {
+    fn next(&mut self) -> Option<StoredCell> {
         self.next_record()?.ok().map(|(_, c)| c)
     }
 }

@@ -35,6 +35,12 @@ pub enum RegistrationStatus {
     NotConverged,
     /// The pose was given ([`Pipeline::integrate_scan`](super::Pipeline::integrate_scan)).
     Given,
+    /// The pose was found in a known map without a prediction
+    /// ([`Pipeline::relocalize_with`](super::Pipeline::relocalize_with)).
+    Relocalized,
+    /// A search for the pose in a known map found no convincing one: the map and the motion
+    /// model are unchanged, and the pose given is the best attempt's, not to be trusted.
+    NotLocalized,
 }
 
 /// Why a scan was not used. The map and motion model are unchanged.

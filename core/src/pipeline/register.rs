@@ -29,6 +29,21 @@ pub(super) struct Attempt {
     pub(super) for_update: Option<(BucketStats, Pose)>,
 }
 
+impl Attempt {
+    /// No registration: the pose as given, judged lost.
+    pub(super) fn unregistered(pose: Pose) -> Self {
+        Attempt {
+            pose,
+            status: RegistrationStatus::NotConverged,
+            verdict: Verdict::default(),
+            associate: AssociateStats::default(),
+            conditioning: 0.0,
+            degenerate_directions: 0,
+            for_update: None,
+        }
+    }
+}
+
 impl<C: Capacity> Pipeline<C> {
     /// Registers the filtered scan from the prediction `predicted`: the rounds of
     /// docs/design.md §1.4, then, when they did not converge, recovery (§1.11); a frame that
@@ -240,7 +255,7 @@ impl<C: Capacity> Pipeline<C> {
     /// Huber threshold at `polish_huber_delta_m`, kept (with the attempt's status) when they
     /// converge and settle (docs/design.md §1.11). The search's wide threshold lets it reach a
     /// pose far from the guess; near it, the tight one gives wrong pairs less pull.
-    fn polish(
+    pub(super) fn polish(
         &mut self,
         attempt: Attempt,
         exec: &impl Executor,

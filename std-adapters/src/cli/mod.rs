@@ -52,6 +52,10 @@ enum Command {
     Run(run::RunArgs),
     /// Build the mesh at given poses (meshing only; default preset: meshing).
     Mesh(run::MeshArgs),
+    /// Localize in a saved map (--map, written by `run --save-map`): from --initial-pose or,
+    /// without it, by searching the map; the map stays as it is unless --update. Writes what
+    /// `run` writes.
+    Localize(run::LocalizeArgs),
     /// Compare a trajectory with reference poses (consecutive-frame errors, end-point drift,
     /// ATE, segment errors), score a mesh against a point cloud, or build such a cloud.
     Eval(eval::EvalArgs),
@@ -100,6 +104,7 @@ impl Cli {
         match &self.command {
             Command::Run(a) => run::run_command(a, quiet),
             Command::Mesh(a) => run::mesh(a, quiet),
+            Command::Localize(a) => run::localize(a, quiet),
             Command::Eval(a) => eval::eval(a),
             Command::Bench(a) => bench::bench(a),
             Command::Render(a) => render::render(a),

@@ -74,6 +74,20 @@ pub struct RunArgs {
     /// within range with a quarter to spare.
     #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
     pub capacity: CapacityFlag,
+    /// Start from a saved map (written by --save-map): map on from it, in its frame (with
+    /// `localize`: localize in it). Its configuration is used unless --preset or --config
+    /// says otherwise (the cell size must be the map's).
+    #[arg(long, value_name = "FILE")]
+    pub map: Option<PathBuf>,
+    /// Where the sensor starts in the map: "x y z yaw_deg", or a TUM line "t x y z qx qy qz
+    /// qw". Without it, a run from a map searches the map for the first frame's pose (and,
+    /// until one is found, for each next frame's).
+    #[arg(long, value_name = "POSE", requires = "map", value_parser = parse_initial_pose)]
+    pub initial_pose: Option<slamesh_core::Pose>,
+    /// Save the whole map to FILE at the end (cells a window evicted included), to localize
+    /// in later or map on from (`--map`).
+    #[arg(long, value_name = "FILE")]
+    pub save_map: Option<PathBuf>,
     /// Serve a live view for the Foxglove app on ADDR (default 127.0.0.1:8765, this machine
     /// only; reach it from a laptop through an SSH tunnel). It only publishes.
     #[cfg(feature = "view")]
@@ -137,15 +151,80 @@ pub struct MeshArgs {
     pub calib: Option<PathBuf>,
 }
 
+/// `slamesh localize`'s arguments.
+#[derive(Args, Debug)]
+pub struct LocalizeArgs {
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// Keep fusing the scans into the map (mapping on); without it the map is fixed.
+    #[arg(long)]
+    pub update: bool,
+}
+
+/// Localizes in a saved map (`--map`, required): registration against it without updating
+/// it (unless `--update`), the same outputs as `run`.
+pub fn localize(args: &LocalizeArgs, quiet: bool) -> Result<(), CliError> {
+    if args.run.map.is_none() {
+        return Err(CliError::BadFlag {
+            flag: "--map",
+            reason: "localize needs the map to localize in: --map FILE (written by run \
+                     --save-map)"
+                .into(),
+        });
+    }
+    run_in_map(&args.run, !args.update, quiet)
+}
+
+/// `--initial-pose`: "x y z yaw_deg" or a TUM line "t x y z qx qy qz qw".
+fn parse_initial_pose(text: &str) -> Result<slamesh_core::Pose, String> {
+    let v: Vec<f64> = text
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse::<f64>().map_err(|_| format!("{s:?} is not a number")))
+        .collect::<Result<_, _>>()?;
+    if !v.iter().all(|x| x.is_finite()) {
+        return Err("a number is not finite".into());
+    }
+    let t = nalgebra::Translation3::new;
+    match v[..] {
+        [x, y, z, yaw] => Ok(slamesh_core::Pose::from_parts(
+            t(x, y, z),
+            nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw.to_radians()),
+        )),
+        [_, x, y, z, qx, qy, qz, qw] => {
+            let q = nalgebra::Quaternion::new(qw, qx, qy, qz);
+            if q.norm() < 1e-9 {
+                return Err("the quaternion is zero".into());
+            }
+            Ok(slamesh_core::Pose::from_parts(
+                t(x, y, z),
+                nalgebra::UnitQuaternion::from_quaternion(q),
+            ))
+        }
+        _ => Err(format!(
+            "{} numbers: give \"x y z yaw_deg\" or a TUM line \"t x y z qx qy qz qw\"",
+            v.len()
+        )),
+    }
+}
+
 /// Meshes at the given poses (preset `meshing` unless told otherwise).
 pub fn mesh(args: &MeshArgs, quiet: bool) -> Result<(), CliError> {
     let poses = read_given_poses(&args.poses, args.calib.as_deref())?;
-    run_with(&args.run, "meshing", Some(poses), quiet)
+    run_with(&args.run, "meshing", Some(poses), quiet, false)
 }
 
 /// Estimates the poses and builds the mesh (preset `default` unless told otherwise).
 pub fn run_command(args: &RunArgs, quiet: bool) -> Result<(), CliError> {
-    run_with(args, "default", None, quiet)
+    if args.map.is_some() {
+        return run_in_map(args, false, quiet);
+    }
+    run_with(args, "default", None, quiet, false)
+}
+
+/// A run from a saved map: mapping on from it, or (`localize_only`) localizing in it.
+fn run_in_map(args: &RunArgs, localize_only: bool, quiet: bool) -> Result<(), CliError> {
+    run_with(args, "default", None, quiet, localize_only)
 }
 
 fn run_with(
@@ -153,11 +232,18 @@ fn run_with(
     default_preset: &str,
     given: Option<Trajectory>,
     quiet: bool,
+    localize_only: bool,
 ) -> Result<(), CliError> {
-    let mut s = args.profile.resolve(default_preset)?;
+    let mut s = match &args.map {
+        // The map's own configuration, unless one is named.
+        Some(map) if args.profile.preset.is_none() && args.profile.config.is_none() => {
+            slamesh::run::saved_map::config_of(map)?
+        }
+        _ => args.profile.resolve(default_preset)?,
+    };
     args.window.apply(&mut s.window)?;
     let mut source = Input::open(&args.input, args.topic.as_deref(), args.bin_fields.clone())?;
-    if given.is_none() {
+    if given.is_none() && args.map.is_none() {
         crate::cli::settings::fit_to_scene(&mut s, &mut source);
     }
     if let Some(p) = &given {
@@ -199,6 +285,10 @@ fn run_with(
         checkpoint_every: args.checkpoint_every.map(|n| n as usize),
         resume: args.resume,
         picture: !args.no_picture,
+        map: args.map.clone(),
+        localize_only,
+        initial_pose: args.initial_pose,
+        save_map: args.save_map.clone(),
         deskew: match args.deskew {
             DeskewFlag::Auto => Deskew::Auto,
             DeskewFlag::Off => Deskew::Off,

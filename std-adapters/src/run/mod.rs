@@ -10,6 +10,7 @@
 //! | time per stage | [`timing`] |
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
 //! | saving and resuming a killed run | [`checkpoint`] |
+//! | starting from a saved map: loading it, where to search for the first pose | [`saved_map`] |
 
 pub mod capacity;
 pub mod checkpoint;
@@ -17,6 +18,7 @@ pub mod lookahead;
 pub mod memory;
 pub mod options;
 pub mod report;
+pub mod saved_map;
 pub mod scale;
 pub mod session;
 pub mod source;

@@ -40,6 +40,18 @@ pub struct RunOptions {
     pub picture: bool,
     /// Whether to deskew scans whose points carry times.
     pub deskew: Deskew,
+    /// A saved map to start from (`--map`, [`crate::run::saved_map`]): the run maps on from
+    /// it, in its frame (or only localizes in it, with `localize_only`).
+    pub map: Option<PathBuf>,
+    /// Register against the map without fusing scans into it (`slamesh localize` without
+    /// `--update`).
+    pub localize_only: bool,
+    /// Where the sensor starts in the map (`--initial-pose`); without it, a run from a saved
+    /// map searches the map for the first frame's pose.
+    pub initial_pose: Option<slamesh_core::Pose>,
+    /// Write the map to this file at the end (`--save-map`): every cell, those a window
+    /// evicted included.
+    pub save_map: Option<PathBuf>,
     /// The live view and its recording (`--view`, `--record`).
     #[cfg(feature = "view")]
     pub view: crate::view::ViewOptions,

@@ -68,6 +68,10 @@ pub struct FrameRecord {
     /// name, or the assumed 10 Hz.
     #[serde(default)]
     pub stamp: f64,
+    /// A run from a saved map with no pose given: how the frame that found the pose found it
+    /// (position, the share of the scan on the map, the best elsewhere, hypotheses tried).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub relocalization: Option<String>,
 }
 
 impl FrameRecord {
@@ -95,6 +99,7 @@ impl FrameRecord {
             rss_mb: None,
             deskewed_points: 0,
             stamp: 0.0,
+            relocalization: None,
         }
     }
 }
@@ -150,11 +155,12 @@ pub struct Summary {
 
 /// Statuses of a frame registered normally: the first scan, converged, or meshed at a given
 /// pose. Any other status, and a skipped frame, is a frame not registered normally.
-pub const NORMAL_STATUSES: [&str; 3] = ["FirstScan", "Converged", "Given"];
+pub const NORMAL_STATUSES: [&str; 4] = ["FirstScan", "Converged", "Given", "Relocalized"];
 
 /// Statuses of a frame registered, normally or not: a recovered frame is named on the
 /// terminal and counted, but is not among [`Health::not_registered`] (nor fails `--strict`).
-pub const REGISTERED_STATUSES: [&str; 4] = ["FirstScan", "Converged", "Given", "Recovered"];
+pub const REGISTERED_STATUSES: [&str; 5] =
+    ["FirstScan", "Converged", "Given", "Relocalized", "Recovered"];
 
 /// How the run's frames went.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -185,7 +191,7 @@ impl Health {
     pub fn of<R: std::borrow::Borrow<FrameRecord>>(
         records: impl IntoIterator<Item = Result<R, FileError>>,
     ) -> Result<Self, FileError> {
-        const ORDER: [&str; 9] = [
+        const ORDER: [&str; 10] = [
             "FirstScan",
             "Converged",
             "Given",
@@ -194,6 +200,7 @@ impl Health {
             "SolverFailed",
             "Recovered",
             "NotConverged",
+            "Relocalized",
             "Skipped",
         ];
         let mut counts = [0usize; ORDER.len()];
@@ -270,7 +277,13 @@ pub fn registration_reason(
     match status {
         RegistrationStatus::FirstScan
         | RegistrationStatus::Converged
-        | RegistrationStatus::Given => None,
+        | RegistrationStatus::Given
+        | RegistrationStatus::Relocalized => None,
+        RegistrationStatus::NotLocalized => Some(
+            "no pose in the map explained the scan convincingly (see the relocalization's \
+             scores); the frame has no pose and the next one searches again"
+                .into(),
+        ),
         RegistrationStatus::Degenerate if stats.degenerate_directions >= 6 => Some(format!(
             "no direction constrained (weakest {:.4}); the pose is the motion prediction",
             stats.conditioning

@@ -13,12 +13,14 @@
 
 use crate::io::atomic::open_cut;
 use crate::io::error::FileError;
+use crate::io::map_file::MapWriter;
 use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::lookahead::{LookAhead, Scan};
 use crate::run::memory;
+use crate::run::saved_map;
 use crate::run::report::{
     registration_reason, spreads, write_report, write_topview, write_trajectories, FrameRecord,
     Health, Summary,
@@ -28,7 +30,9 @@ use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
 use slamesh_core::deskew;
 use slamesh_core::layer::Shown;
-use slamesh_core::{Capacity, Pipeline, Pose};
+use slamesh_core::motion::ConstantVelocity;
+use slamesh_core::relocalize::Search;
+use slamesh_core::{Capacity, Pipeline, Pose, RegistrationStatus};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -86,6 +90,13 @@ pub struct Run<'a, C: Capacity> {
     started: Instant,
     /// Loop seconds before this process (from the checkpoint when resuming).
     seconds_before: f64,
+    /// Started from a saved map with no pose given: where to search for the pose, until a
+    /// frame finds it ([`saved_map::candidates`]).
+    search: Option<Vec<Pose>>,
+    /// The path of the saved map the run started from (a map it saves keeps it first).
+    map_path: Vec<(f64, Pose)>,
+    /// The map file being written (`save_map`): cells a window evicts go in as they leave.
+    saved_map: Option<MapWriter>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -101,7 +112,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let frames = File::create(&frames_path)
             .map_err(|e| FileError::at(&frames_path, format!("cannot create: {e}")))?;
         let progress = Progress::new(fingerprint::<C>(source, opts));
-        Ok(Self::assemble(opts, setup, spool, frames, progress))
+        Self::assemble(opts, setup, spool, frames, progress)
     }
 
     /// The run killed after the checkpoint in `opts.out`, continued from it; refused when the
@@ -116,6 +127,8 @@ impl<'a, C: Capacity> Run<'a, C> {
             )
             .into());
         }
+        // The checkpoint holds the whole map as it stood (a saved map's cells included).
+        setup.pipeline.map_mut().evict_where(|_, _| true, |_| {});
         let progress = checkpoint::read(&path, setup.pipeline.map_mut())?;
         let fingerprint = fingerprint::<C>(source, opts);
         if progress.fingerprint != fingerprint {
@@ -138,7 +151,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             progress.mesh,
         )?;
         let frames = open_cut(&frames_path(opts), progress.report_bytes)?;
-        Ok(Self::assemble(opts, setup, spool, frames, progress))
+        Self::assemble(opts, setup, spool, frames, progress)
     }
 
     fn assemble(
@@ -147,11 +160,32 @@ impl<'a, C: Capacity> Run<'a, C> {
         mut spool: MeshSpool,
         frames: File,
         progress: Progress,
-    ) -> Self {
+    ) -> Result<Self, RunError> {
         if setup.max_layers.is_some() {
             spool.set_layers(memory::CAPPED_SET_LAYERS);
         }
-        Run {
+        let map_path = setup
+            .map_start
+            .as_ref()
+            .map_or_else(Vec::new, |m| m.path.clone());
+        let search = match (&setup.map_start, opts.initial_pose) {
+            (Some(_), None) if progress.poses.is_empty() => Some(saved_map::candidates(
+                &map_path,
+                opts.config.grid.cell_size_m,
+            )),
+            _ => None,
+        };
+        let saved_map = match &opts.save_map {
+            Some(path) => Some(MapWriter::create(
+                path,
+                &saved_map::info(&opts.config, &opts.preset, 0),
+            )?),
+            None => None,
+        };
+        Ok(Run {
+            search,
+            map_path,
+            saved_map,
             opts,
             pipeline: setup.pipeline,
             workers: setup.workers,
@@ -166,7 +200,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             timer: StageTimer::new(),
             ahead: setup.ahead,
             started: Instant::now(),
-        }
+        })
     }
 
     /// The first frame still to run (0, or the one after the checkpoint).
@@ -220,6 +254,9 @@ impl<'a, C: Capacity> Run<'a, C> {
         });
         let (pipeline, timer) = (&mut self.pipeline, &mut self.timer);
         let filter = &self.opts.config.filter;
+        // Started from a saved map with no pose: this frame searches the map for it.
+        let search = self.search.as_deref();
+        let mut found: Option<slamesh_core::pipeline::Relocalized> = None;
         // The motion, interval and reference time a deskewed scan was moved with: its pose is
         // the reference time's, and the trajectory takes it back to the stamp.
         let mut to_stamp: Option<(Pose, f64, f64)> = None;
@@ -283,15 +320,29 @@ impl<'a, C: Capacity> Run<'a, C> {
             // On a worker of the pool: its serial stages then leave the pool's other thread
             // to the filter job, not to a thread waiting for work.
             let r = workers.install_beside(
-                || match (given, &ahead) {
-                    (Some(pose), None) => {
+                || match (given, &ahead, search) {
+                    (Some(pose), None, _) => {
                         pipeline.integrate_scan_with(&points, &pose, workers, timer)
                     }
-                    (None, None) => pipeline.process_scan_with(&points, workers, timer),
-                    (Some(pose), Some(a)) => {
+                    (None, None, None) => pipeline.process_scan_with(&points, workers, timer),
+                    (None, None, Some(c)) => pipeline
+                        .relocalize_with(&points, c, &Search::default(), workers, timer)
+                        .map(|r| found.insert(r).outcome),
+                    (Some(pose), Some(a), _) => {
                         pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
                     }
-                    (None, Some(a)) => pipeline.process_filtered_with(a.filtered(), workers, timer),
+                    (None, Some(a), None) => {
+                        pipeline.process_filtered_with(a.filtered(), workers, timer)
+                    }
+                    (None, Some(a), Some(c)) => pipeline
+                        .relocalize_filtered_with(
+                            a.filtered(),
+                            c,
+                            &Search::default(),
+                            workers,
+                            timer,
+                        )
+                        .map(|r| found.insert(r).outcome),
                 },
                 || read_next.take().map_or((), |mut next| next()),
             );
@@ -312,10 +363,43 @@ impl<'a, C: Capacity> Run<'a, C> {
             rec.ms.filter = a.filter_ms;
             not_waited = a.filter_ms - a.wait_ms;
         }
+        let outcome = outcome.and_then(|o| match &found {
+            Some(r) if o.status == RegistrationStatus::NotLocalized => Err(format!(
+                "{label}: frame {i}: not localized in the map: its best pose puts {:.0} % of \
+                 the scan on the map's surfaces (at least {:.0} % needed), the best elsewhere \
+                 {:.0} % ({} hypotheses, {} registered); the next frame searches again",
+                100.0 * r.hit_share,
+                100.0 * Search::default().min_hit_share,
+                100.0 * r.runner_up_share,
+                r.hypotheses,
+                r.registered
+            )),
+            _ => Ok(o),
+        });
         match outcome {
             Ok(o) => {
                 rec.status = format!("{:?}", o.status);
                 rec.reason = registration_reason(o.status, &o.stats, &self.opts.config);
+                if let Some(r) = found.filter(|_| o.status == RegistrationStatus::Relocalized) {
+                    let p = o.t_world_sensor.translation.vector;
+                    rec.relocalization = Some(format!(
+                        "found in the map at ({:.2}, {:.2}, {:.2}) with no pose given: {:.0} % \
+                         of the scan on the map's surfaces, the best elsewhere {:.0} % ({} \
+                         hypotheses, {} registered)",
+                        p.x,
+                        p.y,
+                        p.z,
+                        100.0 * r.hit_share,
+                        100.0 * r.runner_up_share,
+                        r.hypotheses,
+                        r.registered
+                    ));
+                    log::info!(
+                        "frame {i}: {}",
+                        rec.relocalization.as_deref().unwrap_or_default()
+                    );
+                    self.search = None;
+                }
                 rec.points_kept = o.stats.filter.kept;
                 rec.scan_cells = o.stats.bucket.cells;
                 rec.scan_layers = o.stats.scan_layers;
@@ -332,6 +416,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                         o.stats.frame,
                         &o.t_world_sensor,
                         spool,
+                        self.saved_map.as_mut(),
                     )?;
                     self.progress.evicted_cells += rec.evicted_cells;
                 }
@@ -410,6 +495,20 @@ impl<'a, C: Capacity> Run<'a, C> {
         let health = Health::of_spool(&self.frames_path)?;
         let out = &self.opts.out;
         write_trajectories(out, source, &poses)?;
+        if let Some(mut saved) = self.saved_map.take() {
+            saved.add_map(self.pipeline.map())?;
+            let mut path = std::mem::take(&mut self.map_path);
+            path.extend(poses.iter().map(|(i, p)| (source.stamp(*i), *p)));
+            saved.set_frames(self.pipeline.frames());
+            let stats = saved.finish(&path)?;
+            log::info!(
+                "map saved to {}: {} cells, {} layers, {:.1} MB",
+                self.opts.save_map.as_deref().unwrap_or(out).display(),
+                stats.cells,
+                stats.layers,
+                stats.bytes as f64 / 1e6
+            );
+        }
         self.spool.add_map(self.pipeline.map())?;
         self.spool.colour_by(self.opts.mesh_colour);
         if self.opts.picture {
@@ -459,6 +558,8 @@ fn frames_path(opts: &RunOptions) -> PathBuf {
 /// window and the memory cap's layer budget.
 struct Setup<C: Capacity> {
     pipeline: Pipeline<C>,
+    /// The saved map the run started from.
+    map_start: Option<saved_map::MapStart>,
     workers: Workers,
     window: Window,
     max_layers: Option<usize>,
@@ -488,10 +589,28 @@ impl<C: Capacity> Setup<C> {
             max_layers = Some(budget);
         }
         let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
-        let pipeline =
+        let mut pipeline =
             Pipeline::<C>::with_map_layers(opts.config, map_layers).map_err(RunError::Config)?;
+        pipeline.set_map_updates(!opts.localize_only);
+        let mut map_start = None;
+        if let Some(path) = &opts.map {
+            let start = saved_map::load(path, pipeline.map_mut())?;
+            log::info!(
+                "map {}: {} cells, {} layers, {} poses of path, {:.1} MB, loaded in {:.2} s",
+                path.display(),
+                pipeline.map().cell_count(),
+                start.layers,
+                start.path.len(),
+                start.bytes as f64 / 1e6,
+                start.load_s
+            );
+            let motion = ConstantVelocity::from_history(None, opts.initial_pose);
+            pipeline.restore_progress(start.frames, motion);
+            map_start = Some(start);
+        }
         Ok(Setup {
             pipeline,
+            map_start,
             workers,
             window,
             max_layers,

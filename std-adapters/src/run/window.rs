@@ -16,6 +16,7 @@
 //! second thread it needs), and the rest of the process as the caller measures it.
 
 use crate::io::error::FileError;
+use crate::io::map_file::MapWriter;
 use crate::io::mesh_spool::MeshSpool;
 use crate::run::lookahead::LookAhead;
 use slamesh_core::cell::{Axis, CellKey};
@@ -99,26 +100,38 @@ impl Window {
     }
 
     /// [`evict`](Self::evict), adding what leaves to `spool` (when given) as one welded set
-    /// (docs/design.md §1.10).
+    /// (docs/design.md §1.10), and to the map file being written (when given).
     pub fn evict_to(
         &self,
         map: &mut MeshMap,
         frame: u32,
         sensor: &Pose,
         spool: Option<&mut MeshSpool>,
+        saved_map: Option<&mut MapWriter>,
     ) -> Result<usize, FileError> {
-        let Some(spool) = spool else {
+        if spool.is_none() && saved_map.is_none() {
             return Ok(self.evict(map, frame, sensor, |_| {}));
-        };
-        let mut evicted: Vec<(CellKey, Axis, Layer)> = Vec::new();
+        }
+        let mut evicted: Vec<(CellKey, Axis, Layer, u32)> = Vec::new();
         let n = self.evict(map, frame, sensor, |l| {
-            evicted.push((l.key, l.axis, *l.layer))
+            evicted.push((l.key, l.axis, *l.layer, l.last_seen))
         });
-        spool.add_layers(evicted.iter().map(|(key, axis, layer)| LayerRef {
-            key: *key,
-            axis: *axis,
-            layer,
-        }))?;
+        let layers = || {
+            evicted
+                .iter()
+                .map(|(key, axis, layer, last_seen)| LayerRef {
+                    key: *key,
+                    axis: *axis,
+                    layer,
+                    last_seen: *last_seen,
+                })
+        };
+        if let Some(spool) = spool {
+            spool.add_layers(layers())?;
+        }
+        if let Some(saved) = saved_map {
+            saved.add_layers(layers())?;
+        }
         Ok(n)
     }
 

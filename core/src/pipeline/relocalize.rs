@@ -1,0 +1,171 @@
+//! Localizing a scan in a known map with no pose to start from (docs/design.md §1.13): the
+//! coarse hypotheses of [`crate::relocalize`], the best registered in full as recovery
+//! registers its guesses (§1.11), and the judgement. Fuses the scan only when the map takes
+//! updates and the pose was found.
+
+use super::register::Attempt;
+use super::{Pipeline, RegistrationStatus, ScanOutcome, ScanStats};
+use crate::filter::Filtered;
+use crate::capacity::Capacity;
+use crate::executor::Executor;
+use crate::math::{Point, Pose};
+use crate::motion::ConstantVelocity;
+use crate::relocalize::{same_place, surface_hits, turned, Search, Shortlist};
+use crate::stage::Probe;
+use crate::ScanError;
+
+/// What a search for the pose found ([`Pipeline::relocalize_with`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Relocalized {
+    /// The scan's outcome: status [`RegistrationStatus::Relocalized`] with the pose found, or
+    /// [`RegistrationStatus::NotLocalized`] with the best attempt's pose (not to be trusted).
+    pub outcome: ScanOutcome,
+    /// Hypotheses scored coarsely (candidates × headings).
+    pub hypotheses: usize,
+    /// Hypotheses registered in full.
+    pub registered: usize,
+    /// Share of the scan's points on the map's surface at the best pose.
+    pub hit_share: f64,
+    /// The same at the best pose elsewhere (0 when every attempt ended at the best's place).
+    pub runner_up_share: f64,
+}
+
+impl<C: Capacity> Pipeline<C> {
+    /// Finds the pose of a scan (sensor-frame points) in the map without a prediction: each
+    /// of `candidates` turned to `search.yaw_steps` headings is scored coarsely, the
+    /// `search.keep` best distinct ones are registered in full, and the best registered pose
+    /// is accepted when at least `search.min_hit_share` of the scan lies on the map there and
+    /// no pose elsewhere explains `search.ambiguity_ratio` as much. Accepted, the motion model
+    /// restarts from it (and the scan is fused unless map updates are off); not accepted, the
+    /// map and the motion model are unchanged, and the next scan may try again.
+    pub fn relocalize_with(
+        &mut self,
+        points_sensor: &[Point],
+        candidates: &[Pose],
+        search: &Search,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+    ) -> Result<Relocalized, ScanError> {
+        let stats = self.begin(points_sensor, exec, probe)?;
+        Ok(self.relocalize(stats, candidates, search, exec, probe))
+    }
+
+    /// [`relocalize_with`](Self::relocalize_with) for a scan already filtered by a
+    /// [`ScanFilter`](crate::filter::ScanFilter): the same result.
+    pub fn relocalize_filtered_with(
+        &mut self,
+        filtered: Filtered<'_>,
+        candidates: &[Pose],
+        search: &Search,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+    ) -> Result<Relocalized, ScanError> {
+        let stats = self.begin_filtered(filtered)?;
+        Ok(self.relocalize(stats, candidates, search, exec, probe))
+    }
+
+    fn relocalize(
+        &mut self,
+        mut stats: ScanStats,
+        candidates: &[Pose],
+        search: &Search,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+    ) -> Relocalized {
+        let lattice = self.config.lattice().table();
+        let max_var = self.config.register.variance_register as f32;
+        // The coarse score's subsample: every k-th filtered point.
+        let stride = (self.points.len() / search.coarse_points.max(1)).max(1);
+        let mut shortlist = Shortlist::new(search.keep);
+        let steps = search.yaw_steps.max(1);
+        let mut hypotheses = 0;
+        for c in candidates {
+            for k in 0..steps {
+                let pose = turned(c, core::f64::consts::TAU * k as f64 / steps as f64);
+                let sample = self.points.iter().step_by(stride);
+                let (hits, _) =
+                    surface_hits(&self.map, &lattice, sample, &pose, search.coarse_tol_m, max_var);
+                shortlist.offer(hits, pose, search);
+                hypotheses += 1;
+            }
+        }
+        let r = self.config.register;
+        let mut best: Option<(f64, Attempt)> = None;
+        let mut runner_up = 0.0f64;
+        let mut registered = 0;
+        for &(_, guess) in shortlist.clone().items() {
+            stats.recovery_attempts += 1;
+            registered += 1;
+            let mut a = self.register(
+                guess,
+                r.recovery.rounds,
+                r.initial_cross_cell_overlap,
+                &r.lm,
+                exec,
+                probe,
+                &mut stats,
+            );
+            if a.status == RegistrationStatus::Converged && a.verdict.is_plausible(&r.recovery) {
+                a = self.polish(a, exec, probe, &mut stats);
+            }
+            let (hits, total) = surface_hits(
+                &self.map,
+                &lattice,
+                self.points.iter(),
+                &a.pose,
+                search.fine_tol_m,
+                max_var,
+            );
+            let share = hits as f64 / total.max(1) as f64;
+            let usable = matches!(
+                a.status,
+                RegistrationStatus::Converged | RegistrationStatus::Degenerate
+            ) && a.verdict.is_plausible(&r.recovery);
+            let share = if usable { share } else { 0.0 };
+            match &best {
+                Some((s, b)) if share <= *s => {
+                    if !same_place(&a.pose, &b.pose, search) {
+                        runner_up = runner_up.max(share);
+                    }
+                }
+                _ => {
+                    if let Some((s, b)) = &best {
+                        if !same_place(&a.pose, &b.pose, search) {
+                            runner_up = runner_up.max(*s);
+                        }
+                    }
+                    best = Some((share, a));
+                }
+            }
+        }
+        let (hit_share, attempt) = match best {
+            Some(b) => b,
+            None => (0.0, Attempt::unregistered(Pose::identity())),
+        };
+        stats.associate = attempt.associate;
+        stats.conditioning = attempt.conditioning;
+        stats.degenerate_directions = attempt.degenerate_directions;
+        let found = hit_share >= search.min_hit_share
+            && runner_up < search.ambiguity_ratio * hit_share;
+        let pose = attempt.pose;
+        let status = if found {
+            self.motion = ConstantVelocity::new();
+            if self.map_updates {
+                self.finish(pose, exec, probe, &mut stats);
+            } else {
+                self.motion.push(pose);
+            }
+            RegistrationStatus::Relocalized
+        } else {
+            RegistrationStatus::NotLocalized
+        };
+        Relocalized {
+            outcome: self.outcome(pose, status, stats),
+            hypotheses,
+            registered,
+            hit_share,
+            runner_up_share: runner_up,
+        }
+    }
+}

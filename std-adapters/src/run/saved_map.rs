@@ -1,0 +1,113 @@
+//! A run that starts from a saved map ([`crate::io::map_file`]): loading it into the
+//! pipeline, the places to search for the first pose when none is given, and what a map file
+//! written at the end says about itself.
+//!
+//! The search's candidates lie on the map's own path: every `spacing` metres along the poses
+//! its sensor had, and a cell to either side of each (a robot localizing in a map drives
+//! where the mapping one drove, in another lane perhaps); each is tried at every heading
+//! ([`slamesh_core::relocalize`]).
+
+use crate::io::config_file;
+use crate::io::error::FileError;
+use crate::io::map_file::{MapFile, MapInfo};
+use slamesh_core::map::MeshMap;
+use slamesh_core::{Config, Pose};
+use std::path::Path;
+use std::time::Instant;
+
+/// What loading a saved map gave a run.
+#[derive(Debug, Clone)]
+pub struct MapStart {
+    /// Scans fused into the map before this run.
+    pub frames: u32,
+    /// The map's path: stamped sensor poses.
+    pub path: Vec<(f64, Pose)>,
+    /// Layers loaded.
+    pub layers: usize,
+    /// Bytes of the file.
+    pub bytes: u64,
+    /// Seconds the load took.
+    pub load_s: f64,
+}
+
+/// Loads the whole map file `path` into `map` (which must be empty).
+pub fn load(path: &Path, map: &mut MeshMap) -> Result<MapStart, FileError> {
+    let t = Instant::now();
+    let mut file = MapFile::open(path)?;
+    let layers = file.load_all(map)?;
+    Ok(MapStart {
+        frames: file.info.frames,
+        path: std::mem::take(&mut file.poses),
+        layers,
+        bytes: file.bytes,
+        load_s: t.elapsed().as_secs_f64(),
+    })
+}
+
+/// The configuration a map file was made with, for a run that names none.
+pub fn config_of(path: &Path) -> Result<config_file::Settings, FileError> {
+    let file = MapFile::open(path)?;
+    config_file::parse(&file.info.config_toml).map_err(|e| {
+        FileError::at(
+            path,
+            format!("not a usable map file: its configuration does not read: {e}"),
+        )
+    })
+}
+
+/// Candidate poses for the search: the path's poses every `spacing_m` metres of travel, each
+/// also moved `spacing_m` to its left and to its right (horizontally, across its heading).
+pub fn candidates(path: &[(f64, Pose)], spacing_m: f64) -> Vec<Pose> {
+    let mut out = Vec::new();
+    let mut last: Option<Pose> = None;
+    for (_, p) in path {
+        if last.is_some_and(|l| (l.translation.vector - p.translation.vector).norm() < spacing_m) {
+            continue;
+        }
+        last = Some(*p);
+        let heading = p.rotation * nalgebra::Vector3::x();
+        let left = nalgebra::Vector3::new(-heading.y, heading.x, 0.0);
+        let left = if left.norm() > 1e-6 {
+            left.normalize()
+        } else {
+            nalgebra::Vector3::y()
+        };
+        for side in [0.0, 1.0, -1.0] {
+            let mut c = *p;
+            c.translation.vector += left * side * spacing_m;
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// What a map file written by a run with `config` (from preset `preset`) after `frames`
+/// scans says about its map.
+pub fn info(config: &Config, preset: &str, frames: u32) -> MapInfo {
+    MapInfo {
+        lattice: config.lattice(),
+        frames,
+        frame_id: "map".to_string(),
+        config_toml: config_file::documented_toml(config, preset),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn candidates_follow_the_path_and_its_sides() {
+        let path: Vec<(f64, Pose)> = (0..10)
+            .map(|i| (i as f64, Pose::translation(0.5 * i as f64, 0.0, 1.7)))
+            .collect();
+        let c = candidates(&path, 1.6);
+        // Poses at x = 0, 2 and 4 (each 1.6 m or more on), three to a place.
+        assert_eq!(c.len(), 9);
+        let at: Vec<[f64; 3]> = c.iter().map(|p| p.translation.vector.into()).collect();
+        assert_eq!(at[0], [0.0, 0.0, 1.7]);
+        assert_eq!(at[1], [0.0, 1.6, 1.7]);
+        assert_eq!(at[2], [0.0, -1.6, 1.7]);
+        assert_eq!(at[3], [2.0, 0.0, 1.7]);
+    }
+}
