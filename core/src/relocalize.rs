@@ -195,14 +195,22 @@ mod tests {
         map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, floor, 0)
             .unwrap();
         let t = lattice.table();
-        let points = [[0.3f32, 0.9, 0.52], [1.5, 0.1, 0.45], [0.8, 0.8, 1.2], [5.0, 0.0, 0.5]];
+        let points = [
+            [0.3f32, 0.9, 0.52],
+            [1.5, 0.1, 0.45],
+            [0.8, 0.8, 1.2],
+            [5.0, 0.0, 0.5],
+        ];
         let (hits, total) = surface_hits(&map, &t, points.iter(), &Pose::identity(), 0.1, 0.5);
         assert_eq!((hits, total), (2, 4));
         // Lifted 0.3 m, no point is on it.
         let up = Pose::translation(0.0, 0.0, -0.3);
         assert_eq!(surface_hits(&map, &t, points.iter(), &up, 0.1, 0.5).0, 0);
         // Too uncertain a vertex does not count.
-        assert_eq!(surface_hits(&map, &t, points.iter(), &Pose::identity(), 0.1, 0.05).0, 0);
+        assert_eq!(
+            surface_hits(&map, &t, points.iter(), &Pose::identity(), 0.1, 0.05).0,
+            0
+        );
     }
 
     #[test]

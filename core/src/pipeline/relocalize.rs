@@ -5,9 +5,9 @@
 
 use super::register::Attempt;
 use super::{Pipeline, RegistrationStatus, ScanOutcome, ScanStats};
-use crate::filter::Filtered;
 use crate::capacity::Capacity;
 use crate::executor::Executor;
+use crate::filter::Filtered;
 use crate::math::{Point, Pose};
 use crate::motion::ConstantVelocity;
 use crate::relocalize::{same_place, surface_hits, turned, Search, Shortlist};
@@ -84,8 +84,14 @@ impl<C: Capacity> Pipeline<C> {
             for k in 0..steps {
                 let pose = turned(c, core::f64::consts::TAU * k as f64 / steps as f64);
                 let sample = self.points.iter().step_by(stride);
-                let (hits, _) =
-                    surface_hits(&self.map, &lattice, sample, &pose, search.coarse_tol_m, max_var);
+                let (hits, _) = surface_hits(
+                    &self.map,
+                    &lattice,
+                    sample,
+                    &pose,
+                    search.coarse_tol_m,
+                    max_var,
+                );
                 shortlist.offer(hits, pose, search);
                 hypotheses += 1;
             }
@@ -146,8 +152,8 @@ impl<C: Capacity> Pipeline<C> {
         stats.associate = attempt.associate;
         stats.conditioning = attempt.conditioning;
         stats.degenerate_directions = attempt.degenerate_directions;
-        let found = hit_share >= search.min_hit_share
-            && runner_up < search.ambiguity_ratio * hit_share;
+        let found =
+            hit_share >= search.min_hit_share && runner_up < search.ambiguity_ratio * hit_share;
         let pose = attempt.pose;
         let status = if found {
             self.motion = ConstantVelocity::new();

@@ -13,7 +13,7 @@ use slamesh::io::trajectory::Trajectory;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::run::capacity;
 use slamesh::run::memory;
-use slamesh::run::session::Deskew;
+use slamesh::run::session::{Deskew, InitialPose};
 use slamesh::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use std::path::{Path, PathBuf};
@@ -79,11 +79,13 @@ pub struct RunArgs {
     /// says otherwise (the cell size must be the map's).
     #[arg(long, value_name = "FILE")]
     pub map: Option<PathBuf>,
-    /// Where the sensor starts in the map: "x y z yaw_deg", or a TUM line "t x y z qx qy qz
-    /// qw". Without it, a run from a map searches the map for the first frame's pose (and,
-    /// until one is found, for each next frame's).
+    /// Where the sensor starts in the map: "x y z yaw_deg" or a TUM line "t x y z qx qy qz
+    /// qw" (tried first by the search for the first pose, so a wrong one costs a search), or
+    /// "end": where the map's path ended, moving as it last moved (a session continuing the
+    /// one that saved the map; no search). Without it, a run from a map searches the map for
+    /// the first frame's pose (and, until one is found, for each next frame's).
     #[arg(long, value_name = "POSE", requires = "map", value_parser = parse_initial_pose)]
-    pub initial_pose: Option<slamesh_core::Pose>,
+    pub initial_pose: Option<InitialPose>,
     /// Save the whole map to FILE at the end (cells a window evicted included), to localize
     /// in later or map on from (`--map`).
     #[arg(long, value_name = "FILE")]
@@ -175,12 +177,23 @@ pub fn localize(args: &LocalizeArgs, quiet: bool) -> Result<(), CliError> {
     run_in_map(&args.run, !args.update, quiet)
 }
 
-/// `--initial-pose`: "x y z yaw_deg" or a TUM line "t x y z qx qy qz qw".
-fn parse_initial_pose(text: &str) -> Result<slamesh_core::Pose, String> {
+/// `--initial-pose`: "x y z yaw_deg", a TUM line "t x y z qx qy qz qw", or "end".
+fn parse_initial_pose(text: &str) -> Result<InitialPose, String> {
+    if text.trim() == "end" {
+        return Ok(InitialPose::MapEnd);
+    }
+    parse_pose(text).map(InitialPose::Near)
+}
+
+/// A pose: "x y z yaw_deg" or a TUM line "t x y z qx qy qz qw".
+fn parse_pose(text: &str) -> Result<slamesh_core::Pose, String> {
     let v: Vec<f64> = text
         .split(|c: char| c.is_whitespace() || c == ',')
         .filter(|s| !s.is_empty())
-        .map(|s| s.parse::<f64>().map_err(|_| format!("{s:?} is not a number")))
+        .map(|s| {
+            s.parse::<f64>()
+                .map_err(|_| format!("{s:?} is not a number"))
+        })
         .collect::<Result<_, _>>()?;
     if !v.iter().all(|x| x.is_finite()) {
         return Err("a number is not finite".into());

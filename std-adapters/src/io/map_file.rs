@@ -156,10 +156,8 @@ impl MapWriter {
 
     /// Writes every cell of `map`, a tile at a time.
     pub fn add_map(&mut self, map: &MeshMap) -> Result<(), FileError> {
-        let mut keys: Vec<(CellKey, CellKey)> = map
-            .cells()
-            .map(|(k, _)| (format::tile_of(&k), k))
-            .collect();
+        let mut keys: Vec<(CellKey, CellKey)> =
+            map.cells().map(|(k, _)| (format::tile_of(&k), k)).collect();
         keys.sort_unstable();
         for tile in keys.chunk_by(|a, b| a.0 == b.0) {
             let records = tile.iter().filter_map(|(_, k)| format::record_of(map, *k));
@@ -209,7 +207,10 @@ impl MapWriter {
         })();
         let bytes = result.map_err(|e| self.fail(e))?;
         // The header again, with the final frame count (its length does not change).
-        let rewind = self.w.flush().and_then(|()| self.w.seek(SeekFrom::Start(0)));
+        let rewind = self
+            .w
+            .flush()
+            .and_then(|()| self.w.seek(SeekFrom::Start(0)));
         if let Err(e) = rewind {
             return Err(self.fail(WriteError::Sink(e)));
         }
@@ -260,14 +261,20 @@ impl MapFile {
             )
         };
         if len == 0 {
-            return Err(FileError::at(path, "not a usable map file: the file is empty"));
+            return Err(FileError::at(
+                path,
+                "not a usable map file: the file is empty",
+            ));
         }
         let prefix = read_at(&mut file, path, 0, HEADER_PREFIX_BYTES.min(len as usize))?;
         let header_len = format::header_len(&prefix).map_err(|e| bad("the header", 0, e))?;
         let header_bytes = read_at(&mut file, path, 0, header_len.min(len as usize))?;
         let header = format::read_header(&header_bytes).map_err(|e| bad("the header", 0, e))?;
         let config_toml = String::from_utf8(header.config.to_vec()).map_err(|_| {
-            FileError::at(path, "not a usable map file: its configuration is not UTF-8")
+            FileError::at(
+                path,
+                "not a usable map file: its configuration is not UTF-8",
+            )
         })?;
         let info = MapInfo {
             lattice: header.lattice,
@@ -384,7 +391,12 @@ impl MapFile {
     /// Loads the blocks of `tile` into `map`, in file order; returns the layers inserted.
     pub fn load_tile(&mut self, tile: CellKey, map: &mut MeshMap) -> Result<usize, FileError> {
         self.check_lattice(map)?;
-        let entries: Vec<IndexEntry> = self.index.iter().filter(|e| e.tile == tile).copied().collect();
+        let entries: Vec<IndexEntry> = self
+            .index
+            .iter()
+            .filter(|e| e.tile == tile)
+            .copied()
+            .collect();
         let mut layers = 0;
         for e in entries {
             layers += self.load_entry(e, map)?;

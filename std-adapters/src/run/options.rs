@@ -48,13 +48,24 @@ pub struct RunOptions {
     pub localize_only: bool,
     /// Where the sensor starts in the map (`--initial-pose`); without it, a run from a saved
     /// map searches the map for the first frame's pose.
-    pub initial_pose: Option<slamesh_core::Pose>,
+    pub initial_pose: Option<InitialPose>,
     /// Write the map to this file at the end (`--save-map`): every cell, those a window
     /// evicted included.
     pub save_map: Option<PathBuf>,
     /// The live view and its recording (`--view`, `--record`).
     #[cfg(feature = "view")]
     pub view: crate::view::ViewOptions,
+}
+
+/// `--initial-pose`: where a run from a saved map starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum InitialPose {
+    /// About here: the first frame's search tries this pose first, then the map's path
+    /// ([`crate::run::saved_map`]), so a wrong guess costs a search, not the run.
+    Near(slamesh_core::Pose),
+    /// Where the map's path ends, moving as it last moved: a session that continues the one
+    /// that saved the map, scan for scan as one run over both would (no search).
+    MapEnd,
 }
 
 /// `--deskew`: whether scans whose points carry times are deskewed before registration

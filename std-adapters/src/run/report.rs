@@ -159,8 +159,13 @@ pub const NORMAL_STATUSES: [&str; 4] = ["FirstScan", "Converged", "Given", "Relo
 
 /// Statuses of a frame registered, normally or not: a recovered frame is named on the
 /// terminal and counted, but is not among [`Health::not_registered`] (nor fails `--strict`).
-pub const REGISTERED_STATUSES: [&str; 5] =
-    ["FirstScan", "Converged", "Given", "Relocalized", "Recovered"];
+pub const REGISTERED_STATUSES: [&str; 5] = [
+    "FirstScan",
+    "Converged",
+    "Given",
+    "Relocalized",
+    "Recovered",
+];
 
 /// How the run's frames went.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]

@@ -20,11 +20,11 @@ use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::lookahead::{LookAhead, Scan};
 use crate::run::memory;
-use crate::run::saved_map;
 use crate::run::report::{
     registration_reason, spreads, write_report, write_topview, write_trajectories, FrameRecord,
     Health, Summary,
 };
+use crate::run::saved_map;
 use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
@@ -38,7 +38,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-pub use crate::run::options::{Deskew, RunError, RunOptions};
+pub use crate::run::options::{Deskew, InitialPose, RunError, RunOptions};
 
 /// Runs over every frame of `source`; `on_frame` sees each record as it is made (for progress
 /// and messages). Writes the outputs into `opts.out`. With `opts.resume`, continues from the
@@ -169,10 +169,14 @@ impl<'a, C: Capacity> Run<'a, C> {
             .as_ref()
             .map_or_else(Vec::new, |m| m.path.clone());
         let search = match (&setup.map_start, opts.initial_pose) {
-            (Some(_), None) if progress.poses.is_empty() => Some(saved_map::candidates(
-                &map_path,
-                opts.config.grid.cell_size_m,
-            )),
+            (Some(_), None | Some(InitialPose::Near(_))) if progress.poses.is_empty() => {
+                let hint = match opts.initial_pose {
+                    Some(InitialPose::Near(p)) => Some(p),
+                    _ => None,
+                };
+                let path = saved_map::candidates(&map_path, opts.config.grid.cell_size_m);
+                Some(hint.into_iter().chain(path).collect())
+            }
             _ => None,
         };
         let saved_map = match &opts.save_map {
@@ -604,8 +608,19 @@ impl<C: Capacity> Setup<C> {
                 start.bytes as f64 / 1e6,
                 start.load_s
             );
-            let motion = ConstantVelocity::from_history(None, opts.initial_pose);
-            pipeline.restore_progress(start.frames, motion);
+            if opts.initial_pose == Some(InitialPose::MapEnd) {
+                let [.., before, last] = start.path[..] else {
+                    return Err(FileError::at(
+                        path,
+                        "--initial-pose end: the map's path has fewer than two poses",
+                    )
+                    .into());
+                };
+                let motion = ConstantVelocity::from_history(Some(before.1), Some(last.1));
+                pipeline.restore_progress(start.frames, motion);
+            } else {
+                pipeline.restore_progress(start.frames, ConstantVelocity::new());
+            }
             map_start = Some(start);
         }
         Ok(Setup {

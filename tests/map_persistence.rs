@@ -1,0 +1,374 @@
+//! Maps that outlive a run: a map saved by one run is loaded by another, which localizes in
+//! it from an unknown start (or a wrong one) or maps on from it; a map file reads back to the
+//! same bytes, and every damaged one is refused by name.
+
+mod common;
+
+use common::{kitti_mini, scratch};
+use nalgebra::{Translation3, UnitQuaternion};
+use slamesh::io::map_file::{MapFile, MapWriter};
+use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::run::session::InitialPose;
+use slamesh::run::{run, FrameSource, Input, RunOptions, Summary};
+use slamesh_core::map::MeshMap;
+use slamesh_core::math::rotation_angle;
+use slamesh_core::{Config, KittiCapacity, Pose};
+use slamesh_sim::Drive;
+use std::path::{Path, PathBuf};
+
+fn options(out: &Path, config: Config) -> RunOptions {
+    RunOptions {
+        out: out.to_path_buf(),
+        config,
+        preset: "default".into(),
+        threads: 2,
+        input: "test".into(),
+        mesh_formats: vec![MeshFormat::Ply],
+        ..RunOptions::default()
+    }
+}
+
+fn run_ok(source: &mut impl FrameSource, opts: &RunOptions) -> Summary {
+    match run::<KittiCapacity>(source, opts, |_| {}) {
+        Ok(s) => s,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// The largest translation (m) and rotation (degrees) error of consecutive-frame motions.
+fn worst_step(est: &[Pose], truth: &[Pose]) -> (f64, f64) {
+    let mut worst = (0.0f64, 0.0f64);
+    for i in 1..est.len() {
+        let e = (est[i - 1].inverse() * est[i]).inverse() * (truth[i - 1].inverse() * truth[i]);
+        worst.0 = worst.0.max(e.translation.vector.norm());
+        worst.1 = worst.1.max(rotation_angle(&e).to_degrees());
+    }
+    worst
+}
+
+/// Root mean square of the position errors, no alignment (both in the map's frame).
+fn ate(est: &[Pose], truth: &[Pose]) -> f64 {
+    let sum: f64 = est
+        .iter()
+        .zip(truth)
+        .map(|(e, t)| (e.translation.vector - t.translation.vector).norm_squared())
+        .sum();
+    (sum / est.len() as f64).sqrt()
+}
+
+/// The simulated town: the first `MAPPED` frames of the loop are mapped and saved; a second
+/// drive through the same streets (another noise seed, a lane 1 m to the left, starting
+/// `START` frames in) localizes in that map with no pose given, and again from a pose 5 m and
+/// 30 degrees off.
+#[test]
+fn a_second_drive_localizes_in_a_saved_town_map_from_an_unknown_start() {
+    const MAPPED: usize = 260;
+    const START: usize = 90;
+    const FRAMES: usize = 120;
+    let dir = scratch("map-town");
+    let map_file = dir.join("town.slamesh");
+    let mut first = Drive::town(MAPPED, 5);
+    let mapping = RunOptions {
+        save_map: Some(map_file.clone()),
+        picture: false,
+        ..options(&dir.join("mapping"), Config::default())
+    };
+    let mapped = run_ok(&mut first, &mapping);
+    assert_eq!(mapped.used, MAPPED);
+
+    // The map's frame is the first true pose's.
+    let to_map = first.poses[0].inverse();
+    let mut second = first.clone();
+    second.seed = 1_000;
+    let left = Translation3::new(0.0, 1.0, 0.0);
+    second.poses = first.poses[START..START + FRAMES]
+        .iter()
+        .map(|p| p * left)
+        .collect();
+    let truth: Vec<Pose> = second.poses.iter().map(|p| to_map * p).collect();
+    // Where the map puts the second drive's places: the mapping run's pose of the same
+    // frame of the loop, a lane to the left. Against the truth, the map's own drift adds in.
+    let placed: Vec<Pose> = mapped.poses[START..START + FRAMES]
+        .iter()
+        .map(|(_, p)| p * left)
+        .collect();
+    let drift = ate(&placed, &truth);
+
+    let wrong = truth[0]
+        * Pose::from_parts(
+            Translation3::new(3.0, -4.0, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 30f64.to_radians()),
+        );
+    for (name, initial) in [("unknown", None), ("wrong", Some(InitialPose::Near(wrong)))] {
+        let out = dir.join(name);
+        let opts = RunOptions {
+            map: Some(map_file.clone()),
+            localize_only: true,
+            initial_pose: initial,
+            picture: false,
+            ..options(&out, Config::default())
+        };
+        let s = run_ok(&mut second, &opts);
+        assert_eq!(s.used, FRAMES, "{name}: every frame localized");
+        let est: Vec<Pose> = s.poses.iter().map(|(_, p)| *p).collect();
+        let (dt, dr) = worst_step(&est, &truth);
+        let to_truth = ate(&est, &truth);
+        let in_map = ate(&est, &placed);
+        println!(
+            "town, {name} start: worst step {:.1} cm, {dr:.3} deg; ATE against where the map \
+             puts the same places {in_map:.3} m; against the truth {to_truth:.3} m (the map's \
+             own drift there: {drift:.3} m)",
+            dt * 100.0
+        );
+        assert!(dt < 0.05 && dr < 0.5, "{name}: worst step {dt} m, {dr} deg");
+        assert!(in_map < 0.1, "{name}: ATE {in_map} m in the map");
+        // The map was not changed: the mesh written is the saved map's.
+        assert_eq!(s.map_cells, mapped.map_cells, "{name}: the map is fixed");
+    }
+}
+
+/// A KITTI sequence's scans in `order`, linked into a folder of their own.
+fn linked(seq: &Path, order: &[usize], dir: &Path) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    for (k, i) in order.iter().enumerate() {
+        let from = seq.join("velodyne").join(format!("{i:06}.bin"));
+        std::fs::copy(&from, dir.join(format!("{k:06}.bin"))).unwrap();
+    }
+    dir.to_path_buf()
+}
+
+fn kitti_config() -> Config {
+    slamesh::io::config_file::preset("kitti").unwrap()
+}
+
+/// Each kitti-mini sequence mapped and saved, then its scans localized in reverse order with
+/// no pose given: every pose within 2 cm of the mapping run's.
+#[test]
+fn kitti_scans_in_reverse_localize_where_they_were_mapped() {
+    let Some(root) = kitti_mini() else { return };
+    for seq in ["00", "01", "02", "03", "04"] {
+        let dir = scratch(&format!("map-kitti-reverse-{seq}"));
+        let path = root.join(seq);
+        let map_file = dir.join("map.slamesh");
+        let mut input = Input::open(&path, None, Default::default()).unwrap();
+        let n = input.frames();
+        let mapped = run_ok(
+            &mut input,
+            &RunOptions {
+                save_map: Some(map_file.clone()),
+                picture: false,
+                ..options(&dir.join("mapping"), kitti_config())
+            },
+        );
+        let reversed: Vec<usize> = (0..n).rev().collect();
+        let mut back = Input::open(
+            &linked(&path, &reversed, &dir.join("reversed")),
+            None,
+            Default::default(),
+        )
+        .unwrap();
+        let s = run_ok(
+            &mut back,
+            &RunOptions {
+                map: Some(map_file),
+                localize_only: true,
+                picture: false,
+                ..options(&dir.join("localized"), kitti_config())
+            },
+        );
+        assert_eq!(s.used, n, "{seq}: every scan localized");
+        let worst = s
+            .poses
+            .iter()
+            .map(|(k, p)| {
+                let m = mapped.poses[n - 1 - k].1;
+                (p.translation.vector - m.translation.vector).norm()
+            })
+            .fold(0.0, f64::max);
+        println!(
+            "kitti {seq}: reversed, worst position difference {:.2} cm",
+            worst * 100.0
+        );
+        assert!(worst < 0.02, "{seq}: {worst} m from the mapping run");
+    }
+}
+
+/// A run over the first half of a sequence that saves its map, then a run over the second
+/// half from that map (`--initial-pose end`), gives the poses and the mesh of one run over
+/// all the scans, bit for bit; the two map files differ only in the path's times (each
+/// session's input starts its clock at zero).
+#[test]
+fn mapping_on_from_a_saved_map_equals_one_run() {
+    let Some(root) = kitti_mini() else { return };
+    let dir = scratch("map-kitti-on");
+    let path = root.join("00");
+    let mut all = Input::open(&path, None, Default::default()).unwrap();
+    let n = all.frames();
+    let whole = run_ok(
+        &mut all,
+        &RunOptions {
+            save_map: Some(dir.join("whole.slamesh")),
+            picture: false,
+            ..options(&dir.join("whole"), kitti_config())
+        },
+    );
+    let half = n / 2;
+    let first: Vec<usize> = (0..half).collect();
+    let second: Vec<usize> = (half..n).collect();
+    let mut a = Input::open(
+        &linked(&path, &first, &dir.join("a")),
+        None,
+        Default::default(),
+    )
+    .unwrap();
+    run_ok(
+        &mut a,
+        &RunOptions {
+            save_map: Some(dir.join("a.slamesh")),
+            picture: false,
+            ..options(&dir.join("a-out"), kitti_config())
+        },
+    );
+    let mut b = Input::open(
+        &linked(&path, &second, &dir.join("b")),
+        None,
+        Default::default(),
+    )
+    .unwrap();
+    let on = run_ok(
+        &mut b,
+        &RunOptions {
+            map: Some(dir.join("a.slamesh")),
+            initial_pose: Some(InitialPose::MapEnd),
+            save_map: Some(dir.join("b.slamesh")),
+            picture: false,
+            ..options(&dir.join("b-out"), kitti_config())
+        },
+    );
+    for (k, (_, p)) in on.poses.iter().enumerate() {
+        assert_eq!(*p, whole.poses[half + k].1, "frame {}", half + k);
+    }
+    let mesh = |d: &str| std::fs::read(dir.join(d).join("mesh.ply")).unwrap();
+    assert!(mesh("b-out") == mesh("whole"), "the meshes differ");
+    let (w, b) = (
+        MapFile::open(&dir.join("whole.slamesh")).unwrap(),
+        MapFile::open(&dir.join("b.slamesh")).unwrap(),
+    );
+    assert_eq!(w.index, b.index);
+    assert_eq!(w.info, b.info);
+    let poses = |f: &MapFile| f.poses.iter().map(|(_, p)| *p).collect::<Vec<_>>();
+    assert_eq!(poses(&w), poses(&b));
+}
+
+/// A map read back and written again gives the same bytes.
+#[test]
+fn save_load_save_gives_the_same_bytes() {
+    let dir = scratch("map-resave");
+    let file = dir.join("map.slamesh");
+    let mut drive = Drive::town(12, 2);
+    run_ok(
+        &mut drive,
+        &RunOptions {
+            save_map: Some(file.clone()),
+            picture: false,
+            ..options(&dir.join("out"), Config::default())
+        },
+    );
+    let mut f = MapFile::open(&file).unwrap();
+    let c = Config::default();
+    let mut map = MeshMap::with_capacity(1 << 16, 1 << 17, c.lattice());
+    f.load_all(&mut map).unwrap();
+    let again = dir.join("again.slamesh");
+    let mut w = MapWriter::create(&again, &f.info).unwrap();
+    w.add_map(&map).unwrap();
+    let stats = w.finish(&f.poses).unwrap();
+    assert_eq!(stats.bytes, f.bytes);
+    assert!(std::fs::read(&file).unwrap() == std::fs::read(&again).unwrap());
+    assert!(stats.cells > 100 && stats.poses == 12, "{stats:?}");
+}
+
+/// Every truncation, a bit flip anywhere, another version, an empty file and a foreign file
+/// are refused with the file's name and what is wrong, never half-loaded.
+#[test]
+fn damaged_map_files_are_refused_by_name() {
+    let dir = scratch("map-damaged");
+    let file = dir.join("map.slamesh");
+    let mut drive = Drive::town(4, 2);
+    run_ok(
+        &mut drive,
+        &RunOptions {
+            save_map: Some(file.clone()),
+            picture: false,
+            ..options(&dir.join("out"), Config::default())
+        },
+    );
+    let good = std::fs::read(&file).unwrap();
+    let c = Config::default();
+    let bad = dir.join("bad.slamesh");
+    let refused = |bytes: &[u8]| -> String {
+        std::fs::write(&bad, bytes).unwrap();
+        let mut map = MeshMap::with_capacity(1 << 16, 1 << 17, c.lattice());
+        let e = match MapFile::open(&bad).and_then(|mut f| f.load_all(&mut map)) {
+            Ok(_) => panic!("a damaged map file was read ({} bytes)", bytes.len()),
+            Err(e) => e,
+        };
+        assert_eq!(e.path, bad);
+        e.to_string()
+    };
+    let step = (good.len() / 150).max(1);
+    for cut in (0..good.len()).step_by(step) {
+        refused(&good[..cut]);
+    }
+    for i in (0..good.len())
+        .step_by(step / 2 + 1)
+        .chain([good.len() - 1])
+    {
+        let mut b = good.clone();
+        b[i] ^= 0x10;
+        let e = refused(&b);
+        assert!(e.contains("not a usable map file"), "{e}");
+    }
+    let mut v2 = good.clone();
+    v2[8] = 2;
+    let e = refused(&v2);
+    assert!(e.contains("version 2") && e.contains("version 1"), "{e}");
+    assert!(refused(&[]).contains("empty"));
+    assert!(refused(b"ply\nformat ascii 1.0\n").contains("not a slamesh map file"));
+    // A block the index names, corrupted: named with its offset.
+    let f = MapFile::open(&file).unwrap();
+    let at = f.index[f.index.len() / 2].offset as usize;
+    let mut b = good.clone();
+    b[at + 40] ^= 1;
+    let e = refused(&b);
+    assert!(
+        e.contains(&format!("at byte {at}")) && e.contains("checksum"),
+        "{e}"
+    );
+    // Another lattice: refused naming both.
+    let mut other = Config::default();
+    other.grid.cell_size_m *= 2.0;
+    let mut map = MeshMap::with_capacity(1 << 16, 1 << 17, other.lattice());
+    let e = MapFile::open(&file)
+        .and_then(|mut f| f.load_all(&mut map))
+        .unwrap_err();
+    assert!(e.reason.contains("cells of"), "{e}");
+    // Through the command: the run refuses to start, naming the file and the block.
+    let scans: Vec<_> = (0..2).map(|i| drive.read(i).unwrap()).collect();
+    let input = common::write_scan_folder(&dir, &scans);
+    std::fs::write(&bad, &good[..good.len() - 7]).unwrap();
+    let out = common::slamesh(&[
+        "localize",
+        input.to_str().unwrap(),
+        "--map",
+        bad.to_str().unwrap(),
+        "--out",
+        dir.join("cli").to_str().unwrap(),
+        "-q",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("bad.slamesh") && stderr.contains("not a usable map file"),
+        "{stderr}"
+    );
+}
