@@ -372,3 +372,20 @@ fn damaged_map_files_are_refused_by_name() {
         "{stderr}"
     );
 }
+
+/// The fuzz corpus's map file, written by `fuzz/seeds/make_seeds.py` from the format's table
+/// (not by slamesh, and with Python's zlib CRC-32), reads as that script wrote it.
+#[test]
+fn a_map_file_written_by_another_program_reads() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus/map_file/two_cells");
+    let mut f = MapFile::open(&path).unwrap();
+    assert_eq!((f.info.frames, f.info.frame_id.as_str()), (2, "map"));
+    assert_eq!(f.poses.len(), 2);
+    assert_eq!(f.poses[1].1.translation.vector.x, 1.0);
+    let mut map = MeshMap::with_capacity(16, 16, f.info.lattice);
+    assert_eq!(f.load_all(&mut map).unwrap(), 3);
+    let key = slamesh_core::cell::CellKey::new(3, 1, 0);
+    let layer = map.layer(&key, slamesh_core::cell::Axis::Z).unwrap();
+    assert_eq!((layer.pred[1], layer.var[35]), (0.41, 0.05));
+    assert!(map.layer(&key, slamesh_core::cell::Axis::X).is_some());
+}

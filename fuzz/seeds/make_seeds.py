@@ -83,3 +83,33 @@ try:
                 put("pointcloud2", f"cdr{k}", message.data)
 except ImportError:
     print("pip install mcap for the pointcloud2 seeds", file=sys.stderr)
+
+# A map file, written here from the format's table in core/src/map_file/mod.rs (not by slamesh):
+# a check, too, that its checksums are the standard CRC-32 (zlib's). Two cells in one tile, a
+# path of two poses.
+import zlib
+
+
+def block(body):
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+config = b'preset = "default"\n'
+frame = b"map"
+hbody = struct.pack("<dBIH", 1.6, 0, 2, len(frame)) + frame + struct.pack("<I", len(config)) + config
+header = block(b"SLMSHMAP" + struct.pack("<II", 1, len(hbody)) + hbody)
+cells = b""
+for key, mask in (((0, 1, 0), 4), ((3, 1, 0), 5)):
+    layers = bin(mask).count("1")
+    cells += struct.pack("<3iIB", *key, 1, mask)
+    for _ in range(layers):
+        cells += struct.pack("<36f", *[0.4 + 0.01 * j for j in range(36)])
+        cells += struct.pack("<36f", *[0.05] * 36)
+tile = block(b"TILE" + struct.pack("<3iII", 0, 0, 0, 2, len(cells)) + cells)
+path_offset = len(header) + len(tile)
+path = block(b"PATH" + struct.pack("<I", 2) + struct.pack("<8d", 0.0, 0, 0, 1.7, 0, 0, 0, 1)
+             + struct.pack("<8d", 0.1, 1.0, 0, 1.7, 0, 0, 0, 1))
+index_offset = path_offset + len(path)
+index = block(b"INDX" + struct.pack("<I", 1) + struct.pack("<3iQI", 0, 0, 0, len(header), len(tile)))
+trailer = block(struct.pack("<QQ", index_offset, path_offset)) + b"MEND"
+put("map_file", "two_cells", header + tile + path + index + trailer)

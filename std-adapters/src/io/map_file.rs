@@ -231,10 +231,11 @@ impl MapWriter {
 }
 
 /// An open map file: its header, index and path read and checked; tiles load on demand.
+/// `R` is the file (or, for tests and fuzzing, any seekable bytes).
 #[derive(Debug)]
-pub struct MapFile {
+pub struct MapFile<R = File> {
     path: PathBuf,
-    file: File,
+    file: R,
     /// What it says about its map.
     pub info: MapInfo,
     /// Its tile blocks, in file order.
@@ -245,15 +246,21 @@ pub struct MapFile {
     pub bytes: u64,
 }
 
-impl MapFile {
+impl MapFile<File> {
     /// Opens `path`, checking every block but the tiles (see the module docs).
     pub fn open(path: &Path) -> Result<Self, FileError> {
-        let mut file =
+        let file =
             File::open(path).map_err(|e| FileError::at(path, format!("cannot open: {e}")))?;
+        Self::from_reader(path, file)
+    }
+}
+
+impl<R: Read + Seek> MapFile<R> {
+    /// [`MapFile::open`] on the bytes of `file`, named `path` in errors.
+    pub fn from_reader(path: &Path, mut file: R) -> Result<Self, FileError> {
         let len = file
-            .metadata()
-            .map_err(|e| FileError::at(path, format!("cannot read: {e}")))?
-            .len();
+            .seek(SeekFrom::End(0))
+            .map_err(|e| FileError::at(path, format!("cannot read: {e}")))?;
         let bad = |what: &str, at: u64, e: MapFileError| {
             FileError::at(
                 path,
@@ -303,7 +310,7 @@ impl MapFile {
             ));
         }
         // The path, then the index: each sized by its prefix, checked whole.
-        let block = |file: &mut File, at: u64, size: fn(&[u8]) -> Result<usize, MapFileError>| {
+        let block = |file: &mut R, at: u64, size: fn(&[u8]) -> Result<usize, MapFileError>| {
             let what = "a block";
             let p = read_at(file, path, at, 8.min((trailer_at - at) as usize))?;
             let n = size(&p).map_err(|e| bad(what, at, e))?;
@@ -438,8 +445,13 @@ impl MapFile {
     }
 }
 
-/// `n` bytes of `file` from `at`.
-fn read_at(file: &mut File, path: &Path, at: u64, n: usize) -> Result<Vec<u8>, FileError> {
+/// `n` bytes of `file` from `at` (the caller has checked that they lie within the file).
+fn read_at(
+    file: &mut (impl Read + Seek),
+    path: &Path,
+    at: u64,
+    n: usize,
+) -> Result<Vec<u8>, FileError> {
     let mut buf = vec![0u8; n];
     file.seek(SeekFrom::Start(at))
         .and_then(|_| file.read_exact(&mut buf))
