@@ -5,7 +5,10 @@
 //! (`tools/kiss_icp_compare.py DIR --sequence --no-kitti-correction`, docs/benchmarks.md).
 //!
 //! `cargo run --release --example write_drive -- --out DIR [--frames N] [--seed S]`
-//! (1 000 frames, seed 1 by default).
+//! (1 000 frames, seed 1 by default). A second drive through the same town, for localizing in
+//! a map of the first: `--noise-seed K` (the scans' noise; the town stays seed S's), `--start
+//! F` (begin at frame F of the loop) and `--lateral-m M` (drive M metres to the left). Its
+//! `poses.txt` is then relative to the loop's first pose, the first drive's frame.
 
 #[path = "common/flags.rs"]
 mod flags;
@@ -22,11 +25,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = PathBuf::from(flags.value("--out").ok_or("--out DIR is required")?);
     let frames: usize = flags.parse_or("--frames", 1000)?;
     let seed: u64 = flags.parse_or("--seed", 1)?;
-    let drive = Drive::town(frames, seed);
+    let start: usize = flags.parse_or("--start", 0)?;
+    let lateral: f64 = flags.parse_or("--lateral-m", 0.0)?;
+    let mut drive = Drive::town(start + frames, seed);
+    let first = drive.poses[0].inverse();
+    drive.seed = flags.parse_or("--noise-seed", seed)?;
+    let left = nalgebra::Translation3::new(0.0, lateral, 0.0);
+    drive.poses = drive.poses[start.min(drive.poses.len())..]
+        .iter()
+        .map(|p| p * left)
+        .collect();
     fs::create_dir_all(out.join("velodyne"))?;
     let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
     let mut times = BufWriter::new(File::create(out.join("times.txt"))?);
-    let first = drive.poses[0].inverse();
     for i in 0..drive.poses.len() {
         let mut bin = Vec::new();
         for p in drive.scan(i) {

@@ -20,12 +20,15 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 /// Most hypotheses a search registers in full.
 pub const MAX_KEEP: usize = 16;
+/// Most headings a search tries at one candidate position (every 5 degrees).
+pub const MAX_YAW_STEPS: usize = 72;
 
 /// How a search for the pose in a known map is run and judged.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Search {
-    /// Headings tried at each candidate position, evenly round (24: every 15 degrees).
+    /// Headings tried at each candidate position, evenly round (24: every 15 degrees; at
+    /// most [`MAX_YAW_STEPS`]).
     pub yaw_steps: usize,
     /// Points of the scan the coarse score uses (an even subsample of the filtered scan).
     pub coarse_points: usize,

@@ -10,8 +10,8 @@ use crate::executor::Executor;
 use crate::filter::Filtered;
 use crate::math::{Point, Pose};
 use crate::motion::ConstantVelocity;
-use crate::relocalize::{same_place, surface_hits, turned, Search, Shortlist};
-use crate::stage::Probe;
+use crate::relocalize::{same_place, surface_hits, turned, Search, Shortlist, MAX_YAW_STEPS};
+use crate::stage::{Probe, Stage};
 use crate::ScanError;
 
 /// What a search for the pose found ([`Pipeline::relocalize_with`]).
@@ -78,24 +78,37 @@ impl<C: Capacity> Pipeline<C> {
         // The coarse score's subsample: every k-th filtered point.
         let stride = (self.points.len() / search.coarse_points.max(1)).max(1);
         let mut shortlist = Shortlist::new(search.keep);
-        let steps = search.yaw_steps.max(1);
+        let steps = search.yaw_steps.clamp(1, MAX_YAW_STEPS);
+        let yaw = |k: usize| core::f64::consts::TAU * k as f64 / steps as f64;
         let mut hypotheses = 0;
-        for c in candidates {
-            for k in 0..steps {
-                let pose = turned(c, core::f64::consts::TAU * k as f64 / steps as f64);
-                let sample = self.points.iter().step_by(stride);
-                let (hits, _) = surface_hits(
-                    &self.map,
-                    &lattice,
-                    sample,
-                    &pose,
-                    search.coarse_tol_m,
-                    max_var,
-                );
-                shortlist.offer(hits, pose, search);
-                hypotheses += 1;
-            }
-        }
+        // The coarse score, candidates spread over the executor's workers; offered to the
+        // shortlist in candidate order, so the result does not depend on the executor.
+        probe.enter(Stage::Associate);
+        let (map, points) = (&self.map, &self.points);
+        exec.map_in_order(
+            candidates,
+            || (),
+            |_, c| {
+                let mut hits = [0usize; MAX_YAW_STEPS];
+                for (k, h) in hits.iter_mut().enumerate().take(steps) {
+                    let sample = points.iter().step_by(stride);
+                    let pose = turned(c, yaw(k));
+                    *h = surface_hits(map, &lattice, sample, &pose, search.coarse_tol_m, max_var).0;
+                }
+                hits
+            },
+            |hits| {
+                let c = candidates
+                    .get(hypotheses / steps)
+                    .copied()
+                    .unwrap_or_else(Pose::identity);
+                for (k, h) in hits.iter().enumerate().take(steps) {
+                    shortlist.offer(*h, turned(&c, yaw(k)), search);
+                    hypotheses += 1;
+                }
+            },
+        );
+        probe.enter(Stage::Done);
         let r = self.config.register;
         let mut best: Option<(f64, Attempt)> = None;
         let mut runner_up = 0.0f64;
