@@ -6,13 +6,14 @@ mod common;
 
 use common::{kitti_mini, scratch};
 use nalgebra::{Translation3, UnitQuaternion};
+use slamesh::io::config_file::WindowSettings;
 use slamesh::io::map_file::{MapFile, MapWriter};
 use slamesh::io::mesh_spool::MeshFormat;
 use slamesh::run::session::InitialPose;
 use slamesh::run::{run, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::map::MeshMap;
 use slamesh_core::math::rotation_angle;
-use slamesh_core::{Config, KittiCapacity, Pose};
+use slamesh_core::{Config, KittiCapacity, Lidar32Capacity, Pose};
 use slamesh_sim::Drive;
 use std::path::{Path, PathBuf};
 
@@ -99,6 +100,7 @@ fn a_second_drive_localizes_in_a_saved_town_map_from_an_unknown_start() {
             Translation3::new(3.0, -4.0, 0.0),
             UnitQuaternion::from_euler_angles(0.0, 0.0, 30f64.to_radians()),
         );
+    let mut unknown = Vec::new();
     for (name, initial) in [("unknown", None), ("wrong", Some(InitialPose::Near(wrong)))] {
         let out = dir.join(name);
         let opts = RunOptions {
@@ -124,7 +126,30 @@ fn a_second_drive_localizes_in_a_saved_town_map_from_an_unknown_start() {
         assert!(in_map < 0.1, "{name}: ATE {in_map} m in the map");
         // The map was not changed: the mesh written is the saved map's.
         assert_eq!(s.map_cells, mapped.map_cells, "{name}: the map is fixed");
+        if initial.is_none() {
+            unknown = s.poses;
+        }
     }
+    // Under a memory cap the map is paged in by tile around the sensor: the same poses.
+    let opts = RunOptions {
+        map: Some(map_file.clone()),
+        localize_only: true,
+        picture: false,
+        window: WindowSettings {
+            memory_cap_mb: Some(48.0),
+            ..WindowSettings::default()
+        },
+        ..options(&dir.join("paged"), Config::default())
+    };
+    let paged = match run::<Lidar32Capacity>(&mut second, &opts, |_| {}) {
+        Ok(s) => s,
+        Err(e) => panic!("{e}"),
+    };
+    assert!(
+        paged.map_cells < mapped.map_cells,
+        "only a part is resident"
+    );
+    assert_eq!(paged.poses, unknown, "paged, the same poses");
 }
 
 /// A KITTI sequence's scans in `order`, linked into a folder of their own.

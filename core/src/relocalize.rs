@@ -67,6 +67,26 @@ impl Default for Search {
     }
 }
 
+/// Makes the map around a pose resident before the search uses it there: for a map paged in
+/// from a file under a memory cap (the std crate's pager). The search calls it before each
+/// chunk of [`CHUNK`] candidates (at the chunk's middle one) and before each registration.
+pub trait Paging {
+    /// Makes `map` hold what lies around `at`, as far as its budget allows.
+    fn around(&mut self, map: &mut MeshMap, at: &Pose);
+}
+
+/// The whole map is resident: nothing to page.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct AllResident;
+
+impl Paging for AllResident {
+    fn around(&mut self, _: &mut MeshMap, _: &Pose) {}
+}
+
+/// Candidates scored between two calls of [`Paging::around`] (consecutive candidates, which
+/// lie close together when they follow a path).
+pub const CHUNK: usize = 32;
+
 /// How many of `points` (sensor frame) lie, at `pose`, within `tol_m` of a map surface whose
 /// vertex there has a variance below `max_var`; and how many were tried. A point is compared
 /// with each layer of the cell it falls in, at the lattice vertex nearest to it.

@@ -1,7 +1,10 @@
 //! The map file's blocks: written and read back bit for bit, and every damage refused.
 
+use super::crc32::Crc32;
 use super::*;
+use crate::math::Pose;
 use alloc::vec::Vec;
+use nalgebra::{Translation3, UnitQuaternion};
 
 impl ByteSink for Vec<u8> {
     type Error = core::convert::Infallible;

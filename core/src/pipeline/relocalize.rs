@@ -10,7 +10,9 @@ use crate::executor::Executor;
 use crate::filter::Filtered;
 use crate::math::{Point, Pose};
 use crate::motion::ConstantVelocity;
-use crate::relocalize::{same_place, surface_hits, turned, Search, Shortlist, MAX_YAW_STEPS};
+use crate::relocalize::{
+    same_place, surface_hits, turned, AllResident, Paging, Search, Shortlist, CHUNK, MAX_YAW_STEPS,
+};
 use crate::stage::{Probe, Stage};
 use crate::ScanError;
 
@@ -48,7 +50,24 @@ impl<C: Capacity> Pipeline<C> {
         probe: &mut impl Probe,
     ) -> Result<Relocalized, ScanError> {
         let stats = self.begin(points_sensor, exec, probe)?;
-        Ok(self.relocalize(stats, candidates, search, exec, probe))
+        Ok(self.relocalize(stats, candidates, search, exec, probe, &mut AllResident))
+    }
+
+    /// [`relocalize_with`](Self::relocalize_with) in a map that `paging` pages in: before
+    /// each chunk of candidates and each registration, the map is made to hold what lies
+    /// around that pose.
+    #[allow(clippy::too_many_arguments)]
+    pub fn relocalize_paged_with(
+        &mut self,
+        points_sensor: &[Point],
+        candidates: &[Pose],
+        search: &Search,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+        paging: &mut impl Paging,
+    ) -> Result<Relocalized, ScanError> {
+        let stats = self.begin(points_sensor, exec, probe)?;
+        Ok(self.relocalize(stats, candidates, search, exec, probe, paging))
     }
 
     /// [`relocalize_with`](Self::relocalize_with) for a scan already filtered by a
@@ -62,7 +81,23 @@ impl<C: Capacity> Pipeline<C> {
         probe: &mut impl Probe,
     ) -> Result<Relocalized, ScanError> {
         let stats = self.begin_filtered(filtered)?;
-        Ok(self.relocalize(stats, candidates, search, exec, probe))
+        Ok(self.relocalize(stats, candidates, search, exec, probe, &mut AllResident))
+    }
+
+    /// [`relocalize_filtered_with`](Self::relocalize_filtered_with) in a map that `paging`
+    /// pages in (see [`relocalize_paged_with`](Self::relocalize_paged_with)).
+    #[allow(clippy::too_many_arguments)]
+    pub fn relocalize_filtered_paged_with(
+        &mut self,
+        filtered: Filtered<'_>,
+        candidates: &[Pose],
+        search: &Search,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+        paging: &mut impl Paging,
+    ) -> Result<Relocalized, ScanError> {
+        let stats = self.begin_filtered(filtered)?;
+        Ok(self.relocalize(stats, candidates, search, exec, probe, paging))
     }
 
     fn relocalize(
@@ -72,6 +107,7 @@ impl<C: Capacity> Pipeline<C> {
         search: &Search,
         exec: &impl Executor,
         probe: &mut impl Probe,
+        paging: &mut impl Paging,
     ) -> Relocalized {
         let lattice = self.config.lattice().table();
         let max_var = self.config.register.variance_register as f32;
@@ -84,30 +120,43 @@ impl<C: Capacity> Pipeline<C> {
         // The coarse score, candidates spread over the executor's workers; offered to the
         // shortlist in candidate order, so the result does not depend on the executor.
         probe.enter(Stage::Associate);
-        let (map, points) = (&self.map, &self.points);
-        exec.map_in_order(
-            candidates,
-            || (),
-            |_, c| {
-                let mut hits = [0usize; MAX_YAW_STEPS];
-                for (k, h) in hits.iter_mut().enumerate().take(steps) {
-                    let sample = points.iter().step_by(stride);
-                    let pose = turned(c, yaw(k));
-                    *h = surface_hits(map, &lattice, sample, &pose, search.coarse_tol_m, max_var).0;
-                }
-                hits
-            },
-            |hits| {
-                let c = candidates
-                    .get(hypotheses / steps)
-                    .copied()
-                    .unwrap_or_else(Pose::identity);
-                for (k, h) in hits.iter().enumerate().take(steps) {
-                    shortlist.offer(*h, turned(&c, yaw(k)), search);
-                    hypotheses += 1;
-                }
-            },
-        );
+        for chunk in candidates.chunks(CHUNK) {
+            if let Some(middle) = chunk.get(chunk.len() / 2) {
+                paging.around(&mut self.map, middle);
+            }
+            let (map, points) = (&self.map, &self.points);
+            exec.map_in_order(
+                chunk,
+                || (),
+                |_, c| {
+                    let mut hits = [0usize; MAX_YAW_STEPS];
+                    for (k, h) in hits.iter_mut().enumerate().take(steps) {
+                        let sample = points.iter().step_by(stride);
+                        let pose = turned(c, yaw(k));
+                        *h = surface_hits(
+                            map,
+                            &lattice,
+                            sample,
+                            &pose,
+                            search.coarse_tol_m,
+                            max_var,
+                        )
+                        .0;
+                    }
+                    hits
+                },
+                |hits| {
+                    let c = candidates
+                        .get(hypotheses / steps)
+                        .copied()
+                        .unwrap_or_else(Pose::identity);
+                    for (k, h) in hits.iter().enumerate().take(steps) {
+                        shortlist.offer(*h, turned(&c, yaw(k)), search);
+                        hypotheses += 1;
+                    }
+                },
+            );
+        }
         probe.enter(Stage::Done);
         let r = self.config.register;
         let mut best: Option<(f64, Attempt)> = None;
@@ -116,6 +165,7 @@ impl<C: Capacity> Pipeline<C> {
         for &(_, guess) in shortlist.clone().items() {
             stats.recovery_attempts += 1;
             registered += 1;
+            paging.around(&mut self.map, &guess);
             let mut a = self.register(
                 guess,
                 r.recovery.rounds,
@@ -168,6 +218,7 @@ impl<C: Capacity> Pipeline<C> {
         let found =
             hit_share >= search.min_hit_share && runner_up < search.ambiguity_ratio * hit_share;
         let pose = attempt.pose;
+        paging.around(&mut self.map, &pose);
         let status = if found {
             self.motion = ConstantVelocity::new();
             if self.map_updates {

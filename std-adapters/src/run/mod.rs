@@ -11,16 +11,20 @@
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
 //! | saving and resuming a killed run | [`checkpoint`] |
 //! | starting from a saved map: loading it, where to search for the first pose | [`saved_map`] |
+//! | a saved map paged in by tile under a memory cap | [`map_pager`] |
+//! | what a start needs: folder, executor, window, pipeline, the saved map | `setup` |
 
 pub mod capacity;
 pub mod checkpoint;
 pub mod lookahead;
+pub mod map_pager;
 pub mod memory;
 pub mod options;
 pub mod report;
 pub mod saved_map;
 pub mod scale;
 pub mod session;
+mod setup;
 pub mod source;
 pub mod timing;
 pub mod window;

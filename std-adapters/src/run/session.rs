@@ -19,19 +19,20 @@ use crate::parallel::Workers;
 use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::lookahead::{LookAhead, Scan};
+use crate::run::map_pager::MapPager;
 use crate::run::memory;
 use crate::run::report::{
     registration_reason, spreads, write_report, write_topview, write_trajectories, FrameRecord,
     Health, Summary,
 };
 use crate::run::saved_map;
+use crate::run::setup::Setup;
 use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
 use slamesh_core::deskew;
 use slamesh_core::layer::Shown;
-use slamesh_core::motion::ConstantVelocity;
-use slamesh_core::relocalize::Search;
+use slamesh_core::relocalize::{Paging, Search};
 use slamesh_core::{Capacity, Pipeline, Pose, RegistrationStatus};
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -97,6 +98,8 @@ pub struct Run<'a, C: Capacity> {
     map_path: Vec<(f64, Pose)>,
     /// The map file being written (`save_map`): cells a window evicts go in as they leave.
     saved_map: Option<MapWriter>,
+    /// The saved map paged in under the memory cap (localizing only).
+    pager: Option<MapPager>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -190,6 +193,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             search,
             map_path,
             saved_map,
+            pager: setup.pager,
             opts,
             pipeline: setup.pipeline,
             workers: setup.workers,
@@ -256,10 +260,17 @@ impl<'a, C: Capacity> Run<'a, C> {
                 (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
             })
         });
+        // A paged map: the tiles around the predicted pose (while the pose is searched for,
+        // the search pages).
+        if let (Some(pager), None) = (&mut self.pager, &self.search) {
+            let predicted = self.pipeline.motion().predict();
+            pager.around(self.pipeline.map_mut(), &predicted);
+        }
         let (pipeline, timer) = (&mut self.pipeline, &mut self.timer);
         let filter = &self.opts.config.filter;
         // Started from a saved map with no pose: this frame searches the map for it.
         let search = self.search.as_deref();
+        let mut paging = Paged(self.pager.as_mut());
         let mut found: Option<slamesh_core::pipeline::Relocalized> = None;
         // The motion, interval and reference time a deskewed scan was moved with: its pose is
         // the reference time's, and the trajectory takes it back to the stamp.
@@ -330,7 +341,14 @@ impl<'a, C: Capacity> Run<'a, C> {
                     }
                     (None, None, None) => pipeline.process_scan_with(&points, workers, timer),
                     (None, None, Some(c)) => pipeline
-                        .relocalize_with(&points, c, &Search::default(), workers, timer)
+                        .relocalize_paged_with(
+                            &points,
+                            c,
+                            &Search::default(),
+                            workers,
+                            timer,
+                            &mut paging,
+                        )
                         .map(|r| found.insert(r).outcome),
                     (Some(pose), Some(a), _) => {
                         pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
@@ -339,12 +357,13 @@ impl<'a, C: Capacity> Run<'a, C> {
                         pipeline.process_filtered_with(a.filtered(), workers, timer)
                     }
                     (None, Some(a), Some(c)) => pipeline
-                        .relocalize_filtered_with(
+                        .relocalize_filtered_paged_with(
                             a.filtered(),
                             c,
                             &Search::default(),
                             workers,
                             timer,
+                            &mut paging,
                         )
                         .map(|r| found.insert(r).outcome),
                 },
@@ -366,6 +385,9 @@ impl<'a, C: Capacity> Run<'a, C> {
         if let Some(a) = &ahead {
             rec.ms.filter = a.filter_ms;
             not_waited = a.filter_ms - a.wait_ms;
+        }
+        if let Some(e) = self.pager.as_mut().and_then(MapPager::take_error) {
+            return Err(e.into());
         }
         let outcome = outcome.and_then(|o| match &found {
             Some(r) if o.status == RegistrationStatus::NotLocalized => Err(format!(
@@ -499,6 +521,15 @@ impl<'a, C: Capacity> Run<'a, C> {
         let health = Health::of_spool(&self.frames_path)?;
         let out = &self.opts.out;
         write_trajectories(out, source, &poses)?;
+        if let Some(p) = &self.pager {
+            let st = p.stats();
+            log::info!(
+                "map paged: {} tiles read ({} layers), {} dropped",
+                st.tiles_loaded,
+                st.layers_loaded,
+                st.tiles_dropped
+            );
+        }
         if let Some(mut saved) = self.saved_map.take() {
             saved.add_map(self.pipeline.map())?;
             let mut path = std::mem::take(&mut self.map_path);
@@ -553,89 +584,20 @@ impl<'a, C: Capacity> Run<'a, C> {
     }
 }
 
+/// The pager, when the map is paged, for the search (which pages as it goes).
+struct Paged<'a>(Option<&'a mut MapPager>);
+
+impl slamesh_core::relocalize::Paging for Paged<'_> {
+    fn around(&mut self, map: &mut slamesh_core::map::MeshMap, at: &Pose) {
+        if let Some(p) = &mut self.0 {
+            p.around(map, at);
+        }
+    }
+}
+
 /// The run's frame records, spooled one JSON object a line until `report.json` is written.
 fn frames_path(opts: &RunOptions) -> PathBuf {
     opts.out.join(".report.frames.spool")
-}
-
-/// What both starts share: the output folder (made here), the pipeline, the executor, the
-/// window and the memory cap's layer budget.
-struct Setup<C: Capacity> {
-    pipeline: Pipeline<C>,
-    /// The saved map the run started from.
-    map_start: Option<saved_map::MapStart>,
-    workers: Workers,
-    window: Window,
-    max_layers: Option<usize>,
-    ahead: LookAhead,
-}
-
-impl<C: Capacity> Setup<C> {
-    fn new(opts: &RunOptions) -> Result<Self, RunError> {
-        let out = &opts.out;
-        std::fs::create_dir_all(out)
-            .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
-        let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
-        let mut window = opts.window.rules();
-        let mut max_layers = None;
-        // With two threads or more, the next frame is filtered ahead on the pool.
-        let ahead = workers.threads() > 1;
-        if let Some(cap) = opts.window.memory_cap_mb {
-            let other = memory::other_bytes();
-            let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
-                RunError::MemoryCapTooSmall {
-                    cap_mb: cap,
-                    class: C::NAME,
-                    needed_bytes: e.needed_bytes,
-                }
-            })?;
-            window.max_layers = Some(budget);
-            max_layers = Some(budget);
-        }
-        let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
-        let mut pipeline =
-            Pipeline::<C>::with_map_layers(opts.config, map_layers).map_err(RunError::Config)?;
-        pipeline.set_map_updates(!opts.localize_only);
-        let mut map_start = None;
-        if let Some(path) = &opts.map {
-            let start = saved_map::load(path, pipeline.map_mut())?;
-            log::info!(
-                "map {}: {} cells, {} layers, {} poses of path, {:.1} MB, loaded in {:.2} s",
-                path.display(),
-                pipeline.map().cell_count(),
-                start.layers,
-                start.path.len(),
-                start.bytes as f64 / 1e6,
-                start.load_s
-            );
-            if opts.initial_pose == Some(InitialPose::MapEnd) {
-                let [.., before, last] = start.path[..] else {
-                    return Err(FileError::at(
-                        path,
-                        "--initial-pose end: the map's path has fewer than two poses",
-                    )
-                    .into());
-                };
-                let motion = ConstantVelocity::from_history(Some(before.1), Some(last.1));
-                pipeline.restore_progress(start.frames, motion);
-            } else {
-                pipeline.restore_progress(start.frames, ConstantVelocity::new());
-            }
-            map_start = Some(start);
-        }
-        Ok(Setup {
-            pipeline,
-            map_start,
-            workers,
-            window,
-            max_layers,
-            ahead: if ahead {
-                LookAhead::new::<C>()
-            } else {
-                LookAhead::off()
-            },
-        })
-    }
 }
 
 /// What identifies a run for resuming: its input, frames, capacity, configuration, window and

@@ -1,0 +1,130 @@
+//! What a run's start needs before its first frame, whether it starts anew or resumes: the
+//! output folder (made here), the executor, the sliding window and the memory cap's layer
+//! budget, the pipeline, and a saved map to start from: loaded whole, or, for localizing under
+//! a memory cap, opened for paging ([`crate::run::map_pager`]).
+
+use crate::io::error::FileError;
+use crate::parallel::Workers;
+use crate::run::lookahead::LookAhead;
+use crate::run::map_pager::MapPager;
+use crate::run::memory;
+use crate::run::options::{InitialPose, RunError, RunOptions};
+use crate::run::saved_map::{self, MapStart};
+use crate::run::window::Window;
+use slamesh_core::motion::ConstantVelocity;
+use slamesh_core::{Capacity, Pipeline};
+
+/// See the module docs.
+pub(crate) struct Setup<C: Capacity> {
+    pub(crate) pipeline: Pipeline<C>,
+    /// The saved map the run started from.
+    pub(crate) map_start: Option<MapStart>,
+    /// The saved map, paged in under the memory cap (localizing only).
+    pub(crate) pager: Option<MapPager>,
+    pub(crate) workers: Workers,
+    pub(crate) window: Window,
+    pub(crate) max_layers: Option<usize>,
+    pub(crate) ahead: LookAhead,
+}
+
+impl<C: Capacity> Setup<C> {
+    pub(crate) fn new(opts: &RunOptions) -> Result<Self, RunError> {
+        let out = &opts.out;
+        std::fs::create_dir_all(out)
+            .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
+        let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
+        let mut window = opts.window.rules();
+        let mut max_layers = None;
+        // With two threads or more, the next frame is filtered ahead on the pool.
+        let ahead = workers.threads() > 1;
+        if let Some(cap) = opts.window.memory_cap_mb {
+            let other = memory::other_bytes();
+            let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
+                RunError::MemoryCapTooSmall {
+                    cap_mb: cap,
+                    class: C::NAME,
+                    needed_bytes: e.needed_bytes,
+                }
+            })?;
+            window.max_layers = Some(budget);
+            max_layers = Some(budget);
+        }
+        let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
+        let mut pipeline =
+            Pipeline::<C>::with_map_layers(opts.config, map_layers).map_err(RunError::Config)?;
+        pipeline.set_map_updates(!opts.localize_only);
+        if opts.localize_only {
+            // A fixed map's cells never age: a window would only lose them (the pager, when
+            // there is one, keeps the map within the cap).
+            window = Window::default();
+        }
+        let (mut map_start, mut pager) = (None, None);
+        if let Some(path) = &opts.map {
+            let start = match max_layers.filter(|_| opts.localize_only) {
+                Some(budget) => {
+                    let p = MapPager::open(path, budget, opts.config.filter.range_max_m)?;
+                    let f = p.file();
+                    log::info!(
+                        "map {}: {} tile blocks, {} poses of path, {:.1} MB, paged by tile \
+                         within a budget of {budget} layers",
+                        path.display(),
+                        f.index.len(),
+                        f.poses.len(),
+                        f.bytes as f64 / 1e6
+                    );
+                    let start = MapStart {
+                        frames: f.info.frames,
+                        path: f.poses.clone(),
+                        layers: 0,
+                        bytes: f.bytes,
+                        load_s: 0.0,
+                    };
+                    pager = Some(p);
+                    start
+                }
+                None => {
+                    let start = saved_map::load(path, pipeline.map_mut())?;
+                    log::info!(
+                        "map {}: {} cells, {} layers, {} poses of path, {:.1} MB, loaded in \
+                         {:.2} s",
+                        path.display(),
+                        pipeline.map().cell_count(),
+                        start.layers,
+                        start.path.len(),
+                        start.bytes as f64 / 1e6,
+                        start.load_s
+                    );
+                    start
+                }
+            };
+            let motion = match opts.initial_pose {
+                Some(InitialPose::MapEnd) => {
+                    let [.., before, last] = start.path[..] else {
+                        return Err(FileError::at(
+                            path,
+                            "--initial-pose end: the map's path has fewer than two poses",
+                        )
+                        .into());
+                    };
+                    ConstantVelocity::from_history(Some(before.1), Some(last.1))
+                }
+                _ => ConstantVelocity::new(),
+            };
+            pipeline.restore_progress(start.frames, motion);
+            map_start = Some(start);
+        }
+        Ok(Setup {
+            pipeline,
+            map_start,
+            pager,
+            workers,
+            window,
+            max_layers,
+            ahead: if ahead {
+                LookAhead::new::<C>()
+            } else {
+                LookAhead::off()
+            },
+        })
+    }
+}
