@@ -10,7 +10,10 @@
 use crate::io::config_file;
 use crate::io::error::FileError;
 use crate::io::map_file::{MapFile, MapInfo};
+use crate::run::options::InitialPose;
 use slamesh_core::map::MeshMap;
+use slamesh_core::pipeline::Relocalized;
+use slamesh_core::relocalize::Search;
 use slamesh_core::{Config, Pose};
 use std::path::Path;
 use std::time::Instant;
@@ -79,6 +82,53 @@ pub fn candidates(path: &[(f64, Pose)], spacing_m: f64) -> Vec<Pose> {
         }
     }
     out
+}
+
+/// The candidates of a run from a saved map whose path is `path`: the given pose first (when
+/// near one is given), then the path's ([`candidates`]); `None` when the run continues from
+/// the path's end (no search).
+pub fn search_from(
+    path: &[(f64, Pose)],
+    initial: Option<InitialPose>,
+    config: &Config,
+) -> Option<Vec<Pose>> {
+    let hint = match initial {
+        Some(InitialPose::MapEnd) => return None,
+        Some(InitialPose::Near(p)) => Some(p),
+        None => None,
+    };
+    let along = candidates(path, config.grid.cell_size_m);
+    Some(hint.into_iter().chain(along).collect())
+}
+
+/// What the report says of the frame whose search found the pose.
+pub fn found(r: &Relocalized) -> String {
+    let p = r.outcome.t_world_sensor.translation.vector;
+    format!(
+        "found in the map at ({:.2}, {:.2}, {:.2}) with no pose given: {:.0} % of the scan on \
+         the map's surfaces, the best elsewhere {:.0} % ({} hypotheses, {} registered)",
+        p.x,
+        p.y,
+        p.z,
+        100.0 * r.hit_share,
+        100.0 * r.runner_up_share,
+        r.hypotheses,
+        r.registered
+    )
+}
+
+/// Why a frame whose search found no convincing pose has none.
+pub fn not_found(r: &Relocalized) -> String {
+    format!(
+        "not localized in the map: its best pose puts {:.0} % of the scan on the map's surfaces \
+         (at least {:.0} % needed), the best elsewhere {:.0} % ({} hypotheses, {} registered); \
+         the next frame searches again",
+        100.0 * r.hit_share,
+        100.0 * Search::default().min_hit_share,
+        100.0 * r.runner_up_share,
+        r.hypotheses,
+        r.registered
+    )
 }
 
 /// What a map file written by a run with `config` (from preset `preset`) after `frames`

@@ -19,7 +19,7 @@ use crate::parallel::Workers;
 use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::lookahead::{LookAhead, Scan};
-use crate::run::map_pager::MapPager;
+use crate::run::map_pager::{self, MapPager};
 use crate::run::memory;
 use crate::run::report::{
     registration_reason, spreads, write_report, write_topview, write_trajectories, FrameRecord,
@@ -171,14 +171,9 @@ impl<'a, C: Capacity> Run<'a, C> {
             .map_start
             .as_ref()
             .map_or_else(Vec::new, |m| m.path.clone());
-        let search = match (&setup.map_start, opts.initial_pose) {
-            (Some(_), None | Some(InitialPose::Near(_))) if progress.poses.is_empty() => {
-                let hint = match opts.initial_pose {
-                    Some(InitialPose::Near(p)) => Some(p),
-                    _ => None,
-                };
-                let path = saved_map::candidates(&map_path, opts.config.grid.cell_size_m);
-                Some(hint.into_iter().chain(path).collect())
+        let search = match &setup.map_start {
+            Some(_) if progress.poses.is_empty() => {
+                saved_map::search_from(&map_path, opts.initial_pose, &opts.config)
             }
             _ => None,
         };
@@ -270,7 +265,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let filter = &self.opts.config.filter;
         // Started from a saved map with no pose: this frame searches the map for it.
         let search = self.search.as_deref();
-        let mut paging = Paged(self.pager.as_mut());
+        let mut paging = map_pager::Paged(self.pager.as_mut());
         let mut found: Option<slamesh_core::pipeline::Relocalized> = None;
         // The motion, interval and reference time a deskewed scan was moved with: its pose is
         // the reference time's, and the trajectory takes it back to the stamp.
@@ -390,16 +385,9 @@ impl<'a, C: Capacity> Run<'a, C> {
             return Err(e.into());
         }
         let outcome = outcome.and_then(|o| match &found {
-            Some(r) if o.status == RegistrationStatus::NotLocalized => Err(format!(
-                "{label}: frame {i}: not localized in the map: its best pose puts {:.0} % of \
-                 the scan on the map's surfaces (at least {:.0} % needed), the best elsewhere \
-                 {:.0} % ({} hypotheses, {} registered); the next frame searches again",
-                100.0 * r.hit_share,
-                100.0 * Search::default().min_hit_share,
-                100.0 * r.runner_up_share,
-                r.hypotheses,
-                r.registered
-            )),
+            Some(r) if o.status == RegistrationStatus::NotLocalized => {
+                Err(format!("{label}: frame {i}: {}", saved_map::not_found(r)))
+            }
             _ => Ok(o),
         });
         match outcome {
@@ -407,23 +395,9 @@ impl<'a, C: Capacity> Run<'a, C> {
                 rec.status = format!("{:?}", o.status);
                 rec.reason = registration_reason(o.status, &o.stats, &self.opts.config);
                 if let Some(r) = found.filter(|_| o.status == RegistrationStatus::Relocalized) {
-                    let p = o.t_world_sensor.translation.vector;
-                    rec.relocalization = Some(format!(
-                        "found in the map at ({:.2}, {:.2}, {:.2}) with no pose given: {:.0} % \
-                         of the scan on the map's surfaces, the best elsewhere {:.0} % ({} \
-                         hypotheses, {} registered)",
-                        p.x,
-                        p.y,
-                        p.z,
-                        100.0 * r.hit_share,
-                        100.0 * r.runner_up_share,
-                        r.hypotheses,
-                        r.registered
-                    ));
-                    log::info!(
-                        "frame {i}: {}",
-                        rec.relocalization.as_deref().unwrap_or_default()
-                    );
+                    let found = saved_map::found(&r);
+                    log::info!("frame {i}: {found}");
+                    rec.relocalization = Some(found);
                     self.search = None;
                 }
                 rec.points_kept = o.stats.filter.kept;
@@ -522,13 +496,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let out = &self.opts.out;
         write_trajectories(out, source, &poses)?;
         if let Some(p) = &self.pager {
-            let st = p.stats();
-            log::info!(
-                "map paged: {} tiles read ({} layers), {} dropped",
-                st.tiles_loaded,
-                st.layers_loaded,
-                st.tiles_dropped
-            );
+            log::info!("map paged: {}", p.stats());
         }
         if let Some(mut saved) = self.saved_map.take() {
             saved.add_map(self.pipeline.map())?;
@@ -581,17 +549,6 @@ impl<'a, C: Capacity> Run<'a, C> {
         // The run is complete: nothing is left to resume.
         let _ = std::fs::remove_file(&self.checkpoint_path);
         Ok(summary)
-    }
-}
-
-/// The pager, when the map is paged, for the search (which pages as it goes).
-struct Paged<'a>(Option<&'a mut MapPager>);
-
-impl slamesh_core::relocalize::Paging for Paged<'_> {
-    fn around(&mut self, map: &mut slamesh_core::map::MeshMap, at: &Pose) {
-        if let Some(p) = &mut self.0 {
-            p.around(map, at);
-        }
     }
 }
 
