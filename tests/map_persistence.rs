@@ -6,14 +6,14 @@ mod common;
 
 use common::{kitti_mini, scratch};
 use nalgebra::{Translation3, UnitQuaternion};
-use slamesh::io::config_file::WindowSettings;
 use slamesh::io::map_file::{MapFile, MapWriter};
 use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::io::trajectory;
 use slamesh::run::session::InitialPose;
 use slamesh::run::{run, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::map::MeshMap;
 use slamesh_core::math::rotation_angle;
-use slamesh_core::{Config, KittiCapacity, Lidar32Capacity, Pose};
+use slamesh_core::{Config, KittiCapacity, Pose};
 use slamesh_sim::Drive;
 use std::path::{Path, PathBuf};
 
@@ -130,26 +130,48 @@ fn a_second_drive_localizes_in_a_saved_town_map_from_an_unknown_start() {
             unknown = s.poses;
         }
     }
-    // Under a memory cap the map is paged in by tile around the sensor: the same poses.
-    let opts = RunOptions {
-        map: Some(map_file.clone()),
-        localize_only: true,
-        picture: false,
-        window: WindowSettings {
-            memory_cap_mb: Some(48.0),
-            ..WindowSettings::default()
-        },
-        ..options(&dir.join("paged"), Config::default())
-    };
-    let paged = match run::<Lidar32Capacity>(&mut second, &opts, |_| {}) {
-        Ok(s) => s,
-        Err(e) => panic!("{e}"),
-    };
+    // Under a memory cap the map is paged in by tile around the sensor: the same poses, and
+    // the process (the command, alone) stays under the cap.
+    const PAGED: usize = 30;
+    let scans: Vec<_> = (0..PAGED).map(|i| second.read(i).unwrap()).collect();
+    let input = common::write_scan_folder(&dir.join("paged-scans"), &scans);
+    let out = dir.join("paged");
+    common::slamesh_ok(&[
+        "localize",
+        input.to_str().unwrap(),
+        "--map",
+        map_file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--memory-cap",
+        "48",
+        "--capacity",
+        "32",
+        "--threads",
+        "2",
+        "--no-picture",
+        "-q",
+    ]);
+    let paged = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
+    assert_eq!(paged.len(), PAGED);
+    for (k, p) in paged.iter().enumerate() {
+        let d = (p.translation.vector - unknown[k].1.translation.vector).norm();
+        assert!(
+            d < 1e-6,
+            "paged, frame {k}: {d} m from the whole map's pose"
+        );
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let cells = report["summary"]["map_cells"].as_u64().unwrap() as usize;
     assert!(
-        paged.map_cells < mapped.map_cells,
-        "only a part is resident"
+        cells < mapped.map_cells,
+        "only a part is resident: {cells} cells"
     );
-    assert_eq!(paged.poses, unknown, "paged, the same poses");
+    if let Some(peak) = report["summary"]["peak_rss_mb"].as_f64() {
+        println!("paged under --memory-cap 48: peak {peak:.1} MB, {cells} cells resident");
+        assert!(peak < 48.0, "peak {peak} MB");
+    }
 }
 
 /// A KITTI sequence's scans in `order`, linked into a folder of their own.
