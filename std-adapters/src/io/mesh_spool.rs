@@ -13,6 +13,8 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
+use crate::io::mesh_records::float;
+pub use crate::io::mesh_records::{MeshCounts, VertexColour, FACE_BYTES, VERTEX_BYTES};
 use crate::io::mesh_weld::{weld_set, Neighbour, SeamLinks, WeldedMesh};
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::config::MeshConfig;
@@ -24,11 +26,6 @@ use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
-/// Bytes of a spooled vertex: x, y, z, nx, ny, nz, variance as little-endian `f32` (a PLY
-/// vertex record without colour).
-pub const VERTEX_BYTES: usize = 28;
-/// Bytes of a spooled face: a `u8` 3 and three little-endian `u32` (a PLY face record).
-pub const FACE_BYTES: usize = 13;
 /// Bytes of an imported position: x, y, z as little-endian `f32`.
 const IMPORT_BYTES: usize = 12;
 /// Bytes of a spooled set's end: vertices and faces spooled up to its end, as `u64`.
@@ -90,41 +87,6 @@ pub enum MeshColour {
     Height,
     /// Variance: from 0 (blue) to the largest a shown triangle may have (red).
     Variance,
-}
-
-/// A colour ramp over one float of the vertex records, for the writers.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct VertexColour {
-    /// Which float of the record (2 for z, 6 for the variance).
-    pub field: usize,
-    /// The value at blue.
-    pub low: f32,
-    /// The value at red.
-    pub high: f32,
-}
-
-impl VertexColour {
-    /// The colour of a vertex record.
-    pub fn of(&self, record: &[u8; VERTEX_BYTES]) -> [u8; 3] {
-        let v = float(record, self.field);
-        let f = (v - self.low) / (self.high - self.low).max(1e-6);
-        crate::io::topview::ramp(f).map(|c| (c * 255.0).clamp(0.0, 255.0) as u8)
-    }
-}
-
-/// Float `k` of a little-endian record.
-fn float(rec: &[u8], k: usize) -> f32 {
-    let b = |i: usize| rec.get(4 * k + i).copied().unwrap_or(0);
-    f32::from_le_bytes([b(0), b(1), b(2), b(3)])
-}
-
-/// What a finished mesh file holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct MeshCounts {
-    /// Vertices written.
-    pub vertices: u64,
-    /// Triangles written.
-    pub triangles: u64,
 }
 
 /// Mesh pieces spooled to disk until [`finish`](Self::finish).

@@ -13,7 +13,7 @@
 //! | OBJ meshes, written | [`obj`] |
 //! | `sensor_msgs/PointCloud2` messages (ROS 1 and CDR), any field layout | [`pointcloud2`] |
 //! | robot recordings: ROS 1 bags, MCAP, ROS 2 bag folders (feature `recordings`) | `recording` |
-//! | the run's mesh on its way to disk | [`mesh_spool`] |
+//! | the run's mesh on its way to disk | [`mesh_spool`] (its records in [`mesh_records`]) |
 //! | map files: the map saved for later runs, read whole or by tile | [`map_file`] |
 //! | one indexed mesh from map layers, shared vertices merged, with normals | [`mesh_weld`] |
 //! | trajectories, KITTI and TUM | [`trajectory`] |
@@ -26,6 +26,7 @@ pub mod error;
 pub mod kitti;
 pub mod lzf;
 pub mod map_file;
+pub mod mesh_records;
 pub mod mesh_spool;
 pub mod mesh_weld;
 pub mod obj;

@@ -1,6 +1,6 @@
 //! OBJ meshes: the writer (text, 1-based indices, positions and normals).
 
-use crate::io::mesh_spool::{MeshCounts, FACE_BYTES, VERTEX_BYTES};
+use crate::io::mesh_records::{MeshCounts, FACE_BYTES, VERTEX_BYTES};
 use std::io::{Read, Result, Write};
 
 /// Writes an OBJ mesh from spooled records ([`crate::io::mesh_spool`]): `counts.vertices`

@@ -10,7 +10,7 @@
 //! ([`write_mesh_records`]: binary little-endian, a per-vertex `variance`).
 
 use crate::io::error::FileError;
-use crate::io::mesh_spool::{MeshCounts, VertexColour, VERTEX_BYTES};
+use crate::io::mesh_records::{MeshCounts, VertexColour, VERTEX_BYTES};
 use crate::io::pointcloud2;
 use slamesh_core::Point;
 use std::io::{Read, Write};

@@ -11,7 +11,7 @@ use crate::io::error::FileError;
 use crate::io::mesh_spool::MeshSpool;
 use crate::io::topview::TopView;
 use crate::io::trajectory::{write_kitti_line, write_tum_line};
-use crate::run::session::RunOptions;
+use crate::run::options::RunOptions;
 use crate::run::source::FrameSource;
 use crate::run::timing::StageMs;
 use serde::{Deserialize, Serialize};

@@ -1,0 +1,44 @@
+//! The records a mesh is spooled as and written from: a vertex record (position, normal,
+//! variance as `f32`), a face record, the colour ramp over a vertex's float, and the counts of
+//! a finished file. Shared by the spool ([`crate::io::mesh_spool`]) and the writers that read
+//! its records ([`crate::io::ply`], [`crate::io::obj`]), so that neither depends on the other.
+
+/// Bytes of a spooled vertex: x, y, z, nx, ny, nz, variance as little-endian `f32` (a PLY
+/// vertex record without colour).
+pub const VERTEX_BYTES: usize = 28;
+/// Bytes of a spooled face: a `u8` 3 and three little-endian `u32` (a PLY face record).
+pub const FACE_BYTES: usize = 13;
+/// A colour ramp over one float of the vertex records, for the writers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VertexColour {
+    /// Which float of the record (2 for z, 6 for the variance).
+    pub field: usize,
+    /// The value at blue.
+    pub low: f32,
+    /// The value at red.
+    pub high: f32,
+}
+
+impl VertexColour {
+    /// The colour of a vertex record.
+    pub fn of(&self, record: &[u8; VERTEX_BYTES]) -> [u8; 3] {
+        let v = float(record, self.field);
+        let f = (v - self.low) / (self.high - self.low).max(1e-6);
+        crate::io::topview::ramp(f).map(|c| (c * 255.0).clamp(0.0, 255.0) as u8)
+    }
+}
+
+/// Float `k` of a little-endian record.
+pub fn float(rec: &[u8], k: usize) -> f32 {
+    let b = |i: usize| rec.get(4 * k + i).copied().unwrap_or(0);
+    f32::from_le_bytes([b(0), b(1), b(2), b(3)])
+}
+
+/// What a finished mesh file holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MeshCounts {
+    /// Vertices written.
+    pub vertices: u64,
+    /// Triangles written.
+    pub triangles: u64,
+}
