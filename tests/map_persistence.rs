@@ -436,3 +436,67 @@ fn a_map_file_written_by_another_program_reads() {
     assert_eq!((layer.pred[1], layer.var[35]), (0.41, 0.05));
     assert!(map.layer(&key, slamesh_core::cell::Axis::X).is_some());
 }
+
+/// Scans of a place the map does not hold (another scene) find no convincing pose: each frame
+/// is `NotLocalized`, named with its scores, and the next one searches again.
+#[test]
+fn a_place_the_map_does_not_hold_is_not_localized() {
+    let dir = scratch("map-elsewhere");
+    let map_file = dir.join("town.slamesh");
+    let mut town = Drive::town(40, 4);
+    run_ok(
+        &mut town,
+        &RunOptions {
+            save_map: Some(map_file.clone()),
+            picture: false,
+            ..options(&dir.join("mapping"), Config::default())
+        },
+    );
+    let mut street = Drive::long_street(5, 1.0, 9);
+    let mut records = Vec::new();
+    let opts = RunOptions {
+        map: Some(map_file),
+        localize_only: true,
+        picture: false,
+        ..options(&dir.join("elsewhere"), Config::default())
+    };
+    let s = run::<KittiCapacity>(&mut street, &opts, |r| records.push(r.clone())).unwrap();
+    assert_eq!(s.used, 0, "no frame was placed in a map of another scene");
+    for r in &records {
+        assert_eq!(r.status, "NotLocalized", "frame {}", r.frame);
+        let e = r.error.as_deref().unwrap_or_default();
+        assert!(e.contains("not localized in the map"), "{e}");
+    }
+}
+
+/// A run under a sliding window saves every cell it had: those the window evicted went to the
+/// map file as they left.
+#[test]
+fn a_windowed_run_saves_the_cells_it_evicted() {
+    let dir = scratch("map-window");
+    let file = dir.join("map.slamesh");
+    let mut drive = Drive::town(24, 3);
+    let s = run_ok(
+        &mut drive,
+        &RunOptions {
+            save_map: Some(file.clone()),
+            picture: false,
+            window: slamesh::io::config_file::WindowSettings {
+                max_age_frames: Some(3),
+                ..Default::default()
+            },
+            ..options(&dir.join("out"), Config::default())
+        },
+    );
+    assert!(s.evicted_cells > 0);
+    let mut f = MapFile::open(&file).unwrap();
+    let mut map = MeshMap::with_capacity(1 << 16, 1 << 17, Config::default().lattice());
+    f.load_all(&mut map).unwrap();
+    let loaded = map.cell_count();
+    println!(
+        "window: {} cells at the end, {} evicted, {loaded} distinct cells in the file",
+        s.map_cells, s.evicted_cells
+    );
+    assert!(loaded > s.map_cells + s.evicted_cells / 2, "{loaded} cells");
+    assert!(loaded <= s.map_cells + s.evicted_cells, "{loaded} cells");
+}

@@ -196,7 +196,7 @@ impl Health {
     pub fn of<R: std::borrow::Borrow<FrameRecord>>(
         records: impl IntoIterator<Item = Result<R, FileError>>,
     ) -> Result<Self, FileError> {
-        const ORDER: [&str; 10] = [
+        const ORDER: [&str; 11] = [
             "FirstScan",
             "Converged",
             "Given",
@@ -206,6 +206,7 @@ impl Health {
             "Recovered",
             "NotConverged",
             "Relocalized",
+            "NotLocalized",
             "Skipped",
         ];
         let mut counts = [0usize; ORDER.len()];

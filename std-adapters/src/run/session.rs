@@ -438,6 +438,10 @@ impl<'a, C: Capacity> Run<'a, C> {
                 self.progress.used_ms.push(rec.ms);
             }
             Err(e) => {
+                if found.is_some() {
+                    // The search ran and found no convincing pose.
+                    rec.status = format!("{:?}", RegistrationStatus::NotLocalized);
+                }
                 rec.error = Some(e.clone());
                 self.progress.skipped.push(e);
             }
