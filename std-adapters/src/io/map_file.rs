@@ -366,13 +366,19 @@ impl<R: Read + Seek> MapFile<R> {
     fn load_entry(&mut self, e: IndexEntry, map: &mut MeshMap) -> Result<usize, FileError> {
         let bytes = read_at(&mut self.file, &self.path, e.offset, e.len as usize)?;
         let bad = |err: MapFileError| {
-            FileError::at(
-                &self.path,
-                format!(
+            let reason = match err {
+                MapFileError::Map(m) => format!(
+                    "the map is larger than this run's map may grow ({m}, at the tile block \
+                     at byte {}): give a larger --capacity or --memory-cap, or localize without \
+                     --update, which pages the map by tile under a memory cap",
+                    e.offset
+                ),
+                _ => format!(
                     "not a usable map file: the tile block ({}, {}, {}) at byte {}: {err}",
                     e.tile.x, e.tile.y, e.tile.z, e.offset
                 ),
-            )
+            };
+            FileError::at(&self.path, reason)
         };
         let block = format::read_tile(&bytes).map_err(bad)?;
         if block.tile != e.tile || format::tile_block_len(&bytes).ok() != Some(bytes.len()) {
