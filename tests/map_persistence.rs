@@ -466,6 +466,7 @@ fn a_place_the_map_does_not_hold_is_not_localized() {
         assert_eq!(r.status, "NotLocalized", "frame {}", r.frame);
         let e = r.error.as_deref().unwrap_or_default();
         assert!(e.contains("not localized in the map"), "{e}");
+        println!("{e}");
     }
 }
 

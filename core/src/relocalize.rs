@@ -12,7 +12,7 @@
 //!
 //! No allocation: the kept hypotheses live in a fixed array of [`MAX_KEEP`].
 
-use crate::cell::CellKey;
+use crate::cell::{Axis, CellKey};
 use crate::lattice::{LatticeTable, N};
 use crate::map::MeshMap;
 use crate::math::{rotation_angle, to_vec3, Point, Pose};
@@ -46,6 +46,9 @@ pub struct Search {
     pub fine_tol_m: f32,
     /// Least share of the scan's points on the map's surface at the pose found.
     pub min_hit_share: f64,
+    /// Least share of the scan's points on the map's walls (x and y layers) at the pose
+    /// found: the ground matches almost anywhere.
+    pub min_wall_share: f64,
     /// The best distinct other pose must explain less than this share of what the found
     /// one does: a place that looks like another is not a place found.
     pub ambiguity_ratio: f64,
@@ -62,6 +65,7 @@ impl Default for Search {
             coarse_tol_m: 0.3,
             fine_tol_m: 0.1,
             min_hit_share: 0.3,
+            min_wall_share: 0.1,
             ambiguity_ratio: 0.9,
         }
     }
@@ -87,9 +91,33 @@ impl Paging for AllResident {
 /// lie close together when they follow a path).
 pub const CHUNK: usize = 32;
 
-/// How many of `points` (sensor frame) lie, at `pose`, within `tol_m` of a map surface whose
-/// vertex there has a variance below `max_var`; and how many were tried. A point is compared
-/// with each layer of the cell it falls in, at the lattice vertex nearest to it.
+/// How many points of a scan lie on the map's surfaces at a pose ([`surface_hits`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Hits {
+    /// Points on any surface.
+    pub any: usize,
+    /// Points on a wall: a layer along x or y (the ground and ceilings, z layers, match a
+    /// scan almost anywhere once its height is right; walls tell places apart).
+    pub walls: usize,
+    /// Points tried.
+    pub total: usize,
+}
+
+impl Hits {
+    /// `any` as a share of `total`.
+    pub fn share(&self) -> f64 {
+        self.any as f64 / self.total.max(1) as f64
+    }
+
+    /// `walls` as a share of `total`.
+    pub fn wall_share(&self) -> f64 {
+        self.walls as f64 / self.total.max(1) as f64
+    }
+}
+
+/// Which of `points` (sensor frame) lie, at `pose`, within `tol_m` of a map surface whose
+/// vertex there has a variance below `max_var`. A point is compared with each layer of the
+/// cell it falls in, at the lattice vertex nearest to it.
 pub fn surface_hits<'a>(
     map: &MeshMap,
     lattice: &LatticeTable,
@@ -97,10 +125,10 @@ pub fn surface_hits<'a>(
     pose: &Pose,
     tol_m: f32,
     max_var: f32,
-) -> (usize, usize) {
-    let (mut hits, mut total) = (0, 0);
+) -> Hits {
+    let mut h = Hits::default();
     for p in points {
-        total += 1;
+        h.total += 1;
         let w = pose * nalgebra::Point3::from(to_vec3(p));
         let Some(key) = CellKey::containing(&w.coords, lattice.cell_size) else {
             continue;
@@ -109,7 +137,7 @@ pub fn surface_hits<'a>(
             continue;
         };
         let local = w.coords - key.min_corner(lattice.cell_size);
-        let on_surface = cell.axes().any(|axis| {
+        let on = |axis: Axis| {
             let Some(layer) = map.layer(&key, axis) else {
                 return false;
             };
@@ -121,10 +149,14 @@ pub fn surface_hits<'a>(
                 }
                 _ => false,
             }
-        });
-        hits += usize::from(on_surface);
+        };
+        let wall = cell.axes().any(|a| a != Axis::Z && on(a));
+        if wall || (cell.has(Axis::Z) && on(Axis::Z)) {
+            h.any += 1;
+        }
+        h.walls += usize::from(wall);
     }
-    (hits, total)
+    h
 }
 
 /// The lattice index whose coordinate is nearest to `c` (metres from the cell's face).
@@ -200,7 +232,6 @@ impl Shortlist {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cell::Axis;
     use crate::lattice::Lattice;
     use crate::layer::Layer;
 
@@ -224,14 +255,14 @@ mod tests {
             [0.8, 0.8, 1.2],
             [5.0, 0.0, 0.5],
         ];
-        let (hits, total) = surface_hits(&map, &t, points.iter(), &Pose::identity(), 0.1, 0.5);
-        assert_eq!((hits, total), (2, 4));
+        let h = surface_hits(&map, &t, points.iter(), &Pose::identity(), 0.1, 0.5);
+        assert_eq!((h.any, h.walls, h.total), (2, 0, 4));
         // Lifted 0.3 m, no point is on it.
         let up = Pose::translation(0.0, 0.0, -0.3);
-        assert_eq!(surface_hits(&map, &t, points.iter(), &up, 0.1, 0.5).0, 0);
+        assert_eq!(surface_hits(&map, &t, points.iter(), &up, 0.1, 0.5).any, 0);
         // Too uncertain a vertex does not count.
         assert_eq!(
-            surface_hits(&map, &t, points.iter(), &Pose::identity(), 0.1, 0.05).0,
+            surface_hits(&map, &t, points.iter(), &Pose::identity(), 0.1, 0.05).any,
             0
         );
     }

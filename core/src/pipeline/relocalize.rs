@@ -11,7 +11,8 @@ use crate::filter::Filtered;
 use crate::math::{Point, Pose};
 use crate::motion::ConstantVelocity;
 use crate::relocalize::{
-    same_place, surface_hits, turned, AllResident, Paging, Search, Shortlist, CHUNK, MAX_YAW_STEPS,
+    same_place, surface_hits, turned, AllResident, Hits, Paging, Search, Shortlist, CHUNK,
+    MAX_KEEP, MAX_YAW_STEPS,
 };
 use crate::stage::{Probe, Stage};
 use crate::ScanError;
@@ -29,6 +30,11 @@ pub struct Relocalized {
     pub registered: usize,
     /// Share of the scan's points on the map's surface at the best pose.
     pub hit_share: f64,
+    /// Share of the scan's points on the map's walls (x and y layers) at the best pose.
+    pub wall_share: f64,
+    /// Whether the best pose's registration converged and settled (a pose that did not is
+    /// never accepted).
+    pub settled: bool,
     /// The same at the best pose elsewhere (0 when every attempt ended at the best's place).
     pub runner_up_share: f64,
 }
@@ -141,7 +147,7 @@ impl<C: Capacity> Pipeline<C> {
                             search.coarse_tol_m,
                             max_var,
                         )
-                        .0;
+                        .any;
                     }
                     hits
                 },
@@ -159,8 +165,9 @@ impl<C: Capacity> Pipeline<C> {
         }
         probe.enter(Stage::Done);
         let r = self.config.register;
-        let mut best: Option<(f64, Attempt)> = None;
-        let mut runner_up = 0.0f64;
+        // Every registered attempt: whether it converged and settled, its share of the scan on
+        // the map's surfaces, and the attempt.
+        let mut tried: heapless::Vec<(bool, Hits, Attempt), MAX_KEEP> = heapless::Vec::new();
         let mut registered = 0;
         for &(_, guess) in shortlist.clone().items() {
             stats.recovery_attempts += 1;
@@ -178,7 +185,7 @@ impl<C: Capacity> Pipeline<C> {
             if a.status == RegistrationStatus::Converged && a.verdict.is_plausible(&r.recovery) {
                 a = self.polish(a, exec, probe, &mut stats);
             }
-            let (hits, total) = surface_hits(
+            let hits = surface_hits(
                 &self.map,
                 &lattice,
                 self.points.iter(),
@@ -186,37 +193,40 @@ impl<C: Capacity> Pipeline<C> {
                 search.fine_tol_m,
                 max_var,
             );
-            let share = hits as f64 / total.max(1) as f64;
-            let usable = matches!(
+            let settled = matches!(
                 a.status,
                 RegistrationStatus::Converged | RegistrationStatus::Degenerate
             ) && a.verdict.is_plausible(&r.recovery);
-            let share = if usable { share } else { 0.0 };
-            match &best {
-                Some((s, b)) if share <= *s => {
-                    if !same_place(&a.pose, &b.pose, search) {
-                        runner_up = runner_up.max(share);
-                    }
-                }
-                _ => {
-                    if let Some((s, b)) = &best {
-                        if !same_place(&a.pose, &b.pose, search) {
-                            runner_up = runner_up.max(*s);
-                        }
-                    }
-                    best = Some((share, a));
-                }
-            }
+            let _ = tried.push((settled, hits, a));
         }
-        let (hit_share, attempt) = match best {
-            Some(b) => b,
-            None => (0.0, Attempt::unregistered(Pose::identity())),
+        // The best: settled first, then by share; the runner-up: the best settled one elsewhere.
+        let rank = |t: &(bool, Hits, Attempt)| (t.0, t.1.share());
+        let best = tried.iter().max_by(|x, y| {
+            rank(x)
+                .partial_cmp(&rank(y))
+                .unwrap_or(core::cmp::Ordering::Equal)
+        });
+        let (settled, hits, attempt) = match best {
+            Some(b) => *b,
+            None => (
+                false,
+                Hits::default(),
+                Attempt::unregistered(Pose::identity()),
+            ),
         };
+        let (hit_share, wall_share) = (hits.share(), hits.wall_share());
+        let runner_up = tried
+            .iter()
+            .filter(|(s, _, a)| *s && !same_place(&a.pose, &attempt.pose, search))
+            .map(|(_, h, _)| h.share())
+            .fold(0.0f64, f64::max);
         stats.associate = attempt.associate;
         stats.conditioning = attempt.conditioning;
         stats.degenerate_directions = attempt.degenerate_directions;
-        let found =
-            hit_share >= search.min_hit_share && runner_up < search.ambiguity_ratio * hit_share;
+        let found = settled
+            && hit_share >= search.min_hit_share
+            && wall_share >= search.min_wall_share
+            && runner_up < search.ambiguity_ratio * hit_share;
         let pose = attempt.pose;
         paging.around(&mut self.map, &pose);
         let status = if found {
@@ -235,6 +245,8 @@ impl<C: Capacity> Pipeline<C> {
             hypotheses,
             registered,
             hit_share,
+            wall_share,
+            settled,
             runner_up_share: runner_up,
         }
     }

@@ -106,11 +106,13 @@ pub fn found(r: &Relocalized) -> String {
     let p = r.outcome.t_world_sensor.translation.vector;
     format!(
         "found in the map at ({:.2}, {:.2}, {:.2}) with no pose given: {:.0} % of the scan on \
-         the map's surfaces, the best elsewhere {:.0} % ({} hypotheses, {} registered)",
+         the map's surfaces ({:.0} % on walls), the best elsewhere {:.0} % ({} hypotheses, {} \
+         registered)",
         p.x,
         p.y,
         p.z,
         100.0 * r.hit_share,
+        100.0 * r.wall_share,
         100.0 * r.runner_up_share,
         r.hypotheses,
         r.registered
@@ -121,10 +123,17 @@ pub fn found(r: &Relocalized) -> String {
 pub fn not_found(r: &Relocalized) -> String {
     format!(
         "not localized in the map: its best pose puts {:.0} % of the scan on the map's surfaces \
-         (at least {:.0} % needed), the best elsewhere {:.0} % ({} hypotheses, {} registered); \
+         (at least {:.0} % needed) and {:.0} % on its walls (at least {:.0} %){}, the best elsewhere {:.0} % ({} hypotheses, {} registered); \
          the next frame searches again",
         100.0 * r.hit_share,
         100.0 * Search::default().min_hit_share,
+        100.0 * r.wall_share,
+        100.0 * Search::default().min_wall_share,
+        if r.settled {
+            ""
+        } else {
+            " and its registration did not settle"
+        },
         100.0 * r.runner_up_share,
         r.hypotheses,
         r.registered
