@@ -13,7 +13,7 @@ use flags::Flags;
 use slamesh::io::kitti::read_bin;
 use slamesh::parallel::Workers;
 use slamesh::run::saved_map;
-use slamesh_core::relocalize::Search;
+use slamesh_core::relocalize::{AllResident, Search};
 use slamesh_core::{KittiCapacity, NoProbe, Pipeline, Pose};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -51,8 +51,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for _ in 0..3 {
             let mut p = pipeline.clone();
             let t = Instant::now();
-            let r =
-                p.relocalize_with(&points, &many, &Search::default(), &workers, &mut NoProbe)?;
+            let r = p.relocalize_with(
+                &points,
+                &many,
+                &Search::default(),
+                &workers,
+                &mut NoProbe,
+                &mut AllResident,
+            )?;
             times.push(t.elapsed().as_secs_f64());
             last = Some(r);
         }

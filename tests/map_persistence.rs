@@ -36,6 +36,21 @@ fn run_ok(source: &mut impl FrameSource, opts: &RunOptions) -> Summary {
     }
 }
 
+/// Runs `drive` with the default configuration into `dir/out`, saving its map to
+/// `dir/map.slamesh`; returns the summary and the map file.
+fn map_and_save(drive: &mut Drive, dir: &Path, extra: RunOptions) -> (Summary, PathBuf) {
+    let file = dir.join("map.slamesh");
+    let s = run_ok(
+        drive,
+        &RunOptions {
+            save_map: Some(file.clone()),
+            picture: false,
+            ..extra
+        },
+    );
+    (s, file)
+}
+
 /// The largest translation (m) and rotation (degrees) error of consecutive-frame motions.
 fn worst_step(est: &[Pose], truth: &[Pose]) -> (f64, f64) {
     let mut worst = (0.0f64, 0.0f64);
@@ -311,16 +326,8 @@ fn mapping_on_from_a_saved_map_equals_one_run() {
 #[test]
 fn save_load_save_gives_the_same_bytes() {
     let dir = scratch("map-resave");
-    let file = dir.join("map.slamesh");
-    let mut drive = Drive::town(12, 2);
-    run_ok(
-        &mut drive,
-        &RunOptions {
-            save_map: Some(file.clone()),
-            picture: false,
-            ..options(&dir.join("out"), Config::default())
-        },
-    );
+    let out = options(&dir.join("out"), Config::default());
+    let (_, file) = map_and_save(&mut Drive::town(12, 2), &dir, out);
     let mut f = MapFile::open(&file).unwrap();
     let c = Config::default();
     let mut map = MeshMap::with_capacity(1 << 16, 1 << 17, c.lattice());
@@ -339,15 +346,11 @@ fn save_load_save_gives_the_same_bytes() {
 #[test]
 fn damaged_map_files_are_refused_by_name() {
     let dir = scratch("map-damaged");
-    let file = dir.join("map.slamesh");
     let mut drive = Drive::town(4, 2);
-    run_ok(
+    let (_, file) = map_and_save(
         &mut drive,
-        &RunOptions {
-            save_map: Some(file.clone()),
-            picture: false,
-            ..options(&dir.join("out"), Config::default())
-        },
+        &dir,
+        options(&dir.join("out"), Config::default()),
     );
     let good = std::fs::read(&file).unwrap();
     let c = Config::default();
@@ -442,16 +445,8 @@ fn a_map_file_written_by_another_program_reads() {
 #[test]
 fn a_place_the_map_does_not_hold_is_not_localized() {
     let dir = scratch("map-elsewhere");
-    let map_file = dir.join("town.slamesh");
-    let mut town = Drive::town(40, 4);
-    run_ok(
-        &mut town,
-        &RunOptions {
-            save_map: Some(map_file.clone()),
-            picture: false,
-            ..options(&dir.join("mapping"), Config::default())
-        },
-    );
+    let mapping = options(&dir.join("mapping"), Config::default());
+    let (_, map_file) = map_and_save(&mut Drive::town(40, 4), &dir, mapping);
     let mut street = Drive::long_street(5, 1.0, 9);
     let mut records = Vec::new();
     let opts = RunOptions {
@@ -475,20 +470,14 @@ fn a_place_the_map_does_not_hold_is_not_localized() {
 #[test]
 fn a_windowed_run_saves_the_cells_it_evicted() {
     let dir = scratch("map-window");
-    let file = dir.join("map.slamesh");
-    let mut drive = Drive::town(24, 3);
-    let s = run_ok(
-        &mut drive,
-        &RunOptions {
-            save_map: Some(file.clone()),
-            picture: false,
-            window: slamesh::io::config_file::WindowSettings {
-                max_age_frames: Some(3),
-                ..Default::default()
-            },
-            ..options(&dir.join("out"), Config::default())
+    let windowed = RunOptions {
+        window: slamesh::io::config_file::WindowSettings {
+            max_age_frames: Some(3),
+            ..Default::default()
         },
-    );
+        ..options(&dir.join("out"), Config::default())
+    };
+    let (s, file) = map_and_save(&mut Drive::town(24, 3), &dir, windowed);
     assert!(s.evicted_cells > 0);
     let mut f = MapFile::open(&file).unwrap();
     let mut map = MeshMap::with_capacity(1 << 16, 1 << 17, Config::default().lattice());

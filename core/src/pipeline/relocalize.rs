@@ -11,8 +11,8 @@ use crate::filter::Filtered;
 use crate::math::{Point, Pose};
 use crate::motion::ConstantVelocity;
 use crate::relocalize::{
-    same_place, surface_hits, turned, AllResident, Hits, Paging, Search, Shortlist, CHUNK,
-    MAX_KEEP, MAX_YAW_STEPS,
+    same_place, surface_hits, turned, Hits, Paging, Search, Shortlist, CHUNK, MAX_KEEP,
+    MAX_YAW_STEPS,
 };
 use crate::stage::{Probe, Stage};
 use crate::ScanError;
@@ -43,27 +43,15 @@ impl<C: Capacity> Pipeline<C> {
     /// Finds the pose of a scan (sensor-frame points) in the map without a prediction: each
     /// of `candidates` turned to `search.yaw_steps` headings is scored coarsely, the
     /// `search.keep` best distinct ones are registered in full, and the best registered pose
-    /// is accepted when at least `search.min_hit_share` of the scan lies on the map there and
-    /// no pose elsewhere explains `search.ambiguity_ratio` as much. Accepted, the motion model
-    /// restarts from it (and the scan is fused unless map updates are off); not accepted, the
-    /// map and the motion model are unchanged, and the next scan may try again.
-    pub fn relocalize_with(
-        &mut self,
-        points_sensor: &[Point],
-        candidates: &[Pose],
-        search: &Search,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-    ) -> Result<Relocalized, ScanError> {
-        let stats = self.begin(points_sensor, exec, probe)?;
-        Ok(self.relocalize(stats, candidates, search, exec, probe, &mut AllResident))
-    }
-
-    /// [`relocalize_with`](Self::relocalize_with) in a map that `paging` pages in: before
-    /// each chunk of candidates and each registration, the map is made to hold what lies
-    /// around that pose.
+    /// is accepted when its registration settled, enough of the scan lies on the map there
+    /// (`search.min_hit_share`, `search.min_wall_share`) and no pose elsewhere explains
+    /// `search.ambiguity_ratio` as much. Accepted, the motion model restarts from it (and the
+    /// scan is fused unless map updates are off); not accepted, the map and the motion model
+    /// are unchanged, and the next scan may try again. `paging` makes the map hold what lies
+    /// around each chunk of candidates and each registration
+    /// ([`AllResident`](crate::relocalize::AllResident) when the whole map is resident).
     #[allow(clippy::too_many_arguments)]
-    pub fn relocalize_paged_with(
+    pub fn relocalize_with(
         &mut self,
         points_sensor: &[Point],
         candidates: &[Pose],
@@ -78,22 +66,8 @@ impl<C: Capacity> Pipeline<C> {
 
     /// [`relocalize_with`](Self::relocalize_with) for a scan already filtered by a
     /// [`ScanFilter`](crate::filter::ScanFilter): the same result.
-    pub fn relocalize_filtered_with(
-        &mut self,
-        filtered: Filtered<'_>,
-        candidates: &[Pose],
-        search: &Search,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-    ) -> Result<Relocalized, ScanError> {
-        let stats = self.begin_filtered(filtered)?;
-        Ok(self.relocalize(stats, candidates, search, exec, probe, &mut AllResident))
-    }
-
-    /// [`relocalize_filtered_with`](Self::relocalize_filtered_with) in a map that `paging`
-    /// pages in (see [`relocalize_paged_with`](Self::relocalize_paged_with)).
     #[allow(clippy::too_many_arguments)]
-    pub fn relocalize_filtered_paged_with(
+    pub fn relocalize_filtered_with(
         &mut self,
         filtered: Filtered<'_>,
         candidates: &[Pose],

@@ -336,7 +336,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                     }
                     (None, None, None) => pipeline.process_scan_with(&points, workers, timer),
                     (None, None, Some(c)) => pipeline
-                        .relocalize_paged_with(
+                        .relocalize_with(
                             &points,
                             c,
                             &Search::default(),
@@ -352,7 +352,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                         pipeline.process_filtered_with(a.filtered(), workers, timer)
                     }
                     (None, Some(a), Some(c)) => pipeline
-                        .relocalize_filtered_paged_with(
+                        .relocalize_filtered_with(
                             a.filtered(),
                             c,
                             &Search::default(),
