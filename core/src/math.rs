@@ -298,6 +298,14 @@ pub fn symmetric_eigen3(a: &Mat3) -> Option<([f64; 3], Vec3)> {
     Some((values, best / norm))
 }
 
+/// `pose` turned by `yaw` radians about the world's vertical through its position (the
+/// guesses of recovery and of the search in a known map).
+#[inline]
+pub fn turned_in_yaw(pose: &Pose, yaw: f64) -> Pose {
+    let r = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
+    Pose::from_parts(pose.translation, r * pose.rotation)
+}
+
 /// Rotation angle of a pose in radians, in `[0, π]`.
 #[inline]
 pub fn rotation_angle(pose: &Pose) -> f64 {

@@ -13,8 +13,7 @@
 //! they make between scans are within the coarse rounds' reach (two cells).
 
 use crate::config::RecoveryConfig;
-use crate::math::{rotation_angle, Pose};
-use nalgebra::{UnitQuaternion, Vector3};
+use crate::math::{rotation_angle, turned_in_yaw, Pose};
 
 /// What one registration attempt ended with, enough to judge it and compare it with others.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -108,8 +107,7 @@ pub fn guesses(last: &Pose, cfg: &RecoveryConfig) -> impl Iterator<Item = Pose> 
     (0..=2 * turns).map(move |i| {
         // 0, +1, -1, +2, -2, ... steps.
         let k = i.div_ceil(2) as f64 * if i % 2 == 1 { 1.0 } else { -1.0 };
-        let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), k * step);
-        Pose::from_parts(last.translation, yaw * last.rotation)
+        turned_in_yaw(&last, k * step)
     })
 }
 
@@ -120,7 +118,7 @@ pub const MAX_GUESSES: usize = 49;
 mod tests {
     use super::*;
     use alloc::vec::Vec;
-    use nalgebra::Translation3;
+    use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
     /// The defaults, with settling limits of 5 cm and 0.5° (round numbers for the cases).
     fn cfg() -> RecoveryConfig {

@@ -15,8 +15,9 @@
 use crate::cell::{Axis, CellKey};
 use crate::lattice::{LatticeTable, N};
 use crate::map::MeshMap;
+#[cfg(test)]
+use crate::math::turned_in_yaw;
 use crate::math::{rotation_angle, to_vec3, Point, Pose};
-use nalgebra::{UnitQuaternion, Vector3};
 
 /// Most hypotheses a search registers in full.
 pub const MAX_KEEP: usize = 16;
@@ -171,12 +172,6 @@ fn nearest(lattice: &LatticeTable, c: f64) -> usize {
     best.1
 }
 
-/// `pose` turned by `yaw` radians about the world's vertical through its position.
-pub fn turned(pose: &Pose, yaw: f64) -> Pose {
-    let r = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
-    Pose::from_parts(pose.translation, r * pose.rotation)
-}
-
 /// Whether two poses are the same hypothesis under `search`'s distinctness rule.
 pub fn same_place(a: &Pose, b: &Pose, search: &Search) -> bool {
     (a.translation.vector - b.translation.vector).norm() < search.distinct_m
@@ -284,7 +279,7 @@ mod tests {
         let scores: heapless::Vec<usize, 4> = list.items().iter().map(|(s, _)| *s).collect();
         assert_eq!(&scores[..], &[9, 8, 7]);
         // The same position turned far is another hypothesis.
-        list.offer(8, turned(&at(30.0), 1.0), &s);
+        list.offer(8, turned_in_yaw(&at(30.0), 1.0), &s);
         assert_eq!(list.items().len(), 3);
         assert_eq!(list.items()[1].0, 8);
     }

@@ -8,11 +8,10 @@ use super::{Pipeline, RegistrationStatus, ScanOutcome, ScanStats};
 use crate::capacity::Capacity;
 use crate::executor::Executor;
 use crate::filter::Filtered;
-use crate::math::{Point, Pose};
+use crate::math::{turned_in_yaw, Point, Pose};
 use crate::motion::ConstantVelocity;
 use crate::relocalize::{
-    same_place, surface_hits, turned, Hits, Paging, Search, Shortlist, CHUNK, MAX_KEEP,
-    MAX_YAW_STEPS,
+    same_place, surface_hits, Hits, Paging, Search, Shortlist, CHUNK, MAX_KEEP, MAX_YAW_STEPS,
 };
 use crate::stage::{Probe, Stage};
 use crate::ScanError;
@@ -112,7 +111,7 @@ impl<C: Capacity> Pipeline<C> {
                     let mut hits = [0usize; MAX_YAW_STEPS];
                     for (k, h) in hits.iter_mut().enumerate().take(steps) {
                         let sample = points.iter().step_by(stride);
-                        let pose = turned(c, yaw(k));
+                        let pose = turned_in_yaw(c, yaw(k));
                         *h = surface_hits(
                             map,
                             &lattice,
@@ -131,7 +130,7 @@ impl<C: Capacity> Pipeline<C> {
                         .copied()
                         .unwrap_or_else(Pose::identity);
                     for (k, h) in hits.iter().enumerate().take(steps) {
-                        shortlist.offer(*h, turned(&c, yaw(k)), search);
+                        shortlist.offer(*h, turned_in_yaw(&c, yaw(k)), search);
                         hypotheses += 1;
                     }
                 },

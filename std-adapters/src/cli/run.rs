@@ -204,16 +204,8 @@ fn parse_pose(text: &str) -> Result<slamesh_core::Pose, String> {
             t(x, y, z),
             nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw.to_radians()),
         )),
-        [_, x, y, z, qx, qy, qz, qw] => {
-            let q = nalgebra::Quaternion::new(qw, qx, qy, qz);
-            if q.norm() < 1e-9 {
-                return Err("the quaternion is zero".into());
-            }
-            Ok(slamesh_core::Pose::from_parts(
-                t(x, y, z),
-                nalgebra::UnitQuaternion::from_quaternion(q),
-            ))
-        }
+        [_, _, _, _, _, _, _, _] => slamesh::io::trajectory::tum_pose(&v)
+            .ok_or_else(|| "the quaternion is zero".to_string()),
         _ => Err(format!(
             "{} numbers: give \"x y z yaw_deg\" or a TUM line \"t x y z qx qy qz qw\"",
             v.len()

@@ -417,23 +417,6 @@ impl<R: Read + Seek> MapFile<R> {
         Ok(layers)
     }
 
-    /// Checks every tile block without loading it (reads the whole file once).
-    pub fn verify(&mut self) -> Result<(), FileError> {
-        for e in self.index.clone() {
-            let bytes = read_at(&mut self.file, &self.path, e.offset, e.len as usize)?;
-            format::read_tile(&bytes).map_err(|err| {
-                FileError::at(
-                    &self.path,
-                    format!(
-                        "not a usable map file: the tile block at byte {}: {err}",
-                        e.offset
-                    ),
-                )
-            })?;
-        }
-        Ok(())
-    }
-
     /// A map is usable only on the lattice it was made on.
     fn check_lattice(&self, map: &MeshMap) -> Result<(), FileError> {
         let (a, b) = (self.info.lattice, *map.lattice());

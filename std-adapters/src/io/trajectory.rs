@@ -42,6 +42,21 @@ pub(crate) fn parse_numbers(
         .collect()
 }
 
+/// The pose of a TUM line's numbers `t x y z qx qy qz qw` (the quaternion normalised);
+/// `None` unless there are eight, all finite, with a non-zero quaternion.
+pub fn tum_pose(v: &[f64]) -> Option<Pose> {
+    let &[_, x, y, z, qx, qy, qz, qw] = v else {
+        return None;
+    };
+    let q = Quaternion::new(qw, qx, qy, qz);
+    (v.iter().all(|x| x.is_finite()) && q.norm() > 1e-9).then(|| {
+        Pose::from_parts(
+            Translation3::new(x, y, z),
+            UnitQuaternion::from_quaternion(q),
+        )
+    })
+}
+
 /// Reads a trajectory, KITTI or TUM, by the count of numbers on its first pose line (`#`
 /// lines and blank lines are skipped).
 pub fn read(path: &Path) -> Result<Trajectory, FileError> {
@@ -79,15 +94,7 @@ pub fn read(path: &Path) -> Result<Trajectory, FileError> {
         }
         let pose = match f {
             Format::Kitti => pose_from_row(&v),
-            Format::Tum => {
-                let q = Quaternion::new(v[7], v[4], v[5], v[6]);
-                (v.iter().all(|x| x.is_finite()) && q.norm() > 1e-9).then(|| {
-                    Pose::from_parts(
-                        Translation3::new(v[1], v[2], v[3]),
-                        UnitQuaternion::from_quaternion(q),
-                    )
-                })
-            }
+            Format::Tum => tum_pose(&v),
         };
         poses.push(pose.ok_or_else(|| FileError::new(path, Some(i + 1), "not a finite pose"))?);
         if f == Format::Tum {
