@@ -1,8 +1,8 @@
 //! Every subcommand and flag the README lists, checked by what it writes: `config`, `demo`,
 //! `eval` (trajectories against files and KITTI folders, `--calib`, `--mesh`/`--cloud`,
 //! `--build-reference`), `mesh` with `--calib` and with fewer poses than frames, `run --obj`,
-//! the window flags and the memory cap (and their refusals), `bench --preset`, and saved maps
-//! (`run --save-map`, `localize` with `--initial-pose` and `--update`). The data
+//! the window flags and the memory cap (and their refusals), and `bench --preset` (saved maps
+//! and `localize`: `tests/map_persistence.rs`). The data
 //! is simulated (a street with known surfaces), written to disk as a user's would be.
 
 mod common;
@@ -526,80 +526,5 @@ fn the_capacity_class_fits_the_first_scan_and_a_scan_too_large_for_it_is_refused
     let out = dir.join("largest");
     slamesh_run_ok(&scans_dir, &out, &["--capacity", "64"]);
     assert_eq!(report(&out)["summary"]["capacity"], "64-beam");
-    std::fs::remove_dir_all(&dir).unwrap();
-}
-
-#[test]
-fn save_map_localize_and_map_on_from_the_command_line() {
-    let dir = scratch("saved-map");
-    let (_, scans) = drive(6);
-    let scans_dir = write_scan_folder(&dir, &scans);
-    let (mapped, map) = (dir.join("mapped"), dir.join("site.slamesh"));
-    slamesh_run_ok(&scans_dir, &mapped, &["--save-map", s(&map)]);
-    let file = slamesh::io::map_file::MapFile::open(&map).unwrap();
-    assert_eq!((file.info.frames, file.poses.len()), (6, 6));
-    let run_poses = trajectory::read_kitti(&mapped.join("poses_kitti.txt")).unwrap();
-
-    // Localize from a given pose (the map's origin, tried first), the map left as it is.
-    let here = dir.join("here");
-    slamesh_ok(&[
-        "localize",
-        s(&scans_dir),
-        "--map",
-        s(&map),
-        "--out",
-        s(&here),
-        "--initial-pose",
-        "0 0 0 0",
-        "-q",
-    ]);
-    let poses = trajectory::read_kitti(&here.join("poses_kitti.txt")).unwrap();
-    for (a, b) in poses.iter().zip(&run_poses) {
-        assert!((a.translation.vector - b.translation.vector).norm() < 0.02);
-    }
-    let r = report(&here);
-    assert_eq!(r["frames"][0]["status"], "Relocalized");
-    assert!(r["frames"][0]["relocalization"]
-        .as_str()
-        .unwrap()
-        .contains("found in the map"));
-
-    // With --update, the map grows on and can be saved again, its frames counted on.
-    let (updated, map2) = (dir.join("updated"), dir.join("site2.slamesh"));
-    slamesh_ok(&[
-        "localize",
-        s(&scans_dir),
-        "--map",
-        s(&map),
-        "--out",
-        s(&updated),
-        "--update",
-        "--save-map",
-        s(&map2),
-        "-q",
-    ]);
-    let file2 = slamesh::io::map_file::MapFile::open(&map2).unwrap();
-    assert_eq!((file2.info.frames, file2.poses.len()), (12, 12));
-
-    // Refusals: localize without a map, an initial pose of the wrong length.
-    let out = slamesh(&["localize", s(&scans_dir), "--out", s(&dir.join("x"))]);
-    assert!(!out.status.success());
-    assert!(text(&out.stderr).contains("--map"), "{}", text(&out.stderr));
-    let out = slamesh(&[
-        "localize",
-        s(&scans_dir),
-        "--map",
-        s(&map),
-        "--out",
-        s(&dir.join("y")),
-        "--initial-pose",
-        "1 2",
-    ]);
-    assert!(!out.status.success());
-    assert!(
-        text(&out.stderr).contains("2 numbers"),
-        "{}",
-        text(&out.stderr)
-    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

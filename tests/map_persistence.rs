@@ -490,3 +490,90 @@ fn a_windowed_run_saves_the_cells_it_evicted() {
     assert!(loaded > s.map_cells + s.evicted_cells / 2, "{loaded} cells");
     assert!(loaded <= s.map_cells + s.evicted_cells, "{loaded} cells");
 }
+
+/// A path as a command-line argument.
+fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// The saved-map flags as the README lists them: `run --save-map`, `localize` from a given
+/// pose and with `--update --save-map`, and the refusals.
+#[test]
+fn save_map_localize_and_map_on_from_the_command_line() {
+    let dir = scratch("saved-map");
+    let (_, scans) = common::street_drive(6);
+    let scans_dir = common::write_scan_folder(&dir, &scans);
+    let (mapped, map) = (dir.join("mapped"), dir.join("site.slamesh"));
+    common::slamesh_run_ok(&scans_dir, &mapped, &["--save-map", p(&map)]);
+    let file = MapFile::open(&map).unwrap();
+    assert_eq!((file.info.frames, file.poses.len()), (6, 6));
+    let run_poses = slamesh::io::trajectory::read_kitti(&mapped.join("poses_kitti.txt")).unwrap();
+
+    // Localize from a given pose (the map's origin, tried first), the map left as it is.
+    let here = dir.join("here");
+    common::slamesh_ok(&[
+        "localize",
+        p(&scans_dir),
+        "--map",
+        p(&map),
+        "--out",
+        p(&here),
+        "--initial-pose",
+        "0 0 0 0",
+        "-q",
+    ]);
+    let poses = slamesh::io::trajectory::read_kitti(&here.join("poses_kitti.txt")).unwrap();
+    for (a, b) in poses.iter().zip(&run_poses) {
+        assert!((a.translation.vector - b.translation.vector).norm() < 0.02);
+    }
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(here.join("report.json")).unwrap()).unwrap();
+    assert_eq!(r["frames"][0]["status"], "Relocalized");
+    assert!(r["frames"][0]["relocalization"]
+        .as_str()
+        .unwrap()
+        .contains("found in the map"));
+
+    // With --update, the map grows on and can be saved again, its frames counted on.
+    let (updated, map2) = (dir.join("updated"), dir.join("site2.slamesh"));
+    common::slamesh_ok(&[
+        "localize",
+        p(&scans_dir),
+        "--map",
+        p(&map),
+        "--out",
+        p(&updated),
+        "--update",
+        "--save-map",
+        p(&map2),
+        "-q",
+    ]);
+    let file2 = MapFile::open(&map2).unwrap();
+    assert_eq!((file2.info.frames, file2.poses.len()), (12, 12));
+
+    // Refusals: localize without a map, an initial pose of the wrong length.
+    let out = common::slamesh(&["localize", p(&scans_dir), "--out", p(&dir.join("x"))]);
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--map"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = common::slamesh(&[
+        "localize",
+        p(&scans_dir),
+        "--map",
+        p(&map),
+        "--out",
+        p(&dir.join("y")),
+        "--initial-pose",
+        "1 2",
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("2 numbers"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
