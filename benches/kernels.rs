@@ -68,6 +68,7 @@ fn registration(c: &mut Criterion) {
         &layers,
         map,
         0,
+        0,
         cfg.variance_register,
         &mut residuals,
         &Serial,
@@ -84,6 +85,7 @@ fn registration(c: &mut Criterion) {
                 black_box(&layers),
                 map,
                 1,
+                0,
                 cfg.variance_register,
                 &mut residuals,
                 &Serial,
@@ -93,6 +95,7 @@ fn registration(c: &mut Criterion) {
     associate(
         &layers,
         map,
+        0,
         0,
         cfg.variance_register,
         &mut residuals,

@@ -8,7 +8,11 @@
 //! (1 000 frames, seed 1 by default). A second drive through the same town, for localizing in
 //! a map of the first: `--noise-seed K` (the scans' noise; the town stays seed S's), `--start
 //! F` (begin at frame F of the loop) and `--lateral-m M` (drive M metres to the left). Its
-//! `poses.txt` is then relative to the loop's first pose, the first drive's frame.
+//! `poses.txt` is then relative to the loop's first pose, the first drive's frame. `--round`:
+//! the drive goes on round the loop past its start (the loop is about 1 200 frames), for loop
+//! closure. `--path campus` (about 2 400 frames, several loops through the town's inner
+//! streets) or `--path block` (one block round and on past the start, about 450 frames)
+//! drive another path.
 
 #[path = "common/flags.rs"]
 mod flags;
@@ -27,7 +31,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seed: u64 = flags.parse_or("--seed", 1)?;
     let start: usize = flags.parse_or("--start", 0)?;
     let lateral: f64 = flags.parse_or("--lateral-m", 0.0)?;
-    let mut drive = Drive::town(start + frames, seed);
+    let mut drive = match flags.value("--path") {
+        Some("campus") => Drive::town_along(slamesh_sim::town::campus_path(), start + frames, seed),
+        Some("block") => Drive::town_along(slamesh_sim::town::block_path(), start + frames, seed),
+        Some(other) => return Err(format!("--path {other}: campus or block").into()),
+        None if flags.has("--round") => Drive::town_round(start + frames, seed),
+        None => Drive::town(start + frames, seed),
+    };
     let first = drive.poses[0].inverse();
     drive.seed = flags.parse_or("--noise-seed", seed)?;
     let left = nalgebra::Translation3::new(0.0, lateral, 0.0);

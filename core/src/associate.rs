@@ -33,11 +33,13 @@ const MAX_CANDIDATES: usize = 2 * MAX_REACH as usize + 1;
 
 /// The map layers of `axis` in cell `key` and the cells `key ± i·e_axis`, `i ≤ reach`, with
 /// their offset `i`: what a scan layer there can pair with, looked up once per scan layer.
+/// Cells last seen before frame `since` are stale and left out.
 fn candidates(
     map: &MeshMap,
     key: CellKey,
     axis: Axis,
     reach: u32,
+    since: u32,
 ) -> heapless::Vec<(i32, CellKey, &Layer), MAX_CANDIDATES> {
     let reach = reach.min(MAX_REACH) as i32;
     let mut out = heapless::Vec::new();
@@ -45,7 +47,7 @@ fn candidates(
         let Some(k) = key.offset(axis, i) else {
             continue;
         };
-        if let Some(m) = map.layer(&k, axis) {
+        if let Some(m) = map.layer_seen_since(&k, axis, since) {
             // At most 2 · MAX_REACH + 1 offsets: cannot overflow.
             let _ = out.push((i, k, m));
         }
@@ -53,23 +55,27 @@ fn candidates(
     out
 }
 
-/// Whether a scan layer of `axis` in cell `key` has anything to pair with at `reach`.
-pub fn has_candidates(map: &MeshMap, key: CellKey, axis: Axis, reach: u32) -> bool {
+/// Whether a scan layer of `axis` in cell `key` has anything to pair with at `reach` among
+/// the cells seen since frame `since`.
+pub fn has_candidates(map: &MeshMap, key: CellKey, axis: Axis, reach: u32, since: u32) -> bool {
     // The cell itself first: where the map has the layer (most cells) one lookup decides.
-    map.layer(&key, axis).is_some() || !candidates(map, key, axis, reach).is_empty()
+    map.layer_seen_since(&key, axis, since).is_some()
+        || !candidates(map, key, axis, reach, since).is_empty()
 }
 
 /// Writes one combined residual per scan layer that has map pairs into `out` (cleared first),
 /// in scan order, one [`Associator::layer`] per layer run by `exec`; stops when `out` is full.
+/// Map cells last seen before frame `since` are left out (0: none).
 pub fn associate(
     scan: &[ScanLayer],
     map: &MeshMap,
     reach: u32,
+    since: u32,
     variance_register: f64,
     out: &mut BoundedVec<Residual>,
     exec: &impl Executor,
 ) -> AssociateStats {
-    let a = Associator::new(map, reach, variance_register);
+    let a = Associator::new(map, reach, variance_register).seen_since(since);
     out.clear();
     let mut stats = AssociateStats::default();
     let mut full = false;
@@ -98,6 +104,7 @@ pub struct Associator<'a> {
     map: &'a MeshMap,
     lattice: LatticeTable,
     reach: u32,
+    since: u32,
     max_var: f32,
 }
 
@@ -108,8 +115,14 @@ impl<'a> Associator<'a> {
             map,
             lattice: map.lattice().table(),
             reach,
+            since: 0,
             max_var: variance_register as f32,
         }
+    }
+
+    /// Leaves out the map cells last seen before frame `since`.
+    pub fn seen_since(self, since: u32) -> Self {
+        Self { since, ..self }
     }
 
     /// The combined residual of scan layer `s` and how many vertex pairs it averages, or
@@ -118,7 +131,7 @@ impl<'a> Associator<'a> {
         let (lattice, max_var) = (&self.lattice, self.max_var);
         let (mut sum_p, mut sum_q, mut sum_n, mut count) =
             (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), 0usize);
-        let candidates = candidates(self.map, s.key, s.axis, self.reach);
+        let candidates = candidates(self.map, s.key, s.axis, self.reach, self.since);
         for j in 0..VERTICES {
             if !(s.layer.var[j] < max_var) {
                 continue;
@@ -190,10 +203,10 @@ mod tests {
         }];
         let mut out = BoundedVec::with_capacity(4);
         assert_eq!(
-            associate(&scan, &map, 0, 0.6, &mut out, &crate::executor::Serial).residuals,
+            associate(&scan, &map, 0, 0, 0.6, &mut out, &crate::executor::Serial).residuals,
             0
         );
-        let s = associate(&scan, &map, 1, 0.6, &mut out, &crate::executor::Serial);
+        let s = associate(&scan, &map, 1, 0, 0.6, &mut out, &crate::executor::Serial);
         assert_eq!((s.pairs, s.residuals), (36, 1));
         let r = out[0];
         assert!((r.n - Vec3::z()).norm() < 1e-9);
@@ -217,7 +230,7 @@ mod tests {
         }];
         let mut out = BoundedVec::with_capacity(4);
         assert_eq!(
-            associate(&scan, &map, 0, 0.6, &mut out, &crate::executor::Serial).pairs,
+            associate(&scan, &map, 0, 0, 0.6, &mut out, &crate::executor::Serial).pairs,
             18
         );
     }

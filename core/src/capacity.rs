@@ -19,7 +19,7 @@ use core::mem::size_of;
 pub const MAP_LAYER_BYTES: usize = size_of::<Layer>() + size_of::<u32>();
 
 /// How much one pipeline can hold. Implement it for your sensor, or use a provided one.
-pub trait Capacity {
+pub trait Capacity: 'static {
     /// A short name for messages (`64-beam`, `16-beam`, ...).
     const NAME: &'static str = "custom";
     /// Points of one scan kept after the range filter (the rest are dropped in input order).

@@ -150,6 +150,12 @@ pub struct MapConfig {
     /// bucketing and the costliest of the scan's reconstructions at a small cost in accuracy
     /// (both measured in docs/benchmarks.md, Speed). Default `true`.
     pub reconstruct_at_final_pose: bool,
+    /// A cell not seen for more than this many frames is *stale*: registration leaves it out,
+    /// and a scan that sees it again replaces its layers instead of fusing into them. A
+    /// place revisited after a long drift is then mapped afresh rather than as a second,
+    /// offset copy fused into the first, and the odometry does not snap onto the old copy
+    /// before a loop closure has corrected it (docs/design.md §1.14). 0 (the default): never.
+    pub stale_after_frames: u32,
 }
 
 /// Mesh export (docs/design.md §1.6).
@@ -235,6 +241,7 @@ impl Default for Config {
                 variance_update: 0.5,
                 add_missing_layers: true,
                 reconstruct_at_final_pose: true,
+                stale_after_frames: 0,
             },
             mesh: MeshConfig {
                 variance_show: 1.0,

@@ -4,7 +4,9 @@
 //! scalar estimates. New cells are inserted; a layer a known cell lacks is added when
 //! [`MapConfig::add_missing_layers`] is set. Map-capacity refusals are counted, never fatal.
 
+use crate::cell::Axis;
 use crate::config::MapConfig;
+use crate::lattice::VERTICES;
 use crate::layer::ScanLayer;
 use crate::map::MeshMap;
 
@@ -42,9 +44,22 @@ pub struct FusionStats {
     pub added: usize,
     /// Layers not added because the map was full.
     pub refused: usize,
+    /// Stale cells whose layers the scan replaced.
+    pub refreshed: usize,
 }
 
-/// Fuses the scan's layers into `map`, marking their cells seen at `frame`.
+/// The frame before which a cell last seen is stale at `frame`
+/// ([`MapConfig::stale_after_frames`]; 0: none is).
+pub fn stale_before(frame: u32, cfg: &MapConfig) -> u32 {
+    match cfg.stale_after_frames {
+        0 => 0,
+        n => frame.saturating_sub(n),
+    }
+}
+
+/// Fuses the scan's layers into `map`, marking their cells seen at `frame`. A stale cell
+/// ([`stale_before`]) has every layer's vertices made unknown first, so that the scan
+/// replaces what it held.
 pub fn integrate(
     map: &mut MeshMap,
     scan: &[ScanLayer],
@@ -52,8 +67,17 @@ pub fn integrate(
     frame: u32,
 ) -> FusionStats {
     let threshold = cfg.variance_update as f32;
+    let since = stale_before(frame, cfg);
     let mut stats = FusionStats::default();
     for s in scan {
+        if map.cell(&s.key).is_some_and(|c| c.last_seen < since) {
+            for axis in Axis::ALL {
+                if let Some(m) = map.layer_mut(&s.key, axis, frame) {
+                    m.var = [f32::INFINITY; VERTICES];
+                }
+            }
+            stats.refreshed += 1;
+        }
         if let Some(m) = map.layer_mut(&s.key, s.axis, frame) {
             for j in 0..m.pred.len() {
                 let (u, v) = fuse_vertex(

@@ -147,6 +147,16 @@ impl MeshMap {
         self.pool.get(slot as usize)
     }
 
+    /// [`layer`](Self::layer), when the cell was last seen at or after frame `since`.
+    pub fn layer_seen_since(&self, key: &CellKey, axis: Axis, since: u32) -> Option<&Layer> {
+        let cell = self.cells.get(key)?;
+        if cell.last_seen < since {
+            return None;
+        }
+        let slot = *cell.layers.get(axis.index())?;
+        self.pool.get(slot as usize)
+    }
+
     /// The layer along `axis` in cell `key`, mutably; marks the cell seen at `frame`.
     pub fn layer_mut(&mut self, key: &CellKey, axis: Axis, frame: u32) -> Option<&mut Layer> {
         let slot = self.cells.update(key, |cell| {

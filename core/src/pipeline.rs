@@ -433,6 +433,12 @@ impl<C: Capacity> Pipeline<C> {
         probe.enter(Stage::Done);
     }
 
+    /// The frame before which a map cell last seen is stale for the frame being processed
+    /// (0: none is; see [`MapConfig::stale_after_frames`](crate::config::MapConfig)).
+    fn stale_before(&self) -> u32 {
+        crate::fusion::stale_before(self.frame.saturating_sub(1), &self.config.map)
+    }
+
     /// Fuses `scan` (at `pose`, bucketed as `bucketed`) into the map; motion update.
     fn fuse(&mut self, pose: Pose, bucketed: BucketStats, stats: &mut ScanStats) {
         stats.bucket = bucketed;

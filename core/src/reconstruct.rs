@@ -29,6 +29,9 @@ pub enum Purpose {
         /// Only the cells of [`in_checkerboard`] (a coarse round with
         /// [`RegisterConfig::coarse_half_cells`](crate::config::RegisterConfig::coarse_half_cells)).
         half_cells: bool,
+        /// Map cells last seen before this frame are stale and left out
+        /// ([`MapConfig::stale_after_frames`](crate::config::MapConfig::stale_after_frames)).
+        since: u32,
     },
     /// The map update: every layer.
     Update,
@@ -87,8 +90,8 @@ pub fn reconstruct_cell(
     let lattice = cfg.lattice();
     let mut out = CellLayers::default();
     for axis in axes {
-        if let Purpose::Register { reach, .. } = purpose {
-            if !crate::associate::has_candidates(map, key, axis, reach) {
+        if let Purpose::Register { reach, since, .. } = purpose {
+            if !crate::associate::has_candidates(map, key, axis, reach, since) {
                 out.unpaired += 1;
                 continue;
             }
@@ -195,10 +198,12 @@ mod tests {
         let coarse = Purpose::Register {
             reach: 1,
             half_cells: true,
+            since: 0,
         };
         let all = Purpose::Register {
             reach: 1,
             half_cells: false,
+            since: 0,
         };
         assert_eq!(layers(even, coarse), 1);
         assert_eq!(layers(odd, coarse), 0);

@@ -19,6 +19,36 @@ use crate::map::MeshMap;
 use crate::math::turned_in_yaw;
 use crate::math::{rotation_angle, to_vec3, Point, Pose};
 
+/// Candidate positions along a path (docs/design.md §1.13): its poses every `spacing_m`
+/// metres of travel, each also moved `spacing_m` to its left and to its right (horizontally,
+/// across its heading), given to `emit` in path order.
+pub fn along_path<'a>(
+    path: impl IntoIterator<Item = &'a Pose>,
+    spacing_m: f64,
+    mut emit: impl FnMut(Pose),
+) {
+    let mut last: Option<Pose> = None;
+    for p in path {
+        if last.is_some_and(|l| (l.translation.vector - p.translation.vector).norm() < spacing_m) {
+            continue;
+        }
+        last = Some(*p);
+        let heading = p.rotation * nalgebra::Vector3::x();
+        let left = nalgebra::Vector3::new(-heading.y, heading.x, 0.0);
+        let norm = left.norm();
+        let left = if norm > 1e-6 {
+            left / norm
+        } else {
+            nalgebra::Vector3::y()
+        };
+        for side in [0.0, 1.0, -1.0] {
+            let mut c = *p;
+            c.translation.vector += left * side * spacing_m;
+            emit(c);
+        }
+    }
+}
+
 /// Most hypotheses a search registers in full.
 pub const MAX_KEEP: usize = 16;
 /// Most headings a search tries at one candidate position (every 5 degrees).

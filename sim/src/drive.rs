@@ -81,6 +81,42 @@ impl Drive {
         }
     }
 
+    /// [`Drive::town`] going on round the loop past its start ([`crate::town::drive_poses_round`]):
+    /// about 1 200 frames come back to the start, more see the first street again.
+    pub fn town_round(frames: usize, seed: u64) -> Self {
+        let mut d = Self::town(0, seed);
+        d.poses = crate::town::drive_poses_round(&d.scene, frames);
+        d
+    }
+
+    /// Up to `frames` frames of [`Drive::town`]'s car and scanner along another `path` through
+    /// the town ([`crate::town::campus_path`], [`crate::town::block_path`]).
+    pub fn town_along(path: Vec<[f64; 2]>, frames: usize, seed: u64) -> Self {
+        let mut d = Self::town(0, seed);
+        d.poses = crate::town::drive_poses_along(&d.scene, path, frames);
+        d
+    }
+
+    /// Up to `frames` frames through [`Scene::twin_streets`] (`length_m` long, `gap_m` apart),
+    /// as [`Drive::town`]'s car and scanner: along the first street, round its end into the
+    /// second and back along it (a look-alike of the first, never driven before), round
+    /// into the first again and 60 m along it (a true return).
+    pub fn twin_streets(frames: usize, length_m: f64, gap_m: f64, seed: u64) -> Self {
+        let mut d = Self::town(0, seed);
+        d.scene = Scene::twin_streets(length_m, gap_m, seed);
+        let (x0, x1) = (-35.0, length_m + 35.0);
+        let path = crate::town::path_through(&[
+            [0.0, 0.0],
+            [x1, 0.0],
+            [x1, gap_m],
+            [x0, gap_m],
+            [x0, 0.0],
+            [60.0, 0.0],
+        ]);
+        d.poses = crate::town::drive_poses_along(&d.scene, path, frames);
+        d
+    }
+
     /// [`Drive::town`] with a car's smooth attitude ([`crate::town::car_poses`]): for rolling
     /// sweeps, where a jittery pitch and roll would be motion no scanner deskews without an
     /// IMU.

@@ -156,6 +156,26 @@ impl Scene {
         }
     }
 
+    /// Two look-alike streets `gap_m` apart: [`Scene::long_street`]'s buildings, cars, poles
+    /// and shelters along `y = 0`, and the very same again along `y = gap_m`, with no end
+    /// walls (a car drives from one to the other round the ends). Standing in one, a scan
+    /// looks exactly as in the other.
+    pub fn twin_streets(length_m: f64, gap_m: f64, seed: u64) -> Self {
+        let mut one = Self::long_street(length_m, seed);
+        // The two end walls are the last boxes.
+        one.boxes.truncate(one.boxes.len().saturating_sub(2));
+        let copy: Vec<OrientedBox> = one
+            .boxes
+            .iter()
+            .map(|b| OrientedBox {
+                centre: [b.centre[0], b.centre[1] + gap_m, b.centre[2]],
+                ..*b
+            })
+            .collect();
+        one.boxes.extend(copy);
+        one
+    }
+
     /// Ground height at `(x, y)`.
     pub fn ground_height(&self, x: f64, y: f64) -> f64 {
         self.ground_z + self.terrain.map_or(0.0, |t| t.height(x, y))

@@ -203,12 +203,119 @@ pub fn route() -> Vec<[f64; 2]> {
     pts
 }
 
+/// A drive's path: `corners` (metres) joined by straights, each turn rounded with a 10 m
+/// radius, as points about 0.25 m apart. Corners must turn by a right angle (or not at all).
+pub fn path_through(corners: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let r = 10.0;
+    let at = |c: [f64; 2]| c;
+    let mut pts = Vec::new();
+    let straight = |pts: &mut Vec<[f64; 2]>, a: [f64; 2], b: [f64; 2]| {
+        let n = (((b[0] - a[0]).hypot(b[1] - a[1])) / 0.25).ceil() as usize;
+        for i in 0..n {
+            let f = i as f64 / n as f64;
+            pts.push([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])]);
+        }
+    };
+    let unit = |a: [f64; 2], b: [f64; 2]| {
+        let l = (b[0] - a[0]).hypot(b[1] - a[1]).max(1e-9);
+        [(b[0] - a[0]) / l, (b[1] - a[1]) / l]
+    };
+    let Some(&first) = corners.first() else {
+        return pts;
+    };
+    let mut from = at(first);
+    for w in corners.windows(3) {
+        let (a, c, b) = (at(w[0]), at(w[1]), at(w[2]));
+        let (din, dout) = (unit(a, c), unit(c, b));
+        if din[0] * dout[0] + din[1] * dout[1] > 0.999 {
+            continue;
+        }
+        let start = [c[0] - din[0] * r, c[1] - din[1] * r];
+        straight(&mut pts, from, start);
+        let centre = [start[0] + dout[0] * r, start[1] + dout[1] * r];
+        let left = din[0] * dout[1] - din[1] * dout[0] > 0.0;
+        let from_angle = (start[1] - centre[1]).atan2(start[0] - centre[0]);
+        let sweep = if left { 1.0 } else { -1.0 } * std::f64::consts::FRAC_PI_2;
+        let n = (r * std::f64::consts::FRAC_PI_2 / 0.25).ceil() as usize;
+        for i in 0..n {
+            let t = from_angle + sweep * i as f64 / n as f64;
+            pts.push([centre[0] + r * t.cos(), centre[1] + r * t.sin()]);
+        }
+        from = [c[0] + dout[0] * r, c[1] + dout[1] * r];
+    }
+    if let Some(&last) = corners.last() {
+        straight(&mut pts, from, at(last));
+        pts.push(at(last));
+    }
+    pts
+}
+
+/// [`path_through`] corners in street units (street `k` runs along `k · PITCH_M`).
+fn on_grid(corners: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let metres: Vec<[f64; 2]> = corners
+        .iter()
+        .map(|c| [c[0] * PITCH_M, c[1] * PITCH_M])
+        .collect();
+    path_through(&metres)
+}
+
+/// A campus drive of several loops through the town (about 2.2 km): once round the middle
+/// blocks as [`route`] goes, then up the second street, back down the third, and across
+/// the fourth, coming back to streets and crossings it has driven five more times.
+pub fn campus_path() -> Vec<[f64; 2]> {
+    on_grid(&[
+        [2.5, 1.0],
+        [4.0, 1.0],
+        [4.0, 4.0],
+        [1.0, 4.0],
+        [1.0, 1.0],
+        [2.0, 1.0],
+        [2.0, 4.0],
+        [3.0, 4.0],
+        [3.0, 1.0],
+        [4.0, 1.0],
+        [4.0, 3.0],
+        [1.0, 3.0],
+    ])
+}
+
+/// One block round and 60 m on past the start (about 420 m): the shortest drive that
+/// comes back to where it began.
+pub fn block_path() -> Vec<[f64; 2]> {
+    on_grid(&[
+        [1.5, 1.0],
+        [2.0, 1.0],
+        [2.0, 2.0],
+        [1.0, 2.0],
+        [1.0, 1.0],
+        [1.5 + 60.0 / PITCH_M, 1.0],
+    ])
+}
+
+/// Sensor poses along `path` at 10 Hz over the scene's ground, as [`drive_poses`] drives
+/// [`route`]: up to `frames` frames or the path's end.
+pub fn drive_poses_along(scene: &Scene, path: Vec<[f64; 2]>, frames: usize) -> Vec<Pose> {
+    poses_along(
+        path,
+        frames,
+        |x, y| scene.ground_height(x, y),
+        [0.5, 0.5],
+        false,
+    )
+}
+
 /// Sensor poses along [`route`] at 10 Hz: from standstill, accelerating at 2 m/s² to
 /// 10 m/s on the straights and 5 m/s in the corners; up to `frames` frames or once round.
 /// The sensor sits `SENSOR_HEIGHT_M` above the ground, level with it (pitch and roll follow
 /// the slope).
 pub fn drive_poses(scene: &Scene, frames: usize) -> Vec<Pose> {
-    poses_along_route(frames, |x, y| scene.ground_height(x, y))
+    poses_along_route_with(frames, |x, y| scene.ground_height(x, y), [0.5, 0.5], false)
+}
+
+/// [`drive_poses`] going on round the loop past its start for as many frames as asked: a
+/// drive that comes back to where it began and sees it again (for loop closure).
+pub fn drive_poses_round(scene: &Scene, frames: usize) -> Vec<Pose> {
+    poses_along_route_with(frames, |x, y| scene.ground_height(x, y), [0.5, 0.5], true)
 }
 
 /// [`drive_poses`] for a car body: its height, pitch and roll follow the hills only (the
@@ -217,26 +324,39 @@ pub fn drive_poses(scene: &Scene, frames: usize) -> Vec<Pose> {
 pub fn car_poses(scene: &Scene, frames: usize) -> Vec<Pose> {
     let ground = scene.ground_z;
     match scene.terrain {
-        Some(t) => poses_along_route_with(frames, |x, y| ground + t.hills(x, y), [1.35, 0.8]),
-        None => poses_along_route_with(frames, |_, _| ground, [1.35, 0.8]),
+        Some(t) => {
+            poses_along_route_with(frames, |x, y| ground + t.hills(x, y), [1.35, 0.8], false)
+        }
+        None => poses_along_route_with(frames, |_, _| ground, [1.35, 0.8], false),
     }
 }
 
-/// Poses along the route over the ground `h`, the attitude from `h` 0.5 m either side.
-fn poses_along_route(frames: usize, h: impl Fn(f64, f64) -> f64) -> Vec<Pose> {
-    poses_along_route_with(frames, h, [0.5, 0.5])
+/// Poses along the route over the ground `h`, the pitch from `h` `half[0]` m ahead and behind,
+/// the roll from `h` `half[1]` m to each side; once round, or on past the start with `round`.
+fn poses_along_route_with(
+    frames: usize,
+    h: impl Fn(f64, f64) -> f64,
+    half: [f64; 2],
+    round: bool,
+) -> Vec<Pose> {
+    poses_along(route(), frames, h, half, round)
 }
 
-/// Poses along the route over the ground `h`, the pitch from `h` `half[0]` m ahead and behind,
-/// the roll from `h` `half[1]` m to each side.
-fn poses_along_route_with(frames: usize, h: impl Fn(f64, f64) -> f64, half: [f64; 2]) -> Vec<Pose> {
-    let path = route();
+/// [`poses_along_route_with`] along any `path` (`round`: a closed one, driven on past its end).
+fn poses_along(
+    path: Vec<[f64; 2]>,
+    frames: usize,
+    h: impl Fn(f64, f64) -> f64,
+    half: [f64; 2],
+    round: bool,
+) -> Vec<Pose> {
     let mut cum = vec![0.0];
     for w in path.windows(2) {
         cum.push(cum[cum.len() - 1] + (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]));
     }
     let total = cum[cum.len() - 1];
     let at = |s: f64| {
+        let s = if round { s.rem_euclid(total) } else { s };
         let i = cum.partition_point(|&c| c <= s).clamp(1, path.len() - 1);
         let f = ((s - cum[i - 1]) / (cum[i] - cum[i - 1]).max(1e-9)).clamp(0.0, 1.0);
         let (a, b) = (path[i - 1], path[i]);
@@ -248,7 +368,11 @@ fn poses_along_route_with(frames: usize, h: impl Fn(f64, f64) -> f64, half: [f64
     // Curvature near s: heading change over the next 15 m.
     let cornering = |s: f64| {
         let (_, h0) = at(s);
-        let (_, h1) = at((s + 15.0).min(total));
+        let (_, h1) = at(if round {
+            s + 15.0
+        } else {
+            (s + 15.0).min(total)
+        });
         let mut d = (h1 - h0).abs();
         if d > std::f64::consts::PI {
             d = std::f64::consts::TAU - d;
@@ -257,7 +381,7 @@ fn poses_along_route_with(frames: usize, h: impl Fn(f64, f64) -> f64, half: [f64
     };
     let (mut s, mut v) = (0.0f64, 0.0f64);
     let mut poses = Vec::with_capacity(frames);
-    while poses.len() < frames && s < total {
+    while poses.len() < frames && (round || s < total) {
         let ([x, y], yaw) = at(s);
         let (c, sn) = (yaw.cos(), yaw.sin());
         let [e, w] = half;

@@ -9,6 +9,7 @@
 //! | the core's loops on several threads | [`parallel`] |
 //! | a run: frame source, run loop, report, window, checkpoint | [`run`] |
 //! | odometry and mesh accuracy | [`eval`] |
+//! | loop closure: revisits found, the pose graph, the map rebuilt | [`loop_closure`] |
 //! | the simulated demo (feature `sim`) | `demo` |
 //! | the live view and its recording for the Foxglove app (feature `view`) | `view` |
 //!
@@ -22,6 +23,7 @@
 pub mod demo;
 pub mod eval;
 pub mod io;
+pub mod loop_closure;
 pub mod parallel;
 pub mod run;
 #[cfg(feature = "view")]

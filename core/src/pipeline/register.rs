@@ -120,6 +120,7 @@ impl<C: Capacity> Pipeline<C> {
                 Purpose::Register {
                     reach,
                     half_cells: reach > 0 && r.coarse_half_cells,
+                    since: self.stale_before(),
                 }
             };
             let (b, made) = self.reconstruct(&a.pose, exec, purpose, probe);
@@ -132,6 +133,7 @@ impl<C: Capacity> Pipeline<C> {
                 &self.scan,
                 &self.map,
                 reach,
+                self.stale_before(),
                 r.variance_register,
                 &mut self.residuals,
                 exec,

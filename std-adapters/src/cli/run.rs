@@ -11,6 +11,7 @@ use slamesh::io::kitti::BinFields;
 use slamesh::io::mesh_spool::{MeshColour, MeshFormat};
 use slamesh::io::trajectory::Trajectory;
 use slamesh::io::{kitti, trajectory, FileError};
+use slamesh::loop_closure::settings::LoopSettings;
 use slamesh::run::capacity;
 use slamesh::run::memory;
 use slamesh::run::session::{Deskew, InitialPose};
@@ -90,6 +91,12 @@ pub struct RunArgs {
     /// in later or map on from (`--map`).
     #[arg(long, value_name = "FILE")]
     pub save_map: Option<PathBuf>,
+    /// Close loops: when the sensor comes back to where it has been, correct the trajectory
+    /// and rebuild the map so that the revisited place is one surface (a thread of its own;
+    /// each scan is kept on disk in the output folder until the end, about 170 KB a frame).
+    /// Not with a memory cap or a window.
+    #[arg(long, value_enum, default_value_t = OnOff::Off)]
+    pub loop_closure: OnOff,
     /// Serve a live view for the Foxglove app on ADDR (default 127.0.0.1:8765, this machine
     /// only; reach it from a laptop through an SSH tunnel). It only publishes.
     #[cfg(feature = "view")]
@@ -99,6 +106,15 @@ pub struct RunArgs {
     #[cfg(feature = "view")]
     #[arg(long)]
     pub record: bool,
+}
+
+/// A feature turned on or off.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnOff {
+    /// On.
+    On,
+    /// Off.
+    Off,
 }
 
 /// `--deskew`.
@@ -273,6 +289,9 @@ fn run_with(
     if args.obj {
         mesh_formats.push(MeshFormat::Obj);
     }
+    if args.loop_closure == OnOff::On && s.config.map.stale_after_frames == 0 {
+        s.config.map.stale_after_frames = LoopSettings::default().stale_after_frames;
+    }
     let opts = RunOptions {
         out: args.out.clone(),
         config: s.config,
@@ -294,6 +313,7 @@ fn run_with(
         localize_only,
         initial_pose: args.initial_pose,
         save_map: args.save_map.clone(),
+        loop_closure: (args.loop_closure == OnOff::On).then(LoopSettings::default),
         deskew: match args.deskew {
             DeskewFlag::Auto => Deskew::Auto,
             DeskewFlag::Off => Deskew::Off,

@@ -7,7 +7,9 @@
 //! | mesh precision, recall and F-score against a point cloud | [`mesh`] |
 //! | a mesh's boundary and non-manifold edges, and its connected pieces | [`topology`] |
 //! | why a welded mesh has boundary edges, edge by edge | [`seams`] |
+//! | one surface mapped twice (a loop left open) | [`duplicates`] |
 
+pub mod duplicates;
 pub mod mesh;
 pub mod odometry;
 pub mod seams;

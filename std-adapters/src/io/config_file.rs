@@ -156,6 +156,7 @@ parameters! {
     "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
     "map" map.add_missing_layers: boolean as Value::Boolean, "Add a layer that a known cell lacks.";
     "map" map.reconstruct_at_final_pose: boolean as Value::Boolean, "Reconstruct the scan again at its final pose before fusing it (false: move the last round's reconstruction there instead; about a quarter faster, a little less accurate).";
+    "map" map.stale_after_frames: count as iv, "A cell not seen for more than this many frames is left out of registration and mapped afresh when seen again (0: never; --loop-closure on sets 300).";
     "mesh" mesh.variance_show: float as fv, "Triangles whose mean vertex variance is at or above this are not shown.";
     "mesh" mesh.max_slope_deg: float as fv, "Triangles steeper than this against their layer's axis (degrees) are not shown (90: all shown).";
 }

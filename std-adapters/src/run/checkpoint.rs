@@ -327,6 +327,23 @@ impl<'a> Decoder<'a> {
     }
 }
 
+/// What identifies a run for resuming: its input, frames, capacity, configuration, window and
+/// given poses (the thread count is left out: it does not change the results).
+pub fn fingerprint<C: slamesh_core::Capacity>(
+    source: &impl crate::run::source::FrameSource,
+    opts: &crate::run::options::RunOptions,
+) -> String {
+    format!(
+        "input {:?}, {} frames, capacity {}, config {:?}, window {:?}, {} given poses",
+        opts.input,
+        source.frames(),
+        std::any::type_name::<C>(),
+        opts.config,
+        opts.window,
+        opts.given_poses.as_ref().map_or(0, |t| t.poses.len())
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -5,6 +5,7 @@ use crate::io::config_file::WindowSettings;
 use crate::io::error::FileError;
 use crate::io::mesh_spool::{MeshColour, MeshFormat};
 use crate::io::trajectory::Trajectory;
+use crate::loop_closure::settings::LoopSettings;
 use slamesh_core::{Config, ConfigError};
 use std::fmt;
 use std::path::PathBuf;
@@ -52,6 +53,10 @@ pub struct RunOptions {
     /// Write the map to this file at the end (`--save-map`): every cell, those a window
     /// evicted included.
     pub save_map: Option<PathBuf>,
+    /// Close loops with these settings (`--loop-closure on`, [`crate::loop_closure`]; `None`,
+    /// the default: off). Pair it with `config.map.stale_after_frames` (the command sets
+    /// [`LoopSettings::stale_after_frames`]).
+    pub loop_closure: Option<LoopSettings>,
     /// The live view and its recording (`--view`, `--record`).
     #[cfg(feature = "view")]
     pub view: crate::view::ViewOptions,

@@ -11,6 +11,7 @@ use crate::io::error::FileError;
 use crate::io::mesh_spool::MeshSpool;
 use crate::io::topview::TopView;
 use crate::io::trajectory::{write_kitti_line, write_tum_line};
+use crate::loop_closure::{Closure, LoopReport};
 use crate::run::options::RunOptions;
 use crate::run::source::FrameSource;
 use crate::run::timing::StageMs;
@@ -72,6 +73,9 @@ pub struct FrameRecord {
     /// (position, the share of the scan on the map, the best elsewhere, hypotheses tried).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub relocalization: Option<String>,
+    /// Loop closures applied before this frame ([`crate::loop_closure`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub loop_closures: Vec<Closure>,
 }
 
 impl FrameRecord {
@@ -100,6 +104,7 @@ impl FrameRecord {
             deskewed_points: 0,
             stamp: 0.0,
             relocalization: None,
+            loop_closures: Vec::new(),
         }
     }
 }
@@ -148,6 +153,9 @@ pub struct Summary {
     pub peak_rss_mb: Option<f64>,
     /// Frames by status, and those not registered normally.
     pub health: Health,
+    /// What loop closure did, when it was on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loop_closure: Option<LoopReport>,
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,

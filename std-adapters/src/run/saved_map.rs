@@ -13,7 +13,7 @@ use crate::io::map_file::{MapFile, MapInfo};
 use crate::run::options::InitialPose;
 use slamesh_core::map::MeshMap;
 use slamesh_core::pipeline::Relocalized;
-use slamesh_core::relocalize::Search;
+use slamesh_core::relocalize::{along_path, Search};
 use slamesh_core::{Config, Pose};
 use std::path::Path;
 use std::time::Instant;
@@ -58,29 +58,11 @@ pub fn config_of(path: &Path) -> Result<config_file::Settings, FileError> {
     })
 }
 
-/// Candidate poses for the search: the path's poses every `spacing_m` metres of travel, each
-/// also moved `spacing_m` to its left and to its right (horizontally, across its heading).
+/// Candidate poses for the search along a saved map's path
+/// ([`slamesh_core::relocalize::along_path`]).
 pub fn candidates(path: &[(f64, Pose)], spacing_m: f64) -> Vec<Pose> {
     let mut out = Vec::new();
-    let mut last: Option<Pose> = None;
-    for (_, p) in path {
-        if last.is_some_and(|l| (l.translation.vector - p.translation.vector).norm() < spacing_m) {
-            continue;
-        }
-        last = Some(*p);
-        let heading = p.rotation * nalgebra::Vector3::x();
-        let left = nalgebra::Vector3::new(-heading.y, heading.x, 0.0);
-        let left = if left.norm() > 1e-6 {
-            left.normalize()
-        } else {
-            nalgebra::Vector3::y()
-        };
-        for side in [0.0, 1.0, -1.0] {
-            let mut c = *p;
-            c.translation.vector += left * side * spacing_m;
-            out.push(c);
-        }
-    }
+    along_path(path.iter().map(|(_, p)| p), spacing_m, |c| out.push(c));
     out
 }
 

@@ -15,6 +15,7 @@ use crate::io::atomic::open_cut;
 use crate::io::error::FileError;
 use crate::io::map_file::MapWriter;
 use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
+use crate::loop_closure::LoopClosure;
 use crate::parallel::Workers;
 use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
@@ -100,6 +101,8 @@ pub struct Run<'a, C: Capacity> {
     saved_map: Option<MapWriter>,
     /// The saved map paged in under the memory cap (localizing only).
     pager: Option<MapPager>,
+    /// Loop closure's thread, when on.
+    closer: Option<LoopClosure<C>>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -114,7 +117,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let frames_path = frames_path(opts);
         let frames = File::create(&frames_path)
             .map_err(|e| FileError::at(&frames_path, format!("cannot create: {e}")))?;
-        let progress = Progress::new(fingerprint::<C>(source, opts));
+        let progress = Progress::new(checkpoint::fingerprint::<C>(source, opts));
         Self::assemble(opts, setup, spool, frames, progress)
     }
 
@@ -133,7 +136,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         // The checkpoint holds the whole map as it stood (a saved map's cells included).
         setup.pipeline.map_mut().evict_where(|_, _| true, |_| {});
         let progress = checkpoint::read(&path, setup.pipeline.map_mut())?;
-        let fingerprint = fingerprint::<C>(source, opts);
+        let fingerprint = checkpoint::fingerprint::<C>(source, opts);
         if progress.fingerprint != fingerprint {
             return Err(FileError::at(
                 &path,
@@ -184,7 +187,23 @@ impl<'a, C: Capacity> Run<'a, C> {
             )?),
             None => None,
         };
+        let closer = match opts.loop_closure {
+            Some(_) if setup.max_layers.is_some() || !setup.window.is_off() => {
+                return Err(RunError::Config(slamesh_core::ConfigError {
+                    field: "loop closure",
+                    reason: "it rebuilds the whole map, so it does not run with a memory cap or \
+                             a sliding window yet: leave out one of the two",
+                }))
+            }
+            Some(s) => Some(LoopClosure::start(
+                opts.config,
+                s,
+                &opts.out.join(".loop-closure.scans"),
+            )?),
+            None => None,
+        };
         Ok(Run {
+            closer,
             search,
             map_path,
             saved_map,
@@ -238,6 +257,12 @@ impl<'a, C: Capacity> Run<'a, C> {
     ) -> Result<FrameRecord, RunError> {
         let label = source.label(i);
         let mut rec = FrameRecord::skipped(i, label.clone());
+        if let Some(c) = &mut self.closer {
+            for closed in c.apply(&mut self.pipeline, &mut self.progress.poses, i) {
+                log::info!("frame {i}: {}", closed.describe());
+                rec.loop_closures.push(closed);
+            }
+        }
         let read = self.ahead.take(source, i);
         let deskew = self.opts.deskew;
         // After the read: a recording knows a frame's stamp once it has read the message.
@@ -436,6 +461,10 @@ impl<'a, C: Capacity> Run<'a, C> {
                 };
                 self.progress.poses.push((i, at_stamp));
                 self.progress.used_ms.push(rec.ms);
+                if let Some(c) = &mut self.closer {
+                    let counter = self.pipeline.frames();
+                    c.observe(i, counter, &o.t_world_sensor, self.pipeline.last_points());
+                }
             }
             Err(e) => {
                 if found.is_some() {
@@ -483,6 +512,14 @@ impl<'a, C: Capacity> Run<'a, C> {
     /// Writes the trajectories, the mesh files and `report.json`, removes the spools and the
     /// checkpoint, and sums the run up.
     pub fn finish(mut self, source: &impl FrameSource) -> Result<Summary, RunError> {
+        let loop_closure = match self.closer.take() {
+            Some(c) => Some(c.finish(
+                &mut self.pipeline,
+                &mut self.progress.poses,
+                source.frames(),
+            )?),
+            None => None,
+        };
         self.progress.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
         let Progress {
             poses,
@@ -546,6 +583,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             max_layers: self.max_layers,
             peak_rss_mb: memory::peak_rss_bytes().map(memory::mb),
             health,
+            loop_closure,
             poses,
         };
         write_report(out, self.opts, &summary, &self.frames_path)?;
@@ -559,20 +597,6 @@ impl<'a, C: Capacity> Run<'a, C> {
 /// The run's frame records, spooled one JSON object a line until `report.json` is written.
 fn frames_path(opts: &RunOptions) -> PathBuf {
     opts.out.join(".report.frames.spool")
-}
-
-/// What identifies a run for resuming: its input, frames, capacity, configuration, window and
-/// given poses (the thread count is left out: it does not change the results).
-fn fingerprint<C: Capacity>(source: &impl FrameSource, opts: &RunOptions) -> String {
-    format!(
-        "input {:?}, {} frames, capacity {}, config {:?}, window {:?}, {} given poses",
-        opts.input,
-        source.frames(),
-        std::any::type_name::<C>(),
-        opts.config,
-        opts.window,
-        opts.given_poses.as_ref().map_or(0, |t| t.poses.len())
-    )
 }
 
 /// `mesh.ply` or `mesh.obj` in `out`.

@@ -1,0 +1,119 @@
+//! What loop closure changes (docs/design.md §1.14, docs/benchmarks.md "Loop closure"): for
+//! runs over a simulated town drive written by `write_drive`, the trajectory's end-point
+//! error and ATE against the truth, the mesh's precision, recall and F1 against the true
+//! surfaces, and the duplicated surfaces (one surface mapped twice, `eval::duplicates`) in
+//! the whole map and within 60 m of where the drive came back.
+//!
+//! ```text
+//! cargo run --release --example write_drive -- --out /tmp/campus --path campus --frames 3000
+//! slamesh run /tmp/campus --out /tmp/campus-off --save-map /tmp/campus-off/map.slamesh
+//! slamesh run /tmp/campus --out /tmp/campus-on --save-map /tmp/campus-on/map.slamesh --loop-closure on
+//! cargo run --release --example loop_closure -- --path campus --frames 3000 --runs /tmp/campus-off,/tmp/campus-on
+//! ```
+//!
+//! `--path campus|block|round` and `--frames N` (and `--seed S`, 1 by default) must be those
+//! the drive was written with; each run folder (`--runs`, comma-separated) needs `poses_kitti.txt`, `mesh.ply` and
+//! `map.slamesh`. `--closure-frame F` names the frame the drive comes back at (for the
+//! duplicates near it; default: the first frame within 10 m of an earlier one 100 m behind).
+
+#[path = "common/flags.rs"]
+mod flags;
+
+use flags::Flags;
+use slamesh::eval::duplicates::duplicated_near;
+use slamesh::eval::duplicates::duplicated_surfaces;
+use slamesh::eval::mesh as mesh_eval;
+use slamesh::eval::odometry::{ate_rmse, end_drift};
+use slamesh::io::map_file::MapFile;
+use slamesh::io::ply::read_ply_mesh;
+use slamesh::io::trajectory::read_kitti;
+use slamesh_core::map::MeshMap;
+use slamesh_core::Pose;
+use slamesh_sim::{Drive, SurfaceDistance};
+use std::path::PathBuf;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let flags = Flags::from_env();
+    let frames: usize = flags.parse_or("--frames", 1000)?;
+    let seed: u64 = flags.parse_or("--seed", 1)?;
+    let drive = match flags.value("--path") {
+        Some("campus") => Drive::town_along(slamesh_sim::town::campus_path(), frames, seed),
+        Some("block") => Drive::town_along(slamesh_sim::town::block_path(), frames, seed),
+        Some("round") => Drive::town_round(frames, seed),
+        _ => return Err("--path campus|block|round is required".into()),
+    };
+    let runs: Vec<PathBuf> = flags
+        .value("--runs")
+        .ok_or("--runs DIR,DIR,... is required")?
+        .split(',')
+        .map(PathBuf::from)
+        .collect();
+    let to_first = drive.poses[0].inverse();
+    let truth: Vec<Pose> = drive.poses.iter().map(|p| to_first * p).collect();
+    let back = match flags.value("--closure-frame") {
+        Some(f) => f.parse()?,
+        None => comes_back(&truth).ok_or("the drive never comes back: --closure-frame F")?,
+    };
+    println!(
+        "{} frames; the drive comes back at frame {back}; truth for the mesh from every 5th frame",
+        truth.len()
+    );
+    let reference = mesh_eval::accumulate(
+        (0..drive.poses.len())
+            .step_by(5)
+            .map(|i| (drive.true_points(i), to_first)),
+        0.05,
+        0.0,
+        f64::INFINITY,
+    );
+    let surfaces = SurfaceDistance::new(&drive.scene);
+    println!("run | end point (m) | ATE (m) | P / R / F1 at 0.1 m | duplicates: all, within 60 m of the return");
+    for run in &runs {
+        let estimate = read_kitti(&run.join("poses_kitti.txt"))?;
+        let n = estimate.len().min(truth.len());
+        let (end_m, _) = end_drift(&estimate[..n], &truth[..n]);
+        let ate = ate_rmse(&estimate[..n], &truth[..n]);
+        let mesh = read_ply_mesh(&run.join("mesh.ply"))?;
+        let samples = mesh_eval::sample_triangles(mesh.triangle_corners(), 0.05, 1);
+        let d_mesh: Vec<f64> = samples
+            .iter()
+            .map(|p| {
+                let w =
+                    drive.poses[0] * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                surfaces.distance(&w.coords)
+            })
+            .collect();
+        let s = mesh_eval::score_with_precision_distances(&d_mesh, &samples, &reference, &[0.1]);
+        let mut file = MapFile::open(&run.join("map.slamesh"))?;
+        // A layer takes at least 288 bytes of the file.
+        let most = (file.bytes / 288) as usize;
+        let mut map = MeshMap::with_capacity(most, most, file.info.lattice);
+        file.load_all(&mut map)?;
+        let max_var = 0.3;
+        let all = duplicated_surfaces(&map, max_var, 0.3, |_| true);
+        let near = duplicated_near(&map, max_var, 0.3, &truth[back], 60.0);
+        println!(
+            "{} | {end_m:.3} | {ate:.3} | {:.3} / {:.3} / {:.3} | {all}, {near}",
+            run.display(),
+            s[0].precision,
+            s[0].recall,
+            s[0].f1
+        );
+    }
+    Ok(())
+}
+
+/// The first frame within 10 m of a frame more than 100 m of path behind it.
+fn comes_back(poses: &[Pose]) -> Option<usize> {
+    let mut travelled = vec![0.0];
+    for w in poses.windows(2) {
+        let d = (w[1].translation.vector - w[0].translation.vector).norm();
+        travelled.push(travelled[travelled.len() - 1] + d);
+    }
+    (0..poses.len()).find(|&i| {
+        (0..i).any(|j| {
+            travelled[i] - travelled[j] > 100.0
+                && (poses[i].translation.vector - poses[j].translation.vector).norm() < 10.0
+        })
+    })
+}

@@ -1,0 +1,265 @@
+//! Loop closure (docs/design.md §1.14): when the sensor comes back to where it has been, the
+//! drift between the two visits is found, spread over the trajectory by a pose graph, and the
+//! map is rebuilt at the corrected poses so that the revisited street is one surface.
+//!
+//! | what | module |
+//! |---|---|
+//! | the settings | [`settings`] |
+//! | the scans kept for later, on disk | [`spool`] |
+//! | which earlier frames a keyframe may revisit, and the check | [`detect`] |
+//! | the pose graph and its solver | [`graph`] |
+//! | the thread that does all of it | `worker` |
+//!
+//! A run hands each frame it used to a [`LoopClosure`] ([`LoopClosure::observe`]: the pose and
+//! the filtered scan) and asks before each frame whether a correction is ready
+//! ([`LoopClosure::apply`]): a cheap, non-blocking look at a channel. Everything else runs on
+//! the loop-closure thread, so a frame never waits for it. A correction moves every pose of
+//! the trajectory, moves the pipeline's motion history with the newest, and swaps in the
+//! rebuilt map. Without a revisit nothing is ever sent, and the run's outputs are those of a
+//! run without loop closure, byte for byte.
+//!
+//! What is kept: each frame's filtered scan on disk (12 bytes a point, removed at the end),
+//! and in memory 3 poses a frame, the keyframe graph, the local map of a check (at most
+//! 60 000 layers) and, while the map is rebuilt, a second map.
+
+pub mod detect;
+pub mod graph;
+pub mod settings;
+pub mod spool;
+mod worker;
+
+use crate::io::error::FileError;
+use serde::{Deserialize, Serialize};
+use settings::LoopSettings;
+use slamesh_core::motion::ConstantVelocity;
+use slamesh_core::{Capacity, Config, Pipeline, Point, Pose};
+use spool::ScanSpool;
+use std::path::Path;
+use std::sync::mpsc::{channel, Receiver, Sender};
+use std::thread::JoinHandle;
+
+/// One loop closed: which frames, how sure, how large the correction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Closure {
+    /// The frame that came back.
+    pub frame: usize,
+    /// The earlier frame (a keyframe) it was found near.
+    pub with_frame: usize,
+    /// Share of the scan's points on the earlier map's surfaces at the pose found.
+    pub hit_share: f64,
+    /// The same on its walls.
+    pub wall_share: f64,
+    /// The best pose elsewhere's share (the search's ambiguity check).
+    pub runner_up_share: f64,
+    /// How far the pose found is from the odometry's (m).
+    pub correction_m: f64,
+    /// How far it is turned from it (degrees).
+    pub correction_deg: f64,
+    /// Where the frame was found (m, in the world as corrected until then).
+    pub position: [f64; 3],
+    /// The frame before which the run applied the correction.
+    pub applied_at_frame: Option<usize>,
+}
+
+impl Closure {
+    /// One line for the log.
+    pub fn describe(&self) -> String {
+        format!(
+            "loop closed with frame {} (found at frame {}): {:.0} % of the scan on the earlier \
+             map ({:.0} % on walls, the best elsewhere {:.0} %), correction {:.2} m, {:.2} deg",
+            self.with_frame,
+            self.frame,
+            100.0 * self.hit_share,
+            100.0 * self.wall_share,
+            100.0 * self.runner_up_share,
+            self.correction_m,
+            self.correction_deg
+        )
+    }
+}
+
+/// To the loop-closure thread.
+enum ToWorker<C: Capacity> {
+    /// A frame the run used: its index, pose and filtered scan (sensor frame).
+    Frame {
+        frame: usize,
+        counter: u32,
+        pose: Pose,
+        points: Vec<Point>,
+    },
+    /// The run applied a correction whose `last` was `correction`; the rebuilt pipeline
+    /// comes back holding the map it replaced.
+    Applied {
+        correction: Pose,
+        returned: Option<Box<Pipeline<C>>>,
+    },
+    /// No more frames: finish what is pending.
+    Finish,
+}
+
+/// From the loop-closure thread: a correction, or the end.
+struct Corrected<C: Capacity> {
+    /// A pipeline whose map was rebuilt at the corrected poses (when any moved enough).
+    rebuilt: Option<Box<Pipeline<C>>>,
+    /// For each frame the thread knows (in order), what to multiply its pose by on the left.
+    per_frame: Vec<(usize, Pose)>,
+    /// The same for every later frame.
+    last: Pose,
+    /// The closures accepted since the last correction.
+    closures: Vec<Closure>,
+    /// The thread is done (nothing else in this message).
+    done: bool,
+    /// Bytes of scans spooled so far.
+    spool_bytes: u64,
+}
+
+impl<C: Capacity> Corrected<C> {
+    fn done(spool_bytes: u64) -> Self {
+        Self {
+            rebuilt: None,
+            per_frame: Vec::new(),
+            last: Pose::identity(),
+            closures: Vec::new(),
+            done: true,
+            spool_bytes,
+        }
+    }
+}
+
+/// What the run learns from [`LoopClosure::finish`].
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct LoopReport {
+    /// Every closure accepted, in order.
+    pub closures: Vec<Closure>,
+    /// Corrections applied, and how many of them swapped in a rebuilt map.
+    pub corrections: usize,
+    /// See `corrections`.
+    pub rebuilds: usize,
+    /// Bytes of scans the spool held at the end.
+    pub spool_bytes: u64,
+}
+
+/// The run's end of loop closure.
+pub struct LoopClosure<C: Capacity> {
+    to_worker: Sender<ToWorker<C>>,
+    from_worker: Receiver<Corrected<C>>,
+    thread: Option<JoinHandle<Result<(), FileError>>>,
+    report: LoopReport,
+}
+
+impl<C: Capacity> LoopClosure<C> {
+    /// Starts the loop-closure thread, spooling scans to `spool_path`.
+    pub fn start(config: Config, s: LoopSettings, spool_path: &Path) -> Result<Self, FileError> {
+        let spool = ScanSpool::create(spool_path)?;
+        let (to_worker, rx) = channel();
+        let (tx, from_worker) = channel();
+        let worker = worker::Worker::<C>::new(config, s, spool, tx)?;
+        let thread = std::thread::Builder::new()
+            .name("slamesh-loop-closure".into())
+            .spawn(move || worker.run(rx))
+            .map_err(|e| FileError::at(spool_path, format!("cannot start loop closure: {e}")))?;
+        Ok(Self {
+            to_worker,
+            from_worker,
+            thread: Some(thread),
+            report: LoopReport::default(),
+        })
+    }
+
+    /// Hands the thread a frame the run used: its pose and the filtered scan it fused.
+    /// `counter` is the pipeline's frame count after it ([`Pipeline::frames`]).
+    pub fn observe(&mut self, frame: usize, counter: u32, pose: &Pose, points: &[Point]) {
+        let _ = self.to_worker.send(ToWorker::Frame {
+            frame,
+            counter,
+            pose: *pose,
+            points: points.to_vec(),
+        });
+    }
+
+    /// Applies a correction if one is ready (never waits): the trajectory `poses` (by frame,
+    /// in order) and the pipeline's motion history move, and a rebuilt map replaces the
+    /// pipeline's. `next_frame` is the frame about to run. Returns the closures it brought.
+    pub fn apply(
+        &mut self,
+        pipeline: &mut Pipeline<C>,
+        poses: &mut [(usize, Pose)],
+        next_frame: usize,
+    ) -> Vec<Closure> {
+        match self.from_worker.try_recv() {
+            Ok(c) if !c.done => self.take(c, pipeline, poses, next_frame),
+            _ => Vec::new(),
+        }
+    }
+
+    fn take(
+        &mut self,
+        c: Corrected<C>,
+        pipeline: &mut Pipeline<C>,
+        poses: &mut [(usize, Pose)],
+        next_frame: usize,
+    ) -> Vec<Closure> {
+        let mut known = c.per_frame.iter().peekable();
+        for (frame, pose) in poses.iter_mut() {
+            while known.peek().is_some_and(|(f, _)| f < frame) {
+                known.next();
+            }
+            let k = match known.peek() {
+                Some((f, k)) if f == frame => k,
+                _ => &c.last,
+            };
+            *pose = k * *pose;
+        }
+        let (before, last) = pipeline.motion().history();
+        let moved =
+            ConstantVelocity::from_history(before.map(|p| c.last * p), last.map(|p| c.last * p));
+        pipeline.restore_progress(pipeline.frames(), moved);
+        let mut returned = c.rebuilt;
+        if let Some(p) = &mut returned {
+            std::mem::swap(pipeline.map_mut(), p.map_mut());
+            self.report.rebuilds += 1;
+        }
+        self.report.corrections += 1;
+        self.report.spool_bytes = c.spool_bytes;
+        let _ = self.to_worker.send(ToWorker::Applied {
+            correction: c.last,
+            returned,
+        });
+        let mut closures = c.closures;
+        for cl in &mut closures {
+            cl.applied_at_frame = Some(next_frame);
+        }
+        self.report.closures.extend(closures.iter().cloned());
+        closures
+    }
+
+    /// Waits for the thread to finish what is pending, applies its last corrections, and
+    /// says what loop closure did. `next_frame` is one past the last frame run.
+    pub fn finish(
+        mut self,
+        pipeline: &mut Pipeline<C>,
+        poses: &mut [(usize, Pose)],
+        next_frame: usize,
+    ) -> Result<LoopReport, FileError> {
+        let _ = self.to_worker.send(ToWorker::Finish);
+        while let Ok(c) = self.from_worker.recv() {
+            if c.done {
+                self.report.spool_bytes = c.spool_bytes;
+                break;
+            }
+            self.take(c, pipeline, poses, next_frame);
+        }
+        if let Some(t) = self.thread.take() {
+            match t.join() {
+                Ok(r) => r?,
+                Err(_) => {
+                    return Err(FileError::at(
+                        Path::new("loop closure"),
+                        "the loop-closure thread failed",
+                    ))
+                }
+            }
+        }
+        Ok(self.report)
+    }
+}

@@ -1,0 +1,480 @@
+//! The loop-closure thread (docs/design.md §1.14): spools each frame's scan, keeps the
+//! keyframe graph, checks keyframes for revisits, optimises the graph when a closure is
+//! accepted, rebuilds the map at the corrected poses, and hands the correction to the run.
+//!
+//! It never waits for the run except for the acknowledgement of a correction it sent: one
+//! correction is in flight at a time, so that each is computed against the poses the run
+//! reports.
+
+use crate::io::error::FileError;
+use crate::loop_closure::detect::{self, Past};
+use crate::loop_closure::graph::{Edge, PoseGraph};
+use crate::loop_closure::settings::LoopSettings;
+use crate::loop_closure::spool::ScanSpool;
+use crate::loop_closure::{Closure, Corrected, ToWorker};
+use nalgebra::{Matrix6, Vector6};
+use slamesh_core::math::{rotation_angle, se3_exp, se3_log};
+use slamesh_core::motion::ConstantVelocity;
+use slamesh_core::{Capacity, Config, Pipeline, Pose};
+use std::sync::mpsc::{Receiver, Sender};
+
+/// Layers the local map of a check may hold (a few dozen scans' worth).
+const SUBMAP_LAYERS: usize = 60_000;
+/// Frames a rebuild fuses between two looks at the run's messages and checks.
+const REBUILD_SLICE: usize = 16;
+
+/// One frame the run used.
+struct Frame {
+    /// The run's frame index.
+    frame: usize,
+    /// The pose as the odometry made it, before any correction.
+    raw: Pose,
+    /// Metres travelled from the start.
+    travelled_m: f64,
+    /// The graph node at or before it.
+    node: usize,
+    /// The correction the run's map holds it at (`map pose = in_map · raw`).
+    in_map: Pose,
+    /// The correction the run's trajectory has it at (`run's pose = shown · raw`).
+    shown: Pose,
+}
+
+/// The thread's state.
+pub(crate) struct Worker<C: Capacity> {
+    config: Config,
+    s: LoopSettings,
+    spool: ScanSpool,
+    frames: Vec<Frame>,
+    graph: PoseGraph,
+    /// The frame index (into `frames`) of each node.
+    node_frame: Vec<usize>,
+    /// The run reports `applied · raw`.
+    applied: Pose,
+    /// Travel when a keyframe was last checked.
+    checked_at_m: f64,
+    /// A checked revisit waiting for another to agree: its node and correction.
+    pending: Option<(usize, Pose, Closure)>,
+    /// The graph changed since the last correction sent.
+    dirty: bool,
+    /// A correction was sent and not yet acknowledged.
+    in_flight: bool,
+    /// Frames the correction in flight names; later ones get its `last`.
+    sent_upto: usize,
+    finishing: bool,
+    /// The run pipeline's frame count after the newest frame.
+    counter: u32,
+    new_closures: Vec<Closure>,
+    submap: Pipeline<C>,
+    /// A pipeline for the next rebuild (the one the run handed back).
+    rebuild: Option<Box<Pipeline<C>>>,
+    rebuilding: Option<Rebuild<C>>,
+    to_run: Sender<Corrected<C>>,
+}
+
+impl<C: Capacity> Worker<C> {
+    pub(crate) fn new(
+        config: Config,
+        s: LoopSettings,
+        spool: ScanSpool,
+        to_run: Sender<Corrected<C>>,
+    ) -> Result<Self, FileError> {
+        let submap = Pipeline::<C>::with_map_layers(config, SUBMAP_LAYERS)
+            .map_err(|e| FileError::at(std::path::Path::new("loop closure"), e.to_string()))?;
+        Ok(Self {
+            config,
+            s,
+            spool,
+            frames: Vec::new(),
+            graph: PoseGraph::default(),
+            node_frame: Vec::new(),
+            applied: Pose::identity(),
+            checked_at_m: f64::NEG_INFINITY,
+            pending: None,
+            dirty: false,
+            in_flight: false,
+            sent_upto: 0,
+            finishing: false,
+            counter: 0,
+            new_closures: Vec::new(),
+            submap,
+            rebuild: None,
+            rebuilding: None,
+            to_run,
+        })
+    }
+
+    /// Runs until the run says it is finishing and nothing is left to do.
+    pub(crate) fn run(mut self, rx: Receiver<ToWorker<C>>) -> Result<(), FileError> {
+        loop {
+            // Idle: wait for the run. Rebuilding: only look.
+            if self.rebuilding.is_none() {
+                let Ok(first) = rx.recv() else { return Ok(()) };
+                self.take(first)?;
+            }
+            while let Ok(m) = rx.try_recv() {
+                self.take(m)?;
+            }
+            self.check()?;
+            if self.rebuilding.is_some() {
+                self.rebuild_slice()?;
+            } else if self.dirty && !self.in_flight {
+                self.start_correction()?;
+            }
+            if self.finishing && !self.in_flight && !self.dirty && self.rebuilding.is_none() {
+                let _ = self.to_run.send(Corrected::done(self.spool.bytes()));
+                return Ok(());
+            }
+        }
+    }
+
+    fn take(&mut self, m: ToWorker<C>) -> Result<(), FileError> {
+        match m {
+            ToWorker::Frame {
+                frame,
+                counter,
+                pose,
+                points,
+            } => {
+                self.counter = counter;
+                self.add_frame(frame, &pose, &points)?
+            }
+            ToWorker::Applied {
+                correction,
+                returned,
+            } => {
+                // Frames the correction did not name were moved by its `last`.
+                for f in &mut self.frames[self.sent_upto..] {
+                    f.shown = correction * f.shown;
+                }
+                self.applied = correction * self.applied;
+                self.in_flight = false;
+                if let Some(mut p) = returned {
+                    p.map_mut().evict_where(|_, _| true, |_| {});
+                    self.rebuild = Some(p);
+                }
+            }
+            ToWorker::Finish => self.finishing = true,
+        }
+        Ok(())
+    }
+
+    /// Spools a frame and adds a keyframe when it has moved or turned enough.
+    fn add_frame(
+        &mut self,
+        frame: usize,
+        reported: &Pose,
+        points: &[slamesh_core::Point],
+    ) -> Result<(), FileError> {
+        self.spool.push(points)?;
+        let raw = self.applied.inverse() * reported;
+        let (travelled_m, key) = match (self.frames.last(), self.node_frame.last()) {
+            (Some(prev), Some(&k)) => {
+                let step = (raw.translation.vector - prev.raw.translation.vector).norm();
+                let since = self.frames[k].raw.inverse() * raw;
+                let key = since.translation.vector.norm() >= self.s.keyframe_m
+                    || rotation_angle(&since).to_degrees() >= self.s.keyframe_deg;
+                (prev.travelled_m + step, key)
+            }
+            _ => (0.0, true),
+        };
+        let index = self.frames.len();
+        let correction = self.correction_of_last_node();
+        if key {
+            if let Some(&k) = self.node_frame.last() {
+                let from = &self.frames[k];
+                let z = from.raw.inverse() * raw;
+                let info = odometry_info(&self.s, travelled_m - from.travelled_m);
+                let a = self.graph.nodes.len() - 1;
+                self.graph.edges.push(Edge {
+                    a,
+                    b: a + 1,
+                    z,
+                    info,
+                });
+            }
+            self.graph.nodes.push(correction * raw);
+            self.node_frame.push(index);
+        }
+        self.frames.push(Frame {
+            frame,
+            raw,
+            travelled_m,
+            node: self.graph.nodes.len() - 1,
+            in_map: self.applied,
+            shown: self.applied,
+        });
+        Ok(())
+    }
+
+    /// `corrected · raw⁻¹` of the newest node (identity before any).
+    fn correction_of_last_node(&self) -> Pose {
+        match (self.graph.nodes.last(), self.node_frame.last()) {
+            (Some(x), Some(&f)) => x * self.frames[f].raw.inverse(),
+            _ => Pose::identity(),
+        }
+    }
+
+    /// Each frame's correction (`corrected = c · raw`), interpolated between its nodes by
+    /// travel.
+    fn corrections(&self) -> Vec<Pose> {
+        let of_node =
+            |n: usize| self.graph.nodes[n] * self.frames[self.node_frame[n]].raw.inverse();
+        self.frames
+            .iter()
+            .map(|f| {
+                let a = of_node(f.node);
+                let Some(&next) = self.node_frame.get(f.node + 1) else {
+                    return a;
+                };
+                let (sa, sb) = (
+                    self.frames[self.node_frame[f.node]].travelled_m,
+                    self.frames[next].travelled_m,
+                );
+                let t = ((f.travelled_m - sa) / (sb - sa).max(1e-9)).clamp(0.0, 1.0);
+                let b = of_node(f.node + 1);
+                a * se3_exp(&(se3_log(&(a.inverse() * b)) * t))
+            })
+            .collect()
+    }
+
+    /// Checks the newest keyframe for a revisit (once per `check_every_m` of travel); a
+    /// verified one that agrees with the one before closes the loop.
+    fn check(&mut self) -> Result<(), FileError> {
+        let Some(&kf) = self.node_frame.last() else {
+            return Ok(());
+        };
+        let here = &self.frames[kf];
+        if here.travelled_m - self.checked_at_m < self.s.check_every_m {
+            return Ok(());
+        }
+        self.checked_at_m = here.travelled_m;
+        let corrections = self.corrections();
+        let pose = corrections[kf] * here.raw;
+        let travelled = here.travelled_m;
+        let past = self.frames.iter().enumerate().map(|(i, f)| Past {
+            index: i,
+            pose: corrections[i] * f.raw,
+            travelled_m: f.travelled_m,
+        });
+        let Some(revisit) = detect::revisit(&self.s, &pose, travelled, past) else {
+            return Ok(());
+        };
+        let points = self.spool.read(kf)?;
+        let t = std::time::Instant::now();
+        let spool = &mut self.spool;
+        let verified = detect::verify(
+            &self.s,
+            &mut self.submap,
+            &points,
+            &pose,
+            travelled,
+            &revisit,
+            |i| spool.read(i),
+        )?;
+        log::debug!(
+            "loop closure: frame {} checked against {} earlier frames ({} in the local map) in {:.0} ms: {}",
+            here.frame,
+            revisit.near.len(),
+            revisit.submap.len(),
+            t.elapsed().as_secs_f64() * 1e3,
+            if verified.is_some() { "found" } else { "not found" }
+        );
+        let Some(v) = verified else {
+            return Ok(());
+        };
+        // The earlier node nearest to the pose found anchors the loop edge.
+        let node = self.graph.nodes.len() - 1;
+        let (old, _) = revisit
+            .near
+            .iter()
+            .map(|p| {
+                let n = self.frames[p.index].node;
+                (
+                    n,
+                    (self.graph.nodes[n].translation.vector - v.pose.translation.vector).norm(),
+                )
+            })
+            .fold((usize::MAX, f64::INFINITY), |best, c| {
+                if c.1 < best.1 {
+                    c
+                } else {
+                    best
+                }
+            });
+        if old == usize::MAX {
+            return Ok(());
+        }
+        let delta = v.pose * pose.inverse();
+        let closure = Closure {
+            frame: here.frame,
+            with_frame: self.frames[self.node_frame[old]].frame,
+            hit_share: v.found.hit_share,
+            wall_share: v.found.wall_share,
+            runner_up_share: v.found.runner_up_share,
+            correction_m: (v.pose.translation.vector - pose.translation.vector).norm(),
+            correction_deg: rotation_angle(&(pose.inverse() * v.pose)).to_degrees(),
+            position: v.pose.translation.vector.into(),
+            applied_at_frame: None,
+        };
+        let edge = Edge {
+            a: old,
+            b: node,
+            z: self.graph.nodes[old].inverse() * v.pose,
+            info: info(self.s.loop_sigma_m, self.s.loop_sigma_deg),
+        };
+        // Two checked revisits in a row must agree on the correction.
+        let agrees = self.pending.as_ref().is_some_and(|(_, d, _)| {
+            let apart = d.inverse() * delta;
+            apart.translation.vector.norm() < self.s.agree_m
+                && rotation_angle(&apart).to_degrees() < self.s.agree_deg
+        });
+        if !agrees {
+            self.pending = Some((self.graph.edges.len(), delta, closure));
+            self.graph.edges.push(Edge {
+                info: Matrix6::zeros(),
+                ..edge
+            });
+            return Ok(());
+        }
+        // The earlier one's edge was kept weightless until now.
+        if let Some((e, _, c)) = self.pending.take() {
+            self.graph.edges[e].info = edge.info;
+            self.new_closures.push(c);
+        }
+        self.graph.edges.push(edge);
+        self.new_closures.push(closure);
+        self.pending = None;
+        self.graph.optimize(10);
+        self.dirty = true;
+        Ok(())
+    }
+
+    /// Starts a correction: a rebuild of the map when some frame moved more than
+    /// `rebuild_m` or turned more than `rebuild_deg` from where the run's map has it, else
+    /// the trajectory's alone, sent now.
+    fn start_correction(&mut self) -> Result<(), FileError> {
+        self.dirty = false;
+        let corrections = self.corrections();
+        let moved = self
+            .frames
+            .iter()
+            .zip(&corrections)
+            .map(|(f, c)| {
+                let apart = (f.in_map * f.raw).inverse() * (c * f.raw);
+                (
+                    apart.translation.vector.norm(),
+                    rotation_angle(&apart).to_degrees(),
+                )
+            })
+            .fold((0.0, 0.0), |a: (f64, f64), b| (a.0.max(b.0), a.1.max(b.1)));
+        if moved.0 <= self.s.rebuild_m && moved.1 <= self.s.rebuild_deg {
+            self.send(None, corrections);
+            return Ok(());
+        }
+        let mut pipeline =
+            match self.rebuild.take() {
+                Some(p) => p,
+                None => Box::new(Pipeline::<C>::new(self.config).map_err(|e| {
+                    FileError::at(std::path::Path::new("loop closure"), e.to_string())
+                })?),
+            };
+        // Its frame count is the count of frames rebuilt.
+        pipeline.restore_progress(0, ConstantVelocity::new());
+        self.rebuilding = Some(Rebuild {
+            pipeline,
+            corrections,
+            started: std::time::Instant::now(),
+        });
+        Ok(())
+    }
+
+    /// Fuses the next `REBUILD_SLICE` frames into the map being rebuilt (frames that came
+    /// after the rebuild started at the graph's newest correction); the finished map is sent.
+    fn rebuild_slice(&mut self) -> Result<(), FileError> {
+        let Some(mut r) = self.rebuilding.take() else {
+            return Ok(());
+        };
+        let next = r.corrections.len().min(self.frames.len());
+        let done = r.pipeline.frames() as usize;
+        if done >= self.frames.len() {
+            // Every rebuilt cell counts as seen now: the corrected map is the one to register
+            // against and fuse into, none of it stale.
+            let seen: Vec<_> = r.pipeline.map().layers().map(|l| (l.key, l.axis)).collect();
+            for (key, axis) in seen {
+                let _ = r.pipeline.map_mut().layer_mut(&key, axis, self.counter);
+            }
+            log::debug!(
+                "loop closure: map rebuilt from {} frames in {:.1} s",
+                done,
+                r.started.elapsed().as_secs_f64()
+            );
+            for (f, c) in self.frames.iter_mut().zip(&r.corrections) {
+                f.in_map = *c;
+            }
+            self.send(Some(r.pipeline), r.corrections);
+            return Ok(());
+        }
+        if next < self.frames.len() {
+            let newest = self.corrections();
+            r.corrections.extend_from_slice(&newest[next..]);
+        }
+        for i in done..(done + REBUILD_SLICE).min(self.frames.len()) {
+            let pose = r.corrections[i] * self.frames[i].raw;
+            let points = self.spool.read(i)?;
+            if r.pipeline.integrate_scan(&points, &pose).is_err() {
+                // Counted all the same, so that frame `i` is the pipeline's `i`-th.
+                continue;
+            }
+        }
+        self.rebuilding = Some(r);
+        Ok(())
+    }
+
+    /// Sends the run a correction: the trajectory's by `corrections`, and the rebuilt map.
+    fn send(&mut self, rebuilt: Option<Box<Pipeline<C>>>, corrections: Vec<Pose>) {
+        let per_frame: Vec<(usize, Pose)> = self
+            .frames
+            .iter()
+            .zip(&corrections)
+            .map(|(f, c)| (f.frame, c * f.shown.inverse()))
+            .collect();
+        let last = corrections
+            .last()
+            .map_or(Pose::identity(), |c| c * self.applied.inverse());
+        for (f, c) in self.frames.iter_mut().zip(&corrections) {
+            f.shown = *c;
+        }
+        self.sent_upto = corrections.len().min(self.frames.len());
+        self.in_flight = true;
+        let closures = std::mem::take(&mut self.new_closures);
+        let _ = self.to_run.send(Corrected {
+            rebuilt,
+            per_frame,
+            last,
+            closures,
+            done: false,
+            spool_bytes: self.spool.bytes(),
+        });
+    }
+}
+
+/// A map being rebuilt a slice at a time between checks.
+struct Rebuild<C: Capacity> {
+    pipeline: Box<Pipeline<C>>,
+    /// Each frame's correction it is built with (frames that came later appended).
+    corrections: Vec<Pose>,
+    started: std::time::Instant,
+}
+
+/// An odometry edge's information over `metres` of travel: a random walk of
+/// `odometry_sigma_m` and `odometry_sigma_deg` a square-root metre.
+fn odometry_info(s: &LoopSettings, metres: f64) -> Matrix6<f64> {
+    let d = metres.max(0.1).sqrt();
+    info(s.odometry_sigma_m * d, s.odometry_sigma_deg * d)
+}
+
+/// Diagonal information for standard deviations `m` (translation) and `deg` (rotation).
+fn info(m: f64, deg: f64) -> Matrix6<f64> {
+    let (r, t) = (1.0 / deg.to_radians().powi(2), 1.0 / (m * m));
+    Matrix6::from_diagonal(&Vector6::new(r, r, r, t, t, t))
+}
