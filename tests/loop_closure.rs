@@ -14,6 +14,7 @@ use slamesh::loop_closure::settings::LoopSettings;
 use slamesh::run::{run, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::map::MeshMap;
 use slamesh_core::{Config, KittiCapacity, Pose};
+use slamesh_sim::town::Carried;
 use slamesh_sim::{Drive, Lidar};
 use std::path::Path;
 

@@ -215,6 +215,30 @@ mod tests {
     }
 
     #[test]
+    fn stale_cells_are_left_out() {
+        let mut map = MeshMap::with_capacity(8, 8, LAT);
+        map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, flat(0.2), 5)
+            .unwrap();
+        let scan = [ScanLayer {
+            key: CellKey::new(0, 0, 0),
+            axis: Axis::Z,
+            layer: flat(0.3),
+        }];
+        let mut out = BoundedVec::with_capacity(4);
+        let serial = &crate::executor::Serial;
+        assert_eq!(
+            associate(&scan, &map, 1, 5, 0.6, &mut out, serial).residuals,
+            1
+        );
+        assert_eq!(
+            associate(&scan, &map, 1, 6, 0.6, &mut out, serial).residuals,
+            0
+        );
+        assert!(has_candidates(&map, CellKey::new(0, 0, 0), Axis::Z, 1, 5));
+        assert!(!has_candidates(&map, CellKey::new(0, 0, 0), Axis::Z, 1, 6));
+    }
+
+    #[test]
     fn uncertain_vertices_are_not_paired() {
         let mut map = MeshMap::with_capacity(8, 8, LAT);
         let mut m = flat(0.4);

@@ -132,6 +132,64 @@ mod tests {
     /// must come out at the inverse-variance weighted mean of what it was shown (to f32
     /// rounding), its variance at the harmonic combination, and the surface must converge as
     /// the rule predicts, to about 2 cm / sqrt(25) = 4 mm RMS from the truth.
+    /// A cell not seen for more than `stale_after_frames` is mapped afresh: the scan's layer
+    /// replaces what it held, and its other layers become unknown; a fresh cell fuses.
+    #[test]
+    fn a_stale_cell_is_replaced_and_a_fresh_one_fused() {
+        use crate::cell::{Axis, CellKey};
+        use crate::lattice::{Lattice, VERTICES};
+        use crate::layer::Layer;
+
+        let lattice = Lattice {
+            cell_size: 1.0,
+            full_cover: true,
+        };
+        let cfg = MapConfig {
+            variance_update: 0.5,
+            add_missing_layers: true,
+            reconstruct_at_final_pose: true,
+            stale_after_frames: 100,
+        };
+        let layer = |d: f32| Layer {
+            pred: [d; VERTICES],
+            var: [0.1; VERTICES],
+        };
+        let (old, fresh) = (CellKey::new(0, 0, 0), CellKey::new(5, 0, 0));
+        let mut map = MeshMap::with_capacity(4, 8, lattice);
+        map.insert_layer(old, Axis::Z, layer(0.2), 10).unwrap();
+        map.insert_layer(old, Axis::X, layer(0.5), 10).unwrap();
+        map.insert_layer(fresh, Axis::Z, layer(0.2), 150).unwrap();
+        let scan = [old, fresh].map(|key| ScanLayer {
+            key,
+            axis: Axis::Z,
+            layer: layer(0.6),
+        });
+        assert_eq!(stale_before(200, &cfg), 100);
+        let stats = integrate(&mut map, &scan, &cfg, 200);
+        assert_eq!((stats.refreshed, stats.fused), (1, 2));
+        assert_eq!(map.layer(&old, Axis::Z).unwrap().pred[0], 0.6, "replaced");
+        assert!(
+            map.layer(&old, Axis::X).unwrap().var[0].is_infinite(),
+            "made unknown"
+        );
+        assert!(
+            (map.layer(&fresh, Axis::Z).unwrap().pred[0] - 0.4).abs() < 1e-6,
+            "fused"
+        );
+        assert_eq!(map.cell(&old).unwrap().last_seen, 200);
+        // Off (0), nothing is stale.
+        assert_eq!(
+            stale_before(
+                200,
+                &MapConfig {
+                    stale_after_frames: 0,
+                    ..cfg
+                }
+            ),
+            0
+        );
+    }
+
     #[test]
     fn repeated_noisy_views_of_a_known_surface_converge_as_inverse_variance_predicts() {
         use crate::cell::{Axis, CellKey};
@@ -147,6 +205,7 @@ mod tests {
             variance_update: 0.5,
             add_missing_layers: true,
             reconstruct_at_final_pose: true,
+            stale_after_frames: 0,
         };
         let (truth, sigma) = (0.5f64, 0.02f64);
         let key = CellKey::new(3, -2, 0);

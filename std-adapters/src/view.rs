@@ -8,6 +8,7 @@
 //! | `/tf` | `foxglove.FrameTransform` | `world` → `sensor`: the estimated pose |
 //! | `/trajectory` | `foxglove.PosesInFrame` | every pose so far (at most [`MAX_POSES`], thinned evenly), every [`TRAJECTORY_EVERY`] frames and at the end |
 //! | `/mesh` | `foxglove.SceneUpdate` | one entity per map layer the frame changed (id `x,y,z,axis`), its shown triangles; an entity replaces the one of the same id |
+//! | `/loop_closures` | `foxglove.Log` | each loop closed (`--loop-closure on`): the frames, the score and the correction; the whole corrected trajectory and map are sent with it |
 //!
 //! The SLAM loop only copies the frame's points, pose and changed layers into an [`Update`]
 //! and offers it to a bounded queue ([`QUEUE`] frames); when the queue is full the update is
@@ -20,8 +21,8 @@
 
 use crate::io::error::FileError;
 use foxglove::messages::{
-    Color, FrameTransform, PackedElementField, Point3, PointCloud, Pose as FgPose, PosesInFrame,
-    Quaternion, SceneEntity, SceneUpdate, Timestamp, TriangleListPrimitive, Vector3,
+    Color, FrameTransform, Log, PackedElementField, Point3, PointCloud, Pose as FgPose,
+    PosesInFrame, Quaternion, SceneEntity, SceneUpdate, Timestamp, TriangleListPrimitive, Vector3,
 };
 use foxglove::{Context, WebSocketServer};
 use slamesh_core::cell::{Axis, CellKey};
@@ -70,8 +71,11 @@ pub struct Update {
     pub pose: Pose,
     /// The scan's points as registered, sensor frame.
     pub points: Vec<Point>,
-    /// The map layers the frame changed, as they are after it.
+    /// The map layers the frame changed, as they are after it (every layer after a loop
+    /// closure).
     pub layers: Vec<(CellKey, Axis, Layer)>,
+    /// After a loop closure: the whole corrected trajectory and what was closed.
+    pub closed: Option<(Vec<Pose>, Vec<String>)>,
 }
 
 impl Update {
@@ -90,6 +94,7 @@ impl Update {
             pose,
             points: pipeline.last_points().to_vec(),
             layers,
+            closed: None,
         })
     }
 }
@@ -218,6 +223,55 @@ impl View {
         }
     }
 
+    /// Offers the frame `record` describes, as [`View::frame`], or as [`View::loop_closed`]
+    /// (with the trajectory `path` gives) when loop closures came with it; nothing for a frame
+    /// that failed.
+    pub fn show<C: Capacity>(
+        &mut self,
+        pipeline: &Pipeline<C>,
+        record: &crate::run::FrameRecord,
+        path: impl FnOnce() -> Vec<Pose>,
+    ) {
+        if record.error.is_some() {
+            return;
+        }
+        if record.loop_closures.is_empty() {
+            self.frame(pipeline, record.frame, record.stamp);
+        } else {
+            self.loop_closed(
+                pipeline,
+                record.frame,
+                record.stamp,
+                path(),
+                &record.loop_closures,
+            );
+        }
+    }
+
+    /// Offers the last frame of `pipeline` after a loop closure: with the whole map, the whole
+    /// corrected `path` and the closures' descriptions. Never waits.
+    pub fn loop_closed<C: Capacity>(
+        &mut self,
+        pipeline: &Pipeline<C>,
+        frame: usize,
+        stamp_s: f64,
+        path: Vec<Pose>,
+        closures: &[crate::loop_closure::Closure],
+    ) {
+        let (Some(tx), Some(mut update)) = (&self.tx, Update::of(pipeline, frame, stamp_s)) else {
+            return;
+        };
+        update.layers = pipeline
+            .map()
+            .layers()
+            .map(|l| (l.key, l.axis, *l.layer))
+            .collect();
+        update.closed = Some((path, closures.iter().map(|c| c.describe()).collect()));
+        if tx.try_send(update).is_err() {
+            self.dropped += 1;
+        }
+    }
+
     /// Sends what is queued, closes the recording (renamed to `slam.mcap`) and the server.
     pub fn finish(mut self) -> Result<ViewStats, FileError> {
         self.tx = None;
@@ -258,6 +312,7 @@ fn publish(ctx: &std::sync::Arc<Context>, rx: Receiver<Update>, config: &Config)
     let tf = ctx.channel_builder("/tf").build::<FrameTransform>();
     let trajectory = ctx.channel_builder("/trajectory").build::<PosesInFrame>();
     let mesh = ctx.channel_builder("/mesh").build::<SceneUpdate>();
+    let closures = ctx.channel_builder("/loop_closures").build::<Log>();
     let lattice = config.lattice().table();
     let shown = Shown::new(&config.mesh);
     let mut poses: Vec<FgPose> = Vec::new();
@@ -278,7 +333,20 @@ fn publish(ctx: &std::sync::Arc<Context>, rx: Receiver<Update>, config: &Config)
             nanos,
         );
         poses.push(fg_pose(&u.pose));
-        if sent % TRAJECTORY_EVERY == 0 {
+        if let Some((path, notes)) = &u.closed {
+            poses = path.iter().map(fg_pose).collect();
+            for note in notes {
+                let log = Log {
+                    timestamp: Some(time),
+                    level: foxglove::messages::log::Level::Info as i32,
+                    message: note.clone(),
+                    name: "slamesh".into(),
+                    ..Log::default()
+                };
+                closures.log_with_time(&log, nanos);
+            }
+        }
+        if sent % TRAJECTORY_EVERY == 0 || u.closed.is_some() {
             trajectory.log_with_time(&poses_in_frame(&poses, time), nanos);
         }
         let entities = u

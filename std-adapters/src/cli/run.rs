@@ -93,7 +93,7 @@ pub struct RunArgs {
     pub save_map: Option<PathBuf>,
     /// Close loops: when the sensor comes back to where it has been, correct the trajectory
     /// and rebuild the map so that the revisited place is one surface (a thread of its own;
-    /// each scan is kept on disk in the output folder until the end, about 170 KB a frame).
+    /// each scan is kept on disk in the output folder until the end, about 85 KB a frame).
     /// Not with a memory cap or a window.
     #[arg(long, value_enum, default_value_t = OnOff::Off)]
     pub loop_closure: OnOff,

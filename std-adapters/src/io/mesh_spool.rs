@@ -77,6 +77,16 @@ pub enum MeshFormat {
     Obj,
 }
 
+impl MeshFormat {
+    /// The file a run writes in this format: `mesh.ply` or `mesh.obj`.
+    pub fn file_name(self) -> &'static str {
+        match self {
+            MeshFormat::Ply => "mesh.ply",
+            MeshFormat::Obj => "mesh.obj",
+        }
+    }
+}
+
 /// What colours a PLY mesh's vertices (`red green blue`), on the blue-green-yellow-red ramp.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum MeshColour {

@@ -18,7 +18,7 @@
 //! rebuilt map. Without a revisit nothing is ever sent, and the run's outputs are those of a
 //! run without loop closure, byte for byte.
 //!
-//! What is kept: each frame's filtered scan on disk (12 bytes a point, removed at the end),
+//! What is kept: each frame's filtered scan on disk (6 bytes a point, removed at the end),
 //! and in memory 3 poses a frame, the keyframe graph, the local map of a check (at most
 //! 60 000 layers) and, while the map is rebuilt, a second map.
 

@@ -48,6 +48,9 @@ pub(crate) struct Worker<C: Capacity> {
     graph: PoseGraph,
     /// The frame index (into `frames`) of each node.
     node_frame: Vec<usize>,
+    /// Each frame's correction ([`Worker::corrections`]), kept between optimisations: a
+    /// frame after the newest node takes that node's.
+    correction: Vec<Pose>,
     /// The run reports `applied · raw`.
     applied: Pose,
     /// Travel when a keyframe was last checked.
@@ -87,6 +90,7 @@ impl<C: Capacity> Worker<C> {
             frames: Vec::new(),
             graph: PoseGraph::default(),
             node_frame: Vec::new(),
+            correction: Vec::new(),
             applied: Pose::identity(),
             checked_at_m: f64::NEG_INFINITY,
             pending: None,
@@ -195,6 +199,7 @@ impl<C: Capacity> Worker<C> {
             self.graph.nodes.push(correction * raw);
             self.node_frame.push(index);
         }
+        self.correction.push(correction);
         self.frames.push(Frame {
             frame,
             raw,
@@ -237,25 +242,37 @@ impl<C: Capacity> Worker<C> {
             .collect()
     }
 
-    /// Checks the newest keyframe for a revisit (once per `check_every_m` of travel); a
+    /// Checks the newest keyframe for a revisit (once per `check_every_m` of travel, five
+    /// times that while a rebuild runs); a
     /// verified one that agrees with the one before closes the loop.
     fn check(&mut self) -> Result<(), FileError> {
         let Some(&kf) = self.node_frame.last() else {
             return Ok(());
         };
         let here = &self.frames[kf];
-        if here.travelled_m - self.checked_at_m < self.s.check_every_m {
+        // While a rebuild runs, checks come five times less often: the map reaches the run
+        // sooner, and the closure being applied already holds the place.
+        let every = match self.rebuilding {
+            Some(_) => 5.0 * self.s.check_every_m,
+            None => self.s.check_every_m,
+        };
+        if here.travelled_m - self.checked_at_m < every {
             return Ok(());
         }
         self.checked_at_m = here.travelled_m;
-        let corrections = self.corrections();
+        let corrections = &self.correction;
         let pose = corrections[kf] * here.raw;
         let travelled = here.travelled_m;
-        let past = self.frames.iter().enumerate().map(|(i, f)| Past {
-            index: i,
-            pose: corrections[i] * f.raw,
-            travelled_m: f.travelled_m,
-        });
+        let past = self
+            .frames
+            .iter()
+            .zip(corrections)
+            .enumerate()
+            .map(|(i, (f, c))| Past {
+                index: i,
+                pose: c * f.raw,
+                travelled_m: f.travelled_m,
+            });
         let Some(revisit) = detect::revisit(&self.s, &pose, travelled, past) else {
             return Ok(());
         };
@@ -345,6 +362,7 @@ impl<C: Capacity> Worker<C> {
         self.new_closures.push(closure);
         self.pending = None;
         self.graph.optimize(10);
+        self.correction = self.corrections();
         self.dirty = true;
         Ok(())
     }
@@ -354,7 +372,7 @@ impl<C: Capacity> Worker<C> {
     /// the trajectory's alone, sent now.
     fn start_correction(&mut self) -> Result<(), FileError> {
         self.dirty = false;
-        let corrections = self.corrections();
+        let corrections = self.correction.clone();
         let moved = self
             .frames
             .iter()
@@ -367,8 +385,9 @@ impl<C: Capacity> Worker<C> {
                 )
             })
             .fold((0.0, 0.0), |a: (f64, f64), b| (a.0.max(b.0), a.1.max(b.1)));
+        let closures = std::mem::take(&mut self.new_closures);
         if moved.0 <= self.s.rebuild_m && moved.1 <= self.s.rebuild_deg {
-            self.send(None, corrections);
+            self.send(None, corrections, closures);
             return Ok(());
         }
         let mut pipeline =
@@ -383,6 +402,7 @@ impl<C: Capacity> Worker<C> {
         self.rebuilding = Some(Rebuild {
             pipeline,
             corrections,
+            closures,
             started: std::time::Instant::now(),
         });
         Ok(())
@@ -411,12 +431,11 @@ impl<C: Capacity> Worker<C> {
             for (f, c) in self.frames.iter_mut().zip(&r.corrections) {
                 f.in_map = *c;
             }
-            self.send(Some(r.pipeline), r.corrections);
+            self.send(Some(r.pipeline), r.corrections, r.closures);
             return Ok(());
         }
         if next < self.frames.len() {
-            let newest = self.corrections();
-            r.corrections.extend_from_slice(&newest[next..]);
+            r.corrections.extend_from_slice(&self.correction[next..]);
         }
         for i in done..(done + REBUILD_SLICE).min(self.frames.len()) {
             let pose = r.corrections[i] * self.frames[i].raw;
@@ -430,8 +449,14 @@ impl<C: Capacity> Worker<C> {
         Ok(())
     }
 
-    /// Sends the run a correction: the trajectory's by `corrections`, and the rebuilt map.
-    fn send(&mut self, rebuilt: Option<Box<Pipeline<C>>>, corrections: Vec<Pose>) {
+    /// Sends the run a correction: the trajectory's by `corrections`, the rebuilt map, and
+    /// the closures the correction holds.
+    fn send(
+        &mut self,
+        rebuilt: Option<Box<Pipeline<C>>>,
+        corrections: Vec<Pose>,
+        closures: Vec<Closure>,
+    ) {
         let per_frame: Vec<(usize, Pose)> = self
             .frames
             .iter()
@@ -446,7 +471,6 @@ impl<C: Capacity> Worker<C> {
         }
         self.sent_upto = corrections.len().min(self.frames.len());
         self.in_flight = true;
-        let closures = std::mem::take(&mut self.new_closures);
         let _ = self.to_run.send(Corrected {
             rebuilt,
             per_frame,
@@ -463,6 +487,8 @@ struct Rebuild<C: Capacity> {
     pipeline: Box<Pipeline<C>>,
     /// Each frame's correction it is built with (frames that came later appended).
     corrections: Vec<Pose>,
+    /// The closures in the graph it was started from, not yet sent.
+    closures: Vec<Closure>,
     started: std::time::Instant,
 }
 

@@ -37,7 +37,7 @@ use slamesh_core::relocalize::{Paging, Search};
 use slamesh_core::{Capacity, Pipeline, Pose, RegistrationStatus};
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 pub use crate::run::options::{Deskew, InitialPose, RunError, RunOptions};
@@ -60,8 +60,10 @@ pub fn run<C: Capacity>(
     for i in run.next_frame()..source.frames() {
         let record = run.step(source, i)?;
         #[cfg(feature = "view")]
-        if let (Some(v), None) = (&mut view, &record.error) {
-            v.frame(&run.pipeline, i, record.stamp);
+        if let Some(v) = &mut view {
+            v.show(&run.pipeline, &record, || {
+                run.progress.poses.iter().map(|(_, p)| *p).collect()
+            });
         }
         on_frame(&record);
     }
@@ -187,23 +189,8 @@ impl<'a, C: Capacity> Run<'a, C> {
             )?),
             None => None,
         };
-        let closer = match opts.loop_closure {
-            Some(_) if setup.max_layers.is_some() || !setup.window.is_off() => {
-                return Err(RunError::Config(slamesh_core::ConfigError {
-                    field: "loop closure",
-                    reason: "it rebuilds the whole map, so it does not run with a memory cap or \
-                             a sliding window yet: leave out one of the two",
-                }))
-            }
-            Some(s) => Some(LoopClosure::start(
-                opts.config,
-                s,
-                &opts.out.join(".loop-closure.scans"),
-            )?),
-            None => None,
-        };
         Ok(Run {
-            closer,
+            closer: setup.closer,
             search,
             map_path,
             saved_map,
@@ -563,7 +550,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             .opts
             .mesh_formats
             .iter()
-            .map(|&f| (mesh_file_path(out, f), f))
+            .map(|&f| (out.join(f.file_name()), f))
             .collect();
         let counts: MeshCounts = self.spool.finish(&outputs)?;
         let summary = Summary {
@@ -597,14 +584,6 @@ impl<'a, C: Capacity> Run<'a, C> {
 /// The run's frame records, spooled one JSON object a line until `report.json` is written.
 fn frames_path(opts: &RunOptions) -> PathBuf {
     opts.out.join(".report.frames.spool")
-}
-
-/// `mesh.ply` or `mesh.obj` in `out`.
-pub fn mesh_file_path(out: &Path, format: MeshFormat) -> PathBuf {
-    out.join(match format {
-        MeshFormat::Ply => "mesh.ply",
-        MeshFormat::Obj => "mesh.obj",
-    })
 }
 
 /// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).

@@ -1,9 +1,10 @@
 //! What a run's start needs before its first frame, whether it starts anew or resumes: the
 //! output folder (made here), the executor, the sliding window and the memory cap's layer
 //! budget, the pipeline, and a saved map to start from: loaded whole, or, for localizing under
-//! a memory cap, opened for paging ([`crate::run::map_pager`]).
+//! a memory cap, opened for paging ([`crate::run::map_pager`]); and loop closure's thread.
 
 use crate::io::error::FileError;
+use crate::loop_closure::LoopClosure;
 use crate::parallel::Workers;
 use crate::run::lookahead::LookAhead;
 use crate::run::map_pager::MapPager;
@@ -25,6 +26,8 @@ pub(crate) struct Setup<C: Capacity> {
     pub(crate) window: Window,
     pub(crate) max_layers: Option<usize>,
     pub(crate) ahead: LookAhead,
+    /// Loop closure's thread, when on.
+    pub(crate) closer: Option<LoopClosure<C>>,
 }
 
 impl<C: Capacity> Setup<C> {
@@ -113,7 +116,23 @@ impl<C: Capacity> Setup<C> {
             pipeline.restore_progress(start.frames, motion);
             map_start = Some(start);
         }
+        let closer = match opts.loop_closure {
+            Some(_) if max_layers.is_some() || !window.is_off() => {
+                return Err(RunError::Config(slamesh_core::ConfigError {
+                    field: "loop closure",
+                    reason: "it rebuilds the whole map, so it does not run with a memory cap or \
+                             a sliding window yet: leave out one of the two",
+                }))
+            }
+            Some(s) => Some(LoopClosure::start(
+                opts.config,
+                s,
+                &out.join(".loop-closure.scans"),
+            )?),
+            None => None,
+        };
         Ok(Setup {
+            closer,
             pipeline,
             map_start,
             pager,
