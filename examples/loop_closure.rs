@@ -25,9 +25,9 @@
 mod flags;
 
 use flags::Flags;
+use slamesh::demo::true_surface_scores;
 use slamesh::eval::duplicates::duplicated_near;
 use slamesh::eval::duplicates::duplicated_surfaces;
-use slamesh::eval::mesh as mesh_eval;
 use slamesh::eval::odometry::{ate_rmse, end_drift};
 use slamesh::io::map_file::MapFile;
 use slamesh::io::ply::read_ply_mesh;
@@ -37,7 +37,7 @@ use slamesh::run::{FrameSource, Input, Run, RunOptions};
 use slamesh_core::map::MeshMap;
 use slamesh_core::KittiCapacity;
 use slamesh_core::Pose;
-use slamesh_sim::{Drive, SurfaceDistance};
+use slamesh_sim::Drive;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -70,32 +70,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{} frames; the drive comes back at frame {back}; truth for the mesh from every 5th frame",
         truth.len()
     );
-    let reference = mesh_eval::accumulate(
-        (0..drive.poses.len())
-            .step_by(5)
-            .map(|i| (drive.true_points(i), to_first)),
-        0.05,
-        0.0,
-        f64::INFINITY,
-    );
-    let surfaces = SurfaceDistance::new(&drive.scene);
     println!("run | end point (m) | ATE (m) | P / R / F1 at 0.1 m | duplicates: all, within 60 m of the return");
     for run in &runs {
         let estimate = read_kitti(&run.join("poses_kitti.txt"))?;
         let n = estimate.len().min(truth.len());
         let (end_m, _) = end_drift(&estimate[..n], &truth[..n]);
         let ate = ate_rmse(&estimate[..n], &truth[..n]);
-        let mesh = read_ply_mesh(&run.join("mesh.ply"))?;
-        let samples = mesh_eval::sample_triangles(mesh.triangle_corners(), 0.05, 1);
-        let d_mesh: Vec<f64> = samples
-            .iter()
-            .map(|p| {
-                let w =
-                    drive.poses[0] * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-                surfaces.distance(&w.coords)
-            })
+        let mesh: Vec<_> = read_ply_mesh(&run.join("mesh.ply"))?
+            .triangle_corners()
             .collect();
-        let s = mesh_eval::score_with_precision_distances(&d_mesh, &samples, &reference, &[0.1]);
+        let (s, _) = true_surface_scores(&drive, &mesh, 1, &[0.1]);
         let mut file = MapFile::open(&run.join("map.slamesh"))?;
         // A layer takes at least 288 bytes of the file.
         let most = (file.bytes / 288) as usize;

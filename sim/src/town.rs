@@ -170,19 +170,21 @@ pub fn scene(seed: u64) -> Scene {
     }
 }
 
+/// Points about 0.25 m apart from `a` (included) to `b` (not).
+fn straight(pts: &mut Vec<[f64; 2]>, a: [f64; 2], b: [f64; 2]) {
+    let n = (((b[0] - a[0]).hypot(b[1] - a[1])) / 0.25).ceil() as usize;
+    for i in 0..n {
+        let f = i as f64 / n as f64;
+        pts.push([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])]);
+    }
+}
+
 /// The route: a loop around the middle blocks (from the second to the fifth street), corners
 /// rounded with a 10 m radius, as points about 0.25 m apart; it starts and ends mid-street.
 pub fn route() -> Vec<[f64; 2]> {
     let (lo, hi, r) = (PITCH_M, 4.0 * PITCH_M, 10.0);
     let mid = (lo + hi) / 2.0;
     let mut pts = Vec::new();
-    let straight = |pts: &mut Vec<[f64; 2]>, a: [f64; 2], b: [f64; 2]| {
-        let n = (((b[0] - a[0]).hypot(b[1] - a[1])) / 0.25).ceil() as usize;
-        for i in 0..n {
-            let f = i as f64 / n as f64;
-            pts.push([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])]);
-        }
-    };
     let arc = |pts: &mut Vec<[f64; 2]>, centre: [f64; 2], from: f64| {
         let n = (r * std::f64::consts::FRAC_PI_2 / 0.25).ceil() as usize;
         for i in 0..n {
@@ -207,15 +209,7 @@ pub fn route() -> Vec<[f64; 2]> {
 /// radius, as points about 0.25 m apart. Corners must turn by a right angle (or not at all).
 pub fn path_through(corners: &[[f64; 2]]) -> Vec<[f64; 2]> {
     let r = 10.0;
-    let at = |c: [f64; 2]| c;
     let mut pts = Vec::new();
-    let straight = |pts: &mut Vec<[f64; 2]>, a: [f64; 2], b: [f64; 2]| {
-        let n = (((b[0] - a[0]).hypot(b[1] - a[1])) / 0.25).ceil() as usize;
-        for i in 0..n {
-            let f = i as f64 / n as f64;
-            pts.push([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])]);
-        }
-    };
     let unit = |a: [f64; 2], b: [f64; 2]| {
         let l = (b[0] - a[0]).hypot(b[1] - a[1]).max(1e-9);
         [(b[0] - a[0]) / l, (b[1] - a[1]) / l]
@@ -223,9 +217,9 @@ pub fn path_through(corners: &[[f64; 2]]) -> Vec<[f64; 2]> {
     let Some(&first) = corners.first() else {
         return pts;
     };
-    let mut from = at(first);
+    let mut from = first;
     for w in corners.windows(3) {
-        let (a, c, b) = (at(w[0]), at(w[1]), at(w[2]));
+        let (a, c, b) = (w[0], w[1], w[2]);
         let (din, dout) = (unit(a, c), unit(c, b));
         if din[0] * dout[0] + din[1] * dout[1] > 0.999 {
             continue;
@@ -244,8 +238,8 @@ pub fn path_through(corners: &[[f64; 2]]) -> Vec<[f64; 2]> {
         from = [c[0] + dout[0] * r, c[1] + dout[1] * r];
     }
     if let Some(&last) = corners.last() {
-        straight(&mut pts, from, at(last));
-        pts.push(at(last));
+        straight(&mut pts, from, last);
+        pts.push(last);
     }
     pts
 }

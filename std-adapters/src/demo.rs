@@ -80,32 +80,8 @@ pub fn run_demo<C: Capacity>(
     })?;
 
     // The mesh against the true surfaces, both in the first sensor frame.
-    let to_first = drive.poses[0].inverse();
-    let reference = mesh_eval::accumulate(
-        (0..drive.poses.len())
-            .step_by(5)
-            .map(|i| (drive.true_points(i), to_first)),
-        0.05,
-        0.0,
-        f64::INFINITY,
-    );
+    let (scores, reference) = true_surface_scores(&drive, &triangles, seed, &mesh_eval::THRESHOLDS);
     ply::write_points(&opts.out.join("reference.ply"), &reference)?;
-    let samples = mesh_eval::sample_triangles(triangles.iter().copied(), 0.05, seed);
-    // Precision: exact distances to the true surfaces; recall: the true hits covered.
-    let truth_distance = SurfaceDistance::new(&drive.scene);
-    let d_mesh: Vec<f64> = samples
-        .iter()
-        .map(|p| {
-            let w = drive.poses[0] * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-            truth_distance.distance(&w.coords)
-        })
-        .collect();
-    let scores = mesh_eval::score_with_precision_distances(
-        &d_mesh,
-        &samples,
-        &reference,
-        &mesh_eval::THRESHOLDS,
-    );
 
     // The picture: the mesh by height, the true path in white, the estimate in red.
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -137,4 +113,37 @@ pub fn run_demo<C: Capacity>(
         mesh: scores,
         summary,
     })
+}
+
+/// Scores of a mesh (`triangles`, in the drive's first sensor frame, sampled every 5 cm from
+/// `seed`) against the drive's true surfaces at each of `thresholds`: precision by the exact
+/// distance of each sample to the scene, recall from the true hits of every fifth frame (one
+/// point per 5 cm), which are returned too.
+pub fn true_surface_scores(
+    drive: &Drive,
+    triangles: &[[Point; 3]],
+    seed: u64,
+    thresholds: &[f64],
+) -> (Vec<MeshScore>, Vec<Point>) {
+    let to_first = drive.poses[0].inverse();
+    let reference = mesh_eval::accumulate(
+        (0..drive.poses.len())
+            .step_by(5)
+            .map(|i| (drive.true_points(i), to_first)),
+        0.05,
+        0.0,
+        f64::INFINITY,
+    );
+    let samples = mesh_eval::sample_triangles(triangles.iter().copied(), 0.05, seed);
+    let truth_distance = SurfaceDistance::new(&drive.scene);
+    let d_mesh: Vec<f64> = samples
+        .iter()
+        .map(|p| {
+            let w = drive.poses[0] * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            truth_distance.distance(&w.coords)
+        })
+        .collect();
+    let scores =
+        mesh_eval::score_with_precision_distances(&d_mesh, &samples, &reference, thresholds);
+    (scores, reference)
 }

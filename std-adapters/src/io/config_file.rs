@@ -374,12 +374,13 @@ mod tests {
             changed.register.recovery.yaw_step_deg = 10.0;
             changed.register.recovery.enabled = false;
             changed.register.recovery.polish_turn_deg = 7.5;
+            changed.map.stale_after_frames = 300;
             let text = documented_toml(&changed, name);
             let s = parse(&text).unwrap_or_else(|e| panic!("{name}: {e}\n{text}"));
             assert_eq!(s.config, changed, "{name}");
             assert_eq!(s.preset, name);
         }
-        assert_eq!(PARAMETERS.len(), 35);
+        assert_eq!(PARAMETERS.len(), 36);
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //!
 //! Nodes are sensor poses in the world; an edge `(a, b, Z, Ω)` says that `X_a⁻¹ X_b` was
 //! measured as `Z` with information `Ω` (6 x 6, twist order `(ω, ρ)` as
-//! [`se3_log`](slamesh_core::math::se3_log)). The error is `e = log(Z⁻¹ X_a⁻¹ X_b)`, nodes are
+//! [`se3_log`]). The error is `e = log(Z⁻¹ X_a⁻¹ X_b)`, nodes are
 //! perturbed on the right (`X ← X exp(δ)`), and the first node is held fixed.
 //!
 //! The normal equations are solved by a block Cholesky factorisation in *envelope* storage:
