@@ -70,7 +70,7 @@ pub fn integrate(
     let since = stale_before(frame, cfg);
     let mut stats = FusionStats::default();
     for s in scan {
-        if map.cell(&s.key).is_some_and(|c| c.last_seen < since) {
+        if since > 0 && map.cell(&s.key).is_some_and(|c| c.last_seen < since) {
             for axis in Axis::ALL {
                 if let Some(m) = map.layer_mut(&s.key, axis, frame) {
                     m.var = [f32::INFINITY; VERTICES];

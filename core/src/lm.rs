@@ -42,6 +42,20 @@ impl Residual {
     }
 }
 
+/// How well a solve pinned the pose down: its normal equations at the pose found, for a
+/// perturbation `exp(δ)` about `centre` applied on the left (rotation about `centre`, twist
+/// order `(ω, ρ)`), divided by the residuals' variance estimated from the final cost
+/// (`2 · cost / (residuals - 6)`): the inverse of the pose's covariance, Huber weights
+/// included. All zeros when nothing was solved.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PoseInformation {
+    /// The 6 x 6 information, row by row.
+    pub matrix: [[f64; 6]; 6],
+    /// The point the rotation is about (world frame).
+    pub centre: [f64; 3],
+}
+
 /// A converged (or iteration-capped) solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Solution {
@@ -56,6 +70,8 @@ pub struct Solution {
     pub conditioning: f64,
     /// Directions left out as degenerate (0: the correction is constrained in all six).
     pub degenerate_directions: usize,
+    /// The information of the pose found.
+    pub information: PoseInformation,
 }
 
 /// Why no correction was computed.
@@ -269,12 +285,17 @@ fn iterate(
             }
         }
     }
+    let variance = (2.0 * cost / (residuals.len() as f64 - 6.0).max(1.0)).max(1e-12);
     Ok(Solution {
         correction: t,
         iterations,
         cost: (initial_cost, cost),
         conditioning: 0.0,
         degenerate_directions: 0,
+        information: PoseInformation {
+            matrix: core::array::from_fn(|i| core::array::from_fn(|j| h[(i, j)] / variance)),
+            centre: [centre.x, centre.y, centre.z],
+        },
     })
 }
 

@@ -224,6 +224,7 @@ impl<C: Capacity> Pipeline<C> {
             stats.associate = best.associate;
             stats.conditioning = best.conditioning;
             stats.degenerate_directions = best.degenerate_directions;
+            stats.information = best.information;
             (pose, status, for_update) = (best.pose, best.status, best.for_update);
         }
         match for_update {

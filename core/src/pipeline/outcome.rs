@@ -126,6 +126,8 @@ pub struct ScanStats {
     pub conditioning: f64,
     /// Directions the last solved round left to the motion prediction (0 to 6).
     pub degenerate_directions: usize,
+    /// How well the last solved round pinned the pose down (zeros when none was solved).
+    pub information: crate::lm::PoseInformation,
     /// Guesses registered from after the prediction's registration did not converge
     /// (docs/design.md §1.11); 0 on a frame that converged.
     pub recovery_attempts: usize,

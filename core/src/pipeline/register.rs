@@ -24,6 +24,8 @@ pub(super) struct Attempt {
     pub(super) associate: AssociateStats,
     pub(super) conditioning: f64,
     pub(super) degenerate_directions: usize,
+    /// The last solve's information ([`lm::PoseInformation`]).
+    pub(super) information: lm::PoseInformation,
     /// Without `MapConfig::reconstruct_at_final_pose`: the last round's bucketing and the pose
     /// its reconstruction (left in the scan's buffer) was made at.
     pub(super) for_update: Option<(BucketStats, Pose)>,
@@ -39,6 +41,7 @@ impl Attempt {
             associate: AssociateStats::default(),
             conditioning: 0.0,
             degenerate_directions: 0,
+            information: lm::PoseInformation::default(),
             for_update: None,
         }
     }
@@ -107,6 +110,7 @@ impl<C: Capacity> Pipeline<C> {
             associate: AssociateStats::default(),
             conditioning: 0.0,
             degenerate_directions: 0,
+            information: lm::PoseInformation::default(),
             for_update: None,
         };
         for round in 0..rounds {
@@ -159,6 +163,7 @@ impl<C: Capacity> Pipeline<C> {
                     stats.lm_iterations += sol.iterations;
                     a.conditioning = sol.conditioning;
                     a.degenerate_directions = sol.degenerate_directions;
+                    a.information = sol.information;
                     if sol.degenerate_directions > 0 {
                         a.status = RegistrationStatus::Degenerate;
                     }

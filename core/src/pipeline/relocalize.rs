@@ -196,6 +196,7 @@ impl<C: Capacity> Pipeline<C> {
         stats.associate = attempt.associate;
         stats.conditioning = attempt.conditioning;
         stats.degenerate_directions = attempt.degenerate_directions;
+        stats.information = attempt.information;
         let found = settled
             && hit_share >= search.min_hit_share
             && wall_share >= search.min_wall_share

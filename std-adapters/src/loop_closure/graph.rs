@@ -13,6 +13,7 @@
 //! not the square of the nodes: a few hundred kilobytes for a town loop of 500 keyframes.
 
 use nalgebra::{Matrix6, Vector6};
+use slamesh_core::lm::PoseInformation;
 use slamesh_core::math::{se3_exp, se3_log, skew, Pose};
 
 /// One measured relative pose between two nodes.
@@ -55,6 +56,19 @@ pub fn adjoint(t: &Pose) -> Matrix6<f64> {
     ad.fixed_view_mut::<3, 3>(3, 3).copy_from(&r);
     ad.fixed_view_mut::<3, 3>(3, 0).copy_from(&tr);
     ad
+}
+
+/// The covariance of `pose` in its own frame (a perturbation `pose · exp(ε)`) from a
+/// registration's [`PoseInformation`] (about its centre, on the left): `A = Ad(T_c⁻¹ · pose)`
+/// takes `ε` to the registration's `δ`, so the information is `Aᵀ H A`. A direction the
+/// registration did not constrain gets a standard deviation of about 1 (metre or radian), not
+/// infinity.
+pub fn local_covariance(info: &PoseInformation, pose: &Pose) -> Matrix6<f64> {
+    let h = Matrix6::from_fn(|i, j| info.matrix[i][j]);
+    let c = nalgebra::Translation3::new(info.centre[0], info.centre[1], info.centre[2]);
+    let a = adjoint(&(Pose::from_parts(c, nalgebra::UnitQuaternion::identity()).inverse() * pose));
+    let local = a.transpose() * h * a + Matrix6::identity();
+    local.try_inverse().unwrap_or_else(Matrix6::identity)
 }
 
 impl PoseGraph {
@@ -223,6 +237,53 @@ mod tests {
             Translation3::new(x, y, 0.0),
             UnitQuaternion::from_euler_angles(0.0, 0.0, yaw),
         )
+    }
+
+    /// A registration that pinned the pose down only across a corridor (`y`) and in yaw: its
+    /// covariance in the sensor's frame is small there and about 1 elsewhere, whatever the
+    /// point the registration turned about.
+    #[test]
+    fn a_corridor_registration_is_sure_across_and_unsure_along() {
+        let mut m = [[0.0; 6]; 6];
+        m[2][2] = 1e6; // yaw
+        m[4][4] = 1e6; // y
+        let pose = pose(10.0, 0.0, 0.0);
+        let info = PoseInformation {
+            matrix: m,
+            centre: [10.0, 0.0, 0.0],
+        };
+        let c = local_covariance(&info, &pose);
+        assert!(c[(4, 4)] < 1e-5 && c[(2, 2)] < 1e-5, "{c}");
+        assert!(
+            (c[(3, 3)] - 1.0).abs() < 1e-6 && (c[(5, 5)] - 1.0).abs() < 1e-6,
+            "{c}"
+        );
+        // Turning about a point 5 m behind couples yaw with y, but the sensor's own frame is
+        // as sure across and in yaw as before.
+        let behind = PoseInformation {
+            centre: [5.0, 0.0, 0.0],
+            ..info
+        };
+        let a = adjoint(&Pose::from_parts(
+            Translation3::new(5.0, 0.0, 0.0),
+            UnitQuaternion::identity(),
+        ));
+        let mut moved = [[0.0; 6]; 6];
+        let h = Matrix6::from_fn(|i, j| m[i][j]);
+        let shifted = a.transpose().try_inverse().unwrap() * h * a.try_inverse().unwrap();
+        for (i, row) in moved.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = shifted[(i, j)];
+            }
+        }
+        let c2 = local_covariance(
+            &PoseInformation {
+                matrix: moved,
+                ..behind
+            },
+            &pose,
+        );
+        assert!((c2 - c).amax() < 1e-6, "{c2}");
     }
 
     #[test]

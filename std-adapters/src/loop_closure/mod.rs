@@ -31,8 +31,9 @@ mod worker;
 use crate::io::error::FileError;
 use serde::{Deserialize, Serialize};
 use settings::LoopSettings;
+use slamesh_core::lm::PoseInformation;
 use slamesh_core::motion::ConstantVelocity;
-use slamesh_core::{Capacity, Config, Pipeline, Point, Pose};
+use slamesh_core::{Capacity, Config, Pipeline, Point, Pose, ScanOutcome};
 use spool::ScanSpool;
 use std::path::Path;
 use std::sync::mpsc::{channel, Receiver, Sender};
@@ -85,6 +86,7 @@ enum ToWorker<C: Capacity> {
         frame: usize,
         counter: u32,
         pose: Pose,
+        information: Box<PoseInformation>,
         points: Vec<Point>,
     },
     /// The run applied a correction whose `last` was `correction`; the rebuilt pipeline
@@ -166,13 +168,15 @@ impl<C: Capacity> LoopClosure<C> {
         })
     }
 
-    /// Hands the thread a frame the run used: its pose and the filtered scan it fused.
-    /// `counter` is the pipeline's frame count after it ([`Pipeline::frames`]).
-    pub fn observe(&mut self, frame: usize, counter: u32, pose: &Pose, points: &[Point]) {
+    /// Hands the thread a frame the run used: its pose, how well its registration pinned
+    /// that down, and the filtered scan it fused. `counter` is the pipeline's frame count
+    /// after it ([`Pipeline::frames`]).
+    pub fn observe(&mut self, frame: usize, counter: u32, outcome: &ScanOutcome, points: &[Point]) {
         let _ = self.to_worker.send(ToWorker::Frame {
             frame,
             counter,
-            pose: *pose,
+            pose: outcome.t_world_sensor,
+            information: Box::new(outcome.stats.information),
             points: points.to_vec(),
         });
     }

@@ -8,7 +8,7 @@
 
 use crate::io::error::FileError;
 use crate::loop_closure::detect::{self, Past};
-use crate::loop_closure::graph::{Edge, PoseGraph};
+use crate::loop_closure::graph::{local_covariance, Edge, PoseGraph};
 use crate::loop_closure::settings::LoopSettings;
 use crate::loop_closure::spool::ScanSpool;
 use crate::loop_closure::{Closure, Corrected, ToWorker};
@@ -66,6 +66,8 @@ pub(crate) struct Worker<C: Capacity> {
     finishing: bool,
     /// The run pipeline's frame count after the newest frame.
     counter: u32,
+    /// The registrations' covariances (each in its frame) summed since the last keyframe.
+    since_key: Matrix6<f64>,
     new_closures: Vec<Closure>,
     submap: Pipeline<C>,
     /// A pipeline for the next rebuild (the one the run handed back).
@@ -99,6 +101,7 @@ impl<C: Capacity> Worker<C> {
             sent_upto: 0,
             finishing: false,
             counter: 0,
+            since_key: Matrix6::zeros(),
             new_closures: Vec::new(),
             submap,
             rebuild: None,
@@ -137,9 +140,11 @@ impl<C: Capacity> Worker<C> {
                 frame,
                 counter,
                 pose,
+                information,
                 points,
             } => {
                 self.counter = counter;
+                self.since_key += local_covariance(&information, &pose);
                 self.add_frame(frame, &pose, &points)?
             }
             ToWorker::Applied {
@@ -187,7 +192,10 @@ impl<C: Capacity> Worker<C> {
             if let Some(&k) = self.node_frame.last() {
                 let from = &self.frames[k];
                 let z = from.raw.inverse() * raw;
-                let info = odometry_info(&self.s, travelled_m - from.travelled_m);
+                let walk = odometry_covariance(&self.s, travelled_m - from.travelled_m);
+                let info = (walk + self.since_key)
+                    .try_inverse()
+                    .unwrap_or_else(|| walk.try_inverse().unwrap_or_else(Matrix6::zeros));
                 let a = self.graph.nodes.len() - 1;
                 self.graph.edges.push(Edge {
                     a,
@@ -198,6 +206,7 @@ impl<C: Capacity> Worker<C> {
             }
             self.graph.nodes.push(correction * raw);
             self.node_frame.push(index);
+            self.since_key = Matrix6::zeros();
         }
         self.correction.push(correction);
         self.frames.push(Frame {
@@ -333,11 +342,13 @@ impl<C: Capacity> Worker<C> {
             position: v.pose.translation.vector.into(),
             applied_at_frame: None,
         };
+        let sigma = covariance(self.s.loop_sigma_m, self.s.loop_sigma_deg)
+            + local_covariance(&v.found.outcome.stats.information, &v.pose);
         let edge = Edge {
             a: old,
             b: node,
             z: self.graph.nodes[old].inverse() * v.pose,
-            info: info(self.s.loop_sigma_m, self.s.loop_sigma_deg),
+            info: sigma.try_inverse().unwrap_or_else(Matrix6::zeros),
         };
         // Two checked revisits in a row must agree on the correction.
         let agrees = self.pending.as_ref().is_some_and(|(_, d, _)| {
@@ -492,15 +503,16 @@ struct Rebuild<C: Capacity> {
     started: std::time::Instant,
 }
 
-/// An odometry edge's information over `metres` of travel: a random walk of
-/// `odometry_sigma_m` and `odometry_sigma_deg` a square-root metre.
-fn odometry_info(s: &LoopSettings, metres: f64) -> Matrix6<f64> {
+/// The odometry's drift over `metres` of travel: a random walk of `odometry_sigma_m` and
+/// `odometry_sigma_deg` a square-root metre (the floor under the registrations' own
+/// covariances).
+fn odometry_covariance(s: &LoopSettings, metres: f64) -> Matrix6<f64> {
     let d = metres.max(0.1).sqrt();
-    info(s.odometry_sigma_m * d, s.odometry_sigma_deg * d)
+    covariance(s.odometry_sigma_m * d, s.odometry_sigma_deg * d)
 }
 
-/// Diagonal information for standard deviations `m` (translation) and `deg` (rotation).
-fn info(m: f64, deg: f64) -> Matrix6<f64> {
-    let (r, t) = (1.0 / deg.to_radians().powi(2), 1.0 / (m * m));
+/// Diagonal covariance for standard deviations `m` (translation) and `deg` (rotation).
+fn covariance(m: f64, deg: f64) -> Matrix6<f64> {
+    let (r, t) = (deg.to_radians().powi(2), m * m);
     Matrix6::from_diagonal(&Vector6::new(r, r, r, t, t, t))
 }

@@ -450,7 +450,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                 self.progress.used_ms.push(rec.ms);
                 if let Some(c) = &mut self.closer {
                     let counter = self.pipeline.frames();
-                    c.observe(i, counter, &o.t_world_sensor, self.pipeline.last_points());
+                    c.observe(i, counter, &o, self.pipeline.last_points());
                 }
             }
             Err(e) => {
