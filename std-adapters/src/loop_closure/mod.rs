@@ -139,6 +139,9 @@ pub struct LoopReport {
     pub rebuilds: usize,
     /// Bytes of scans the spool held at the end.
     pub spool_bytes: u64,
+    /// Why loop closure stopped before the run ended, if it did (the run went on without it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped: Option<String>,
 }
 
 /// The run's end of loop closure.
@@ -238,13 +241,14 @@ impl<C: Capacity> LoopClosure<C> {
     }
 
     /// Waits for the thread to finish what is pending, applies its last corrections, and
-    /// says what loop closure did. `next_frame` is one past the last frame run.
+    /// says what loop closure did. `next_frame` is one past the last frame run. A thread that
+    /// stopped early is logged and named in the report, not an error.
     pub fn finish(
         mut self,
         pipeline: &mut Pipeline<C>,
         poses: &mut [(usize, Pose)],
         next_frame: usize,
-    ) -> Result<LoopReport, FileError> {
+    ) -> LoopReport {
         let _ = self.to_worker.send(ToWorker::Finish);
         while let Ok(c) = self.from_worker.recv() {
             if c.done {
@@ -253,17 +257,21 @@ impl<C: Capacity> LoopClosure<C> {
             }
             self.take(c, pipeline, poses, next_frame);
         }
+        // A thread that stopped (its spool could not be written, say) costs the closures it
+        // would have found, not the run: the outputs are written all the same.
         if let Some(t) = self.thread.take() {
             match t.join() {
-                Ok(r) => r?,
+                Ok(Ok(())) => {}
+                Ok(Err(e)) => {
+                    log::warn!("loop closure stopped early: {e}");
+                    self.report.stopped = Some(e.to_string());
+                }
                 Err(_) => {
-                    return Err(FileError::at(
-                        Path::new("loop closure"),
-                        "the loop-closure thread failed",
-                    ))
+                    log::warn!("loop closure stopped early: its thread failed");
+                    self.report.stopped = Some("its thread failed".into());
                 }
             }
         }
-        Ok(self.report)
+        self.report
     }
 }
