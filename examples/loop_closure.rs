@@ -34,7 +34,6 @@ use slamesh::io::ply::read_ply_mesh;
 use slamesh::io::trajectory::read_kitti;
 use slamesh::loop_closure::settings::LoopSettings;
 use slamesh::run::{FrameSource, Input, Run, RunOptions};
-use slamesh_core::map::MeshMap;
 use slamesh_core::KittiCapacity;
 use slamesh_core::Pose;
 use slamesh_sim::Drive;
@@ -80,11 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .triangle_corners()
             .collect();
         let (s, _) = true_surface_scores(&drive, &mesh, 1, &[0.1]);
-        let mut file = MapFile::open(&run.join("map.slamesh"))?;
-        // A layer takes at least 288 bytes of the file.
-        let most = (file.bytes / 288) as usize;
-        let mut map = MeshMap::with_capacity(most, most, file.info.lattice);
-        file.load_all(&mut map)?;
+        let map = MapFile::open(&run.join("map.slamesh"))?.load_new()?;
         let max_var = 0.3;
         let all = duplicated_surfaces(&map, max_var, 0.3, |_| true);
         let near = duplicated_near(&map, max_var, 0.3, &truth[back], 60.0);
@@ -121,7 +116,7 @@ fn paced(flags: &Flags, input: &str) -> Result<(), Box<dyn std::error::Error>> {
     let mut source = Input::open(std::path::Path::new(input), None, Default::default())?;
     let settings = LoopSettings::default();
     let mut config = slamesh_core::Config::default();
-    config.map.stale_after_frames = settings.stale_after_frames;
+    settings.configure(&mut config);
     let opts = RunOptions {
         out,
         config,

@@ -26,7 +26,7 @@ fn options(out: &Path, loop_closure: bool) -> RunOptions {
     let mut config = Config::default();
     let settings = LoopSettings::default();
     if loop_closure {
-        config.map.stale_after_frames = settings.stale_after_frames;
+        settings.configure(&mut config);
     }
     RunOptions {
         out: out.to_path_buf(),
@@ -58,11 +58,7 @@ fn twin_drive() -> Drive {
 }
 
 fn loaded(path: &Path) -> MeshMap {
-    let mut file = MapFile::open(path).unwrap();
-    let most = (file.bytes / 288) as usize;
-    let mut map = MeshMap::with_capacity(most, most, file.info.lattice);
-    file.load_all(&mut map).unwrap();
-    map
+    MapFile::open(path).unwrap().load_new().unwrap()
 }
 
 /// The look-alike drive, with loop closure off and on: on, it closes the loop where the

@@ -289,8 +289,8 @@ fn run_with(
     if args.obj {
         mesh_formats.push(MeshFormat::Obj);
     }
-    if args.loop_closure == OnOff::On && s.config.map.stale_after_frames == 0 {
-        s.config.map.stale_after_frames = LoopSettings::default().stale_after_frames;
+    if args.loop_closure == OnOff::On {
+        LoopSettings::default().configure(&mut s.config);
     }
     let opts = RunOptions {
         out: args.out.clone(),

@@ -401,6 +401,15 @@ impl<R: Read + Seek> MapFile<R> {
         Ok(layers)
     }
 
+    /// The whole map in a map of its own, sized by the file (a layer takes at least the 288
+    /// bytes of its predictions and variances): for reading a map outside a run.
+    pub fn load_new(&mut self) -> Result<MeshMap, FileError> {
+        let most = (self.bytes / 288) as usize;
+        let mut map = MeshMap::with_capacity(most, most, self.info.lattice);
+        self.load_all(&mut map)?;
+        Ok(map)
+    }
+
     /// Loads the blocks of `tile` into `map`, in file order; returns the layers inserted.
     pub fn load_tile(&mut self, tile: CellKey, map: &mut MeshMap) -> Result<usize, FileError> {
         self.check_lattice(map)?;

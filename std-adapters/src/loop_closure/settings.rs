@@ -48,6 +48,16 @@ pub struct LoopSettings {
     pub stale_after_frames: u32,
 }
 
+impl LoopSettings {
+    /// Sets what a run with loop closure needs of its configuration: `map.stale_after_frames`
+    /// to [`LoopSettings::stale_after_frames`] unless the configuration sets it already.
+    pub fn configure(&self, config: &mut slamesh_core::Config) {
+        if config.map.stale_after_frames == 0 {
+            config.map.stale_after_frames = self.stale_after_frames;
+        }
+    }
+}
+
 impl Default for LoopSettings {
     fn default() -> Self {
         Self {
