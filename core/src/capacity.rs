@@ -8,7 +8,7 @@
 
 use crate::bucket::CellSpan;
 use crate::cell::CellKey;
-use crate::cell_table::{buckets_for, Bucket};
+use crate::cell_table::table_bytes;
 use crate::layer::Layer;
 use crate::layer::ScanLayer;
 use crate::lm::Residual;
@@ -71,10 +71,11 @@ pub trait Capacity: 'static {
     }
 }
 
-/// Bytes of a map for `cells` cells and `layers` layers: its hash table's buckets
-/// ([`buckets_for`] the cells) and its layer pool with the free list.
+/// Bytes of a map for `cells` cells and `layers` layers: its hash table ([`table_bytes`]: an
+/// index of 4-byte slots, two or more a cell, and the packed cells) and its layer pool with the
+/// free list.
 pub const fn map_bytes(cells: usize, layers: usize) -> usize {
-    buckets_for(cells) * size_of::<Bucket>() + layers * MAP_LAYER_BYTES
+    table_bytes(cells) + layers * MAP_LAYER_BYTES
 }
 
 /// KITTI HDL-64E scans (about 125 000 points, 100 m range) and runs of a few kilometres
@@ -160,9 +161,14 @@ mod tests {
             "per scan layer"
         );
         assert_eq!(
-            size_of::<Bucket>(),
-            32,
-            "per table bucket (two or more a map cell)"
+            size_of::<crate::cell_table::Slot>(),
+            4,
+            "per index slot (two or more a map cell)"
+        );
+        assert_eq!(
+            size_of::<crate::cell_table::CellEntry>(),
+            28,
+            "per packed map cell"
         );
         assert_eq!(size_of::<Layer>() + size_of::<u32>(), 292, "per map layer");
         assert_eq!(size_of::<Layer>(), 288);

@@ -1,21 +1,32 @@
 //! [`CellTable`]: the map's hash table from [`CellKey`] to [`MapCell`].
 //!
-//! Open addressing with linear probing in a fixed array of buckets, a power of two at least
-//! [`MAP_TABLE_FACTOR`] times the cell capacity, so that at most half of it is used and every
-//! probe ends soon at an empty bucket. Removal shifts the entries after it back (no
-//! tombstones), so the table never degrades under churn and never reallocates.
+//! Two arrays, both fixed when the table is made:
+//! - the cells themselves, packed: one [`CellEntry`] (key, layer slots, last seen) per cell,
+//!   in the first `len` places of an array of the cell capacity; a removed cell's place takes
+//!   the last cell, so the array never has holes and its pages are touched only as the map
+//!   grows;
+//! - the index: open addressing with linear probing in an array of [`Slot`]s, a power of two
+//!   at least [`MAP_TABLE_FACTOR`] times the cell capacity, so that at most half of it is used
+//!   and every probe ends soon at an empty slot. A slot is 4 bytes: the cell's place plus one,
+//!   with the hash's high bits above it as a tag (a probe reads the cell only when the tag
+//!   matches). Removal shifts the slots after it back (no tombstones), so the table never
+//!   degrades under churn and never reallocates.
 //!
-//! A bucket is eight plain words, all zero when empty: a table from the global allocator is
-//! zeroed by the system (its pages untouched until a cell lands there, as with a hash table
-//! that only writes its control bytes), and one in caller storage is a zeroed `static`. Cells
-//! are read and written by value. Iteration runs in bucket order, which depends only on the
-//! keys inserted and removed and the table's size: it is deterministic.
+//! Why two arrays: the cells hash to slots all over the index, so every page of it is
+//! touched (resident) after a few thousand cells. With 4-byte slots that is 2 MB for the
+//! 64-beam class's 262 144 cells; with the cells stored in the slots it was 16.8 MB
+//! (docs/design.md §1.5).
+//!
+//! An empty slot is 0: an index from the global allocator is zeroed by the system, and one in
+//! caller storage is a zeroed `static`. Iteration runs in slot order, which depends only on
+//! the keys inserted and removed and the table's size: it is deterministic, and the same as
+//! when the cells were stored in the slots.
 
 use crate::bounded::BoundedVec;
 use crate::cell::{Axis, BuildCellHasher, CellKey};
 use core::hash::BuildHasher;
 
-/// The hash table is made for this many times the cell capacity.
+/// The index is made for this many times the cell capacity.
 pub const MAP_TABLE_FACTOR: usize = 2;
 /// A cell's layer slot that holds no layer.
 pub(crate) const NO_LAYER: u32 = u32::MAX;
@@ -45,14 +56,29 @@ impl MapCell {
     }
 }
 
-/// One bucket: the key's `x, y, z`, the cell's three layer slots and `last_seen`, and 1 when
-/// occupied (0 when empty).
-pub type Bucket = [u32; 8];
+/// One cell of the packed array: its key and what it holds (28 bytes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CellEntry {
+    /// The cell's key.
+    pub key: CellKey,
+    /// The cell.
+    pub cell: MapCell,
+}
 
-/// An empty bucket.
-pub const EMPTY: Bucket = [0; 8];
+/// An unused [`CellEntry`] (for storage).
+pub const NO_ENTRY: CellEntry = CellEntry {
+    key: CellKey::new(0, 0, 0),
+    cell: MapCell {
+        layers: [NO_LAYER; 3],
+        last_seen: 0,
+    },
+};
 
-/// Buckets of a table for `cells` cells: `MAP_TABLE_FACTOR` times as many, rounded up to a
+/// One slot of the index: 0 when empty, else the cell's place plus one in the low bits and a
+/// tag from its hash in the rest.
+pub type Slot = u32;
+
+/// Slots of an index for `cells` cells: `MAP_TABLE_FACTOR` times as many, rounded up to a
 /// power of two.
 pub const fn buckets_for(cells: usize) -> usize {
     let n = cells.saturating_mul(MAP_TABLE_FACTOR);
@@ -63,57 +89,42 @@ pub const fn buckets_for(cells: usize) -> usize {
     }
 }
 
+/// Bytes of a table for `cells` cells: its index and its packed cells.
+pub const fn table_bytes(cells: usize) -> usize {
+    buckets_for(cells) * size_of::<Slot>() + cells * size_of::<CellEntry>()
+}
+
 /// The hash table (see the module's documentation).
 #[derive(Debug)]
 #[cfg_attr(feature = "alloc", derive(Clone))]
 pub struct CellTable {
-    buckets: BoundedVec<Bucket>,
-    len: usize,
+    slots: BoundedVec<Slot>,
+    entries: BoundedVec<CellEntry>,
+    /// Bits of a slot that hold the place plus one; the rest hold the tag.
+    place_bits: u32,
 }
 
-fn occupied(b: &Bucket) -> bool {
-    b[7] != 0
-}
-
-fn key_of(b: &Bucket) -> CellKey {
-    CellKey::new(b[0] as i32, b[1] as i32, b[2] as i32)
-}
-
-fn cell_of(b: &Bucket) -> MapCell {
-    MapCell {
-        layers: [b[3], b[4], b[5]],
-        last_seen: b[6],
-    }
-}
-
-fn bucket(key: &CellKey, cell: &MapCell) -> Bucket {
-    let (l, seen) = (cell.layers, cell.last_seen);
-    [
-        key.x as u32,
-        key.y as u32,
-        key.z as u32,
-        l[0],
-        l[1],
-        l[2],
-        seen,
-        1,
-    ]
+/// Where a key is, or would go: its slot (`Ok` when the key is there) and its tag.
+struct Probe {
+    found: Result<usize, Option<usize>>,
+    tag: u32,
 }
 
 impl CellTable {
-    /// A table for `cells` cells, allocated (zeroed) now.
+    /// A table for `cells` cells, allocated now (the index zeroed, untouched until written).
     #[cfg(any(feature = "alloc", test))]
     pub fn with_capacity(cells: usize) -> Self {
-        Self {
-            buckets: BoundedVec::filled(buckets_for(cells), EMPTY),
-            len: 0,
-        }
+        Self::new(
+            BoundedVec::filled(buckets_for(cells), 0),
+            BoundedVec::with_capacity(cells.min(u32::MAX as usize - 1)),
+        )
     }
 
-    /// A table in the caller's `buckets` (emptied now), using the largest power of two of
-    /// them; `None` when there are fewer than two.
-    pub fn in_slice(buckets: &'static mut [Bucket]) -> Option<Self> {
-        let n = buckets.len();
+    /// A table in the caller's `slots` (emptied now; the largest power of two of them is
+    /// used) and `entries`; it holds at most half the slots, and no more cells than
+    /// `entries`. `None` when there are fewer than two slots.
+    pub fn in_slice(slots: &'static mut [Slot], entries: &'static mut [CellEntry]) -> Option<Self> {
+        let n = slots.len();
         if n < 2 {
             return None;
         }
@@ -122,160 +133,261 @@ impl CellTable {
         } else {
             n.next_power_of_two() / 2
         };
-        let (used, _) = buckets.split_at_mut(pow2);
-        Some(Self {
-            buckets: BoundedVec::in_slice_filled(used, EMPTY),
-            len: 0,
-        })
+        let (used, _) = slots.split_at_mut(pow2);
+        let cells = entries.len().min(u32::MAX as usize - 1);
+        let (entries, _) = entries.split_at_mut(cells);
+        Some(Self::new(
+            BoundedVec::in_slice_filled(used, 0),
+            BoundedVec::in_slice(entries),
+        ))
     }
 
-    /// Cells the table holds at most (half its buckets).
+    fn new(slots: BoundedVec<Slot>, entries: BoundedVec<CellEntry>) -> Self {
+        let most = (slots.len() / 2).min(entries.capacity());
+        Self {
+            slots,
+            entries,
+            place_bits: u32::BITS - (most as u32).leading_zeros(),
+        }
+    }
+
+    /// Cells the table holds at most (half its slots, and no more than its packed array).
     pub fn max_cells(&self) -> usize {
-        self.buckets.len() / 2
+        (self.slots.len() / 2).min(self.entries.capacity())
     }
 
     /// Number of cells.
     #[inline]
     pub fn len(&self) -> usize {
-        self.len
+        self.entries.len()
     }
 
     /// Whether the table holds no cell.
     #[inline]
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.entries.is_empty()
     }
 
     #[inline]
     fn mask(&self) -> usize {
-        self.buckets.len().wrapping_sub(1)
+        self.slots.len().wrapping_sub(1)
     }
 
     #[inline]
-    fn home(&self, key: &CellKey) -> usize {
-        BuildCellHasher::default().hash_one(key) as usize & self.mask()
+    fn hash(key: &CellKey) -> u64 {
+        BuildCellHasher::default().hash_one(key)
     }
 
-    /// `Ok(bucket)` holding `key`, or `Err(bucket)`: the empty one where it would go (`None`
-    /// when the table is full, which the cell limit prevents).
-    fn find(&self, key: &CellKey) -> Result<usize, Option<usize>> {
+    /// The tag of a hash: its high bits, as many as a slot has beside the place.
+    #[inline]
+    fn tag_of(&self, hash: u64) -> u32 {
+        let bits = u32::BITS - self.place_bits;
+        if bits == 0 {
+            0
+        } else {
+            (hash >> (u64::BITS - bits)) as u32
+        }
+    }
+
+    /// The cell's place in `entries`, if `slot` holds one.
+    #[inline]
+    fn place(&self, slot: Slot) -> Option<usize> {
+        let low = if self.place_bits >= u32::BITS {
+            slot
+        } else {
+            slot & ((1 << self.place_bits) - 1)
+        };
+        (low as usize).checked_sub(1)
+    }
+
+    #[inline]
+    fn slot(&self, tag: u32, place: usize) -> Slot {
+        let low = place as u32 + 1;
+        if self.place_bits >= u32::BITS {
+            low
+        } else {
+            (tag << self.place_bits) | low
+        }
+    }
+
+    #[inline]
+    fn slot_tag(&self, slot: Slot) -> u32 {
+        slot.checked_shr(self.place_bits).unwrap_or(0)
+    }
+
+    /// The slot holding `key`, or the empty one where it would go (`None` when the index is
+    /// full, which the cell limit prevents).
+    fn find(&self, key: &CellKey) -> Probe {
+        let hash = Self::hash(key);
+        let tag = self.tag_of(hash);
         let mask = self.mask();
-        let mut i = self.home(key);
-        for _ in 0..self.buckets.len() {
-            let b = self.buckets.get(i).ok_or(None)?;
-            if !occupied(b) {
-                return Err(Some(i));
-            }
-            if key_of(b) == *key {
-                return Ok(i);
+        let mut i = hash as usize & mask;
+        for _ in 0..self.slots.len() {
+            let Some(&s) = self.slots.get(i) else { break };
+            let Some(place) = self.place(s) else {
+                return Probe {
+                    found: Err(Some(i)),
+                    tag,
+                };
+            };
+            if self.slot_tag(s) == tag && self.entries.get(place).is_some_and(|e| e.key == *key)
+            {
+                return Probe { found: Ok(i), tag };
             }
             i = (i + 1) & mask;
         }
-        Err(None)
+        Probe {
+            found: Err(None),
+            tag,
+        }
+    }
+
+    /// The packed cell that slot `i` refers to.
+    #[inline]
+    fn entry_at(&self, i: usize) -> Option<&CellEntry> {
+        let place = self.place(*self.slots.get(i)?)?;
+        self.entries.get(place)
     }
 
     /// The cell at `key`.
     #[inline]
     pub fn get(&self, key: &CellKey) -> Option<MapCell> {
-        let i = self.find(key).ok()?;
-        self.buckets.get(i).map(cell_of)
+        let i = self.find(key).found.ok()?;
+        self.entry_at(i).map(|e| e.cell)
     }
 
     /// Whether a cell is at `key`.
     #[inline]
     pub fn contains(&self, key: &CellKey) -> bool {
-        self.find(key).is_ok()
+        self.find(key).found.is_ok()
     }
 
     /// Applies `f` to the cell at `key`, if any, and returns what it returned.
     pub fn update<R>(&mut self, key: &CellKey, f: impl FnOnce(&mut MapCell) -> R) -> Option<R> {
-        let i = self.find(key).ok()?;
-        let b = self.buckets.get_mut(i)?;
-        let mut cell = cell_of(b);
-        let r = f(&mut cell);
-        *b = bucket(key, &cell);
-        Some(r)
+        let i = self.find(key).found.ok()?;
+        let place = self.place(*self.slots.get(i)?)?;
+        self.entries.get_mut(place).map(|e| f(&mut e.cell))
     }
 
     /// Applies `f` to the cell at `key`, made from `new` first if there is none (then `false`
     /// is returned when the table holds [`max_cells`](Self::max_cells) already).
     pub fn upsert(&mut self, key: &CellKey, new: MapCell, f: impl FnOnce(&mut MapCell)) -> bool {
-        let (i, mut cell) = match self.find(key) {
-            Ok(i) => match self.buckets.get(i) {
-                Some(b) => (i, cell_of(b)),
-                None => return false,
-            },
-            Err(Some(i)) if self.len < self.max_cells() => {
-                self.len += 1;
-                (i, new)
+        let probe = self.find(key);
+        match probe.found {
+            Ok(_) => self.update(key, f).is_some(),
+            Err(Some(i)) if self.len() < self.max_cells() => {
+                let mut cell = new;
+                f(&mut cell);
+                let place = self.entries.len();
+                if self.entries.push(CellEntry { key: *key, cell }).is_err() {
+                    return false;
+                }
+                let slot = self.slot(probe.tag, place);
+                match self.slots.get_mut(i) {
+                    Some(s) => {
+                        *s = slot;
+                        true
+                    }
+                    None => {
+                        self.entries.truncate(place);
+                        false
+                    }
+                }
             }
-            Err(_) => return false,
-        };
-        f(&mut cell);
-        match self.buckets.get_mut(i) {
-            Some(b) => {
-                *b = bucket(key, &cell);
-                true
-            }
-            None => false,
+            Err(_) => false,
         }
     }
 
-    /// Every cell with its key, in bucket order.
+    /// Every cell with its key, in slot order.
     pub fn iter(&self) -> impl Iterator<Item = (CellKey, MapCell)> + '_ {
-        self.buckets
+        self.slots
             .iter()
-            .filter(|b| occupied(b))
-            .map(|b| (key_of(b), cell_of(b)))
+            .filter_map(|&s| self.entries.get(self.place(s)?))
+            .map(|e| (e.key, e.cell))
     }
 
     /// Removes every cell for which `keep(key, cell)` is false.
     pub fn retain(&mut self, mut keep: impl FnMut(&CellKey, &MapCell) -> bool) {
-        let n = self.buckets.len();
+        let n = self.slots.len();
         let mask = self.mask();
-        // Start after an empty bucket: no run of entries crosses it, so shifting entries back
+        // Start after an empty slot: no run of entries crosses it, so shifting slots back
         // never moves one past the start, and every entry is seen once.
-        let Some(start) = self.buckets.iter().position(|b| !occupied(b)) else {
+        let Some(start) = self.slots.iter().position(|&s| self.place(s).is_none()) else {
             return;
         };
         let mut i = (start + 1) & mask;
         let mut steps = 0;
         while steps < n {
-            let Some(b) = self.buckets.get(i) else { return };
-            if occupied(b) && !keep(&key_of(b), &cell_of(b)) {
-                // The bucket now holds the entry shifted back into it (or is empty): look
-                // at it again.
-                self.remove_at(i);
-                continue;
+            if let Some(e) = self.entry_at(i) {
+                if !keep(&e.key, &e.cell) {
+                    // The slot now holds the one shifted back into it (or is empty): look at
+                    // it again.
+                    self.remove_at(i);
+                    continue;
+                }
             }
             i = (i + 1) & mask;
             steps += 1;
         }
     }
 
-    /// Empties bucket `hole`, shifting back the entries after it that probed past it.
+    /// Removes the cell of slot `hole`: the last packed cell takes its place, and the slots
+    /// after `hole` that probed past it shift back.
     fn remove_at(&mut self, mut hole: usize) {
+        let Some(place) = self.slots.get(hole).and_then(|&s| self.place(s)) else {
+            return;
+        };
+        self.move_last_to(place);
         let mask = self.mask();
         let mut j = hole;
-        for _ in 0..self.buckets.len() {
+        for _ in 0..self.slots.len() {
             j = (j + 1) & mask;
-            let Some(&b) = self.buckets.get(j) else { break };
-            if !occupied(&b) {
+            let Some(&s) = self.slots.get(j) else { break };
+            let Some(e) = self.place(s).and_then(|p| self.entries.get(p)) else {
                 break;
-            }
-            let home = self.home(&key_of(&b));
-            // `b` may move to `hole` when `hole` lies on its probe path, from `home` to `j`.
+            };
+            let home = Self::hash(&e.key) as usize & mask;
+            // The slot may move to `hole` when `hole` lies on its probe path, from `home` to `j`.
             if (j.wrapping_sub(home) & mask) >= (j.wrapping_sub(hole) & mask) {
-                if let Some(h) = self.buckets.get_mut(hole) {
-                    *h = b;
+                if let Some(h) = self.slots.get_mut(hole) {
+                    *h = s;
                 }
                 hole = j;
             }
         }
-        if let Some(h) = self.buckets.get_mut(hole) {
-            *h = EMPTY;
-            self.len = self.len.saturating_sub(1);
+        if let Some(h) = self.slots.get_mut(hole) {
+            *h = 0;
         }
+    }
+
+    /// Drops the packed cell at `place`, moving the last one into it (and its slot with it).
+    fn move_last_to(&mut self, place: usize) {
+        let Some(last) = self.entries.len().checked_sub(1) else {
+            return;
+        };
+        if place != last {
+            let Some(&moved) = self.entries.get(last) else {
+                return;
+            };
+            // The slot that refers to the last cell: on the probe path from its home.
+            let mask = self.mask();
+            let mut i = Self::hash(&moved.key) as usize & mask;
+            for _ in 0..self.slots.len() {
+                let Some(&s) = self.slots.get(i) else { return };
+                if self.place(s) == Some(last) {
+                    let slot = self.slot(self.slot_tag(s), place);
+                    if let Some(to) = self.slots.get_mut(i) {
+                        *to = slot;
+                    }
+                    break;
+                }
+                i = (i + 1) & mask;
+            }
+            if let Some(e) = self.entries.get_mut(place) {
+                *e = moved;
+            }
+        }
+        self.entries.truncate(last);
     }
 }
 
@@ -294,8 +406,9 @@ mod tests {
 
     #[test]
     fn it_agrees_with_an_ordered_map_under_churn() {
-        let slots: &'static mut [Bucket] = alloc::vec![EMPTY; 256].leak();
-        let mut t = CellTable::in_slice(slots).unwrap();
+        let slots: &'static mut [Slot] = alloc::vec![0; 256].leak();
+        let entries: &'static mut [CellEntry] = alloc::vec![NO_ENTRY; 128].leak();
+        let mut t = CellTable::in_slice(slots, entries).unwrap();
         assert_eq!(t.max_cells(), 128);
         let mut truth = BTreeMap::new();
         let mut rng = SplitMix64(3);
@@ -334,9 +447,16 @@ mod tests {
         assert_eq!(buckets_for(0), 2);
         assert_eq!(buckets_for(384), 1024);
         assert_eq!(buckets_for(262_144), 524_288);
-        let odd: &'static mut [Bucket] = alloc::vec![EMPTY; 100].leak();
-        assert_eq!(CellTable::in_slice(odd).unwrap().max_cells(), 32);
-        let none: &'static mut [Bucket] = alloc::vec![EMPTY; 1].leak();
-        assert!(CellTable::in_slice(none).is_none());
+        let entries = || -> &'static mut [CellEntry] { alloc::vec![NO_ENTRY; 40].leak() };
+        let odd: &'static mut [Slot] = alloc::vec![0; 100].leak();
+        assert_eq!(CellTable::in_slice(odd, entries()).unwrap().max_cells(), 32);
+        let few: &'static mut [Slot] = alloc::vec![0; 256].leak();
+        assert_eq!(
+            CellTable::in_slice(few, entries()).unwrap().max_cells(),
+            40,
+            "no more than the packed array holds"
+        );
+        let none: &'static mut [Slot] = alloc::vec![0; 1].leak();
+        assert!(CellTable::in_slice(none, entries()).is_none());
     }
 }

@@ -3,9 +3,9 @@
 //! Owns its memory, all taken once when it is made, from the global allocator
 //! ([`MeshMap::with_capacity`], feature `alloc`) or from the caller's storage
 //! ([`MeshMap::in_storage`]):
-//! - a hash table from [`CellKey`] to [`MapCell`] ([`CellTable`]), made for
-//!   [`MAP_TABLE_FACTOR`] times the cell capacity, so that it never grows and at most half of
-//!   it is used;
+//! - a hash table from [`CellKey`] to [`MapCell`] ([`CellTable`]): the cells packed in an
+//!   array of the cell capacity, and an index of [`MAP_TABLE_FACTOR`] times as many 4-byte
+//!   slots, so that it never grows and at most half of it is used;
 //! - a pool of [`Layer`]s with a free list; a cell refers to its layers by pool index.
 //!
 //! A new cell past the cell capacity, or a new layer past the layer capacity, is refused with
@@ -13,7 +13,7 @@
 
 use crate::bounded::BoundedVec;
 use crate::cell::{Axis, CellKey};
-use crate::cell_table::{Bucket, CellTable, NO_LAYER};
+use crate::cell_table::{CellEntry, CellTable, Slot, NO_LAYER};
 pub use crate::cell_table::{MapCell, MAP_TABLE_FACTOR};
 use crate::lattice::Lattice;
 use crate::layer::Layer;
@@ -66,8 +66,10 @@ pub struct MeshMap {
 
 /// The caller's memory for a map ([`MeshMap::in_storage`]).
 pub struct MapStorage {
-    /// The hash table's buckets ([`buckets_for`](crate::cell_table::buckets_for) of the cells).
-    pub table: &'static mut [Bucket],
+    /// The hash table's index ([`buckets_for`](crate::cell_table::buckets_for) of the cells).
+    pub table: &'static mut [Slot],
+    /// The hash table's packed cells: one a cell.
+    pub cells: &'static mut [CellEntry],
     /// The layer pool: one slot a layer.
     pub pool: &'static mut [Layer],
     /// The free list: as long as the pool.
@@ -93,7 +95,7 @@ impl MeshMap {
     /// half the table's buckets) and as many layers as both the pool and the free list hold;
     /// `None` when the table has fewer than two buckets.
     pub fn in_storage(storage: MapStorage, max_cells: usize, lattice: Lattice) -> Option<Self> {
-        let cells = CellTable::in_slice(storage.table)?;
+        let cells = CellTable::in_slice(storage.table, storage.cells)?;
         let layers = storage
             .pool
             .len()

@@ -24,7 +24,7 @@ use crate::bucket::CellSpan;
 use crate::capacity::Capacity;
 use crate::cell::{Axis, CellKey};
 use crate::cell_table::buckets_for;
-use crate::cell_table::{Bucket, EMPTY as EMPTY_BUCKET};
+use crate::cell_table::{CellEntry, Slot, NO_ENTRY};
 use crate::config::{Config, ConfigError};
 use crate::layer::{Layer, ScanLayer};
 use crate::lm::Residual;
@@ -76,8 +76,8 @@ impl Empty for Residual {
         weight: 0.0,
     };
 }
-impl Empty for Bucket {
-    const EMPTY: Self = EMPTY_BUCKET;
+impl Empty for CellEntry {
+    const EMPTY: Self = NO_ENTRY;
 }
 
 /// Every buffer of one pipeline, lent by the caller. Each must hold at least what the
@@ -117,6 +117,7 @@ impl Storage {
             residuals: slots(C::SCAN_LAYERS),
             map: MapStorage {
                 table: slots(buckets_for(C::MAP_CELLS)),
+                cells: slots(C::MAP_CELLS),
                 pool: slots(C::MAP_LAYERS),
                 free: slots(C::MAP_LAYERS),
             },
@@ -159,10 +160,16 @@ impl<C: Capacity> Pipeline<C> {
         let scan = part(scan, C::SCAN_LAYERS, "storage.scan")?;
         let residuals = part(residuals, C::SCAN_LAYERS, "storage.residuals")?;
         let table = part(map.table, buckets_for(C::MAP_CELLS), "storage.map.table")?;
+        let map_cells = part(map.cells, C::MAP_CELLS, "storage.map.cells")?;
         let pool = part(map.pool, C::MAP_LAYERS, "storage.map.pool")?;
         let free = part(map.free, C::MAP_LAYERS, "storage.map.free")?;
         let map = MeshMap::in_storage(
-            MapStorage { table, pool, free },
+            MapStorage {
+                table,
+                cells: map_cells,
+                pool,
+                free,
+            },
             C::MAP_CELLS,
             config.lattice(),
         )
@@ -190,6 +197,7 @@ pub struct StaticStorage<
     const SCAN_CELLS: usize,
     const SCAN_LAYERS: usize,
     const BUCKETS: usize,
+    const MAP_CELLS: usize,
     const MAP_LAYERS: usize,
 > {
     points: [Point; POINTS],
@@ -198,7 +206,8 @@ pub struct StaticStorage<
     cells: [CellSpan; SCAN_CELLS],
     scan: [ScanLayer; SCAN_LAYERS],
     residuals: [Residual; SCAN_LAYERS],
-    table: [Bucket; BUCKETS],
+    table: [Slot; BUCKETS],
+    map_cells: [CellEntry; MAP_CELLS],
     pool: [Layer; MAP_LAYERS],
     free: [u32; MAP_LAYERS],
 }
@@ -209,8 +218,9 @@ impl<
         const SCAN_CELLS: usize,
         const SCAN_LAYERS: usize,
         const BUCKETS: usize,
+        const MAP_CELLS: usize,
         const MAP_LAYERS: usize,
-    > StaticStorage<POINTS, SORT, SCAN_CELLS, SCAN_LAYERS, BUCKETS, MAP_LAYERS>
+    > StaticStorage<POINTS, SORT, SCAN_CELLS, SCAN_LAYERS, BUCKETS, MAP_CELLS, MAP_LAYERS>
 {
     /// All zeroes (for a `static`).
     #[allow(clippy::new_without_default)]
@@ -222,7 +232,8 @@ impl<
             cells: [CellSpan::EMPTY; SCAN_CELLS],
             scan: [ScanLayer::EMPTY; SCAN_LAYERS],
             residuals: [Residual::EMPTY; SCAN_LAYERS],
-            table: [EMPTY_BUCKET; BUCKETS],
+            table: [0; BUCKETS],
+            map_cells: [NO_ENTRY; MAP_CELLS],
             pool: [Layer::EMPTY; MAP_LAYERS],
             free: [0; MAP_LAYERS],
         }
@@ -239,6 +250,7 @@ impl<
             residuals: &mut self.residuals,
             map: MapStorage {
                 table: &mut self.table,
+                cells: &mut self.map_cells,
                 pool: &mut self.pool,
                 free: &mut self.free,
             },
@@ -257,6 +269,7 @@ macro_rules! storage_for {
             { <$capacity as $crate::Capacity>::SCAN_CELLS },
             { <$capacity as $crate::Capacity>::SCAN_LAYERS },
             { $crate::cell_table::buckets_for(<$capacity as $crate::Capacity>::MAP_CELLS) },
+            { <$capacity as $crate::Capacity>::MAP_CELLS },
             { <$capacity as $crate::Capacity>::MAP_LAYERS },
         >
     };
