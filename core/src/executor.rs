@@ -18,6 +18,8 @@ use crate::sort::{Entry, KeySorter};
 pub trait Executor {
     /// Maps every item with `unit` and hands the results to `sink` in item order. `init` makes
     /// the working memory a worker reuses across its items (the result must not depend on it).
+    /// The results own their data (`'static`), so that an executor may keep the buffer it
+    /// gathers them in from one call to the next.
     fn map_in_order<T, S, R>(
         &self,
         items: &[T],
@@ -26,7 +28,7 @@ pub trait Executor {
         mut sink: impl FnMut(R),
     ) where
         T: Sync,
-        R: Send,
+        R: Send + 'static,
     {
         let mut scratch = init();
         for item in items {

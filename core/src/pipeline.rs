@@ -134,6 +134,12 @@ impl<C: Capacity> Pipeline<C> {
         &self.map
     }
 
+    /// The map alone: the scan buffers are given back (freed, or their caller storage left
+    /// unused), for a program that has registered its last scan and goes on to write the map.
+    pub fn into_map(self) -> MeshMap {
+        self.map
+    }
+
     /// The map, mutably (for eviction).
     pub fn map_mut(&mut self) -> &mut MeshMap {
         &mut self.map

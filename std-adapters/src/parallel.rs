@@ -26,6 +26,39 @@ const MIN_SORT_PART: usize = 65_536;
 #[derive(Debug)]
 pub struct Rayon {
     pool: rayon::ThreadPool,
+    spare: Spare,
+}
+
+/// The buffers [`Rayon::map_in_order`] gathered results in, one per result type, kept empty
+/// for the next call: a scan's loops then allocate nothing once the largest scan has been
+/// seen, and the allocator's free memory does not grow with a megabyte of results a round
+/// (docs/benchmarks.md, "Memory with 64-beam scans").
+#[derive(Debug, Default)]
+struct Spare(std::sync::Mutex<Vec<Box<dyn std::any::Any + Send>>>);
+
+impl Spare {
+    /// The kept buffer for `R` (empty), or a new one.
+    fn take<R: Send + 'static>(&self) -> Vec<R> {
+        let Ok(mut kept) = self.0.lock() else {
+            return Vec::new();
+        };
+        match kept.iter().position(|b| b.is::<Vec<R>>()) {
+            Some(i) => kept
+                .swap_remove(i)
+                .downcast::<Vec<R>>()
+                .map(|b| *b)
+                .unwrap_or_default(),
+            None => Vec::new(),
+        }
+    }
+
+    /// Keeps `buffer` (emptied) for the next [`take`](Self::take) of its type.
+    fn keep<R: Send + 'static>(&self, mut buffer: Vec<R>) {
+        buffer.clear();
+        if let Ok(mut kept) = self.0.lock() {
+            kept.push(Box::new(buffer));
+        }
+    }
 }
 
 impl Rayon {
@@ -34,7 +67,10 @@ impl Rayon {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()?;
-        Ok(Self { pool })
+        Ok(Self {
+            pool,
+            spare: Spare::default(),
+        })
     }
 
     /// Number of threads in the pool.
@@ -58,12 +94,17 @@ impl Executor for Rayon {
         sink: impl FnMut(R),
     ) where
         T: Sync,
-        R: Send,
+        R: Send + 'static,
     {
-        let results: Vec<R> = self
-            .pool
-            .install(|| items.par_iter().map_init(&init, &unit).collect());
-        results.into_iter().for_each(sink);
+        let mut results: Vec<R> = self.spare.take();
+        self.pool.install(|| {
+            items
+                .par_iter()
+                .map_init(&init, &unit)
+                .collect_into_vec(&mut results)
+        });
+        results.drain(..).for_each(sink);
+        self.spare.keep(results);
     }
 
     /// `src` is cut into tasks of 8 192 items; each task writes what it keeps to
@@ -283,7 +324,7 @@ impl Executor for Workers {
         sink: impl FnMut(R),
     ) where
         T: Sync,
-        R: Send,
+        R: Send + 'static,
     {
         match self {
             Workers::Serial => Serial.map_in_order(items, init, unit, sink),

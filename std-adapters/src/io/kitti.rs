@@ -58,10 +58,50 @@ pub fn read_bin(path: &Path) -> Result<Vec<Point>, FileError> {
     read_bin_as(path, &BinFields::default())
 }
 
-/// Reads a `.bin` scan whose records are `fields`.
+/// Reads a `.bin` scan whose records are `fields`, streaming: the file passes through a
+/// buffer of a few thousand records, so a read holds the points and no copy of the file.
 pub fn read_bin_as(path: &Path, fields: &BinFields) -> Result<Vec<Point>, FileError> {
-    let bytes = std::fs::read(path).map_err(|e| err(path, None, e.to_string()))?;
-    parse_bin_as(path, &bytes, fields)
+    use std::io::Read;
+    let io = |e: std::io::Error| err(path, None, e.to_string());
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len() as usize;
+    check_length(path, len, fields)?;
+    let size = fields.record_bytes();
+    let mut points = Vec::with_capacity(len / size);
+    let mut chunk = vec![0u8; size * 4096];
+    let mut read = 0;
+    loop {
+        // Fill the chunk (or what is left of the file), then parse its whole records.
+        let mut filled = 0;
+        while filled < chunk.len() {
+            match file.read(&mut chunk[filled..]) {
+                Ok(0) => break,
+                Ok(n) => filled += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(io(e)),
+            }
+        }
+        read += filled;
+        if !filled.is_multiple_of(size) || read > len {
+            return Err(err(
+                path,
+                None,
+                format!("the file changed while it was read ({len} bytes, then {read})"),
+            ));
+        }
+        push_records(&chunk[..filled], fields, &mut points);
+        if filled < chunk.len() {
+            break;
+        }
+    }
+    if read != len {
+        return Err(err(
+            path,
+            None,
+            format!("the file changed while it was read ({len} bytes, then {read})"),
+        ));
+    }
+    Ok(points)
 }
 
 /// Parses the bytes of a Velodyne scan read from `path` (named in errors).
@@ -75,14 +115,23 @@ pub fn parse_bin_as(
     bytes: &[u8],
     fields: &BinFields,
 ) -> Result<Vec<Point>, FileError> {
-    if bytes.is_empty() {
+    check_length(path, bytes.len(), fields)?;
+    let mut points = Vec::with_capacity(bytes.len() / fields.record_bytes());
+    push_records(bytes, fields, &mut points);
+    Ok(points)
+}
+
+/// Refuses a file of `len` bytes that is empty or not a whole number of `fields` records,
+/// with a hint when its length fits another record size.
+fn check_length(path: &Path, len: usize, fields: &BinFields) -> Result<(), FileError> {
+    if len == 0 {
         return Err(err(path, None, "empty file"));
     }
     let size = fields.record_bytes();
-    if !bytes.len().is_multiple_of(size) {
+    if !len.is_multiple_of(size) {
         let other: Vec<String> = [16, 20, 24]
             .into_iter()
-            .filter(|s| *s != size && bytes.len().is_multiple_of(*s))
+            .filter(|s| *s != size && len.is_multiple_of(*s))
             .map(|s| format!("{} floats", s / 4))
             .collect();
         let hint = if other.is_empty() {
@@ -97,18 +146,23 @@ pub fn parse_bin_as(
             path,
             None,
             format!(
-                "{} bytes is not a whole number of {size}-byte points ({}); {hint}",
-                bytes.len(),
+                "{len} bytes is not a whole number of {size}-byte points ({}); {hint}",
                 fields.names.join(",")
             ),
         ));
     }
+    Ok(())
+}
+
+/// Appends the points of `bytes`' whole `fields` records to `points`.
+fn push_records(bytes: &[u8], fields: &BinFields, points: &mut Vec<Point>) {
     let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
     let [x, y, z] = fields.xyz.map(|k| 4 * k);
-    Ok(bytes
-        .chunks_exact(size)
-        .map(|c| [f(&c[x..x + 4]), f(&c[y..y + 4]), f(&c[z..z + 4])])
-        .collect())
+    points.extend(
+        bytes
+            .chunks_exact(fields.record_bytes())
+            .map(|c| [f(&c[x..x + 4]), f(&c[y..y + 4]), f(&c[z..z + 4])]),
+    );
 }
 
 /// Reads `Tr` (LiDAR to camera) from a KITTI `calib.txt`.

@@ -520,16 +520,20 @@ impl<'a, C: Capacity> Run<'a, C> {
             .map_err(|e| FileError::at(&self.frames_path, format!("cannot write: {e}")))?;
         drop(self.frame_lines);
         let health = Health::of_spool(&self.frames_path)?;
+        // The scan buffers go before the mesh is welded: writing needs no more than the run.
+        drop(std::mem::take(&mut self.ahead));
+        let frames_seen = self.pipeline.frames();
+        let map = self.pipeline.into_map();
         let out = &self.opts.out;
         write_trajectories(out, source, &poses)?;
         if let Some(p) = &self.pager {
             log::info!("map paged: {}", p.stats());
         }
         if let Some(mut saved) = self.saved_map.take() {
-            saved.add_map(self.pipeline.map())?;
+            saved.add_map(&map)?;
             let mut path = std::mem::take(&mut self.map_path);
             path.extend(poses.iter().map(|(i, p)| (source.stamp(*i), *p)));
-            saved.set_frames(self.pipeline.frames());
+            saved.set_frames(frames_seen);
             let stats = saved.finish(&path)?;
             log::info!(
                 "map saved to {}: {} cells, {} layers, {:.1} MB",
@@ -539,7 +543,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                 stats.bytes as f64 / 1e6
             );
         }
-        self.spool.add_map(self.pipeline.map())?;
+        self.spool.add_map(&map)?;
         self.spool.colour_by(self.opts.mesh_colour);
         if self.opts.picture {
             let path: Vec<Pose> = poses.iter().map(|(_, p)| *p).collect();
@@ -563,8 +567,8 @@ impl<'a, C: Capacity> Run<'a, C> {
             stage_ms: spreads(&used_ms),
             mesh_vertices: counts.vertices,
             mesh_triangles: counts.triangles,
-            map_cells: self.pipeline.map().cell_count(),
-            map_layers: self.pipeline.map().layer_count(),
+            map_cells: map.cell_count(),
+            map_layers: map.layer_count(),
             evicted_cells,
             max_layers: self.max_layers,
             peak_rss_mb: memory::peak_rss_bytes().map(memory::mb),
