@@ -230,8 +230,7 @@ impl CellTable {
                     tag,
                 };
             };
-            if self.slot_tag(s) == tag && self.entries.get(place).is_some_and(|e| e.key == *key)
-            {
+            if self.slot_tag(s) == tag && self.entries.get(place).is_some_and(|e| e.key == *key) {
                 return Probe { found: Ok(i), tag };
             }
             i = (i + 1) & mask;

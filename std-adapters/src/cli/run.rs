@@ -70,8 +70,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub no_picture: bool,
     /// The capacity class: how many points a scan may keep within range, and how large the
-    /// map may grow (tiny: 2 048 points, 0.35 MB; 16: 36 000, 37.5 MB; 32: 72 000, 75 MB;
-    /// 64: 140 000, 150 MB). auto takes the smallest that holds the first scan's points
+    /// map may grow (tiny: 2 048 points, 0.33 MB; 16: 36 000, 35.7 MB; 32: 72 000, 71.3 MB;
+    /// 64: 140 000, 137.5 MB). auto takes the smallest that holds the first scan's points
     /// within range with a quarter to spare.
     #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
     pub capacity: CapacityFlag,

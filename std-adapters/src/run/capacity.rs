@@ -23,8 +23,8 @@ pub struct Class {
     pub points: usize,
     /// Its memory bound ([`Capacity::memory_bytes`]).
     pub bytes: usize,
-    /// What it needs under a memory cap, before the rest of the process
-    /// ([`Window::least_cap_bytes`]).
+    /// What it needs under a memory cap, before the rest of the process, with the next frame
+    /// read ahead but filtered in line ([`Window::least_cap_bytes`]).
     pub least_cap_bytes: usize,
 }
 
@@ -35,7 +35,7 @@ impl Class {
             flag,
             points: C::POINTS,
             bytes: C::memory_bytes(),
-            least_cap_bytes: Window::least_cap_bytes::<C>(0),
+            least_cap_bytes: Window::least_cap_bytes::<C>(0, false),
         }
     }
 }

@@ -14,6 +14,8 @@
 //!   (its motion is known only once frame `i` is registered) and one with more raw points
 //!   than the capacity (whose refusal the step words);
 //! - at most one frame ahead, its buffers counted by [`LookAhead::bytes`];
+//! - [`LookAhead::reading_only`]: the next frame read ahead, but filtered in line (no buffers
+//!   of its own, for a tight memory cap);
 //! - off ([`LookAhead::off`]) or with one thread (no pool): nothing ahead.
 
 use crate::io::error::FileError;
@@ -102,6 +104,16 @@ impl LookAhead {
     /// No look-ahead: every frame is read when its step comes, and filtered in line.
     pub fn off() -> Self {
         Self::default()
+    }
+
+    /// A look-ahead that reads the next frame while the pipeline registers this one, but
+    /// leaves its filtering to the pipeline: for a memory cap too tight for the filter's
+    /// buffers twice ([`bytes`](Self::bytes) of none).
+    pub fn reading_only() -> Self {
+        Self {
+            done: Some(mpsc::channel()),
+            ..Self::default()
+        }
     }
 
     /// A look-ahead for a pipeline of capacity `C`, filtering on the pool of the run's

@@ -116,8 +116,8 @@ impl fmt::Display for RunError {
             } => write!(
                 f,
                 "configuration: memory cap {cap_mb} MB is below what the {class} capacity class \
-                 needs: {:.0} MB (its scan buffers and the look-ahead's, a map of two scans' \
-                 layers, and the rest of the process); a smaller class (--capacity) needs less, if the scans fit it",
+                 needs: {:.0} MB (its scan buffers, a map of two scans' layers, and the rest of \
+                 the process); a smaller class (--capacity) needs less, if the scans fit it",
                 *needed_bytes as f64 / 1e6
             ),
             RunError::File(e) => write!(f, "{e}"),

@@ -499,13 +499,8 @@ impl<'a, C: Capacity> Run<'a, C> {
     /// Writes the trajectories, the mesh files and `report.json`, removes the spools and the
     /// checkpoint, and sums the run up.
     pub fn finish(mut self, source: &impl FrameSource) -> Result<Summary, RunError> {
-        let loop_closure = self.closer.take().map(|c| {
-            c.finish(
-                &mut self.pipeline,
-                &mut self.progress.poses,
-                source.frames(),
-            )
-        });
+        let (pipeline, poses) = (&mut self.pipeline, &mut self.progress.poses);
+        let loop_closure = (self.closer.take()).map(|c| c.finish(pipeline, poses, source.frames()));
         self.progress.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
         let Progress {
             poses,

@@ -11,7 +11,7 @@ use crate::run::map_pager::MapPager;
 use crate::run::memory;
 use crate::run::options::{InitialPose, RunError, RunOptions};
 use crate::run::saved_map::{self, MapStart};
-use crate::run::window::Window;
+use crate::run::window::{CapTooSmall, Window};
 use slamesh_core::motion::ConstantVelocity;
 use slamesh_core::{Capacity, Pipeline};
 
@@ -38,17 +38,32 @@ impl<C: Capacity> Setup<C> {
         let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
         let mut window = opts.window.rules();
         let mut max_layers = None;
-        // With two threads or more, the next frame is filtered ahead on the pool.
-        let ahead = workers.threads() > 1;
+        // With two threads or more, the next frame is read and filtered ahead on the pool;
+        // under a cap too tight for the filter's buffers twice, read ahead only.
+        let threads = workers.threads() > 1;
+        let mut filter_ahead = threads;
         if let Some(cap) = opts.window.memory_cap_mb {
-            let other = memory::other_bytes();
-            let budget = Window::max_layers::<C>((cap * 1e6) as usize, other).map_err(|e| {
-                RunError::MemoryCapTooSmall {
-                    cap_mb: cap,
-                    class: C::NAME,
-                    needed_bytes: e.needed_bytes,
+            let (cap_bytes, other) = ((cap * 1e6) as usize, memory::other_bytes());
+            let too_small = |e: CapTooSmall| RunError::MemoryCapTooSmall {
+                cap_mb: cap,
+                class: C::NAME,
+                needed_bytes: e.needed_bytes,
+            };
+            let budget = match Window::max_layers::<C>(cap_bytes, other, filter_ahead) {
+                Ok(budget) => budget,
+                Err(e) if filter_ahead => {
+                    let budget =
+                        Window::max_layers::<C>(cap_bytes, other, false).map_err(too_small)?;
+                    log::info!(
+                        "memory cap {cap} MB: each frame is read ahead but filtered in line \
+                         (filtering ahead needs a cap of {:.0} MB)",
+                        e.needed_bytes as f64 / 1e6
+                    );
+                    filter_ahead = false;
+                    budget
                 }
-            })?;
+                Err(e) => return Err(too_small(e)),
+            };
             window.max_layers = Some(budget);
             max_layers = Some(budget);
         }
@@ -139,10 +154,10 @@ impl<C: Capacity> Setup<C> {
             workers,
             window,
             max_layers,
-            ahead: if ahead {
-                LookAhead::new::<C>()
-            } else {
-                LookAhead::off()
+            ahead: match (threads, filter_ahead) {
+                (true, true) => LookAhead::new::<C>(),
+                (true, false) => LookAhead::reading_only(),
+                _ => LookAhead::off(),
             },
         })
     }

@@ -12,8 +12,10 @@
 //! never holds more than the cap allows, even in the middle of a scan. What counts against the
 //! cap: the scan buffers of the capacity class in full (a scan may fill them), the map's hash
 //! table and layer pool for that many layers ([`Capacity::memory_bytes_with_map_layers`]), the
-//! look-ahead's filter buffers ([`LookAhead::bytes`], counted whether or not the run has the
-//! second thread it needs), and the rest of the process as the caller measures it.
+//! look-ahead's filter buffers when the next frame is filtered ahead ([`LookAhead::bytes`];
+//! a cap too tight for them has the next frame read ahead but filtered in line), and the rest
+//! of the process as the caller measures it. This is the formula of the least cap
+//! ([`Window::least_cap_bytes`]), written once here; docs/benchmarks.md measures its parts.
 
 use crate::io::error::FileError;
 use crate::io::map_file::MapWriter;
@@ -47,12 +49,13 @@ impl Window {
     /// rest of the process (code, IO buffers, threads): the most layers the map may keep
     /// between scans with a pipeline of [`map_layers`](Self::map_layers) within the cap. At
     /// least one scan's worth (a smaller cap is refused with the bytes it needs), at most the
-    /// capacity's.
+    /// capacity's. `filter_ahead`: the look-ahead's filter buffers count too.
     pub fn max_layers<C: Capacity>(
         cap_bytes: usize,
         other_bytes: usize,
+        filter_ahead: bool,
     ) -> Result<usize, CapTooSmall> {
-        let needed = |budget: usize| Self::run_bytes::<C>(budget) + other_bytes;
+        let needed = |budget: usize| Self::run_bytes::<C>(budget, filter_ahead) + other_bytes;
         let (mut lo, mut hi) = (Self::least_budget::<C>(), C::MAP_LAYERS);
         if cap_bytes < needed(lo) {
             return Err(CapTooSmall {
@@ -72,14 +75,20 @@ impl Window {
     }
 
     /// The least memory cap for capacity `C` when `other_bytes` go to the rest of the
-    /// process: the budget of one scan's layers.
-    pub fn least_cap_bytes<C: Capacity>(other_bytes: usize) -> usize {
-        Self::run_bytes::<C>(Self::least_budget::<C>()) + other_bytes
+    /// process: the budget of one scan's layers (`filter_ahead`: with the look-ahead's filter).
+    pub fn least_cap_bytes<C: Capacity>(other_bytes: usize, filter_ahead: bool) -> usize {
+        Self::run_bytes::<C>(Self::least_budget::<C>(), filter_ahead) + other_bytes
     }
 
-    /// The run's own bytes for a layer budget of `budget`: the pipeline's and the look-ahead's.
-    fn run_bytes<C: Capacity>(budget: usize) -> usize {
-        C::memory_bytes_with_map_layers(Self::map_layers::<C>(budget)) + LookAhead::bytes::<C>()
+    /// The run's own bytes for a layer budget of `budget`: the pipeline's for a map of
+    /// [`map_layers`](Self::map_layers), and the look-ahead's filter when `filter_ahead`.
+    fn run_bytes<C: Capacity>(budget: usize, filter_ahead: bool) -> usize {
+        let ahead = if filter_ahead {
+            LookAhead::bytes::<C>()
+        } else {
+            0
+        };
+        C::memory_bytes_with_map_layers(Self::map_layers::<C>(budget)) + ahead
     }
 
     /// The least layer budget: one scan's worth (a map that cannot hold what one scan sees
@@ -260,20 +269,31 @@ mod tests {
         let bytes = |budget: usize| {
             K::memory_bytes_with_map_layers(budget + scan) + LookAhead::bytes::<K>()
         };
-        let e = Window::max_layers::<K>(K::scan_bytes(), 0).unwrap_err();
+        let e = Window::max_layers::<K>(K::scan_bytes(), 0, true).unwrap_err();
         assert_eq!(e.needed_bytes, bytes(scan), "one scan's worth is the least");
         // The map is sized for the budget: under a third of the capacity's bound.
         assert!(e.needed_bytes < K::memory_bytes() / 3);
         let cap = bytes(scan + 10_000) + 7;
-        let n = Window::max_layers::<K>(cap, 7).unwrap();
+        let n = Window::max_layers::<K>(cap, 7, true).unwrap();
         assert_eq!(
             n,
             scan + 10_000,
             "7 bytes for the rest, and the budget fits exactly"
         );
-        let n = Window::max_layers::<K>(cap, 8).unwrap();
+        let n = Window::max_layers::<K>(cap, 8, true).unwrap();
         assert!(bytes(n) + 8 <= cap && bytes(n + 1) + 8 > cap, "{n}");
-        let all = Window::max_layers::<SmallCapacity>(usize::MAX / 2, 0).unwrap();
+        // Reading ahead only: the look-ahead's filter is room for more layers.
+        let more = Window::max_layers::<K>(cap, 8, false).unwrap();
+        let freed = LookAhead::bytes::<K>() / slamesh_core::capacity::MAP_LAYER_BYTES;
+        assert!(
+            more > n + freed * 9 / 10 && more <= n + freed,
+            "{n} then {more}"
+        );
+        assert_eq!(
+            Window::least_cap_bytes::<K>(0, false),
+            Window::least_cap_bytes::<K>(0, true) - LookAhead::bytes::<K>()
+        );
+        let all = Window::max_layers::<SmallCapacity>(usize::MAX / 2, 0, true).unwrap();
         assert_eq!(all, SmallCapacity::MAP_LAYERS);
         assert_eq!(Window::map_layers::<SmallCapacity>(all), all);
     }
