@@ -15,7 +15,7 @@
 //! Why two arrays: the cells hash to slots all over the index, so every page of it is
 //! touched (resident) after a few thousand cells. With 4-byte slots that is 2 MB for the
 //! 64-beam class's 262 144 cells; with the cells stored in the slots it was 16.8 MB
-//! (docs/design.md §1.5).
+//! (docs/design.md §1.8).
 //!
 //! An empty slot is 0: an index from the global allocator is zeroed by the system, and one in
 //! caller storage is a zeroed `static`. Iteration runs in slot order, which depends only on

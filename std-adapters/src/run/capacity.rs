@@ -118,7 +118,7 @@ mod tests {
         let roomy = l64.least_cap_bytes + other;
         assert_eq!(class_under_cap(60_000, roomy, other), l64);
         assert_eq!(class_under_cap(60_000, roomy - 1, other), l32);
-        assert!(l32.least_cap_bytes < l64.least_cap_bytes / 2 + 1_000_000);
+        assert!(l32.least_cap_bytes < l64.least_cap_bytes);
         // Too tight for any class that holds the scan: the preferred one (refused later).
         assert_eq!(
             class_under_cap(60_000, l16.least_cap_bytes + other, other),
