@@ -6,12 +6,13 @@
 //! - With a memory cap, the map never holds more layers than the cap's budget and the process
 //!   never exceeds the cap.
 
+mod common;
+
 use slamesh::io::config_file::WindowSettings;
-use slamesh::io::mesh_spool::MeshFormat;
 use slamesh::run::memory;
 use slamesh::run::window::Window;
-use slamesh::run::{run, FrameRecord, RunOptions};
-use slamesh_core::{Capacity, Config};
+use slamesh::run::{FrameRecord, Summary};
+use slamesh_core::Capacity;
 use slamesh_sim::Drive;
 
 /// Room for the simulated scans with a small map, so that a cap of a few MB above the fixed
@@ -25,29 +26,8 @@ impl Capacity for Test {
     const MAP_LAYERS: usize = 24_576;
 }
 
-fn drive(
-    d: &mut Drive,
-    window: WindowSettings,
-    name: &str,
-) -> (Vec<FrameRecord>, slamesh::run::Summary) {
-    let frames = d.poses.len();
-    let out = std::env::temp_dir().join(format!("slamesh-memory-{name}-{}", std::process::id()));
-    let opts = RunOptions {
-        out: out.clone(),
-        config: Config::default(),
-        preset: "default".into(),
-        window,
-        threads: 2,
-        mesh_formats: vec![MeshFormat::Ply],
-        given_poses: None,
-        input: "simulated street".into(),
-        ..RunOptions::default()
-    };
-    let mut records = Vec::new();
-    let summary = run::<Test>(d, &opts, |r| records.push(r.clone())).unwrap();
-    std::fs::remove_dir_all(&out).unwrap();
-    assert_eq!(summary.used, frames, "every simulated frame is used");
-    (records, summary)
+fn drive(d: &mut Drive, window: WindowSettings, name: &str) -> (Vec<FrameRecord>, Summary) {
+    common::run_drive::<Test>(d, window, &format!("memory-{name}"))
 }
 
 #[test]

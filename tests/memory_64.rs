@@ -7,12 +7,13 @@
 //! and filters it in line, evicts the oldest cells to stay within its layer budget, and the
 //! process stays under the cap.
 
+mod common;
+
 use slamesh::io::config_file::WindowSettings;
-use slamesh::io::mesh_spool::MeshFormat;
 use slamesh::run::lookahead::LookAhead;
 use slamesh::run::memory;
 use slamesh::run::window::Window;
-use slamesh::run::{run, FrameRecord, RunOptions};
+use slamesh::run::{FrameRecord, Summary};
 use slamesh_core::{Capacity, Config, KittiCapacity};
 use slamesh_sim::Drive;
 
@@ -27,28 +28,8 @@ impl Capacity for Beam64 {
     const MAP_LAYERS: usize = KittiCapacity::MAP_LAYERS;
 }
 
-fn drive(
-    d: &mut Drive,
-    window: WindowSettings,
-    name: &str,
-) -> (Vec<FrameRecord>, slamesh::run::Summary) {
-    let out = std::env::temp_dir().join(format!("slamesh-memory64-{name}-{}", std::process::id()));
-    let opts = RunOptions {
-        out: out.clone(),
-        config: Config::default(),
-        preset: "default".into(),
-        window,
-        threads: 2,
-        mesh_formats: vec![MeshFormat::Ply],
-        given_poses: None,
-        input: "simulated street, 64 beams".into(),
-        ..RunOptions::default()
-    };
-    let mut records = Vec::new();
-    let summary = run::<Beam64>(d, &opts, |r| records.push(r.clone())).unwrap();
-    std::fs::remove_dir_all(&out).unwrap();
-    assert_eq!(summary.used, d.poses.len(), "every simulated frame is used");
-    (records, summary)
+fn drive(d: &mut Drive, window: WindowSettings, name: &str) -> (Vec<FrameRecord>, Summary) {
+    common::run_drive::<Beam64>(d, window, &format!("memory64-{name}"))
 }
 
 fn street(frames: usize) -> Drive {

@@ -130,3 +130,31 @@ pub fn street_drive(frames: usize) -> (Vec<Pose>, Vec<Vec<Point>>) {
     let scans = poses.iter().map(|p| lidar.scan(&scene, p)).collect();
     (poses, scans)
 }
+
+/// Runs the pipeline of capacity `C` over `drive` in-process with the default configuration,
+/// two threads and `window`, into a scratch folder removed afterwards (`name` tells runs
+/// apart); returns each frame's record and the summary. Every frame must be used.
+pub fn run_drive<C: slamesh_core::Capacity>(
+    drive: &mut slamesh_sim::Drive,
+    window: slamesh::io::config_file::WindowSettings,
+    name: &str,
+) -> (Vec<slamesh::run::FrameRecord>, slamesh::run::Summary) {
+    let frames = drive.poses.len();
+    let out = std::env::temp_dir().join(format!("slamesh-{name}-{}", std::process::id()));
+    let opts = slamesh::run::RunOptions {
+        out: out.clone(),
+        config: slamesh_core::Config::default(),
+        preset: "default".into(),
+        window,
+        threads: 2,
+        mesh_formats: vec![slamesh::io::mesh_spool::MeshFormat::Ply],
+        given_poses: None,
+        input: format!("simulated drive ({name})"),
+        ..slamesh::run::RunOptions::default()
+    };
+    let mut records = Vec::new();
+    let summary = slamesh::run::run::<C>(drive, &opts, |r| records.push(r.clone())).unwrap();
+    std::fs::remove_dir_all(&out).unwrap();
+    assert_eq!(summary.used, frames, "every simulated frame is used");
+    (records, summary)
+}
