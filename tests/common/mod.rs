@@ -158,3 +158,22 @@ pub fn run_drive<C: slamesh_core::Capacity>(
     assert_eq!(summary.used, frames, "every simulated frame is used");
     (records, summary)
 }
+
+/// Checks that a capped run evicted and that no frame's map held more layers than its
+/// budget; returns the budget.
+pub fn assert_within_budget(
+    records: &[slamesh::run::FrameRecord],
+    summary: &slamesh::run::Summary,
+) -> usize {
+    let budget = summary.max_layers.expect("a capped run has a layer budget");
+    assert!(summary.evicted_cells > 0, "the cap forced eviction");
+    for r in records {
+        assert!(
+            r.map_layers <= budget,
+            "frame {}: {} layers > {budget}",
+            r.frame,
+            r.map_layers
+        );
+    }
+    budget
+}
