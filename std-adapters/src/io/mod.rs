@@ -21,6 +21,7 @@
 //! | a picture of the mesh from above (PNG) | [`topview`] |
 
 pub mod atomic;
+pub mod capture;
 pub mod config_file;
 pub mod error;
 pub mod kitti;
@@ -38,5 +39,6 @@ pub mod recording;
 pub mod scans;
 pub mod topview;
 pub mod trajectory;
+pub mod velodyne;
 
 pub use error::FileError;
