@@ -113,3 +113,18 @@ index_offset = path_offset + len(path)
 index = block(b"INDX" + struct.pack("<I", 1) + struct.pack("<3iQI", 0, 0, 0, len(header), len(tile)))
 trailer = block(struct.pack("<QQ", index_offset, path_offset)) + b"MEND"
 put("map_file", "two_cells", header + tile + path + index + trailer)
+
+
+# Packets: the first frames of a real HDL-32E capture (tests/fixtures/packets), as pcap and
+# pcapng, and one data packet alone.
+cap = open("../tests/fixtures/packets/hdl32e-street.pcap", "rb").read()
+frames, off = [], 24
+while off + 16 <= len(cap) and len(frames) < 6:
+    incl, = struct.unpack("<I", cap[off + 8:off + 12])
+    frames.append(cap[off:off + 16 + incl])
+    off += 16 + incl
+put("capture", "pcap", cap[:24] + b"".join(frames))
+ng = open("../tests/fixtures/packets/hdl32e-street.pcapng", "rb").read()
+put("capture", "pcapng", ng[:8000])
+data = next(f[16 + 42:] for f in frames if len(f) == 16 + 1248)
+put("velodyne_packet", "hdl32e", data)

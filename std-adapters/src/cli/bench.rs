@@ -7,6 +7,7 @@ use crate::say;
 use clap::Args;
 use slamesh::io::config_file::WindowSettings;
 use slamesh::io::kitti::BinFields;
+use slamesh::io::replay::PacketOptions;
 use slamesh::run::report::spreads;
 use slamesh::run::timing::StageMs;
 use slamesh::run::{run, Input, RunOptions};
@@ -25,6 +26,18 @@ pub struct BenchArgs {
     /// KITTI's, x,y,z,i,ring nuScenes'.
     #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = parse_bin_fields)]
     pub bin_fields: BinFields,
+    /// A packet capture's sensor: vlp16, puck-hires, vlp32c or hdl32 (default: told from the
+    /// packets).
+    #[arg(long, value_name = "MODEL")]
+    pub sensor: Option<String>,
+    /// Where a packet capture's sweeps are cut (degrees of azimuth).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub cut_azimuth: f64,
     /// The preset or configuration file (its [window] section is not used: bench times the
     /// pipeline without eviction).
     #[command(flatten)]
@@ -44,7 +57,15 @@ pub struct BenchArgs {
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     let (input, threads, repeat, json) = (&args.input, args.threads, args.repeat, args.json);
     let mut s = args.profile.resolve("default")?;
-    let mut source = Input::open(input, args.topic.as_deref(), args.bin_fields.clone())?;
+    let mut source = Input::open_with(
+        input,
+        args.topic.as_deref(),
+        args.bin_fields.clone(),
+        &PacketOptions {
+            sensor: args.sensor.clone(),
+            cut_azimuth_deg: args.cut_azimuth,
+        },
+    )?;
     crate::cli::settings::fit_to_scene(&mut s, &mut source);
     let (config, preset) = (s.config, s.preset);
     let out = std::env::temp_dir().join(format!("slamesh-bench-{}", std::process::id()));

@@ -9,6 +9,7 @@ use clap::Args;
 use indicatif::ProgressBar;
 use slamesh::io::kitti::BinFields;
 use slamesh::io::mesh_spool::{MeshColour, MeshFormat};
+use slamesh::io::replay::PacketOptions;
 use slamesh::io::trajectory::Trajectory;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::loop_closure::settings::LoopSettings;
@@ -23,7 +24,8 @@ use std::path::{Path, PathBuf};
 #[derive(Args, Debug)]
 pub struct RunArgs {
     /// A folder of scans (.bin, .pcd or .ply, read in natural order), a KITTI sequence folder,
-    /// one scan file, or a recording: a ROS 1 bag, an MCAP file or a ROS 2 bag folder.
+    /// one scan file, a recording (a ROS 1 bag, an MCAP file or a ROS 2 bag folder), or a
+    /// packet capture of a Velodyne (.pcap or .pcapng, a sweep a frame).
     pub input: PathBuf,
     /// The recording's PointCloud2 topic (default: its only one).
     #[arg(long, value_name = "NAME")]
@@ -32,6 +34,18 @@ pub struct RunArgs {
     /// KITTI's, x,y,z,i,ring nuScenes'.
     #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = parse_bin_fields)]
     pub bin_fields: BinFields,
+    /// A packet capture's sensor: vlp16, puck-hires, vlp32c or hdl32 (default: told from the
+    /// packets).
+    #[arg(long, value_name = "MODEL")]
+    pub sensor: Option<String>,
+    /// Where a packet capture's sweeps are cut (degrees of azimuth).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub cut_azimuth: f64,
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
@@ -263,7 +277,15 @@ fn run_with(
         _ => args.profile.resolve(default_preset)?,
     };
     args.window.apply(&mut s.window)?;
-    let mut source = Input::open(&args.input, args.topic.as_deref(), args.bin_fields.clone())?;
+    let mut source = Input::open_with(
+        &args.input,
+        args.topic.as_deref(),
+        args.bin_fields.clone(),
+        &PacketOptions {
+            sensor: args.sensor.clone(),
+            cut_azimuth_deg: args.cut_azimuth,
+        },
+    )?;
     if given.is_none() && args.map.is_none() {
         crate::cli::settings::fit_to_scene(&mut s, &mut source);
     }

@@ -36,7 +36,9 @@ pub mod ply;
 pub mod pointcloud2;
 #[cfg(feature = "recordings")]
 pub mod recording;
+pub mod replay;
 pub mod scans;
+pub mod sweep;
 pub mod topview;
 pub mod trajectory;
 pub mod velodyne;

@@ -4,6 +4,7 @@
 
 use crate::io::error::FileError;
 use crate::io::kitti::BinFields;
+use crate::io::replay::{PacketOptions, Replay};
 use crate::io::scans::{read_scan_as, ScanFolder};
 use slamesh_core::Point;
 
@@ -29,10 +30,14 @@ pub trait FrameSource {
     }
 }
 
-/// What the command reads: a folder of scans (or one scan file), or a robot recording.
+/// What the command reads: a folder of scans (or one scan file), a robot recording, or a
+/// packet capture.
 pub enum Input {
     /// Scan files.
     Folder(ScanFolder),
+    /// A sensor's packets in a `.pcap` or `.pcapng` file, a sweep a frame (boxed: the
+    /// decoder's tables are a few KB).
+    Capture(Box<Replay>),
     /// A ROS 1 bag, an MCAP file or a ROS 2 bag folder.
     #[cfg(feature = "recordings")]
     Recording(crate::io::recording::Recording),
@@ -47,6 +52,25 @@ impl Input {
         topic: Option<&str>,
         bin_fields: BinFields,
     ) -> Result<Self, FileError> {
+        Self::open_with(path, topic, bin_fields, &PacketOptions::default())
+    }
+
+    /// [`open`](Self::open), a packet capture (told by its first bytes) read with `packets`.
+    pub fn open_with(
+        path: &std::path::Path,
+        topic: Option<&str>,
+        bin_fields: BinFields,
+        packets: &PacketOptions,
+    ) -> Result<Self, FileError> {
+        if crate::io::capture::is_capture(path) {
+            return Ok(Input::Capture(Box::new(Replay::open(path, packets)?)));
+        }
+        if packets.sensor.is_some() {
+            return Err(FileError::at(
+                path,
+                "--sensor is for packet captures (.pcap, .pcapng), and this is not one",
+            ));
+        }
         #[cfg(feature = "recordings")]
         if let Some(container) = crate::io::recording::Container::detect(path) {
             let rec = crate::io::recording::Recording::open(container?, topic)?;
@@ -78,6 +102,17 @@ impl Input {
             ),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => format!("{} frames of topic {}", r.frames(), r.topic.name),
+            Input::Capture(c) => {
+                let s = c.stats();
+                format!(
+                    "{} sweeps of a {} ({} packets, {} missing, {} damaged)",
+                    c.len(),
+                    c.sensor(),
+                    s.packets,
+                    s.gaps,
+                    s.bad_packets
+                )
+            }
         }
     }
 }
@@ -86,6 +121,7 @@ impl FrameSource for Input {
     fn frames(&self) -> usize {
         match self {
             Input::Folder(f) => f.frames(),
+            Input::Capture(c) => c.len(),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.frames(),
         }
@@ -93,6 +129,7 @@ impl FrameSource for Input {
     fn label(&self, i: usize) -> String {
         match self {
             Input::Folder(f) => f.label(i),
+            Input::Capture(c) => c.label(i),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.label(i),
         }
@@ -100,6 +137,7 @@ impl FrameSource for Input {
     fn stamp(&self, i: usize) -> f64 {
         match self {
             Input::Folder(f) => f.stamp(i),
+            Input::Capture(c) => c.stamp(i),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.stamp(i),
         }
@@ -107,6 +145,7 @@ impl FrameSource for Input {
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
         match self {
             Input::Folder(f) => f.read(i),
+            Input::Capture(c) => c.read_timed(i).map(|(p, _)| p),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.read(i),
         }
@@ -114,6 +153,7 @@ impl FrameSource for Input {
     fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
         match self {
             Input::Folder(f) => f.read_timed(i),
+            Input::Capture(c) => c.read_timed(i),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.read_timed(i),
         }
@@ -121,6 +161,7 @@ impl FrameSource for Input {
     fn dropped_by_reader(&self) -> usize {
         match self {
             Input::Folder(f) => f.dropped_by_reader(),
+            Input::Capture(_) => 0,
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.dropped_by_reader(),
         }

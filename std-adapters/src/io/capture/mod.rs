@@ -100,7 +100,15 @@ impl Capture {
     /// Opens `path`; an error names the file and why it is not a capture.
     pub fn open(path: &Path) -> Result<Self, FileError> {
         let file = File::open(path).map_err(|e| FileError::at(path, e.to_string()))?;
-        let reader = pcap_parser::create_reader(BUFFER_BYTES, file).map_err(|e| {
+        Self::from_reader(path, file)
+    }
+
+    /// A capture read from `reader`, named `path` in messages.
+    pub fn from_reader(
+        path: &Path,
+        reader: impl std::io::Read + Send + 'static,
+    ) -> Result<Self, FileError> {
+        let reader = pcap_parser::create_reader(BUFFER_BYTES, reader).map_err(|e| {
             FileError::at(
                 path,
                 match e {

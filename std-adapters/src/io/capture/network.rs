@@ -140,7 +140,7 @@ impl Network {
     ) -> Result<bool, Skip> {
         const MAX: usize = 65_535;
         let end = offset + body.len();
-        if end > MAX || (more && body.len() % 8 != 0) {
+        if end > MAX || (more && !body.len().is_multiple_of(8)) {
             return Err(Skip::Malformed);
         }
         let i = match self.pending.iter().position(|p| p.key == key) {

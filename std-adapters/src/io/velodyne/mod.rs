@@ -146,6 +146,21 @@ pub struct Decoder {
     /// Per firing block and channel: the firing time (seconds, as `f32`, as the rounding of the
     /// azimuth is done).
     timing: [[f32; CHANNELS]; BLOCKS],
+    /// Per channel: its firing time after its block's first (seconds, as `f32`; the same in
+    /// every block) and its laser.
+    channels: [(f32, u8); CHANNELS],
+    /// cos and sin of 0 to 2.55 degrees by hundredths: a channel's azimuth is its block's and
+    /// a little more, so its cos and sin come from the block's by the angle-sum formulas.
+    deltas: [[f64; 2]; DELTAS],
+}
+
+/// Azimuth steps (hundredths of a degree) past a block's that [`Decoder`] tabulates.
+const DELTAS: usize = 256;
+
+/// cos and sin of an azimuth in hundredths of a degree.
+fn cos_sin(hundredths: u32) -> [f64; 2] {
+    let a = (f64::from(hundredths) * 0.01).to_radians();
+    [a.cos(), a.sin()]
 }
 
 impl Decoder {
@@ -169,16 +184,30 @@ impl Decoder {
                 *t = (model.timing.offset_us(k, j) * 1e-6) as f32;
             }
         }
+        let n = model.lasers.len().max(1);
+        let channels = core::array::from_fn(|j| (timing[0][j] - timing[0][0], (j % n) as u8));
         Self {
             model,
             lasers,
             timing,
+            channels,
+            deltas: core::array::from_fn(|d| cos_sin(d as u32)),
         }
     }
 
     /// The model.
     pub fn model(&self) -> &'static Model {
         self.model
+    }
+
+    /// Seconds from one packet's first firing to the next one's, in a return mode.
+    pub fn packet_period_s(&self, mode: ReturnMode) -> f64 {
+        let firings = if mode == ReturnMode::Dual {
+            BLOCKS / 2
+        } else {
+            BLOCKS
+        };
+        self.model.timing.offset_us(firings, 0) * 1e-6
     }
 
     /// Decodes a data packet whose first firing was at `time_s` ([`packet_time`]), handing
@@ -201,7 +230,6 @@ impl Decoder {
         let turned = (i32::from(az(BLOCKS - 1)) - i32::from(az(0))).rem_euclid(36_000) as f32;
         let duration = self.timing[firings - 1][0] - self.timing[0][0];
         let rate = turned / duration;
-        let lasers = self.model.lasers.len();
         let channel = |b: usize, j: usize| {
             let at = b * BLOCK_BYTES + 4 + 3 * j;
             (
@@ -213,32 +241,53 @@ impl Decoder {
         for b in (0..BLOCKS).step_by(step) {
             let k = b / step;
             let t0 = self.timing[k][0];
+            let base = az(b);
+            let [cos_b, sin_b] = cos_sin(u32::from(base));
             for j in 0..CHANNELS {
-                let t = self.timing[k][j];
-                let azimuth = (az(b) as f32 + rate * (t - t0) + 36_000.0).round() as u32 % 36_000;
+                let (first, second) = if dual {
+                    (channel(b, j), channel(b + 1, j))
+                } else {
+                    (channel(b, j), (0, 0))
+                };
+                if first.0 == 0 && second.0 == 0 {
+                    continue; // no return
+                }
+                let (dt, laser) = self.channels[j];
+                // Rounded half away from zero, as `lround` does: the value is positive, and adding
+                // a half is exact at this magnitude (a `round` call costs more than the rest).
+                let turned = (base as f32 + rate * dt + 36_000.5) as u32 - 36_000;
+                let delta = turned - u32::from(base);
+                let azimuth = if turned >= 36_000 {
+                    turned - 36_000
+                } else {
+                    turned
+                };
+                let cs = match self.deltas.get(delta as usize) {
+                    // cos(b + d) and sin(b + d).
+                    Some(&[cd, sd]) => [cos_b * cd - sin_b * sd, sin_b * cd + cos_b * sd],
+                    None => cos_sin(azimuth),
+                };
                 let azimuth = azimuth as u16;
-                let laser = j % lasers;
-                let time = time_s + f64::from(t);
+                let laser = usize::from(laser);
+                let time = time_s + f64::from(t0 + dt);
                 let mut emit = |(d, i): (u16, u8), ret: Return| {
                     if d != 0 {
-                        sink(self.point(laser, azimuth, d, i, time, ret));
+                        sink(self.point(laser, azimuth, cs, d, i, time, ret));
                     }
                 };
-                if dual {
-                    let (last, strongest) = (channel(b, j), channel(b + 1, j));
-                    if last.0 == strongest.0 {
-                        emit(strongest, Return::Both);
-                    } else {
-                        emit(last, Return::Last);
-                        emit(strongest, Return::Strongest);
-                    }
-                } else {
+                if !dual {
                     let ret = if mode == ReturnMode::Last {
                         Return::Last
                     } else {
                         Return::Strongest
                     };
-                    emit(channel(b, j), ret);
+                    emit(first, ret);
+                } else if first.0 == second.0 {
+                    // The last return is the strongest.
+                    emit(second, Return::Both);
+                } else {
+                    emit(first, Return::Last);
+                    emit(second, Return::Strongest);
                 }
             }
         }
@@ -272,18 +321,20 @@ impl Decoder {
         }
     }
 
+    /// The point of channel `laser` at `azimuth`, whose cos and sin are given.
+    #[allow(clippy::too_many_arguments)]
     fn point(
         &self,
         laser: usize,
         azimuth: u16,
+        [cos_a, sin_a]: [f64; 2],
         raw: u16,
         intensity: u8,
         time_s: f64,
         ret: Return,
     ) -> Firing {
         let [cos_el, sin_el, cos_off, sin_off, v] = self.lasers[laser];
-        let a = (f64::from(azimuth) * 0.01).to_radians();
-        let (sin_a, cos_a) = (a.sin() as f32, a.cos() as f32);
+        let (sin_a, cos_a) = (sin_a as f32, cos_a as f32);
         // cos(a - off) and sin(a - off).
         let cos_r = cos_a * cos_off + sin_a * sin_off;
         let sin_r = sin_a * cos_off - cos_a * sin_off;

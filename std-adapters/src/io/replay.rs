@@ -1,0 +1,293 @@
+//! A packet capture replayed as frames: the sensor's packets in a `.pcap` or `.pcapng` file,
+//! decoded ([`crate::io::velodyne`]) and cut into sweeps ([`crate::io::sweep`]), one frame a
+//! sweep, each point with its firing time.
+//!
+//! Opening reads the whole capture once, streaming, to find its sweeps and their stamps (so
+//! that a run knows its frames); frames are then read in order by decoding again from where
+//! the last one ended, with one sweep in memory at a time. The sensor is told from the packets
+//! (size, block flags, product byte) or named (`--sensor`); a capture of another sensor, or of
+//! none, is refused with what was found. Packets that are not the sensor's data (its position
+//! packets, other traffic) are skipped; damaged ones are counted and skipped.
+
+use crate::io::capture::{Capture, CaptureStats};
+use crate::io::error::FileError;
+use crate::io::sweep::{Sweep, Sweeps};
+use crate::io::velodyne::{self, Decoder, POSITION_PACKET_BYTES};
+use slamesh_core::Point;
+use std::path::{Path, PathBuf};
+
+/// How to read a capture.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PacketOptions {
+    /// The sensor (`--sensor`): a Velodyne model's flag; `None` to tell it from the packets.
+    pub sensor: Option<String>,
+    /// Where sweeps are cut (degrees of azimuth).
+    pub cut_azimuth_deg: f64,
+}
+
+/// The sensor names `--sensor` takes.
+pub fn sensor_names() -> Vec<&'static str> {
+    velodyne::tables::MODELS.iter().map(|m| m.flag).collect()
+}
+
+/// What a replay counted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReplayStats {
+    /// The capture's own counts.
+    pub capture: CaptureStats,
+    /// The sensor's data packets decoded.
+    pub packets: u64,
+    /// Its packets refused as damaged (a bad flag, azimuth or byte).
+    pub bad_packets: u64,
+    /// Packets missing between those that came.
+    pub gaps: u64,
+    /// Firings in part turns at the ends, or cut off by a jump in time (no sweep).
+    pub partial_firings: u64,
+    /// Jumps in the packets' time ([`crate::io::sweep::MAX_GAP_S`]).
+    pub time_jumps: u64,
+}
+
+/// The decoding state: where in the capture, and the sweep being filled.
+struct Cursor {
+    capture: Capture,
+    sweeps: Sweeps,
+    /// The next sweep it will complete.
+    next: usize,
+    stats: ReplayStats,
+}
+
+/// A capture as frames.
+pub struct Replay {
+    path: PathBuf,
+    decoder: Decoder,
+    /// The destination port of the sensor's data packets (the first data packet's).
+    port: u16,
+    options: PacketOptions,
+    /// Each sweep's stamp and gaps.
+    sweeps: Vec<(f64, u32)>,
+    stats: ReplayStats,
+    cursor: Option<Cursor>,
+}
+
+impl std::fmt::Debug for Replay {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Replay")
+            .field("path", &self.path)
+            .field("sensor", &self.decoder.model().name)
+            .field("sweeps", &self.sweeps.len())
+            .finish()
+    }
+}
+
+impl Replay {
+    /// Opens a capture: finds its sensor and its sweeps.
+    pub fn open(path: &Path, options: &PacketOptions) -> Result<Self, FileError> {
+        let (decoder, port) = find_sensor(path, options.sensor.as_deref())?;
+        let mut replay = Self {
+            path: path.to_path_buf(),
+            decoder,
+            port,
+            options: options.clone(),
+            sweeps: Vec::new(),
+            stats: ReplayStats::default(),
+            cursor: None,
+        };
+        // The index pass.
+        let mut cursor = replay.start()?;
+        while let Some(s) = replay.advance(&mut cursor)? {
+            replay.sweeps.push((s.stamp().unwrap_or(0.0), s.gaps));
+        }
+        replay.stats = cursor.stats;
+        if replay.sweeps.is_empty() {
+            return Err(FileError::at(
+                path,
+                format!(
+                    "{} {} data packets, but not one whole turn of the sensor",
+                    replay.stats.packets,
+                    replay.decoder.model().name
+                ),
+            ));
+        }
+        Ok(replay)
+    }
+
+    /// The sensor's model name.
+    pub fn sensor(&self) -> &'static str {
+        self.decoder.model().name
+    }
+
+    /// What the whole capture held (from the index pass).
+    pub fn stats(&self) -> ReplayStats {
+        self.stats
+    }
+
+    /// Number of sweeps.
+    pub fn len(&self) -> usize {
+        self.sweeps.len()
+    }
+
+    /// Whether there is no sweep (never, once opened).
+    pub fn is_empty(&self) -> bool {
+        self.sweeps.is_empty()
+    }
+
+    fn start(&self) -> Result<Cursor, FileError> {
+        Ok(Cursor {
+            capture: Capture::open(&self.path)?,
+            sweeps: Sweeps::new(self.options.cut_azimuth_deg),
+            next: 0,
+            stats: ReplayStats::default(),
+        })
+    }
+
+    /// Decodes until the cursor completes a sweep; `None` at the end.
+    fn advance(&self, c: &mut Cursor) -> Result<Option<Sweep>, FileError> {
+        loop {
+            let Some(d) = c.capture.next_datagram()? else {
+                c.sweeps.finish();
+                c.stats.capture = c.capture.stats();
+                c.stats.gaps = c.sweeps.gaps;
+                c.stats.partial_firings = c.sweeps.partial_firings;
+                c.stats.time_jumps = c.sweeps.time_jumps;
+                return Ok(None);
+            };
+            if d.udp.dst_port != self.port || d.udp.payload.len() == POSITION_PACKET_BYTES {
+                continue;
+            }
+            let payload = d.udp.payload;
+            let Some(t) = velodyne::packet_time(payload, d.time_s) else {
+                c.stats.bad_packets += 1;
+                continue;
+            };
+            let mut done = None;
+            let sweeps = &mut c.sweeps;
+            let decoded = self.decoder.decode(payload, t, |f| {
+                if let Some(s) = sweeps.push(f.point, f.time_s, f.azimuth) {
+                    done = Some(s);
+                }
+            });
+            match decoded {
+                Ok(mode) => {
+                    c.stats.packets += 1;
+                    c.sweeps.packet(t, self.decoder.packet_period_s(mode));
+                }
+                Err(_) => c.stats.bad_packets += 1,
+            }
+            if let Some(s) = done {
+                c.next += 1;
+                return Ok(Some(s));
+            }
+        }
+    }
+
+    /// Sweep `i`, decoded again from the capture.
+    fn sweep(&mut self, i: usize) -> Result<Sweep, FileError> {
+        let mut cursor = match self.cursor.take() {
+            Some(c) if c.next <= i => c,
+            _ => self.start()?,
+        };
+        loop {
+            let at = cursor.next;
+            match self.advance(&mut cursor)? {
+                Some(s) if at == i => {
+                    self.cursor = Some(cursor);
+                    return Ok(s);
+                }
+                Some(_) => {}
+                None => {
+                    return Err(FileError::at(
+                        &self.path,
+                        format!("sweep {i} is not there on a second reading: the file changed"),
+                    ))
+                }
+            }
+        }
+    }
+
+    /// Frame `i`'s label.
+    pub fn label(&self, i: usize) -> String {
+        format!("{} sweep {i}", self.path.display())
+    }
+
+    /// Frame `i`'s stamp: the middle of its firings' times ([`Sweep::stamp`]).
+    pub fn stamp(&self, i: usize) -> f64 {
+        self.sweeps.get(i).map_or(0.0, |s| s.0)
+    }
+
+    /// Frame `i`'s points and their times relative to its stamp.
+    pub fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        let s = self.sweep(i)?;
+        let stamp = s.stamp().unwrap_or(0.0);
+        let times = s.times.iter().map(|t| (t - stamp) as f32).collect();
+        Ok((s.points, Some(times)))
+    }
+}
+
+/// The sensor of a capture: the first Velodyne data packet's model (which `sensor`, when
+/// given, must name), and the port it went to.
+fn find_sensor(path: &Path, sensor: Option<&str>) -> Result<(Decoder, u16), FileError> {
+    let named = match sensor {
+        Some(s) => Some(velodyne::model_named(s).ok_or_else(|| {
+            FileError::at(
+                path,
+                format!("--sensor {s}: not one of {}", sensor_names().join(", ")),
+            )
+        })?),
+        None => None,
+    };
+    let mut cap = Capture::open(path)?;
+    let mut sizes: Vec<(usize, u64)> = Vec::new();
+    while let Some(d) = cap.next_datagram()? {
+        let payload = d.udp.payload;
+        if let Some(product) = velodyne::sniff(payload) {
+            let found = velodyne::model_of(product);
+            return match (named, found) {
+                (Some(n), Some(f)) if n.product_id != f.product_id => Err(FileError::at(
+                    path,
+                    format!("--sensor {}: the packets are a {}'s", n.flag, f.name),
+                )),
+                (Some(m), _) | (None, Some(m)) => Ok((Decoder::new(m), d.udp.dst_port)),
+                (None, None) => Err(FileError::at(
+                    path,
+                    format!(
+                        "Velodyne data packets of product {product:#04x}, a model this reader does \
+                         not decode (it reads {}); name one with --sensor if it is one of them",
+                        sensor_names().join(", ")
+                    ),
+                )),
+            };
+        }
+        if payload.len() == velodyne::DATA_PACKET_BYTES
+            && payload.get(..2) == Some(&[0xff, 0xee][..])
+            && payload.get(100..102) == Some(&[0xff, 0xdd][..])
+        {
+            // FF EE then FF DD blocks: an HDL-64E.
+            return Err(FileError::at(
+                path,
+                "HDL-64E packets: they need the unit's own calibration, which this reader does \
+                 not take yet",
+            ));
+        }
+        match sizes.iter().position(|(n, _)| *n == payload.len()) {
+            Some(k) => sizes[k].1 += 1,
+            None if sizes.len() < 5 => sizes.push((payload.len(), 1)),
+            None => {}
+        }
+    }
+    let seen = if sizes.is_empty() {
+        "no UDP datagrams at all".to_string()
+    } else {
+        let list: Vec<String> = sizes
+            .iter()
+            .map(|(n, c)| format!("{c} of {n} bytes"))
+            .collect();
+        format!("UDP datagrams: {}", list.join(", "))
+    };
+    Err(FileError::at(
+        path,
+        format!(
+            "no Velodyne data packets ({DATA} bytes) in the capture; {seen}",
+            DATA = velodyne::DATA_PACKET_BYTES
+        ),
+    ))
+}
