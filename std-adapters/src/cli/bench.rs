@@ -1,43 +1,22 @@
 //! `slamesh bench`: the pipeline timed stage by stage over a folder of scans.
 
 use crate::cli::error::CliError;
-use crate::cli::run::parse_bin_fields;
+use crate::cli::input::InputArgs;
 use crate::cli::settings::Profile;
 use crate::say;
 use clap::Args;
 use slamesh::io::config_file::WindowSettings;
-use slamesh::io::kitti::BinFields;
-use slamesh::io::replay::PacketOptions;
 use slamesh::run::report::spreads;
 use slamesh::run::timing::StageMs;
-use slamesh::run::{run, Input, RunOptions};
+use slamesh::run::{run, RunOptions};
 use slamesh_core::KittiCapacity;
-use std::path::PathBuf;
 
 /// `slamesh bench`'s arguments.
 #[derive(Args, Debug)]
 pub struct BenchArgs {
-    /// Scans or a recording, as for `run`.
-    pub input: PathBuf,
-    /// The recording's PointCloud2 topic (default: its only one).
-    #[arg(long, value_name = "NAME")]
-    pub topic: Option<String>,
-    /// The float32 fields of each `.bin` point, in order (x, y and z are read): x,y,z,i is
-    /// KITTI's, x,y,z,i,ring nuScenes'.
-    #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = parse_bin_fields)]
-    pub bin_fields: BinFields,
-    /// A packet capture's sensor: vlp16, puck-hires, vlp32c or hdl32 (default: told from the
-    /// packets).
-    #[arg(long, value_name = "MODEL")]
-    pub sensor: Option<String>,
-    /// Where a packet capture's sweeps are cut (degrees of azimuth).
-    #[arg(
-        long,
-        value_name = "DEG",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
-    pub cut_azimuth: f64,
+    /// The input and how to read it, as for `run`.
+    #[command(flatten)]
+    pub source: InputArgs,
     /// The preset or configuration file (its [window] section is not used: bench times the
     /// pipeline without eviction).
     #[command(flatten)]
@@ -55,17 +34,9 @@ pub struct BenchArgs {
 
 /// A warm-up pass, then `repeat` timed passes: per-stage median and 95th percentile.
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
-    let (input, threads, repeat, json) = (&args.input, args.threads, args.repeat, args.json);
+    let (input, threads, repeat, json) = (&args.source.input, args.threads, args.repeat, args.json);
     let mut s = args.profile.resolve("default")?;
-    let mut source = Input::open_with(
-        input,
-        args.topic.as_deref(),
-        args.bin_fields.clone(),
-        &PacketOptions {
-            sensor: args.sensor.clone(),
-            cut_azimuth_deg: args.cut_azimuth,
-        },
-    )?;
+    let mut source = args.source.open()?;
     crate::cli::settings::fit_to_scene(&mut s, &mut source);
     let (config, preset) = (s.config, s.preset);
     let out = std::env::temp_dir().join(format!("slamesh-bench-{}", std::process::id()));

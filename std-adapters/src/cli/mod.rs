@@ -7,6 +7,7 @@ pub mod config;
 pub mod demo;
 pub mod error;
 pub mod eval;
+pub mod input;
 pub mod notices;
 pub mod render;
 pub mod run;

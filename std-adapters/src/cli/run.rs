@@ -1,51 +1,30 @@
 //! `slamesh run` (estimate poses, build the mesh) and `slamesh mesh` (build it at given poses).
 
 use crate::cli::error::CliError;
+use crate::cli::input::InputArgs;
 use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
 use crate::cli::settings::{Profile, WindowFlags};
 use crate::say;
 use clap::Args;
 use indicatif::ProgressBar;
-use slamesh::io::kitti::BinFields;
 use slamesh::io::mesh_spool::{MeshColour, MeshFormat};
-use slamesh::io::replay::PacketOptions;
 use slamesh::io::trajectory::Trajectory;
 use slamesh::io::{kitti, trajectory, FileError};
 use slamesh::loop_closure::settings::LoopSettings;
 use slamesh::run::capacity;
 use slamesh::run::memory;
 use slamesh::run::session::{Deskew, InitialPose};
-use slamesh::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
+use slamesh::run::{run, FrameRecord, FrameSource, RunOptions, Summary};
 use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use std::path::{Path, PathBuf};
 
 /// `slamesh run`'s arguments (and most of `slamesh mesh`'s).
 #[derive(Args, Debug)]
 pub struct RunArgs {
-    /// A folder of scans (.bin, .pcd or .ply, read in natural order), a KITTI sequence folder,
-    /// one scan file, a recording (a ROS 1 bag, an MCAP file or a ROS 2 bag folder), or a
-    /// packet capture of a Velodyne (.pcap or .pcapng, a sweep a frame).
-    pub input: PathBuf,
-    /// The recording's PointCloud2 topic (default: its only one).
-    #[arg(long, value_name = "NAME")]
-    pub topic: Option<String>,
-    /// The float32 fields of each `.bin` point, in order (x, y and z are read): x,y,z,i is
-    /// KITTI's, x,y,z,i,ring nuScenes'.
-    #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = parse_bin_fields)]
-    pub bin_fields: BinFields,
-    /// A packet capture's sensor: vlp16, puck-hires, vlp32c or hdl32 (default: told from the
-    /// packets).
-    #[arg(long, value_name = "MODEL")]
-    pub sensor: Option<String>,
-    /// Where a packet capture's sweeps are cut (degrees of azimuth).
-    #[arg(
-        long,
-        value_name = "DEG",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
-    pub cut_azimuth: f64,
+    /// The input and how to read it.
+    #[command(flatten)]
+    pub source: InputArgs,
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
@@ -277,15 +256,7 @@ fn run_with(
         _ => args.profile.resolve(default_preset)?,
     };
     args.window.apply(&mut s.window)?;
-    let mut source = Input::open_with(
-        &args.input,
-        args.topic.as_deref(),
-        args.bin_fields.clone(),
-        &PacketOptions {
-            sensor: args.sensor.clone(),
-            cut_azimuth_deg: args.cut_azimuth,
-        },
-    )?;
+    let mut source = args.source.open()?;
     if given.is_none() && args.map.is_none() {
         crate::cli::settings::fit_to_scene(&mut s, &mut source);
     }
@@ -327,7 +298,7 @@ fn run_with(
             ColourFlag::Variance => MeshColour::Variance,
         },
         given_poses: given,
-        input: args.input.display().to_string(),
+        input: args.source.input.display().to_string(),
         checkpoint_every: args.checkpoint_every.map(|n| n as usize),
         resume: args.resume,
         picture: !args.no_picture,
@@ -350,7 +321,7 @@ fn run_with(
     log::info!(
         "{} from {} (preset {}), output in {}",
         source.describe(),
-        args.input.display(),
+        args.source.input.display(),
         s.preset,
         args.out.display()
     );
@@ -518,9 +489,4 @@ pub fn read_given_poses(path: &Path, calib: Option<&Path>) -> Result<Trajectory,
         t.poses = kitti::lidar_poses(&t.poses, &kitti::read_calib_tr(c)?);
     }
     Ok(t)
-}
-
-/// `--bin-fields`.
-pub fn parse_bin_fields(list: &str) -> Result<BinFields, String> {
-    BinFields::parse(list)
 }

@@ -1,0 +1,52 @@
+//! Where a command's frames come from (`run`, `mesh`, `localize`, `bench`): the input and how
+//! to read it.
+
+use clap::Args;
+use slamesh::io::kitti::BinFields;
+use slamesh::io::replay::PacketOptions;
+use slamesh::io::FileError;
+use slamesh::run::Input;
+use std::path::PathBuf;
+
+/// The input and the flags that say how to read it.
+#[derive(Args, Debug)]
+pub struct InputArgs {
+    /// A folder of scans (.bin, .pcd or .ply, read in natural order), a KITTI sequence folder,
+    /// one scan file, a recording (a ROS 1 bag, an MCAP file or a ROS 2 bag folder), or a
+    /// packet capture of a Velodyne (.pcap or .pcapng, a sweep a frame).
+    pub input: PathBuf,
+    /// The recording's PointCloud2 topic (default: its only one).
+    #[arg(long, value_name = "NAME")]
+    pub topic: Option<String>,
+    /// The float32 fields of each `.bin` point, in order (x, y and z are read): x,y,z,i is
+    /// KITTI's, x,y,z,i,ring nuScenes'.
+    #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = BinFields::parse)]
+    pub bin_fields: BinFields,
+    /// A packet capture's sensor: vlp16, puck-hires, vlp32c or hdl32 (default: told from the
+    /// packets).
+    #[arg(long, value_name = "MODEL")]
+    pub sensor: Option<String>,
+    /// Where a packet capture's sweeps are cut (degrees of azimuth).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub cut_azimuth: f64,
+}
+
+impl InputArgs {
+    /// Opens the input.
+    pub fn open(&self) -> Result<Input, FileError> {
+        Input::open_with(
+            &self.input,
+            self.topic.as_deref(),
+            self.bin_fields.clone(),
+            &PacketOptions {
+                sensor: self.sensor.clone(),
+                cut_azimuth_deg: self.cut_azimuth,
+            },
+        )
+    }
+}
