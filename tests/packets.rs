@@ -139,9 +139,9 @@ fn truncated_oversized_and_garbage_packets_are_skipped_and_counted() {
         s.capture.truncated, 2,
         "the cut frame and the oversized datagram"
     );
-    assert_eq!(s.bad_packets, 1, "the garbage blocks");
+    assert_eq!(s.stream.bad_packets, 1, "the garbage blocks");
     // Four packets' points missing from the stream, each a gap: all but the good ones.
-    assert_eq!(s.gaps, 4);
+    assert_eq!(s.stream.gaps, 4);
     assert_eq!(replay.len(), 5, "every sweep is still there");
 }
 
@@ -244,6 +244,7 @@ fn the_sensor_and_cut_flags_from_the_command_line() {
         &PacketOptions {
             sensor: Some("hdl32".into()),
             cut_azimuth_deg: 180.0,
+            ..PacketOptions::default()
         },
     )
     .unwrap();
@@ -259,4 +260,178 @@ fn the_sensor_and_cut_flags_from_the_command_line() {
     assert!(times.windows(2).all(|w| w[0] <= w[1]), "times run forward");
     let span = times.last().unwrap() - times[0];
     assert!((0.07..0.1).contains(&span), "a turn takes {span} s");
+}
+
+/// Sends the capture's UDP payloads to `to` from another thread, at `speed` times the rate
+/// they were captured at.
+fn replay_to(to: std::net::SocketAddr, speed: f64) -> std::thread::JoinHandle<usize> {
+    let frames = frames_of(&fixture("hdl32e-drive.pcap"));
+    std::thread::spawn(move || {
+        let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let t = |f: &Frame| f64::from(f.2[0]) + f64::from(f.2[1]) * 1e-6;
+        let (t0, start) = (t(&frames[0]), std::time::Instant::now());
+        let mut sent = 0;
+        for f in &frames {
+            let due = (t(f) - t0) / speed;
+            let now = start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(std::time::Duration::from_secs_f64(due - now));
+            }
+            // Ethernet, IPv4 and UDP headers: 42 bytes.
+            socket.send_to(&f.0[42..], to).unwrap();
+            sent += 1;
+        }
+        sent
+    })
+}
+
+/// The live input: a thread sends the capture's packets to a socket on 127.0.0.1 as the
+/// sensor did, and then three times as fast; the run listens, takes whole sweeps through its
+/// bounded queue and tracks them. At three times the rate it may fall behind: then whole
+/// sweeps are dropped and counted, never half sweeps.
+#[test]
+fn a_live_stream_runs_at_its_rate_and_three_times_faster() {
+    use slamesh::run::session::Deskew;
+    use slamesh::run::{run, Input, RunOptions};
+    for (speed, name) in [(1.0, "live-1x"), (3.0, "live-3x")] {
+        let options = PacketOptions {
+            idle: Some(std::time::Duration::from_millis(400)),
+            ..PacketOptions::default()
+        };
+        let mut input = Input::open_with(
+            Path::new("udp://127.0.0.1:0"),
+            None,
+            Default::default(),
+            &options,
+        )
+        .unwrap();
+        let Input::Live(live) = &input else {
+            panic!("a live input")
+        };
+        let sender = replay_to(live.local_addr(), speed);
+        let out = common::scratch(name);
+        let opts = RunOptions {
+            out: out.clone(),
+            deskew: Deskew::Off,
+            threads: 2,
+            ..RunOptions::default()
+        };
+        let mut records = Vec::new();
+        let summary =
+            run::<slamesh_core::Lidar32Capacity>(&mut input, &opts, |r| records.push(r.clone()))
+                .unwrap();
+        assert_eq!(sender.join().unwrap(), 976, "every frame sent");
+        let stats = &summary.input.clone().unwrap();
+        let (sweeps, dropped) = (
+            stats["sweeps"].as_u64().unwrap(),
+            stats["sweeps_dropped"].as_u64().unwrap(),
+        );
+        println!(
+            "{speed}x: {sweeps} sweeps, {dropped} dropped, {} used; latencies {:?} ms",
+            summary.used,
+            records
+                .iter()
+                .filter_map(|r| r.latency_ms)
+                .map(|l| l.round())
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(sweeps, 5, "the capture's five whole turns");
+        assert_eq!(
+            summary.used as u64 + dropped,
+            sweeps,
+            "each sweep used or dropped whole"
+        );
+        assert!(
+            summary.health.not_registered.is_empty(),
+            "{:?}",
+            summary.health
+        );
+        // Whole sweeps: each as many points as the capture's turns have (43 900 to 44 600).
+        for r in &records {
+            assert!(
+                (43_000..45_000).contains(&r.points),
+                "frame {}: {} points",
+                r.frame,
+                r.points
+            );
+            assert!(r.latency_ms.is_some_and(|l| (0.0..5_000.0).contains(&l)));
+        }
+        if speed == 1.0 {
+            assert_eq!(dropped, 0, "at the sensor's rate nothing is dropped");
+        }
+    }
+}
+
+/// A run that does not keep up: the listener never waits for it, and the sweeps that find the
+/// queue full are dropped whole and counted. Here nothing is read until the capture has been
+/// sent (at ten times its rate): the queue of one holds the first sweep, the other four are
+/// dropped, and the stream then gives that one whole sweep and ends.
+#[test]
+fn a_full_queue_drops_whole_sweeps_and_counts_them() {
+    use slamesh::io::live::{Live, LiveOptions};
+    let options = LiveOptions {
+        queue: 1,
+        idle: Some(std::time::Duration::from_millis(300)),
+        ..LiveOptions::default()
+    };
+    let mut live = Live::open("127.0.0.1:0", &options).unwrap();
+    replay_to(live.local_addr(), 10.0).join().unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let stats = live.stats();
+    assert_eq!((stats.sweeps, stats.sweeps_dropped), (5, 4), "{stats:?}");
+    assert_eq!(stats.sensor.as_deref(), Some("HDL-32E"));
+    assert!(live.has(0));
+    let (points, times) = live.read_timed(0).unwrap();
+    assert!(
+        (43_000..45_000).contains(&points.len()),
+        "a whole sweep: {}",
+        points.len()
+    );
+    assert_eq!(times.unwrap().len(), points.len());
+    assert!(!live.has(1), "the stream ended");
+    assert_eq!(live.frames(), 1);
+    let _ = live.label(0);
+}
+
+/// The command on a live input: it listens, runs the sweeps as they come and, once the sensor
+/// has been quiet for `--idle-timeout` seconds, writes its outputs with the input's counts.
+#[test]
+fn the_command_runs_a_live_input() {
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let out = common::scratch("packets-live-command");
+    let input = format!("udp://127.0.0.1:{port}");
+    let args = [
+        "run",
+        &input,
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+        "--sensor",
+        "hdl32",
+        "--idle-timeout",
+        "0.5",
+        "--deskew",
+        "off",
+    ];
+    let child = common::slamesh_command(&args).spawn().unwrap();
+    // Give it time to bind before sending.
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    replay_to(format!("127.0.0.1:{port}").parse().unwrap(), 1.0)
+        .join()
+        .unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["summary"]["input"]["sweeps"], 5,
+        "{}",
+        report["summary"]["input"]
+    );
+    assert_eq!(report["summary"]["used"], 5);
+    assert!(report["frames"][0]["latency_ms"].as_f64().is_some());
 }

@@ -7,13 +7,17 @@ use slamesh::io::replay::PacketOptions;
 use slamesh::io::FileError;
 use slamesh::run::Input;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
 
 /// The input and the flags that say how to read it.
 #[derive(Args, Debug)]
 pub struct InputArgs {
     /// A folder of scans (.bin, .pcd or .ply, read in natural order), a KITTI sequence folder,
-    /// one scan file, a recording (a ROS 1 bag, an MCAP file or a ROS 2 bag folder), or a
-    /// packet capture of a Velodyne (.pcap or .pcapng, a sweep a frame).
+    /// one scan file, a recording (a ROS 1 bag, an MCAP file or a ROS 2 bag folder), a packet
+    /// capture of a Velodyne (.pcap or .pcapng, a sweep a frame), or udp://HOST:PORT to take
+    /// the sensor's packets live.
     pub input: PathBuf,
     /// The recording's PointCloud2 topic (default: its only one).
     #[arg(long, value_name = "NAME")]
@@ -34,11 +38,27 @@ pub struct InputArgs {
         allow_negative_numbers = true
     )]
     pub cut_azimuth: f64,
+    /// A live input (udp://HOST:PORT): end after this many seconds without a packet (default:
+    /// run until Ctrl-C).
+    #[arg(long, value_name = "S")]
+    pub idle_timeout: Option<f64>,
 }
 
 impl InputArgs {
-    /// Opens the input.
+    /// Opens the input. A live one ends on Ctrl-C, and the run then writes its outputs.
     pub fn open(&self) -> Result<Input, FileError> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let live = self
+            .input
+            .to_str()
+            .and_then(slamesh::io::live::address)
+            .is_some();
+        if live {
+            let flag = stop.clone();
+            if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {
+                log::warn!("Ctrl-C will not end the run cleanly: {e}");
+            }
+        }
         Input::open_with(
             &self.input,
             self.topic.as_deref(),
@@ -46,6 +66,11 @@ impl InputArgs {
             &PacketOptions {
                 sensor: self.sensor.clone(),
                 cut_azimuth_deg: self.cut_azimuth,
+                idle: self
+                    .idle_timeout
+                    .filter(|s| s.is_finite() && *s > 0.0)
+                    .map(Duration::from_secs_f64),
+                stop,
             },
         )
     }

@@ -11,46 +11,39 @@
 
 use crate::io::capture::{Capture, CaptureStats};
 use crate::io::error::FileError;
-use crate::io::sweep::{Sweep, Sweeps};
-use crate::io::velodyne::{self, Decoder, POSITION_PACKET_BYTES};
+use crate::io::packets::{self, SensorStream, StreamStats};
+use crate::io::sweep::Sweep;
+use crate::io::velodyne::tables::Model;
+use serde::Serialize;
 use slamesh_core::Point;
 use std::path::{Path, PathBuf};
 
-/// How to read a capture.
-#[derive(Debug, Clone, Default, PartialEq)]
+/// How to read packets, from a capture or live.
+#[derive(Debug, Clone, Default)]
 pub struct PacketOptions {
     /// The sensor (`--sensor`): a Velodyne model's flag; `None` to tell it from the packets.
     pub sensor: Option<String>,
     /// Where sweeps are cut (degrees of azimuth).
     pub cut_azimuth_deg: f64,
-}
-
-/// The sensor names `--sensor` takes.
-pub fn sensor_names() -> Vec<&'static str> {
-    velodyne::tables::MODELS.iter().map(|m| m.flag).collect()
+    /// Live: end after this long without a packet (`None`: never).
+    pub idle: Option<std::time::Duration>,
+    /// Live: set to end the stream (Ctrl-C).
+    pub stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 /// What a replay counted.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct ReplayStats {
     /// The capture's own counts.
     pub capture: CaptureStats,
-    /// The sensor's data packets decoded.
-    pub packets: u64,
-    /// Its packets refused as damaged (a bad flag, azimuth or byte).
-    pub bad_packets: u64,
-    /// Packets missing between those that came.
-    pub gaps: u64,
-    /// Firings in part turns at the ends, or cut off by a jump in time (no sweep).
-    pub partial_firings: u64,
-    /// Jumps in the packets' time ([`crate::io::sweep::MAX_GAP_S`]).
-    pub time_jumps: u64,
+    /// The sensor's packets.
+    pub stream: StreamStats,
 }
 
 /// The decoding state: where in the capture, and the sweep being filled.
 struct Cursor {
     capture: Capture,
-    sweeps: Sweeps,
+    stream: SensorStream,
     /// The next sweep it will complete.
     next: usize,
     stats: ReplayStats,
@@ -59,7 +52,7 @@ struct Cursor {
 /// A capture as frames.
 pub struct Replay {
     path: PathBuf,
-    decoder: Decoder,
+    model: &'static Model,
     /// The destination port of the sensor's data packets (the first data packet's).
     port: u16,
     options: PacketOptions,
@@ -73,7 +66,7 @@ impl std::fmt::Debug for Replay {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Replay")
             .field("path", &self.path)
-            .field("sensor", &self.decoder.model().name)
+            .field("sensor", &self.model.name)
             .field("sweeps", &self.sweeps.len())
             .finish()
     }
@@ -82,10 +75,10 @@ impl std::fmt::Debug for Replay {
 impl Replay {
     /// Opens a capture: finds its sensor and its sweeps.
     pub fn open(path: &Path, options: &PacketOptions) -> Result<Self, FileError> {
-        let (decoder, port) = find_sensor(path, options.sensor.as_deref())?;
+        let (model, port) = find_sensor(path, options.sensor.as_deref())?;
         let mut replay = Self {
             path: path.to_path_buf(),
-            decoder,
+            model,
             port,
             options: options.clone(),
             sweeps: Vec::new(),
@@ -103,8 +96,7 @@ impl Replay {
                 path,
                 format!(
                     "{} {} data packets, but not one whole turn of the sensor",
-                    replay.stats.packets,
-                    replay.decoder.model().name
+                    replay.stats.stream.packets, replay.model.name
                 ),
             ));
         }
@@ -113,7 +105,7 @@ impl Replay {
 
     /// The sensor's model name.
     pub fn sensor(&self) -> &'static str {
-        self.decoder.model().name
+        self.model.name
     }
 
     /// What the whole capture held (from the index pass).
@@ -134,7 +126,7 @@ impl Replay {
     fn start(&self) -> Result<Cursor, FileError> {
         Ok(Cursor {
             capture: Capture::open(&self.path)?,
-            sweeps: Sweeps::new(self.options.cut_azimuth_deg),
+            stream: SensorStream::new(self.model, self.port, self.options.cut_azimuth_deg),
             next: 0,
             stats: ReplayStats::default(),
         })
@@ -144,36 +136,13 @@ impl Replay {
     fn advance(&self, c: &mut Cursor) -> Result<Option<Sweep>, FileError> {
         loop {
             let Some(d) = c.capture.next_datagram()? else {
-                c.sweeps.finish();
-                c.stats.capture = c.capture.stats();
-                c.stats.gaps = c.sweeps.gaps;
-                c.stats.partial_firings = c.sweeps.partial_firings;
-                c.stats.time_jumps = c.sweeps.time_jumps;
+                c.stats = ReplayStats {
+                    capture: c.capture.stats(),
+                    stream: c.stream.finish(),
+                };
                 return Ok(None);
             };
-            if d.udp.dst_port != self.port || d.udp.payload.len() == POSITION_PACKET_BYTES {
-                continue;
-            }
-            let payload = d.udp.payload;
-            let Some(t) = velodyne::packet_time(payload, d.time_s) else {
-                c.stats.bad_packets += 1;
-                continue;
-            };
-            let mut done = None;
-            let sweeps = &mut c.sweeps;
-            let decoded = self.decoder.decode(payload, t, |f| {
-                if let Some(s) = sweeps.push(f.point, f.time_s, f.azimuth) {
-                    done = Some(s);
-                }
-            });
-            match decoded {
-                Ok(mode) => {
-                    c.stats.packets += 1;
-                    c.sweeps.packet(t, self.decoder.packet_period_s(mode));
-                }
-                Err(_) => c.stats.bad_packets += 1,
-            }
-            if let Some(s) = done {
+            if let Some(s) = c.stream.datagram(d.udp.dst_port, d.udp.payload, d.time_s) {
                 c.next += 1;
                 return Ok(Some(s));
             }
@@ -225,48 +194,19 @@ impl Replay {
 
 /// The sensor of a capture: the first Velodyne data packet's model (which `sensor`, when
 /// given, must name), and the port it went to.
-fn find_sensor(path: &Path, sensor: Option<&str>) -> Result<(Decoder, u16), FileError> {
+fn find_sensor(path: &Path, sensor: Option<&str>) -> Result<(&'static Model, u16), FileError> {
     let named = match sensor {
-        Some(s) => Some(velodyne::model_named(s).ok_or_else(|| {
-            FileError::at(
-                path,
-                format!("--sensor {s}: not one of {}", sensor_names().join(", ")),
-            )
-        })?),
+        Some(s) => Some(packets::named(s).map_err(|e| FileError::at(path, e))?),
         None => None,
     };
     let mut cap = Capture::open(path)?;
     let mut sizes: Vec<(usize, u64)> = Vec::new();
     while let Some(d) = cap.next_datagram()? {
         let payload = d.udp.payload;
-        if let Some(product) = velodyne::sniff(payload) {
-            let found = velodyne::model_of(product);
-            return match (named, found) {
-                (Some(n), Some(f)) if n.product_id != f.product_id => Err(FileError::at(
-                    path,
-                    format!("--sensor {}: the packets are a {}'s", n.flag, f.name),
-                )),
-                (Some(m), _) | (None, Some(m)) => Ok((Decoder::new(m), d.udp.dst_port)),
-                (None, None) => Err(FileError::at(
-                    path,
-                    format!(
-                        "Velodyne data packets of product {product:#04x}, a model this reader does \
-                         not decode (it reads {}); name one with --sensor if it is one of them",
-                        sensor_names().join(", ")
-                    ),
-                )),
-            };
-        }
-        if payload.len() == velodyne::DATA_PACKET_BYTES
-            && payload.get(..2) == Some(&[0xff, 0xee][..])
-            && payload.get(100..102) == Some(&[0xff, 0xdd][..])
+        if let Some(model) =
+            packets::identify(payload, named).map_err(|e| FileError::at(path, e))?
         {
-            // FF EE then FF DD blocks: an HDL-64E.
-            return Err(FileError::at(
-                path,
-                "HDL-64E packets: they need the unit's own calibration, which this reader does \
-                 not take yet",
-            ));
+            return Ok((model, d.udp.dst_port));
         }
         match sizes.iter().position(|(n, _)| *n == payload.len()) {
             Some(k) => sizes[k].1 += 1,
@@ -286,8 +226,8 @@ fn find_sensor(path: &Path, sensor: Option<&str>) -> Result<(Decoder, u16), File
     Err(FileError::at(
         path,
         format!(
-            "no Velodyne data packets ({DATA} bytes) in the capture; {seen}",
-            DATA = velodyne::DATA_PACKET_BYTES
+            "no Velodyne data packets ({} bytes) in the capture; {seen}",
+            crate::io::velodyne::DATA_PACKET_BYTES
         ),
     ))
 }

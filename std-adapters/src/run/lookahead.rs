@@ -16,7 +16,9 @@
 //! - at most one frame ahead, its buffers counted by [`LookAhead::bytes`];
 //! - [`LookAhead::reading_only`]: the next frame read ahead, but filtered in line (no buffers
 //!   of its own, for a tight memory cap);
-//! - off ([`LookAhead::off`]) or with one thread (no pool): nothing ahead.
+//! - off ([`LookAhead::off`]) or with one thread (no pool): nothing ahead;
+//! - a live source's frame is read ahead only if it is already there
+//!   ([`FrameSource::would_wait`]).
 
 use crate::io::error::FileError;
 use crate::parallel::{Workers, Yielding};
@@ -171,7 +173,9 @@ impl LookAhead {
         let (Some((outbox, _)), Workers::Pool(pool)) = (&self.done, workers) else {
             return;
         };
-        if i >= source.frames() {
+        // A live source's next frame that has not come yet is not waited for: the frame being
+        // registered would wait with it, a whole sweep's time added to its latency.
+        if i >= source.frames() || source.would_wait(i) {
             return;
         }
         let mut r = read(source, i);

@@ -76,6 +76,9 @@ pub struct FrameRecord {
     /// Loop closures applied before this frame ([`crate::loop_closure`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub loop_closures: Vec<Closure>,
+    /// A live input: milliseconds from the frame's last packet to its pose.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latency_ms: Option<f64>,
 }
 
 impl FrameRecord {
@@ -105,6 +108,7 @@ impl FrameRecord {
             stamp: 0.0,
             relocalization: None,
             loop_closures: Vec::new(),
+            latency_ms: None,
         }
     }
 }
@@ -156,6 +160,10 @@ pub struct Summary {
     /// What loop closure did, when it was on.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loop_closure: Option<LoopReport>,
+    /// What the input's reader counted (a capture's or a live stream's packets, gaps, dropped
+    /// sweeps).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub input: Option<serde_json::Value>,
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,

@@ -57,7 +57,9 @@ pub fn run<C: Capacity>(
     };
     #[cfg(feature = "view")]
     let mut view = crate::view::View::for_run(opts)?;
-    for i in run.next_frame()..source.frames() {
+    // `has` waits for a live source's next frame (a file's are all there).
+    let mut i = run.next_frame();
+    while source.has(i) {
         let record = run.step(source, i)?;
         #[cfg(feature = "view")]
         if let Some(v) = &mut view {
@@ -66,6 +68,7 @@ pub fn run<C: Capacity>(
             });
         }
         on_frame(&record);
+        i += 1;
     }
     #[cfg(feature = "view")]
     crate::view::View::close(view)?;
@@ -339,8 +342,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                 Some((m, dt, reference)) => deskew::pose_at(&g, &m, dt, reference),
                 None => g,
             });
-            // On a worker of the pool: its serial stages then leave the pool's other thread
-            // to the filter job, not to a thread waiting for work.
+            // On a worker of the pool: its serial stages leave the other thread to the filter.
             let r = workers.install_beside(
                 || match (given, &ahead, search) {
                     (Some(pose), None, _) => {
@@ -447,6 +449,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                     _ => o.t_world_sensor,
                 };
                 self.progress.poses.push((i, at_stamp));
+                rec.latency_ms = source.arrival(i).map(|a| a.elapsed().as_secs_f64() * 1e3);
                 self.progress.used_ms.push(rec.ms);
                 if let Some(c) = &mut self.closer {
                     let counter = self.pipeline.frames();
@@ -569,6 +572,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             peak_rss_mb: memory::peak_rss_bytes().map(memory::mb),
             health,
             loop_closure,
+            input: source.input_report(),
             poses,
         };
         write_report(out, self.opts, &summary, &self.frames_path)?;

@@ -4,6 +4,7 @@
 
 use crate::io::error::FileError;
 use crate::io::kitti::BinFields;
+use crate::io::live::{Live, LiveOptions};
 use crate::io::replay::{PacketOptions, Replay};
 use crate::io::scans::{read_scan_as, ScanFolder};
 use slamesh_core::Point;
@@ -28,6 +29,24 @@ pub trait FrameSource {
     fn dropped_by_reader(&self) -> usize {
         0
     }
+    /// Whether frame `i` exists; a live source waits until it comes or the stream ends. By
+    /// default, `i < frames()`.
+    fn has(&mut self, i: usize) -> bool {
+        i < self.frames()
+    }
+    /// Whether reading frame `i` now would wait for it to come (a live source's); by default,
+    /// never.
+    fn would_wait(&mut self, _i: usize) -> bool {
+        false
+    }
+    /// When frame `i`'s data came in, for a live source (the latency to its pose).
+    fn arrival(&self, _i: usize) -> Option<std::time::Instant> {
+        None
+    }
+    /// What the reader counted over the whole input, for `report.json` (`summary.input`).
+    fn input_report(&self) -> Option<serde_json::Value> {
+        None
+    }
 }
 
 /// What the command reads: a folder of scans (or one scan file), a robot recording, or a
@@ -38,6 +57,8 @@ pub enum Input {
     /// A sensor's packets in a `.pcap` or `.pcapng` file, a sweep a frame (boxed: the
     /// decoder's tables are a few KB).
     Capture(Box<Replay>),
+    /// A sensor's packets taken live from a UDP socket (`udp://HOST:PORT`).
+    Live(Box<Live>),
     /// A ROS 1 bag, an MCAP file or a ROS 2 bag folder.
     #[cfg(feature = "recordings")]
     Recording(crate::io::recording::Recording),
@@ -62,6 +83,16 @@ impl Input {
         bin_fields: BinFields,
         packets: &PacketOptions,
     ) -> Result<Self, FileError> {
+        if let Some(addr) = path.to_str().and_then(crate::io::live::address) {
+            let live = LiveOptions {
+                sensor: packets.sensor.clone(),
+                cut_azimuth_deg: packets.cut_azimuth_deg,
+                idle: packets.idle,
+                stop: packets.stop.clone(),
+                ..LiveOptions::default()
+            };
+            return Ok(Input::Live(Box::new(Live::open(addr, &live)?)));
+        }
         if crate::io::capture::is_capture(path) {
             return Ok(Input::Capture(Box::new(Replay::open(path, packets)?)));
         }
@@ -102,15 +133,16 @@ impl Input {
             ),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => format!("{} frames of topic {}", r.frames(), r.topic.name),
+            Input::Live(l) => format!("packets on {}", l.local_addr()),
             Input::Capture(c) => {
                 let s = c.stats();
                 format!(
                     "{} sweeps of a {} ({} packets, {} missing, {} damaged)",
                     c.len(),
                     c.sensor(),
-                    s.packets,
-                    s.gaps,
-                    s.bad_packets
+                    s.stream.packets,
+                    s.stream.gaps,
+                    s.stream.bad_packets
                 )
             }
         }
@@ -122,6 +154,7 @@ impl FrameSource for Input {
         match self {
             Input::Folder(f) => f.frames(),
             Input::Capture(c) => c.len(),
+            Input::Live(l) => l.frames(),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.frames(),
         }
@@ -130,6 +163,7 @@ impl FrameSource for Input {
         match self {
             Input::Folder(f) => f.label(i),
             Input::Capture(c) => c.label(i),
+            Input::Live(l) => l.label(i),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.label(i),
         }
@@ -138,6 +172,7 @@ impl FrameSource for Input {
         match self {
             Input::Folder(f) => f.stamp(i),
             Input::Capture(c) => c.stamp(i),
+            Input::Live(l) => l.stamp(i),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.stamp(i),
         }
@@ -146,6 +181,7 @@ impl FrameSource for Input {
         match self {
             Input::Folder(f) => f.read(i),
             Input::Capture(c) => c.read_timed(i).map(|(p, _)| p),
+            Input::Live(l) => l.read_timed(i).map(|(p, _)| p),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.read(i),
         }
@@ -154,6 +190,7 @@ impl FrameSource for Input {
         match self {
             Input::Folder(f) => f.read_timed(i),
             Input::Capture(c) => c.read_timed(i),
+            Input::Live(l) => l.read_timed(i),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.read_timed(i),
         }
@@ -161,9 +198,34 @@ impl FrameSource for Input {
     fn dropped_by_reader(&self) -> usize {
         match self {
             Input::Folder(f) => f.dropped_by_reader(),
-            Input::Capture(_) => 0,
+            Input::Capture(_) | Input::Live(_) => 0,
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.dropped_by_reader(),
+        }
+    }
+    fn has(&mut self, i: usize) -> bool {
+        match self {
+            Input::Live(l) => l.has(i),
+            other => i < other.frames(),
+        }
+    }
+    fn would_wait(&mut self, i: usize) -> bool {
+        match self {
+            Input::Live(l) => l.would_wait(i),
+            _ => false,
+        }
+    }
+    fn arrival(&self, i: usize) -> Option<std::time::Instant> {
+        match self {
+            Input::Live(l) => l.arrival(i),
+            _ => None,
+        }
+    }
+    fn input_report(&self) -> Option<serde_json::Value> {
+        match self {
+            Input::Live(l) => serde_json::to_value(l.stats()).ok(),
+            Input::Capture(c) => serde_json::to_value(c.stats()).ok(),
+            _ => None,
         }
     }
 }

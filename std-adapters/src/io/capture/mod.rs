@@ -38,7 +38,7 @@ pub fn is_capture(path: &Path) -> bool {
 }
 
 /// What a capture held besides the datagrams handed out.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct CaptureStats {
     /// Datagrams handed out.
     pub datagrams: u64,
