@@ -119,6 +119,21 @@ impl Cli {
     }
 }
 
+/// A progress counter for a run whose frames are not known ahead (a live input; hidden with
+/// `--quiet` or off a terminal).
+pub fn progress_open(quiet: bool) -> ProgressBar {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new_spinner()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {pos} frames  {per_sec}  {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar
+}
+
 /// A progress bar for `frames` frames (hidden with `--quiet` or off a terminal).
 pub fn progress(frames: usize, quiet: bool) -> ProgressBar {
     let bar = if quiet {

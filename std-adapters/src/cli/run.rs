@@ -15,7 +15,7 @@ use slamesh::loop_closure::settings::LoopSettings;
 use slamesh::run::capacity;
 use slamesh::run::memory;
 use slamesh::run::session::{Deskew, InitialPose};
-use slamesh::run::{run, FrameRecord, FrameSource, RunOptions, Summary};
+use slamesh::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use std::path::{Path, PathBuf};
 
@@ -317,7 +317,10 @@ fn run_with(
             record: args.record,
         },
     };
-    let bar = progress(source.frames(), quiet);
+    let bar = match source {
+        Input::Live(_) => crate::cli::progress_open(quiet),
+        _ => progress(source.frames(), quiet),
+    };
     log::info!(
         "{} from {} (preset {}), output in {}",
         source.describe(),
