@@ -79,6 +79,8 @@ pub struct Capture {
     legacy: Option<(i32, bool)>,
     /// pcapng: the current section's interfaces.
     interfaces: Vec<Interface>,
+    /// pcapng: whether the current section is big-endian (`None` before the first section).
+    ng_big_endian: Option<bool>,
     network: Network,
     /// The last frame's bytes (copied out of the reading buffer).
     payload: Vec<u8>,
@@ -123,6 +125,7 @@ impl Capture {
             reader,
             legacy: None,
             interfaces: Vec::new(),
+            ng_big_endian: None,
             network: Network::default(),
             payload: Vec::new(),
             datagram: Vec::new(),
@@ -147,6 +150,11 @@ impl Capture {
     /// The next datagram, `None` at the end of the file.
     pub fn next_datagram(&mut self) -> Result<Option<Datagram<'_>>, FileError> {
         loop {
+            match self.skip_other_block() {
+                Ok(true) => continue,
+                Ok(false) => {}
+                Err(e) => return Err(e),
+            }
             // What the block gave: a frame (its link type and time), or nothing to hand out.
             let (consumed, frame) = match self.reader.next() {
                 Ok((consumed, block)) => {
@@ -164,8 +172,9 @@ impl Capture {
                                 copy(&mut self.payload, b.data, b.caplen, b.origlen),
                             )
                         }),
-                        PcapBlockOwned::NG(Block::SectionHeader(_)) => {
+                        PcapBlockOwned::NG(Block::SectionHeader(h)) => {
                             self.interfaces.clear();
+                            self.ng_big_endian = Some(h.big_endian());
                             None
                         }
                         PcapBlockOwned::NG(Block::InterfaceDescription(i)) => {
@@ -264,6 +273,48 @@ impl Capture {
         }
     }
 
+    /// In a pcapng section, passes over the next block when it is none of the four this reader
+    /// uses (section header, interface description, enhanced and simple packet) without
+    /// parsing it: `true` when one was passed over. (The parser's own reading of some of the
+    /// other blocks can overflow on a damaged length; found by fuzzing pcap-parser 0.17.0.)
+    fn skip_other_block(&mut self) -> Result<bool, FileError> {
+        const USED: [u32; 4] = [0x0a0d_0d0a, 0x0000_0001, 0x0000_0006, 0x0000_0003];
+        let Some(big) = self.ng_big_endian else {
+            return Ok(false);
+        };
+        let data = self.reader.data();
+        let Some(header) = data.get(..8) else {
+            return Ok(false);
+        };
+        let word = |b: &[u8]| {
+            let w = [b[0], b[1], b[2], b[3]];
+            if big {
+                u32::from_be_bytes(w)
+            } else {
+                u32::from_le_bytes(w)
+            }
+        };
+        // The section header's type reads the same in both orders.
+        let (kind, len) = (word(&header[..4]), word(&header[4..8]) as usize);
+        if USED.contains(&kind) || kind == 0x0a0d_0d0a {
+            return Ok(false);
+        }
+        if len < 12 || !len.is_multiple_of(4) {
+            return Err(self.broken(&format!(
+                "a block of type {kind:#x} with a length of {len} bytes"
+            )));
+        }
+        if data.len() >= len {
+            self.reader.consume(len);
+            return Ok(true);
+        }
+        // Not all of it is in the buffer yet.
+        if self.refill()? {
+            return Ok(true);
+        }
+        Err(self.broken("the file ends inside a block"))
+    }
+
     /// Reads more of the file into the buffer, growing it for a block larger than it; `false`
     /// at the clean end of the file.
     fn refill(&mut self) -> Result<bool, FileError> {
@@ -313,4 +364,72 @@ fn copy_ng(buf: &mut Vec<u8>, data: &[u8], whole: bool) -> bool {
     buf.clear();
     buf.extend_from_slice(data);
     whole
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Cursor;
+
+    fn block(kind: u32, body: &[u8]) -> Vec<u8> {
+        let mut body = body.to_vec();
+        body.resize(body.len().div_ceil(4) * 4, 0);
+        let n = (12 + body.len()) as u32;
+        let mut b = Vec::new();
+        b.extend_from_slice(&kind.to_le_bytes());
+        b.extend_from_slice(&n.to_le_bytes());
+        b.extend_from_slice(&body);
+        b.extend_from_slice(&n.to_le_bytes());
+        b
+    }
+
+    /// A pcapng section with one raw-IPv4 interface, `middle`, then one packet.
+    fn pcapng(middle: &[u8]) -> Vec<u8> {
+        let mut shb = 0x1a2b_3c4du32.to_le_bytes().to_vec();
+        shb.extend_from_slice(&[1, 0, 0, 0]);
+        shb.extend_from_slice(&(-1i64).to_le_bytes());
+        let mut out = block(0x0a0d_0d0a, &shb);
+        let mut idb = (network::linktype::RAW as u16).to_le_bytes().to_vec();
+        idb.extend_from_slice(&[0, 0, 0xff, 0xff, 0, 0]);
+        out.extend(block(1, &idb));
+        out.extend_from_slice(middle);
+        // An IPv4 UDP datagram of 4 bytes, port 2368.
+        let mut ip = vec![
+            0x45, 0, 0, 32, 0, 0, 0, 0, 64, 17, 0, 0, 10, 0, 0, 1, 10, 0, 0, 2,
+        ];
+        ip.extend_from_slice(&[0x09, 0x40, 0x09, 0x40, 0, 12, 0, 0, 1, 2, 3, 4]);
+        let mut epb = vec![0u8; 4];
+        epb.extend_from_slice(&0u32.to_le_bytes());
+        epb.extend_from_slice(&5_000_000u32.to_le_bytes());
+        epb.extend_from_slice(&(ip.len() as u32).to_le_bytes());
+        epb.extend_from_slice(&(ip.len() as u32).to_le_bytes());
+        epb.extend_from_slice(&ip);
+        out.extend(block(6, &epb));
+        out
+    }
+
+    fn datagrams(bytes: Vec<u8>) -> Result<Vec<(f64, Vec<u8>)>, FileError> {
+        let mut cap = Capture::from_reader(Path::new("t.pcapng"), Cursor::new(bytes))?;
+        let mut out = Vec::new();
+        while let Some(d) = cap.next_datagram()? {
+            out.push((d.time_s, d.udp.payload.to_vec()));
+        }
+        Ok(out)
+    }
+
+    #[test]
+    fn blocks_it_does_not_use_are_passed_over_and_bad_ones_refused() {
+        let plain = datagrams(pcapng(&[])).unwrap();
+        assert_eq!(plain, vec![(5.0, vec![1, 2, 3, 4])]);
+        // An interface statistics block and a custom one: passed over unparsed.
+        let mut others = block(5, &[0; 20]);
+        others.extend(block(0x4000_0bad, &[7; 9]));
+        assert_eq!(datagrams(pcapng(&others)).unwrap(), plain);
+        // A block whose length is shorter than any block: the file is damaged there (the
+        // parser itself would overflow on some such blocks).
+        let mut bad = 0x8000_0001u32.to_le_bytes().to_vec();
+        bad.extend_from_slice(&8u32.to_le_bytes());
+        let e = datagrams(pcapng(&bad)).unwrap_err().to_string();
+        assert!(e.contains("0x80000001 with a length of 8"), "{e}");
+    }
 }
