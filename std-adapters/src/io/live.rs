@@ -256,9 +256,8 @@ impl Live {
                 "the stream has ended",
             ));
         };
-        let stamp = sweep.stamp().unwrap_or(0.0);
-        self.frames.push((stamp, at));
-        let times: Vec<f32> = sweep.times.iter().map(|t| (t - stamp) as f32).collect();
+        self.frames.push((sweep.stamp().unwrap_or(0.0), at));
+        let times = sweep.relative_times();
         if self.kept.len() == KEPT {
             self.kept.remove(0);
         }
@@ -294,6 +293,8 @@ impl Listener {
         let mut buf = vec![0u8; 65_536];
         let mut stream: Option<SensorStream> = None;
         let mut last_packet = Instant::now();
+        // Every datagram read here was sent to this port.
+        let port = self.socket.local_addr().map_or(0, |a| a.port());
         let error = loop {
             if self.stop.load(Ordering::Relaxed) {
                 break None;
@@ -315,7 +316,6 @@ impl Listener {
             };
             last_packet = Instant::now();
             let payload = &buf[..n];
-            let port = self.socket.local_addr().map_or(0, |a| a.port());
             let now = SystemTime::now()
                 .duration_since(UNIX_EPOCH)
                 .map_or(0.0, |d| d.as_secs_f64());

@@ -186,8 +186,7 @@ impl Replay {
     /// Frame `i`'s points and their times relative to its stamp.
     pub fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
         let s = self.sweep(i)?;
-        let stamp = s.stamp().unwrap_or(0.0);
-        let times = s.times.iter().map(|t| (t - stamp) as f32).collect();
+        let times = s.relative_times();
         Ok((s.points, Some(times)))
     }
 }

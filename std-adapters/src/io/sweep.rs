@@ -27,6 +27,12 @@ impl Sweep {
     pub fn stamp(&self) -> Option<f64> {
         Some((self.times.first()? + self.times.last()?) / 2.0)
     }
+
+    /// Each point's time relative to the stamp (seconds), as frame sources hand them out.
+    pub fn relative_times(&self) -> Vec<f32> {
+        let stamp = self.stamp().unwrap_or(0.0);
+        self.times.iter().map(|t| (t - stamp) as f32).collect()
+    }
 }
 
 /// Cuts firings into sweeps.
