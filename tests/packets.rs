@@ -5,7 +5,8 @@
 mod common;
 
 use slamesh::io::capture::Capture;
-use slamesh::io::replay::{PacketOptions, Replay};
+use slamesh::io::packets::PacketOptions;
+use slamesh::io::replay::Replay;
 use slamesh::io::velodyne::{self, Decoder};
 use std::path::{Path, PathBuf};
 
@@ -79,8 +80,7 @@ fn pcap_and_pcapng_give_the_same_points() {
     assert_eq!(a, b);
 }
 
-/// A captured frame: its bytes, its original length and its capture time (s, us).
-type Frame = (Vec<u8>, u32, [u32; 2]);
+use common::Frame;
 
 /// A legacy pcap of Ethernet `frames`.
 fn pcap(frames: &[Frame]) -> Vec<u8> {
@@ -97,27 +97,9 @@ fn pcap(frames: &[Frame]) -> Vec<u8> {
     out
 }
 
-/// The frames of a legacy little-endian pcap.
-fn frames_of(path: &Path) -> Vec<Frame> {
-    let b = std::fs::read(path).unwrap();
-    let mut out = Vec::new();
-    let mut off = 24;
-    while off + 16 <= b.len() {
-        let word = |k: usize| u32::from_le_bytes(b[off + k..off + k + 4].try_into().unwrap());
-        let incl = word(8) as usize;
-        out.push((
-            b[off + 16..off + 16 + incl].to_vec(),
-            word(12),
-            [word(0), word(4)],
-        ));
-        off += 16 + incl;
-    }
-    out
-}
-
 #[test]
 fn truncated_oversized_and_garbage_packets_are_skipped_and_counted() {
-    let mut frames = frames_of(&fixture("hdl32e-drive.pcap"));
+    let mut frames = common::capture_frames(&fixture("hdl32e-drive.pcap"));
     let data: Vec<usize> = (0..frames.len())
         .filter(|&k| frames[k].0.len() == 1248)
         .collect();
@@ -243,7 +225,7 @@ fn the_sensor_and_cut_flags_from_the_command_line() {
         &cap,
         &PacketOptions {
             sensor: Some("hdl32".into()),
-            cut_azimuth_deg: 180.0,
+            cut_azimuth_deg: Some(180.0),
             ..PacketOptions::default()
         },
     )
@@ -262,27 +244,9 @@ fn the_sensor_and_cut_flags_from_the_command_line() {
     assert!((0.07..0.1).contains(&span), "a turn takes {span} s");
 }
 
-/// Sends the capture's UDP payloads to `to` from another thread, at `speed` times the rate
-/// they were captured at.
+/// Sends the drive capture's packets to `to` ([`common::send_capture`]).
 fn replay_to(to: std::net::SocketAddr, speed: f64) -> std::thread::JoinHandle<usize> {
-    let frames = frames_of(&fixture("hdl32e-drive.pcap"));
-    std::thread::spawn(move || {
-        let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-        let t = |f: &Frame| f64::from(f.2[0]) + f64::from(f.2[1]) * 1e-6;
-        let (t0, start) = (t(&frames[0]), std::time::Instant::now());
-        let mut sent = 0;
-        for f in &frames {
-            let due = (t(f) - t0) / speed;
-            let now = start.elapsed().as_secs_f64();
-            if due > now {
-                std::thread::sleep(std::time::Duration::from_secs_f64(due - now));
-            }
-            // Ethernet, IPv4 and UDP headers: 42 bytes.
-            socket.send_to(&f.0[42..], to).unwrap();
-            sent += 1;
-        }
-        sent
-    })
+    common::send_capture(&fixture("hdl32e-drive.pcap"), to, speed)
 }
 
 /// The live input: a thread sends the capture's packets to a socket on 127.0.0.1 as the
@@ -371,8 +335,10 @@ fn a_full_queue_drops_whole_sweeps_and_counts_them() {
     use slamesh::io::live::{Live, LiveOptions};
     let options = LiveOptions {
         queue: 1,
-        idle: Some(std::time::Duration::from_millis(300)),
-        ..LiveOptions::default()
+        packets: PacketOptions {
+            idle: Some(std::time::Duration::from_millis(300)),
+            ..PacketOptions::default()
+        },
     };
     let mut live = Live::open("127.0.0.1:0", &options).unwrap();
     replay_to(live.local_addr(), 10.0).join().unwrap();

@@ -128,3 +128,23 @@ ng = open("../tests/fixtures/packets/hdl32e-street.pcapng", "rb").read()
 put("capture", "pcapng", ng[:8000])
 data = next(f[16 + 42:] for f in frames if len(f) == 16 + 1248)
 put("velodyne_packet", "hdl32e", data)
+
+
+# Ouster: one lidar packet of each fixture capture (its profile and beams picked by the first
+# byte, as the target reads it), and each fixture's metadata JSON.
+PROFILES = ["LEGACY", "RNG19_RFL8_SIG16_NIR16", "RNG19_RFL8_SIG16_NIR16_DUAL", "RNG15_RFL8_NIR8",
+            "RNG15_RFL8_NIR8_DUAL"]
+for name, profile, beams in [("ouster-os1-32-legacy", "LEGACY", 32),
+                             ("ouster-os0-32-dual", "RNG19_RFL8_SIG16_NIR16_DUAL", 32),
+                             ("ouster-os2-128-rng19", "RNG19_RFL8_SIG16_NIR16", 128),
+                             ("ouster-os1-128-lowdata", "RNG15_RFL8_NIR8", 128)]:
+    cap = open(f"../tests/fixtures/packets/{name}.pcap", "rb").read()
+    off, packet = 24, None
+    while off + 16 <= len(cap) and packet is None:
+        incl, = struct.unpack("<I", cap[off + 8:off + 12])
+        if incl > 1000:
+            packet = cap[off + 16 + 42:off + 16 + incl]
+        off += 16 + incl
+    pick = PROFILES.index(profile) + 8 * [16, 32, 64, 128].index(beams)
+    put("ouster_packet", name, bytes([pick]) + packet)
+    put("ouster_metadata", name, open(f"../tests/fixtures/packets/{name}.json", "rb").read())

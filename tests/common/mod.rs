@@ -177,3 +177,51 @@ pub fn assert_within_budget(
     }
     budget
 }
+
+/// A captured frame: its bytes, its original length and its capture time (s, us).
+pub type Frame = (Vec<u8>, u32, [u32; 2]);
+
+/// The frames of a legacy little-endian pcap.
+pub fn capture_frames(path: &Path) -> Vec<Frame> {
+    let b = std::fs::read(path).unwrap();
+    let mut out = Vec::new();
+    let mut off = 24;
+    while off + 16 <= b.len() {
+        let word = |k: usize| u32::from_le_bytes(b[off + k..off + k + 4].try_into().unwrap());
+        let incl = word(8) as usize;
+        out.push((
+            b[off + 16..off + 16 + incl].to_vec(),
+            word(12),
+            [word(0), word(4)],
+        ));
+        off += 16 + incl;
+    }
+    out
+}
+
+/// Sends a capture's UDP payloads (its Ethernet frames less their 42 bytes of Ethernet, IPv4
+/// and UDP headers) to `to` from another thread, at `speed` times the rate they were captured
+/// at; the thread returns how many it sent.
+pub fn send_capture(
+    path: &Path,
+    to: std::net::SocketAddr,
+    speed: f64,
+) -> std::thread::JoinHandle<usize> {
+    let frames = capture_frames(path);
+    std::thread::spawn(move || {
+        let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let t = |f: &Frame| f64::from(f.2[0]) + f64::from(f.2[1]) * 1e-6;
+        let (t0, start) = (t(&frames[0]), std::time::Instant::now());
+        let mut sent = 0;
+        for f in &frames {
+            let due = (t(f) - t0) / speed;
+            let now = start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(std::time::Duration::from_secs_f64(due - now));
+            }
+            socket.send_to(&f.0[42..], to).unwrap();
+            sent += 1;
+        }
+        sent
+    })
+}

@@ -3,7 +3,7 @@
 
 use clap::Args;
 use slamesh::io::kitti::BinFields;
-use slamesh::io::replay::PacketOptions;
+use slamesh::io::packets::PacketOptions;
 use slamesh::io::FileError;
 use slamesh::run::Input;
 use std::path::PathBuf;
@@ -16,8 +16,8 @@ use std::time::Duration;
 pub struct InputArgs {
     /// A folder of scans (.bin, .pcd or .ply, read in natural order), a KITTI sequence folder,
     /// one scan file, a recording (a ROS 1 bag, an MCAP file or a ROS 2 bag folder), a packet
-    /// capture of a Velodyne (.pcap or .pcapng, a sweep a frame), or udp://HOST:PORT to take
-    /// the sensor's packets live.
+    /// capture of a Velodyne or an Ouster (.pcap or .pcapng, a sweep a frame), or
+    /// udp://HOST:PORT to take the sensor's packets live.
     pub input: PathBuf,
     /// The recording's PointCloud2 topic (default: its only one).
     #[arg(long, value_name = "NAME")]
@@ -26,18 +26,18 @@ pub struct InputArgs {
     /// KITTI's, x,y,z,i,ring nuScenes'.
     #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = BinFields::parse)]
     pub bin_fields: BinFields,
-    /// A packet capture's sensor: vlp16, puck-hires, vlp32c or hdl32 (default: told from the
-    /// packets).
+    /// The packets' sensor: vlp16, puck-hires, vlp32c, hdl32 or ouster (default: told from the
+    /// packets, or from --metadata).
     #[arg(long, value_name = "MODEL")]
     pub sensor: Option<String>,
-    /// Where a packet capture's sweeps are cut (degrees of azimuth).
-    #[arg(
-        long,
-        value_name = "DEG",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
-    pub cut_azimuth: f64,
+    /// An Ouster's metadata JSON, with its beam angles (default for a capture: its name with
+    /// .json, when there is one).
+    #[arg(long, value_name = "FILE")]
+    pub metadata: Option<PathBuf>,
+    /// Where sweeps are cut (degrees of azimuth, clockwise from the sensor's x axis; default:
+    /// 0 for a Velodyne, the start of its own frames for an Ouster).
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub cut_azimuth: Option<f64>,
     /// A live input (udp://HOST:PORT): end after this many seconds without a packet (default:
     /// run until Ctrl-C).
     #[arg(long, value_name = "S")]
@@ -65,6 +65,7 @@ impl InputArgs {
             self.bin_fields.clone(),
             &PacketOptions {
                 sensor: self.sensor.clone(),
+                metadata: self.metadata.clone(),
                 cut_azimuth_deg: self.cut_azimuth,
                 idle: self
                     .idle_timeout

@@ -12,13 +12,12 @@
 //!   [`LiveOptions::idle`] without a packet, or on a socket error; a run then writes its
 //!   outputs as a finished one does.
 //!
-//! Packet times are placed in the hour of the host's clock (the sensor's own time of hour is
-//! kept within it).
+//! A Velodyne's packet times are placed in the hour of the host's clock (the sensor's own
+//! time of hour is kept within it); an Ouster's are its own clock's, as its packets carry them.
 
 use crate::io::error::FileError;
-use crate::io::packets::{self, SensorStream, StreamStats};
+use crate::io::packets::{self, PacketOptions, SensorHint, SensorStream, StreamStats};
 use crate::io::sweep::Sweep;
-use crate::io::velodyne::tables::Model;
 use serde::Serialize;
 use slamesh_core::Point;
 use std::net::{SocketAddr, UdpSocket};
@@ -32,26 +31,18 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 /// How to listen.
 #[derive(Debug, Clone)]
 pub struct LiveOptions {
-    /// The sensor (`--sensor`): a model's flag, or `None` to tell it from the packets.
-    pub sensor: Option<String>,
-    /// Where sweeps are cut (degrees of azimuth).
-    pub cut_azimuth_deg: f64,
+    /// The sensor, where turns are cut, when to end ([`PacketOptions::idle`],
+    /// [`PacketOptions::stop`]).
+    pub packets: PacketOptions,
     /// Sweeps waiting for the run, at most.
     pub queue: usize,
-    /// End after this long without a packet (`None`: never).
-    pub idle: Option<Duration>,
-    /// Set to end the stream.
-    pub stop: Arc<AtomicBool>,
 }
 
 impl Default for LiveOptions {
     fn default() -> Self {
         Self {
-            sensor: None,
-            cut_azimuth_deg: 0.0,
+            packets: PacketOptions::default(),
             queue: 2,
-            idle: None,
-            stop: Arc::new(AtomicBool::new(false)),
         }
     }
 }
@@ -118,10 +109,8 @@ impl Live {
     pub fn open(addr: &str, options: &LiveOptions) -> Result<Self, FileError> {
         let label = format!("udp://{addr}");
         let err = |why: String| FileError::at(Path::new(&label), why);
-        let named = match &options.sensor {
-            Some(s) => Some(packets::named(s).map_err(err)?),
-            None => None,
-        };
+        let packets = &options.packets;
+        let hint = SensorHint::new(packets.sensor.as_deref(), packets.metadata.as_deref(), None)?;
         let socket = UdpSocket::bind(addr).map_err(|e| err(format!("cannot listen: {e}")))?;
         let local = socket.local_addr().map_err(|e| err(e.to_string()))?;
         socket
@@ -131,10 +120,10 @@ impl Live {
         let stats = Arc::new(Mutex::new(LiveStats::default()));
         let listener = Listener {
             socket,
-            named,
-            cut_deg: options.cut_azimuth_deg,
-            idle: options.idle,
-            stop: options.stop.clone(),
+            hint,
+            cut_deg: packets.cut_azimuth_deg,
+            idle: packets.idle,
+            stop: packets.stop.clone(),
             stats: stats.clone(),
             tx,
         };
@@ -151,7 +140,7 @@ impl Live {
             kept: Vec::new(),
             ended: false,
             stats,
-            stop: options.stop.clone(),
+            stop: packets.stop.clone(),
             thread: Some(thread),
         })
     }
@@ -280,8 +269,8 @@ impl Drop for Live {
 /// The listening thread's state.
 struct Listener {
     socket: UdpSocket,
-    named: Option<&'static Model>,
-    cut_deg: f64,
+    hint: SensorHint,
+    cut_deg: Option<f64>,
     idle: Option<Duration>,
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<LiveStats>>,
@@ -323,11 +312,11 @@ impl Listener {
                 s.datagrams += 1;
             }
             if stream.is_none() {
-                match packets::identify(payload, self.named) {
-                    Ok(Some(model)) => {
-                        stream = Some(SensorStream::new(model, port, self.cut_deg));
+                match packets::identify(payload, &self.hint) {
+                    Ok(Some(sensor)) => {
+                        stream = Some(SensorStream::new(&sensor, port, self.cut_deg));
                         if let Ok(mut s) = self.stats.lock() {
-                            s.sensor = Some(model.name.to_string());
+                            s.sensor = Some(sensor.name());
                         }
                     }
                     Ok(None) => continue,
@@ -355,7 +344,19 @@ impl Listener {
             }
         };
         if let Some(st) = &mut stream {
-            let counts = st.finish();
+            // A turn that ended right at the cut is whole; it goes if the queue has room.
+            if let Some(sweep) = st.finish() {
+                if self
+                    .tx
+                    .try_send(Message::Sweep(sweep, Instant::now()))
+                    .is_ok()
+                {
+                    if let Ok(mut s) = self.stats.lock() {
+                        s.sweeps += 1;
+                    }
+                }
+            }
+            let counts = st.stats();
             if let Ok(mut s) = self.stats.lock() {
                 s.stream = counts;
             }

@@ -16,6 +16,11 @@
 //! | the run's mesh on its way to disk | [`mesh_spool`] (its records in [`mesh_records`]) |
 //! | map files: the map saved for later runs, read whole or by tile | [`map_file`] |
 //! | one indexed mesh from map layers, shared vertices merged, with normals | [`mesh_weld`] |
+//! | packet captures (pcap, pcapng) to UDP datagrams | [`capture`] |
+//! | Velodyne data packets | [`velodyne`] |
+//! | Ouster lidar packets and the sensor's metadata JSON | [`ouster`] |
+//! | packets to sweeps, whichever the sensor | [`packets`] (turns cut in [`sweep`]) |
+//! | a capture replayed as frames; packets taken live from a socket | [`replay`], [`live`] |
 //! | trajectories, KITTI and TUM | [`trajectory`] |
 //! | TOML configuration files | [`config_file`] |
 //! | a picture of the mesh from above (PNG) | [`topview`] |
@@ -32,6 +37,7 @@ pub mod mesh_records;
 pub mod mesh_spool;
 pub mod mesh_weld;
 pub mod obj;
+pub mod ouster;
 pub mod packets;
 pub mod pcd;
 pub mod ply;

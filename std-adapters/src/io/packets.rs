@@ -2,9 +2,13 @@
 //! [`crate::io::replay`]; a socket, [`crate::io::live`]): which datagrams are the sensor's
 //! data, which sensor it is, each packet decoded and its firings cut into turns.
 
+use crate::io::error::FileError;
+use crate::io::ouster;
 use crate::io::sweep::{Sweep, Sweeps};
 use crate::io::velodyne::{self, tables::Model, Decoder, POSITION_PACKET_BYTES};
 use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// What a stream counted.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -21,36 +25,152 @@ pub struct StreamStats {
     pub time_jumps: u64,
 }
 
+/// How to read packets, from a capture or live.
+#[derive(Debug, Clone, Default)]
+pub struct PacketOptions {
+    /// The sensor (`--sensor`): a Velodyne model's flag or `ouster`; `None` to tell it from
+    /// the packets.
+    pub sensor: Option<String>,
+    /// An Ouster's metadata JSON (`--metadata`).
+    pub metadata: Option<PathBuf>,
+    /// Where sweeps are cut (degrees of azimuth; `None`: the sensor's
+    /// [default](Sensor::default_cut_deg)).
+    pub cut_azimuth_deg: Option<f64>,
+    /// Live: end after this long without a packet (`None`: never).
+    pub idle: Option<std::time::Duration>,
+    /// Live: set to end the stream (Ctrl-C).
+    pub stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+/// A sensor whose packets are decoded: a Velodyne model (its factory tables), or an Ouster
+/// unit (its own metadata).
+#[derive(Debug, Clone)]
+pub enum Sensor {
+    /// A Velodyne model.
+    Velodyne(&'static Model),
+    /// An Ouster unit.
+    Ouster(Arc<ouster::Sensor>),
+}
+
+impl Sensor {
+    /// Its name for messages and reports.
+    pub fn name(&self) -> String {
+        match self {
+            Sensor::Velodyne(m) => m.name.to_string(),
+            Sensor::Ouster(o) => o.name(),
+        }
+    }
+
+    /// Where its turns are cut unless `--cut-azimuth` says: azimuth 0 for a Velodyne, the
+    /// start of the sensor's own frame (column 0) for an Ouster.
+    pub fn default_cut_deg(&self) -> f64 {
+        match self {
+            Sensor::Velodyne(_) => 0.0,
+            Sensor::Ouster(o) => o.frame_start_deg(),
+        }
+    }
+}
+
+/// What the command line says of the sensor (`--sensor`, `--metadata`), before a packet is
+/// seen.
+#[derive(Debug, Clone, Default)]
+pub struct SensorHint {
+    velodyne: Option<&'static Model>,
+    ouster: Option<Arc<ouster::Sensor>>,
+}
+
 /// The sensor names `--sensor` takes.
 pub fn sensor_names() -> Vec<&'static str> {
-    velodyne::tables::MODELS.iter().map(|m| m.flag).collect()
+    let mut names: Vec<&'static str> = velodyne::tables::MODELS.iter().map(|m| m.flag).collect();
+    names.push(OUSTER);
+    names
 }
 
-/// The model `--sensor` names; an error lists the names.
-pub fn named(sensor: &str) -> Result<&'static Model, String> {
-    velodyne::model_named(sensor).ok_or_else(|| {
-        format!(
-            "--sensor {sensor}: not one of {}",
-            sensor_names().join(", ")
-        )
-    })
+const OUSTER: &str = "ouster";
+
+/// An Ouster unit from its metadata JSON.
+pub fn read_metadata(path: &Path) -> Result<ouster::Sensor, FileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    let meta = ouster::metadata::Metadata::parse(&text)
+        .map_err(|e| FileError::at(path, format!("Ouster metadata: {e}")))?;
+    Ok(ouster::Sensor::new(meta))
 }
 
-/// What a datagram says of the sensor: `Ok(Some(model))` for a data packet of a model this
-/// reader decodes (the one `named`, when given), `Ok(None)` for anything else, and an error
-/// for a sensor's packets that cannot be read (another model than named, an HDL-64E, a model
-/// not decoded).
-pub fn identify(
-    payload: &[u8],
-    named: Option<&'static Model>,
-) -> Result<Option<&'static Model>, String> {
+impl SensorHint {
+    /// From `--sensor` and `--metadata`; for a capture, `beside` is its path, and an Ouster's
+    /// metadata saved beside it with the same name (`drive.pcap`, `drive.json`) is found
+    /// without `--metadata`.
+    pub fn new(
+        sensor: Option<&str>,
+        metadata: Option<&Path>,
+        beside: Option<&Path>,
+    ) -> Result<Self, FileError> {
+        let here = || beside.unwrap_or(Path::new("--sensor"));
+        let velodyne = match sensor {
+            None | Some(OUSTER) => None,
+            Some(s) => Some(velodyne::model_named(s).ok_or_else(|| {
+                FileError::at(
+                    here(),
+                    format!("--sensor {s}: not one of {}", sensor_names().join(", ")),
+                )
+            })?),
+        };
+        if let (Some(m), Some(path)) = (velodyne, metadata) {
+            return Err(FileError::at(
+                path,
+                format!("--metadata is an Ouster's, but --sensor names a {}", m.name),
+            ));
+        }
+        let ouster = match (metadata, beside) {
+            (Some(path), _) => Some(read_metadata(path)?),
+            (None, Some(capture)) if velodyne.is_none() => {
+                let json = capture.with_extension("json");
+                match read_metadata(&json) {
+                    Ok(o) => {
+                        log::info!("the Ouster metadata beside the capture: {}", json.display());
+                        Some(o)
+                    }
+                    // Named an Ouster: the reason the file beside it is not its metadata.
+                    Err(e) if sensor == Some(OUSTER) && json.exists() => return Err(e),
+                    Err(_) => None,
+                }
+            }
+            _ => None,
+        };
+        if sensor == Some(OUSTER) && ouster.is_none() {
+            return Err(FileError::at(
+                here(),
+                "--sensor ouster: the beam angles are in the sensor's metadata JSON; give it \
+                 with --metadata FILE",
+            ));
+        }
+        Ok(Self {
+            velodyne,
+            ouster: ouster.map(Arc::new),
+        })
+    }
+
+    /// The size of the Ouster's lidar packets, when the hint is an Ouster's metadata.
+    pub fn ouster_packet_bytes(&self) -> Option<usize> {
+        self.ouster.as_ref().map(|o| o.packet_bytes())
+    }
+}
+
+/// What a datagram says of the sensor: `Ok(Some(sensor))` for a data packet of a sensor this
+/// reader decodes (the one the hint names, when it does), `Ok(None)` for anything else, and
+/// an error for a sensor's packets that cannot be read (another model than named, an
+/// HDL-64E, an Ouster's without its metadata).
+pub fn identify(payload: &[u8], hint: &SensorHint) -> Result<Option<Sensor>, String> {
+    if let Some(o) = &hint.ouster {
+        return Ok(o.matches(payload).then(|| Sensor::Ouster(o.clone())));
+    }
     if let Some(product) = velodyne::sniff(payload) {
-        return match (named, velodyne::model_of(product)) {
+        return match (hint.velodyne, velodyne::model_of(product)) {
             (Some(n), Some(f)) if n.product_id != f.product_id => Err(format!(
                 "--sensor {}: the packets are a {}'s",
                 n.flag, f.name
             )),
-            (Some(m), _) | (None, Some(m)) => Ok(Some(m)),
+            (Some(m), _) | (None, Some(m)) => Ok(Some(Sensor::Velodyne(m))),
             (None, None) => Err(format!(
                 "Velodyne data packets of product {product:#04x}, a model this reader does not \
                  decode (it reads {}); name one with --sensor if it is one of them",
@@ -69,57 +189,119 @@ pub fn identify(
                 .to_string(),
         );
     }
+    if let Some(what) = ouster::sniff(payload) {
+        return Err(format!(
+            "{what}: their beam angles are in the sensor's metadata JSON; give it with \
+             --metadata FILE (a capture's FILE.json beside it is found by itself)"
+        ));
+    }
     Ok(None)
 }
 
 /// One sensor's packets to sweeps.
 #[derive(Debug)]
 pub struct SensorStream {
-    decoder: Decoder,
+    decoding: Decoding,
     port: u16,
     sweeps: Sweeps,
     stats: StreamStats,
 }
 
+#[derive(Debug)]
+enum Decoding {
+    /// Boxed: its tables are 6.5 KB, an Ouster's are shared.
+    Velodyne(Box<Decoder>),
+    Ouster(Arc<ouster::Sensor>),
+}
+
+/// Datagrams this short on an Ouster's lidar port are its IMU's (when both share a port),
+/// not damaged lidar packets.
+const OUSTER_SMALL_BYTES: usize = 256;
+
 impl SensorStream {
-    /// The stream of `model`'s data packets sent to `port`, cut at `cut_deg` degrees.
-    pub fn new(model: &'static Model, port: u16, cut_deg: f64) -> Self {
+    /// The stream of `sensor`'s data packets sent to `port`, cut at `cut_deg` degrees
+    /// (`None`: the sensor's [default](Sensor::default_cut_deg)).
+    pub fn new(sensor: &Sensor, port: u16, cut_deg: Option<f64>) -> Self {
+        let cut = cut_deg.unwrap_or_else(|| sensor.default_cut_deg());
+        let (decoding, sweeps) = match sensor {
+            Sensor::Velodyne(m) => (
+                Decoding::Velodyne(Box::new(Decoder::new(m))),
+                Sweeps::new(cut),
+            ),
+            Sensor::Ouster(o) => {
+                // Columns are a whole step apart: a turn that starts or ends within a step
+                // of the cut is whole.
+                let step = 36_000 / u32::from(o.metadata().columns_per_frame) + 1;
+                (
+                    Decoding::Ouster(o.clone()),
+                    Sweeps::new(cut).whole_within(step),
+                )
+            }
+        };
         Self {
-            decoder: Decoder::new(model),
+            decoding,
             port,
-            sweeps: Sweeps::new(cut_deg),
+            sweeps,
             stats: StreamStats::default(),
         }
     }
 
-    /// The sensor's model name.
-    pub fn sensor(&self) -> &'static str {
-        self.decoder.model().name
+    /// The sensor's name.
+    pub fn sensor(&self) -> String {
+        match &self.decoding {
+            Decoding::Velodyne(d) => d.model().name.to_string(),
+            Decoding::Ouster(o) => o.name(),
+        }
     }
 
     /// A datagram sent to `port`, received at `time_s` (any clock within half an hour of the
-    /// sensor's): the sweep it completed, if it did. Other ports' datagrams and position
-    /// packets are passed over.
+    /// sensor's): the sweep it completed, if it did. Other ports' datagrams, a Velodyne's
+    /// position packets and an Ouster's IMU packets are passed over.
     pub fn datagram(&mut self, port: u16, payload: &[u8], time_s: f64) -> Option<Sweep> {
-        if port != self.port || payload.len() == POSITION_PACKET_BYTES {
+        if port != self.port {
             return None;
         }
-        let Some(t) = velodyne::packet_time(payload, time_s) else {
-            self.stats.bad_packets += 1;
-            return None;
-        };
         let mut done = None;
         let sweeps = &mut self.sweeps;
-        match self.decoder.decode(payload, t, |f| {
-            if let Some(s) = sweeps.push(f.point, f.time_s, f.azimuth) {
-                done = Some(s);
+        match &self.decoding {
+            Decoding::Velodyne(decoder) => {
+                if payload.len() == POSITION_PACKET_BYTES {
+                    return None;
+                }
+                let Some(t) = velodyne::packet_time(payload, time_s) else {
+                    self.stats.bad_packets += 1;
+                    return None;
+                };
+                match decoder.decode(payload, t, |f| {
+                    if let Some(s) = sweeps.push(f.point, f.time_s, f.azimuth) {
+                        done = Some(s);
+                    }
+                }) {
+                    Ok(mode) => {
+                        self.stats.packets += 1;
+                        sweeps.packet(t, decoder.packet_period_s(mode));
+                    }
+                    Err(_) => self.stats.bad_packets += 1,
+                }
             }
-        }) {
-            Ok(mode) => {
-                self.stats.packets += 1;
-                self.sweeps.packet(t, self.decoder.packet_period_s(mode));
+            Decoding::Ouster(o) => {
+                if payload.len() <= OUSTER_SMALL_BYTES {
+                    return None;
+                }
+                match o.decode(payload, |f| {
+                    if let Some(s) = sweeps.push(f.point, f.time_s, f.azimuth) {
+                        done = Some(s);
+                    }
+                }) {
+                    Ok(t) => {
+                        self.stats.packets += 1;
+                        if let Some(t) = t {
+                            sweeps.packet(t, o.packet_period_s());
+                        }
+                    }
+                    Err(_) => self.stats.bad_packets += 1,
+                }
             }
-            Err(_) => self.stats.bad_packets += 1,
         }
         done
     }
@@ -135,9 +317,9 @@ impl SensorStream {
         }
     }
 
-    /// Ends the stream (the turn being filled is a part turn).
-    pub fn finish(&mut self) -> StreamStats {
-        self.sweeps.finish();
-        self.stats()
+    /// Ends the stream: the turn being filled, if it is whole (it ends within a column of the
+    /// cut; [`Sweeps::finish`]).
+    pub fn finish(&mut self) -> Option<Sweep> {
+        self.sweeps.finish()
     }
 }

@@ -1,35 +1,22 @@
 //! A packet capture replayed as frames: the sensor's packets in a `.pcap` or `.pcapng` file,
-//! decoded ([`crate::io::velodyne`]) and cut into sweeps ([`crate::io::sweep`]), one frame a
-//! sweep, each point with its firing time.
+//! decoded ([`crate::io::velodyne`], [`crate::io::ouster`]) and cut into sweeps
+//! ([`crate::io::sweep`]), one frame a sweep, each point with its firing time.
 //!
 //! Opening reads the whole capture once, streaming, to find its sweeps and their stamps (so
 //! that a run knows its frames); frames are then read in order by decoding again from where
 //! the last one ended, with one sweep in memory at a time. The sensor is told from the packets
-//! (size, block flags, product byte) or named (`--sensor`); a capture of another sensor, or of
+//! (size, block flags, product byte) or named (`--sensor`); an Ouster's by its metadata
+//! (`--metadata`, or the capture's name with `.json`). A capture of another sensor, or of
 //! none, is refused with what was found. Packets that are not the sensor's data (its position
 //! packets, other traffic) are skipped; damaged ones are counted and skipped.
 
 use crate::io::capture::{Capture, CaptureStats};
 use crate::io::error::FileError;
-use crate::io::packets::{self, SensorStream, StreamStats};
+use crate::io::packets::{self, PacketOptions, Sensor, SensorHint, SensorStream, StreamStats};
 use crate::io::sweep::Sweep;
-use crate::io::velodyne::tables::Model;
 use serde::Serialize;
 use slamesh_core::Point;
 use std::path::{Path, PathBuf};
-
-/// How to read packets, from a capture or live.
-#[derive(Debug, Clone, Default)]
-pub struct PacketOptions {
-    /// The sensor (`--sensor`): a Velodyne model's flag; `None` to tell it from the packets.
-    pub sensor: Option<String>,
-    /// Where sweeps are cut (degrees of azimuth).
-    pub cut_azimuth_deg: f64,
-    /// Live: end after this long without a packet (`None`: never).
-    pub idle: Option<std::time::Duration>,
-    /// Live: set to end the stream (Ctrl-C).
-    pub stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-}
 
 /// What a replay counted.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -46,13 +33,15 @@ struct Cursor {
     stream: SensorStream,
     /// The next sweep it will complete.
     next: usize,
+    /// The capture's end was read.
+    ended: bool,
     stats: ReplayStats,
 }
 
 /// A capture as frames.
 pub struct Replay {
     path: PathBuf,
-    model: &'static Model,
+    sensor: Sensor,
     /// The destination port of the sensor's data packets (the first data packet's).
     port: u16,
     options: PacketOptions,
@@ -66,7 +55,7 @@ impl std::fmt::Debug for Replay {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Replay")
             .field("path", &self.path)
-            .field("sensor", &self.model.name)
+            .field("sensor", &self.sensor.name())
             .field("sweeps", &self.sweeps.len())
             .finish()
     }
@@ -75,10 +64,15 @@ impl std::fmt::Debug for Replay {
 impl Replay {
     /// Opens a capture: finds its sensor and its sweeps.
     pub fn open(path: &Path, options: &PacketOptions) -> Result<Self, FileError> {
-        let (model, port) = find_sensor(path, options.sensor.as_deref())?;
+        let hint = SensorHint::new(
+            options.sensor.as_deref(),
+            options.metadata.as_deref(),
+            Some(path),
+        )?;
+        let (sensor, port) = find_sensor(path, &hint)?;
         let mut replay = Self {
             path: path.to_path_buf(),
-            model,
+            sensor,
             port,
             options: options.clone(),
             sweeps: Vec::new(),
@@ -96,16 +90,17 @@ impl Replay {
                 path,
                 format!(
                     "{} {} data packets, but not one whole turn of the sensor",
-                    replay.stats.stream.packets, replay.model.name
+                    replay.stats.stream.packets,
+                    replay.sensor.name()
                 ),
             ));
         }
         Ok(replay)
     }
 
-    /// The sensor's model name.
-    pub fn sensor(&self) -> &'static str {
-        self.model.name
+    /// The sensor's name.
+    pub fn sensor(&self) -> String {
+        self.sensor.name()
     }
 
     /// What the whole capture held (from the index pass).
@@ -126,8 +121,9 @@ impl Replay {
     fn start(&self) -> Result<Cursor, FileError> {
         Ok(Cursor {
             capture: Capture::open(&self.path)?,
-            stream: SensorStream::new(self.model, self.port, self.options.cut_azimuth_deg),
+            stream: SensorStream::new(&self.sensor, self.port, self.options.cut_azimuth_deg),
             next: 0,
+            ended: false,
             stats: ReplayStats::default(),
         })
     }
@@ -135,12 +131,19 @@ impl Replay {
     /// Decodes until the cursor completes a sweep; `None` at the end.
     fn advance(&self, c: &mut Cursor) -> Result<Option<Sweep>, FileError> {
         loop {
+            if c.ended {
+                return Ok(None);
+            }
             let Some(d) = c.capture.next_datagram()? else {
+                c.ended = true;
+                // The last turn, if it ended at the cut.
+                let last = c.stream.finish();
                 c.stats = ReplayStats {
                     capture: c.capture.stats(),
-                    stream: c.stream.finish(),
+                    stream: c.stream.stats(),
                 };
-                return Ok(None);
+                c.next += usize::from(last.is_some());
+                return Ok(last);
             };
             if let Some(s) = c.stream.datagram(d.udp.dst_port, d.udp.payload, d.time_s) {
                 c.next += 1;
@@ -191,21 +194,17 @@ impl Replay {
     }
 }
 
-/// The sensor of a capture: the first Velodyne data packet's model (which `sensor`, when
-/// given, must name), and the port it went to.
-fn find_sensor(path: &Path, sensor: Option<&str>) -> Result<(&'static Model, u16), FileError> {
-    let named = match sensor {
-        Some(s) => Some(packets::named(s).map_err(|e| FileError::at(path, e))?),
-        None => None,
-    };
+/// The sensor of a capture: the first data packet's (of the sensor the hint names, when it
+/// does), and the port it went to.
+fn find_sensor(path: &Path, hint: &SensorHint) -> Result<(Sensor, u16), FileError> {
     let mut cap = Capture::open(path)?;
     let mut sizes: Vec<(usize, u64)> = Vec::new();
     while let Some(d) = cap.next_datagram()? {
         let payload = d.udp.payload;
-        if let Some(model) =
-            packets::identify(payload, named).map_err(|e| FileError::at(path, e))?
+        if let Some(sensor) =
+            packets::identify(payload, hint).map_err(|e| FileError::at(path, e))?
         {
-            return Ok((model, d.udp.dst_port));
+            return Ok((sensor, d.udp.dst_port));
         }
         match sizes.iter().position(|(n, _)| *n == payload.len()) {
             Some(k) => sizes[k].1 += 1,
@@ -222,11 +221,15 @@ fn find_sensor(path: &Path, sensor: Option<&str>) -> Result<(&'static Model, u16
             .collect();
         format!("UDP datagrams: {}", list.join(", "))
     };
-    Err(FileError::at(
-        path,
-        format!(
-            "no Velodyne data packets ({} bytes) in the capture; {seen}",
+    let wanted = match hint.ouster_packet_bytes() {
+        Some(n) => format!("no lidar packets of the Ouster's metadata ({n} bytes)"),
+        None => format!(
+            "no Velodyne data packets ({} bytes)",
             crate::io::velodyne::DATA_PACKET_BYTES
         ),
+    };
+    Err(FileError::at(
+        path,
+        format!("{wanted} in the capture; {seen}"),
     ))
 }

@@ -52,6 +52,9 @@ pub struct Sweeps {
     /// Times that went back, or forward by more than [`MAX_GAP_S`]: the sweep being filled is
     /// dropped there (its firings counted as part turns), not stretched over the jump.
     pub time_jumps: u64,
+    /// A stream's first firing within this of the cut starts a sweep, and a last one within
+    /// this of the next cut ends one (hundredths of a degree; 0: only crossings count).
+    whole_within: u32,
 }
 
 /// The longest time between two packets that is a gap in one stream; a longer one (or a
@@ -70,7 +73,17 @@ impl Sweeps {
             partial_firings: 0,
             gaps: 0,
             time_jumps: 0,
+            whole_within: 0,
         }
+    }
+
+    /// Sweeps whose firings are at most `step` apart in azimuth (hundredths of a degree), as a
+    /// sensor's columns are: a stream that starts within a step past the cut starts a whole
+    /// sweep at once, and one that ends within a step before it ends one
+    /// ([`finish`](Self::finish)), with no crossing needed.
+    pub fn whole_within(mut self, step: u32) -> Self {
+        self.whole_within = step.min(18_000);
+        self
     }
 
     /// A packet begins at `time_s`; the sensor sends one every `period_s`. Counts the packets
@@ -80,7 +93,11 @@ impl Sweeps {
             let dt = time_s - last;
             if !(0.0..=MAX_GAP_S).contains(&dt) {
                 self.time_jumps += 1;
-                self.finish();
+                // The sweep being filled is dropped even if whole: its end's time is in doubt.
+                if let Some(s) = self.current.take() {
+                    self.partial_firings += s.points.len() as u64;
+                }
+                self.last = None;
                 self.last_packet = Some(time_s);
                 return;
             }
@@ -107,7 +124,11 @@ impl Sweeps {
         };
         // A crossing: the azimuth past the cut falls back by more than half a turn.
         let crossed = self.last.is_some_and(|last| past + 18_000 < last);
+        let starts = self.last.is_none() && self.current.is_none() && past < self.whole_within;
         self.last = Some(past);
+        if starts {
+            self.current = Some(Sweep::default());
+        }
         let done = if crossed {
             // The next sweep is about as long as the last one: room for it at once.
             let room = self
@@ -132,12 +153,20 @@ impl Sweeps {
         done.filter(|s| !s.points.is_empty())
     }
 
-    /// Ends the stream: the sweep being filled is a part turn, counted and dropped.
-    pub fn finish(&mut self) {
-        if let Some(s) = self.current.take() {
-            self.partial_firings += s.points.len() as u64;
-        }
+    /// Ends the stream: the sweep being filled, if its last firing is within
+    /// [`whole_within`](Self::whole_within) of the cut; otherwise it is a part turn, counted
+    /// and dropped.
+    pub fn finish(&mut self) -> Option<Sweep> {
+        let whole = self
+            .last
+            .is_some_and(|last| self.whole_within > 0 && last + self.whole_within >= 36_000);
         self.last = None;
+        let s = self.current.take()?;
+        if whole && !s.points.is_empty() {
+            return Some(s);
+        }
+        self.partial_firings += s.points.len() as u64;
+        None
     }
 }
 
@@ -170,6 +199,28 @@ mod tests {
         // 80 degrees before the first crossing, 325 after the last one.
         assert_eq!(s.partial_firings, 80 + 325);
         assert!((out[0].stamp().unwrap() - (0.090 + 0.449) / 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_stream_that_starts_and_ends_at_the_cut_is_whole_when_its_steps_say_so() {
+        // Two turns of firings 1 degree apart, from the cut itself to 1 degree before it.
+        for (step, sweeps, partial) in [(0, 0, 720), (101, 2, 0)] {
+            let mut s = Sweeps::new(10.0).whole_within(step);
+            let mut out = Vec::new();
+            turn(&mut s, 10, 2 * 360, &mut out);
+            out.extend(s.finish());
+            assert_eq!(
+                (out.len(), s.partial_firings),
+                (sweeps, partial),
+                "step {step}"
+            );
+        }
+        // One degree short of the second turn's end: that turn is a part turn.
+        let mut s = Sweeps::new(10.0).whole_within(101);
+        let mut out = Vec::new();
+        turn(&mut s, 10, 2 * 360 - 1, &mut out);
+        out.extend(s.finish());
+        assert_eq!((out.len(), s.partial_firings), (1, 359));
     }
 
     #[test]

@@ -5,7 +5,8 @@
 use crate::io::error::FileError;
 use crate::io::kitti::BinFields;
 use crate::io::live::{Live, LiveOptions};
-use crate::io::replay::{PacketOptions, Replay};
+use crate::io::packets::PacketOptions;
+use crate::io::replay::Replay;
 use crate::io::scans::{read_scan_as, ScanFolder};
 use slamesh_core::Point;
 
@@ -85,10 +86,7 @@ impl Input {
     ) -> Result<Self, FileError> {
         if let Some(addr) = path.to_str().and_then(crate::io::live::address) {
             let live = LiveOptions {
-                sensor: packets.sensor.clone(),
-                cut_azimuth_deg: packets.cut_azimuth_deg,
-                idle: packets.idle,
-                stop: packets.stop.clone(),
+                packets: packets.clone(),
                 ..LiveOptions::default()
             };
             return Ok(Input::Live(Box::new(Live::open(addr, &live)?)));
@@ -96,10 +94,11 @@ impl Input {
         if crate::io::capture::is_capture(path) {
             return Ok(Input::Capture(Box::new(Replay::open(path, packets)?)));
         }
-        if packets.sensor.is_some() {
+        if packets.sensor.is_some() || packets.metadata.is_some() {
             return Err(FileError::at(
                 path,
-                "--sensor is for packet captures (.pcap, .pcapng), and this is not one",
+                "--sensor and --metadata are for packet captures (.pcap, .pcapng) and live \
+                 inputs (udp://), and this is neither",
             ));
         }
         #[cfg(feature = "recordings")]
