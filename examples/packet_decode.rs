@@ -2,16 +2,18 @@
 //! (medians): reading the capture from memory (its container and network layers, the sensor's
 //! packets kept), and decoding those packets to points with their times, cut into sweeps
 //! (reported per sweep and per point). Any sensor the command reads: a Velodyne told from its
-//! packets, an Ouster by its metadata (`--metadata`, or the capture's name with `.json`).
+//! packets, an HDL-64E with its calibration (`--calibration`, `--sensor hdl64e-s2|hdl64e-s3`), an
+//! Ouster by its metadata (`--metadata`, or the capture's name with `.json`).
 //!
-//! `cargo run --release --example packet_decode -- --capture FILE [--metadata JSON] [--repeat N]`
+//! `cargo run --release --example packet_decode -- --capture FILE [--metadata JSON]
+//! [--calibration YAML --sensor hdl64e-s2|hdl64e-s3] [--repeat N]`
 
 #[path = "common/flags.rs"]
 mod flags;
 
 use flags::Flags;
 use slamesh::io::capture::Capture;
-use slamesh::io::packets::{identify, Sensor, SensorHint, SensorStream};
+use slamesh::io::packets::{identify, PacketOptions, Sensor, SensorHint, SensorStream};
 use std::io::Cursor;
 use std::path::Path;
 use std::time::Instant;
@@ -22,10 +24,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .value("--capture")
         .ok_or("--capture FILE is required")?
         .to_string();
-    let metadata = flags.value("--metadata").map(Path::new);
+    let options = PacketOptions {
+        metadata: flags.value("--metadata").map(Into::into),
+        calibration: flags.value("--calibration").map(Into::into),
+        sensor: flags.value("--sensor").map(Into::into),
+        ..PacketOptions::default()
+    };
     let repeat: usize = flags.parse_or("--repeat", 20)?;
     let bytes = std::fs::read(&path)?;
-    let hint = SensorHint::new(None, metadata, Some(Path::new(&path)))?;
+    let hint = SensorHint::new(&options, Some(Path::new(&path)))?;
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]

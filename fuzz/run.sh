@@ -9,7 +9,7 @@ cd "$(dirname "$0")"
 seconds=${1:-600}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(kitti_bin pcd ply config_toml core_scan pointcloud2 recording map_file capture velodyne_packet ouster_packet ouster_metadata)
+[ ${#targets[@]} -gt 0 ] || targets=(kitti_bin pcd ply config_toml core_scan pointcloud2 recording map_file capture velodyne_packet ouster_packet ouster_metadata velodyne_calibration)
 # One build for every target (cargo fuzz run would build each on its own).
 cargo +nightly fuzz build
 log=$(mktemp)

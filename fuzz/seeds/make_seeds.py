@@ -148,3 +148,17 @@ for name, profile, beams in [("ouster-os1-32-legacy", "LEGACY", 32),
     pick = PROFILES.index(profile) + 8 * [16, 32, 64, 128].index(beams)
     put("ouster_packet", name, bytes([pick]) + packet)
     put("ouster_metadata", name, open(f"../tests/fixtures/packets/{name}.json", "rb").read())
+
+
+# The HDL-64E: a data packet of the capture made in tests/fixtures/packets (the target decodes
+# it with that folder's calibration), and the calibration itself, block style and flow style.
+cap = open("../tests/fixtures/packets/hdl64e-s2-street.pcap", "rb").read()
+incl, = struct.unpack("<I", cap[24 + 8:24 + 12])
+put("velodyne_packet", "hdl64e", cap[24 + 16 + 42:24 + 16 + incl])
+calib = open("../tests/fixtures/packets/hdl64e-s2.1-sztaki.yml", "rb").read()
+put("velodyne_calibration", "block", calib)
+put("velodyne_calibration", "flow", b"distance_resolution: 0.002\nlasers:\n"
+    + b"".join(b"- {laser_id: %d, rot_correction: -0.07, vert_correction: %f, "
+               b"dist_correction: 1.4, dist_correction_x: 1.42, dist_correction_y: 1.41, "
+               b"vert_offset_correction: 0.21, horiz_offset_correction: 0.026}\n"
+               % (i, -0.4 + i * 0.01) for i in range(64)))

@@ -26,14 +26,18 @@ pub struct InputArgs {
     /// KITTI's, x,y,z,i,ring nuScenes'.
     #[arg(long, value_name = "LIST", default_value = "x,y,z,i", value_parser = BinFields::parse)]
     pub bin_fields: BinFields,
-    /// The packets' sensor: vlp16, puck-hires, vlp32c, hdl32 or ouster (default: told from the
-    /// packets, or from --metadata).
+    /// The packets' sensor: vlp16, puck-hires, vlp32c, hdl32, hdl64e-s2, hdl64e-s3 or ouster
+    /// (default: told from the packets, or from --metadata).
     #[arg(long, value_name = "MODEL")]
     pub sensor: Option<String>,
     /// An Ouster's metadata JSON, with its beam angles (default for a capture: its name with
     /// .json, when there is one).
     #[arg(long, value_name = "FILE")]
     pub metadata: Option<PathBuf>,
+    /// An HDL-64E's calibration YAML (the one Velodyne's ROS driver takes), with --sensor
+    /// hdl64e-s2 or hdl64e-s3.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
     /// Where sweeps are cut (degrees of azimuth, clockwise from the sensor's x axis; default:
     /// 0 for a Velodyne, the start of its own frames for an Ouster).
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
@@ -66,6 +70,7 @@ impl InputArgs {
             &PacketOptions {
                 sensor: self.sensor.clone(),
                 metadata: self.metadata.clone(),
+                calibration: self.calibration.clone(),
                 cut_azimuth_deg: self.cut_azimuth,
                 idle: self
                     .idle_timeout

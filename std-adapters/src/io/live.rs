@@ -110,7 +110,7 @@ impl Live {
         let label = format!("udp://{addr}");
         let err = |why: String| FileError::at(Path::new(&label), why);
         let packets = &options.packets;
-        let hint = SensorHint::new(packets.sensor.as_deref(), packets.metadata.as_deref(), None)?;
+        let hint = SensorHint::new(packets, None)?;
         let socket = UdpSocket::bind(addr).map_err(|e| err(format!("cannot listen: {e}")))?;
         let local = socket.local_addr().map_err(|e| err(e.to_string()))?;
         socket

@@ -5,6 +5,8 @@
 use crate::io::error::FileError;
 use crate::io::ouster;
 use crate::io::sweep::{Sweep, Sweeps};
+use crate::io::velodyne::calibration::Calibration;
+use crate::io::velodyne::hdl64::{self, Generation, Hdl64};
 use crate::io::velodyne::{self, tables::Model, Decoder, POSITION_PACKET_BYTES};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -28,11 +30,12 @@ pub struct StreamStats {
 /// How to read packets, from a capture or live.
 #[derive(Debug, Clone, Default)]
 pub struct PacketOptions {
-    /// The sensor (`--sensor`): a Velodyne model's flag or `ouster`; `None` to tell it from
-    /// the packets.
+    /// The sensor (`--sensor`): one of [`sensor_names`]; `None` to tell it from the packets.
     pub sensor: Option<String>,
     /// An Ouster's metadata JSON (`--metadata`).
     pub metadata: Option<PathBuf>,
+    /// An HDL-64E's calibration YAML (`--calibration`).
+    pub calibration: Option<PathBuf>,
     /// Where sweeps are cut (degrees of azimuth; `None`: the sensor's
     /// [default](Sensor::default_cut_deg)).
     pub cut_azimuth_deg: Option<f64>,
@@ -42,12 +45,14 @@ pub struct PacketOptions {
     pub stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
-/// A sensor whose packets are decoded: a Velodyne model (its factory tables), or an Ouster
-/// unit (its own metadata).
+/// A sensor whose packets are decoded: a Velodyne model (its factory tables), an HDL-64E
+/// unit (its own calibration), or an Ouster unit (its own metadata).
 #[derive(Debug, Clone)]
 pub enum Sensor {
     /// A Velodyne model.
     Velodyne(&'static Model),
+    /// An HDL-64E unit.
+    Hdl64(Arc<Hdl64>),
     /// An Ouster unit.
     Ouster(Arc<ouster::Sensor>),
 }
@@ -57,6 +62,7 @@ impl Sensor {
     pub fn name(&self) -> String {
         match self {
             Sensor::Velodyne(m) => m.name.to_string(),
+            Sensor::Hdl64(h) => h.name().to_string(),
             Sensor::Ouster(o) => o.name(),
         }
     }
@@ -65,7 +71,7 @@ impl Sensor {
     /// start of the sensor's own frame (column 0) for an Ouster.
     pub fn default_cut_deg(&self) -> f64 {
         match self {
-            Sensor::Velodyne(_) => 0.0,
+            Sensor::Velodyne(_) | Sensor::Hdl64(_) => 0.0,
             Sensor::Ouster(o) => o.frame_start_deg(),
         }
     }
@@ -76,17 +82,28 @@ impl Sensor {
 #[derive(Debug, Clone, Default)]
 pub struct SensorHint {
     velodyne: Option<&'static Model>,
+    hdl64: Option<Arc<Hdl64>>,
     ouster: Option<Arc<ouster::Sensor>>,
 }
 
 /// The sensor names `--sensor` takes.
 pub fn sensor_names() -> Vec<&'static str> {
     let mut names: Vec<&'static str> = velodyne::tables::MODELS.iter().map(|m| m.flag).collect();
+    names.extend(HDL64.iter().map(|(flag, _)| *flag));
     names.push(OUSTER);
     names
 }
 
 const OUSTER: &str = "ouster";
+/// The HDL-64E's names, by generation (their firing times differ, and the packets do not say).
+const HDL64: [(&str, Generation); 2] =
+    [("hdl64e-s2", Generation::S2), ("hdl64e-s3", Generation::S3)];
+
+/// A Velodyne's calibration YAML.
+pub fn read_calibration(path: &Path) -> Result<Calibration, FileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    Calibration::parse(&text).map_err(|e| FileError::at(path, format!("calibration: {e}")))
+}
 
 /// An Ouster unit from its metadata JSON.
 pub fn read_metadata(path: &Path) -> Result<ouster::Sensor, FileError> {
@@ -97,17 +114,37 @@ pub fn read_metadata(path: &Path) -> Result<ouster::Sensor, FileError> {
 }
 
 impl SensorHint {
-    /// From `--sensor` and `--metadata`; for a capture, `beside` is its path, and an Ouster's
-    /// metadata saved beside it with the same name (`drive.pcap`, `drive.json`) is found
-    /// without `--metadata`.
-    pub fn new(
-        sensor: Option<&str>,
-        metadata: Option<&Path>,
-        beside: Option<&Path>,
-    ) -> Result<Self, FileError> {
+    /// From `--sensor`, `--metadata` and `--calibration`; for a capture, `beside` is its
+    /// path, and an Ouster's metadata saved beside it with the same name (`drive.pcap`,
+    /// `drive.json`) is found without `--metadata`.
+    pub fn new(options: &PacketOptions, beside: Option<&Path>) -> Result<Self, FileError> {
+        let (sensor, metadata) = (options.sensor.as_deref(), options.metadata.as_deref());
         let here = || beside.unwrap_or(Path::new("--sensor"));
+        let generation = HDL64.iter().find(|(f, _)| Some(*f) == sensor).map(|g| g.1);
+        let hdl64 =
+            match (&options.calibration, generation) {
+                (Some(path), Some(g)) => {
+                    let h = Hdl64::new(g, &read_calibration(path)?)
+                        .map_err(|e| FileError::at(path, e))?;
+                    Some(Arc::new(h))
+                }
+                (Some(path), None) => return Err(FileError::at(
+                    path,
+                    "--calibration is an HDL-64E's: name its generation with --sensor hdl64e-s2 \
+                     or hdl64e-s3 (their firing times differ)",
+                )),
+                (None, Some(_)) => {
+                    return Err(FileError::at(
+                        here(),
+                        "an HDL-64E needs the unit's own calibration: give its YAML with \
+                     --calibration FILE",
+                    ))
+                }
+                (None, None) => None,
+            };
         let velodyne = match sensor {
             None | Some(OUSTER) => None,
+            Some(_) if hdl64.is_some() => None,
             Some(s) => Some(velodyne::model_named(s).ok_or_else(|| {
                 FileError::at(
                     here(),
@@ -123,7 +160,7 @@ impl SensorHint {
         }
         let ouster = match (metadata, beside) {
             (Some(path), _) => Some(read_metadata(path)?),
-            (None, Some(capture)) if velodyne.is_none() => {
+            (None, Some(capture)) if velodyne.is_none() && hdl64.is_none() => {
                 let json = capture.with_extension("json");
                 match read_metadata(&json) {
                     Ok(o) => {
@@ -146,6 +183,7 @@ impl SensorHint {
         }
         Ok(Self {
             velodyne,
+            hdl64,
             ouster: ouster.map(Arc::new),
         })
     }
@@ -153,6 +191,11 @@ impl SensorHint {
     /// The size of the Ouster's lidar packets, when the hint is an Ouster's metadata.
     pub fn ouster_packet_bytes(&self) -> Option<usize> {
         self.ouster.as_ref().map(|o| o.packet_bytes())
+    }
+
+    /// The HDL-64E named, when it is.
+    pub fn hdl64(&self) -> Option<&'static str> {
+        self.hdl64.as_ref().map(|h| h.name())
     }
 }
 
@@ -163,6 +206,9 @@ impl SensorHint {
 pub fn identify(payload: &[u8], hint: &SensorHint) -> Result<Option<Sensor>, String> {
     if let Some(o) = &hint.ouster {
         return Ok(o.matches(payload).then(|| Sensor::Ouster(o.clone())));
+    }
+    if let Some(h) = &hint.hdl64 {
+        return Ok(hdl64::sniff(payload).then(|| Sensor::Hdl64(h.clone())));
     }
     if let Some(product) = velodyne::sniff(payload) {
         return match (hint.velodyne, velodyne::model_of(product)) {
@@ -178,14 +224,11 @@ pub fn identify(payload: &[u8], hint: &SensorHint) -> Result<Option<Sensor>, Str
             )),
         };
     }
-    if payload.len() == velodyne::DATA_PACKET_BYTES
-        && payload.get(..2) == Some(&[0xff, 0xee][..])
-        && payload.get(100..102) == Some(&[0xff, 0xdd][..])
-    {
-        // FF EE then FF DD blocks: an HDL-64E.
+    if hdl64::sniff(payload) {
         return Err(
-            "HDL-64E packets: they need the unit's own calibration, which this reader \
-                    does not take yet"
+            "HDL-64E packets: they need the unit's own calibration; give its YAML \
+                    with --calibration FILE and its generation with --sensor hdl64e-s2 or \
+                    hdl64e-s3"
                 .to_string(),
         );
     }
@@ -209,8 +252,9 @@ pub struct SensorStream {
 
 #[derive(Debug)]
 enum Decoding {
-    /// Boxed: its tables are 6.5 KB, an Ouster's are shared.
+    /// Boxed: its tables are 6.5 KB, an Ouster's and an HDL-64E's are shared.
     Velodyne(Box<Decoder>),
+    Hdl64(Arc<Hdl64>),
     Ouster(Arc<ouster::Sensor>),
 }
 
@@ -228,6 +272,7 @@ impl SensorStream {
                 Decoding::Velodyne(Box::new(Decoder::new(m))),
                 Sweeps::new(cut),
             ),
+            Sensor::Hdl64(h) => (Decoding::Hdl64(h.clone()), Sweeps::new(cut)),
             Sensor::Ouster(o) => {
                 // Columns are a whole step apart: a turn that starts or ends within a step
                 // of the cut is whole.
@@ -250,6 +295,7 @@ impl SensorStream {
     pub fn sensor(&self) -> String {
         match &self.decoding {
             Decoding::Velodyne(d) => d.model().name.to_string(),
+            Decoding::Hdl64(h) => h.name().to_string(),
             Decoding::Ouster(o) => o.name(),
         }
     }
@@ -280,6 +326,26 @@ impl SensorStream {
                     Ok(mode) => {
                         self.stats.packets += 1;
                         sweeps.packet(t, decoder.packet_period_s(mode));
+                    }
+                    Err(_) => self.stats.bad_packets += 1,
+                }
+            }
+            Decoding::Hdl64(h) => {
+                if payload.len() == POSITION_PACKET_BYTES {
+                    return None;
+                }
+                let Some(t) = velodyne::packet_time(payload, time_s) else {
+                    self.stats.bad_packets += 1;
+                    return None;
+                };
+                match h.decode(payload, t, |f| {
+                    if let Some(s) = sweeps.push(f.point, f.time_s, f.azimuth) {
+                        done = Some(s);
+                    }
+                }) {
+                    Ok(mode) => {
+                        self.stats.packets += 1;
+                        sweeps.packet(t, h.packet_period_s(mode));
                     }
                     Err(_) => self.stats.bad_packets += 1,
                 }

@@ -64,11 +64,7 @@ impl std::fmt::Debug for Replay {
 impl Replay {
     /// Opens a capture: finds its sensor and its sweeps.
     pub fn open(path: &Path, options: &PacketOptions) -> Result<Self, FileError> {
-        let hint = SensorHint::new(
-            options.sensor.as_deref(),
-            options.metadata.as_deref(),
-            Some(path),
-        )?;
+        let hint = SensorHint::new(options, Some(path))?;
         let (sensor, port) = find_sensor(path, &hint)?;
         let mut replay = Self {
             path: path.to_path_buf(),
@@ -221,9 +217,10 @@ fn find_sensor(path: &Path, hint: &SensorHint) -> Result<(Sensor, u16), FileErro
             .collect();
         format!("UDP datagrams: {}", list.join(", "))
     };
-    let wanted = match hint.ouster_packet_bytes() {
-        Some(n) => format!("no lidar packets of the Ouster's metadata ({n} bytes)"),
-        None => format!(
+    let wanted = match (hint.ouster_packet_bytes(), hint.hdl64()) {
+        (Some(n), _) => format!("no lidar packets of the Ouster's metadata ({n} bytes)"),
+        (None, Some(name)) => format!("no {name} data packets"),
+        (None, None) => format!(
             "no Velodyne data packets ({} bytes)",
             crate::io::velodyne::DATA_PACKET_BYTES
         ),

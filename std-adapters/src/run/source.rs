@@ -94,11 +94,11 @@ impl Input {
         if crate::io::capture::is_capture(path) {
             return Ok(Input::Capture(Box::new(Replay::open(path, packets)?)));
         }
-        if packets.sensor.is_some() || packets.metadata.is_some() {
+        if packets.sensor.is_some() || packets.metadata.is_some() || packets.calibration.is_some() {
             return Err(FileError::at(
                 path,
-                "--sensor and --metadata are for packet captures (.pcap, .pcapng) and live \
-                 inputs (udp://), and this is neither",
+                "--sensor, --metadata and --calibration are for packet captures (.pcap, \
+                 .pcapng) and live inputs (udp://), and this is neither",
             ));
         }
         #[cfg(feature = "recordings")]

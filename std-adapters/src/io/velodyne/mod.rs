@@ -1,6 +1,7 @@
 //! Velodyne data packets decoded to points with each one's firing time: the VLP-16, the Puck
 //! Hi-Res, the VLP-32C and the HDL-32E, single and dual return, with their factory tables
-//! ([`tables`]).
+//! ([`tables`]); and the HDL-64E S2 and S3 with the unit's own calibration ([`hdl64`],
+//! [`calibration`]).
 //!
 //! A data packet is 1 206 bytes: twelve blocks of a 2-byte flag (`FF EE`), the block's azimuth
 //! (hundredths of a degree) and 32 channels of a 2-byte distance and a 1-byte reflectivity;
@@ -17,6 +18,8 @@
 //! out, and a bad one is refused with what is wrong ([`PacketError`]). No `std`: firmware
 //! could use it as it is.
 
+pub mod calibration;
+pub mod hdl64;
 pub mod tables;
 
 use tables::{Model, MODELS};
@@ -78,7 +81,8 @@ pub struct Firing {
     pub point: [f32; 3],
     /// Firing time (seconds, the packet's time base).
     pub time_s: f64,
-    /// Azimuth (hundredths of a degree, 0 to 35 999).
+    /// Azimuth (hundredths of a degree, 0 to 35 999): the channel's own; an HDL-64E's, its
+    /// firing's (both of its banks sweep the same angles in a firing).
     pub azimuth: u16,
     /// Channel (laser index in the model's table).
     pub laser: u8,
