@@ -8,8 +8,8 @@
 //! - frames are the sweeps the run took, in order; each keeps its stamp (the middle of its
 //!   firings, [`crate::io::sweep::Sweep::stamp`]) and the instant its last packet came, for
 //!   the latency from packet to pose;
-//! - the stream ends when [`LiveOptions::stop`] is set (the command sets it on Ctrl-C), after
-//!   [`LiveOptions::idle`] without a packet, or on a socket error; a run then writes its
+//! - the stream ends when [`PacketOptions::stop`] is set (the command sets it on Ctrl-C), after
+//!   [`PacketOptions::idle`] without a packet, or on a socket error; a run then writes its
 //!   outputs as a finished one does.
 //!
 //! A Velodyne's packet times are placed in the hour of the host's clock (the sensor's own
