@@ -40,19 +40,9 @@ fn decode_capture(sensor: &Sensor, path: &Path) -> (Vec<([f32; 3], f64)>, usize)
     (out, packets)
 }
 
-/// The reference file's points: f32 x, y, z and f64 time each.
+/// The reference file's points.
 fn reference(name: &str) -> Vec<([f32; 3], f64)> {
-    let bytes = std::fs::read(fixture(name)).unwrap();
-    bytes
-        .chunks_exact(20)
-        .map(|c| {
-            let f = |k: usize| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap());
-            (
-                [f(0), f(1), f(2)],
-                f64::from_le_bytes(c[12..20].try_into().unwrap()),
-            )
-        })
-        .collect()
+    common::reference_points(&fixture(name))
 }
 
 #[test]
@@ -68,27 +58,7 @@ fn every_profile_decodes_to_the_ouster_sdks_points() {
         let (ours, n) = decode_capture(&sensor, &fixture(&format!("{name}.pcap")));
         let theirs = reference(&format!("{name}.points"));
         assert_eq!(n, packets, "{name}: lidar packets");
-        assert_eq!(ours.len(), theirs.len(), "{name}: as many points");
-        let (mut worst_m, mut worst_s) = (0.0f64, 0.0f64);
-        for (k, ((p, t), (q, u))) in ours.iter().zip(&theirs).enumerate() {
-            let d = (0..3)
-                .map(|i| f64::from(p[i] - q[i]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            worst_m = worst_m.max(d);
-            worst_s = worst_s.max((t - u).abs());
-            assert!(d < 1e-3, "{name} point {k}: {p:?} against {q:?}");
-            assert!(
-                (t - u).abs() < 1e-6,
-                "{name} point {k}: time {t} against {u}"
-            );
-        }
-        println!(
-            "{name}: {} points; worst {:.2} um, {:.1} ns",
-            ours.len(),
-            worst_m * 1e6,
-            worst_s * 1e9
-        );
+        common::assert_same_points(name, &ours, &theirs);
     }
 }
 

@@ -39,41 +39,14 @@ fn decode_capture(path: &Path) -> Vec<([f32; 3], f64)> {
 
 /// The reference file's points (see the fixtures' make.py).
 fn reference(name: &str) -> Vec<([f32; 3], f64)> {
-    let bytes = std::fs::read(fixture(name)).unwrap();
-    bytes
-        .chunks_exact(20)
-        .map(|c| {
-            let f = |k: usize| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap());
-            (
-                [f(0), f(1), f(2)],
-                f64::from_le_bytes(c[12..20].try_into().unwrap()),
-            )
-        })
-        .collect()
+    common::reference_points(&fixture(name))
 }
 
 #[test]
 fn hdl32e_packets_decode_to_the_independent_decoders_points() {
     let ours = decode_capture(&fixture("hdl32e-street.pcap"));
     let theirs = reference("hdl32e-street.points");
-    assert_eq!(ours.len(), theirs.len(), "as many points");
-    let (mut worst_m, mut worst_s) = (0.0f64, 0.0f64);
-    for (k, ((p, t), (q, u))) in ours.iter().zip(&theirs).enumerate() {
-        let d = (0..3)
-            .map(|i| f64::from(p[i] - q[i]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        worst_m = worst_m.max(d);
-        worst_s = worst_s.max((t - u).abs());
-        assert!(d < 1e-3, "point {k}: {p:?} against {q:?}");
-        assert!((t - u).abs() < 1e-6, "point {k}: time {t} against {u}");
-    }
-    println!(
-        "{} points; worst {:.3} mm, {:.3} us",
-        ours.len(),
-        worst_m * 1e3,
-        worst_s * 1e6
-    );
+    common::assert_same_points("hdl32e-street", &ours, &theirs);
 }
 
 #[test]
@@ -440,24 +413,7 @@ fn hdl64e_packets_decode_to_the_independent_decoders_points() {
         k += 1;
     }
     let theirs = reference("hdl64e-s2-street.points");
-    assert_eq!(ours.len(), theirs.len(), "as many points");
-    let (mut worst_m, mut worst_s) = (0.0f64, 0.0f64);
-    for (k, ((p, t), (q, u))) in ours.iter().zip(&theirs).enumerate() {
-        let d = (0..3)
-            .map(|i| f64::from(p[i] - q[i]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        worst_m = worst_m.max(d);
-        worst_s = worst_s.max((t - u).abs());
-        assert!(d < 1e-3, "point {k}: {p:?} against {q:?}");
-        assert!((t - u).abs() < 1e-6, "point {k}: time {t} against {u}");
-    }
-    println!(
-        "{} points; worst {:.3} mm, {:.3} us",
-        ours.len(),
-        worst_m * 1e3,
-        worst_s * 1e6
-    );
+    common::assert_same_points("hdl64e-s2-street", &ours, &theirs);
 }
 
 /// The HDL-64E capture replayed: its three turns at 15 m/s down the street are steps of a
@@ -514,22 +470,5 @@ fn a_replayed_hdl64e_capture_runs_end_to_end() {
 fn every_model_and_return_mode_decodes_to_the_independent_decoders_points() {
     let ours = decode_capture(&fixture("velodyne-models.pcap"));
     let theirs = reference("velodyne-models.points");
-    assert_eq!(ours.len(), theirs.len(), "as many points");
-    let (mut worst_m, mut worst_s) = (0.0f64, 0.0f64);
-    for (k, ((p, t), (q, u))) in ours.iter().zip(&theirs).enumerate() {
-        let d = (0..3)
-            .map(|i| f64::from(p[i] - q[i]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        worst_m = worst_m.max(d);
-        worst_s = worst_s.max((t - u).abs());
-        assert!(d < 1e-3, "point {k}: {p:?} against {q:?}");
-        assert!((t - u).abs() < 1e-6, "point {k}: time {t} against {u}");
-    }
-    println!(
-        "{} points; worst {:.3} mm, {:.3} us",
-        ours.len(),
-        worst_m * 1e3,
-        worst_s * 1e6
-    );
+    common::assert_same_points("velodyne-models", &ours, &theirs);
 }

@@ -225,3 +225,50 @@ pub fn send_capture(
         sent
     })
 }
+
+/// A reference file of decoded points (the packet fixtures' make.py): little-endian f32 x, y,
+/// z and f64 time each.
+pub fn reference_points(path: &Path) -> Vec<([f32; 3], f64)> {
+    let bytes = std::fs::read(path).unwrap();
+    bytes
+        .chunks_exact(20)
+        .map(|c| {
+            let f = |k: usize| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap());
+            (
+                [f(0), f(1), f(2)],
+                f64::from_le_bytes(c[12..20].try_into().unwrap()),
+            )
+        })
+        .collect()
+}
+
+/// Asserts that `ours` are `theirs` in the same order, each within 1 mm and 1 us; returns the
+/// worst distance (m) and time difference (s).
+pub fn assert_same_points(
+    name: &str,
+    ours: &[([f32; 3], f64)],
+    theirs: &[([f32; 3], f64)],
+) -> (f64, f64) {
+    assert_eq!(ours.len(), theirs.len(), "{name}: as many points");
+    let (mut worst_m, mut worst_s) = (0.0f64, 0.0f64);
+    for (k, ((p, t), (q, u))) in ours.iter().zip(theirs).enumerate() {
+        let d = (0..3)
+            .map(|i| f64::from(p[i] - q[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        worst_m = worst_m.max(d);
+        worst_s = worst_s.max((t - u).abs());
+        assert!(d < 1e-3, "{name} point {k}: {p:?} against {q:?}");
+        assert!(
+            (t - u).abs() < 1e-6,
+            "{name} point {k}: time {t} against {u}"
+        );
+    }
+    println!(
+        "{name}: {} points; worst {:.4} mm, {:.1} ns",
+        ours.len(),
+        worst_m * 1e3,
+        worst_s * 1e9
+    );
+    (worst_m, worst_s)
+}

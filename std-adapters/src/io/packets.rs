@@ -252,10 +252,38 @@ pub struct SensorStream {
 
 #[derive(Debug)]
 enum Decoding {
-    /// Boxed: its tables are 6.5 KB, an Ouster's and an HDL-64E's are shared.
-    Velodyne(Box<Decoder>),
-    Hdl64(Arc<Hdl64>),
+    Velodyne(VelodyneDecoder),
     Ouster(Arc<ouster::Sensor>),
+}
+
+/// A decoder of Velodyne data packets: a model's factory tables, or an HDL-64E unit's
+/// calibration.
+#[derive(Debug)]
+enum VelodyneDecoder {
+    /// Boxed: its tables are 6.5 KB; an HDL-64E's are shared.
+    Tables(Box<Decoder>),
+    Hdl64(Arc<Hdl64>),
+}
+
+impl VelodyneDecoder {
+    fn decode(
+        &self,
+        payload: &[u8],
+        time_s: f64,
+        sink: impl FnMut(velodyne::Firing),
+    ) -> Result<velodyne::ReturnMode, velodyne::PacketError> {
+        match self {
+            VelodyneDecoder::Tables(d) => d.decode(payload, time_s, sink),
+            VelodyneDecoder::Hdl64(h) => h.decode(payload, time_s, sink),
+        }
+    }
+
+    fn packet_period_s(&self, mode: velodyne::ReturnMode) -> f64 {
+        match self {
+            VelodyneDecoder::Tables(d) => d.packet_period_s(mode),
+            VelodyneDecoder::Hdl64(h) => h.packet_period_s(mode),
+        }
+    }
 }
 
 /// Datagrams this short on an Ouster's lidar port are its IMU's (when both share a port),
@@ -269,10 +297,13 @@ impl SensorStream {
         let cut = cut_deg.unwrap_or_else(|| sensor.default_cut_deg());
         let (decoding, sweeps) = match sensor {
             Sensor::Velodyne(m) => (
-                Decoding::Velodyne(Box::new(Decoder::new(m))),
+                Decoding::Velodyne(VelodyneDecoder::Tables(Box::new(Decoder::new(m)))),
                 Sweeps::new(cut),
             ),
-            Sensor::Hdl64(h) => (Decoding::Hdl64(h.clone()), Sweeps::new(cut)),
+            Sensor::Hdl64(h) => (
+                Decoding::Velodyne(VelodyneDecoder::Hdl64(h.clone())),
+                Sweeps::new(cut),
+            ),
             Sensor::Ouster(o) => {
                 // Columns are a whole step apart: a turn that starts or ends within a step
                 // of the cut is whole.
@@ -294,8 +325,8 @@ impl SensorStream {
     /// The sensor's name.
     pub fn sensor(&self) -> String {
         match &self.decoding {
-            Decoding::Velodyne(d) => d.model().name.to_string(),
-            Decoding::Hdl64(h) => h.name().to_string(),
+            Decoding::Velodyne(VelodyneDecoder::Tables(d)) => d.model().name.to_string(),
+            Decoding::Velodyne(VelodyneDecoder::Hdl64(h)) => h.name().to_string(),
             Decoding::Ouster(o) => o.name(),
         }
     }
@@ -326,26 +357,6 @@ impl SensorStream {
                     Ok(mode) => {
                         self.stats.packets += 1;
                         sweeps.packet(t, decoder.packet_period_s(mode));
-                    }
-                    Err(_) => self.stats.bad_packets += 1,
-                }
-            }
-            Decoding::Hdl64(h) => {
-                if payload.len() == POSITION_PACKET_BYTES {
-                    return None;
-                }
-                let Some(t) = velodyne::packet_time(payload, time_s) else {
-                    self.stats.bad_packets += 1;
-                    return None;
-                };
-                match h.decode(payload, t, |f| {
-                    if let Some(s) = sweeps.push(f.point, f.time_s, f.azimuth) {
-                        done = Some(s);
-                    }
-                }) {
-                    Ok(mode) => {
-                        self.stats.packets += 1;
-                        sweeps.packet(t, h.packet_period_s(mode));
                     }
                     Err(_) => self.stats.bad_packets += 1,
                 }
