@@ -65,18 +65,7 @@ fn every_profile_decodes_to_the_ouster_sdks_points() {
 /// The SDK's trajectory of the same capture (`sdk_poses_kitti.txt`, from the SDK's tests):
 /// each pose's translation.
 fn sdk_positions() -> Vec<[f64; 3]> {
-    positions(&fixture("ouster-os1-128-lowdata.sdk_poses_kitti.txt"))
-}
-
-fn positions(path: &Path) -> Vec<[f64; 3]> {
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let v: Vec<f64> = l.split_whitespace().map(|w| w.parse().unwrap()).collect();
-            [v[3], v[7], v[11]]
-        })
-        .collect()
+    common::kitti_positions(&fixture("ouster-os1-128-lowdata.sdk_poses_kitti.txt"))
 }
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -90,7 +79,7 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 fn a_replayed_ouster_capture_runs_end_to_end() {
     let out = common::scratch("ouster-run");
     common::slamesh_run_ok(&fixture("ouster-os1-128-lowdata.pcap"), &out, &["--strict"]);
-    let ours = positions(&out.join("poses_kitti.txt"));
+    let ours = common::kitti_positions(&out.join("poses_kitti.txt"));
     let theirs = sdk_positions();
     assert_eq!(ours.len(), 3, "three whole turns");
     for (k, (a, b)) in ours.iter().zip(&theirs).enumerate() {

@@ -149,14 +149,7 @@ fn a_replayed_capture_runs_end_to_end() {
         &out,
         &["--strict", "--deskew", "off"],
     );
-    let poses = std::fs::read_to_string(out.join("poses_kitti.txt")).unwrap();
-    let xyz: Vec<[f64; 3]> = poses
-        .lines()
-        .map(|l| {
-            let v: Vec<f64> = l.split_whitespace().map(|w| w.parse().unwrap()).collect();
-            [v[3], v[7], v[11]]
-        })
-        .collect();
+    let xyz = common::kitti_positions(&out.join("poses_kitti.txt"));
     assert_eq!(xyz.len(), 5, "five whole turns in the capture");
     for w in xyz.windows(2) {
         let step = (0..3)
@@ -434,14 +427,7 @@ fn a_replayed_hdl64e_capture_runs_end_to_end() {
             calibration.to_str().unwrap(),
         ],
     );
-    let poses = std::fs::read_to_string(out.join("poses_kitti.txt")).unwrap();
-    let xyz: Vec<[f64; 3]> = poses
-        .lines()
-        .map(|l| {
-            let v: Vec<f64> = l.split_whitespace().map(|w| w.parse().unwrap()).collect();
-            [v[3], v[7], v[11]]
-        })
-        .collect();
+    let xyz = common::kitti_positions(&out.join("poses_kitti.txt"));
     assert_eq!(xyz.len(), 3, "three whole turns");
     for w in xyz.windows(2) {
         let step = [w[1][0] - w[0][0], w[1][1] - w[0][1], w[1][2] - w[0][2]];

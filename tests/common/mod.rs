@@ -272,3 +272,15 @@ pub fn assert_same_points(
     );
     (worst_m, worst_s)
 }
+
+/// The positions (translations) of a KITTI-format trajectory file.
+pub fn kitti_positions(path: &Path) -> Vec<[f64; 3]> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|w| w.parse().unwrap()).collect();
+            [v[3], v[7], v[11]]
+        })
+        .collect()
+}
