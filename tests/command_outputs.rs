@@ -189,6 +189,13 @@ fn eval_reads_kitti_folders_and_calib_files_scores_meshes_and_builds_references(
         json(&slamesh_ok(&args).stdout)
     };
     let folder = eval(&["--reference", s(&seq)]);
+    // Its plots beside the estimate.
+    for plot in [
+        "poses_kitti_eval_trajectory.png",
+        "poses_kitti_eval_error.png",
+    ] {
+        assert!(run.join(plot).is_file(), "{plot}");
+    }
     let calibrated = eval(&[
         "--reference",
         s(&seq.join("poses.txt")),

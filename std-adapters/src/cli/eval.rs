@@ -39,6 +39,14 @@ pub struct EvalArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// With --estimate: where its plots go, PREFIX_trajectory.png (the estimate, aligned, over
+    /// the reference) and PREFIX_error.png (each pose's error over the distance travelled)
+    /// (default: the estimate's path without its extension, and `_eval`).
+    #[arg(long, value_name = "PREFIX", conflicts_with = "no_plot")]
+    pub plot: Option<PathBuf>,
+    /// With --estimate: no plots.
+    #[arg(long)]
+    pub no_plot: bool,
 }
 
 /// One thing `eval` does.
@@ -90,7 +98,21 @@ pub fn eval(args: &EvalArgs) -> Result<(), CliError> {
             Mode::Trajectory {
                 estimate,
                 reference,
-            } => trajectory_errors(estimate, reference, args.calib.as_deref(), args.json)?,
+            } => {
+                let plot = (!args.no_plot).then(|| {
+                    args.plot.clone().unwrap_or_else(|| {
+                        let stem = estimate.file_stem().unwrap_or_default().to_string_lossy();
+                        estimate.with_file_name(format!("{stem}_eval"))
+                    })
+                });
+                trajectory_errors(
+                    estimate,
+                    reference,
+                    args.calib.as_deref(),
+                    args.json,
+                    plot.as_deref(),
+                )?
+            }
             Mode::Mesh {
                 mesh,
                 cloud: Some(cloud),
@@ -106,6 +128,7 @@ fn trajectory_errors(
     reference: &Path,
     calib: Option<&Path>,
     json: bool,
+    plot: Option<&Path>,
 ) -> Result<(), CliError> {
     let est_t = trajectory::read(estimate)?;
     let ref_t = if reference.is_dir() {
@@ -148,6 +171,9 @@ fn trajectory_errors(
     let (end_m, drift_percent) = eval::end_drift(&est, &reference);
     let ate = eval::ate_rmse(&est, &reference);
     let segments = eval::segment_errors(&est, &reference, &eval::KITTI_SEGMENTS);
+    if let Some(prefix) = plot {
+        write_plots(prefix, &est, &reference, ate)?;
+    }
     if json {
         say!(
             "{}",
@@ -298,4 +324,34 @@ fn kitti_reference(sequence: &Path) -> Result<trajectory::Trajectory, slamesh::i
         stamps,
         poses,
     })
+}
+
+/// Writes `PREFIX_trajectory.png` and `PREFIX_error.png` ([`slamesh::io::topview::plots`]).
+fn write_plots(
+    prefix: &Path,
+    estimate: &[slamesh_core::Pose],
+    reference: &[slamesh_core::Pose],
+    ate: f64,
+) -> Result<(), CliError> {
+    use slamesh::io::topview::plots;
+    let align = eval::rigid_alignment(estimate, reference);
+    let aligned: Vec<_> = estimate.iter().map(|p| align * p).collect();
+    let errors = eval::ate_errors(estimate, reference);
+    let mut distance = Vec::with_capacity(reference.len());
+    let mut along = 0.0;
+    for (k, p) in reference.iter().enumerate() {
+        if k > 0 {
+            along += (p.translation.vector - reference[k - 1].translation.vector).norm();
+        }
+        distance.push(along);
+    }
+    let name = |suffix: &str| {
+        let stem = prefix.file_name().unwrap_or_default().to_string_lossy();
+        prefix.with_file_name(format!("{stem}_{suffix}.png"))
+    };
+    let (trajectory, error) = (name("trajectory"), name("error"));
+    plots::trajectories(&aligned, reference, ate, 1200).write_png(&trajectory)?;
+    plots::error_over_distance(&distance, &errors, 1200).write_png(&error)?;
+    log::info!("plots: {}, {}", trajectory.display(), error.display());
+    Ok(())
 }

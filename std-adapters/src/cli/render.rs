@@ -1,10 +1,12 @@
-//! `slamesh render`: a picture of any PLY mesh, from above (hill-shaded, with a scale bar) or
-//! from an oblique angle, coloured by height.
+//! `slamesh render`: a picture of any PLY mesh, from above (hill-shaded) or from an oblique
+//! angle, coloured by height, with a scale bar, a colour scale and a legend; `--clip-above`
+//! leaves out what is above a height (a roof).
 
 use crate::cli::error::CliError;
 use crate::say;
 use clap::{Args, ValueEnum};
 use slamesh::io::ply::read_ply_mesh;
+use slamesh::io::topview::map::Cut;
 use slamesh::io::topview::{Projection, TopView};
 use slamesh_core::Point;
 use std::path::PathBuf;
@@ -29,6 +31,10 @@ pub struct RenderArgs {
     /// Pixels on the picture's long side.
     #[arg(long, default_value_t = 1600, value_parser = clap::value_parser!(u32).range(64..=16384))]
     pub pixels: u32,
+    /// Leave out the triangles above this height (metres; a triangle by its middle): the roof
+    /// of a map of a building.
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub clip_above: Option<f64>,
 }
 
 /// `--view`.
@@ -51,7 +57,13 @@ fn elevation(s: &str) -> Result<f64, String> {
 
 /// Draws the mesh and writes the picture.
 pub fn render(args: &RenderArgs) -> Result<(), CliError> {
-    let mesh = read_ply_mesh(&args.mesh)?;
+    let mut mesh = read_ply_mesh(&args.mesh)?;
+    let cut = args.clip_above.map(|m| Cut::above(m as f32));
+    if let Some(cut) = &cut {
+        let v = &mesh.vertices;
+        mesh.triangles
+            .retain(|t| !cut.hides(&t.map(|i| v[i as usize])));
+    }
     let projection = match args.view {
         ViewFlag::Top => Projection::Top,
         ViewFlag::Oblique => Projection::Oblique {
@@ -70,6 +82,10 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             .unwrap_or(0.0)
     };
     let (z_lo, z_hi) = (at(0.02), at(0.98).max(at(0.02) + 1.0));
+    let z_hi = match &cut {
+        Some(c) => z_hi.min(c.top()).max(z_lo + 0.5),
+        None => z_hi,
+    };
     let projected: Vec<Point> = mesh.vertices.iter().map(|&v| projection.apply(v)).collect();
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in &projected {
@@ -98,6 +114,10 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         z_hi,
     );
     let bar = view.scale_bar();
+    view.colour_scale(z_lo, z_hi);
+    let mut legend = vec![format!("{} triangles", mesh.triangles.len())];
+    legend.extend(cut.as_ref().map(Cut::describe));
+    view.legend(&legend);
     view.write_png(&args.out)?;
     let (w, h) = view.size();
     say!(

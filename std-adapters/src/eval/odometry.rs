@@ -61,13 +61,12 @@ pub fn end_drift(estimate: &[Pose], reference: &[Pose]) -> (f64, f64) {
     (end, if path > 0.0 { 100.0 * end / path } else { 0.0 })
 }
 
-/// Absolute trajectory error: RMSE of the position differences after the rigid transform
-/// that best aligns the estimated positions to the reference ones (Kabsch/Umeyama without
-/// scale). Uses the common prefix.
-pub fn ate_rmse(estimate: &[Pose], reference: &[Pose]) -> f64 {
+/// The rigid transform that best maps the estimated positions onto the reference ones
+/// (Kabsch/Umeyama without scale), over the common prefix; the identity for no poses.
+pub fn rigid_alignment(estimate: &[Pose], reference: &[Pose]) -> Pose {
     let n = estimate.len().min(reference.len());
     if n == 0 {
-        return 0.0;
+        return Pose::identity();
     }
     let p: Vec<Vector3<f64>> = estimate[..n].iter().map(|t| t.translation.vector).collect();
     let q: Vec<Vector3<f64>> = reference[..n]
@@ -89,12 +88,32 @@ pub fn ate_rmse(estimate: &[Pose], reference: &[Pose]) -> f64 {
         }
         _ => Matrix3::identity(),
     };
-    let sum: f64 = p
+    let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
+        &nalgebra::Rotation3::from_matrix_unchecked(rotation),
+    );
+    let translation = mq - rotation * mp;
+    Pose::from_parts(translation.into(), rotation)
+}
+
+/// Each estimated position's distance from its reference after the [`rigid_alignment`], over
+/// the common prefix.
+pub fn ate_errors(estimate: &[Pose], reference: &[Pose]) -> Vec<f64> {
+    let align = rigid_alignment(estimate, reference);
+    estimate
         .iter()
-        .zip(&q)
-        .map(|(a, b)| (rotation * (a - mp) + mq - b).norm_squared())
-        .sum();
-    (sum / n as f64).sqrt()
+        .zip(reference)
+        .map(|(e, r)| ((align * e).translation.vector - r.translation.vector).norm())
+        .collect()
+}
+
+/// Absolute trajectory error: RMSE of the position differences after the
+/// [`rigid_alignment`]. Uses the common prefix.
+pub fn ate_rmse(estimate: &[Pose], reference: &[Pose]) -> f64 {
+    let e = ate_errors(estimate, reference);
+    if e.is_empty() {
+        return 0.0;
+    }
+    (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt()
 }
 
 /// KITTI's relative error over one segment length.

@@ -328,6 +328,11 @@ impl MeshSpool {
             .map_err(|e| FileError::at(&self.paths[2], format!("cannot write: {e}")))
     }
 
+    /// The lowest and highest heights of the mesh's vertices so far (metres).
+    pub fn z_range(&self) -> (f32, f32) {
+        self.z_range
+    }
+
     /// Calls `each` with every triangle added so far, as its three corners, and the highest
     /// vertex `z` of the mesh (for colour scales), in the order they were added. Reads the
     /// spool files (flushed first) one welded set at a time: memory holds one set's vertex

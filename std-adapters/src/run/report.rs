@@ -9,7 +9,7 @@
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
 use crate::io::mesh_spool::MeshSpool;
-use crate::io::topview::TopView;
+use crate::io::topview::map::{self, MapPicture};
 use crate::io::trajectory::{write_kitti_line, write_tum_line};
 use crate::loop_closure::{Closure, LoopReport};
 use crate::run::options::RunOptions;
@@ -398,11 +398,12 @@ const PICTURE_MARGIN_M: f64 = 40.0;
 /// Pixels on the picture's long side.
 const PICTURE_PIXELS: usize = 1000;
 
-/// Writes `file`, a PNG of the spooled mesh from above (coloured by height from 3 m below the
-/// first sensor pose to the mesh's top, at most 20 m above, and hill-shaded) with `path` in
-/// red and a scale bar, covering the path and [`PICTURE_MARGIN_M`] around it,
-/// [`PICTURE_PIXELS`] on its long side (7 bytes a pixel while it is drawn: 7 MB). Nothing
-/// is written for an empty path.
+/// Writes `file`, a PNG of the spooled mesh from above with `path`
+/// ([`crate::io::topview::map`]: a roof over the path cut away, start and end marked, a scale
+/// bar, a colour scale and a legend): heights coloured from 3 m below the first sensor pose to
+/// the mesh's top (2 to 20 m), covering the path and [`PICTURE_MARGIN_M`] around it,
+/// [`PICTURE_PIXELS`] on its long side (7 bytes a pixel while it is drawn: 7 MB). The mesh
+/// is read from the spool twice. Nothing is written for an empty path.
 pub(crate) fn write_topview(
     spool: &mut MeshSpool,
     path: &[Pose],
@@ -411,24 +412,13 @@ pub(crate) fn write_topview(
     if path.is_empty() {
         return Ok(());
     }
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in path {
-        let t = p.translation.vector;
-        lo = [
-            lo[0].min(t.x - PICTURE_MARGIN_M),
-            lo[1].min(t.y - PICTURE_MARGIN_M),
-        ];
-        hi = [
-            hi[0].max(t.x + PICTURE_MARGIN_M),
-            hi[1].max(t.y + PICTURE_MARGIN_M),
-        ];
-    }
-    let mut view = TopView::new(lo, hi, PICTURE_PIXELS);
-    spool.for_each_triangle(|t, z_top| {
-        view.triangles(std::iter::once(t), -3.0, z_top.clamp(2.0, 20.0))
-    })?;
-    view.path(path, [230, 40, 40]);
-    view.scale_bar();
+    let how = MapPicture {
+        pixels: PICTURE_PIXELS,
+        margin_m: PICTURE_MARGIN_M,
+        z_lo: -3.0,
+        z_top: spool.z_range().1.clamp(2.0, 20.0),
+    };
+    let (mut view, _) = map::draw(|f| spool.for_each_triangle(|t, _| f(t)), path, how)?;
     view.write_png(file)
 }
 

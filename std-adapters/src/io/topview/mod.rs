@@ -1,9 +1,15 @@
 //! A picture of the mesh: triangles rasterised from above (or obliquely), coloured by height,
-//! shaded, with trajectories and a scale bar drawn over it; written as PNG.
+//! shaded, with trajectories, their start and end, a scale bar, a colour scale and a legend
+//! drawn over it; written as PNG. [`map`] makes a run's picture (a roof over the path cut
+//! away); [`glyphs`] is the legends' font.
 //!
 //! From above, the shading is a hill-shade of the drawn heights (light from the north-west,
 //! 45 degrees up), so that walls, kerbs and objects read as edges; a triangle is also darker
 //! the steeper it is. Obliquely, each triangle is lit from the viewer.
+
+pub mod glyphs;
+pub mod map;
+pub mod plots;
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
@@ -73,7 +79,11 @@ impl TopView {
     /// An image of the x-y box `[min, max]` (with a margin), at most `max_pixels` on its long
     /// side, seen from above.
     pub fn new(min: [f64; 2], max: [f64; 2], max_pixels: usize) -> Self {
-        let margin = 5.0;
+        Self::with_margin(min, max, max_pixels, 5.0)
+    }
+
+    /// As [`new`](Self::new), with `margin` metres around the box.
+    pub fn with_margin(min: [f64; 2], max: [f64; 2], max_pixels: usize, margin: f64) -> Self {
         let (min, max) = (
             [min[0] - margin, min[1] - margin],
             [max[0] + margin, max[1] + margin],
@@ -278,12 +288,12 @@ impl TopView {
         metres
     }
 
-    /// Writes `text` (digits, `.`, `m` and spaces) in white 3 x 5 glyphs three pixels a dot,
-    /// its top-left corner at `(x, y)`.
+    /// Writes `text` in white 3 x 5 glyphs ([`glyphs`]) three pixels a dot, its top-left
+    /// corner at `(x, y)`: 12 pixels a character, 15 high.
     fn text(&mut self, x: i64, y: i64, text: &str) {
         let mut at = x;
         for ch in text.chars() {
-            let rows = glyph(ch);
+            let rows = glyphs::glyph(ch);
             for (r, bits) in rows.iter().enumerate() {
                 for col in 0..3 {
                     if bits & (0b100 >> col) != 0 {
@@ -294,6 +304,79 @@ impl TopView {
             }
             at += 12;
         }
+    }
+
+    /// Writes `lines` in the upper-left corner, white on a dark box.
+    pub fn legend(&mut self, lines: &[String]) {
+        self.shade_relief();
+        if lines.is_empty() {
+            return;
+        }
+        let widest = lines.iter().map(|l| l.chars().count()).max().unwrap_or(0) as i64;
+        let (x0, y0) = (8i64, 8i64);
+        self.fill(
+            x0,
+            x0 + 12 * widest + 8,
+            y0,
+            y0 + 22 * lines.len() as i64 + 4,
+            [0, 0, 0],
+        );
+        for (k, line) in lines.iter().enumerate() {
+            self.text(x0 + 6, y0 + 6 + 22 * k as i64, line);
+        }
+    }
+
+    /// Writes `text` white on a black box with its top-left corner at world `(x, y)` (a
+    /// chart's tick label).
+    pub fn label_at(&mut self, x: f64, y: f64, text: &str) {
+        self.shade_relief();
+        let (px, py) = self.pixel(x, y);
+        let (px, py) = (px.round() as i64, py.round() as i64);
+        let n = text.chars().count() as i64;
+        self.fill(px - 2, px + 12 * n, py - 2, py + 16, [0, 0, 0]);
+        self.text(px, py, text);
+    }
+
+    /// A square marker of `colour` (with a black outline) at world `(x, y)`: a path's start
+    /// or end.
+    pub fn marker(&mut self, x: f64, y: f64, colour: [u8; 3]) {
+        self.shade_relief();
+        let (px, py) = self.pixel(x, y);
+        let (px, py) = (px.round() as i64, py.round() as i64);
+        self.fill(px - 6, px + 6, py - 6, py + 6, [0, 0, 0]);
+        self.fill(px - 4, px + 4, py - 4, py + 4, colour);
+    }
+
+    /// The colour scale of heights `z_lo` to `z_hi` (metres) along the right edge, with its
+    /// ends' heights written beside it.
+    pub fn colour_scale(&mut self, z_lo: f32, z_hi: f32) {
+        self.shade_relief();
+        let label = |z: f32| format!("{z:.1} m");
+        let room = 12 * label(z_lo).len().max(label(z_hi).len()) as i64 + 8;
+        let (w, h) = (self.width as i64, self.height as i64);
+        let (x1, bar) = (w - room - 10, 14i64);
+        let (top, bottom) = (40i64, (h * 2 / 5).max(120).min(h - 30));
+        self.fill(x1 - bar - 1, x1 + 1, top - 1, bottom + 1, [0, 0, 0]);
+        for y in top..=bottom {
+            let f = (bottom - y) as f32 / (bottom - top).max(1) as f32;
+            self.fill(x1 - bar, x1, y, y, shade(ramp(f), 1.0));
+        }
+        self.fill(x1 + 2, w - 4, top - 4, top + 16, [0, 0, 0]);
+        self.text(x1 + 6, top - 2, &label(z_hi));
+        self.fill(x1 + 2, w - 4, bottom - 14, bottom + 6, [0, 0, 0]);
+        self.text(x1 + 6, bottom - 12, &label(z_lo));
+    }
+
+    /// The height drawn on top at world `(x, y)` (from above), if anything was drawn there.
+    pub fn height_at(&self, x: f64, y: f64) -> Option<f32> {
+        let (px, py) = self.pixel(x, y);
+        if px < 0.0 || py < 0.0 {
+            return None;
+        }
+        let (px, py) = (px as usize, py as usize);
+        (px < self.width && py < self.height)
+            .then(|| self.top[py * self.width + px])
+            .filter(|z| z.is_finite())
     }
 
     /// Width and height in pixels.
@@ -320,25 +403,6 @@ impl TopView {
 
 /// The picture's background.
 const BACKGROUND: [u8; 3] = [24, 24, 28];
-
-/// Rows of a 3 x 5 glyph, the high bit on the left (blank for a character without one).
-fn glyph(ch: char) -> [u8; 5] {
-    match ch {
-        '0' => [0b111, 0b101, 0b101, 0b101, 0b111],
-        '1' => [0b010, 0b110, 0b010, 0b010, 0b111],
-        '2' => [0b111, 0b001, 0b111, 0b100, 0b111],
-        '3' => [0b111, 0b001, 0b111, 0b001, 0b111],
-        '4' => [0b101, 0b101, 0b111, 0b001, 0b001],
-        '5' => [0b111, 0b100, 0b111, 0b001, 0b111],
-        '6' => [0b111, 0b100, 0b111, 0b101, 0b111],
-        '7' => [0b111, 0b001, 0b010, 0b010, 0b010],
-        '8' => [0b111, 0b101, 0b111, 0b101, 0b111],
-        '9' => [0b111, 0b101, 0b111, 0b001, 0b111],
-        '.' => [0, 0, 0, 0, 0b010],
-        'm' => [0, 0b110, 0b111, 0b101, 0b101],
-        _ => [0; 5],
-    }
-}
 
 /// A blue-green-yellow-red ramp over `f` in 0..1 (the picture's and the PLY colours).
 pub fn ramp(f: f32) -> [f32; 3] {
