@@ -12,7 +12,8 @@
 //! the drive goes on round the loop past its start (the loop is about 1 200 frames), for loop
 //! closure. `--path campus` (about 2 400 frames, several loops through the town's inner
 //! streets) or `--path block` (one block round and on past the start, about 450 frames)
-//! drive another path. `--azimuth-steps N`: firings per turn of each of the 64 beams (1 000 by
+//! drive another path; `--path hand-held` and `--path drone` carry a rig through the town at
+//! 2 Hz with fast turns, as the example `hard_motion` does (`times.txt` then 2 Hz). `--azimuth-steps N`: firings per turn of each of the 64 beams (1 000 by
 //! default, about 55 000 points in range; 2 000 gives a KITTI-sized scan of about 110 000).
 
 #[path = "common/flags.rs"]
@@ -32,10 +33,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seed: u64 = flags.parse_or("--seed", 1)?;
     let start: usize = flags.parse_or("--start", 0)?;
     let lateral: f64 = flags.parse_or("--lateral-m", 0.0)?;
+    // The carried rigs scan twice a second (docs/design.md §1.11); the car ten times.
+    let period_s = match flags.value("--path") {
+        Some("hand-held" | "drone") => 0.5,
+        _ => 0.1,
+    };
     let mut drive = match flags.value("--path") {
         Some("campus") => Drive::town_along(slamesh_sim::town::campus_path(), start + frames, seed),
         Some("block") => Drive::town_along(slamesh_sim::town::block_path(), start + frames, seed),
-        Some(other) => return Err(format!("--path {other}: campus or block").into()),
+        Some("hand-held") => {
+            Drive::carried(start + frames, slamesh_sim::town::Carried::HANDHELD, seed)
+        }
+        Some("drone") => Drive::carried(start + frames, slamesh_sim::town::Carried::DRONE, seed),
+        Some(other) => {
+            return Err(format!("--path {other}: campus, block, hand-held or drone").into())
+        }
         None if flags.has("--round") => Drive::town_round(start + frames, seed),
         None => Drive::town(start + frames, seed),
     };
@@ -59,7 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         fs::write(out.join("velodyne").join(format!("{i:06}.bin")), bin)?;
         write_kitti_line(&mut poses, &(first * drive.poses[i]))?;
-        writeln!(times, "{:.6}", i as f64 * 0.1)?;
+        writeln!(times, "{:.6}", i as f64 * period_s)?;
     }
     poses.flush()?;
     times.flush()?;

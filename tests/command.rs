@@ -124,6 +124,10 @@ fn bad_frames_are_reported_and_skipped_and_the_run_completes() {
     assert_eq!(report["summary"]["skipped"].as_array().unwrap().len(), 3);
     assert_eq!(report["frames"].as_array().unwrap().len(), 7);
     assert_eq!(report["frames"][5]["status"], "Skipped");
+    // What each outcome cost: the 4 used frames, the skipped ones left out.
+    let outcomes = report["summary"]["cost_by_outcome"].as_array().unwrap();
+    let counted: u64 = outcomes.iter().map(|o| o["frames"].as_u64().unwrap()).sum();
+    assert_eq!(counted, 4, "{outcomes:?}");
     // One KITTI line per frame (skipped frames repeat the last pose); TUM: used frames only.
     let kitti = trajectory::read(&out.join("poses_kitti.txt"))
         .unwrap()

@@ -473,6 +473,21 @@ fn bench_takes_a_preset() {
         (Some("meshing"), Some(1))
     );
     assert_eq!(b["scans_timed"], 3);
+    // Each outcome's frames and cost: the three timed scans, the first a FirstScan.
+    let outcomes = b["outcomes"].as_array().unwrap();
+    let frames: u64 = outcomes.iter().map(|o| o["frames"].as_u64().unwrap()).sum();
+    assert_eq!(frames, 3, "{outcomes:?}");
+    assert!(outcomes.iter().any(|o| o["status"] == "FirstScan"));
+    assert!(outcomes
+        .iter()
+        .all(|o| o["median_ms"].as_f64().unwrap() > 0.0));
+    // --scaling: one row a thread count, 1 first, up to the cores present.
+    let o = slamesh_ok(&["bench", s(&dir), "--scaling", "--repeat", "1", "--json"]);
+    let rows = json(&o.stdout)["scaling"].as_array().unwrap().clone();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
+    assert_eq!(rows[0]["threads"], 1);
+    assert_eq!(rows.last().unwrap()["threads"].as_u64(), Some(cores));
+    assert!((rows[0]["speed_vs_one"].as_f64().unwrap() - 1.0).abs() < 1e-12);
     let o = slamesh(&["bench", s(&dir), "--preset", "nonsense"]);
     assert!(!o.status.success() && text(&o.stderr).contains("nonsense"));
     std::fs::remove_dir_all(&dir).unwrap();

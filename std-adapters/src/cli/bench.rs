@@ -1,4 +1,6 @@
-//! `slamesh bench`: the pipeline timed stage by stage over a folder of scans.
+//! `slamesh bench`: the pipeline timed stage by stage over a folder of scans, the cost of each
+//! registration outcome (a hard motion's price), and with `--scaling` how the time scales
+//! with the threads, from one to every core.
 
 use crate::cli::error::CliError;
 use crate::cli::input::InputArgs;
@@ -6,7 +8,7 @@ use crate::cli::settings::Profile;
 use crate::say;
 use clap::Args;
 use slamesh::io::config_file::WindowSettings;
-use slamesh::run::report::spreads;
+use slamesh::run::report::{cost_by_outcome, spreads, Summary};
 use slamesh::run::timing::StageMs;
 use slamesh::run::{run, RunOptions};
 use slamesh_core::KittiCapacity;
@@ -30,6 +32,44 @@ pub struct BenchArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Time the scans on 1, 2, 4, ... threads up to every core, and say how the time scales
+    /// (instead of one --threads).
+    #[arg(long, conflicts_with = "threads")]
+    pub scaling: bool,
+}
+
+/// A warm-up pass, then `repeat` timed passes: each used frame's stage times and its
+/// (status, total milliseconds), and the last pass's summary.
+type Timed = (Vec<StageMs>, Vec<(String, f64)>, Summary);
+
+fn time_passes(
+    source: &mut slamesh::run::Input,
+    opts: &RunOptions,
+    repeat: usize,
+) -> Result<Timed, CliError> {
+    let (mut timed, mut outcomes) = (Vec::new(), Vec::new());
+    let mut last = None;
+    for pass in 0..=repeat.max(1) {
+        let summary = run::<KittiCapacity>(source, opts, |rec| {
+            if pass > 0 && rec.error.is_none() {
+                timed.push(rec.ms);
+                outcomes.push((rec.status.clone(), rec.ms.total));
+            }
+        })?;
+        last = Some(summary);
+    }
+    let _ = std::fs::remove_dir_all(&opts.out);
+    Ok((timed, outcomes, last.ok_or(CliError::NoFrameUsed)?))
+}
+
+/// The thread counts `--scaling` times: 1, 2, 4, ... and every core.
+fn thread_counts() -> Vec<usize> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut n: Vec<usize> = std::iter::successors(Some(1usize), |k| Some(k * 2))
+        .take_while(|k| *k < cores)
+        .collect();
+    n.push(cores);
+    n
 }
 
 /// A warm-up pass, then `repeat` timed passes: per-stage median and 95th percentile.
@@ -51,18 +91,10 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
         input: input.display().to_string(),
         ..RunOptions::default()
     };
-    let mut timed: Vec<StageMs> = Vec::new();
-    let mut last = None;
-    for pass in 0..=repeat.max(1) {
-        let summary = run::<KittiCapacity>(&mut source, &opts, |rec| {
-            if pass > 0 && rec.error.is_none() {
-                timed.push(rec.ms);
-            }
-        })?;
-        last = Some(summary);
+    if args.scaling {
+        return scaling(&mut source, &opts, repeat, json);
     }
-    let _ = std::fs::remove_dir_all(&out);
-    let summary = last.ok_or(CliError::NoFrameUsed)?;
+    let (timed, outcomes, summary) = time_passes(&mut source, &opts, repeat)?;
     let stages = spreads(&timed);
     let total = stages
         .iter()
@@ -87,6 +119,7 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
                 "threads": summary.threads,
                 "scans_timed": timed.len(),
                 "stages": stage_json,
+                "outcomes": cost_by_outcome(outcomes),
                 "hz": 1000.0 / total.max(1e-9),
                 "peak_rss_mb": peak,
             })
@@ -108,6 +141,62 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
             1000.0 / total.max(1e-9),
             peak.map_or("unknown".into(), |m| format!("{m:.0} MB"))
         );
+        say!(
+            "{:<14} {:>7} {:>10} {:>10}",
+            "outcome",
+            "frames",
+            "median ms",
+            "p95 ms"
+        );
+        for o in cost_by_outcome(outcomes) {
+            say!(
+                "{:<14} {:>7} {:>10.2} {:>10.2}",
+                o.status,
+                o.frames,
+                o.median_ms,
+                o.p95_ms
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `--scaling`: the same passes on each of [`thread_counts`], the median whole frame's time
+/// and the speed against one thread.
+fn scaling(
+    source: &mut slamesh::run::Input,
+    opts: &RunOptions,
+    repeat: usize,
+    json: bool,
+) -> Result<(), CliError> {
+    let mut rows = Vec::new();
+    for threads in thread_counts() {
+        let opts = RunOptions {
+            threads,
+            ..opts.clone()
+        };
+        let (timed, _, summary) = time_passes(source, &opts, repeat)?;
+        let total = spreads(&timed)
+            .into_iter()
+            .find(|(n, _)| n == "total")
+            .map_or(0.0, |(_, s)| s.median);
+        rows.push((summary.threads, total));
+    }
+    let one = rows.first().map_or(0.0, |r| r.1);
+    if json {
+        let rows: Vec<_> = rows
+            .iter()
+            .map(|(t, ms)| serde_json::json!({"threads": t, "median_ms": ms, "speed_vs_one": one / ms.max(1e-9)}))
+            .collect();
+        say!(
+            "{}",
+            serde_json::json!({"input": opts.input, "scaling": rows})
+        );
+    } else {
+        say!("{:>8} {:>10} {:>12}", "threads", "median ms", "speed vs 1");
+        for (t, ms) in &rows {
+            say!("{:>8} {:>10.2} {:>12.2}", t, ms, one / ms.max(1e-9));
+        }
     }
     Ok(())
 }

@@ -141,6 +141,8 @@ pub struct Summary {
     pub capacity: String,
     /// Median and 95th percentile per stage over used frames (ms).
     pub stage_ms: Vec<(String, Spread)>,
+    /// What each registration outcome's frames cost ([`cost_by_outcome`]).
+    pub cost_by_outcome: Vec<OutcomeCost>,
     /// The mesh written.
     pub mesh_vertices: u64,
     /// The mesh written.
@@ -346,22 +348,81 @@ pub fn registration_reason(
 pub fn spreads(ms: &[StageMs]) -> Vec<(String, Spread)> {
     (0..StageMs::NAMES.len())
         .map(|k| {
-            let mut v: Vec<f64> = ms.iter().map(|m| m.values()[k]).collect();
-            v.sort_by(f64::total_cmp);
-            let at = |q: f64| {
-                v.get(((v.len() as f64 - 1.0) * q).round() as usize)
-                    .copied()
-                    .unwrap_or(0.0)
-            };
-            (
-                StageMs::NAMES[k].to_string(),
-                Spread {
-                    median: at(0.5),
-                    p95: at(0.95),
-                },
-            )
+            let v: Vec<f64> = ms.iter().map(|m| m.values()[k]).collect();
+            (StageMs::NAMES[k].to_string(), Spread::of(v))
         })
         .collect()
+}
+
+impl Spread {
+    /// The median and 95th percentile of `v` (the nearest rank; 0 for none).
+    pub fn of(mut v: Vec<f64>) -> Self {
+        v.sort_by(f64::total_cmp);
+        let at = |q: f64| {
+            v.get(((v.len() as f64 - 1.0) * q).round() as usize)
+                .copied()
+                .unwrap_or(0.0)
+        };
+        Spread {
+            median: at(0.5),
+            p95: at(0.95),
+        }
+    }
+}
+
+/// What the frames of one registration outcome (`Converged`, `Polished`, `Recovered`, ...)
+/// cost: a hard motion's price in time.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutcomeCost {
+    /// The status.
+    pub status: String,
+    /// Its frames.
+    pub frames: usize,
+    /// Their whole time per frame (milliseconds): median and 95th percentile.
+    pub median_ms: f64,
+    /// See [`median_ms`](Self::median_ms).
+    pub p95_ms: f64,
+}
+
+/// Each outcome's cost from (status, total milliseconds) a frame, the commonest first;
+/// skipped frames are left out.
+pub fn cost_by_outcome(frames: impl IntoIterator<Item = (String, f64)>) -> Vec<OutcomeCost> {
+    let mut by: Vec<(String, Vec<f64>)> = Vec::new();
+    for (status, ms) in frames {
+        if status == "Skipped" {
+            continue;
+        }
+        match by.iter_mut().find(|(s, _)| *s == status) {
+            Some((_, v)) => v.push(ms),
+            None => by.push((status, vec![ms])),
+        }
+    }
+    let mut out: Vec<OutcomeCost> = by
+        .into_iter()
+        .map(|(status, v)| {
+            let frames = v.len();
+            let s = Spread::of(v);
+            OutcomeCost {
+                status,
+                frames,
+                median_ms: s.median,
+                p95_ms: s.p95,
+            }
+        })
+        .collect();
+    out.sort_by(|a, b| b.frames.cmp(&a.frames).then(a.status.cmp(&b.status)));
+    out
+}
+
+/// [`cost_by_outcome`] of the frame records spooled in `frames` (one JSON object a line).
+pub(crate) fn cost_by_outcome_in(frames: &Path) -> Result<Vec<OutcomeCost>, FileError> {
+    let file = std::fs::File::open(frames)
+        .map_err(|e| FileError::at(frames, format!("cannot read: {e}")))?;
+    let records = std::io::BufRead::lines(std::io::BufReader::new(file))
+        .map_while(Result::ok)
+        .filter_map(|l| serde_json::from_str::<FrameRecord>(&l).ok())
+        .map(|r| (r.status, r.ms.total));
+    Ok(cost_by_outcome(records))
 }
 
 /// Writes `poses_tum.txt` (used frames, with their stamps) and `poses_kitti.txt` (every frame,
@@ -464,4 +525,35 @@ pub(crate) fn write_report(
         }
         w.write_all(b"\n  ]\n}\n")
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outcomes_are_counted_and_timed_the_commonest_first() {
+        let frames = [
+            ("Converged", 10.0),
+            ("Recovered", 80.0),
+            ("Converged", 12.0),
+            ("Skipped", 1.0),
+            ("Converged", 11.0),
+            ("Recovered", 60.0),
+        ]
+        .map(|(s, ms)| (s.to_string(), ms));
+        let c = cost_by_outcome(frames);
+        assert_eq!(c.len(), 2, "skipped frames are left out");
+        assert_eq!((c[0].status.as_str(), c[0].frames), ("Converged", 3));
+        assert_eq!((c[0].median_ms, c[0].p95_ms), (11.0, 12.0));
+        assert_eq!((c[1].status.as_str(), c[1].frames), ("Recovered", 2));
+        assert_eq!(c[1].median_ms, 80.0);
+        assert_eq!(
+            Spread::of(Vec::new()),
+            Spread {
+                median: 0.0,
+                p95: 0.0
+            }
+        );
+    }
 }

@@ -260,9 +260,8 @@ impl<'a, C: Capacity> Run<'a, C> {
         rec.stamp = stamp;
         rec.points_dropped_by_reader = read.dropped_by_reader;
         let motion = self.last_motion(source);
-        // The next frame is read (on this thread) while this one registers (on the pool), and
-        // filtered ahead unless it is to be deskewed (with this frame's motion) or is larger
-        // than the capacity.
+        // The next frame is read here while this one registers on the pool, and filtered
+        // ahead unless it is to be deskewed (with this frame's motion) or outgrows capacity.
         let (workers, config) = (&self.workers, &self.opts.config);
         let look_ahead = &mut self.ahead;
         let mut read_next = Some(|| {
@@ -563,6 +562,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             threads: self.workers.threads(),
             capacity: C::NAME.to_string(),
             stage_ms: spreads(&used_ms),
+            cost_by_outcome: super::report::cost_by_outcome_in(&self.frames_path)?,
             mesh_vertices: counts.vertices,
             mesh_triangles: counts.triangles,
             map_cells: map.cell_count(),
