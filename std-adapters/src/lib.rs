@@ -11,14 +11,17 @@
 //! | odometry and mesh accuracy | [`eval`] |
 //! | loop closure: revisits found, the pose graph, the map rebuilt | [`loop_closure`] |
 //! | the simulated demo (feature `sim`) | `demo` |
+//! | the `slamesh` command, one file per subcommand (feature `cli`) | `cli` |
 //! | the live view and its recording for the Foxglove app (feature `view`) | `view` |
 //!
-//! The `slamesh` command (`src/main.rs`, one file per subcommand in `src/cli/`) is built on
-//! these. The simulator is its own crate, `slamesh-sim`, linked only with the `sim` feature
+//! The `slamesh` command (`src/main.rs`, which calls [`cli::main`]) is built on these; the
+//! Python module (`python/`) runs the same subcommands through [`cli::run_args`]. The simulator is its own crate, `slamesh-sim`, linked only with the `sim` feature
 //! (on by default, for `slamesh demo`); a robot's build can leave it out with
 //! `default-features = false`.
 #![deny(missing_docs)]
 
+#[cfg(feature = "cli")]
+pub mod cli;
 #[cfg(feature = "sim")]
 pub mod demo;
 pub mod eval;

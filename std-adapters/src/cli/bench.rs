@@ -5,12 +5,12 @@
 use crate::cli::error::CliError;
 use crate::cli::input::InputArgs;
 use crate::cli::settings::Profile;
+use crate::io::config_file::WindowSettings;
+use crate::run::report::{cost_by_outcome, spreads, Summary};
+use crate::run::timing::StageMs;
+use crate::run::{run, RunOptions};
 use crate::say;
 use clap::Args;
-use slamesh::io::config_file::WindowSettings;
-use slamesh::run::report::{cost_by_outcome, spreads, Summary};
-use slamesh::run::timing::StageMs;
-use slamesh::run::{run, RunOptions};
 use slamesh_core::KittiCapacity;
 
 /// `slamesh bench`'s arguments.
@@ -43,7 +43,7 @@ pub struct BenchArgs {
 type Timed = (Vec<StageMs>, Vec<(String, f64)>, Summary);
 
 fn time_passes(
-    source: &mut slamesh::run::Input,
+    source: &mut crate::run::Input,
     opts: &RunOptions,
     repeat: usize,
 ) -> Result<Timed, CliError> {
@@ -164,7 +164,7 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
 /// `--scaling`: the same passes on each of [`thread_counts`], the median whole frame's time
 /// and the speed against one thread.
 fn scaling(
-    source: &mut slamesh::run::Input,
+    source: &mut crate::run::Input,
     opts: &RunOptions,
     repeat: usize,
     json: bool,

@@ -1,8 +1,8 @@
 //! `slamesh config`: print a configuration file with every parameter and its documentation.
 
+use crate::io::config_file::{self, PRESETS};
 use crate::say;
 use clap::Args;
-use slamesh::io::config_file::{self, PRESETS};
 
 /// `slamesh config`'s arguments.
 #[derive(Args, Debug)]

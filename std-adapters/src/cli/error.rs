@@ -1,7 +1,7 @@
 //! [`CliError`]: why a subcommand failed, with the error of the layer that failed kept whole.
 
-use slamesh::io::FileError;
-use slamesh::run::RunError;
+use crate::io::FileError;
+use crate::run::RunError;
 use std::fmt;
 
 /// Why a subcommand failed.

@@ -3,13 +3,13 @@
 
 use crate::cli::error::CliError;
 use crate::cli::run::read_given_poses;
+use crate::eval::mesh as mesh_eval;
+use crate::eval::odometry::{self as eval, consecutive_errors};
+use crate::eval::topology::Topology;
+use crate::io::scans::{read_scan, ScanFolder};
+use crate::io::{kitti, ply, trajectory};
 use crate::say;
 use clap::Args;
-use slamesh::eval::mesh as mesh_eval;
-use slamesh::eval::odometry::{self as eval, consecutive_errors};
-use slamesh::eval::topology::Topology;
-use slamesh::io::scans::{read_scan, ScanFolder};
-use slamesh::io::{kitti, ply, trajectory};
 use std::path::{Path, PathBuf};
 
 /// `slamesh eval`'s arguments.
@@ -309,7 +309,7 @@ fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
 
 /// A KITTI sequence folder's LiDAR poses, with its `times.txt` as their times when it has
 /// one time a pose.
-fn kitti_reference(sequence: &Path) -> Result<trajectory::Trajectory, slamesh::io::FileError> {
+fn kitti_reference(sequence: &Path) -> Result<trajectory::Trajectory, crate::io::FileError> {
     let poses = kitti::reference_lidar_poses(sequence)?;
     let stamps = std::fs::read_to_string(sequence.join("times.txt"))
         .ok()
@@ -326,14 +326,14 @@ fn kitti_reference(sequence: &Path) -> Result<trajectory::Trajectory, slamesh::i
     })
 }
 
-/// Writes `PREFIX_trajectory.png` and `PREFIX_error.png` ([`slamesh::io::topview::plots`]).
+/// Writes `PREFIX_trajectory.png` and `PREFIX_error.png` ([`crate::io::topview::plots`]).
 fn write_plots(
     prefix: &Path,
     estimate: &[slamesh_core::Pose],
     reference: &[slamesh_core::Pose],
     ate: f64,
 ) -> Result<(), CliError> {
-    use slamesh::io::topview::plots;
+    use crate::io::topview::plots;
     let align = eval::rigid_alignment(estimate, reference);
     let aligned: Vec<_> = estimate.iter().map(|p| align * p).collect();
     let errors = eval::ate_errors(estimate, reference);

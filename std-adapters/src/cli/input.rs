@@ -1,11 +1,11 @@
 //! Where a command's frames come from (`run`, `mesh`, `localize`, `bench`): the input and how
 //! to read it.
 
+use crate::io::kitti::BinFields;
+use crate::io::packets::PacketOptions;
+use crate::io::FileError;
+use crate::run::Input;
 use clap::Args;
-use slamesh::io::kitti::BinFields;
-use slamesh::io::packets::PacketOptions;
-use slamesh::io::FileError;
-use slamesh::run::Input;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -55,7 +55,7 @@ impl InputArgs {
         let live = self
             .input
             .to_str()
-            .and_then(slamesh::io::live::address)
+            .and_then(crate::io::live::address)
             .is_some();
         if live {
             let flag = stop.clone();

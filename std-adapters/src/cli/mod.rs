@@ -16,6 +16,7 @@ pub mod settings;
 use clap::{ArgAction, Parser, Subcommand};
 pub use error::CliError;
 use indicatif::{ProgressBar, ProgressStyle};
+use std::ffi::OsString;
 use std::io::Write as _;
 
 /// Prints a line to stdout; a closed pipe (`slamesh ... | head`) is not an error.
@@ -25,6 +26,35 @@ macro_rules! say {
         use std::io::Write as _;
         let _ = writeln!(std::io::stdout().lock(), $($arg)*);
     }};
+}
+
+/// The `slamesh` command: its arguments parsed, the logger set up, the subcommand run; a
+/// failure is logged and ends with a failing exit code.
+pub fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    cli.init_logger();
+    match cli.run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            log::error!("{e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// A subcommand run as the command runs it, from its arguments without the program's name
+/// (`["run", "scans/", "--out", "out/"]`), for a program that embeds the command (the Python
+/// module's `slamesh.run`). A parse failure is `Err` with clap's message (or the help text);
+/// the logger is the command's, set up once per process.
+pub fn run_args<I, T>(args: I) -> Result<(), String>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let argv = std::iter::once(OsString::from("slamesh")).chain(args.into_iter().map(Into::into));
+    let cli = Cli::try_parse_from(argv).map_err(|e| e.to_string())?;
+    cli.init_logger();
+    cli.run().map_err(|e| e.to_string())
 }
 
 /// The command line.

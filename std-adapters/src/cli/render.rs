@@ -3,11 +3,11 @@
 //! leaves out what is above a height (a roof).
 
 use crate::cli::error::CliError;
+use crate::io::ply::read_ply_mesh;
+use crate::io::topview::map::Cut;
+use crate::io::topview::{Projection, TopView};
 use crate::say;
 use clap::{Args, ValueEnum};
-use slamesh::io::ply::read_ply_mesh;
-use slamesh::io::topview::map::Cut;
-use slamesh::io::topview::{Projection, TopView};
 use slamesh_core::Point;
 use std::path::PathBuf;
 

@@ -5,17 +5,17 @@ use crate::cli::input::InputArgs;
 use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
 use crate::cli::settings::{Profile, WindowFlags};
+use crate::io::mesh_spool::{MeshColour, MeshFormat};
+use crate::io::trajectory::Trajectory;
+use crate::io::{kitti, trajectory, FileError};
+use crate::loop_closure::settings::LoopSettings;
+use crate::run::capacity;
+use crate::run::memory;
+use crate::run::session::{Deskew, InitialPose};
+use crate::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use crate::say;
 use clap::Args;
 use indicatif::ProgressBar;
-use slamesh::io::mesh_spool::{MeshColour, MeshFormat};
-use slamesh::io::trajectory::Trajectory;
-use slamesh::io::{kitti, trajectory, FileError};
-use slamesh::loop_closure::settings::LoopSettings;
-use slamesh::run::capacity;
-use slamesh::run::memory;
-use slamesh::run::session::{Deskew, InitialPose};
-use slamesh::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use std::path::{Path, PathBuf};
 
@@ -28,6 +28,7 @@ pub struct RunArgs {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
+    /// Where the parameters come from (`--preset`, `--config`).
     #[command(flatten)]
     pub profile: Profile,
     /// Reconstruction threads (1: serial; 0: one per core).
@@ -39,6 +40,7 @@ pub struct RunArgs {
     /// Colour mesh.ply's vertices (red, green, blue) by height or by variance.
     #[arg(long, value_enum, default_value_t = ColourFlag::None)]
     pub colour: ColourFlag,
+    /// The sliding window's flags.
     #[command(flatten)]
     pub window: WindowFlags,
     /// Save a checkpoint (the map and the run so far, `checkpoint.bin` in the output folder)
@@ -93,7 +95,7 @@ pub struct RunArgs {
     /// Serve a live view for the Foxglove app on ADDR (default 127.0.0.1:8765, this machine
     /// only; reach it from a laptop through an SSH tunnel). It only publishes.
     #[cfg(feature = "view")]
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = slamesh::view::DEFAULT_ADDRESS)]
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::view::DEFAULT_ADDRESS)]
     pub view: Option<String>,
     /// Record the view's channels to slam.mcap in the output folder (opens in the Foxglove app).
     #[cfg(feature = "view")]
@@ -151,6 +153,7 @@ pub enum CapacityFlag {
 /// `slamesh mesh`'s arguments.
 #[derive(Args, Debug)]
 pub struct MeshArgs {
+    /// What `run` takes.
     #[command(flatten)]
     pub run: RunArgs,
     /// LiDAR poses, one per frame (KITTI or TUM format).
@@ -165,6 +168,7 @@ pub struct MeshArgs {
 /// `slamesh localize`'s arguments.
 #[derive(Args, Debug)]
 pub struct LocalizeArgs {
+    /// What `run` takes.
     #[command(flatten)]
     pub run: RunArgs,
     /// Keep fusing the scans into the map (mapping on); without it the map is fixed.
@@ -213,8 +217,9 @@ fn parse_pose(text: &str) -> Result<slamesh_core::Pose, String> {
             t(x, y, z),
             nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw.to_radians()),
         )),
-        [_, _, _, _, _, _, _, _] => slamesh::io::trajectory::tum_pose(&v)
-            .ok_or_else(|| "the quaternion is zero".to_string()),
+        [_, _, _, _, _, _, _, _] => {
+            crate::io::trajectory::tum_pose(&v).ok_or_else(|| "the quaternion is zero".to_string())
+        }
         _ => Err(format!(
             "{} numbers: give \"x y z yaw_deg\" or a TUM line \"t x y z qx qy qz qw\"",
             v.len()
@@ -251,7 +256,7 @@ fn run_with(
     let mut s = match &args.map {
         // The map's own configuration, unless one is named.
         Some(map) if args.profile.preset.is_none() && args.profile.config.is_none() => {
-            slamesh::run::saved_map::config_of(map)?
+            crate::run::saved_map::config_of(map)?
         }
         _ => args.profile.resolve(default_preset)?,
     };
@@ -312,7 +317,7 @@ fn run_with(
             DeskewFlag::Off => Deskew::Off,
         },
         #[cfg(feature = "view")]
-        view: slamesh::view::ViewOptions {
+        view: crate::view::ViewOptions {
             serve: args.view.clone(),
             record: args.record,
         },

@@ -3,9 +3,9 @@
 //! scene's scale ([`fit_to_scene`]).
 
 use crate::cli::error::CliError;
+use crate::io::config_file::{self, Settings, WindowSettings, PRESETS};
+use crate::run::{scale, FrameSource};
 use clap::Args;
-use slamesh::io::config_file::{self, Settings, WindowSettings, PRESETS};
-use slamesh::run::{scale, FrameSource};
 use std::path::PathBuf;
 
 /// Where the pipeline's parameters come from.

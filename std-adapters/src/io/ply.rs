@@ -346,6 +346,11 @@ pub struct PlyMesh {
     pub vertices: Vec<Point>,
     /// Triangles as vertex indices (polygons are split into fans).
     pub triangles: Vec<[u32; 3]>,
+    /// Each vertex's normal (`nx ny nz`), when the file has them (slamesh's meshes do);
+    /// otherwise empty.
+    pub normals: Vec<[f32; 3]>,
+    /// Each vertex's variance (`variance`), when the file has it; otherwise empty.
+    pub variances: Vec<f32>,
 }
 
 impl PlyMesh {
@@ -358,7 +363,8 @@ impl PlyMesh {
 }
 
 /// Reads the vertices and faces (`vertex_indices` or `vertex_index`) of a PLY mesh, in any of
-/// the three formats. Faces referring to missing vertices are an error.
+/// the three formats, with the vertices' normals and variances when it has them all. Faces
+/// referring to missing vertices are an error.
 pub fn read_ply_mesh(path: &Path) -> Result<PlyMesh, FileError> {
     let bytes = std::fs::read(path).map_err(|e| FileError::at(path, e.to_string()))?;
     parse_ply_mesh(path, &bytes)
@@ -398,19 +404,26 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
         }
     };
     for e in &h.elements {
-        let xyz = ["x", "y", "z"].map(|n| e.properties.iter().position(|(p, _)| p == n));
+        let at = |n: &str| e.properties.iter().position(|(p, _)| p == n);
+        let xyz = ["x", "y", "z"].map(at);
+        let normal = ["nx", "ny", "nz"].map(at);
+        let (has_normal, variance) = (normal.iter().all(Option::is_some), at("variance"));
         let face = e
             .properties
             .iter()
             .position(|(p, _)| p == "vertex_indices" || p == "vertex_index");
         for _ in 0..e.count {
-            let mut p = [0f32; 3];
+            let (mut p, mut n, mut var) = ([0f32; 3], [0f32; 3], 0f32);
             for (k, ((_, t), list)) in e.properties.iter().zip(&e.lists).enumerate() {
                 match (t, list) {
                     (Some(t), _) => {
                         let v = next(t).ok_or_else(truncated)?;
                         if let Some(c) = xyz.iter().position(|&i| i == Some(k)) {
                             p[c] = v as f32;
+                        } else if let Some(c) = normal.iter().position(|&i| i == Some(k)) {
+                            n[c] = v as f32;
+                        } else if variance == Some(k) {
+                            var = v as f32;
                         }
                     }
                     (None, Some((ct, it))) => {
@@ -436,6 +449,12 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
             }
             if e.name == "vertex" {
                 mesh.vertices.push(p);
+                if has_normal {
+                    mesh.normals.push(n);
+                }
+                if variance.is_some() {
+                    mesh.variances.push(var);
+                }
             }
         }
     }

@@ -141,3 +141,17 @@ impl From<FileError> for RunError {
         RunError::File(e)
     }
 }
+
+/// A run borrows its options ([`Run::start`](crate::run::Run::start) with `&opts`)...
+impl<'a> From<&'a RunOptions> for std::borrow::Cow<'a, RunOptions> {
+    fn from(opts: &'a RunOptions) -> Self {
+        std::borrow::Cow::Borrowed(opts)
+    }
+}
+
+/// ... or owns them, to outlive the caller's frame (the Python module's pipeline).
+impl From<RunOptions> for std::borrow::Cow<'_, RunOptions> {
+    fn from(opts: RunOptions) -> Self {
+        std::borrow::Cow::Owned(opts)
+    }
+}

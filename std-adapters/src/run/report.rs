@@ -12,13 +12,15 @@ use crate::io::mesh_spool::MeshSpool;
 use crate::io::topview::map::{self, MapPicture};
 use crate::io::trajectory::{write_kitti_line, write_tum_line};
 use crate::loop_closure::{Closure, LoopReport};
+use crate::parallel::Workers;
 use crate::run::options::RunOptions;
 use crate::run::source::FrameSource;
 use crate::run::timing::StageMs;
 use serde::{Deserialize, Serialize};
-use slamesh_core::{Config, Pose, RegistrationStatus, ScanStats};
+use slamesh_core::layer::Shown;
+use slamesh_core::{Capacity, Config, Pipeline, Pose, RegistrationStatus, ScanStats};
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// What happened to one frame (a line of `report.json`).
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -427,7 +429,7 @@ pub(crate) fn cost_by_outcome_in(frames: &Path) -> Result<Vec<OutcomeCost>, File
 
 /// Writes `poses_tum.txt` (used frames, with their stamps) and `poses_kitti.txt` (every frame,
 /// a skipped one holding the last pose) into `out`.
-pub(crate) fn write_trajectories(
+pub fn write_trajectories(
     out: &Path,
     source: &impl FrameSource,
     poses: &[(usize, Pose)],
@@ -524,6 +526,22 @@ pub(crate) fn write_report(
             w.write_all(line.as_bytes())?;
         }
         w.write_all(b"\n  ]\n}\n")
+    })
+}
+
+/// The run's frame records, spooled one JSON object a line until `report.json` is written.
+pub(crate) fn frames_path(opts: &RunOptions) -> PathBuf {
+    opts.out.join(".report.frames.spool")
+}
+
+/// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).
+pub(crate) fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>, workers: &Workers) -> usize {
+    let shown = Shown::new(&pipeline.config().mesh);
+    let lattice = pipeline.map().lattice().table();
+    let map = pipeline.map();
+    workers.sum(pipeline.last_scan(), |s| {
+        map.layer(&s.key, s.axis)
+            .map_or(0, |l| l.triangles(&lattice, shown).count())
     })
 }
 

@@ -23,8 +23,8 @@ use crate::run::lookahead::{LookAhead, Scan};
 use crate::run::map_pager::{self, MapPager};
 use crate::run::memory;
 use crate::run::report::{
-    registration_reason, spreads, write_report, write_topview, write_trajectories, FrameRecord,
-    Health, Summary,
+    frames_path, registration_reason, spreads, updated_triangles, write_report, write_topview,
+    write_trajectories, FrameRecord, Health, Summary,
 };
 use crate::run::saved_map;
 use crate::run::setup::Setup;
@@ -32,9 +32,9 @@ use crate::run::source::FrameSource;
 use crate::run::timing::{StageMs, StageTimer};
 use crate::run::window::Window;
 use slamesh_core::deskew;
-use slamesh_core::layer::Shown;
 use slamesh_core::relocalize::{Paging, Search};
 use slamesh_core::{Capacity, Pipeline, Pose, RegistrationStatus};
+use std::borrow::Cow;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -79,7 +79,7 @@ pub fn run<C: Capacity>(
 /// write. [`Run::start`] (or [`Run::resume`]), one [`Run::step`] per frame in order from
 /// [`Run::next_frame`], then [`Run::finish`].
 pub struct Run<'a, C: Capacity> {
-    opts: &'a RunOptions,
+    opts: Cow<'a, RunOptions>,
     pipeline: Pipeline<C>,
     workers: Workers,
     window: Window,
@@ -111,25 +111,34 @@ pub struct Run<'a, C: Capacity> {
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
-    /// A new run into `opts.out` (created if missing).
-    pub fn start(source: &impl FrameSource, opts: &'a RunOptions) -> Result<Self, RunError> {
-        let setup = Setup::<C>::new(opts)?;
+    /// A new run into `opts.out` (created if missing); `opts` borrowed (`&RunOptions`) or
+    /// owned (`RunOptions`, for a run that outlives its caller's frame).
+    pub fn start(
+        source: &impl FrameSource,
+        opts: impl Into<Cow<'a, RunOptions>>,
+    ) -> Result<Self, RunError> {
+        let opts = opts.into();
+        let setup = Setup::<C>::new(&opts)?;
         let spool = MeshSpool::new(
             &opts.out.join("mesh.ply"),
             opts.config.lattice(),
             &opts.config.mesh,
         )?;
-        let frames_path = frames_path(opts);
+        let frames_path = frames_path(&opts);
         let frames = File::create(&frames_path)
             .map_err(|e| FileError::at(&frames_path, format!("cannot create: {e}")))?;
-        let progress = Progress::new(checkpoint::fingerprint::<C>(source, opts));
+        let progress = Progress::new(checkpoint::fingerprint::<C>(source, &opts));
         Self::assemble(opts, setup, spool, frames, progress)
     }
 
     /// The run killed after the checkpoint in `opts.out`, continued from it; refused when the
     /// checkpoint is missing or of another run (input, capacity, configuration, window).
-    pub fn resume(source: &impl FrameSource, opts: &'a RunOptions) -> Result<Self, RunError> {
-        let mut setup = Setup::<C>::new(opts)?;
+    pub fn resume(
+        source: &impl FrameSource,
+        opts: impl Into<Cow<'a, RunOptions>>,
+    ) -> Result<Self, RunError> {
+        let opts = opts.into();
+        let mut setup = Setup::<C>::new(&opts)?;
         let path = checkpoint::path(&opts.out);
         if !path.exists() {
             return Err(FileError::at(
@@ -141,7 +150,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         // The checkpoint holds the whole map as it stood (a saved map's cells included).
         setup.pipeline.map_mut().evict_where(|_, _| true, |_| {});
         let progress = checkpoint::read(&path, setup.pipeline.map_mut())?;
-        let fingerprint = checkpoint::fingerprint::<C>(source, opts);
+        let fingerprint = checkpoint::fingerprint::<C>(source, &opts);
         if progress.fingerprint != fingerprint {
             return Err(FileError::at(
                 &path,
@@ -161,12 +170,12 @@ impl<'a, C: Capacity> Run<'a, C> {
             &opts.config.mesh,
             progress.mesh,
         )?;
-        let frames = open_cut(&frames_path(opts), progress.report_bytes)?;
+        let frames = open_cut(&frames_path(&opts), progress.report_bytes)?;
         Self::assemble(opts, setup, spool, frames, progress)
     }
 
     fn assemble(
-        opts: &'a RunOptions,
+        opts: Cow<'a, RunOptions>,
         setup: Setup<C>,
         mut spool: MeshSpool,
         frames: File,
@@ -185,6 +194,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             }
             _ => None,
         };
+        let (frames_path, checkpoint_path) = (frames_path(&opts), checkpoint::path(&opts.out));
         let saved_map = match &opts.save_map {
             Some(path) => Some(MapWriter::create(
                 path,
@@ -205,8 +215,8 @@ impl<'a, C: Capacity> Run<'a, C> {
             max_layers: setup.max_layers,
             spool,
             frame_lines: BufWriter::new(frames),
-            frames_path: frames_path(opts),
-            checkpoint_path: checkpoint::path(&opts.out),
+            frames_path,
+            checkpoint_path,
             seconds_before: progress.seconds,
             progress,
             timer: StageTimer::new(),
@@ -223,6 +233,11 @@ impl<'a, C: Capacity> Run<'a, C> {
     /// The pipeline as it stands.
     pub fn pipeline(&self) -> &Pipeline<C> {
         &self.pipeline
+    }
+
+    /// The poses so far: each used frame's index and pose (at its stamp), in order.
+    pub fn poses(&self) -> &[(usize, Pose)] {
+        &self.progress.poses
     }
 
     /// The body-frame motion between the last two used frames and the seconds between their
@@ -575,26 +590,10 @@ impl<'a, C: Capacity> Run<'a, C> {
             input: source.input_report(),
             poses,
         };
-        write_report(out, self.opts, &summary, &self.frames_path)?;
+        write_report(out, &self.opts, &summary, &self.frames_path)?;
         let _ = std::fs::remove_file(&self.frames_path);
         // The run is complete: nothing is left to resume.
         let _ = std::fs::remove_file(&self.checkpoint_path);
         Ok(summary)
     }
-}
-
-/// The run's frame records, spooled one JSON object a line until `report.json` is written.
-fn frames_path(opts: &RunOptions) -> PathBuf {
-    opts.out.join(".report.frames.spool")
-}
-
-/// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).
-fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>, workers: &Workers) -> usize {
-    let shown = Shown::new(&pipeline.config().mesh);
-    let lattice = pipeline.map().lattice().table();
-    let map = pipeline.map();
-    workers.sum(pipeline.last_scan(), |s| {
-        map.layer(&s.key, s.axis)
-            .map_or(0, |l| l.triangles(&lattice, shown).count())
-    })
 }

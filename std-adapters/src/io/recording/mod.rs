@@ -231,7 +231,7 @@ impl Container {
 }
 
 /// A stream of messages.
-pub type Messages = Box<dyn Iterator<Item = Result<RawMessage, String>>>;
+pub type Messages = Box<dyn Iterator<Item = Result<RawMessage, String>> + Send>;
 
 /// The topic to read: `wanted` if given (it must be a PointCloud2 topic), otherwise the only
 /// PointCloud2 topic. The errors list the topics a user can choose from.

@@ -1,0 +1,380 @@
+//! `Engine`: the pipeline for Python, frame by frame. It is the command's own run
+//! ([`slamesh::run::Run`]) fed by a source that holds the frames Python pushes, so a frame
+//! goes through the same steps as in `slamesh run` (capacity and scale chosen on the first
+//! frame, deskewing, skipping with a reason, the report's record) and the poses are the
+//! command's to the bit. Its spools live in a scratch folder, removed with it.
+
+use crate::arrays::{self, MeshArrays};
+use crate::{error, FrameError};
+use numpy::{PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use slamesh::cli::run::{auto_capacity, CapacityFlag};
+use slamesh::cli::settings::{fit_to_scene, Profile};
+use slamesh::io::config_file::{Settings, PRESETS};
+use slamesh::io::mesh_spool::{MeshColour, MeshFormat, MeshSpool};
+use slamesh::io::FileError;
+use slamesh::run::session::Deskew;
+use slamesh::run::{FrameSource, Run, RunError, RunOptions};
+use slamesh_core::{
+    Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, Point, Pose, SmallCapacity,
+};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// The frames pushed so far: each one's stamp, and the last one's points until the run reads
+/// them.
+#[derive(Default)]
+struct Pushed {
+    stamps: Vec<f64>,
+    frame: Option<(Vec<Point>, Option<Vec<f32>>)>,
+}
+
+impl FrameSource for Pushed {
+    fn frames(&self) -> usize {
+        self.stamps.len()
+    }
+    fn label(&self, _i: usize) -> String {
+        "register()".into()
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        self.stamps.get(i).copied().unwrap_or(0.0)
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
+        self.read_timed(i).map(|(p, _)| p)
+    }
+    fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        match &self.frame {
+            Some(f) if i + 1 == self.stamps.len() => Ok(f.clone()),
+            _ => Err(FileError::at(
+                Path::new("register()"),
+                format!("frame {i} was not pushed"),
+            )),
+        }
+    }
+}
+
+/// A run of one capacity class.
+enum AnyRun {
+    Tiny(Box<Run<'static, SmallCapacity>>),
+    L16(Box<Run<'static, Lidar16Capacity>>),
+    L32(Box<Run<'static, Lidar32Capacity>>),
+    L64(Box<Run<'static, KittiCapacity>>),
+}
+
+/// `$body` with `$r` the run, whatever its class.
+macro_rules! with_run {
+    ($any:expr, $r:ident => $body:expr) => {
+        match $any {
+            AnyRun::Tiny($r) => $body,
+            AnyRun::L16($r) => $body,
+            AnyRun::L32($r) => $body,
+            AnyRun::L64($r) => $body,
+        }
+    };
+}
+
+/// Where an engine stands.
+enum Stage {
+    /// No frame yet: the settings, the class asked for and the options the run will take.
+    Waiting {
+        settings: Settings,
+        capacity: CapacityFlag,
+        opts: RunOptions,
+    },
+    Running(AnyRun),
+    /// A run that could not start keeps the reason.
+    Failed(String),
+}
+
+struct State {
+    source: Pushed,
+    stage: Stage,
+    /// The preset's name, or "custom" for a configuration file.
+    preset: String,
+}
+
+/// The pipeline (see the package's `slamesh.Pipeline`).
+#[pyclass(module = "slamesh._slamesh")]
+pub struct Engine {
+    state: Mutex<State>,
+    scratch: PathBuf,
+}
+
+#[pymethods]
+impl Engine {
+    #[new]
+    #[pyo3(signature = (preset=None, config=None, capacity="auto", threads=0, deskew=true))]
+    fn new(
+        preset: Option<String>,
+        config: Option<PathBuf>,
+        capacity: &str,
+        threads: usize,
+        deskew: bool,
+    ) -> PyResult<Self> {
+        if let Some(p) = preset.as_deref().filter(|p| !PRESETS.contains(p)) {
+            return Err(PyValueError::new_err(format!(
+                "preset: {p:?} is not one of {}",
+                PRESETS.join(", ")
+            )));
+        }
+        if preset.is_some() && config.is_some() {
+            return Err(PyValueError::new_err(
+                "preset and config: give one (a configuration file names every parameter)",
+            ));
+        }
+        let capacity = match capacity {
+            "auto" => CapacityFlag::Auto,
+            "tiny" => CapacityFlag::Tiny,
+            "16" => CapacityFlag::L16,
+            "32" => CapacityFlag::L32,
+            "64" => CapacityFlag::L64,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "capacity: {other:?} is not one of auto, tiny, 16, 32, 64"
+                )))
+            }
+        };
+        let settings = Profile { preset, config }
+            .resolve("default")
+            .map_err(error)?;
+        let scratch = scratch_folder().map_err(error)?;
+        let opts = RunOptions {
+            out: scratch.clone(),
+            preset: settings.preset.to_string(),
+            window: settings.window.clone(),
+            threads,
+            mesh_formats: vec![MeshFormat::Ply],
+            mesh_colour: MeshColour::None,
+            input: "Python".into(),
+            deskew: if deskew { Deskew::Auto } else { Deskew::Off },
+            ..RunOptions::default()
+        };
+        Ok(Engine {
+            state: Mutex::new(State {
+                preset: settings.preset.to_string(),
+                source: Pushed::default(),
+                stage: Stage::Waiting {
+                    settings,
+                    capacity,
+                    opts,
+                },
+            }),
+            scratch,
+        })
+    }
+
+    /// Registers one frame: its report record (JSON) and its pose, or `FrameError` when the
+    /// frame was skipped. The GIL is released while it runs.
+    #[pyo3(signature = (points, times, stamp))]
+    fn register<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f32>,
+        times: Option<PyReadonlyArray1<'py, f32>>,
+        stamp: f64,
+    ) -> PyResult<(String, Bound<'py, PyArray2<f64>>)> {
+        let points = arrays::points(&points)?;
+        let times = times.map(|t| arrays::times(&t, points.len())).transpose()?;
+        if !stamp.is_finite() {
+            return Err(PyValueError::new_err(format!(
+                "stamp: {stamp} is not finite"
+            )));
+        }
+        let (record, pose) = py
+            .detach(|| {
+                let mut state = self.lock();
+                let State { source, stage, .. } = &mut *state;
+                source.stamps.push(stamp);
+                source.frame = Some((points, times));
+                let i = source.stamps.len() - 1;
+                if let Stage::Waiting { .. } = stage {
+                    *stage = start(stage, source);
+                }
+                let result = match stage {
+                    Stage::Running(run) => with_run!(run, r => r
+                    .step(source, i)
+                    .map(|rec| {
+                        let pose = r.poses().last().filter(|(j, _)| *j == i).map(|(_, p)| *p);
+                        (rec, pose)
+                    })
+                    .map_err(|e| e.to_string())),
+                    Stage::Failed(e) => Err(e.clone()),
+                    Stage::Waiting { .. } => Err("the run did not start".into()),
+                };
+                source.frame = None;
+                result
+            })
+            .map_err(error)?;
+        let json = serde_json::to_string(&record).map_err(error)?;
+        match (pose, &record.error) {
+            (Some(p), _) => Ok((json, arrays::pose_array(py, &p))),
+            (None, Some(e)) => Err(FrameError::new_err(e.clone())),
+            (None, None) => Err(FrameError::new_err(format!(
+                "frame {}: no pose",
+                record.frame
+            ))),
+        }
+    }
+
+    /// The used frames' indices, stamps and poses ((N,), (N,), (N, 4, 4)).
+    fn poses<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (
+        Bound<'py, PyArray1<u64>>,
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray3<f64>>,
+    ) {
+        let state = self.lock();
+        let poses: &[(usize, Pose)] = match &state.stage {
+            Stage::Running(run) => with_run!(run, r => r.poses()),
+            _ => &[],
+        };
+        let index = poses.iter().map(|(i, _)| *i as u64).collect();
+        let stamps = poses.iter().map(|(i, _)| state.source.stamp(*i)).collect();
+        let p: Vec<Pose> = poses.iter().map(|(_, p)| *p).collect();
+        (
+            arrays::vector(py, index),
+            arrays::vector(py, stamps),
+            arrays::pose_stack(py, &p),
+        )
+    }
+
+    /// Writes `poses_kitti.txt` and `poses_tum.txt` into `folder` (created if missing), as
+    /// the command writes them.
+    fn save_trajectories(&self, py: Python<'_>, folder: PathBuf) -> PyResult<()> {
+        py.detach(|| {
+            std::fs::create_dir_all(&folder)
+                .map_err(|e| FileError::at(&folder, format!("cannot create: {e}")))?;
+            let state = self.lock();
+            let poses: &[(usize, Pose)] = match &state.stage {
+                Stage::Running(run) => with_run!(run, r => r.poses()),
+                _ => &[],
+            };
+            slamesh::run::report::write_trajectories(&folder, &state.source, poses)
+        })
+        .map_err(error)
+    }
+
+    /// Writes the map's mesh to `path` as `slamesh run` writes `mesh.ply` (welded, binary PLY
+    /// with normals and variances); returns its vertex and triangle counts.
+    fn save_mesh(&self, py: Python<'_>, path: PathBuf) -> PyResult<(u64, u64)> {
+        py.detach(|| self.write_mesh(&path)).map_err(error)
+    }
+
+    /// The map's mesh as arrays: what `save_mesh` writes.
+    fn mesh<'py>(&self, py: Python<'py>) -> PyResult<MeshArrays<'py>> {
+        let path = self.scratch.join("mesh-for-python.ply");
+        let mesh = py
+            .detach(|| {
+                self.write_mesh(&path)?;
+                let m = slamesh::io::ply::read_ply_mesh(&path);
+                let _ = std::fs::remove_file(&path);
+                m
+            })
+            .map_err(error)?;
+        Ok(arrays::mesh(py, mesh))
+    }
+
+    /// The capacity class in use (`None` before the first frame).
+    #[getter]
+    fn capacity(&self) -> Option<&'static str> {
+        match &self.lock().stage {
+            Stage::Running(run) => Some(with_run!(run, r => class_name(r.pipeline()))),
+            _ => None,
+        }
+    }
+
+    /// The configuration in use, as the TOML file `slamesh config` prints (before the first
+    /// frame: the preset's, not yet fitted to the scene).
+    #[getter]
+    fn config_toml(&self) -> String {
+        let state = self.lock();
+        let config = match &state.stage {
+            Stage::Running(run) => with_run!(run, r => *r.pipeline().config()),
+            Stage::Waiting { settings, .. } => settings.config,
+            Stage::Failed(_) => slamesh_core::Config::default(),
+        };
+        slamesh::io::config_file::documented_toml(&config, &state.preset)
+    }
+}
+
+impl Engine {
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn write_mesh(&self, path: &Path) -> Result<(u64, u64), FileError> {
+        let state = self.lock();
+        let Stage::Running(run) = &state.stage else {
+            return Err(FileError::at(path, "no mesh yet: no frame was registered"));
+        };
+        with_run!(run, r => {
+            let p = r.pipeline();
+            let mut spool = MeshSpool::new(path, p.config().lattice(), &p.config().mesh)?;
+            spool.add_map(p.map())?;
+            let counts = spool.finish(&[(path.to_path_buf(), MeshFormat::Ply)])?;
+            Ok((counts.vertices as u64, counts.triangles as u64))
+        })
+    }
+}
+
+impl Drop for Engine {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.scratch);
+    }
+}
+
+/// The run for the first frame, as the command starts one: the configuration fitted to its
+/// scale (when the preset scales itself), the capacity class chosen by its points.
+fn start(stage: &mut Stage, source: &mut Pushed) -> Stage {
+    let Stage::Waiting {
+        settings,
+        capacity,
+        opts,
+    } = std::mem::replace(stage, Stage::Failed(String::new()))
+    else {
+        return Stage::Failed("the run had started".into());
+    };
+    let mut settings = settings;
+    fit_to_scene(&mut settings, source);
+    let opts = RunOptions {
+        config: settings.config,
+        ..opts
+    };
+    let flag = match capacity {
+        CapacityFlag::Auto => auto_capacity(source, &opts),
+        given => given,
+    };
+    let run = match flag {
+        CapacityFlag::Tiny => Run::start(source, opts).map(|r| AnyRun::Tiny(Box::new(r))),
+        CapacityFlag::L16 => Run::start(source, opts).map(|r| AnyRun::L16(Box::new(r))),
+        CapacityFlag::L32 => Run::start(source, opts).map(|r| AnyRun::L32(Box::new(r))),
+        CapacityFlag::Auto | CapacityFlag::L64 => {
+            Run::start(source, opts).map(|r| AnyRun::L64(Box::new(r)))
+        }
+    };
+    match run {
+        Ok(r) => Stage::Running(r),
+        Err(e) => Stage::Failed(RunError::to_string(&e)),
+    }
+}
+
+fn class_name<C: Capacity>(_: &slamesh_core::Pipeline<C>) -> &'static str {
+    C::NAME
+}
+
+/// A new folder for an engine's spools, in the system's temporary folder.
+fn scratch_folder() -> Result<PathBuf, FileError> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "slamesh-python-{}-{}",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| FileError::at(&dir, format!("cannot create a scratch folder: {e}")))?;
+    Ok(dir)
+}
