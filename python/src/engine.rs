@@ -54,6 +54,13 @@ impl FrameSource for Pushed {
     }
 }
 
+/// The used frames' indices (N,), stamps (N,) and poses (N, 4, 4).
+type PoseArrays<'py> = (
+    Bound<'py, PyArray1<u64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray3<f64>>,
+);
+
 /// A run of one capacity class.
 enum AnyRun {
     Tiny(Box<Run<'static, SmallCapacity>>),
@@ -74,14 +81,18 @@ macro_rules! with_run {
     };
 }
 
+/// What a run needs before its first frame: the settings, the class asked for and the
+/// options the run will take.
+struct Start {
+    settings: Settings,
+    capacity: CapacityFlag,
+    opts: RunOptions,
+}
+
 /// Where an engine stands.
 enum Stage {
-    /// No frame yet: the settings, the class asked for and the options the run will take.
-    Waiting {
-        settings: Settings,
-        capacity: CapacityFlag,
-        opts: RunOptions,
-    },
+    /// No frame yet.
+    Waiting(Box<Start>),
     Running(AnyRun),
     /// A run that could not start keeps the reason.
     Failed(String),
@@ -142,7 +153,7 @@ impl Engine {
         let opts = RunOptions {
             out: scratch.clone(),
             preset: settings.preset.to_string(),
-            window: settings.window.clone(),
+            window: settings.window,
             threads,
             mesh_formats: vec![MeshFormat::Ply],
             mesh_colour: MeshColour::None,
@@ -154,11 +165,11 @@ impl Engine {
             state: Mutex::new(State {
                 preset: settings.preset.to_string(),
                 source: Pushed::default(),
-                stage: Stage::Waiting {
+                stage: Stage::Waiting(Box::new(Start {
                     settings,
                     capacity,
                     opts,
-                },
+                })),
             }),
             scratch,
         })
@@ -188,7 +199,7 @@ impl Engine {
                 source.stamps.push(stamp);
                 source.frame = Some((points, times));
                 let i = source.stamps.len() - 1;
-                if let Stage::Waiting { .. } = stage {
+                if let Stage::Waiting(_) = stage {
                     *stage = start(stage, source);
                 }
                 let result = match stage {
@@ -200,7 +211,7 @@ impl Engine {
                     })
                     .map_err(|e| e.to_string())),
                     Stage::Failed(e) => Err(e.clone()),
-                    Stage::Waiting { .. } => Err("the run did not start".into()),
+                    Stage::Waiting(_) => Err("the run did not start".into()),
                 };
                 source.frame = None;
                 result
@@ -218,14 +229,7 @@ impl Engine {
     }
 
     /// The used frames' indices, stamps and poses ((N,), (N,), (N, 4, 4)).
-    fn poses<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> (
-        Bound<'py, PyArray1<u64>>,
-        Bound<'py, PyArray1<f64>>,
-        Bound<'py, PyArray3<f64>>,
-    ) {
+    fn poses<'py>(&self, py: Python<'py>) -> PoseArrays<'py> {
         let state = self.lock();
         let poses: &[(usize, Pose)] = match &state.stage {
             Stage::Running(run) => with_run!(run, r => r.poses()),
@@ -293,7 +297,7 @@ impl Engine {
         let state = self.lock();
         let config = match &state.stage {
             Stage::Running(run) => with_run!(run, r => *r.pipeline().config()),
-            Stage::Waiting { settings, .. } => settings.config,
+            Stage::Waiting(start) => start.settings.config,
             Stage::Failed(_) => slamesh_core::Config::default(),
         };
         slamesh::io::config_file::documented_toml(&config, &state.preset)
@@ -315,7 +319,7 @@ impl Engine {
             let mut spool = MeshSpool::new(path, p.config().lattice(), &p.config().mesh)?;
             spool.add_map(p.map())?;
             let counts = spool.finish(&[(path.to_path_buf(), MeshFormat::Ply)])?;
-            Ok((counts.vertices as u64, counts.triangles as u64))
+            Ok((counts.vertices, counts.triangles))
         })
     }
 }
@@ -329,15 +333,14 @@ impl Drop for Engine {
 /// The run for the first frame, as the command starts one: the configuration fitted to its
 /// scale (when the preset scales itself), the capacity class chosen by its points.
 fn start(stage: &mut Stage, source: &mut Pushed) -> Stage {
-    let Stage::Waiting {
-        settings,
-        capacity,
-        opts,
-    } = std::mem::replace(stage, Stage::Failed(String::new()))
-    else {
+    let Stage::Waiting(start) = std::mem::replace(stage, Stage::Failed(String::new())) else {
         return Stage::Failed("the run had started".into());
     };
-    let mut settings = settings;
+    let Start {
+        mut settings,
+        capacity,
+        opts,
+    } = *start;
     fit_to_scene(&mut settings, source);
     let opts = RunOptions {
         config: settings.config,
