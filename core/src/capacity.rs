@@ -147,7 +147,7 @@ mod tests {
 
     #[test]
     fn footprints_stay_what_the_docs_say() {
-        // The README's footprint table: bytes per unit of each capacity.
+        // The footprint table (docs/benchmarks.md, "Sizing capacities"): bytes per unit.
         assert_eq!(
             size_of::<Point>() + size_of::<(CellKey, Point)>(),
             36,
