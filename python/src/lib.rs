@@ -5,9 +5,9 @@
 //!
 //! | what | module |
 //! |---|---|
-//! | the pipeline, step by step: a [`slamesh::run::Run`] fed pushed frames | [`engine`] |
-//! | the command's readers, frame by frame | [`source`] |
-//! | numpy arrays in and out | [`arrays`] |
+//! | the pipeline, step by step: a [`slamesh::run::Run`] fed pushed frames | `engine` |
+//! | the command's readers, frame by frame | `source` |
+//! | numpy arrays in and out | `arrays` |
 //!
 //! Guarantees: the GIL is released while slamesh works (registration, reading, meshing, a
 //! whole command); every failure is a Python exception whose message is the one the command

@@ -1,6 +1,14 @@
 //! The `slamesh` command: one file per subcommand, the settings they share resolved in one
 //! place ([`settings`]), and failures as a typed [`CliError`].
 
+// The arguments' doc comments are the command's help text, written for a terminal (`[window]`,
+// `<INPUT>`), not rustdoc's markup.
+#![allow(
+    rustdoc::broken_intra_doc_links,
+    rustdoc::invalid_html_tags,
+    rustdoc::private_intra_doc_links
+)]
+
 pub mod bench;
 pub mod config;
 #[cfg(feature = "sim")]
