@@ -9,11 +9,11 @@ use crate::{error, FrameError};
 use numpy::{PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use slamesh::cli::run::{auto_capacity, CapacityFlag};
-use slamesh::cli::settings::{fit_to_scene, Profile};
-use slamesh::io::config_file::{Settings, PRESETS};
+use slamesh::io::config_file::{self, Settings, PRESETS};
 use slamesh::io::mesh_spool::{MeshColour, MeshFormat, MeshSpool};
 use slamesh::io::FileError;
+use slamesh::run::capacity::{self, Class};
+use slamesh::run::scale::fit_to_scene;
 use slamesh::run::session::Deskew;
 use slamesh::run::{FrameSource, Run, RunError, RunOptions};
 use slamesh_core::{
@@ -85,7 +85,8 @@ macro_rules! with_run {
 /// options the run will take.
 struct Start {
     settings: Settings,
-    capacity: CapacityFlag,
+    /// The class asked for; `None`: chosen on the first frame.
+    capacity: Option<Class>,
     opts: RunOptions,
 }
 
@@ -134,21 +135,27 @@ impl Engine {
                 "preset and config: give one (a configuration file names every parameter)",
             ));
         }
+        let classes = capacity::classes();
         let capacity = match capacity {
-            "auto" => CapacityFlag::Auto,
-            "tiny" => CapacityFlag::Tiny,
-            "16" => CapacityFlag::L16,
-            "32" => CapacityFlag::L32,
-            "64" => CapacityFlag::L64,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "capacity: {other:?} is not one of auto, tiny, 16, 32, 64"
-                )))
-            }
+            "auto" => None,
+            flag => Some(
+                classes
+                    .into_iter()
+                    .find(|c| c.flag == flag)
+                    .ok_or_else(|| {
+                        let flags: Vec<_> = classes.iter().map(|c| c.flag).collect();
+                        PyValueError::new_err(format!(
+                            "capacity: {flag:?} is not one of auto, {}",
+                            flags.join(", ")
+                        ))
+                    })?,
+            ),
         };
-        let settings = Profile { preset, config }
-            .resolve("default")
-            .map_err(error)?;
+        let settings = match &config {
+            Some(path) => config_file::read(path).map_err(error)?,
+            None => config_file::preset_settings(preset.as_deref().unwrap_or("default"))
+                .ok_or_else(|| PyValueError::new_err("preset: unknown"))?,
+        };
         let scratch = scratch_folder().map_err(error)?;
         let opts = RunOptions {
             out: scratch.clone(),
@@ -346,17 +353,12 @@ fn start(stage: &mut Stage, source: &mut Pushed) -> Stage {
         config: settings.config,
         ..opts
     };
-    let flag = match capacity {
-        CapacityFlag::Auto => auto_capacity(source, &opts),
-        given => given,
-    };
-    let run = match flag {
-        CapacityFlag::Tiny => Run::start(source, opts).map(|r| AnyRun::Tiny(Box::new(r))),
-        CapacityFlag::L16 => Run::start(source, opts).map(|r| AnyRun::L16(Box::new(r))),
-        CapacityFlag::L32 => Run::start(source, opts).map(|r| AnyRun::L32(Box::new(r))),
-        CapacityFlag::Auto | CapacityFlag::L64 => {
-            Run::start(source, opts).map(|r| AnyRun::L64(Box::new(r)))
-        }
+    let class = capacity.unwrap_or_else(|| capacity::choose(source, &opts));
+    let run = match class.flag {
+        "tiny" => Run::start(source, opts).map(|r| AnyRun::Tiny(Box::new(r))),
+        "16" => Run::start(source, opts).map(|r| AnyRun::L16(Box::new(r))),
+        "32" => Run::start(source, opts).map(|r| AnyRun::L32(Box::new(r))),
+        _ => Run::start(source, opts).map(|r| AnyRun::L64(Box::new(r))),
     };
     match run {
         Ok(r) => Stage::Running(r),

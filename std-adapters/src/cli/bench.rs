@@ -77,7 +77,7 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     let (input, threads, repeat, json) = (&args.source.input, args.threads, args.repeat, args.json);
     let mut s = args.profile.resolve("default")?;
     let mut source = args.source.open()?;
-    crate::cli::settings::fit_to_scene(&mut s, &mut source);
+    crate::run::scale::fit_to_scene(&mut s, &mut source);
     let (config, preset) = (s.config, s.preset);
     let out = std::env::temp_dir().join(format!("slamesh-bench-{}", std::process::id()));
     let opts = RunOptions {

@@ -10,7 +10,6 @@ use crate::io::trajectory::Trajectory;
 use crate::io::{kitti, trajectory, FileError};
 use crate::loop_closure::settings::LoopSettings;
 use crate::run::capacity;
-use crate::run::memory;
 use crate::run::session::{Deskew, InitialPose};
 use crate::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use crate::say;
@@ -263,7 +262,7 @@ fn run_with(
     args.window.apply(&mut s.window)?;
     let mut source = args.source.open()?;
     if given.is_none() && args.map.is_none() {
-        crate::cli::settings::fit_to_scene(&mut s, &mut source);
+        crate::run::scale::fit_to_scene(&mut s, &mut source);
     }
     if let Some(p) = &given {
         let how = match p.stamps {
@@ -400,41 +399,9 @@ pub fn frame_messages(rec: &FrameRecord, bar: &ProgressBar, notices: &mut FrameN
     }
 }
 
-/// The smallest class for the first readable scan of `source` (of the first ten), counting
-/// its points within the configuration's range limits; the 64-beam class when none is
-/// readable.
+/// `--capacity auto`: the class [`capacity::choose`] picks for `source`.
 pub fn auto_capacity(source: &mut impl FrameSource, opts: &RunOptions) -> CapacityFlag {
-    let Some((i, n)) = (0..source.frames().min(10)).find_map(|i| {
-        let scan = source.read(i).ok()?;
-        Some((i, capacity::points_in_range(&scan, &opts.config.filter)))
-    }) else {
-        return CapacityFlag::L64;
-    };
-    let class = match opts.window.memory_cap_mb {
-        Some(cap) => {
-            let other = memory::other_bytes();
-            let class = capacity::class_under_cap(n, (cap * 1e6) as usize, other);
-            let least = |c: &capacity::Class| (c.least_cap_bytes + other) as f64 / 1e6;
-            match capacity::class_holding(n) {
-                Some(h) if least(&class) > cap => log::warn!(
-                    "a memory cap of {cap} MB is too tight for frame {i}'s {n} points within \
-                     range: the smallest class that holds them, {} (--capacity {}), needs {:.0} MB",
-                    h.name,
-                    h.flag,
-                    least(&h)
-                ),
-                _ => {}
-            }
-            class
-        }
-        None => capacity::class_for(n),
-    };
-    log::info!(
-        "capacity {} (--capacity {}): frame {i} has {n} points within range",
-        class.name,
-        class.flag
-    );
-    match class.flag {
+    match capacity::choose(source, opts).flag {
         "tiny" => CapacityFlag::Tiny,
         "16" => CapacityFlag::L16,
         "32" => CapacityFlag::L32,

@@ -1,10 +1,9 @@
 //! The one place a subcommand's settings are resolved: a preset or a configuration file
 //! ([`Profile`]), then the sliding-window flags on top ([`WindowFlags`]), then the fit to the
-//! scene's scale ([`fit_to_scene`]).
+//! scene's scale ([`crate::run::scale::fit_to_scene`]).
 
 use crate::cli::error::CliError;
 use crate::io::config_file::{self, Settings, WindowSettings, PRESETS};
-use crate::run::{scale, FrameSource};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -28,16 +27,14 @@ impl Profile {
         }
         let name = self.preset.as_deref().unwrap_or(default_preset);
         // clap has checked the name against PRESETS.
-        let preset = PRESETS
-            .into_iter()
-            .find(|p| *p == name)
-            .unwrap_or("default");
-        Ok(Settings {
-            config: config_file::preset(preset).unwrap_or_default(),
-            preset,
-            window: WindowSettings::default(),
-            scale_to_scene: config_file::scales_itself(preset),
-        })
+        Ok(config_file::preset_settings(name)
+            .or_else(|| config_file::preset_settings("default"))
+            .unwrap_or(Settings {
+                config: Default::default(),
+                preset: "default",
+                window: WindowSettings::default(),
+                scale_to_scene: false,
+            }))
     }
 }
 
@@ -82,30 +79,4 @@ impl WindowFlags {
         w.save_evicted |= self.save_evicted;
         Ok(())
     }
-}
-
-/// Fits `s`'s configuration to the scale of the first readable of `source`'s first ten frames
-/// when `s.scale_to_scene` ([`crate::run::scale`]), and says what it chose.
-pub fn fit_to_scene(s: &mut Settings, source: &mut impl FrameSource) {
-    if !s.scale_to_scene {
-        return;
-    }
-    let Some((i, fitted)) = (0..source.frames().min(10)).find_map(|i| {
-        let scan = source.read(i).ok()?;
-        Some((i, scale::fit(&s.config, &scan)?))
-    }) else {
-        return;
-    };
-    let c = &fitted.config;
-    log::info!(
-        "scale from frame {i}: median range {:.1} m: cells of {:.2} m, gp.kappa_per_m {:.2}, \
-         filter.range_min_m {:.2} (preset {}; setting any of these, or another preset, keeps \
-         its own)",
-        fitted.median_range_m,
-        c.grid.cell_size_m,
-        c.gp.kappa_per_m,
-        c.filter.range_min_m,
-        s.preset
-    );
-    s.config = fitted.config;
 }

@@ -54,6 +54,18 @@ pub fn preset(name: &str) -> Option<Config> {
     }
 }
 
+/// The settings of preset `name` (its configuration, no window; `None` for a name not in
+/// [`PRESETS`]).
+pub fn preset_settings(name: &str) -> Option<Settings> {
+    let preset = PRESETS.into_iter().find(|p| *p == name)?;
+    Some(Settings {
+        config: self::preset(preset)?,
+        preset,
+        window: WindowSettings::default(),
+        scale_to_scene: scales_itself(preset),
+    })
+}
+
 /// True for a preset that a run fits to the scale of its first usable scan
 /// ([`crate::run::scale`]) unless the cell, the kernel or the nearest range is set: `default`.
 pub fn scales_itself(name: &str) -> bool {

@@ -458,6 +458,13 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
             }
         }
     }
+    // Normals and variances are the vertices' only when every vertex has them.
+    if mesh.normals.len() != mesh.vertices.len() {
+        mesh.normals.clear();
+    }
+    if mesh.variances.len() != mesh.vertices.len() {
+        mesh.variances.clear();
+    }
     let n = mesh.vertices.len() as u32;
     if let Some(t) = mesh.triangles.iter().find(|t| t.iter().any(|&i| i >= n)) {
         return Err(FileError::at(
@@ -594,6 +601,30 @@ property float y\nproperty float z\nelement face 0\nproperty list uchar int vert
             parse_ply_timed(Path::new("a.ply"), ascii, None).unwrap().1,
             None
         );
+    }
+
+    #[test]
+    fn a_meshs_normals_and_variances_are_read_when_every_vertex_has_them() {
+        let with = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+property float variance\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n\
+0 0 0 0 0 1 0.01\n1 0 0 0 0 1 0.02\n0 1 0 0 1 0 0.03\n3 0 1 2\n";
+        let m = parse_ply_mesh(Path::new("n.ply"), with).unwrap();
+        assert_eq!(m.triangles, vec![[0, 1, 2]]);
+        assert_eq!(
+            m.normals,
+            vec![[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]
+        );
+        assert_eq!(m.variances, vec![0.01, 0.02, 0.03]);
+        // A second vertex element without them: no vertex's normal is known for sure.
+        let mixed =
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+element vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n\
+0 0 0 0 0 1\n1 1 1\n";
+        let m = parse_ply_mesh(Path::new("m.ply"), mixed).unwrap();
+        assert_eq!(m.vertices.len(), 2);
+        assert!(m.normals.is_empty() && m.variances.is_empty());
     }
 
     #[test]

@@ -5,6 +5,9 @@
 //! binary). A scan with more points within range than its class holds is refused with the
 //! class to use, rather than cut silently ([`Run::step`](crate::run::Run::step)).
 
+use crate::run::memory;
+use crate::run::options::RunOptions;
+use crate::run::source::FrameSource;
 use crate::run::window::Window;
 use slamesh_core::config::FilterConfig;
 use slamesh_core::filter::Preparation;
@@ -87,6 +90,45 @@ pub fn points_in_range(scan: &[Point], filter: &FilterConfig) -> usize {
     // The voxel size only sets the keys, which this count does not use.
     let prep = Preparation::new(filter, 1.0);
     scan.iter().filter(|p| prep.point(p).is_ok()).count()
+}
+
+/// The class `auto` chooses: the smallest for the first readable scan of `source` (of the
+/// first ten), counting its points within the configuration's range limits, under the memory
+/// cap when there is one ([`class_under_cap`]); the largest when no scan is readable. Says what
+/// it chose.
+pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
+    let Some((i, n)) = (0..source.frames().min(10)).find_map(|i| {
+        let scan = source.read(i).ok()?;
+        Some((i, points_in_range(&scan, &opts.config.filter)))
+    }) else {
+        let all = classes();
+        return all[all.len() - 1];
+    };
+    let class = match opts.window.memory_cap_mb {
+        Some(cap) => {
+            let other = memory::other_bytes();
+            let class = class_under_cap(n, (cap * 1e6) as usize, other);
+            let least = |c: &Class| (c.least_cap_bytes + other) as f64 / 1e6;
+            match class_holding(n) {
+                Some(h) if least(&class) > cap => log::warn!(
+                    "a memory cap of {cap} MB is too tight for frame {i}'s {n} points within \
+                     range: the smallest class that holds them, {} (--capacity {}), needs {:.0} MB",
+                    h.name,
+                    h.flag,
+                    least(&h)
+                ),
+                _ => {}
+            }
+            class
+        }
+        None => class_for(n),
+    };
+    log::info!(
+        "capacity {} (--capacity {}): frame {i} has {n} points within range",
+        class.name,
+        class.flag
+    );
+    class
 }
 
 #[cfg(test)]

@@ -12,6 +12,8 @@
 //!   configuration's own and at least [`MIN_RANGE_M`] (KITTI's 10th percentiles are 5 m: it
 //!   keeps 1.2 m).
 
+use crate::io::config_file::Settings;
+use crate::run::source::FrameSource;
 use slamesh_core::{Config, Point};
 
 /// Median range over cell edge that the fitted cell keeps.
@@ -75,6 +77,33 @@ pub fn fit(config: &Config, scan: &[Point]) -> Option<Fitted> {
         near_range_m: near,
         config: c,
     })
+}
+
+/// Fits `s`'s configuration to the scale of the first readable of `source`'s first ten frames
+/// when `s.scale_to_scene`, and says what it chose (the command's and the Python module's
+/// start).
+pub fn fit_to_scene(s: &mut Settings, source: &mut impl FrameSource) {
+    if !s.scale_to_scene {
+        return;
+    }
+    let Some((i, fitted)) = (0..source.frames().min(10)).find_map(|i| {
+        let scan = source.read(i).ok()?;
+        Some((i, fit(&s.config, &scan)?))
+    }) else {
+        return;
+    };
+    let c = &fitted.config;
+    log::info!(
+        "scale from frame {i}: median range {:.1} m: cells of {:.2} m, gp.kappa_per_m {:.2}, \
+         filter.range_min_m {:.2} (preset {}; setting any of these, or another preset, keeps \
+         its own)",
+        fitted.median_range_m,
+        c.grid.cell_size_m,
+        c.gp.kappa_per_m,
+        c.filter.range_min_m,
+        s.preset
+    );
+    s.config = fitted.config;
 }
 
 #[cfg(test)]
