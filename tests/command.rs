@@ -128,6 +128,19 @@ fn bad_frames_are_reported_and_skipped_and_the_run_completes() {
     let outcomes = report["summary"]["cost_by_outcome"].as_array().unwrap();
     let counted: u64 = outcomes.iter().map(|o| o["frames"].as_u64().unwrap()).sum();
     assert_eq!(counted, 4, "{outcomes:?}");
+    // A converged frame ran its rounds and no recovery guess; the first scan ran none.
+    for o in outcomes {
+        let (rounds, guesses) = (
+            o["rounds"].as_f64().unwrap(),
+            o["recovery_attempts"].as_f64().unwrap(),
+        );
+        match o["status"].as_str().unwrap() {
+            "Converged" => assert!(rounds >= 1.0 && guesses == 0.0, "{o:?}"),
+            "FirstScan" => assert_eq!((rounds, guesses), (0.0, 0.0), "{o:?}"),
+            _ => {}
+        }
+    }
+    assert!(report["frames"][2]["rounds"].as_u64().unwrap() >= 1);
     // One KITTI line per frame (skipped frames repeat the last pose); TUM: used frames only.
     let kitti = trajectory::read(&out.join("poses_kitti.txt"))
         .unwrap()

@@ -6,7 +6,7 @@ use crate::cli::error::CliError;
 use crate::cli::input::InputArgs;
 use crate::cli::settings::Profile;
 use crate::io::config_file::WindowSettings;
-use crate::run::report::{cost_by_outcome, spreads, Summary};
+use crate::run::report::{cost_by_outcome, spreads, FrameRecord, Summary};
 use crate::run::timing::StageMs;
 use crate::run::{run, RunOptions};
 use crate::say;
@@ -38,9 +38,9 @@ pub struct BenchArgs {
     pub scaling: bool,
 }
 
-/// A warm-up pass, then `repeat` timed passes: each used frame's stage times and its
-/// (status, total milliseconds), and the last pass's summary.
-type Timed = (Vec<StageMs>, Vec<(String, f64)>, Summary);
+/// A warm-up pass, then `repeat` timed passes: each used frame's stage times and its record,
+/// and the last pass's summary.
+type Timed = (Vec<StageMs>, Vec<FrameRecord>, Summary);
 
 fn time_passes(
     source: &mut crate::run::Input,
@@ -53,7 +53,7 @@ fn time_passes(
         let summary = run::<KittiCapacity>(source, opts, |rec| {
             if pass > 0 && rec.error.is_none() {
                 timed.push(rec.ms);
-                outcomes.push((rec.status.clone(), rec.ms.total));
+                outcomes.push(rec.clone());
             }
         })?;
         last = Some(summary);
@@ -119,7 +119,7 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
                 "threads": summary.threads,
                 "scans_timed": timed.len(),
                 "stages": stage_json,
-                "outcomes": cost_by_outcome(outcomes),
+                "outcomes": cost_by_outcome(&outcomes),
                 "hz": 1000.0 / total.max(1e-9),
                 "peak_rss_mb": peak,
             })
@@ -142,19 +142,23 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
             peak.map_or("unknown".into(), |m| format!("{m:.0} MB"))
         );
         say!(
-            "{:<14} {:>7} {:>10} {:>10}",
+            "{:<14} {:>7} {:>10} {:>10} {:>7} {:>7}",
             "outcome",
             "frames",
             "median ms",
-            "p95 ms"
+            "p95 ms",
+            "rounds",
+            "guesses"
         );
-        for o in cost_by_outcome(outcomes) {
+        for o in cost_by_outcome(&outcomes) {
             say!(
-                "{:<14} {:>7} {:>10.2} {:>10.2}",
+                "{:<14} {:>7} {:>10.2} {:>10.2} {:>7.1} {:>7.1}",
                 o.status,
                 o.frames,
                 o.median_ms,
-                o.p95_ms
+                o.p95_ms,
+                o.rounds,
+                o.recovery_attempts
             );
         }
     }

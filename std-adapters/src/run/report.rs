@@ -62,6 +62,14 @@ pub struct FrameRecord {
     pub conditioning: f64,
     /// Directions registration left to the motion model (see the `Degenerate` status).
     pub degenerate_directions: usize,
+    /// Registration rounds run (each a reconstruction, an association and a solve), recovery's
+    /// and polishing's included.
+    #[serde(default)]
+    pub rounds: usize,
+    /// Guesses registered from after the prediction's registration did not converge
+    /// (docs/design.md §1.11); 0 on a frame that converged.
+    #[serde(default)]
+    pub recovery_attempts: usize,
     /// Resident memory after the frame (MB).
     pub rss_mb: Option<f64>,
     /// Points moved by deskewing (0: the scan had no point times, or was not deskewed).
@@ -105,6 +113,8 @@ impl FrameRecord {
             evicted_cells: 0,
             conditioning: 0.0,
             degenerate_directions: 0,
+            rounds: 0,
+            recovery_attempts: 0,
             rss_mb: None,
             deskewed_points: 0,
             stamp: 0.0,
@@ -112,6 +122,17 @@ impl FrameRecord {
             loop_closures: Vec::new(),
             latency_ms: None,
         }
+    }
+
+    /// Takes the counts of the pipeline's `stats` for the frame.
+    pub fn take_stats(&mut self, stats: &ScanStats) {
+        self.points_kept = stats.filter.kept;
+        self.scan_cells = stats.bucket.cells;
+        self.scan_layers = stats.scan_layers;
+        self.conditioning = stats.conditioning;
+        self.degenerate_directions = stats.degenerate_directions;
+        self.rounds = stats.rounds;
+        self.recovery_attempts = stats.recovery_attempts;
     }
 }
 
@@ -384,31 +405,41 @@ pub struct OutcomeCost {
     pub median_ms: f64,
     /// See [`median_ms`](Self::median_ms).
     pub p95_ms: f64,
+    /// Registration rounds a frame, on average (each a reconstruction, an association and a
+    /// solve).
+    pub rounds: f64,
+    /// Recovery's guesses a frame, on average.
+    pub recovery_attempts: f64,
 }
 
-/// Each outcome's cost from (status, total milliseconds) a frame, the commonest first;
-/// skipped frames are left out.
-pub fn cost_by_outcome(frames: impl IntoIterator<Item = (String, f64)>) -> Vec<OutcomeCost> {
-    let mut by: Vec<(String, Vec<f64>)> = Vec::new();
-    for (status, ms) in frames {
-        if status == "Skipped" {
+/// Each outcome's cost from its frames' records (whole time, rounds, recovery's guesses), the
+/// commonest first; skipped frames are left out.
+pub fn cost_by_outcome<'a>(frames: impl IntoIterator<Item = &'a FrameRecord>) -> Vec<OutcomeCost> {
+    let mut by: Vec<(&str, Vec<&FrameRecord>)> = Vec::new();
+    for r in frames {
+        if r.status == "Skipped" {
             continue;
         }
-        match by.iter_mut().find(|(s, _)| *s == status) {
-            Some((_, v)) => v.push(ms),
-            None => by.push((status, vec![ms])),
+        match by.iter_mut().find(|(s, _)| *s == r.status) {
+            Some((_, v)) => v.push(r),
+            None => by.push((&r.status, vec![r])),
         }
     }
     let mut out: Vec<OutcomeCost> = by
         .into_iter()
         .map(|(status, v)| {
             let frames = v.len();
-            let s = Spread::of(v);
+            let mean = |f: fn(&FrameRecord) -> usize| {
+                v.iter().map(|r| f(r) as f64).sum::<f64>() / frames as f64
+            };
+            let s = Spread::of(v.iter().map(|r| r.ms.total).collect());
             OutcomeCost {
-                status,
+                status: status.to_string(),
                 frames,
                 median_ms: s.median,
                 p95_ms: s.p95,
+                rounds: mean(|r| r.rounds),
+                recovery_attempts: mean(|r| r.recovery_attempts),
             }
         })
         .collect();
@@ -420,11 +451,11 @@ pub fn cost_by_outcome(frames: impl IntoIterator<Item = (String, f64)>) -> Vec<O
 pub(crate) fn cost_by_outcome_in(frames: &Path) -> Result<Vec<OutcomeCost>, FileError> {
     let file = std::fs::File::open(frames)
         .map_err(|e| FileError::at(frames, format!("cannot read: {e}")))?;
-    let records = std::io::BufRead::lines(std::io::BufReader::new(file))
+    let records: Vec<FrameRecord> = std::io::BufRead::lines(std::io::BufReader::new(file))
         .map_while(Result::ok)
         .filter_map(|l| serde_json::from_str::<FrameRecord>(&l).ok())
-        .map(|r| (r.status, r.ms.total));
-    Ok(cost_by_outcome(records))
+        .collect();
+    Ok(cost_by_outcome(&records))
 }
 
 /// Writes `poses_tum.txt` (used frames, with their stamps) and `poses_kitti.txt` (every frame,
@@ -552,20 +583,31 @@ mod tests {
     #[test]
     fn outcomes_are_counted_and_timed_the_commonest_first() {
         let frames = [
-            ("Converged", 10.0),
-            ("Recovered", 80.0),
-            ("Converged", 12.0),
-            ("Skipped", 1.0),
-            ("Converged", 11.0),
-            ("Recovered", 60.0),
+            ("Converged", 10.0, 2, 0),
+            ("Recovered", 80.0, 10, 1),
+            ("Converged", 12.0, 2, 0),
+            ("Skipped", 1.0, 0, 0),
+            ("Converged", 11.0, 3, 0),
+            ("Recovered", 60.0, 14, 3),
         ]
-        .map(|(s, ms)| (s.to_string(), ms));
-        let c = cost_by_outcome(frames);
+        .map(|(s, ms, rounds, attempts)| FrameRecord {
+            status: s.to_string(),
+            ms: StageMs {
+                total: ms,
+                ..StageMs::default()
+            },
+            rounds,
+            recovery_attempts: attempts,
+            ..FrameRecord::skipped(0, String::new())
+        });
+        let c = cost_by_outcome(&frames);
         assert_eq!(c.len(), 2, "skipped frames are left out");
         assert_eq!((c[0].status.as_str(), c[0].frames), ("Converged", 3));
         assert_eq!((c[0].median_ms, c[0].p95_ms), (11.0, 12.0));
         assert_eq!((c[1].status.as_str(), c[1].frames), ("Recovered", 2));
         assert_eq!(c[1].median_ms, 80.0);
+        assert_eq!((c[0].rounds, c[0].recovery_attempts), (7.0 / 3.0, 0.0));
+        assert_eq!((c[1].rounds, c[1].recovery_attempts), (12.0, 2.0));
         assert_eq!(
             Spread::of(Vec::new()),
             Spread {

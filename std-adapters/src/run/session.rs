@@ -428,11 +428,7 @@ impl<'a, C: Capacity> Run<'a, C> {
                     rec.relocalization = Some(found);
                     self.search = None;
                 }
-                rec.points_kept = o.stats.filter.kept;
-                rec.scan_cells = o.stats.bucket.cells;
-                rec.scan_layers = o.stats.scan_layers;
-                rec.conditioning = o.stats.conditioning;
-                rec.degenerate_directions = o.stats.degenerate_directions;
+                rec.take_stats(&o.stats);
                 let t = Instant::now();
                 rec.triangles_updated = updated_triangles(&self.pipeline, &self.workers);
                 rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
