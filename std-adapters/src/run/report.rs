@@ -412,34 +412,40 @@ pub struct OutcomeCost {
     pub recovery_attempts: f64,
 }
 
+/// What a frame cost: its whole time (ms), registration rounds and recovery's guesses.
+type Cost = (f64, usize, usize);
+
 /// Each outcome's cost from its frames' records (whole time, rounds, recovery's guesses), the
-/// commonest first; skipped frames are left out.
-pub fn cost_by_outcome<'a>(frames: impl IntoIterator<Item = &'a FrameRecord>) -> Vec<OutcomeCost> {
-    let mut by: Vec<(&str, Vec<&FrameRecord>)> = Vec::new();
+/// commonest first; skipped frames are left out. Keeps the costs, not the records.
+pub fn cost_by_outcome<R: std::borrow::Borrow<FrameRecord>>(
+    frames: impl IntoIterator<Item = R>,
+) -> Vec<OutcomeCost> {
+    let mut by: Vec<(String, Vec<Cost>)> = Vec::new();
     for r in frames {
+        let r = r.borrow();
         if r.status == "Skipped" {
             continue;
         }
+        let cost = (r.ms.total, r.rounds, r.recovery_attempts);
         match by.iter_mut().find(|(s, _)| *s == r.status) {
-            Some((_, v)) => v.push(r),
-            None => by.push((&r.status, vec![r])),
+            Some((_, v)) => v.push(cost),
+            None => by.push((r.status.clone(), vec![cost])),
         }
     }
     let mut out: Vec<OutcomeCost> = by
         .into_iter()
         .map(|(status, v)| {
             let frames = v.len();
-            let mean = |f: fn(&FrameRecord) -> usize| {
-                v.iter().map(|r| f(r) as f64).sum::<f64>() / frames as f64
-            };
-            let s = Spread::of(v.iter().map(|r| r.ms.total).collect());
+            let mean =
+                |f: fn(&Cost) -> usize| v.iter().map(|c| f(c) as f64).sum::<f64>() / frames as f64;
+            let s = Spread::of(v.iter().map(|c| c.0).collect());
             OutcomeCost {
-                status: status.to_string(),
+                status,
                 frames,
                 median_ms: s.median,
                 p95_ms: s.p95,
-                rounds: mean(|r| r.rounds),
-                recovery_attempts: mean(|r| r.recovery_attempts),
+                rounds: mean(|c| c.1),
+                recovery_attempts: mean(|c| c.2),
             }
         })
         .collect();
@@ -451,11 +457,10 @@ pub fn cost_by_outcome<'a>(frames: impl IntoIterator<Item = &'a FrameRecord>) ->
 pub(crate) fn cost_by_outcome_in(frames: &Path) -> Result<Vec<OutcomeCost>, FileError> {
     let file = std::fs::File::open(frames)
         .map_err(|e| FileError::at(frames, format!("cannot read: {e}")))?;
-    let records: Vec<FrameRecord> = std::io::BufRead::lines(std::io::BufReader::new(file))
+    let records = std::io::BufRead::lines(std::io::BufReader::new(file))
         .map_while(Result::ok)
-        .filter_map(|l| serde_json::from_str::<FrameRecord>(&l).ok())
-        .collect();
-    Ok(cost_by_outcome(&records))
+        .filter_map(|l| serde_json::from_str::<FrameRecord>(&l).ok());
+    Ok(cost_by_outcome(records))
 }
 
 /// Writes `poses_tum.txt` (used frames, with their stamps) and `poses_kitti.txt` (every frame,
