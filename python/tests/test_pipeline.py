@@ -212,3 +212,17 @@ def test_run_writes_what_the_command_writes(tmp_path, command):
         "poses_kitti.txt": True,
         "mesh.ply": True,
     }
+
+
+def test_the_readmes_python_runs(tmp_path, monkeypatch):
+    from conftest import ROOT
+
+    data = data_folder()
+    text = (ROOT / "README.md").read_text()
+    block = text.split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    scope: dict = {}
+    exec(block.replace("../shared/data", str(data)), scope)
+    assert scope["r"].status == "Converged" and scope["m"].faces.shape[1] == 3
+    assert scope["report"]["summary"]["used"] == 10
+    assert (tmp_path / "map.ply").is_file() and (tmp_path / "out" / "poses_kitti.txt").is_file()
