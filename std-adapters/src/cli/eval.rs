@@ -337,14 +337,7 @@ fn write_plots(
     let align = eval::rigid_alignment(estimate, reference);
     let aligned: Vec<_> = estimate.iter().map(|p| align * p).collect();
     let errors = eval::ate_errors(estimate, reference);
-    let mut distance = Vec::with_capacity(reference.len());
-    let mut along = 0.0;
-    for (k, p) in reference.iter().enumerate() {
-        if k > 0 {
-            along += (p.translation.vector - reference[k - 1].translation.vector).norm();
-        }
-        distance.push(along);
-    }
+    let distance = eval::distances_along(reference);
     let name = |suffix: &str| {
         let stem = prefix.file_name().unwrap_or_default().to_string_lossy();
         prefix.with_file_name(format!("{stem}_{suffix}.png"))

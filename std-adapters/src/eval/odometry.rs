@@ -43,10 +43,21 @@ pub fn consecutive_errors(estimate: &[Pose], reference: &[Pose]) -> ConsecutiveE
 
 /// Path length of a trajectory (metres): the sum of its steps.
 pub fn path_length(poses: &[Pose]) -> f64 {
-    poses
-        .windows(2)
-        .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
-        .sum()
+    distances_along(poses).last().copied().unwrap_or(0.0)
+}
+
+/// The distance travelled to each pose from the first (metres): 0 first, then the running sum
+/// of the steps.
+pub fn distances_along(poses: &[Pose]) -> Vec<f64> {
+    let mut along = 0.0;
+    let mut out = Vec::with_capacity(poses.len());
+    for (k, p) in poses.iter().enumerate() {
+        if let Some(before) = k.checked_sub(1).map(|j| &poses[j]) {
+            along += (p.translation.vector - before.translation.vector).norm();
+        }
+        out.push(along);
+    }
+    out
 }
 
 /// End-point drift: the distance between the last estimated and last reference positions
@@ -138,11 +149,7 @@ pub const KITTI_SEGMENTS: [f64; 8] = [100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 
 /// out.
 pub fn segment_errors(estimate: &[Pose], reference: &[Pose], lengths: &[f64]) -> Vec<SegmentError> {
     let n = estimate.len().min(reference.len());
-    let mut dist = vec![0.0; n];
-    for i in 1..n {
-        dist[i] = dist[i - 1]
-            + (reference[i].translation.vector - reference[i - 1].translation.vector).norm();
-    }
+    let dist = distances_along(&reference[..n]);
     lengths
         .iter()
         .filter_map(|&length| {
@@ -210,6 +217,16 @@ mod tests {
             poses.push(poses[i - 1] * step);
         }
         poses
+    }
+
+    #[test]
+    fn the_distance_along_a_path_sums_its_steps() {
+        let p = |x: f64, y: f64| Pose::translation(x, y, 0.0);
+        let path = [p(0.0, 0.0), p(3.0, 4.0), p(3.0, 4.0), p(3.0, 5.0)];
+        assert_eq!(distances_along(&path), vec![0.0, 5.0, 5.0, 6.0]);
+        assert_eq!(path_length(&path), 6.0);
+        assert!(distances_along(&[]).is_empty());
+        assert_eq!(path_length(&[]), 0.0);
     }
 
     #[test]
