@@ -289,17 +289,22 @@ impl Health {
         })
     }
 
-    /// The health of the frame records spooled in `frames` (one JSON object a line), read a
-    /// line at a time.
-    pub fn of_spool(frames: &Path) -> Result<Self, FileError> {
+    /// The health and [`cost_by_outcome`] of the frame records spooled in `frames` (one JSON
+    /// object a line), in one pass that reads a line at a time.
+    pub fn of_spool(frames: &Path) -> Result<(Self, Vec<OutcomeCost>), FileError> {
         let file = std::fs::File::open(frames)
             .map_err(|e| FileError::at(frames, format!("cannot read: {e}")))?;
         let lines = std::io::BufRead::lines(std::io::BufReader::new(file));
-        Self::of(lines.enumerate().map(|(i, line)| {
+        let mut costs = Vec::new();
+        let health = Self::of(lines.enumerate().map(|(i, line)| {
             let bad = |reason: String| FileError::new(frames, Some(i + 1), reason);
             let line = line.map_err(|e| bad(format!("cannot read: {e}")))?;
-            serde_json::from_str::<FrameRecord>(&line).map_err(|e| bad(format!("bad record: {e}")))
-        }))
+            let r = serde_json::from_str::<FrameRecord>(&line)
+                .map_err(|e| bad(format!("bad record: {e}")))?;
+            costs.push(Cost::of(&r));
+            Ok(r)
+        }))?;
+        Ok((health, group_costs(costs)))
     }
 
     /// `8 Converged, 1 FirstScan, 1 TooFewResiduals`.
@@ -393,8 +398,8 @@ impl Spread {
     }
 }
 
-/// What the frames of one registration outcome (`Converged`, `Polished`, `Recovered`, ...)
-/// cost: a hard motion's price in time.
+/// What the frames of one registration outcome (`Converged`, `Recovered`, ...) cost: a hard
+/// motion's price in time.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OutcomeCost {
     /// The status.
@@ -412,24 +417,41 @@ pub struct OutcomeCost {
     pub recovery_attempts: f64,
 }
 
-/// What a frame cost: its whole time (ms), registration rounds and recovery's guesses.
-type Cost = (f64, usize, usize);
+/// What one frame cost: its status, whole time (ms), registration rounds and recovery's
+/// guesses.
+struct Cost {
+    status: String,
+    ms: f64,
+    rounds: usize,
+    guesses: usize,
+}
+
+impl Cost {
+    fn of(r: &FrameRecord) -> Self {
+        Cost {
+            status: r.status.clone(),
+            ms: r.ms.total,
+            rounds: r.rounds,
+            guesses: r.recovery_attempts,
+        }
+    }
+}
 
 /// Each outcome's cost from its frames' records (whole time, rounds, recovery's guesses), the
-/// commonest first; skipped frames are left out. Keeps the costs, not the records.
-pub fn cost_by_outcome<R: std::borrow::Borrow<FrameRecord>>(
-    frames: impl IntoIterator<Item = R>,
-) -> Vec<OutcomeCost> {
+/// commonest first; skipped frames are left out.
+pub fn cost_by_outcome<'a>(frames: impl IntoIterator<Item = &'a FrameRecord>) -> Vec<OutcomeCost> {
+    group_costs(frames.into_iter().map(Cost::of))
+}
+
+fn group_costs(costs: impl IntoIterator<Item = Cost>) -> Vec<OutcomeCost> {
     let mut by: Vec<(String, Vec<Cost>)> = Vec::new();
-    for r in frames {
-        let r = r.borrow();
-        if r.status == "Skipped" {
+    for c in costs {
+        if c.status == "Skipped" {
             continue;
         }
-        let cost = (r.ms.total, r.rounds, r.recovery_attempts);
-        match by.iter_mut().find(|(s, _)| *s == r.status) {
-            Some((_, v)) => v.push(cost),
-            None => by.push((r.status.clone(), vec![cost])),
+        match by.iter_mut().find(|(s, _)| *s == c.status) {
+            Some((_, v)) => v.push(c),
+            None => by.push((c.status.clone(), vec![c])),
         }
     }
     let mut out: Vec<OutcomeCost> = by
@@ -438,29 +460,19 @@ pub fn cost_by_outcome<R: std::borrow::Borrow<FrameRecord>>(
             let frames = v.len();
             let mean =
                 |f: fn(&Cost) -> usize| v.iter().map(|c| f(c) as f64).sum::<f64>() / frames as f64;
-            let s = Spread::of(v.iter().map(|c| c.0).collect());
+            let s = Spread::of(v.iter().map(|c| c.ms).collect());
             OutcomeCost {
                 status,
                 frames,
                 median_ms: s.median,
                 p95_ms: s.p95,
-                rounds: mean(|c| c.1),
-                recovery_attempts: mean(|c| c.2),
+                rounds: mean(|c| c.rounds),
+                recovery_attempts: mean(|c| c.guesses),
             }
         })
         .collect();
     out.sort_by(|a, b| b.frames.cmp(&a.frames).then(a.status.cmp(&b.status)));
     out
-}
-
-/// [`cost_by_outcome`] of the frame records spooled in `frames` (one JSON object a line).
-pub(crate) fn cost_by_outcome_in(frames: &Path) -> Result<Vec<OutcomeCost>, FileError> {
-    let file = std::fs::File::open(frames)
-        .map_err(|e| FileError::at(frames, format!("cannot read: {e}")))?;
-    let records = std::io::BufRead::lines(std::io::BufReader::new(file))
-        .map_while(Result::ok)
-        .filter_map(|l| serde_json::from_str::<FrameRecord>(&l).ok());
-    Ok(cost_by_outcome(records))
 }
 
 /// Writes `poses_tum.txt` (used frames, with their stamps) and `poses_kitti.txt` (every frame,

@@ -527,7 +527,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             .flush()
             .map_err(|e| FileError::at(&self.frames_path, format!("cannot write: {e}")))?;
         drop(self.frame_lines);
-        let health = Health::of_spool(&self.frames_path)?;
+        let (health, cost_by_outcome) = Health::of_spool(&self.frames_path)?;
         // The scan buffers go before the mesh is welded: writing needs no more than the run.
         drop(std::mem::take(&mut self.ahead));
         let frames_seen = self.pipeline.frames();
@@ -573,7 +573,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             threads: self.workers.threads(),
             capacity: C::NAME.to_string(),
             stage_ms: spreads(&used_ms),
-            cost_by_outcome: super::report::cost_by_outcome_in(&self.frames_path)?,
+            cost_by_outcome,
             mesh_vertices: counts.vertices,
             mesh_triangles: counts.triangles,
             map_cells: map.cell_count(),
