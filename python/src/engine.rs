@@ -9,7 +9,7 @@ use crate::{error, FrameError};
 use numpy::{PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use slamesh::io::config_file::{self, Settings, PRESETS};
+use slamesh::io::config_file::{self, Settings};
 use slamesh::io::mesh_spool::{MeshColour, MeshFormat, MeshSpool};
 use slamesh::io::FileError;
 use slamesh::run::capacity::{self, Class};
@@ -124,12 +124,6 @@ impl Engine {
         threads: usize,
         deskew: bool,
     ) -> PyResult<Self> {
-        if let Some(p) = preset.as_deref().filter(|p| !PRESETS.contains(p)) {
-            return Err(PyValueError::new_err(format!(
-                "preset: {p:?} is not one of {}",
-                PRESETS.join(", ")
-            )));
-        }
         if preset.is_some() && config.is_some() {
             return Err(PyValueError::new_err(
                 "preset and config: give one (a configuration file names every parameter)",
@@ -154,7 +148,7 @@ impl Engine {
         let settings = match &config {
             Some(path) => config_file::read(path).map_err(error)?,
             None => config_file::preset_settings(preset.as_deref().unwrap_or("default"))
-                .ok_or_else(|| PyValueError::new_err("preset: unknown"))?,
+                .map_err(|e| PyValueError::new_err(format!("preset: {e}")))?,
         };
         let scratch = scratch_folder().map_err(error)?;
         let opts = RunOptions {

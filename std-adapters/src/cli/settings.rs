@@ -26,15 +26,10 @@ impl Profile {
             return Ok(config_file::read(path)?);
         }
         let name = self.preset.as_deref().unwrap_or(default_preset);
-        // clap has checked the name against PRESETS.
-        Ok(config_file::preset_settings(name)
-            .or_else(|| config_file::preset_settings("default"))
-            .unwrap_or(Settings {
-                config: Default::default(),
-                preset: "default",
-                window: WindowSettings::default(),
-                scale_to_scene: false,
-            }))
+        config_file::preset_settings(name).map_err(|reason| CliError::BadFlag {
+            flag: "--preset",
+            reason,
+        })
     }
 }
 

@@ -54,12 +54,16 @@ pub fn preset(name: &str) -> Option<Config> {
     }
 }
 
-/// The settings of preset `name` (its configuration, no window; `None` for a name not in
-/// [`PRESETS`]).
-pub fn preset_settings(name: &str) -> Option<Settings> {
-    let preset = PRESETS.into_iter().find(|p| *p == name)?;
-    Some(Settings {
-        config: self::preset(preset)?,
+/// The settings of preset `name` (its configuration, no window); a name not in [`PRESETS`]
+/// is refused with the list.
+pub fn preset_settings(name: &str) -> Result<Settings, String> {
+    let unknown = || format!("{name:?} is not one of {}", PRESETS.join(", "));
+    let preset = PRESETS
+        .into_iter()
+        .find(|p| *p == name)
+        .ok_or_else(unknown)?;
+    Ok(Settings {
+        config: self::preset(preset).ok_or_else(unknown)?,
         preset,
         window: WindowSettings::default(),
         scale_to_scene: scales_itself(preset),
