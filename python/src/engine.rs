@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// The frames pushed so far: each one's stamp, and the last one's points until the run reads
-/// them.
+/// them (a read takes them: a frame's points are not copied).
 #[derive(Default)]
 struct Pushed {
     stamps: Vec<f64>,
@@ -44,8 +44,8 @@ impl FrameSource for Pushed {
         self.read_timed(i).map(|(p, _)| p)
     }
     fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
-        match &self.frame {
-            Some(f) if i + 1 == self.stamps.len() => Ok(f.clone()),
+        match self.frame.take() {
+            Some(f) if i + 1 == self.stamps.len() => Ok(f),
             _ => Err(FileError::at(
                 Path::new("register()"),
                 format!("frame {i} was not pushed"),
@@ -342,12 +342,17 @@ fn start(stage: &mut Stage, source: &mut Pushed) -> Stage {
         capacity,
         opts,
     } = *start;
+    // The fit and the choice read the first frame, which the run then reads again: only this
+    // frame's points are copied.
+    let first = source.frame.clone();
     fit_to_scene(&mut settings, source);
+    source.frame.clone_from(&first);
     let opts = RunOptions {
         config: settings.config,
         ..opts
     };
     let class = capacity.unwrap_or_else(|| capacity::choose(source, &opts));
+    source.frame = first;
     let run = match class.flag {
         "tiny" => Run::start(source, opts).map(|r| AnyRun::Tiny(Box::new(r))),
         "16" => Run::start(source, opts).map(|r| AnyRun::L16(Box::new(r))),
