@@ -324,17 +324,24 @@ def command(*args: Any) -> None:
     _slamesh.command([os.fspath(a) if isinstance(a, os.PathLike) else str(a) for a in args])
 
 
-def _flags(options: dict[str, Any]) -> list[str]:
-    out: list[str] = []
+def _flags(options: dict[str, Any]) -> list[Any]:
+    """Keyword arguments as the command's flags: ``save_map=p`` is ``--save-map p``, ``True``
+    a bare flag, ``None`` and ``False`` none."""
+    out: list[Any] = []
     for key, value in options.items():
-        flag = "--" + key.replace("_", "-")
         if value is None or value is False:
             continue
-        if value is True:
-            out.append(flag)
-        else:
-            out += [flag, os.fspath(value) if isinstance(value, os.PathLike) else str(value)]
+        out.append("--" + key.replace("_", "-"))
+        if value is not True:
+            out.append(value)
     return out
+
+
+def _report_of(subcommand: str, input: PathLike, out: PathLike, quiet: bool, options: dict) -> dict:
+    """Runs ``slamesh SUBCOMMAND INPUT --out OUT [-q] FLAGS`` and reads its ``report.json``."""
+    command(subcommand, input, "--out", out, *(["-q"] if quiet else []), *_flags(options))
+    with open(os.path.join(os.fspath(out), "report.json")) as f:
+        return json.load(f)
 
 
 def run(input: PathLike, out: PathLike, quiet: bool = True, **options: Any) -> dict[str, Any]:
@@ -342,9 +349,7 @@ def run(input: PathLike, out: PathLike, quiet: bool = True, **options: Any) -> d
     ``--preset kitti``, ``save_map="m.slamesh"`` is ``--save-map m.slamesh``, ``obj=True`` is
     ``--obj``), in this process; returns ``report.json``. The outputs are the command's, in
     ``out``."""
-    command("run", input, "--out", out, *(["-q"] if quiet else []), *_flags(options))
-    with open(os.path.join(os.fspath(out), "report.json")) as f:
-        return json.load(f)
+    return _report_of("run", input, out, quiet, options)
 
 
 def localize(
@@ -352,8 +357,4 @@ def localize(
 ) -> dict[str, Any]:
     """``slamesh localize INPUT --map MAP --out OUT`` with ``options`` as flags; returns
     ``report.json``."""
-    command(
-        "localize", input, "--map", map, "--out", out, *(["-q"] if quiet else []), *_flags(options)
-    )
-    with open(os.path.join(os.fspath(out), "report.json")) as f:
-        return json.load(f)
+    return _report_of("localize", input, out, quiet, {"map": map, **options})

@@ -102,7 +102,8 @@ enum Stage {
 struct State {
     source: Pushed,
     stage: Stage,
-    /// The preset's name, or "custom" for a configuration file.
+    /// The preset the settings started from (a configuration file names its own), for
+    /// `config_toml`.
     preset: String,
 }
 

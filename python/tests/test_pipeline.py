@@ -226,3 +226,10 @@ def test_the_readmes_python_runs(tmp_path, monkeypatch):
     assert scope["r"].status == "Converged" and scope["m"].faces.shape[1] == 3
     assert scope["report"]["summary"]["used"] == 10
     assert (tmp_path / "map.ply").is_file() and (tmp_path / "out" / "poses_kitti.txt").is_file()
+
+
+def test_a_map_saved_by_run_is_localized_in(tmp_path):
+    slamesh.run(SCANS, out=tmp_path / "a", save_map=tmp_path / "m.slamesh", no_picture=True)
+    report = slamesh.localize(SCANS, map=tmp_path / "m.slamesh", out=tmp_path / "b", no_picture=True)
+    counts = dict(report["summary"]["health"]["counts"])
+    assert counts.get("Relocalized") == 1 and report["summary"]["used"] == 3, counts
