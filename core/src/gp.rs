@@ -24,6 +24,7 @@ use crate::config::GpConfig;
 use crate::lattice::{Lattice, N, VERTICES};
 use crate::layer::Layer;
 use crate::math::Point;
+use crate::real::Real;
 use core::fmt;
 
 /// At most one training point per lattice bin.
@@ -31,8 +32,9 @@ pub const MAX_TRAINING: usize = VERTICES;
 /// A layer needs at least this many training points (bins with points).
 pub const MIN_TRAINING: usize = 3;
 
-/// A training sample `(a, b, d)`: cell-local location and target (metres).
-pub type Sample = [f64; 3];
+/// A training sample `(a, b, d)`: cell-local location and target (metres), in the scalar `R`
+/// of the reconstruction ([`Real`]).
+pub type Sample<R = f64> = [R; 3];
 
 /// Why a layer could not be reconstructed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,23 +69,23 @@ impl core::error::Error for GpError {}
 /// are fitted with a plane, samples farther from it than `outlier_threshold` are dropped
 /// (repeatedly, a few times), and bins that lost their sample take their closest point within
 /// the threshold instead.
-pub fn select_training(
+pub fn select_training<R: Real>(
     points: &[(CellKey, Point)],
     axis: Axis,
     cell_size: f64,
-) -> heapless::Vec<Sample, MAX_TRAINING> {
-    let all = closest_per_bin(points, axis, cell_size, |_| true);
+) -> heapless::Vec<Sample<R>, MAX_TRAINING> {
+    let all = closest_per_bin(points, axis, R::from_f64(cell_size), |_| true);
     if all.len() < MIN_TRAINING {
         return all;
     }
     let mut plane = plane_mean(&all);
-    let mut limit = f64::INFINITY;
+    let mut limit = R::INFINITY;
     for _ in 0..OUTLIER_ROUNDS {
         let new_limit = outlier_threshold(&all, &plane);
-        let mut inliers = heapless::Vec::<Sample, MAX_TRAINING>::new();
+        let mut inliers = heapless::Vec::<Sample<R>, MAX_TRAINING>::new();
         for s in all
             .iter()
-            .filter(|s| libm::fabs(s[2] - plane.at(s[0], s[1])) <= new_limit)
+            .filter(|s| (s[2] - plane.at(s[0], s[1])).abs() <= new_limit)
         {
             // No more than `all`: cannot overflow.
             let _ = inliers.push(*s);
@@ -100,8 +102,8 @@ pub fn select_training(
     if !limit.is_finite() {
         return all;
     }
-    closest_per_bin(points, axis, cell_size, |s| {
-        libm::fabs(s[2] - plane.at(s[0], s[1])) <= limit
+    closest_per_bin(points, axis, R::from_f64(cell_size), |s| {
+        (s[2] - plane.at(s[0], s[1])).abs() <= limit
     })
 }
 
@@ -117,57 +119,65 @@ const OUTLIER_SPREADS: f64 = 3.0 * 1.4826;
 
 /// Farther from `plane` than this is an outlier: three robust standard deviations (from the
 /// median absolute residual), at least [`MIN_OUTLIER_DISTANCE_M`].
-fn outlier_threshold(samples: &[Sample], plane: &PlaneMean) -> f64 {
-    let mut r = [0.0f64; MAX_TRAINING];
+fn outlier_threshold<R: Real>(samples: &[Sample<R>], plane: &PlaneMean<R>) -> R {
+    let (spreads, minimum) = (
+        R::from_f64(OUTLIER_SPREADS),
+        R::from_f64(MIN_OUTLIER_DISTANCE_M),
+    );
+    let mut r = [R::ZERO; MAX_TRAINING];
     let n = samples.len().min(MAX_TRAINING);
     let mut at_minimum = 0;
     for (ri, s) in r.iter_mut().zip(samples) {
-        *ri = libm::fabs(s[2] - plane.at(s[0], s[1]));
-        at_minimum += usize::from(OUTLIER_SPREADS * *ri <= MIN_OUTLIER_DISTANCE_M);
+        *ri = (s[2] - plane.at(s[0], s[1])).abs();
+        at_minimum += usize::from(spreads * *ri <= minimum);
     }
     // The threshold grows with the median: when more than half the residuals give the
     // minimum, the median does too, and need not be found (most layers: their noise is a
     // few centimetres).
     if at_minimum > n / 2 {
-        return MIN_OUTLIER_DISTANCE_M;
+        return minimum;
     }
     let r = &mut r[..n];
     // The median alone: selection, not a sort (the same value).
     let median = if n == 0 {
-        0.0
+        R::ZERO
     } else {
-        *r.select_nth_unstable_by(n / 2, f64::total_cmp).1
+        *r.select_nth_unstable_by(n / 2, R::total_cmp).1
     };
-    (OUTLIER_SPREADS * median).max(MIN_OUTLIER_DISTANCE_M)
+    (spreads * median).max(minimum)
 }
 
 /// Per lattice bin of `axis`, the point closest to the bin centre among those `keep` accepts.
-fn closest_per_bin(
+fn closest_per_bin<R: Real>(
     points: &[(CellKey, Point)],
     axis: Axis,
-    cell_size: f64,
-    keep: impl Fn(&Sample) -> bool,
-) -> heapless::Vec<Sample, MAX_TRAINING> {
+    cell_size: R,
+    keep: impl Fn(&Sample<R>) -> bool,
+) -> heapless::Vec<Sample<R>, MAX_TRAINING> {
     let (ia, ib) = axis.locations();
-    let bin = cell_size / N as f64;
-    let per_metre = N as f64 / cell_size;
+    let bins = R::from_usize(N);
+    let (bin, per_metre) = (cell_size / bins, bins / cell_size);
+    let half = R::from_f64(0.5);
     // Per bin, the squared distance of its closest point so far and that point (infinitely
     // far and none at first: the points are finite, so the first one is closer).
-    let mut best_dist = [f64::INFINITY; VERTICES];
-    let mut best = [[0.0f64; 3]; VERTICES];
+    let mut best_dist = [R::INFINITY; VERTICES];
+    let mut best = [[R::ZERO; 3]; VERTICES];
     for (_, p) in points {
         let (Some(&a), Some(&b), Some(&d)) = (p.get(ia), p.get(ib), p.get(axis.index())) else {
             continue;
         };
-        let sample = [f64::from(a), f64::from(b), f64::from(d)];
+        let sample = [R::from_f32(a), R::from_f32(b), R::from_f32(d)];
         if !keep(&sample) {
             continue;
         }
         let [a, b, _] = sample;
-        // `as` truncates towards zero and sends negatives and NaN to 0: floor, clamped.
-        let index = |v: f64| ((v * per_metre) as usize).min(N - 1);
+        // Truncation towards zero sends negatives and NaN to 0: floor, clamped.
+        let index = |v: R| (v * per_metre).to_index().min(N - 1);
         let (i, j) = (index(a), index(b));
-        let (ca, cb) = ((i as f64 + 0.5) * bin, (j as f64 + 0.5) * bin);
+        let (ca, cb) = (
+            (R::from_usize(i) + half) * bin,
+            (R::from_usize(j) + half) * bin,
+        );
         let dist = (a - ca) * (a - ca) + (b - cb) * (b - cb);
         let k = i * N + j;
         if dist < best_dist[k] {
@@ -176,11 +186,11 @@ fn closest_per_bin(
         }
     }
     // The bins with a point, in order, without a branch a bin.
-    let mut kept = [[0.0f64; 3]; VERTICES];
+    let mut kept = [[R::ZERO; 3]; VERTICES];
     let mut n = 0;
     for (dist, s) in best_dist.iter().zip(&best) {
         kept[n.min(VERTICES - 1)] = *s;
-        n += usize::from(*dist < f64::INFINITY);
+        n += usize::from(*dist < R::INFINITY);
     }
     // At most VERTICES bins: the slice fits.
     heapless::Vec::from_slice(&kept[..n]).unwrap_or_default()
@@ -190,22 +200,20 @@ fn closest_per_bin(
 /// fill a row of exponents, then take [`crate::math::exp`] over the row in a loop of its own,
 /// which vectorizes.
 #[inline]
-fn kernel_exponent(kappa: f64, da: f64, db: f64) -> f64 {
-    -kappa * crate::math::sqrt(da * da + db * db)
+fn kernel_exponent<R: Real>(kappa: R, da: R, db: R) -> R {
+    -kappa * (da * da + db * db).sqrt()
 }
 
 /// `Σ a_i b_i` with four running sums: independent additions pipeline (and vectorize), and the
 /// fixed order keeps results identical on every target.
 #[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut acc = [0.0f64; 4];
+fn dot<R: Real>(a: &[R], b: &[R]) -> R {
+    let mut acc = [R::ZERO; 4];
     let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
+    let mut tail = R::ZERO;
+    for (x, y) in ca.remainder().iter().zip(cb.remainder()) {
+        tail += *x * *y;
+    }
     for (x, y) in ca.zip(cb) {
         for k in 0..4 {
             acc[k] += x[k] * y[k];
@@ -216,29 +224,30 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// The GP's mean function `d = c0 + c1 (a - ā) + c2 (b - b̄)`.
 #[derive(Debug, Clone, Copy)]
-struct PlaneMean {
-    centre: [f64; 3],
-    slope: [f64; 2],
+struct PlaneMean<R> {
+    centre: [R; 3],
+    slope: [R; 2],
 }
 
-impl PlaneMean {
+impl<R: Real> PlaneMean<R> {
     #[inline]
-    fn at(&self, a: f64, b: f64) -> f64 {
+    fn at(&self, a: R, b: R) -> R {
         self.centre[2] + self.slope[0] * (a - self.centre[0]) + self.slope[1] * (b - self.centre[1])
     }
 }
 
 /// Least-squares plane through `samples` (centred normal equations, 2 x 2); flat when the
 /// samples are (nearly) collinear in their locations.
-fn plane_mean(samples: &[Sample]) -> PlaneMean {
-    let n = samples.len().max(1) as f64;
-    let mut c = [0.0f64; 3];
+fn plane_mean<R: Real>(samples: &[Sample<R>]) -> PlaneMean<R> {
+    let n = R::from_usize(samples.len().max(1));
+    let mut c = [R::ZERO; 3];
     for s in samples {
         for k in 0..3 {
             c[k] += s[k] / n;
         }
     }
-    let (mut saa, mut sab, mut sbb, mut sad, mut sbd) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut saa, mut sab, mut sbb, mut sad, mut sbd) =
+        (R::ZERO, R::ZERO, R::ZERO, R::ZERO, R::ZERO);
     for s in samples {
         let (a, b, d) = (s[0] - c[0], s[1] - c[1], s[2] - c[2]);
         saa += a * a;
@@ -249,10 +258,10 @@ fn plane_mean(samples: &[Sample]) -> PlaneMean {
     }
     let det = saa * sbb - sab * sab;
     // Collinear locations (det small against the spread): keep the constant mean.
-    let slope = if det > 1e-6 * (saa + sbb) * (saa + sbb) && det.is_finite() {
+    let slope = if det > R::from_f64(1e-6) * (saa + sbb) * (saa + sbb) && det.is_finite() {
         [(sad * sbb - sbd * sab) / det, (sbd * saa - sad * sab) / det]
     } else {
-        [0.0, 0.0]
+        [R::ZERO, R::ZERO]
     };
     PlaneMean { centre: c, slope }
 }
@@ -281,8 +290,8 @@ pub enum Variances {
 /// never raises a GP's variance, so the variance given the nearest sample alone,
 /// `1 - k² / (1 + σ²)`, bounds the variance given all of them, and a vertex whose bound is
 /// already below the threshold needs no solve.
-pub fn predict(
-    samples: &[Sample],
+pub fn predict<R: Real>(
+    samples: &[Sample<R>],
     lattice: &Lattice,
     cfg: &GpConfig,
     variances: Variances,
@@ -290,38 +299,38 @@ pub fn predict(
     predict_in(&mut GpScratch::new(), samples, lattice, cfg, variances)
 }
 
-/// The working memory of [`predict_in`] (about 13 KB): the Cholesky factor in `f64` and
-/// `f32` and the sample-to-vertex kernel. A caller that predicts many layers keeps one and
+/// The working memory of [`predict_in`] (about 13 KB for `f64`): the Cholesky factor in the
+/// scalar `R` and in `f32`, and the sample-to-vertex kernel. A caller that predicts many layers keeps one and
 /// passes it to every call, which saves clearing it each time (a few percent of a scan).
 /// Every call writes what it reads: nothing of one call reaches the next.
 #[derive(Debug, Clone)]
-pub struct GpScratch {
-    l: [f64; PACKED],
+pub struct GpScratch<R = f64> {
+    l: [R; PACKED],
     l32: Factor32,
     ks: VertexKernel,
 }
 
-impl GpScratch {
+impl<R: Real> GpScratch<R> {
     /// Cleared working memory.
     pub const fn new() -> Self {
         Self {
-            l: [0.0; PACKED],
+            l: [R::ZERO; PACKED],
             l32: [0.0; PACKED],
             ks: [[0.0; VERTICES]; MAX_TRAINING],
         }
     }
 }
 
-impl Default for GpScratch {
+impl<R: Real> Default for GpScratch<R> {
     fn default() -> Self {
         Self::new()
     }
 }
 
 /// [`predict`] in the caller's working memory (the same result to the bit).
-pub fn predict_in(
-    scratch: &mut GpScratch,
-    samples: &[Sample],
+pub fn predict_in<R: Real>(
+    scratch: &mut GpScratch<R>,
+    samples: &[Sample<R>],
     lattice: &Lattice,
     cfg: &GpConfig,
     variances: Variances,
@@ -332,8 +341,8 @@ pub fn predict_in(
     if m < MIN_TRAINING {
         return Err(GpError::TooFewSamples);
     }
-    let kappa = cfg.kappa_per_m;
-    let noise = cfg.sensor_noise_m * cfg.sensor_noise_m;
+    let kappa = R::from_f64(cfg.kappa_per_m);
+    let noise = R::from_f64(cfg.sensor_noise_m * cfg.sensor_noise_m);
     // Lower-triangular Cholesky factor of K + σ² I, in place, row by row, packed (rows
     // `0..m` of `l`: each is written before it is read).
     for i in 0..m {
@@ -343,12 +352,12 @@ pub fn predict_in(
             *v = kernel_exponent(kappa, si[0] - sj[0], si[1] - sj[1]);
         }
         for v in row.iter_mut() {
-            *v = crate::math::exp(*v);
+            *v = v.exp();
         }
         l[row_start(i) + i] += noise;
     }
     // 1 / L_ii, so that the solves multiply instead of divide.
-    let mut inv_diag = [0.0f64; MAX_TRAINING];
+    let mut inv_diag = [R::ZERO; MAX_TRAINING];
     for i in 0..m {
         let ri = row_start(i);
         for j in 0..i {
@@ -357,15 +366,15 @@ pub fn predict_in(
             l[ri + j] = v * inv_diag[j];
         }
         let diag = l[ri + i] - dot(&l[ri..ri + i], &l[ri..ri + i]);
-        if !(diag > 0.0 && diag.is_finite()) {
+        if !(diag > R::ZERO && diag.is_finite()) {
             return Err(GpError::NotPositiveDefinite);
         }
-        l[ri + i] = crate::math::sqrt(diag);
-        inv_diag[i] = 1.0 / l[ri + i];
+        l[ri + i] = diag.sqrt();
+        inv_diag[i] = R::ONE / l[ri + i];
     }
     // α = (K + σ² I)⁻¹ (f - m(u)): forward, then backward substitution.
     let mean = plane_mean(samples);
-    let mut alpha = [0.0f64; MAX_TRAINING];
+    let mut alpha = [R::ZERO; MAX_TRAINING];
     for i in 0..m {
         let s = samples[i];
         let v = s[2] - mean.at(s[0], s[1]) - dot(&l[row_start(i)..][..i], &alpha[..i]);
@@ -380,17 +389,18 @@ pub fn predict_in(
     }
     // The vertices' locations, and the kernel between each sample and every vertex: in f32,
     // four lanes to a vector, as it only weighs the known α and measures the variances (the
-    // factorization and α, which the predictions are sensitive to, stay in f64).
-    let mut ta = [0.0f64; VERTICES];
-    let mut tb = [0.0f64; VERTICES];
+    // factorization and α, which the predictions are sensitive to, stay in `R`).
+    let mut ta = [R::ZERO; VERTICES];
+    let mut tb = [R::ZERO; VERTICES];
     for j in 0..VERTICES {
-        (ta[j], tb[j]) = lattice.location(j);
+        let (a, b) = lattice.location(j);
+        (ta[j], tb[j]) = (R::from_f64(a), R::from_f64(b));
     }
-    let (ta32, tb32) = (ta.map(|v| v as f32), tb.map(|v| v as f32));
-    let kappa32 = kappa as f32;
+    let (ta32, tb32) = (ta.map(R::to_f32), tb.map(R::to_f32));
+    let kappa32 = cfg.kappa_per_m as f32;
     // Rows `0..m` of `ks`, each written whole.
     for (row, s) in ks.iter_mut().zip(samples) {
-        let (sa, sb) = (s[0] as f32, s[1] as f32);
+        let (sa, sb) = (s[0].to_f32(), s[1].to_f32());
         for j in 0..VERTICES {
             let (da, db) = (ta32[j] - sa, tb32[j] - sb);
             row[j] = da * da + db * db;
@@ -403,21 +413,17 @@ pub fn predict_in(
         }
     }
     // Mean: f* = m(u*) + k*ᵀ α.
-    let mut f = [0.0f64; VERTICES];
+    let mut f = [R::ZERO; VERTICES];
     for j in 0..VERTICES {
         f[j] = mean.at(ta[j], tb[j]);
     }
     for i in 0..m {
         for j in 0..VERTICES {
-            f[j] += f64::from(ks[i][j]) * alpha[i];
+            f[j] += R::from_f32(ks[i][j]) * alpha[i];
         }
     }
-    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-    );
+    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) =
+        (R::INFINITY, R::NEG_INFINITY, R::INFINITY, R::NEG_INFINITY);
     for s in samples {
         lo_a = lo_a.min(s[0]);
         hi_a = hi_a.max(s[0]);
@@ -425,27 +431,34 @@ pub fn predict_in(
         hi_b = hi_b.max(s[1]);
     }
     // Twice the variance outside the training inputs' bounding box (extrapolation).
-    let mut factor = [1.0f64; VERTICES];
+    let mut factor = [R::ONE; VERTICES];
     for j in 0..VERTICES {
         if ta[j] < lo_a || ta[j] > hi_a || tb[j] < lo_b || tb[j] > hi_b {
-            factor[j] = 2.0;
+            factor[j] = R::from_f64(2.0);
         }
     }
     // The factor in f32 for the variances' solves.
     for (d, v) in l32.iter_mut().zip(&l[..row_start(m)]) {
-        *d = *v as f32;
+        *d = v.to_f32();
     }
-    let inv_diag32 = inv_diag.map(|v| v as f32);
+    let inv_diag32 = inv_diag.map(R::to_f32);
     let var = match variances {
         Variances::Exact => exact_variances(l32, &inv_diag32, ks, m),
-        Variances::Below(threshold) => {
-            bounded_variances(l32, &inv_diag32, ks, m, noise, &factor, threshold)
-        }
+        Variances::Below(threshold) => bounded_variances(
+            l32,
+            &inv_diag32,
+            ks,
+            m,
+            noise,
+            &factor,
+            R::from_f64(threshold),
+        ),
     };
+    let cell_size = R::from_f64(lattice.cell_size);
     let mut layer = Layer::UNKNOWN;
     for j in 0..VERTICES {
-        layer.pred[j] = f[j].clamp(0.0, lattice.cell_size) as f32;
-        layer.var[j] = (var[j].max(0.0) * factor[j]) as f32;
+        layer.pred[j] = f[j].clamp(R::ZERO, cell_size).to_f32();
+        layer.var[j] = (var[j].max(R::ZERO) * factor[j]).to_f32();
     }
     Ok(layer)
 }
@@ -467,13 +480,13 @@ type VertexKernel = [[f32; VERTICES]; MAX_TRAINING];
 
 /// `σ*² = 1 - |L⁻¹ k*|²` at every vertex, with `L⁻¹` applied to all 36 columns of `ks` at
 /// once, in place (`ks` is left holding `L⁻¹ k*`).
-fn exact_variances(
+fn exact_variances<R: Real>(
     l: &Factor32,
     inv_diag: &[f32; MAX_TRAINING],
     ks: &mut VertexKernel,
     m: usize,
-) -> [f64; VERTICES] {
-    forward_solve(l, inv_diag, ks, m).map(|e| 1.0 - f64::from(e))
+) -> [R; VERTICES] {
+    forward_solve(l, inv_diag, ks, m).map(|e| R::ONE - R::from_f32(e))
 }
 
 /// Columns solved together: three 128-bit vectors, kept in registers over a whole row's sum.
@@ -515,26 +528,26 @@ fn forward_solve<const W: usize>(
 /// Variances (before the extrapolation `factor`) exact where they could reach `threshold`
 /// and bounded by the nearest sample's where they cannot (see [`Variances::Below`]). The
 /// vertices that need the exact value are gathered into the narrowest solve that holds them.
-fn bounded_variances(
+fn bounded_variances<R: Real>(
     l: &Factor32,
     inv_diag: &[f32; MAX_TRAINING],
     ks: &mut VertexKernel,
     m: usize,
-    noise: f64,
-    factor: &[f64; VERTICES],
-    threshold: f64,
-) -> [f64; VERTICES] {
+    noise: R,
+    factor: &[R; VERTICES],
+    threshold: R,
+) -> [R; VERTICES] {
     let mut nearest = [0.0f32; VERTICES];
     for row in &ks[..m] {
         for j in 0..VERTICES {
             nearest[j] = nearest[j].max(row[j]);
         }
     }
-    let mut var = [0.0f64; VERTICES];
+    let mut var = [R::ZERO; VERTICES];
     let mut exact = heapless::Vec::<usize, VERTICES>::new();
     for j in 0..VERTICES {
-        let k = f64::from(nearest[j]);
-        let bound = 1.0 - k * k / (1.0 + noise);
+        let k = R::from_f32(nearest[j]);
+        let bound = R::ONE - k * k / (R::ONE + noise);
         if bound * factor[j] < threshold {
             var[j] = bound;
         } else {
@@ -544,8 +557,8 @@ fn bounded_variances(
     }
     match exact.len() {
         0 => {}
-        1..=BLOCK => solve_some::<BLOCK>(l, inv_diag, ks, m, &exact, &mut var),
-        n if n <= 2 * BLOCK => solve_some::<{ 2 * BLOCK }>(l, inv_diag, ks, m, &exact, &mut var),
+        1..=BLOCK => solve_some::<R, BLOCK>(l, inv_diag, ks, m, &exact, &mut var),
+        n if n <= 2 * BLOCK => solve_some::<R, { 2 * BLOCK }>(l, inv_diag, ks, m, &exact, &mut var),
         _ => {
             let all = exact_variances(l, inv_diag, ks, m);
             for &j in &exact {
@@ -558,13 +571,13 @@ fn bounded_variances(
 
 /// The exact variances of the vertices `which` (at most `W`), gathered from `ks` into a
 /// `W`-column solve, written into `var`.
-fn solve_some<const W: usize>(
+fn solve_some<R: Real, const W: usize>(
     l: &Factor32,
     inv_diag: &[f32; MAX_TRAINING],
     ks: &VertexKernel,
     m: usize,
     which: &[usize],
-    var: &mut [f64; VERTICES],
+    var: &mut [R; VERTICES],
 ) {
     let mut cols = [[0.0f32; W]; MAX_TRAINING];
     for (dst, src) in cols.iter_mut().zip(&ks[..m]) {
@@ -574,7 +587,7 @@ fn solve_some<const W: usize>(
     }
     let explained = forward_solve(l, inv_diag, &mut cols, m);
     for (&e, &j) in explained.iter().zip(which) {
-        var[j] = 1.0 - f64::from(e);
+        var[j] = R::ONE - R::from_f32(e);
     }
 }
 
@@ -610,7 +623,7 @@ mod tests {
             cell_size: 1.6,
             full_cover,
         };
-        let samples = select_training(&cloud(f, 1.6), Axis::Z, 1.6);
+        let samples = select_training::<f64>(&cloud(f, 1.6), Axis::Z, 1.6);
         assert_eq!(samples.len(), 36);
         let layer = predict(&samples, &lat, &CFG, Variances::Exact).unwrap();
         (0..VERTICES)
@@ -635,7 +648,7 @@ mod tests {
                     .unwrap();
             }
         }
-        let samples = select_training(&pts, Axis::Z, 1.6);
+        let samples = select_training::<f64>(&pts, Axis::Z, 1.6);
         assert_eq!(samples.len(), 36, "every bin keeps a ground point");
         assert!(samples.iter().all(|s| libm::fabs(s[2] - 0.3) < 1e-6));
         let lat = Lattice {
@@ -691,7 +704,7 @@ mod tests {
             cell_size: 1.6,
             full_cover: false,
         };
-        let samples = select_training(&noisy, Axis::Z, 1.6);
+        let samples = select_training::<f64>(&noisy, Axis::Z, 1.6);
         assert_eq!(samples.len(), 36);
         let sample_rms = libm::sqrt(
             samples
@@ -747,7 +760,7 @@ mod tests {
             cell_size: 1.6,
             full_cover: false,
         };
-        let samples = select_training(&cloud(|_, _| 0.5, 0.8), Axis::Z, 1.6);
+        let samples = select_training::<f64>(&cloud(|_, _| 0.5, 0.8), Axis::Z, 1.6);
         let layer = predict(&samples, &lat, &CFG, Variances::Exact).unwrap();
         let var = |ia: usize, ib: usize| layer.var[ia * N + ib];
         // Next to a sample the exponential kernel leaves about 2κ·distance.
@@ -781,7 +794,7 @@ mod tests {
                 .filter(|(i, _)| skip == 0 || i % 7 != skip)
                 .map(|(_, p)| p)
                 .collect();
-            let samples = select_training(&pts, Axis::Z, 1.6);
+            let samples = select_training::<f64>(&pts, Axis::Z, 1.6);
             let exact = predict(&samples, &lat, &CFG, Variances::Exact).unwrap();
             for threshold in [0.1, 0.3, 0.6, 1.5] {
                 let bounded = predict(&samples, &lat, &CFG, Variances::Below(threshold)).unwrap();
@@ -809,8 +822,9 @@ mod tests {
         };
         // A big layer first, then smaller ones: rows past each call's samples hold the
         // previous call's numbers (or NaN, from a failed call).
-        let dense = select_training(&cloud(|a, b| 0.3 + 0.2 * a - 0.1 * b, 1.6), Axis::Z, 1.6);
-        let part = select_training(&cloud(|a, b| 0.9 - 0.05 * a * b, 0.9), Axis::Z, 1.6);
+        let dense =
+            select_training::<f64>(&cloud(|a, b| 0.3 + 0.2 * a - 0.1 * b, 1.6), Axis::Z, 1.6);
+        let part = select_training::<f64>(&cloud(|a, b| 0.9 - 0.05 * a * b, 0.9), Axis::Z, 1.6);
         let nan = [[0.1, 0.1, 0.1], [f64::NAN, 0.5, 0.1], [0.9, 0.9, 0.1]];
         assert!(dense.len() > part.len() && part.len() > MIN_TRAINING);
         let mut scratch = GpScratch::new();
@@ -833,7 +847,7 @@ mod tests {
             (CellKey::default(), [0.14f32, 0.13, 2.0]), // nearest to (0.1333, 0.1333)
             (CellKey::default(), [1.59f32, 1.59, 3.0]),
         ];
-        let s = select_training(&pts, Axis::Z, 1.6);
+        let s = select_training::<f64>(&pts, Axis::Z, 1.6);
         assert_eq!(s.len(), 2);
         assert_eq!(s[0][2], 2.0);
         assert_eq!(s[1][2], 3.0);

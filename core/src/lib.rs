@@ -18,6 +18,9 @@
 //! | inverse-variance map fusion | [`fusion`] into the [`map`] |
 //! | triangles | [`mesh`] |
 //!
+//! The reconstruction's arithmetic is generic over its scalar ([`real`]): `f64` by default,
+//! `f32` for a single-precision FPU, chosen by the pipeline's second type parameter.
+//!
 //! A caller can observe stage boundaries (to time them) through a [`stage::Probe`].
 //!
 //! ## Guarantees
@@ -70,6 +73,7 @@ pub mod motion;
 pub mod pca;
 pub mod pipeline;
 pub mod random;
+pub mod real;
 pub mod reconstruct;
 pub mod recovery;
 pub mod relocalize;
@@ -82,4 +86,5 @@ pub use config::{Config, ConfigError};
 pub use executor::{Executor, Serial};
 pub use math::{Point, Pose};
 pub use pipeline::{Pipeline, RegistrationStatus, ScanError, ScanOutcome, ScanStats};
+pub use real::Real;
 pub use stage::{NoProbe, Probe, Stage};

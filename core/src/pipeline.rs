@@ -22,6 +22,7 @@ use crate::map::MeshMap;
 use crate::math::{Point, Pose};
 use crate::mesh::{self, Triangle};
 use crate::motion::ConstantVelocity;
+use crate::real::Real;
 use crate::reconstruct::{reconstruct_cells, Purpose, ReconstructStats};
 use crate::sort::KeySorter;
 use crate::stage::{NoProbe, Probe, Stage};
@@ -38,7 +39,7 @@ pub use relocalize::Relocalized;
 /// and every buffer into memory from the global allocator, like [`Pipeline::new`].
 #[derive(Debug)]
 #[cfg_attr(feature = "alloc", derive(Clone))]
-pub struct Pipeline<C: Capacity = KittiCapacity> {
+pub struct Pipeline<C: Capacity = KittiCapacity, R: Real = f64> {
     config: Config,
     map: MeshMap,
     motion: ConstantVelocity,
@@ -51,11 +52,12 @@ pub struct Pipeline<C: Capacity = KittiCapacity> {
     residuals: BoundedVec<Residual>,
     /// Whether scans are fused into the map (off: localization in a fixed map).
     map_updates: bool,
-    /// The capacity is a type only: the pipeline holds none of it (and is `Send` whatever it is).
-    _capacity: PhantomData<fn() -> C>,
+    /// The capacity and the reconstruction's scalar ([`Real`]) are types only: the pipeline
+    /// holds none of them (and is `Send` whatever they are).
+    _types: PhantomData<fn() -> (C, R)>,
 }
 
-impl<C: Capacity> Pipeline<C> {
+impl<C: Capacity, R: Real> Pipeline<C, R> {
     /// A pipeline with an empty map, all buffers allocated now (feature `alloc`; see
     /// [`in_storage`](Self::in_storage) for none).
     #[cfg(any(feature = "alloc", test))]
@@ -108,7 +110,7 @@ impl<C: Capacity> Pipeline<C> {
             scan,
             residuals,
             map_updates: true,
-            _capacity: PhantomData,
+            _types: PhantomData,
         }
     }
 
@@ -393,7 +395,7 @@ impl<C: Capacity> Pipeline<C> {
         );
         self.scan.clear();
         probe.enter(Stage::Reconstruct);
-        let made = reconstruct_cells(
+        let made = reconstruct_cells::<R>(
             &self.cells,
             &self.work,
             &self.map,
@@ -484,7 +486,7 @@ mod log {
         }
     }
 
-    impl<C: Capacity> Format for Pipeline<C> {
+    impl<C: Capacity, R: Real> Format for Pipeline<C, R> {
         fn format(&self, f: Formatter) {
             write!(
                 f,

@@ -14,6 +14,7 @@ use crate::layer::ScanLayer;
 use crate::map::MeshMap;
 use crate::math::Point;
 use crate::pca::{choose_layers, Shape};
+use crate::real::Real;
 
 /// What a reconstruction is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -58,9 +59,10 @@ pub struct ReconstructStats {
 
 /// Reconstructs the layers of cell `key` from its cell-local `points` (at most three layers;
 /// a layer whose GP fails is left out, and so is one `purpose` has no use for). `scratch` is
-/// the GP's working memory (any content: the result does not depend on it).
-pub fn reconstruct_cell(
-    scratch: &mut GpScratch,
+/// the GP's working memory (any content: the result does not depend on it); its scalar `R`
+/// is the GP's ([`Real`]).
+pub fn reconstruct_cell<R: Real>(
+    scratch: &mut GpScratch<R>,
     points: &[(CellKey, Point)],
     key: CellKey,
     map: &MeshMap,
@@ -118,7 +120,7 @@ pub fn in_checkerboard(key: CellKey) -> bool {
 
 /// Reconstructs `cells` (spans into `bucketed`), one [`reconstruct_cell`] per cell run by
 /// `exec`, and appends their layers to `out` in cell order via [`append_layers`].
-pub fn reconstruct_cells(
+pub fn reconstruct_cells<R: Real>(
     cells: &[CellSpan],
     bucketed: &[(CellKey, Point)],
     map: &MeshMap,
@@ -130,7 +132,7 @@ pub fn reconstruct_cells(
     let mut stats = ReconstructStats::default();
     exec.map_in_order(
         cells,
-        GpScratch::new,
+        GpScratch::<R>::new,
         |scratch, c| reconstruct_cell(scratch, c.points(bucketed), c.key, map, cfg, purpose),
         |cell| {
             stats.dropped += append_layers(out, &cell.layers);
@@ -189,7 +191,7 @@ mod tests {
             map.insert_layer(key, Axis::Z, flat, 0).unwrap();
         }
         let points = ground();
-        let mut scratch = GpScratch::new();
+        let mut scratch = GpScratch::<f64>::new();
         let mut layers = |key, purpose| {
             reconstruct_cell(&mut scratch, &points, key, &map, &cfg, purpose)
                 .layers

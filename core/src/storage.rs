@@ -31,6 +31,7 @@ use crate::lm::Residual;
 use crate::map::{MapStorage, MeshMap};
 use crate::math::{Point, Vec3};
 use crate::pipeline::Pipeline;
+use crate::real::Real;
 use crate::sort::KeySorter;
 
 impl Empty for u32 {
@@ -125,7 +126,7 @@ impl Storage {
     }
 }
 
-impl<C: Capacity> Pipeline<C> {
+impl<C: Capacity, R: Real> Pipeline<C, R> {
     /// A pipeline with an empty map in the caller's `storage` ([`crate::storage`]): it takes
     /// no memory from an allocator, ever. Each buffer must hold at least what `C` asks for;
     /// the error names the first one that does not.

@@ -10,6 +10,7 @@ use crate::config::LmConfig;
 use crate::executor::Executor;
 use crate::lm::{self, LmError};
 use crate::math::{renormalized, rotation_angle, Pose};
+use crate::real::Real;
 use crate::reconstruct::Purpose;
 use crate::recovery::{self, Verdict};
 use crate::stage::{Probe, Stage};
@@ -47,7 +48,7 @@ impl Attempt {
     }
 }
 
-impl<C: Capacity> Pipeline<C> {
+impl<C: Capacity, R: Real> Pipeline<C, R> {
     /// Registers the filtered scan from the prediction `predicted`: the rounds of
     /// docs/design.md §1.4, then, when they did not converge, recovery (§1.11); a frame that
     /// converged from a prediction turning more than `polish_turn_deg` is polished, as a

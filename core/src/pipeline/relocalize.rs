@@ -10,6 +10,7 @@ use crate::executor::Executor;
 use crate::filter::Filtered;
 use crate::math::{turned_in_yaw, Point, Pose};
 use crate::motion::ConstantVelocity;
+use crate::real::Real;
 use crate::relocalize::{
     same_place, surface_hits, Hits, Paging, Search, Shortlist, CHUNK, MAX_KEEP, MAX_YAW_STEPS,
 };
@@ -38,7 +39,7 @@ pub struct Relocalized {
     pub runner_up_share: f64,
 }
 
-impl<C: Capacity> Pipeline<C> {
+impl<C: Capacity, R: Real> Pipeline<C, R> {
     /// Finds the pose of a scan (sensor-frame points) in the map without a prediction: each
     /// of `candidates` turned to `search.yaw_steps` headings is scored coarsely, the
     /// `search.keep` best distinct ones are registered in full, and the best registered pose
