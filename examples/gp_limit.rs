@@ -125,7 +125,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for path in &folder.paths {
         let raw = read_scan(path)?;
         let points = filter.filter(&raw, &config, &Serial).points.to_vec();
-        let placement = Placement::new(&Pose::identity(), config.grid.cell_size_m);
+        let placement = Placement::<f64>::new(&Pose::identity(), config.grid.cell_size_m);
         let min_points = config.grid.min_points;
         bucket(
             &points,

@@ -10,8 +10,10 @@
 use crate::bounded::BoundedVec;
 use crate::cell::CellKey;
 use crate::executor::Executor;
-use crate::math::{to_point, to_vec3, Point, Pose};
+use crate::math::{to_point, to_vec3, Point, Pose, Vec3};
+use crate::real::Real;
 use crate::sort::KeySorter;
+use core::marker::PhantomData;
 
 /// A cell of the current scan: its key and its run of points in the bucketed buffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,19 +51,51 @@ pub struct BucketStats {
 }
 
 /// Where one point goes: moved into the world by the pose, keyed by its cell, and stored
-/// relative to the cell's minimum corner.
+/// relative to the cell's minimum corner, in the arithmetic of the scalar `R` ([`Real`]).
+///
+/// With `f64`, each point is moved by the pose and keyed in world coordinates. With `f32`,
+/// whose 24-bit mantissa would lose millimetres a few kilometres from the origin, the world
+/// coordinates are never formed: the pose's translation is split, in `f64` and once, into the
+/// corner of the cell the sensor is in and what is left of it (less than a cell), and each
+/// point is moved by the rotation and that remainder only. Its coordinates are then within
+/// the sensor's range, where `f32` resolves a few micrometres, wherever the sensor is.
 #[derive(Debug, Clone, Copy)]
-pub struct Placement {
+pub struct Placement<R = f64> {
     t_world_sensor: Pose,
     cell_size: f64,
+    single: SinglePlacement,
+    _scalar: PhantomData<fn() -> R>,
 }
 
-impl Placement {
+/// The `f32` form of a placement: the sensor's cell, the rotation and the rest of the
+/// translation from that cell's corner.
+#[derive(Debug, Clone, Copy)]
+struct SinglePlacement {
+    origin: Option<CellKey>,
+    rotation: [[f32; 3]; 3],
+    rest: [f32; 3],
+    cell_size: f32,
+    inv_cell_size: f32,
+}
+
+impl<R: Real> Placement<R> {
     /// Placement at `t_world_sensor` in cells of edge `cell_size`.
     pub fn new(t_world_sensor: &Pose, cell_size: f64) -> Self {
+        let t = t_world_sensor.translation.vector;
+        let origin = CellKey::containing(&t, cell_size);
+        let rest = origin.map_or(Vec3::zeros(), |o| t - o.min_corner(cell_size));
+        let m = t_world_sensor.rotation.to_rotation_matrix();
         Self {
             t_world_sensor: *t_world_sensor,
             cell_size,
+            single: SinglePlacement {
+                origin,
+                rotation: core::array::from_fn(|i| core::array::from_fn(|j| m[(i, j)] as f32)),
+                rest: to_point(&rest),
+                cell_size: cell_size as f32,
+                inv_cell_size: (1.0 / cell_size) as f32,
+            },
+            _scalar: PhantomData,
         }
     }
 
@@ -69,10 +103,43 @@ impl Placement {
     /// `None` when the point is beyond the key range (or not finite).
     #[inline]
     pub fn point(&self, p: &Point) -> Option<(CellKey, Point)> {
-        let w = self.t_world_sensor * nalgebra::Point3::from(to_vec3(p));
-        let key = CellKey::containing(&w.coords, self.cell_size)?;
-        let local = w.coords - key.min_corner(self.cell_size);
-        Some((key, to_point(&local)))
+        if R::SINGLE {
+            self.single.point(p)
+        } else {
+            let w = self.t_world_sensor * nalgebra::Point3::from(to_vec3(p));
+            let key = CellKey::containing(&w.coords, self.cell_size)?;
+            let local = w.coords - key.min_corner(self.cell_size);
+            Some((key, to_point(&local)))
+        }
+    }
+}
+
+impl SinglePlacement {
+    /// [`Placement::point`] in `f32`, relative to the sensor's cell.
+    #[inline]
+    fn point(&self, p: &Point) -> Option<(CellKey, Point)> {
+        let (r, c) = (&self.rotation, self.cell_size);
+        let mut w = [0.0f32; 3];
+        let mut step = [0i32; 3];
+        for k in 0..3 {
+            w[k] = r[k][0] * p[0] + r[k][1] * p[1] + r[k][2] * p[2] + self.rest[k];
+            let q = w[k] * self.inv_cell_size;
+            // Within the range test, floor is truncation, one less below zero (as in
+            // `CellKey::containing`); the test refuses NaN too.
+            if !(q.abs() < 1e6) {
+                return None;
+            }
+            let t = q as i32;
+            step[k] = t - i32::from((t as f32) > q);
+            w[k] -= step[k] as f32 * c;
+        }
+        let o = self.origin?;
+        let key = CellKey::new(
+            o.x.checked_add(step[0])?,
+            o.y.checked_add(step[1])?,
+            o.z.checked_add(step[2])?,
+        );
+        Some((key, w))
     }
 }
 
@@ -91,9 +158,9 @@ pub fn collect(
 
 /// Places every scan point in its cell ([`Placement::point`], the unit `exec` runs) and
 /// appends the placed ones to `out` in input order.
-pub fn place_all(
+pub fn place_all<R: Real>(
     points: &[Point],
-    placement: &Placement,
+    placement: &Placement<R>,
     out: &mut BoundedVec<(CellKey, Point)>,
     exec: &impl Executor,
 ) {
@@ -105,9 +172,9 @@ pub fn place_all(
 
 /// Buckets `points_sensor` into cells as `placement` places them (`sorter` is scratch space;
 /// `exec` runs the placement and the sort).
-pub fn bucket(
+pub fn bucket<R: Real>(
     points_sensor: &[Point],
-    placement: &Placement,
+    placement: &Placement<R>,
     min_points: usize,
     bucketed: &mut BoundedVec<(CellKey, Point)>,
     sorter: &mut KeySorter,
@@ -146,7 +213,6 @@ pub fn bucket(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Vec3;
 
     #[test]
     fn points_are_grouped_by_cell_and_sparse_cells_skipped() {
@@ -162,7 +228,7 @@ mod tests {
         let t = Pose::translation(0.0, 0.0, 0.0);
         let s = bucket(
             &pts,
-            &Placement::new(&t, 1.6),
+            &Placement::<f64>::new(&t, 1.6),
             2,
             &mut b,
             &mut KeySorter::with_capacity(8),
@@ -187,7 +253,7 @@ mod tests {
         let t = Pose::translation(-1.0, 0.0, 0.0);
         bucket(
             &pts,
-            &Placement::new(&t, 1.6),
+            &Placement::<f64>::new(&t, 1.6),
             1,
             &mut b,
             &mut KeySorter::with_capacity(3),

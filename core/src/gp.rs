@@ -540,7 +540,10 @@ fn bounded_variances<R: Real>(
     let mut nearest = [0.0f32; VERTICES];
     for row in &ks[..m] {
         for j in 0..VERTICES {
-            nearest[j] = nearest[j].max(row[j]);
+            // `max` by a comparison (no NaN here): see `math::sqrt_f32`.
+            if row[j] > nearest[j] {
+                nearest[j] = row[j];
+            }
         }
     }
     let mut var = [R::ZERO; VERTICES];

@@ -228,7 +228,13 @@ pub fn sqrt_soft(q: f64) -> f64 {
 pub fn sqrt_f32(q: f32) -> f32 {
     // Below the smallest normal the estimate is meaningless: such a q's root is 0 to f32's
     // precision for our purposes (distances in metres).
-    let q_safe = q.max(f32::MIN_POSITIVE);
+    // `q.max(MIN_POSITIVE)` by a comparison (NaN gives MIN_POSITIVE either way): a chip
+    // without a floating-point maximum instruction calls a routine for `max`.
+    let q_safe = if q > f32::MIN_POSITIVE {
+        q
+    } else {
+        f32::MIN_POSITIVE
+    };
     let mut r = f32::from_bits(0x5f37_5a86_u32.wrapping_sub(q_safe.to_bits() >> 1));
     for _ in 0..3 {
         r *= 1.5 - 0.5 * q_safe * r * r;

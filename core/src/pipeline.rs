@@ -386,7 +386,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         let g = &self.config.grid;
         let b = bucket(
             &self.points,
-            &Placement::new(pose, g.cell_size_m),
+            &Placement::<R>::new(pose, g.cell_size_m),
             g.min_points,
             &mut self.work,
             &mut self.sorter,

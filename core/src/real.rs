@@ -44,6 +44,10 @@ pub trait Real:
     const NEG_INFINITY: Self;
     /// The name for messages and tables (`f64`, `f32`).
     const NAME: &'static str;
+    /// Whether this is `f32`: code whose single-precision form is a different algorithm, not
+    /// the same one in other numbers (keeping world coordinates out of `f32`, say), branches
+    /// on it; the branch is decided at compile time.
+    const SINGLE: bool;
 
     /// The nearest value to `v` (`as`).
     fn from_f64(v: f64) -> Self;
@@ -76,13 +80,14 @@ pub trait Real:
 }
 
 macro_rules! real {
-    ($t:ty, $sqrt:path, $exp:path, $fabs:path) => {
+    ($t:ty, $single:expr, $sqrt:path, $exp:path, $fabs:path, $max:path, $min:path) => {
         impl Real for $t {
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
             const INFINITY: Self = <$t>::INFINITY;
             const NEG_INFINITY: Self = <$t>::NEG_INFINITY;
             const NAME: &'static str = stringify!($t);
+            const SINGLE: bool = $single;
 
             #[inline]
             fn from_f64(v: f64) -> Self {
@@ -122,11 +127,11 @@ macro_rules! real {
             }
             #[inline]
             fn max(self, other: Self) -> Self {
-                <$t>::max(self, other)
+                $max(self, other)
             }
             #[inline]
             fn min(self, other: Self) -> Self {
-                <$t>::min(self, other)
+                $min(self, other)
             }
             #[inline]
             fn clamp(self, lo: Self, hi: Self) -> Self {
@@ -144,13 +149,45 @@ macro_rules! real {
     };
 }
 
-real!(f64, crate::math::sqrt, crate::math::exp, libm::fabs);
+real!(
+    f64,
+    false,
+    crate::math::sqrt,
+    crate::math::exp,
+    libm::fabs,
+    f64::max,
+    f64::min
+);
 real!(
     f32,
+    true,
     crate::math::sqrt_f32,
     crate::math::exp_f32,
-    libm::fabsf
+    libm::fabsf,
+    max_f32,
+    min_f32
 );
+
+/// `f32::max` by comparisons: the same value (NaN loses), but a chip without a
+/// floating-point maximum instruction (the Cortex-M4F) calls a library routine for `f32::max`.
+#[inline]
+fn max_f32(a: f32, b: f32) -> f32 {
+    if b > a || a.is_nan() {
+        b
+    } else {
+        a
+    }
+}
+
+/// `f32::min` by comparisons (see [`max_f32`]).
+#[inline]
+fn min_f32(a: f32, b: f32) -> f32 {
+    if b < a || a.is_nan() {
+        b
+    } else {
+        a
+    }
+}
 
 #[cfg(test)]
 mod tests {
@@ -170,6 +207,16 @@ mod tests {
         assert_eq!(R::from_usize(7).to_f64(), 7.0);
         assert!(!R::INFINITY.is_finite() && R::ONE.is_finite());
         assert_eq!(R::from_f64(5.0).clamp(R::ZERO, R::ONE), R::ONE);
+        let nan = R::from_f64(f64::NAN);
+        for (a, b) in [(1.0, 2.0), (2.0, 1.0), (-3.0, -3.0)] {
+            let (x, y) = (R::from_f64(a), R::from_f64(b));
+            assert_eq!(x.max(y).to_f64(), a.max(b));
+            assert_eq!(x.min(y).to_f64(), a.min(b));
+            assert_eq!(x.max(nan), x);
+            assert_eq!(nan.max(x), x);
+            assert_eq!(x.min(nan), x);
+            assert_eq!(nan.min(x), x);
+        }
     }
 
     #[test]

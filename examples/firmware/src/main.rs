@@ -175,7 +175,7 @@ fn main() -> ! {
     // Indoors, at a few metres' range: cells of 0.8 m instead of KITTI's 1.6 m.
     let mut config = Config::default();
     config.grid.cell_size_m = CELL_M;
-    let mut pipeline = match Pipeline::<Sparse16>::in_storage(config, memory.lend()) {
+    let mut pipeline = match Pipeline::<Sparse16, f32>::in_storage(config, memory.lend()) {
         Ok(p) => p,
         Err(e) => {
             hprintln!("FAIL: configuration {}: {}", e.field, e.reason);
