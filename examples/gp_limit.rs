@@ -138,7 +138,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         for c in cells.iter() {
             let pts = c.points(&work);
-            if let Shape::Surface(axes) = choose_layers(pts) {
+            if let Shape::Surface(axes) = choose_layers::<f64>(pts) {
                 for axis in axes {
                     layers.push(select_training(pts, axis, lattice.cell_size).to_vec());
                 }

@@ -4,7 +4,8 @@
 //! (an eigen-decomposition that does not converge gives [`Shape::Unclear`]).
 
 use crate::cell::{Axis, CellKey};
-use crate::math::{symmetric_eigen3, to_vec3, Mat3, Point, Vec3};
+use crate::math::{symmetric_eigen3, Mat3, Point, Vec3};
+use crate::real::Real;
 use heapless::Vec as HVec;
 use nalgebra::SymmetricEigen;
 
@@ -32,20 +33,35 @@ pub enum Shape {
     Unclear,
 }
 
+/// The entries `(row, column)` of a symmetric 3 x 3 matrix's upper triangle, row by row.
+const UPPER: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+
 /// Classifies a cell from its (cell-local) points.
-pub fn choose_layers(points: &[(CellKey, Point)]) -> Shape {
+pub fn choose_layers<R: Real>(points: &[(CellKey, Point)]) -> Shape {
     if points.len() < 3 {
         return Shape::Unclear;
     }
-    let n = points.len() as f64;
-    let mean = points
-        .iter()
-        .fold(Vec3::zeros(), |s, (_, p)| s + to_vec3(p))
-        / n;
-    let cov = points.iter().fold(Mat3::zeros(), |s, (_, p)| {
-        let d = to_vec3(p) - mean;
-        s + d * d.transpose()
-    }) / n;
+    let n = R::from_usize(points.len());
+    let widen = |p: &Point| [R::from_f32(p[0]), R::from_f32(p[1]), R::from_f32(p[2])];
+    let mut sum = [R::ZERO; 3];
+    for (_, p) in points {
+        let p = widen(p);
+        for k in 0..3 {
+            sum[k] += p[k];
+        }
+    }
+    let mean = sum.map(|v| v / n);
+    // The upper triangle of the scatter matrix: xx, xy, xz, yy, yz, zz.
+    let mut scatter = [R::ZERO; 6];
+    for (_, p) in points {
+        let p = widen(p);
+        let d = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
+        for (s, (i, j)) in scatter.iter_mut().zip(UPPER) {
+            *s += d[i] * d[j];
+        }
+    }
+    let c = scatter.map(|v| (v / n).to_f64());
+    let cov = Mat3::new(c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5]);
     let Some(([_, l2, l3], normal)) = symmetric_eigen3(&cov).or_else(|| iterative(cov)) else {
         return Shape::Unclear;
     };
@@ -113,11 +129,11 @@ mod tests {
     #[test]
     fn ground_gets_a_z_layer_and_a_wall_an_x_layer() {
         assert_eq!(
-            choose_layers(&grid(|a, b| [a, b, 0.3])),
+            choose_layers::<f64>(&grid(|a, b| [a, b, 0.3])),
             Shape::Surface(HVec::from_slice(&[Axis::Z]).unwrap())
         );
         assert_eq!(
-            choose_layers(&grid(|a, b| [0.7, a, b])),
+            choose_layers::<f64>(&grid(|a, b| [0.7, a, b])),
             Shape::Surface(HVec::from_slice(&[Axis::X]).unwrap())
         );
     }
@@ -126,13 +142,13 @@ mod tests {
     fn diagonal_surfaces_get_more_layers() {
         // Normal (1, 1, 0)/√2: angles π/4, π/4, π/2 → two layers (x, y).
         // The two angles tie, so either may come first.
-        let Shape::Surface(mut axes) = choose_layers(&grid(|a, b| [a, 1.6 - a, b])) else {
+        let Shape::Surface(mut axes) = choose_layers::<f64>(&grid(|a, b| [a, 1.6 - a, b])) else {
             panic!()
         };
         axes.sort_unstable();
         assert_eq!(&axes[..], &[Axis::X, Axis::Y]);
         // Normal (1, 1, 1)/√3: all angles equal → three layers.
-        let s = choose_layers(&grid(|a, b| [a, b, 1.5 - a - b]));
+        let s = choose_layers::<f64>(&grid(|a, b| [a, b, 1.5 - a - b]));
         assert!(matches!(s, Shape::Surface(ref v) if v.len() == 3));
     }
 
@@ -146,11 +162,11 @@ mod tests {
             ))
             .unwrap();
         }
-        assert_eq!(choose_layers(&pole), Shape::LineLike);
+        assert_eq!(choose_layers::<f64>(&pole), Shape::LineLike);
         assert_eq!(
-            choose_layers(&[(CellKey::default(), [0.5; 3]); 5]),
+            choose_layers::<f64>(&[(CellKey::default(), [0.5; 3]); 5]),
             Shape::Unclear
         );
-        assert_eq!(choose_layers(&[]), Shape::Unclear);
+        assert_eq!(choose_layers::<f64>(&[]), Shape::Unclear);
     }
 }

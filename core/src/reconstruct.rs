@@ -78,7 +78,7 @@ pub fn reconstruct_cell<R: Real>(
         }
     }
     let mut axes = heapless::Vec::<Axis, 3>::new();
-    match choose_layers(points) {
+    match choose_layers::<R>(points) {
         Shape::Surface(a) => axes = a,
         Shape::LineLike => {
             if let Some(cell) = map.cell(&key) {
