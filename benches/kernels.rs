@@ -64,7 +64,7 @@ fn registration(c: &mut Criterion) {
     let map = pipeline.map();
     let cfg = Config::kitti().register;
     let mut residuals = BoundedVec::with_capacity(layers.len());
-    let stats = associate(
+    let stats = associate::<f64>(
         &layers,
         map,
         0,
@@ -81,7 +81,7 @@ fn registration(c: &mut Criterion) {
     );
     c.bench_function("associate (one scan, reach 1)", |b| {
         b.iter(|| {
-            associate(
+            associate::<f64>(
                 black_box(&layers),
                 map,
                 1,
@@ -92,7 +92,7 @@ fn registration(c: &mut Criterion) {
             )
         })
     });
-    associate(
+    associate::<f64>(
         &layers,
         map,
         0,

@@ -16,6 +16,7 @@ use crate::layer::{Layer, ScanLayer};
 use crate::lm::Residual;
 use crate::map::MeshMap;
 use crate::math::Vec3;
+use crate::real::Real;
 
 /// What association found for one scan.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -66,7 +67,7 @@ pub fn has_candidates(map: &MeshMap, key: CellKey, axis: Axis, reach: u32, since
 /// Writes one combined residual per scan layer that has map pairs into `out` (cleared first),
 /// in scan order, one [`Associator::layer`] per layer run by `exec`; stops when `out` is full.
 /// Map cells last seen before frame `since` are left out (0: none).
-pub fn associate(
+pub fn associate<R: Real>(
     scan: &[ScanLayer],
     map: &MeshMap,
     reach: u32,
@@ -82,7 +83,7 @@ pub fn associate(
     exec.map_in_order(
         scan,
         || (),
-        |(), s| a.layer(s),
+        |(), s| a.layer::<R>(s),
         |per_layer| {
             let Some((r, pairs)) = per_layer else {
                 return;
@@ -126,11 +127,12 @@ impl<'a> Associator<'a> {
     }
 
     /// The combined residual of scan layer `s` and how many vertex pairs it averages, or
-    /// `None` when nothing pairs.
-    pub fn layer(&self, s: &ScanLayer) -> Option<(Residual, usize)> {
+    /// `None` when nothing pairs. The normals are computed and summed in the scalar `R`
+    /// ([`Real`]); the vertices, in world coordinates, in `f64`.
+    pub fn layer<R: Real>(&self, s: &ScanLayer) -> Option<(Residual, usize)> {
         let (lattice, max_var) = (&self.lattice, self.max_var);
         let (mut sum_p, mut sum_q, mut sum_n, mut count) =
-            (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), 0usize);
+            (Vec3::zeros(), Vec3::zeros(), [R::ZERO; 3], 0usize);
         let candidates = candidates(self.map, s.key, s.axis, self.reach, self.since);
         for j in 0..VERTICES {
             if !(s.layer.var[j] < max_var) {
@@ -150,14 +152,17 @@ impl<'a> Associator<'a> {
                 }
             }
             let Some((_, key, m)) = best else { continue };
-            let Some(n) = m.normal(lattice, s.axis, j, max_var) else {
+            let Some(n) = m.normal_in::<R>(lattice, s.axis, j, max_var) else {
                 continue;
             };
             sum_p += s.layer.vertex(lattice, &s.key, s.axis, j);
             sum_q += m.vertex(lattice, &key, s.axis, j);
-            sum_n += n;
+            for k in 0..3 {
+                sum_n[k] += n[k];
+            }
             count += 1;
         }
+        let sum_n = Vec3::new(sum_n[0].to_f64(), sum_n[1].to_f64(), sum_n[2].to_f64());
         let norm = sum_n.norm();
         if count == 0 || !(norm > 1e-9) {
             return None;
@@ -203,10 +208,10 @@ mod tests {
         }];
         let mut out = BoundedVec::with_capacity(4);
         assert_eq!(
-            associate(&scan, &map, 0, 0, 0.6, &mut out, &crate::executor::Serial).residuals,
+            associate::<f64>(&scan, &map, 0, 0, 0.6, &mut out, &crate::executor::Serial).residuals,
             0
         );
-        let s = associate(&scan, &map, 1, 0, 0.6, &mut out, &crate::executor::Serial);
+        let s = associate::<f64>(&scan, &map, 1, 0, 0.6, &mut out, &crate::executor::Serial);
         assert_eq!((s.pairs, s.residuals), (36, 1));
         let r = out[0];
         assert!((r.n - Vec3::z()).norm() < 1e-9);
@@ -227,11 +232,11 @@ mod tests {
         let mut out = BoundedVec::with_capacity(4);
         let serial = &crate::executor::Serial;
         assert_eq!(
-            associate(&scan, &map, 1, 5, 0.6, &mut out, serial).residuals,
+            associate::<f64>(&scan, &map, 1, 5, 0.6, &mut out, serial).residuals,
             1
         );
         assert_eq!(
-            associate(&scan, &map, 1, 6, 0.6, &mut out, serial).residuals,
+            associate::<f64>(&scan, &map, 1, 6, 0.6, &mut out, serial).residuals,
             0
         );
         assert!(has_candidates(&map, CellKey::new(0, 0, 0), Axis::Z, 1, 5));
@@ -254,7 +259,7 @@ mod tests {
         }];
         let mut out = BoundedVec::with_capacity(4);
         assert_eq!(
-            associate(&scan, &map, 0, 0, 0.6, &mut out, &crate::executor::Serial).pairs,
+            associate::<f64>(&scan, &map, 0, 0, 0.6, &mut out, &crate::executor::Serial).pairs,
             18
         );
     }

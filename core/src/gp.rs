@@ -392,8 +392,9 @@ pub fn predict_in<R: Real>(
     // factorization and α, which the predictions are sensitive to, stay in `R`).
     let mut ta = [R::ZERO; VERTICES];
     let mut tb = [R::ZERO; VERTICES];
+    let table = lattice.table();
     for j in 0..VERTICES {
-        let (a, b) = lattice.location(j);
+        let (a, b) = table.location(j);
         (ta[j], tb[j]) = (R::from_f64(a), R::from_f64(b));
     }
     let (ta32, tb32) = (ta.map(R::to_f32), tb.map(R::to_f32));

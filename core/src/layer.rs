@@ -7,6 +7,7 @@
 use crate::cell::{Axis, CellKey};
 use crate::lattice::{neighbours, LatticeTable, N, VERTICES};
 use crate::math::{Pose, Vec3};
+use crate::real::Real;
 
 /// Which triangles of a layer are shown, from [`MeshConfig`](crate::config::MeshConfig).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -157,21 +158,34 @@ impl Layer {
         j: usize,
         max_var: f32,
     ) -> Option<Vec3> {
+        self.normal_in::<f64>(lattice, axis, j, max_var)
+            .map(|n| Vec3::new(n[0], n[1], n[2]))
+    }
+
+    /// [`normal`](Self::normal) computed in the scalar `R` ([`Real`]), as `[x, y, z]`.
+    pub fn normal_in<R: Real>(
+        &self,
+        lattice: &LatticeTable,
+        axis: Axis,
+        j: usize,
+        max_var: f32,
+    ) -> Option<[R; 3]> {
         // Edges are differences of vertices of one cell: cell-local differences suffice. They
         // are taken in the layer's own (a, b, d) coordinates, a cyclic permutation of
         // (x, y, z), so their cross products are the same numbers, permuted.
         let (ia, ib) = (j / N, j % N);
-        let d_centre = f64::from(*self.pred.get(j)?);
-        let max_sq = lattice.cell_size * lattice.cell_size;
-        let at = |i: usize| lattice.coordinates.get(i).copied().unwrap_or(0.0);
-        let edge = |n: usize| -> Option<[f64; 3]> {
+        let d_centre = R::from_f32(*self.pred.get(j)?);
+        let size = R::from_f64(lattice.cell_size);
+        let max_sq = size * size;
+        let at = |i: usize| R::from_f64(lattice.coordinates.get(i).copied().unwrap_or(0.0));
+        let edge = |n: usize| -> Option<[R; 3]> {
             if !(*self.var.get(n)? < max_var) {
                 return None;
             }
             let e = [
                 at(n / N) - at(ia),
                 at(n % N) - at(ib),
-                f64::from(*self.pred.get(n)?) - d_centre,
+                R::from_f32(*self.pred.get(n)?) - d_centre,
             ];
             (e[0] * e[0] + e[1] * e[1] + e[2] * e[2] < max_sq).then_some(e)
         };
@@ -182,7 +196,7 @@ impl Layer {
             n2.and_then(edge),
             n3.and_then(edge),
         ];
-        let mut sum = [0.0f64; 3];
+        let mut sum = [R::ZERO; 3];
         for k in 0..4 {
             if let (Some(u), Some(v)) = (edges[k], edges[(k + 1) % 4]) {
                 sum[0] += u[1] * v[2] - u[2] * v[1];
@@ -191,12 +205,13 @@ impl Layer {
             }
         }
         let (a, b) = axis.locations();
-        let mut n = Vec3::zeros();
+        let mut n = [R::ZERO; 3];
         n[a] = sum[0];
         n[b] = sum[1];
         n[axis.index()] = sum[2];
-        let norm = n.norm();
-        (norm > 1e-12).then(|| n / norm)
+        // Summed from zero in order, as nalgebra's `norm` does.
+        let norm = (R::ZERO + n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        (norm > R::from_f64(1e-12)).then(|| n.map(|v| v / norm))
     }
 
     /// The layer of cell `key` along `axis` after its surface is moved by the small rigid

@@ -134,7 +134,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
                 a.for_update = Some((b, a.pose));
             }
             probe.enter(Stage::Associate);
-            a.associate = associate(
+            a.associate = associate::<R>(
                 &self.scan,
                 &self.map,
                 reach,

@@ -64,7 +64,7 @@ pub fn run(memory: &'static mut Memory, buffer: &mut [Point; POINTS]) -> bool {
     config.grid.cell_size_m = 1.4;
     config.gp.kappa_per_m = 1.2;
     config.filter.range_min_m = 1.2;
-    let mut pipeline = match Pipeline::<Kitti16, f32>::in_storage(config, memory.lend()) {
+    let mut pipeline = match Pipeline::<Kitti16, crate::Scalar>::in_storage(config, memory.lend()) {
         Ok(p) => p,
         Err(e) => {
             hprintln!("FAIL: configuration {}: {}", e.field, e.reason);

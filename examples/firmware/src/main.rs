@@ -6,9 +6,14 @@
 //! orientation within `TOLERANCE_DEG` of the truth and every real step within its tolerance,
 //! else `FAIL`.
 //!
+//! The pipelines reconstruct in `f32` ([`Scalar`]), which the M4F's FPU computes; the feature
+//! `f64` builds the same firmware in `f64`, done in software routines here, for comparison
+//! (docs/design.md §1.17).
+//!
 //! Run it under QEMU (`qemu-system-arm`, board `mps2-an386`): `cargo run --release` in this
-//! folder (the runner is set in `.cargo/config.toml`). The link writes
-//! `target/slamesh-firmware.map`, whose section sizes `.ci/run` prints as the footprint.
+//! folder (the runner is set in `.cargo/config.toml`), `--features f64` for the other build.
+//! The link writes `target/slamesh-firmware.map`, whose section sizes `.ci/run` prints as
+//! the footprint; `tools/firmware_compare.py` compares the two builds.
 #![no_std]
 #![no_main]
 
@@ -31,6 +36,14 @@ impl Capacity for Sparse16 {
     // The comparison sort: 147 KB less RAM, and 6 144 points sort quickly either way.
     const RADIX_SORT: bool = false;
 }
+
+/// The scalar of the pipelines' reconstruction (`slamesh_core::Real`): `f32`, which the M4F's
+/// FPU computes, or `f64` (feature `f64`, in software here), the build it is compared with.
+#[cfg(not(feature = "f64"))]
+pub type Scalar = f32;
+/// The scalar of the pipelines' reconstruction: `f64` (feature `f64`).
+#[cfg(feature = "f64")]
+pub type Scalar = f64;
 
 /// The pipeline's memory, sized at compile time by `Sparse16`.
 type Memory = storage_for!(Sparse16);
@@ -164,7 +177,8 @@ fn main() -> ! {
         None => hprintln!("no SysTick: instruction counts will read 0"),
     }
     hprintln!(
-        "slamesh-core on Cortex-M4F, no allocator: Sparse16 capacity in a static of {} bytes (Capacity::memory_bytes {}; POINTS {}, SCAN_CELLS {}, MAP_CELLS {}, MAP_LAYERS {})",
+        "slamesh-core on Cortex-M4F, no allocator, reconstruction in {}: Sparse16 capacity in a static of {} bytes (Capacity::memory_bytes {}; POINTS {}, SCAN_CELLS {}, MAP_CELLS {}, MAP_LAYERS {})",
+        <Scalar as slamesh_core::Real>::NAME,
         core::mem::size_of::<Memory>(),
         Sparse16::memory_bytes(),
         Sparse16::POINTS,
@@ -175,7 +189,7 @@ fn main() -> ! {
     // Indoors, at a few metres' range: cells of 0.8 m instead of KITTI's 1.6 m.
     let mut config = Config::default();
     config.grid.cell_size_m = CELL_M;
-    let mut pipeline = match Pipeline::<Sparse16, f32>::in_storage(config, memory.lend()) {
+    let mut pipeline = match Pipeline::<Sparse16, Scalar>::in_storage(config, memory.lend()) {
         Ok(p) => p,
         Err(e) => {
             hprintln!("FAIL: configuration {}: {}", e.field, e.reason);
