@@ -11,7 +11,12 @@
 //! new to the map, the LM iterations and the conditioning. The town's car drive (10 Hz) is
 //! added as a drive that tracks.
 //!
-//! `cargo run --release --example hard_motion -- [--frames N] [--preset NAME | --config FILE] [--seed S] [--steps] [--signals]`
+//! `--drive NAME` runs that drive alone (`hand-held`, `drone` or `car`: the town's car drive,
+//! without `--signals` too). `--scalar f32` reconstructs in single precision
+//! (`Pipeline<_, f32>`, the firmware's) instead of `f64`. Each drive also prints the median
+//! milliseconds a frame.
+//!
+//! `cargo run --release --example hard_motion -- [--frames N] [--preset NAME | --config FILE] [--seed S] [--drive NAME] [--scalar f32] [--steps] [--signals]`
 
 #[path = "common/flags.rs"]
 mod flags;
@@ -20,10 +25,26 @@ use flags::Flags;
 use slamesh::eval::odometry::{ate_rmse, consecutive_errors};
 use slamesh::io::config_file;
 use slamesh::parallel::Workers;
-use slamesh_core::{Lidar32Capacity, NoProbe, Pipeline, Pose};
+use slamesh_core::{Lidar32Capacity, NoProbe, Pipeline, Point, Pose, ScanError, ScanOutcome};
 use slamesh_sim::town::Carried;
 use slamesh_sim::Drive;
 use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// A pipeline in either scalar.
+enum Tracker {
+    Double(Box<Pipeline<Lidar32Capacity>>),
+    Single(Box<Pipeline<Lidar32Capacity, f32>>),
+}
+
+impl Tracker {
+    fn process(&mut self, scan: &[Point], workers: &Workers) -> Result<ScanOutcome, ScanError> {
+        match self {
+            Tracker::Double(p) => p.process_scan_with(scan, workers, &mut NoProbe),
+            Tracker::Single(p) => p.process_scan_with(scan, workers, &mut NoProbe),
+        }
+    }
+}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let flags = Flags::from_env();
@@ -32,6 +53,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let preset = flags.value("--preset").unwrap_or("default");
     let steps = flags.has("--steps");
     let signals = flags.has("--signals");
+    let only = flags.value("--drive");
+    let single = match flags.value("--scalar").unwrap_or("f64") {
+        "f64" => false,
+        "f32" => true,
+        other => return Err(format!("--scalar {other}: f32 or f64").into()),
+    };
     // Per step: tracked or not, and the signals.
     let mut seen: Vec<(bool, [f64; 4])> = Vec::new();
     let config = match flags.value("--config") {
@@ -45,7 +72,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("car", None),
     ];
     for (name, how) in drives {
-        if how.is_none() && !signals {
+        if only.map_or(how.is_none() && !signals, |d| d != name) {
             continue;
         }
         let drive = match how {
@@ -57,13 +84,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .iter()
             .map(|p| drive.poses[0].inverse() * p)
             .collect();
-        let mut pipeline = Pipeline::<Lidar32Capacity>::new(config)?;
+        let mut pipeline = if single {
+            Tracker::Single(Box::new(Pipeline::new(config)?))
+        } else {
+            Tracker::Double(Box::new(Pipeline::new(config)?))
+        };
+        let mut ms = Vec::with_capacity(frames);
         let mut estimate = Vec::with_capacity(frames);
         let mut statuses: BTreeMap<String, usize> = BTreeMap::new();
         let mut step_signals = vec![[f64::NAN; 4]; frames];
         let mut frame_status = Vec::with_capacity(frames);
         for (i, signals_i) in step_signals.iter_mut().enumerate() {
-            let status = match pipeline.process_scan_with(&drive.scan(i), &workers, &mut NoProbe) {
+            let scan = drive.scan(i);
+            let start = Instant::now();
+            let result = pipeline.process(&scan, &workers);
+            ms.push(start.elapsed().as_secs_f64() * 1e3);
+            let status = match result {
                 Ok(o) => {
                     estimate.push(o.t_world_sensor);
                     let st = &o.stats;
@@ -113,15 +149,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
         let c = consecutive_errors(&estimate, &truth);
+        ms.sort_by(f64::total_cmp);
         println!(
-            "{name} ({preset}, {frames} scans at {} Hz): {good} of {} steps within 5 cm and 0.5 deg; \
-             mean step error {:.2} cm, worst {:.2} cm, {:.3} deg; ATE {:.3} m; {statuses:?}",
+            "{name} ({preset}, {}, {frames} scans at {} Hz): {good} of {} steps within 5 cm and 0.5 deg; \
+             mean step error {:.2} cm, worst {:.2} cm, {:.3} deg; ATE {:.3} m; median {:.1} ms a frame; {statuses:?}",
+            if single { "f32" } else { "f64" },
             if how.is_some() { 2 } else { 10 },
             frames - 1,
             c.mean_translation_m * 100.0,
             c.max_translation_m * 100.0,
             c.mean_rotation_deg,
-            ate_rmse(&estimate, &truth)
+            ate_rmse(&estimate, &truth),
+            ms[ms.len() / 2]
         );
     }
     if signals {

@@ -438,6 +438,31 @@ mod tests {
         }
     }
 
+    /// The normals computed in `f32` are those computed in `f64`, at every vertex of a curved
+    /// layer along each axis, and usable at the same vertices (a few unusable).
+    #[test]
+    fn single_precision_normals_are_double_precision_normals() {
+        let (mut l, lat) = plane(|a, b| 0.5 + 0.4 * a * a - 0.2 * b + 0.1 * a * b);
+        l.var[7] = 0.9;
+        l.var[20] = 0.9;
+        let table = lat.table();
+        for axis in Axis::ALL {
+            for j in 0..VERTICES {
+                let n64 = l.normal_in::<f64>(&table, axis, j, 0.5);
+                let n32 = l.normal_in::<f32>(&table, axis, j, 0.5);
+                assert_eq!(n64.is_some(), n32.is_some(), "vertex {j}");
+                if let (Some(a), Some(b)) = (n64, n32) {
+                    for k in 0..3 {
+                        assert!(
+                            (a[k] - f64::from(b[k])).abs() < 1e-6,
+                            "vertex {j}: {a:?} {b:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn a_layer_moved_by_the_identity_is_unchanged() {
         let (l, lat) = plane(|a, b| 0.5 + 0.4 * a * a - 0.2 * b);

@@ -138,6 +138,22 @@ mod tests {
         );
     }
 
+    /// The layer choice in `f32` is the one in `f64`, for planes of every orientation.
+    #[test]
+    fn single_precision_chooses_the_layers_double_precision_chooses() {
+        for k in 0..40 {
+            let (u, v) = (0.15 * k as f32, 0.37 * k as f32);
+            let (s, c) = (libm::sinf(u), libm::cosf(u));
+            let tilt = libm::sinf(v);
+            let cell = grid(|a, b| [a, c * b + 0.3, s * b + tilt * a * 0.5 + 0.2]);
+            assert_eq!(
+                choose_layers::<f64>(&cell),
+                choose_layers::<f32>(&cell),
+                "plane {k}"
+            );
+        }
+    }
+
     #[test]
     fn diagonal_surfaces_get_more_layers() {
         // Normal (1, 1, 0)/√2: angles π/4, π/4, π/2 → two layers (x, y).
