@@ -1,7 +1,8 @@
 #![allow(unsafe_code)] // a counting global allocator needs it
 //! The core allocates only when a pipeline is built: processing scans, meshing, and walking
 //! the mesh allocate nothing (counted by a global allocator), and a pipeline built in caller
-//! storage allocates nothing at all, not even when it is built. One test per binary, so no
+//! storage allocates nothing at all, not even when it is built; in either scalar of the
+//! reconstruction (`f64`, `f32`). One test per binary, so no
 //! other test's allocations are counted.
 
 use slamesh_core::storage::Storage;
@@ -43,10 +44,14 @@ fn processing_scans_allocates_nothing_after_construction() {
     let mut pipeline = Pipeline::<KittiCapacity>::new(Config::default()).unwrap();
     // Caller storage, lent before the count starts.
     let storage = Storage::leak::<KittiCapacity>();
+    let storage32 = Storage::leak::<KittiCapacity>();
+    let mut single = Pipeline::<KittiCapacity, f32>::new(Config::default()).unwrap();
     let mut meshing = Pipeline::<KittiCapacity>::new(Config::meshing()).unwrap();
 
     let before = ALLOCATIONS.load(Ordering::SeqCst);
     let mut lent = Pipeline::<KittiCapacity>::in_storage(Config::default(), storage).unwrap();
+    let mut lent32 =
+        Pipeline::<KittiCapacity, f32>::in_storage(Config::default(), storage32).unwrap();
     let mut triangles = 0;
     for (scan, pose) in scans.iter().zip(&poses) {
         let own = pipeline.process_scan(scan).unwrap();
@@ -54,6 +59,12 @@ fn processing_scans_allocates_nothing_after_construction() {
         assert_eq!(
             own.t_world_sensor, other.t_world_sensor,
             "the same poses in storage"
+        );
+        let own32 = single.process_scan(scan).unwrap();
+        let other32 = lent32.process_scan(scan).unwrap();
+        assert_eq!(
+            own32.t_world_sensor, other32.t_world_sensor,
+            "the same f32 poses in storage"
         );
         meshing.integrate_scan(scan, pose).unwrap();
         triangles += pipeline.triangles().count();
