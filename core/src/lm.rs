@@ -113,7 +113,9 @@ fn linearize(
     centre: &Vec3,
     huber: f64,
 ) -> (Matrix6<f64>, Twist, f64) {
-    let mut h = Matrix6::zeros();
+    // The upper triangle of H, row by row: `j jᵀ` is symmetric, so 21 products a residual
+    // instead of 36, each `(j_a j_b) w` as the full product computes it (the same numbers).
+    let mut upper = [0.0f64; 21];
     let mut g = Twist::zeros();
     let mut cost = 0.0;
     for r in residuals {
@@ -121,11 +123,26 @@ fn linearize(
         let e = r.n.dot(&(tp - r.q));
         let (w, c) = huber_loss(e, huber);
         let rot = (tp - centre).cross(&r.n);
-        let j = Twist::new(rot.x, rot.y, rot.z, r.n.x, r.n.y, r.n.z);
+        let j = [rot.x, rot.y, rot.z, r.n.x, r.n.y, r.n.z];
         let ww = w * r.weight;
-        h += j * j.transpose() * ww;
-        g += j * (e * ww);
+        let mut k = 0;
+        for a in 0..6 {
+            for b in a..6 {
+                upper[k] += j[a] * j[b] * ww;
+                k += 1;
+            }
+        }
+        g += Twist::from(j) * (e * ww);
         cost += c * r.weight;
+    }
+    let mut h = Matrix6::zeros();
+    let mut k = 0;
+    for a in 0..6 {
+        for b in a..6 {
+            h[(a, b)] = upper[k];
+            h[(b, a)] = upper[k];
+            k += 1;
+        }
     }
     (h, g, cost)
 }

@@ -6,18 +6,29 @@
 use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
+#[cfg(not(feature = "profile"))]
 use cortex_m_rt::exception;
 
-/// SysTick's reload: the whole 24-bit range, so that the interrupt comes rarely.
+/// SysTick's reload: the whole 24-bit range, so that the interrupt comes rarely (or, with
+/// the feature `profile`, often: [`crate::profile::PERIOD_TICKS`]).
+#[cfg(not(feature = "profile"))]
 const RELOAD: u32 = 0x00FF_FFFF;
+#[cfg(feature = "profile")]
+const RELOAD: u32 = crate::profile::PERIOD_TICKS;
 /// Instructions a SysTick tick stands for under `-icount shift=0` (1 ns each at 25 MHz).
 pub const INSTRUCTIONS_PER_TICK: u64 = 40;
 
 /// Turns of the 24-bit counter so far.
 static WRAPS: AtomicU32 = AtomicU32::new(0);
 
+#[cfg(not(feature = "profile"))]
 #[exception]
 fn SysTick() {
+    wrapped();
+}
+
+/// Counts one turn of the counter (SysTick's handler).
+pub fn wrapped() {
     WRAPS.fetch_add(1, Ordering::Relaxed);
 }
 

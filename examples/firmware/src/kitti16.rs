@@ -86,9 +86,14 @@ pub fn run(memory: &'static mut Memory, buffer: &mut [Point; POINTS]) -> bool {
             ok = false;
             continue;
         };
+        // Profiled (feature `profile`): the steady state, after the first registration.
+        #[cfg(feature = "profile")]
+        crate::profile::sampling(i >= 2);
         let t0 = clock::ticks();
         let result = pipeline.process_scan(&buffer[..n]);
         instructions[i] = (clock::ticks() - t0) * clock::INSTRUCTIONS_PER_TICK;
+        #[cfg(feature = "profile")]
+        crate::profile::sampling(false);
         let out = match result {
             Ok(out) => out,
             Err(e) => {

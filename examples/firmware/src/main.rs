@@ -19,6 +19,8 @@
 
 mod clock;
 mod kitti16;
+#[cfg(feature = "profile")]
+mod profile;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
@@ -240,6 +242,8 @@ fn main() -> ! {
         TOLERANCE_DEG
     );
     ok &= kitti16::run(kitti, kitti_scan);
+    #[cfg(feature = "profile")]
+    profile::print();
     hprintln!("{}", if ok { "PASS" } else { "FAIL" });
     finish(ok)
 }
