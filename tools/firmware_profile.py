@@ -5,11 +5,13 @@
 
 Builds and runs examples/firmware with the feature `profile` (and `f64` with --f64) under
 QEMU, or reads the output of such a run from FILE. The firmware samples the program counter
-every 40 960 instructions during the real scans 2 to 9 (SysTick under `-icount`, so samples
-fall on instructions in proportion to how often they run). Prints:
+and the return addresses above it every 40 960 instructions (163 840 in the f64 build) during
+the real scans 2 to 9 (SysTick under `-icount`, so samples fall on instructions in proportion
+to how often they run). Prints:
 
 - the samples by function: the innermost function of this repository's core each sampled
   instruction was inlined into (addr2line), else its symbol (the soft-float routines, libm);
+- the samples in double-precision software routines by the core function that called them;
 - the instruction mix, by the classes of the Cortex-M4 Technical Reference Manual's timing
   tables, and the cycles each class costs there (zero wait states);
 - the estimate: cycles per instruction, and cycles and milliseconds per scan at 168 MHz for
@@ -156,6 +158,7 @@ def main():
         text = subprocess.run(["cargo", "run", "--release", "--features", features],
                               cwd=FIRMWARE, env=env, capture_output=True, text=True).stdout
     start = text.find("pc-samples")
+    period = re.search(r"pc-samples \d+ every (\d+) instructions", text)
     if start < 0:
         sys.exit("no pc-samples in the firmware's output (built without SLAMESH_DATA?)")
     samples = []
@@ -171,7 +174,8 @@ def main():
     code, syms = disassemble(ELF), symbols(ELF)
     owner = owners(ELF, sorted({w for s in samples for w in s if w}), syms)
 
-    print(f"{n} samples ({features}), one every 40 960 instructions of real scans 2 to 9\n")
+    print(f"{n} samples ({features}), one every {int(period[1]) if period else '?'} instructions "
+          "of real scans 2 to 9\n")
     print("by function (core functions with what was inlined into them; [symbol] otherwise):")
     by = collections.Counter(owner.get(p, "?") for p in pcs)
     for name, c in by.most_common(25):

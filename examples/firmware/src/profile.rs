@@ -11,8 +11,13 @@
 use core::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use cortex_m_semihosting::hprintln;
 
-/// SysTick's reload while profiling: an interrupt every 1 024 ticks (40 960 instructions).
+/// SysTick's reload while profiling: an interrupt every 1 024 ticks (40 960 instructions), or
+/// every 4 096 in the `f64` build, whose scans take four times the instructions (so that the
+/// samples of scans 2 to 9 fit [`CAPACITY`] in both).
+#[cfg(not(feature = "f64"))]
 pub const PERIOD_TICKS: u32 = 1_023;
+#[cfg(feature = "f64")]
+pub const PERIOD_TICKS: u32 = 4_095;
 /// Return addresses kept per sample.
 const CALLERS: usize = 3;
 /// Words per sample: the pc and the callers (0 where none was found).
