@@ -101,6 +101,15 @@ def symbols(elf):
     return syms
 
 
+def short(symbol):
+    """A symbol's last name, with the module of a trait impl (`quaternion_ops::mul`)."""
+    symbol = re.sub(r"::h[0-9a-f]{16}$", "", symbol)
+    last = symbol.split("::")[-1]
+    if "::_$LT$impl" in symbol:
+        return symbol.split("::_$LT$impl")[0].split("::")[-1] + "::" + last
+    return last
+
+
 def owners(elf, pcs, syms):
     """Per distinct pc, the innermost core function it was inlined into, else its symbol."""
     addrs = [a for a, _ in syms]
@@ -120,7 +129,7 @@ def owners(elf, pcs, syms):
                 break
         if name is None:
             i = bisect.bisect_right(addrs, current) - 1
-            name = "[" + re.sub(r"::h[0-9a-f]{16}$", "", syms[i][1] if i >= 0 else "?").split("::")[-1] + "]"
+            name = "[" + short(syms[i][1] if i >= 0 else "?") + "]"
         owner[current] = name
 
     i = 0
@@ -182,11 +191,15 @@ def main():
         print(f"  {100 * c / n:5.1f} %  {name}")
     soft = sum(c for name, c in by.items() if is_soft(name))
     print(f"  ({100 * soft / n:.1f} % in double-precision software routines)\n")
-    print("the double-precision software routines by the core function that called them:")
+    print("the double-precision software routines by the core function that called them")
+    print("(through nalgebra or libm when one of them is between; else the first other caller):")
     callers = collections.Counter()
     for s in samples:
         if is_soft(owner.get(s[0], "?")):
-            caller = next((owner.get(w, "?") for w in s[1:] if w and not is_builtin(owner.get(w, "?"))), "?")
+            # The first caller in the core, else the first that is not a compiler routine.
+            names = [owner.get(w, "?") for w in s[1:] if w]
+            caller = next((c for c in names if not c.startswith("[")),
+                          next((c for c in names if not is_builtin(c)), "?"))
             callers[caller] += 1
     for name, c in callers.most_common(15):
         print(f"  {100 * c / n:5.1f} %  {name}")
