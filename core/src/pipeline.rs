@@ -35,8 +35,10 @@ mod relocalize;
 pub use outcome::{RegistrationStatus, ScanError, ScanOutcome, ScanStats};
 pub use relocalize::Relocalized;
 
-/// LiDAR odometry and meshing with capacities `C`. Cloning (feature `alloc`) copies the map
-/// and every buffer into memory from the global allocator, like [`Pipeline::new`].
+/// LiDAR odometry and meshing with capacities `C`, reconstructing in the scalar `R` (`f64`, or
+/// `f32` for an FPU with single precision only: [`crate::real`]). Cloning (feature `alloc`)
+/// copies the map and every buffer into memory from the global allocator, like
+/// [`Pipeline::new`].
 #[derive(Debug)]
 #[cfg_attr(feature = "alloc", derive(Clone))]
 pub struct Pipeline<C: Capacity = KittiCapacity, R: Real = f64> {
