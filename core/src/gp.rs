@@ -663,15 +663,18 @@ mod tests {
         assert!(layer.pred.iter().all(|&p| (p - 0.3).abs() < 1e-4));
     }
 
+    /// A plane, a slope and a paraboloid (10 cm sag across a 1.6 m cell).
+    const SURFACES: [Surface; 3] = [
+        ("plane", |_, _| 0.7),
+        ("slope", |a, b| 0.3 + 0.25 * a + 0.1 * b),
+        ("curved", |a, b| {
+            0.6 + 0.08 * ((a - 0.8) * (a - 0.8) + (b - 0.8) * (b - 0.8))
+        }),
+    ];
+
     #[test]
     fn reproduces_plane_slope_and_curved_surface_within_5mm() {
-        let surfaces: [Surface; 3] = [
-            ("plane", |_, _| 0.7),
-            ("slope", |a, b| 0.3 + 0.25 * a + 0.1 * b),
-            ("curved", |a, b| {
-                0.6 + 0.08 * ((a - 0.8) * (a - 0.8) + (b - 0.8) * (b - 0.8))
-            }),
-        ];
+        let surfaces = SURFACES;
         for (name, f) in surfaces {
             let e = max_error(f, false);
             assert!(e < 0.005, "{name}: max error {e} m at interval centres");
@@ -884,18 +887,11 @@ mod tests {
     /// most 8.3e-7 (of a unit signal variance; the sensor noise's is 4e-4).
     #[test]
     fn single_precision_predicts_what_double_precision_predicts() {
-        let surfaces: [Surface; 4] = [
-            ("plane", |_, _| 0.7),
-            ("slope", |a, b| 0.3 + 0.25 * a + 0.1 * b),
-            ("curved", |a, b| {
-                0.6 + 0.08 * ((a - 0.8) * (a - 0.8) + (b - 0.8) * (b - 0.8))
-            }),
-            ("rough", |a, b| {
-                0.4 + 0.2 * a - 0.1 * b + 0.02 * libm::sin(37.0 * a + 91.0 * b)
-            }),
-        ];
+        let rough: Surface = ("rough", |a, b| {
+            0.4 + 0.2 * a - 0.1 * b + 0.02 * libm::sin(37.0 * a + 91.0 * b)
+        });
         let (mut worst_pred, mut worst_var) = (0.0f64, 0.0f64);
-        for (name, f) in surfaces {
+        for (name, f) in SURFACES.into_iter().chain([rough]) {
             for (side, full_cover, kappa) in [
                 (48, false, 1.2),
                 (48, true, 1.2),

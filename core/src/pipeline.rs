@@ -474,6 +474,7 @@ mod log {
     use super::{Pipeline, ScanOutcome};
     use crate::capacity::Capacity;
     use crate::log::formats::PoseFmt;
+    use crate::real::Real;
     use defmt::{write, Format, Formatter};
 
     impl Format for ScanOutcome {
