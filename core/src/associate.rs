@@ -130,12 +130,6 @@ impl<'a> Associator<'a> {
     /// `None` when nothing pairs. The normals are computed and summed in the scalar `R`
     /// ([`Real`]); the vertices, in world coordinates, in `f64`.
     pub fn layer<R: Real>(&self, s: &ScanLayer) -> Option<(Residual, usize)> {
-        R::associate_layer(self, s)
-    }
-
-    /// [`layer`](Self::layer)'s body, compiled once a scalar in this crate through [`Real`]
-    /// (see [`crate::reconstruct`]'s `reconstruct_cell_in`).
-    pub(crate) fn layer_in<R: Real>(&self, s: &ScanLayer) -> Option<(Residual, usize)> {
         let (lattice, max_var) = (&self.lattice, self.max_var);
         let (mut sum_p, mut sum_q, mut sum_n, mut count) =
             (Vec3::zeros(), Vec3::zeros(), [R::ZERO; 3], 0usize);

@@ -12,15 +12,6 @@
 //! listed, with why, in docs/design.md §1.17. This trait holds only what the generic code
 //! needs; each method is the operation of the same name on the primitive.
 
-use crate::associate::Associator;
-use crate::cell::CellKey;
-use crate::config::Config;
-use crate::gp::GpScratch;
-use crate::layer::ScanLayer;
-use crate::lm::Residual;
-use crate::map::MeshMap;
-use crate::math::Point;
-use crate::reconstruct::{CellLayers, Purpose};
 use core::cmp::Ordering;
 use core::fmt::Debug;
 use core::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
@@ -86,22 +77,6 @@ pub trait Real:
     fn is_finite(self) -> bool;
     /// IEEE 754 total order.
     fn total_cmp(&self, other: &Self) -> Ordering;
-
-    /// [`reconstruct_cell`](crate::reconstruct::reconstruct_cell) in this scalar. The per-cell
-    /// and per-layer work is most of the core's code, and generic code is compiled again in
-    /// every crate that uses it (every test and example, at `-O3`); these two are compiled
-    /// once a scalar, here, and called from everywhere else.
-    fn reconstruct_cell(
-        scratch: &mut GpScratch<Self>,
-        points: &[(CellKey, Point)],
-        key: CellKey,
-        map: &MeshMap,
-        cfg: &Config,
-        purpose: Purpose,
-    ) -> CellLayers;
-
-    /// [`Associator::layer`] in this scalar (see [`reconstruct_cell`](Self::reconstruct_cell)).
-    fn associate_layer(associator: &Associator<'_>, s: &ScanLayer) -> Option<(Residual, usize)>;
 }
 
 macro_rules! real {
@@ -169,22 +144,6 @@ macro_rules! real {
             #[inline]
             fn total_cmp(&self, other: &Self) -> Ordering {
                 <$t>::total_cmp(self, other)
-            }
-            fn reconstruct_cell(
-                scratch: &mut GpScratch<Self>,
-                points: &[(CellKey, Point)],
-                key: CellKey,
-                map: &MeshMap,
-                cfg: &Config,
-                purpose: Purpose,
-            ) -> CellLayers {
-                crate::reconstruct::reconstruct_cell_in(scratch, points, key, map, cfg, purpose)
-            }
-            fn associate_layer(
-                associator: &Associator<'_>,
-                s: &ScanLayer,
-            ) -> Option<(Residual, usize)> {
-                associator.layer_in::<Self>(s)
             }
         }
     };

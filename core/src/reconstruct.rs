@@ -69,20 +69,6 @@ pub fn reconstruct_cell<R: Real>(
     cfg: &Config,
     purpose: Purpose,
 ) -> CellLayers {
-    R::reconstruct_cell(scratch, points, key, map, cfg, purpose)
-}
-
-/// [`reconstruct_cell`]'s body. It is generic, and a generic function is compiled again in
-/// every crate (and every test and example) that calls it with a concrete scalar; [`Real`]'s
-/// implementations call it instead, so it is compiled once a scalar, in this crate.
-pub(crate) fn reconstruct_cell_in<R: Real>(
-    scratch: &mut GpScratch<R>,
-    points: &[(CellKey, Point)],
-    key: CellKey,
-    map: &MeshMap,
-    cfg: &Config,
-    purpose: Purpose,
-) -> CellLayers {
     if let Purpose::Register {
         half_cells: true, ..
     } = purpose
