@@ -116,6 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             0 => String::new(),
                             n => format!(" after {n} guesses"),
                         }
+                        + &format!(" ({} rounds)", st.rounds)
                 }
                 Err(e) => {
                     estimate.push(*estimate.last().unwrap_or(&Pose::identity()));
@@ -123,7 +124,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
             };
             let kind = status
-                .split(" after")
+                .split([' ', '('])
                 .next()
                 .unwrap_or_default()
                 .to_string();
@@ -141,9 +142,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
             seen.push((t <= 0.05 && r <= 0.5, step_signals[i]));
             if steps {
+                let v = e.translation.vector * 100.0;
                 println!(
-                    "{name} step {i}: turn {turn:.1} deg; error {:.2} cm, {r:.3} deg; {}",
+                    "{name} step {i}: turn {turn:.1} deg; error {:.2} cm ({:.2}, {:.2}, {:.2} in the sensor frame), {r:.3} deg; {}",
                     t * 100.0,
+                    v.x,
+                    v.y,
+                    v.z,
                     frame_status[i]
                 );
             }

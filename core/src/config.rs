@@ -133,6 +133,20 @@ pub struct RecoveryConfig {
     /// LM's Huber threshold in the polishing rounds (metres): tighter than the search's, for a
     /// pose already close. Default 0.05.
     pub polish_huber_delta_m: f64,
+    /// The turn since the last scan found from the two scans' azimuth profiles
+    /// ([`crate::azimuth`]) is looked for within this many degrees either way; 0: the profiles
+    /// are not used. Default 90: the carried rigs turn by up to 48° a scan, and a hall's
+    /// profile looks alike turned half round.
+    pub profile_turn_max_deg: f64,
+    /// When the profiles' turn and the constant-velocity prediction's differ by more than this
+    /// (degrees), registration starts from the profiles' turn (docs/design.md §1.11).
+    /// Default 5: on kitti-mini the two differ by under 1°, on the simulated hand-held rig the
+    /// prediction is off by 23° (median) and the profiles by 1°.
+    pub profile_disagree_deg: f64,
+    /// Registration rounds from the profiles' start (all but the last with the initial
+    /// reach), which is then polished. Default 3: with 2, a quarter of the hand-held rig's
+    /// frames still went to recovery (docs/benchmarks.md).
+    pub profile_rounds: usize,
 }
 
 /// Map update (docs/design.md §1.5).
@@ -235,6 +249,9 @@ impl Default for Config {
                     polish_rounds: 2,
                     polish_turn_deg: 5.0,
                     polish_huber_delta_m: 0.05,
+                    profile_turn_max_deg: 90.0,
+                    profile_disagree_deg: 5.0,
+                    profile_rounds: 3,
                 },
             },
             map: MapConfig {
@@ -417,6 +434,26 @@ impl Config {
         if !(rc.polish_turn_deg.is_finite() && rc.polish_turn_deg >= 0.0) {
             return Err(ConfigError {
                 field: "register.recovery.polish_turn_deg",
+                reason: "must be finite and at least 0",
+            });
+        }
+        if !(rc.profile_turn_max_deg.is_finite()
+            && (0.0..=180.0).contains(&rc.profile_turn_max_deg))
+        {
+            return Err(ConfigError {
+                field: "register.recovery.profile_turn_max_deg",
+                reason: "must be 0 to 180 degrees",
+            });
+        }
+        if rc.profile_rounds == 0 || rc.profile_rounds > 50 {
+            return Err(ConfigError {
+                field: "register.recovery.profile_rounds",
+                reason: "must be 1 to 50",
+            });
+        }
+        if !(rc.profile_disagree_deg.is_finite() && rc.profile_disagree_deg >= 0.0) {
+            return Err(ConfigError {
+                field: "register.recovery.profile_disagree_deg",
                 reason: "must be finite and at least 0",
             });
         }

@@ -50,6 +50,7 @@
 extern crate alloc;
 
 pub mod associate;
+pub mod azimuth;
 pub mod bounded;
 pub mod bucket;
 pub mod capacity;

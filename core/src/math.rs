@@ -312,6 +312,20 @@ pub fn turned_in_yaw(pose: &Pose, yaw: f64) -> Pose {
     Pose::from_parts(pose.translation, r * pose.rotation)
 }
 
+/// The angle `a` (radians) brought into `(-π, π]`.
+#[inline]
+pub fn wrapped_angle(a: f64) -> f64 {
+    use core::f64::consts::{PI, TAU};
+    let a = libm::fmod(a, TAU);
+    if a > PI {
+        a - TAU
+    } else if a <= -PI {
+        a + TAU
+    } else {
+        a
+    }
+}
+
 /// Rotation angle of a pose in radians, in `[0, π]`.
 #[inline]
 pub fn rotation_angle(pose: &Pose) -> f64 {

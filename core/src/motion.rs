@@ -4,7 +4,7 @@
 //! frame, repeated (constant body velocity, right for a turning vehicle). With fewer than two
 //! poses the increment is the identity.
 
-use crate::math::{renormalized, Pose};
+use crate::math::{renormalized, Pose, Vec3};
 
 /// The last two poses.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -54,6 +54,15 @@ impl ConstantVelocity {
     /// The newest pose.
     pub fn last(&self) -> Option<Pose> {
         self.last
+    }
+
+    /// The last step's translation as the world saw it (zero while the velocity is unknown):
+    /// a start for a rig whose heading changes independently of its path.
+    pub fn world_step(&self) -> Vec3 {
+        match (self.before, self.last) {
+            (Some(b), Some(l)) => l.translation.vector - b.translation.vector,
+            _ => Vec3::zeros(),
+        }
     }
 
     /// The predicted pose of the next scan.

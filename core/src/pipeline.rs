@@ -6,6 +6,7 @@
 //! pose; [`Pipeline::integrate_scan`] meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
 //! the capacities of `C`; nothing is allocated afterwards.
 
+use crate::azimuth::AzimuthProfile;
 use crate::bounded::BoundedVec;
 use crate::bucket::{bucket, BucketStats, CellSpan, Placement};
 use crate::capacity::{Capacity, KittiCapacity};
@@ -54,6 +55,8 @@ pub struct Pipeline<C: Capacity = KittiCapacity, R: Real = f64> {
     residuals: BoundedVec<Residual>,
     /// Whether scans are fused into the map (off: localization in a fixed map).
     map_updates: bool,
+    /// The last frame's number and its scan's azimuth profile ([`crate::azimuth`]).
+    last_profile: Option<(u32, AzimuthProfile)>,
     /// The capacity and the reconstruction's scalar ([`Real`]) are types only: the pipeline
     /// holds none of them (and is `Send` whatever they are).
     _types: PhantomData<fn() -> (C, R)>,
@@ -105,6 +108,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             config,
             motion: ConstantVelocity::new(),
             frame: 0,
+            last_profile: None,
             points,
             work,
             sorter,
@@ -165,6 +169,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
     pub fn restore_progress(&mut self, frames: u32, motion: ConstantVelocity) {
         self.frame = frames;
         self.motion = motion;
+        self.last_profile = None;
     }
 
     /// Whether scans are fused into the map (the default), or only registered against it:
@@ -229,8 +234,9 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         // The last round's reconstruction when it is also the map update's (see
         // `MapConfig::reconstruct_at_final_pose`): its bucketing and the pose it was made at.
         let mut for_update: Option<(BucketStats, Pose)> = None;
+        let profile_yaw = self.turn_by_profile(stats.frame);
         if !self.map.is_empty() {
-            let best = self.register_scan(pose, exec, probe, &mut stats);
+            let best = self.register_scan(pose, profile_yaw, exec, probe, &mut stats);
             stats.associate = best.associate;
             stats.conditioning = best.conditioning;
             stats.degenerate_directions = best.degenerate_directions;
@@ -302,6 +308,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         exec: &impl Executor,
         probe: &mut impl Probe,
     ) -> ScanOutcome {
+        self.turn_by_profile(stats.frame);
         self.finish(*t_world_sensor, exec, probe, &mut stats);
         self.outcome(*t_world_sensor, RegistrationStatus::Given, stats)
     }
@@ -374,6 +381,23 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             filter,
             ..ScanStats::default()
         })
+    }
+
+    /// Keeps the filtered scan's azimuth profile for the next frame, and returns the turn about
+    /// the sensor's vertical since the last frame that the two profiles find, if the last
+    /// frame was the one before `frame` and `register.recovery.profile_turn_max_deg` is set.
+    fn turn_by_profile(&mut self, frame: u32) -> Option<f64> {
+        let max_deg = self.config.register.recovery.profile_turn_max_deg;
+        if max_deg <= 0.0 {
+            return None;
+        }
+        let now = AzimuthProfile::of(&self.points);
+        let earlier = self
+            .last_profile
+            .replace((frame, now))
+            .filter(|(f, _)| f.checked_add(1) == Some(frame))?;
+        now.turn_from(&earlier.1, max_deg.to_radians())
+            .map(|t| t.yaw)
     }
 
     /// Buckets the scan at `pose` and reconstructs its cells into `scan`.

@@ -13,7 +13,8 @@
 //! they make between scans are within the coarse rounds' reach (two cells).
 
 use crate::config::RecoveryConfig;
-use crate::math::{rotation_angle, turned_in_yaw, Pose};
+use crate::math::{rotation_angle, turned_in_yaw, wrapped_angle, Pose, Vec3};
+use nalgebra::{UnitQuaternion, Vector3};
 
 /// What one registration attempt ended with, enough to judge it and compare it with others.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -92,10 +93,15 @@ impl Verdict {
     }
 }
 
-/// The initial guesses to try after the prediction failed, in order: the last pose itself
-/// (no motion), then turned about the world's vertical by `±step`, `±2·step`, ... up to
-/// `yaw_max_deg`, nearest first. At most [`MAX_GUESSES`].
-pub fn guesses(last: &Pose, cfg: &RecoveryConfig) -> impl Iterator<Item = Pose> {
+/// The initial guesses to try after the prediction failed: the last pose itself (no motion),
+/// then turned about the world's vertical by `±step`, `±2·step`, ... up to `yaw_max_deg`;
+/// nearest first, or, given the heading change the scans' azimuth profiles found
+/// (`towards`, radians), nearest that first. At most [`MAX_GUESSES`].
+pub fn guesses(
+    last: &Pose,
+    cfg: &RecoveryConfig,
+    towards: Option<f64>,
+) -> impl Iterator<Item = Pose> {
     let step = cfg.yaw_step_deg.to_radians();
     let turns = if step > 0.0 {
         libm::floor(cfg.yaw_max_deg / cfg.yaw_step_deg + 1e-9) as usize
@@ -103,12 +109,74 @@ pub fn guesses(last: &Pose, cfg: &RecoveryConfig) -> impl Iterator<Item = Pose> 
         0
     };
     let turns = turns.min((MAX_GUESSES - 1) / 2);
+    // 0, +1, -1, +2, -2, ... steps.
+    let mut ks = [0.0f64; MAX_GUESSES];
+    for (i, k) in ks.iter_mut().enumerate().take(2 * turns + 1) {
+        *k = i.div_ceil(2) as f64 * if i % 2 == 1 { 1.0 } else { -1.0 };
+    }
+    let n = 2 * turns + 1;
+    if let Some(towards) = towards {
+        // Among equals, the smaller turn first, and the positive before the negative.
+        let off = |k: f64| wrapped_angle(k * step - towards).abs();
+        ks[..n].sort_unstable_by(|&a, &b| {
+            off(a)
+                .total_cmp(&off(b))
+                .then(a.abs().total_cmp(&b.abs()))
+                .then(b.total_cmp(&a))
+        });
+    }
     let last = *last;
-    (0..=2 * turns).map(move |i| {
-        // 0, +1, -1, +2, -2, ... steps.
-        let k = i.div_ceil(2) as f64 * if i % 2 == 1 { 1.0 } else { -1.0 };
-        turned_in_yaw(&last, k * step)
-    })
+    (0..n).map(move |i| turned_in_yaw(&last, ks[i] * step))
+}
+
+/// The heading change about the world's vertical from `last` to `to` (radians): where the
+/// sensor's `x` axis points, seen from above.
+pub fn heading_change(last: &Pose, to: &Pose) -> f64 {
+    let heading = |p: &Pose| {
+        let x = p.rotation * Vector3::x();
+        libm::atan2(x.y, x.x)
+    };
+    wrapped_angle(heading(to) - heading(last))
+}
+
+/// The guess from the scans' azimuth profiles ([`crate::azimuth`]): the `last` pose turned by
+/// `profile_yaw` (the turn about the sensor's vertical that the profiles found) and moved by
+/// `world_step` (the last step as the world saw it: the prediction's own step turns with the
+/// heading it got wrong).
+pub fn profile_guess(last: &Pose, world_step: &Vec3, profile_yaw: f64) -> Pose {
+    let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), profile_yaw);
+    Pose::from_parts(
+        (last.translation.vector + world_step).into(),
+        last.rotation * turn,
+    )
+}
+
+/// True when the profiles' guess turns from the `last` pose by more than
+/// `cfg.profile_disagree_deg` about the sensor's vertical away from the `predicted` pose:
+/// registration then starts from the profiles' guess.
+pub fn profile_disagrees(
+    last: &Pose,
+    predicted: &Pose,
+    profile: &Pose,
+    cfg: &RecoveryConfig,
+) -> bool {
+    let yaw = |p: &Pose| yaw_about_sensor_vertical(&(last.rotation.inverse() * p.rotation));
+    wrapped_angle(yaw(profile) - yaw(predicted)).abs() > cfg.profile_disagree_deg.to_radians()
+}
+
+/// True when an attempt ended within half a yaw step of the profiles' guess in heading (its
+/// tilt may differ: the profiles do not see tilt): two cues agree, and a plausible attempt
+/// there ends recovery.
+pub fn agrees_with_profile(pose: &Pose, profile: &Pose, cfg: &RecoveryConfig) -> bool {
+    let yaw = yaw_about_sensor_vertical(&(profile.rotation.inverse() * pose.rotation));
+    yaw.abs() <= 0.5 * cfg.yaw_step_deg.to_radians()
+}
+
+/// The heading change of a rotation about its frame's vertical: where it takes the `x` axis,
+/// seen from above.
+fn yaw_about_sensor_vertical(r: &UnitQuaternion<f64>) -> f64 {
+    let x = r * Vector3::x();
+    libm::atan2(x.y, x.x)
 }
 
 /// Most guesses [`guesses`] gives (the last pose and 24 turns each way: 7.5° steps all round).
@@ -135,7 +203,7 @@ mod tests {
             Translation3::new(1.0, 2.0, 3.0),
             UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
         );
-        let g: Vec<Pose> = guesses(&last, &cfg()).collect();
+        let g: Vec<Pose> = guesses(&last, &cfg(), None).collect();
         assert_eq!(g.len(), 25);
         assert_eq!(g[0], last);
         let turns: Vec<f64> = g
@@ -161,12 +229,62 @@ mod tests {
     }
 
     #[test]
+    fn guesses_towards_the_profiles_turn_come_nearest_it_first_and_are_the_same_set() {
+        let last = Pose::from_parts(
+            Translation3::new(1.0, 2.0, 3.0),
+            UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
+        );
+        let plain: Vec<Pose> = guesses(&last, &cfg(), None).collect();
+        let towards: Vec<Pose> = guesses(&last, &cfg(), Some(f64::to_radians(-50.0))).collect();
+        assert_eq!(towards.len(), plain.len());
+        for g in &plain {
+            assert!(towards.contains(g));
+        }
+        let turn = |p: &Pose| heading_change(&last, p).to_degrees();
+        // -45 and -60 are nearest -50, then -30, -75, ...
+        let first: Vec<f64> = towards[..4].iter().map(|p| libm::round(turn(p))).collect();
+        assert_eq!(first, [-45.0, -60.0, -30.0, -75.0]);
+        // Far from the profiles' turn: half round, last.
+        assert!((turn(towards.last().unwrap()) - 130.0).abs() < 10.0);
+    }
+
+    #[test]
+    fn the_profiles_guess_turns_the_last_pose_about_its_vertical_and_steps_as_the_world_did() {
+        let last = Pose::from_parts(
+            Translation3::new(1.0, 2.0, 3.0),
+            UnitQuaternion::from_euler_angles(0.1, -0.05, 0.3),
+        );
+        let step = Vec3::new(0.5, -0.2, 0.0);
+        let yaw = f64::to_radians(30.0);
+        let g = profile_guess(&last, &step, yaw);
+        assert!((g.translation.vector - last.translation.vector - step).norm() < 1e-12);
+        // Turned about the sensor's own vertical: the sensor's z axis stays where it was.
+        let up = |p: &Pose| p.rotation * Vector3::z();
+        assert!((up(&g) - up(&last)).norm() < 1e-12);
+        assert!((rotation_angle(&(last.inverse() * g)) - yaw).abs() < 1e-12);
+        // The prediction that turned 28 degrees agrees with it, one that turned 10 does not.
+        let c = cfg();
+        let predicted = |deg: f64| profile_guess(&last, &Vec3::zeros(), deg.to_radians());
+        assert!(!profile_disagrees(&last, &predicted(28.0), &g, &c));
+        assert!(profile_disagrees(&last, &predicted(10.0), &g, &c));
+        assert!(profile_disagrees(&last, &predicted(-150.0), &g, &c));
+        // An attempt within half a yaw step (7.5 degrees) of it in heading agrees, whatever
+        // its tilt; one 10 degrees off does not.
+        let tilted = Pose::from_parts(
+            g.translation,
+            g.rotation * UnitQuaternion::from_euler_angles(0.15, 0.0, f64::to_radians(5.0)),
+        );
+        assert!(agrees_with_profile(&tilted, &g, &c));
+        assert!(!agrees_with_profile(&predicted(40.0), &g, &c));
+    }
+
+    #[test]
     fn no_step_gives_the_last_pose_only_and_the_count_is_bounded() {
         let mut c = cfg();
         c.yaw_step_deg = 0.0;
-        assert_eq!(guesses(&Pose::identity(), &c).count(), 1);
+        assert_eq!(guesses(&Pose::identity(), &c, None).count(), 1);
         c.yaw_step_deg = 0.001;
-        assert_eq!(guesses(&Pose::identity(), &c).count(), MAX_GUESSES);
+        assert_eq!(guesses(&Pose::identity(), &c, None).count(), MAX_GUESSES);
     }
 
     #[test]

@@ -49,29 +49,48 @@ impl Attempt {
 }
 
 impl<C: Capacity, R: Real> Pipeline<C, R> {
-    /// Registers the filtered scan from the prediction `predicted`: the rounds of
-    /// docs/design.md §1.4, then, when they did not converge, recovery (§1.11); a frame that
-    /// converged from a prediction turning more than `polish_turn_deg` is polished, as a
-    /// recovered one is.
+    /// Registers the filtered scan from the prediction `predicted`, or from the turn the scans'
+    /// azimuth profiles found (`profile_yaw`) where the two disagree
+    /// ([`recovery::profile_start`]): the rounds of docs/design.md §1.4, then, when they did
+    /// not converge, recovery (§1.11); a frame that converged from a start turning more than
+    /// `polish_turn_deg` is polished, as a recovered one is.
     pub(super) fn register_scan(
         &mut self,
         predicted: Pose,
+        profile_yaw: Option<f64>,
         exec: &impl Executor,
         probe: &mut impl Probe,
         stats: &mut ScanStats,
     ) -> Attempt {
         let r = self.config.register;
-        let (rounds, reach) = if self.motion.velocity_known() {
+        let (mut rounds, mut reach) = if self.motion.velocity_known() {
             (r.iterations, r.cross_cell_overlap)
         } else {
             (r.initial_iterations, r.initial_cross_cell_overlap)
         };
-        let mut best = self.register(predicted, rounds, reach, &r.lm, exec, probe, stats);
+        let profile = match (self.motion.last(), profile_yaw) {
+            (Some(last), Some(yaw)) => Some(recovery::profile_guess(
+                &last,
+                &self.motion.world_step(),
+                yaw,
+            )),
+            _ => None,
+        };
+        let by_profile = profile.filter(|g| {
+            self.motion
+                .last()
+                .is_some_and(|last| recovery::profile_disagrees(&last, &predicted, g, &r.recovery))
+        });
+        if by_profile.is_some() {
+            (rounds, reach) = (r.recovery.profile_rounds, r.initial_cross_cell_overlap);
+        }
+        let start = by_profile.unwrap_or(predicted);
+        let mut best = self.register(start, rounds, reach, &r.lm, exec, probe, stats);
         let turn = self
             .motion
             .last()
-            .map_or(0.0, |last| rotation_angle(&(last.inverse() * predicted)));
-        if turn > r.recovery.polish_turn_deg.to_radians()
+            .map_or(0.0, |last| rotation_angle(&(last.inverse() * start)));
+        if (by_profile.is_some() || turn > r.recovery.polish_turn_deg.to_radians())
             && best.status == RegistrationStatus::Converged
             && !best.verdict.is_lost(&r.recovery)
         {
@@ -80,7 +99,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         }
         if best.verdict.is_lost(&r.recovery) {
             if r.recovery.enabled {
-                best = self.recover(best, exec, probe, stats);
+                best = self.recover(best, start, profile, exec, probe, stats);
             } else if best.status == RegistrationStatus::Converged {
                 best.status = RegistrationStatus::NotConverged;
             }
@@ -196,11 +215,16 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
     }
 
     /// Registers the scan again from the guesses of [`recovery::guesses`] around the last
-    /// pose, after `first` (from the prediction) did not converge; stops at the first sure
-    /// attempt and returns the best by [`Verdict::score`] (docs/design.md §1.11).
+    /// pose (turned first by the scans' azimuth profiles' turn, when they found one:
+    /// `profile`), after `first` (from `start`: the prediction or the profiles' guess) did not
+    /// converge; stops
+    /// at the first sure attempt, or a plausible one that agrees with the profiles, and returns
+    /// the best by [`Verdict::score`] (docs/design.md §1.11).
     pub(super) fn recover(
         &mut self,
         first: Attempt,
+        start: Pose,
+        profile: Option<Pose>,
         exec: &impl Executor,
         probe: &mut impl Probe,
         stats: &mut ScanStats,
@@ -208,16 +232,20 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         let r = self.config.register;
         let rc = r.recovery;
         let last = self.motion.last().unwrap_or(first.pose);
-        let start = self.motion.predict();
-        // First from where the prediction's attempt ended (more rounds, wider reach), then
-        // from the last pose turned.
-        let guesses = core::iter::once(first.pose).chain(recovery::guesses(&last, &rc));
+        let predicted = self.motion.predict();
+        // First from where the first attempt ended (more rounds, wider reach), then from the
+        // prediction if the first attempt started from the profiles' guess, then from the last
+        // pose turned (about the profiles' turn).
+        let towards = profile.map(|p| recovery::heading_change(&last, &p));
+        let guesses = core::iter::once(first.pose)
+            .chain((start != predicted).then_some(predicted))
+            .chain(recovery::guesses(&last, &rc, towards));
         let mut best = first;
         // The scan's buffers hold the attempt run last: the best's reconstruction is reusable
         // for the map update only while it is that one.
         let mut best_ran_last = true;
         for guess in guesses {
-            if guess == start {
+            if guess == start && start == predicted {
                 continue;
             }
             stats.recovery_attempts += 1;
@@ -230,7 +258,9 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
                 probe,
                 stats,
             );
-            let sure = a.verdict.is_sure(&rc);
+            let sure = a.verdict.is_sure(&rc)
+                || (a.verdict.is_plausible(&rc)
+                    && profile.is_some_and(|p| recovery::agrees_with_profile(&a.pose, &p, &rc)));
             best_ran_last = a.verdict.score(&rc) > best.verdict.score(&rc);
             if best_ran_last {
                 best = a;

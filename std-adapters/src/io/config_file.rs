@@ -169,6 +169,9 @@ parameters! {
     "register.recovery" register.recovery.polish_rounds: count as uv, "Rounds that refine a recovered pose, or a converged one after a turn above polish_turn_deg (no cross-cell reach, polish_huber_delta_m); 0: none.";
     "register.recovery" register.recovery.polish_turn_deg: float as fv, "A frame that converged from a prediction turning more than this (degrees) is polished too.";
     "register.recovery" register.recovery.polish_huber_delta_m: float as fv, "LM's Huber threshold in the polishing rounds (metres).";
+    "register.recovery" register.recovery.profile_turn_max_deg: float as fv, "The turn since the last scan is looked for in the two scans' azimuth profiles within this many degrees either way (0: not at all).";
+    "register.recovery" register.recovery.profile_disagree_deg: float as fv, "When the profiles' turn and the motion prediction's differ by more than this (degrees), registration starts from the profiles' turn.";
+    "register.recovery" register.recovery.profile_rounds: count as uv, "Registration rounds from the profiles' start (all but the last with the initial reach); it is then polished.";
     "map" map.variance_update: float as fv, "Vertices are fused when both variances are below this, else the surer one is kept.";
     "map" map.add_missing_layers: boolean as Value::Boolean, "Add a layer that a known cell lacks.";
     "map" map.reconstruct_at_final_pose: boolean as Value::Boolean, "Reconstruct the scan again at its final pose before fusing it (false: move the last round's reconstruction there instead; about a quarter faster, a little less accurate).";
