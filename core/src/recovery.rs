@@ -58,11 +58,17 @@ impl Verdict {
         }
     }
 
-    /// True when the attempt did not converge: its last round ran to the iteration limit with
-    /// less than `cfg.confirm_share` of its layers matched, or it still moved the sensor by
-    /// more than the settling limits. This is what sends a frame to recovery.
+    /// True when the attempt did not converge: it is [stuck](Self::is_stuck), or it still
+    /// moved the sensor by more than the settling limits. This is what sends a frame to
+    /// recovery.
     pub fn is_lost(&self, cfg: &RecoveryConfig) -> bool {
-        (self.hit_limit && self.matched_share < cfg.confirm_share) || !self.settled
+        self.is_stuck(cfg) || !self.settled
+    }
+
+    /// True when the last round ran to the iteration limit with less than
+    /// `cfg.confirm_share` of the scan's layers matched.
+    pub fn is_stuck(&self, cfg: &RecoveryConfig) -> bool {
+        self.hit_limit && self.matched_share < cfg.confirm_share
     }
 
     /// True when the attempt surely converged: its last round stopped before the limit, with

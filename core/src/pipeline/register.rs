@@ -90,10 +90,13 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             .motion
             .last()
             .map_or(0.0, |last| rotation_angle(&(last.inverse() * start)));
-        if (by_profile.is_some() || turn > r.recovery.polish_turn_deg.to_radians())
-            && best.status == RegistrationStatus::Converged
-            && !best.verdict.is_lost(&r.recovery)
-        {
+        // From the profiles' start the polish also settles what the rounds left moving.
+        let polishable = if by_profile.is_some() {
+            !best.verdict.is_stuck(&r.recovery)
+        } else {
+            turn > r.recovery.polish_turn_deg.to_radians() && !best.verdict.is_lost(&r.recovery)
+        };
+        if polishable && best.status == RegistrationStatus::Converged {
             // Polished first: a polish that ends lost sends the frame to recovery.
             best = self.polish(best, exec, probe, stats);
         }
