@@ -10,7 +10,10 @@
 //!
 //! The guesses keep the last pose's position and turn it about the world's vertical: a
 //! hand-held rig or a drone turns fastest in yaw, and position and tilt errors of the size
-//! they make between scans are within the coarse rounds' reach (two cells).
+//! they make between scans are within the coarse rounds' reach (two cells). The turn the
+//! scans' azimuth profiles find ([`crate::azimuth`]) gives the first guess where it and the
+//! prediction disagree ([`profile_guess`], [`profile_disagrees`]), orders the others, and
+//! confirms a plausible attempt ([`agrees_with_profile`]).
 
 use crate::config::RecoveryConfig;
 use crate::math::{rotation_angle, turned_in_yaw, wrapped_angle, Pose, Vec3};

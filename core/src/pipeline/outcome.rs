@@ -26,8 +26,9 @@ pub enum RegistrationStatus {
     TooFewResiduals,
     /// The solver met non-finite numbers: as for `Degenerate`.
     SolverFailed,
-    /// Registration from the motion prediction did not converge; it did from another guess
-    /// (docs/design.md §1.11). The pose is that guess's.
+    /// Registration from its first start (the motion prediction, or the turn the scans'
+    /// azimuth profiles found) did not converge; it did from another guess (docs/design.md
+    /// §1.11). The pose is that guess's.
     Recovered,
     /// Registration converged from no guess: the pose is the best attempt's by
     /// [`Verdict::score`](crate::recovery::Verdict::score), and may be wrong. With recovery

@@ -1,6 +1,7 @@
-//! Registration of one scan (docs/design.md §1.4): rounds from one initial guess, and the
-//! recovery that tries other guesses when the prediction's did not converge (§1.11). Leaves
-//! the map alone; the pipeline fuses the attempt it returns.
+//! Registration of one scan (docs/design.md §1.4): rounds from one initial guess (the
+//! prediction, or the turn the scans' azimuth profiles found where the two disagree), and the
+//! recovery that tries other guesses when that did not converge (§1.11). Leaves the map alone;
+//! the pipeline fuses the attempt it returns.
 
 use super::{Pipeline, RegistrationStatus, ScanStats};
 use crate::associate::{associate, AssociateStats};
@@ -63,7 +64,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         stats: &mut ScanStats,
     ) -> Attempt {
         let r = self.config.register;
-        let (mut rounds, mut reach) = if self.motion.velocity_known() {
+        let (rounds, reach) = if self.motion.velocity_known() {
             (r.iterations, r.cross_cell_overlap)
         } else {
             (r.initial_iterations, r.initial_cross_cell_overlap)
@@ -76,16 +77,30 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             )),
             _ => None,
         };
-        let by_profile = profile.filter(|g| {
+        let mut by_profile = profile.filter(|g| {
             self.motion
                 .last()
                 .is_some_and(|last| recovery::profile_disagrees(&last, &predicted, g, &r.recovery))
         });
-        if by_profile.is_some() {
-            (rounds, reach) = (r.recovery.profile_rounds, r.initial_cross_cell_overlap);
+        let mut best = match by_profile {
+            Some(guess) => self.register(
+                guess,
+                r.recovery.profile_rounds,
+                r.initial_cross_cell_overlap,
+                &r.lm,
+                exec,
+                probe,
+                stats,
+            ),
+            None => self.register(predicted, rounds, reach, &r.lm, exec, probe, stats),
+        };
+        if by_profile.is_some() && best.status != RegistrationStatus::Converged {
+            // The scan could not check the profiles' turn (too few matches, a degenerate
+            // scene, a failed solve): what the motion model says stands, as without them.
+            by_profile = None;
+            best = self.register(predicted, rounds, reach, &r.lm, exec, probe, stats);
         }
         let start = by_profile.unwrap_or(predicted);
-        let mut best = self.register(start, rounds, reach, &r.lm, exec, probe, stats);
         let turn = self
             .motion
             .last()

@@ -393,13 +393,16 @@ mod tests {
             changed.register.recovery.yaw_step_deg = 10.0;
             changed.register.recovery.enabled = false;
             changed.register.recovery.polish_turn_deg = 7.5;
+            changed.register.recovery.profile_turn_max_deg = 45.0;
+            changed.register.recovery.profile_disagree_deg = 8.0;
+            changed.register.recovery.profile_rounds = 4;
             changed.map.stale_after_frames = 300;
             let text = documented_toml(&changed, name);
             let s = parse(&text).unwrap_or_else(|e| panic!("{name}: {e}\n{text}"));
             assert_eq!(s.config, changed, "{name}");
             assert_eq!(s.preset, name);
         }
-        assert_eq!(PARAMETERS.len(), 36);
+        assert_eq!(PARAMETERS.len(), 39);
     }
 
     #[test]

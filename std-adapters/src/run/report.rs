@@ -354,13 +354,14 @@ pub fn registration_reason(
             Some("the solver's correction was not finite; the pose is the motion prediction".into())
         }
         RegistrationStatus::Recovered => Some(format!(
-            "registration from the motion prediction did not converge; it did from guess {} of \
-             register.recovery (1: the same pose with more rounds; later: the last pose turned \
-             in yaw), {} surface matches",
+            "registration from its first start (the motion prediction, or the turn the scans' \
+             azimuth profiles found) did not converge; it did from guess {} of register.recovery \
+             (1: where the first start ended, with more rounds; next the prediction, if the first \
+             start was the profiles'; later: the last pose turned in yaw), {} surface matches",
             stats.recovery_attempts, stats.associate.residuals
         )),
         RegistrationStatus::NotConverged => Some(format!(
-            "registration converged neither from the motion prediction nor from {} guesses of \
+            "registration converged neither from its first start nor from {} guesses of \
              register.recovery (none settled with register.recovery.accept_share = {} of its \
              layers matched); the pose is the best attempt's ({} surface matches for {} layers) \
              and may be wrong",
