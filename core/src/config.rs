@@ -135,13 +135,14 @@ pub struct RecoveryConfig {
     pub polish_huber_delta_m: f64,
     /// The turn since the last scan found from the two scans' azimuth profiles
     /// ([`crate::azimuth`]) is looked for within this many degrees either way; 0: the profiles
-    /// are not used. Default 90: the carried rigs turn by up to 48° a scan, and a hall's
-    /// profile looks alike turned half round.
+    /// are not used. Default 90: the carried rigs turn by up to 48° a scan (with their tilt),
+    /// and a hall's profile looks alike turned half round.
     pub profile_turn_max_deg: f64,
     /// When the profiles' turn and the constant-velocity prediction's differ by more than this
     /// (degrees), registration starts from the profiles' turn (docs/design.md §1.11).
-    /// Default 5: on kitti-mini the two differ by under 1°, on the simulated hand-held rig the
-    /// prediction is off by 23° (median) and the profiles by 1°.
+    /// Default 5: on kitti-mini the profiles are off by at most 1.5° and the prediction by
+    /// less; on the simulated hand-held rig the prediction is off by 23° (median) and the
+    /// profiles by 1°.
     pub profile_disagree_deg: f64,
     /// Registration rounds from the profiles' start (all but the last with the initial
     /// reach), which is then polished. Default 3: with 2, a quarter of the hand-held rig's
