@@ -52,9 +52,10 @@ impl Attempt {
 impl<C: Capacity, R: Real> Pipeline<C, R> {
     /// Registers the filtered scan from the prediction `predicted`, or from the turn the scans'
     /// azimuth profiles found (`profile_yaw`) where the two disagree
-    /// ([`recovery::profile_start`]): the rounds of docs/design.md §1.4, then, when they did
-    /// not converge, recovery (§1.11); a frame that converged from a start turning more than
-    /// `polish_turn_deg` is polished, as a recovered one is.
+    /// ([`recovery::profile_disagrees`]; back to the prediction when the scan cannot check
+    /// that turn): the rounds of docs/design.md §1.4, then, when they did not converge,
+    /// recovery (§1.11). A frame that converged from the profiles' start, or from a prediction
+    /// turning more than `polish_turn_deg`, is polished, as a recovered one is.
     pub(super) fn register_scan(
         &mut self,
         predicted: Pose,
@@ -233,11 +234,10 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
     }
 
     /// Registers the scan again from the guesses of [`recovery::guesses`] around the last
-    /// pose (turned first by the scans' azimuth profiles' turn, when they found one:
-    /// `profile`), after `first` (from `start`: the prediction or the profiles' guess) did not
-    /// converge; stops
-    /// at the first sure attempt, or a plausible one that agrees with the profiles, and returns
-    /// the best by [`Verdict::score`] (docs/design.md §1.11).
+    /// pose (nearest the scans' azimuth profiles' turn first, when they found one: `profile`),
+    /// after `first` (from `start`: the prediction or the profiles' guess) did not converge;
+    /// stops at the first sure attempt, or a plausible one that agrees with the profiles, and
+    /// returns the best by [`Verdict::score`] (docs/design.md §1.11).
     pub(super) fn recover(
         &mut self,
         first: Attempt,
@@ -276,14 +276,14 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
                 probe,
                 stats,
             );
-            let sure = a.verdict.is_sure(&rc)
+            let done = a.verdict.is_sure(&rc)
                 || (a.verdict.is_plausible(&rc)
                     && profile.is_some_and(|p| recovery::agrees_with_profile(&a.pose, &p, &rc)));
             best_ran_last = a.verdict.score(&rc) > best.verdict.score(&rc);
             if best_ran_last {
                 best = a;
             }
-            if sure {
+            if done {
                 break;
             }
         }
