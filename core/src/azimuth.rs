@@ -267,10 +267,9 @@ mod tests {
     #[test]
     fn a_large_scan_is_read_sparsely_and_gives_the_same_turn() {
         let mut big = Vec::new();
-        for _ in 0..4 {
+        while big.len() <= 2 * MAX_POINTS {
             big.extend(room(0.4, 0.0, 0.0));
         }
-        assert!(big.len() > 4 * MAX_POINTS / 2);
         let earlier = AzimuthProfile::of(&room(0.0, 0.0, 0.0));
         let t = AzimuthProfile::of(&big).turn_from(&earlier, PI).unwrap();
         assert!((t.yaw - 0.4).abs() < 1f64.to_radians());
