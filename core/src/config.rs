@@ -145,8 +145,8 @@ pub struct RecoveryConfig {
     /// profiles by 1°.
     pub profile_disagree_deg: f64,
     /// Registration rounds from the profiles' start (all but the last with the initial
-    /// reach), which is then polished. Default 3: with 2, a quarter of the hand-held rig's
-    /// frames still went to recovery (docs/benchmarks.md).
+    /// reach), which is then polished. Default 3: with 2, the drones took more rounds in all
+    /// (docs/benchmarks.md).
     pub profile_rounds: usize,
 }
 

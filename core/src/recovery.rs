@@ -141,11 +141,9 @@ pub fn guesses(
 /// The heading change about the world's vertical from `last` to `to` (radians): where the
 /// sensor's `x` axis points, seen from above.
 pub fn heading_change(last: &Pose, to: &Pose) -> f64 {
-    let heading = |p: &Pose| {
-        let x = p.rotation * Vector3::x();
-        libm::atan2(x.y, x.x)
-    };
-    wrapped_angle(heading(to) - heading(last))
+    wrapped_angle(
+        yaw_about_sensor_vertical(&to.rotation) - yaw_about_sensor_vertical(&last.rotation),
+    )
 }
 
 /// The guess from the scans' azimuth profiles ([`crate::azimuth`]): the `last` pose turned by
@@ -181,8 +179,9 @@ pub fn agrees_with_profile(pose: &Pose, profile: &Pose, cfg: &RecoveryConfig) ->
     yaw.abs() <= 0.5 * cfg.yaw_step_deg.to_radians()
 }
 
-/// The heading change of a rotation about its frame's vertical: where it takes the `x` axis,
-/// seen from above.
+/// The heading of a rotation: where it takes the `x` axis, seen from above its frame's
+/// vertical (a sensor's heading in the world for a pose's rotation, the turn about the
+/// sensor's vertical for a relative one).
 fn yaw_about_sensor_vertical(r: &UnitQuaternion<f64>) -> f64 {
     let x = r * Vector3::x();
     libm::atan2(x.y, x.x)
