@@ -3,7 +3,7 @@
 //! the sliding window evicting and saving cells on the way. Resuming without a checkpoint, or
 //! with other settings, is a clear error.
 
-mod common;
+use crate::common;
 
 use common::{scratch, slamesh_command, slamesh_run, slamesh_run_ok, write_bin};
 use slamesh::io::ply::read_ply_mesh;

@@ -1,7 +1,7 @@
 //! The `slamesh` command on simulated scans written to disk (no data needed): bad inputs are
 //! reported and skipped, meshing with given poses, configuration files, evaluation.
 
-mod common;
+use crate::common;
 
 use common::{scratch, slamesh_ok, slamesh_run, slamesh_run_ok, write_bin};
 use slamesh::io::pcd::encode_pcd;

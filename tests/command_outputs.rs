@@ -5,7 +5,7 @@
 //! and `localize`: `tests/map_persistence.rs`). The data
 //! is simulated (a street with known surfaces), written to disk as a user's would be.
 
-mod common;
+use crate::common;
 
 use common::{
     scratch, slamesh, slamesh_ok, slamesh_run, slamesh_run_ok, street_drive as drive, write_bin,

@@ -4,7 +4,7 @@
 //! and lists the frames; an unusable scan's message gives the range limits and parameters;
 //! `-v`, `-q` and `RUST_LOG` set what is said.
 
-mod common;
+use crate::common;
 
 use common::{scratch, slamesh_command, slamesh_run, write_bin};
 use slamesh_core::Point;

@@ -8,7 +8,7 @@
 //! Then: one and two threads, and a repeated run, write identical trajectories and meshes.
 //! Without `SLAMESH_DATA` it prints that it skipped; with it, a missing file is a failure.
 
-mod common;
+use crate::common;
 
 use common::{kitti_mini, scratch, slamesh_run_ok};
 use slamesh::eval::odometry::consecutive_errors;

@@ -3,7 +3,7 @@
 //! never driven closes nothing; a run with no loop gives the same bytes with it on as off;
 //! the closure thread never holds a frame up.
 
-mod common;
+use crate::common;
 
 use common::{kitti_mini, scratch};
 use slamesh::eval::duplicates::duplicated_near;

@@ -2,7 +2,7 @@
 //! it from an unknown start (or a wrong one) or maps on from it; a map file reads back to the
 //! same bytes, and every damaged one is refused by name.
 
-mod common;
+use crate::common;
 
 use common::{kitti_mini, scratch};
 use nalgebra::{Translation3, UnitQuaternion};

@@ -3,7 +3,7 @@
 //! against the SDK's own trajectory of the same capture, taken live from a socket, and refused
 //! with a clear message without their metadata.
 
-mod common;
+use crate::common;
 
 use slamesh::io::capture::Capture;
 use slamesh::io::ouster::Sensor;

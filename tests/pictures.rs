@@ -4,7 +4,7 @@
 //! under the path show; a street open to the sky is drawn whole; `render --clip-above` cuts
 //! any mesh at a height.
 
-mod common;
+use crate::common;
 
 use common::{scratch, slamesh, slamesh_ok, slamesh_run_ok, street_drive, write_scan_folder};
 use slamesh::io::ply::read_ply_mesh;

@@ -5,7 +5,7 @@
 //! and reason; a recording with several clouds, or a topic of another type, is refused with
 //! the topics listed.
 
-mod common;
+use crate::common;
 
 use common::{scratch, slamesh_run, slamesh_run_ok};
 use std::path::{Path, PathBuf};

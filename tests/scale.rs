@@ -3,7 +3,7 @@
 //! nearer range limit) and tracked; the original's 1.6 m cells (`--preset fast`) are not fine
 //! enough for it.
 
-mod common;
+use crate::common;
 
 use common::{scratch, slamesh_ok, slamesh_run_ok, write_scan_folder};
 use slamesh::eval::odometry::consecutive_errors;

@@ -10,9 +10,8 @@ use slamesh::view::{View, ViewOptions};
 use slamesh_core::{Config, KittiCapacity, Pipeline};
 use slamesh_sim::Drive;
 use std::collections::BTreeMap;
-use std::net::TcpStream;
 use std::time::{Duration, Instant};
-use tungstenite::{Message, WebSocket};
+use websocket::{Client, Message};
 
 fn scratch(name: &str) -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("slamesh-view-{name}-{}", std::process::id()));
@@ -94,24 +93,14 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
 }
 
 /// A WebSocket client of the view at `address`, with the Foxglove SDK's subprotocol.
-fn connect(address: &str) -> WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>> {
-    use tungstenite::client::IntoClientRequest;
-    let mut request = format!("ws://{address}").into_client_request().unwrap();
-    request
-        .headers_mut()
-        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
-    let (socket, _) = tungstenite::connect(request).unwrap();
-    if let tungstenite::stream::MaybeTlsStream::Plain(s) = socket.get_ref() {
-        s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-    }
-    socket
+fn connect(address: &str) -> Client {
+    let client = Client::connect(address, "foxglove.sdk.v1").unwrap();
+    client.set_read_timeout(Duration::from_secs(20)).unwrap();
+    client
 }
 
 /// Reads text messages until the channels `topics` are advertised; their ids.
-fn advertised(
-    ws: &mut WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>,
-    topics: &[&str],
-) -> BTreeMap<String, u64> {
+fn advertised(ws: &mut Client, topics: &[&str]) -> BTreeMap<String, u64> {
     let mut ids = BTreeMap::new();
     while !topics.iter().all(|t| ids.contains_key(*t)) {
         if let Message::Text(t) = ws.read().unwrap() {
@@ -251,4 +240,137 @@ fn garbage_and_clients_that_never_read_do_not_stall_the_run() {
     assert_eq!(stats.sent + stats.dropped, 40);
     drop((rude, stuck));
     std::fs::remove_dir_all(&out).unwrap();
+}
+
+/// A WebSocket client (RFC 6455), just what these tests need: the opening handshake (the
+/// server's accept key is not checked), messages in frames of any length, fragmented or not,
+/// pings answered, and masked frames sent. The server under test is the Foxglove SDK's.
+mod websocket {
+    use std::io::{self, BufRead, BufReader, Read, Write};
+    use std::net::TcpStream;
+    use std::time::Duration;
+
+    pub enum Message {
+        Text(String),
+        Binary(Vec<u8>),
+    }
+
+    pub struct Client {
+        reader: BufReader<TcpStream>,
+        writer: TcpStream,
+    }
+
+    fn failed(why: String) -> io::Error {
+        io::Error::other(why)
+    }
+
+    impl Client {
+        /// Connects to `address` (host:port) and asks for the subprotocol `protocol`.
+        pub fn connect(address: &str, protocol: &str) -> io::Result<Client> {
+            let stream = TcpStream::connect(address)?;
+            let mut writer = stream.try_clone()?;
+            write!(
+                writer,
+                "GET / HTTP/1.1\r\nHost: {address}\r\nUpgrade: websocket\r\n\
+                 Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\
+                 Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: {protocol}\r\n\r\n"
+            )?;
+            let mut reader = BufReader::new(stream);
+            let mut status = String::new();
+            reader.read_line(&mut status)?;
+            if !status.starts_with("HTTP/1.1 101") {
+                return Err(failed(format!("handshake refused: {status}")));
+            }
+            loop {
+                let mut line = String::new();
+                if reader.read_line(&mut line)? == 0 || line == "\r\n" {
+                    break;
+                }
+            }
+            Ok(Client { reader, writer })
+        }
+
+        pub fn set_read_timeout(&self, timeout: Duration) -> io::Result<()> {
+            self.writer.set_read_timeout(Some(timeout))
+        }
+
+        /// The next text or binary message, whole.
+        pub fn read(&mut self) -> io::Result<Message> {
+            let (mut opcode, mut message) = (0, Vec::new());
+            loop {
+                let mut head = [0u8; 2];
+                self.reader.read_exact(&mut head)?;
+                let length = match head[1] & 0x7f {
+                    126 => {
+                        let mut n = [0u8; 2];
+                        self.reader.read_exact(&mut n)?;
+                        u64::from(u16::from_be_bytes(n))
+                    }
+                    127 => {
+                        let mut n = [0u8; 8];
+                        self.reader.read_exact(&mut n)?;
+                        u64::from_be_bytes(n)
+                    }
+                    n => u64::from(n),
+                };
+                let mut mask = [0u8; 4];
+                if head[1] & 0x80 != 0 {
+                    self.reader.read_exact(&mut mask)?;
+                }
+                let mut payload = vec![0u8; length as usize];
+                self.reader.read_exact(&mut payload)?;
+                for (i, b) in payload.iter_mut().enumerate() {
+                    *b ^= mask[i % 4];
+                }
+                match head[0] & 0x0f {
+                    0x8 => return Err(failed("the server closed the connection".into())),
+                    0x9 => self.send_frame(0xa, &payload)?,
+                    0xa => {}
+                    code => {
+                        if code != 0 {
+                            opcode = code;
+                        }
+                        message.extend_from_slice(&payload);
+                        if head[0] & 0x80 != 0 {
+                            break;
+                        }
+                    }
+                }
+            }
+            match opcode {
+                1 => String::from_utf8(message)
+                    .map(Message::Text)
+                    .map_err(|e| failed(e.to_string())),
+                2 => Ok(Message::Binary(message)),
+                other => Err(failed(format!("opcode {other}"))),
+            }
+        }
+
+        pub fn send(&mut self, message: Message) -> io::Result<()> {
+            match message {
+                Message::Text(t) => self.send_frame(0x1, t.as_bytes()),
+                Message::Binary(b) => self.send_frame(0x2, &b),
+            }
+        }
+
+        /// One final frame, masked as a client's must be.
+        fn send_frame(&mut self, opcode: u8, payload: &[u8]) -> io::Result<()> {
+            let mut frame = vec![0x80 | opcode];
+            match payload.len() {
+                n if n < 126 => frame.push(0x80 | n as u8),
+                n if n <= 0xffff => {
+                    frame.push(0x80 | 126);
+                    frame.extend_from_slice(&(n as u16).to_be_bytes());
+                }
+                n => {
+                    frame.push(0x80 | 127);
+                    frame.extend_from_slice(&(n as u64).to_be_bytes());
+                }
+            }
+            let mask = [0x5a, 0x17, 0xc3, 0x88];
+            frame.extend_from_slice(&mask);
+            frame.extend(payload.iter().enumerate().map(|(i, b)| b ^ mask[i % 4]));
+            self.writer.write_all(&frame)
+        }
+    }
 }
