@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
-# Runs every fuzz target for the given number of seconds each (default 600), one after the
-# other, growing fuzz/corpus/<target>. Needs the nightly toolchain and cargo-fuzz.
-# Fails when a target does not build, when cargo fuzz fails, and on a crash, a hang (over
+# Runs every fuzz target for the given number of seconds each (default 600), growing
+# fuzz/corpus/<target>. Needs the nightly toolchain and cargo-fuzz.
+#   fuzz/run.sh [SECONDS [TARGET...]]
+# Environment: FUZZ_JOBS targets at a time (default: the cores present); FUZZ_SANITIZER
+# (default address; CI's smoke pass uses none: the code fuzzed forbids unsafe code, and the
+# build is faster).
+# Fails when a target does not build, when the fuzzer fails, and on a crash, a hang (over
 # 10 s on one input) or an allocation over 2 GB, which leave the input in
 # fuzz/artifacts/<target>/.
 set -euo pipefail
@@ -10,21 +14,48 @@ seconds=${1:-600}
 shift || true
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(kitti_bin pcd ply config_toml core_scan pointcloud2 recording map_file capture velodyne_packet ouster_packet ouster_metadata velodyne_calibration)
-# One build for every target (cargo fuzz run would build each on its own).
-cargo +nightly fuzz build
-log=$(mktemp)
-trap 'rm -f "$log"' EXIT
-for t in "${targets[@]}"; do
-  echo "== $t: ${seconds} s"
-  status=0
-  cargo +nightly fuzz run "$t" "corpus/$t" -- \
+jobs=${FUZZ_JOBS:-$(nproc)}
+sanitizer=${FUZZ_SANITIZER:-address}
+# One build for every target; each binary is then run as `cargo fuzz run` would run it.
+cargo +nightly fuzz build --sanitizer "$sanitizer"
+triple=$(rustc +nightly -vV | sed -n 's/^host: //p')
+logs=$(mktemp -d)
+trap 'rm -rf "$logs"' EXIT
+
+fuzz_one() {
+  local t=$1 status=0
+  mkdir -p "artifacts/$t" "corpus/$t"
+  "target/$triple/release/$t" -artifact_prefix="artifacts/$t/" \
     -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
-    >"$log" 2>&1 || status=$?
-  grep -E "^(#[0-9]+ *DONE|Done [0-9]+ runs|stat::number_of_executed_units|==[0-9]+== ERROR|SUMMARY)" "$log" || true
-  if [ "$status" != 0 ]; then
-    tail -n 30 "$log"
-    echo "$t: cargo fuzz failed (exit $status)"
-    exit 1
+    "corpus/$t" >"$logs/$t" 2>&1 || status=$?
+  # The target's report in one write, so that reports of parallel targets do not interleave.
+  {
+    echo "== $t: ${seconds} s"
+    grep -E "^(#[0-9]+ *DONE|Done [0-9]+ runs|stat::number_of_executed_units|==[0-9]+== ERROR|SUMMARY)" "$logs/$t" || true
+    if [ "$status" != 0 ]; then
+      tail -n 30 "$logs/$t"
+      echo "$t: the fuzzer failed (exit $status)"
+    elif [ -n "$(ls "artifacts/$t")" ]; then
+      echo "$t: failing input in fuzz/artifacts/$t"
+      status=1
+    fi
+  } >"$logs/$t.report"
+  cat "$logs/$t.report"
+  [ "$status" = 0 ]
+}
+
+failed=0
+running=0
+for t in "${targets[@]}"; do
+  fuzz_one "$t" &
+  running=$((running + 1))
+  if [ "$running" -ge "$jobs" ]; then
+    wait -n || failed=1
+    running=$((running - 1))
   fi
-  test -z "$(ls "artifacts/$t" 2>/dev/null)" || { echo "$t: failing input in fuzz/artifacts/$t"; exit 1; }
 done
+while [ "$running" -gt 0 ]; do
+  wait -n || failed=1
+  running=$((running - 1))
+done
+exit "$failed"
