@@ -158,8 +158,7 @@ fn a_websocket_client_subscribes_and_receives_a_scan_and_a_mesh_update() {
             {"id": 2, "channelId": ids["/mesh"]},
         ]
     });
-    ws.send(Message::Text(subscribe.to_string().into()))
-        .unwrap();
+    ws.send(Message::Text(subscribe.to_string())).unwrap();
     // The server takes the subscription on its own threads: give it a moment before feeding.
     std::thread::sleep(Duration::from_millis(300));
     let drive = Drive::town(3, 1);
@@ -195,8 +194,8 @@ fn garbage_and_clients_that_never_read_do_not_stall_the_run() {
     for m in [
         Message::Text("{not json".into()),
         Message::Text(r#"{"op":"advertise","channels":[{"id":1,"topic":"/x","encoding":"json","schemaName":"x"}]}"#.into()),
-        Message::Binary(vec![1, 0, 0, 0, 9, 9, 9].into()),
-        Message::Binary(vec![255; 4096].into()),
+        Message::Binary(vec![1, 0, 0, 0, 9, 9, 9]),
+        Message::Binary(vec![255; 4096]),
     ] {
         let _ = rude.send(m);
     }
@@ -210,9 +209,7 @@ fn garbage_and_clients_that_never_read_do_not_stall_the_run() {
         .collect();
     stuck
         .send(Message::Text(
-            serde_json::json!({"op": "subscribe", "subscriptions": subscriptions})
-                .to_string()
-                .into(),
+            serde_json::json!({"op": "subscribe", "subscriptions": subscriptions}).to_string(),
         ))
         .unwrap();
     std::thread::sleep(Duration::from_millis(300));
