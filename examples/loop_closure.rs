@@ -16,6 +16,14 @@
 //! and prints for each closure the frame it was found at and the frame it was applied before:
 //! how long a correction takes to reach the tracking when the pipeline is not behind.
 //!
+//! `--oracle RUN` instead asks what the best closure could do on the drive (`--path`,
+//! `--frames`): it takes RUN's trajectory as odometry (a run with no closure; for the pure
+//! odometry, one with `map.stale_after_frames = 300`), joins every 5th frame that revisits
+//! the path (within 3 m of a frame 100 m or more behind) to that earlier frame by a loop
+//! edge carrying the *true* relative pose, solves the pose graph of every frame with the
+//! loop-closure thread's weights, and prints the ATE before and after: the figure no
+//! detection can beat, since its loop edges are exact and placed at every revisit.
+//!
 //! `--path campus|block|round` and `--frames N` (and `--seed S`, 1 by default) must be those
 //! the drive was written with; each run folder (`--runs`, comma-separated) needs `poses_kitti.txt`, `mesh.ply` and
 //! `map.slamesh`. `--closure-frame F` names the frame the drive comes back at (for the
@@ -32,6 +40,7 @@ use slamesh::eval::odometry::{ate_rmse, end_drift};
 use slamesh::io::map_file::MapFile;
 use slamesh::io::ply::read_ply_mesh;
 use slamesh::io::trajectory::read_kitti;
+use slamesh::loop_closure::graph::{Edge, PoseGraph};
 use slamesh::loop_closure::settings::LoopSettings;
 use slamesh::run::{FrameSource, Input, Run, RunOptions};
 use slamesh_core::KittiCapacity;
@@ -45,6 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(input) = flags.value("--paced") {
         return paced(&flags, input);
     }
+    let oracle_run = flags.value("--oracle").map(PathBuf::from);
     let frames: usize = flags.parse_or("--frames", 1000)?;
     let seed: u64 = flags.parse_or("--seed", 1)?;
     let drive = match flags.value("--path") {
@@ -53,14 +63,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some("round") => Drive::town_round(frames, seed),
         _ => return Err("--path campus|block|round is required".into()),
     };
+    let to_first = drive.poses[0].inverse();
+    let truth: Vec<Pose> = drive.poses.iter().map(|p| to_first * p).collect();
+    if let Some(run) = oracle_run {
+        return oracle(&run, &truth);
+    }
     let runs: Vec<PathBuf> = flags
         .value("--runs")
         .ok_or("--runs DIR,DIR,... is required")?
         .split(',')
         .map(PathBuf::from)
         .collect();
-    let to_first = drive.poses[0].inverse();
-    let truth: Vec<Pose> = drive.poses.iter().map(|p| to_first * p).collect();
     let back = match flags.value("--closure-frame") {
         Some(f) => f.parse()?,
         None => comes_back(&truth).ok_or("the drive never comes back: --closure-frame F")?,
@@ -96,17 +109,79 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
 /// The first frame within 10 m of a frame more than 100 m of path behind it.
 fn comes_back(poses: &[Pose]) -> Option<usize> {
-    let mut travelled = vec![0.0];
-    for w in poses.windows(2) {
-        let d = (w[1].translation.vector - w[0].translation.vector).norm();
-        travelled.push(travelled[travelled.len() - 1] + d);
-    }
+    let travelled = path_travelled(poses);
     (0..poses.len()).find(|&i| {
         (0..i).any(|j| {
             travelled[i] - travelled[j] > 100.0
                 && (poses[i].translation.vector - poses[j].translation.vector).norm() < 10.0
         })
     })
+}
+
+/// The `--oracle` figures (see the module docs).
+fn oracle(run: &std::path::Path, truth: &[Pose]) -> Result<(), Box<dyn std::error::Error>> {
+    let estimate = read_kitti(&run.join("poses_kitti.txt"))?;
+    let n = estimate.len().min(truth.len());
+    let (estimate, truth) = (&estimate[..n], &truth[..n]);
+    let travelled = path_travelled(truth);
+    let s = LoopSettings::default();
+    let inverse = |m: nalgebra::Matrix6<f64>| m.try_inverse().ok_or("singular covariance");
+    let mut graph = PoseGraph {
+        nodes: estimate.to_vec(),
+        edges: Vec::new(),
+    };
+    for i in 1..n {
+        graph.edges.push(Edge {
+            a: i - 1,
+            b: i,
+            z: estimate[i - 1].inverse() * estimate[i],
+            info: inverse(s.odometry_covariance(travelled[i] - travelled[i - 1]))?,
+        });
+    }
+    let loop_info = inverse(s.loop_covariance())?;
+    let mut loops = 0;
+    for i in (0..n).step_by(5) {
+        let earlier = (0..i)
+            .filter(|&j| travelled[i] - travelled[j] >= 100.0)
+            .map(|j| {
+                (
+                    j,
+                    (truth[i].translation.vector - truth[j].translation.vector).norm(),
+                )
+            })
+            .filter(|&(_, d)| d < 3.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((j, _)) = earlier {
+            graph.edges.push(Edge {
+                a: j,
+                b: i,
+                z: truth[j].inverse() * truth[i],
+                info: loop_info,
+            });
+            loops += 1;
+        }
+    }
+    let solved = graph.optimize(10);
+    println!(
+        "{}: {n} frames, {loops} exact loop edges ({} iterations); ATE {:.3} m before, {:.3} m after; end point {:.3} m before, {:.3} m after",
+        run.display(),
+        solved.iterations,
+        ate_rmse(estimate, truth),
+        ate_rmse(&graph.nodes, truth),
+        end_drift(estimate, truth).0,
+        end_drift(&graph.nodes, truth).0
+    );
+    Ok(())
+}
+
+/// Metres travelled along `poses` up to each.
+fn path_travelled(poses: &[Pose]) -> Vec<f64> {
+    let mut travelled = vec![0.0];
+    for w in poses.windows(2) {
+        let d = (w[1].translation.vector - w[0].translation.vector).norm();
+        travelled.push(travelled[travelled.len() - 1] + d);
+    }
+    travelled
 }
 
 /// The `--paced` run (see the module docs).

@@ -145,8 +145,9 @@ class Pipeline:
     Parameters
     ----------
     preset:
-        ``"default"`` (fits its cell size to the first frame's scale), ``"kitti"``,
-        ``"fast"``, ``"meshing"`` or ``"town"``, as ``slamesh run --preset``.
+        ``"default"`` (fits its cell size to the first frame's scale), ``"quick"``
+        (``default`` with one reconstruction a scan less), ``"kitti"``, ``"fast"``,
+        ``"meshing"`` or ``"town"``, as ``slamesh run --preset``.
     capacity:
         ``"auto"`` (the smallest class that holds the first frame's points within range),
         ``"tiny"``, ``"16"``, ``"32"`` or ``"64"``, as ``--capacity``.

@@ -1,6 +1,8 @@
 //! How loop closure is run (docs/design.md §1.14): keyframes, the reach of the search for a
 //! revisit, when a closure is accepted, the pose graph's weights and when the map is rebuilt.
 
+use nalgebra::{Matrix6, Vector6};
+
 /// Loop-closure settings. [`Default`] is what the command uses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LoopSettings {
@@ -56,6 +58,26 @@ impl LoopSettings {
             config.map.stale_after_frames = self.stale_after_frames;
         }
     }
+}
+
+impl LoopSettings {
+    /// The random-walk covariance of the odometry over `metres` of travel (twist order
+    /// `(ω, ρ)`): the floor under an odometry edge's own.
+    pub fn odometry_covariance(&self, metres: f64) -> Matrix6<f64> {
+        let d = metres.max(0.1).sqrt();
+        covariance(self.odometry_sigma_m * d, self.odometry_sigma_deg * d)
+    }
+
+    /// What a loop edge's covariance adds to its registration's.
+    pub fn loop_covariance(&self) -> Matrix6<f64> {
+        covariance(self.loop_sigma_m, self.loop_sigma_deg)
+    }
+}
+
+/// Diagonal covariance for standard deviations `m` (translation) and `deg` (rotation).
+fn covariance(m: f64, deg: f64) -> Matrix6<f64> {
+    let (r, t) = (deg.to_radians().powi(2), m * m);
+    Matrix6::from_diagonal(&Vector6::new(r, r, r, t, t, t))
 }
 
 impl Default for LoopSettings {

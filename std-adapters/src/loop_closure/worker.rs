@@ -12,7 +12,7 @@ use crate::loop_closure::graph::{local_covariance, Edge, PoseGraph};
 use crate::loop_closure::settings::LoopSettings;
 use crate::loop_closure::spool::ScanSpool;
 use crate::loop_closure::{Closure, Corrected, ToWorker};
-use nalgebra::{Matrix6, Vector6};
+use nalgebra::Matrix6;
 use slamesh_core::math::{rotation_angle, se3_exp, se3_log};
 use slamesh_core::motion::ConstantVelocity;
 use slamesh_core::{Capacity, Config, Pipeline, Pose};
@@ -192,7 +192,7 @@ impl<C: Capacity> Worker<C> {
             if let Some(&k) = self.node_frame.last() {
                 let from = &self.frames[k];
                 let z = from.raw.inverse() * raw;
-                let walk = odometry_covariance(&self.s, travelled_m - from.travelled_m);
+                let walk = self.s.odometry_covariance(travelled_m - from.travelled_m);
                 let info = (walk + self.since_key)
                     .try_inverse()
                     .unwrap_or_else(|| walk.try_inverse().unwrap_or_else(Matrix6::zeros));
@@ -342,7 +342,7 @@ impl<C: Capacity> Worker<C> {
             position: v.pose.translation.vector.into(),
             applied_at_frame: None,
         };
-        let sigma = covariance(self.s.loop_sigma_m, self.s.loop_sigma_deg)
+        let sigma = self.s.loop_covariance()
             + local_covariance(&v.found.outcome.stats.information, &v.pose);
         let edge = Edge {
             a: old,
@@ -501,18 +501,4 @@ struct Rebuild<C: Capacity> {
     /// The closures in the graph it was started from, not yet sent.
     closures: Vec<Closure>,
     started: std::time::Instant,
-}
-
-/// The odometry's drift over `metres` of travel: a random walk of `odometry_sigma_m` and
-/// `odometry_sigma_deg` a square-root metre (the floor under the registrations' own
-/// covariances).
-fn odometry_covariance(s: &LoopSettings, metres: f64) -> Matrix6<f64> {
-    let d = metres.max(0.1).sqrt();
-    covariance(s.odometry_sigma_m * d, s.odometry_sigma_deg * d)
-}
-
-/// Diagonal covariance for standard deviations `m` (translation) and `deg` (rotation).
-fn covariance(m: f64, deg: f64) -> Matrix6<f64> {
-    let (r, t) = (deg.to_radians().powi(2), m * m);
-    Matrix6::from_diagonal(&Vector6::new(r, r, r, t, t, t))
 }
