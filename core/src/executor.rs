@@ -1,8 +1,8 @@
 //! [`Executor`]: how a scan's data-parallel loops are run; [`Serial`] runs them in order.
 //!
 //! The pipeline's only pluggable part. The stages (filter, bucketing, reconstruction,
-//! association) express their per-point, per-cell and per-layer work as calls to the three
-//! primitives below; an executor decides only how the units are spread over threads. The std
+//! association, the update's move) express their per-point, per-cell and per-layer work as
+//! calls to the four primitives below; an executor decides only how the units are spread over threads. The std
 //! adapters' rayon pool is one. Whatever the executor, a stage's output must be the same to the
 //! bit: each primitive hands its results back in input order, and the sort orders entries
 //! exactly as [`KeySorter::sort`] does.
@@ -65,6 +65,12 @@ pub trait Executor {
         }
         tally(counts);
         true
+    }
+
+    /// Changes every item in place with `unit`, which sees one item only (so the result does
+    /// not depend on the order the items are visited in).
+    fn update_each<T: Send>(&self, items: &mut [T], unit: impl Fn(&mut T) + Sync + Send) {
+        items.iter_mut().for_each(unit);
     }
 
     /// Sorts filter and bucketing entries by key, in exactly [`KeySorter::sort`]'s order.

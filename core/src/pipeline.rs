@@ -248,7 +248,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
                 stats.scan_layers = self.scan.len();
                 self.motion.push(pose);
             }
-            Some((b, made_at)) => self.move_and_fuse(made_at, pose, b, probe, &mut stats),
+            Some((b, made_at)) => self.move_and_fuse(made_at, pose, b, exec, probe, &mut stats),
             None => self.finish(pose, exec, probe, &mut stats),
         }
         self.outcome(pose, status, stats)
@@ -455,15 +455,16 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         made_at: Pose,
         pose: Pose,
         bucketed: BucketStats,
+        exec: &impl Executor,
         probe: &mut impl Probe,
         stats: &mut ScanStats,
     ) {
         probe.enter(Stage::Update);
         let motion = pose * made_at.inverse();
         let lattice = self.config.lattice().table();
-        for s in self.scan.iter_mut() {
+        exec.update_each(&mut self.scan, |s| {
             s.layer = s.layer.moved(&lattice, &s.key, s.axis, &motion);
-        }
+        });
         self.fuse(pose, bucketed, stats);
         probe.enter(Stage::Done);
     }

@@ -19,6 +19,9 @@ use slamesh_core::sort::{moves_nothing, Entry, Histogram, KeySorter, RADIX};
 
 /// Raw points per task of the parallel filter.
 const POINTS_PER_TASK: usize = 8192;
+/// Layers a task of the update's move (`Executor::update_each`) takes at least, so that a
+/// task outweighs its scheduling.
+const LAYERS_PER_TASK: usize = 256;
 /// Fewest entries per part of a parallel sort (fewer are sorted serially).
 const MIN_SORT_PART: usize = 65_536;
 
@@ -105,6 +108,15 @@ impl Executor for Rayon {
         });
         results.drain(..).for_each(sink);
         self.spare.keep(results);
+    }
+
+    fn update_each<T: Send>(&self, items: &mut [T], unit: impl Fn(&mut T) + Sync + Send) {
+        self.pool.install(|| {
+            items
+                .par_iter_mut()
+                .with_min_len(LAYERS_PER_TASK)
+                .for_each(unit)
+        });
     }
 
     /// `src` is cut into tasks of 8 192 items; each task writes what it keeps to
@@ -329,6 +341,13 @@ impl Executor for Workers {
         match self {
             Workers::Serial => Serial.map_in_order(items, init, unit, sink),
             Workers::Pool(r) => r.map_in_order(items, init, unit, sink),
+        }
+    }
+
+    fn update_each<T: Send>(&self, items: &mut [T], unit: impl Fn(&mut T) + Sync + Send) {
+        match self {
+            Workers::Serial => Serial.update_each(items, unit),
+            Workers::Pool(r) => r.update_each(items, unit),
         }
     }
 
