@@ -472,7 +472,7 @@ mod tests {
             ),
             ("[grid]\nfull_cover = 1\n", "expected true or false"),
             ("[gird]\nx = 1\n", "[gird]: unknown section"),
-            ("preset = \"quick\"\n", "preset \"quick\" is not one of"),
+            ("preset = \"rapid\"\n", "preset \"rapid\" is not one of"),
             ("[grid]\ncell_size_m = -1.6\n", "cell_size_m"),
             (
                 "[window]\nradius_m = 0\n",
