@@ -159,7 +159,7 @@ def test_mesh_arrays_round_trip_through_save_mesh(tmp_path):
 
 
 def test_settings_are_checked_and_a_bad_file_is_named(tmp_path):
-    with pytest.raises(ValueError, match='preset: "indoor" is not one of default, fast'):
+    with pytest.raises(ValueError, match='preset: "indoor" is not one of default, quick, fast, kitti, meshing, town'):
         slamesh.Pipeline(preset="indoor")
     with pytest.raises(ValueError, match='capacity: "128" is not one of'):
         slamesh.Pipeline(capacity="128")
