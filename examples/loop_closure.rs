@@ -37,7 +37,7 @@ use flags::Flags;
 use slamesh::demo::true_surface_scores;
 use slamesh::eval::duplicates::duplicated_near;
 use slamesh::eval::duplicates::duplicated_surfaces;
-use slamesh::eval::odometry::{ate_rmse, end_drift};
+use slamesh::eval::odometry::{ate_rmse, distances_along, end_drift};
 use slamesh::io::map_file::MapFile;
 use slamesh::io::ply::read_ply_mesh;
 use slamesh::io::trajectory::read_kitti;
@@ -110,7 +110,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
 /// The first frame within 10 m of a frame more than 100 m of path behind it.
 fn comes_back(poses: &[Pose]) -> Option<usize> {
-    let travelled = path_travelled(poses);
+    let travelled = distances_along(poses);
     (0..poses.len()).find(|&i| {
         (0..i).any(|j| {
             travelled[i] - travelled[j] > 100.0
@@ -124,7 +124,7 @@ fn oracle(run: &std::path::Path, truth: &[Pose]) -> Result<(), Box<dyn std::erro
     let estimate = read_kitti(&run.join("poses_kitti.txt"))?;
     let n = estimate.len().min(truth.len());
     let (estimate, truth) = (&estimate[..n], &truth[..n]);
-    let travelled = path_travelled(truth);
+    let travelled = distances_along(truth);
     println!(
         "{}: {n} frames; ATE {:.3} m, end point {:.3} m before",
         run.display(),
@@ -198,16 +198,6 @@ fn exact_loops(
     }
     graph.optimize(10);
     Ok((graph, loops))
-}
-
-/// Metres travelled along `poses` up to each.
-fn path_travelled(poses: &[Pose]) -> Vec<f64> {
-    let mut travelled = vec![0.0];
-    for w in poses.windows(2) {
-        let d = (w[1].translation.vector - w[0].translation.vector).norm();
-        travelled.push(travelled[travelled.len() - 1] + d);
-    }
-    travelled
 }
 
 /// The `--paced` run (see the module docs).

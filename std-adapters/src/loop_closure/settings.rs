@@ -58,11 +58,10 @@ impl LoopSettings {
             config.map.stale_after_frames = self.stale_after_frames;
         }
     }
-}
 
-impl LoopSettings {
-    /// The random-walk covariance of the odometry over `metres` of travel (twist order
-    /// `(ω, ρ)`): the floor under an odometry edge's own.
+    /// The odometry's drift over `metres` of travel (twist order `(ω, ρ)`): a random walk of
+    /// `odometry_sigma_m` and `odometry_sigma_deg` a square-root metre, the floor under an
+    /// odometry edge's own covariance.
     pub fn odometry_covariance(&self, metres: f64) -> Matrix6<f64> {
         let d = metres.max(0.1).sqrt();
         covariance(self.odometry_sigma_m * d, self.odometry_sigma_deg * d)
