@@ -227,30 +227,37 @@ impl Layer {
         const MAX_SLOPE_SQ: f64 = 13.9;
         let (ia_axis, ib_axis) = axis.locations();
         let d_axis = axis.index();
-        // Δ = (R - I) p + t, the same linear map for every vertex.
+        // Δ = (R - I) p + t, the same linear map for every vertex; with the vertex at
+        // corner + c_a e_a + c_b e_b + d e_d it is the sum of a part for each lattice row, one
+        // for each column and the step's `d` column times the prediction, each computed once.
         let mut step = motion.rotation.to_rotation_matrix().into_inner();
         for k in 0..3 {
             step[(k, k)] -= 1.0;
         }
-        let t = motion.translation.vector;
         let c = &lattice.coordinates;
-        let pred = |ia: usize, ib: usize| f64::from(self.pred[ia * N + ib]);
-        let slope = |lo: usize, hi: usize, v_lo: f64, v_hi: f64| (v_hi - v_lo) / (c[hi] - c[lo]);
+        let base = step * key.min_corner(lattice.cell_size) + motion.translation.vector;
+        let rows: [Vec3; N] = core::array::from_fn(|i| base + step.column(ia_axis) * c[i]);
+        let columns: [Vec3; N] = core::array::from_fn(|i| step.column(ib_axis) * c[i]);
+        let along_d: Vec3 = step.column(d_axis).into();
+        // Central differences (one-sided on the border): neighbours and spacing by index.
+        let lo = |i: usize| i.saturating_sub(1);
+        let hi = |i: usize| (i + 1).min(N - 1);
+        let inv_span: [f64; N] = core::array::from_fn(|i| 1.0 / (c[hi(i)] - c[lo(i)]));
+        let pred: [f64; VERTICES] = self.pred.map(f64::from);
         let mut out = *self;
         for ia in 0..N {
-            let (a_lo, a_hi) = (ia.saturating_sub(1), (ia + 1).min(N - 1));
             for ib in 0..N {
-                let (b_lo, b_hi) = (ib.saturating_sub(1), (ib + 1).min(N - 1));
-                let d = pred(ia, ib);
-                let delta = step * self.vertex(lattice, key, axis, ia * N + ib) + t;
-                let s_a = slope(a_lo, a_hi, pred(a_lo, ib), pred(a_hi, ib));
-                let s_b = slope(b_lo, b_hi, pred(ia, b_lo), pred(ia, b_hi));
+                let j = ia * N + ib;
+                let d = pred[j];
+                let delta = rows[ia] + columns[ib] + along_d * d;
+                let s_a = (pred[hi(ia) * N + ib] - pred[lo(ia) * N + ib]) * inv_span[ia];
+                let s_b = (pred[ia * N + hi(ib)] - pred[ia * N + lo(ib)]) * inv_span[ib];
                 let shift = if s_a * s_a + s_b * s_b <= MAX_SLOPE_SQ {
                     delta[d_axis] - s_a * delta[ia_axis] - s_b * delta[ib_axis]
                 } else {
                     delta[d_axis]
                 };
-                out.pred[ia * N + ib] = (d + shift).clamp(0.0, lattice.cell_size) as f32;
+                out.pred[j] = (d + shift).clamp(0.0, lattice.cell_size) as f32;
             }
         }
         out
