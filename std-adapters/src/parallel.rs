@@ -161,8 +161,10 @@ impl Executor for Rayon {
         let mut tallies = Vec::with_capacity(per_task.len());
         for (k, (kept, r)) in per_task.into_iter().enumerate() {
             let from = start + k * POINTS_PER_TASK;
-            for i in 0..kept {
-                dst.swap(end + i, from + i);
+            if from != end {
+                for i in 0..kept {
+                    dst.swap(end + i, from + i);
+                }
             }
             end += kept;
             tallies.push(r);

@@ -590,7 +590,7 @@ pub(crate) fn updated_triangles<C: Capacity>(pipeline: &Pipeline<C>, workers: &W
     let map = pipeline.map();
     workers.sum(pipeline.last_scan(), |s| {
         map.layer(&s.key, s.axis)
-            .map_or(0, |l| l.triangles(&lattice, shown).count())
+            .map_or(0, |l| l.shown_mask(&lattice, shown).count_ones() as usize)
     })
 }
 
