@@ -36,8 +36,8 @@ pub const TOWN_CELL_M: f64 = 1.4;
 /// - `quick`: `default` with one reconstruction a scan less: the map is updated with the last
 ///   registration round's layers moved to the final pose
 ///   (`map.reconstruct_at_final_pose = false`), fitted to the scene the same way. About a
-///   quarter less time a scan than `default` on one thread and a fifth less on two, about
-///   1 % more step error on KITTI
+///   quarter less time a scan than `default` on one thread and on two, about 1 % more step
+///   error on KITTI
 ///   (docs/benchmarks.md, "The `quick` preset").
 /// - `fast`: the original's KITTI parameters ([`Config::default`]): 1.6 m cells, the lattice
 ///   at interval centres; about a quarter less time a scan, less accurate.
