@@ -25,6 +25,7 @@ use flags::Flags;
 use slamesh::eval::odometry::{ate_rmse, consecutive_errors};
 use slamesh::io::config_file;
 use slamesh::parallel::Workers;
+use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::{Lidar32Capacity, NoProbe, Pipeline, Point, Pose, ScanError, ScanOutcome};
 use slamesh_sim::town::Carried;
 use slamesh_sim::Drive;
@@ -39,10 +40,11 @@ enum Tracker {
 
 impl Tracker {
     fn process(&mut self, scan: &[Point], workers: &Workers) -> Result<ScanOutcome, ScanError> {
-        match self {
-            Tracker::Double(p) => p.process_scan_with(scan, workers, &mut NoProbe),
-            Tracker::Single(p) => p.process_scan_with(scan, workers, &mut NoProbe),
-        }
+        let stepped = match self {
+            Tracker::Double(p) => p.step(Scan::Raw(scan), Known::Nothing, workers, &mut NoProbe),
+            Tracker::Single(p) => p.step(Scan::Raw(scan), Known::Nothing, workers, &mut NoProbe),
+        };
+        stepped.map(Stepped::into_outcome)
     }
 }
 

@@ -19,6 +19,7 @@ use slamesh::io::mesh_weld::weld;
 use slamesh::io::ply::read_ply_mesh;
 use slamesh::parallel::Workers;
 use slamesh_core::layer::Shown;
+use slamesh_core::pipeline::{Known, Scan};
 use slamesh_core::{KittiCapacity, NoProbe, Pipeline};
 use slamesh_sim::Drive;
 
@@ -36,7 +37,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut pipeline = Pipeline::<KittiCapacity>::new(config)?;
     for i in 0..drive.poses.len() {
         // A frame that fails keeps the map as it was; the counts are about the map.
-        let _ = pipeline.process_scan_with(&drive.scan(i), &workers, &mut NoProbe);
+        let _ = pipeline.step(
+            Scan::Raw(&drive.scan(i)),
+            Known::Nothing,
+            &workers,
+            &mut NoProbe,
+        );
     }
     let map = pipeline.map();
     let (lattice, shown) = (config.lattice(), Shown::new(&config.mesh));

@@ -11,6 +11,7 @@ use slamesh::eval::odometry::consecutive_errors;
 use slamesh::io::kitti;
 use slamesh::io::scans::ScanFolder;
 use slamesh::parallel::Rayon;
+use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose, Real};
 use std::path::Path;
 use std::time::Instant;
@@ -27,7 +28,9 @@ fn track<R: Real>(
         let scan = kitti::read_bin(&path)?;
         let start = Instant::now();
         let out = match rayon {
-            Some(r) => pipeline.process_scan_with(&scan, r, &mut NoProbe)?,
+            Some(r) => pipeline
+                .step(Scan::Raw(&scan), Known::Nothing, r, &mut NoProbe)?
+                .into_outcome(),
             None => pipeline.process_scan(&scan)?,
         };
         ms.push(start.elapsed().as_secs_f64() * 1e3);

@@ -15,6 +15,7 @@ use slamesh::eval::odometry::{ate_rmse, consecutive_errors};
 use slamesh::io::config_file;
 use slamesh::parallel::Workers;
 use slamesh::run::scale;
+use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose};
 use slamesh_sim::town::Carried;
 use slamesh_sim::Drive;
@@ -61,7 +62,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for i in 0..n {
                 let scan = drive.scan(i);
                 let t = Instant::now();
-                let pose = match pipeline.process_scan_with(&scan, &workers, &mut NoProbe) {
+                let pose = match pipeline
+                    .step(Scan::Raw(&scan), Known::Nothing, &workers, &mut NoProbe)
+                    .map(Stepped::into_outcome)
+                {
                     Ok(o) => o.t_world_sensor,
                     Err(_) => *estimate.last().unwrap_or(&Pose::identity()),
                 };

@@ -1,5 +1,5 @@
 //! What the search for a pose in a saved map costs (docs/design.md §1.13): loads a map file,
-//! reads one scan, and times `Pipeline::relocalize_with` with the map's own candidates, then
+//! reads one scan, and times `Pipeline::step` (a search: `Known::Somewhere`) with the map's own candidates, then
 //! with them repeated 4 and 16 times (as a path 4 and 16 times as long would give), so that
 //! the time splits into a fixed part (the registrations) and a part per hypothesis; prints how
 //! long a path the search covers in one second on this machine.
@@ -13,6 +13,7 @@ use flags::Flags;
 use slamesh::io::kitti::read_bin;
 use slamesh::parallel::Workers;
 use slamesh::run::saved_map;
+use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{AllResident, Search};
 use slamesh_core::{KittiCapacity, NoProbe, Pipeline, Pose};
 use std::path::PathBuf;
@@ -51,14 +52,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for _ in 0..3 {
             let mut p = pipeline.clone();
             let t = Instant::now();
-            let r = p.relocalize_with(
-                &points,
-                &many,
-                &Search::default(),
-                &workers,
-                &mut NoProbe,
-                &mut AllResident,
-            )?;
+            let known = Known::Somewhere {
+                candidates: &many,
+                search: &Search::default(),
+                paging: &mut AllResident,
+            };
+            let Stepped::Searched(r) = p.step(Scan::Raw(&points), known, &workers, &mut NoProbe)?
+            else {
+                return Err("the search did not run".into());
+            };
             times.push(t.elapsed().as_secs_f64());
             last = Some(r);
         }

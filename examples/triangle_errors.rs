@@ -19,6 +19,7 @@ use slamesh::io::mesh_weld::weld;
 use slamesh::parallel::Workers;
 use slamesh_core::layer::{lattice_triangle, triangle_neighbours, Shown, TRIANGLES};
 use slamesh_core::map::LayerRef;
+use slamesh_core::pipeline::{Known, Scan};
 use slamesh_core::{KittiCapacity, NoProbe, Pipeline};
 use slamesh_sim::{Drive, SurfaceDistance};
 
@@ -44,7 +45,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut pipeline = Pipeline::<KittiCapacity>::new(config)?;
     for i in 0..drive.poses.len() {
         // A frame that fails keeps the map as it was; the counts are about the map.
-        let _ = pipeline.process_scan_with(&drive.scan(i), &workers, &mut NoProbe);
+        let _ = pipeline.step(
+            Scan::Raw(&drive.scan(i)),
+            Known::Nothing,
+            &workers,
+            &mut NoProbe,
+        );
     }
     let truth = SurfaceDistance::new(&drive.scene);
     let table = config.lattice().table();

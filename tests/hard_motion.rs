@@ -7,6 +7,7 @@
 
 use slamesh::io::config_file::preset;
 use slamesh::parallel::Workers;
+use slamesh_core::pipeline::{Known, Scan};
 use slamesh_core::{Config, Lidar32Capacity, Pipeline, Pose, RegistrationStatus};
 use slamesh_sim::town::Carried;
 use slamesh_sim::Drive;
@@ -32,8 +33,14 @@ fn track_with_errors(
     let mut rounds = 0;
     for i in 0..frames {
         let o = pipeline
-            .process_scan_with(&drive.scan(i), &workers, &mut slamesh_core::NoProbe)
-            .unwrap();
+            .step(
+                Scan::Raw(&drive.scan(i)),
+                Known::Nothing,
+                &workers,
+                &mut slamesh_core::NoProbe,
+            )
+            .unwrap()
+            .into_outcome();
         poses.push(o.t_world_sensor);
         statuses.push(o.status);
         rounds += o.stats.rounds;

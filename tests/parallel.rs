@@ -3,6 +3,7 @@
 
 use slamesh::parallel::Rayon;
 use slamesh_core::executor::{Executor, Serial};
+use slamesh_core::pipeline::{Known, Scan};
 use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose};
 use slamesh_sim::{sensor_pose, Lidar, Scene};
 
@@ -15,8 +16,9 @@ fn run(
     let poses = scans
         .iter()
         .map(|s| {
-            p.process_scan_with(s, cells, &mut NoProbe)
+            p.step(Scan::Raw(s), Known::Nothing, cells, &mut NoProbe)
                 .unwrap()
+                .outcome()
                 .t_world_sensor
         })
         .collect();

@@ -234,7 +234,8 @@ pub fn downsample(
 }
 
 /// A scan filtered apart from a pipeline, for
-/// [`Pipeline::process_filtered_with`](crate::Pipeline::process_filtered_with): its points
+/// [`Pipeline::step`](crate::Pipeline::step) as a
+/// [`Scan::Filtered`](crate::pipeline::Scan::Filtered): its points
 /// (sensor frame, one per voxel, in voxel-key order) and what the filter did.
 #[derive(Debug, Clone, Copy)]
 pub struct Filtered<'a> {

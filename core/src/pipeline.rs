@@ -2,9 +2,10 @@
 //!
 //! Per scan: filter → predict → (bucket → reconstruct → associate → LM) × rounds (from other
 //! guesses as well when that did not converge: `pipeline/register.rs`) → bucket → reconstruct → fuse; or, without `MapConfig::reconstruct_at_final_pose`, the last round's
-//! reconstruction moved to the final pose → fuse. [`Pipeline::process_scan`] estimates the
-//! pose; [`Pipeline::integrate_scan`] meshes a scan at a pose the caller knows. Every buffer is allocated in [`Pipeline::new`] at
-//! the capacities of `C`; nothing is allocated afterwards.
+//! reconstruction moved to the final pose → fuse. One entry point, [`Pipeline::step`]
+//! (`pipeline/step.rs`), takes a scan and what is known of its pose: nothing (estimate it), the
+//! pose (mesh there) or a search over a known map. Every buffer is allocated in
+//! [`Pipeline::new`] at the capacities of `C`; nothing is allocated afterwards.
 
 use crate::azimuth::AzimuthProfile;
 use crate::bounded::BoundedVec;
@@ -14,7 +15,7 @@ use crate::cell::CellKey;
 use crate::config::Config;
 #[cfg(any(feature = "alloc", test))]
 use crate::config::ConfigError;
-use crate::executor::{Executor, Serial};
+use crate::executor::Executor;
 use crate::filter::{filter_and_downsample, FilterStats, Filtered};
 use crate::fusion::integrate;
 use crate::layer::ScanLayer;
@@ -26,15 +27,17 @@ use crate::motion::ConstantVelocity;
 use crate::real::Real;
 use crate::reconstruct::{reconstruct_cells, Purpose, ReconstructStats};
 use crate::sort::KeySorter;
-use crate::stage::{NoProbe, Probe, Stage};
+use crate::stage::{Probe, Stage};
 use core::marker::PhantomData;
 
 mod outcome;
 mod register;
 mod relocalize;
+mod step;
 
 pub use outcome::{RegistrationStatus, ScanError, ScanOutcome, ScanStats};
 pub use relocalize::Relocalized;
+pub use step::{Known, Scan, Stepped};
 
 /// LiDAR odometry and meshing with capacities `C`, reconstructing in the scalar `R` (`f64`, or
 /// `f32` for an FPU with single precision only: [`crate::real`]). Cloning (feature `alloc`)
@@ -193,35 +196,6 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         mesh::triangles(&self.map, &self.config.mesh)
     }
 
-    /// Estimates the pose of a scan (sensor-frame points) and fuses it into the map.
-    pub fn process_scan(&mut self, points_sensor: &[Point]) -> Result<ScanOutcome, ScanError> {
-        self.process_scan_with(points_sensor, &Serial, &mut NoProbe)
-    }
-
-    /// [`process_scan`](Self::process_scan) with a given executor (e.g. a parallel one),
-    /// telling `probe` the stage boundaries.
-    pub fn process_scan_with(
-        &mut self,
-        points_sensor: &[Point],
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-    ) -> Result<ScanOutcome, ScanError> {
-        let stats = self.begin(points_sensor, exec, probe)?;
-        Ok(self.estimate(stats, exec, probe))
-    }
-
-    /// [`process_scan_with`](Self::process_scan_with) for a scan already filtered by a
-    /// [`ScanFilter`](crate::filter::ScanFilter) (on another thread, say): the same result.
-    pub fn process_filtered_with(
-        &mut self,
-        filtered: Filtered<'_>,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-    ) -> Result<ScanOutcome, ScanError> {
-        let stats = self.begin_filtered(filtered)?;
-        Ok(self.estimate(stats, exec, probe))
-    }
-
     /// Registration of the filtered scan, then the map update.
     fn estimate(
         &mut self,
@@ -252,43 +226,6 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             None => self.finish(pose, exec, probe, &mut stats),
         }
         self.outcome(pose, status, stats)
-    }
-
-    /// Meshing only: fuses a scan into the map at a pose the caller knows (ground truth, an
-    /// external odometry). Later [`process_scan`](Self::process_scan) calls continue from it.
-    pub fn integrate_scan(
-        &mut self,
-        points_sensor: &[Point],
-        t_world_sensor: &Pose,
-    ) -> Result<ScanOutcome, ScanError> {
-        self.integrate_scan_with(points_sensor, t_world_sensor, &Serial, &mut NoProbe)
-    }
-
-    /// [`integrate_scan`](Self::integrate_scan) with a given executor and probe.
-    pub fn integrate_scan_with(
-        &mut self,
-        points_sensor: &[Point],
-        t_world_sensor: &Pose,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-    ) -> Result<ScanOutcome, ScanError> {
-        self.check_given(t_world_sensor)?;
-        let stats = self.begin(points_sensor, exec, probe)?;
-        Ok(self.integrate(t_world_sensor, stats, exec, probe))
-    }
-
-    /// [`integrate_scan_with`](Self::integrate_scan_with) for a scan already filtered by a
-    /// [`ScanFilter`](crate::filter::ScanFilter): the same result.
-    pub fn integrate_filtered_with(
-        &mut self,
-        filtered: Filtered<'_>,
-        t_world_sensor: &Pose,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-    ) -> Result<ScanOutcome, ScanError> {
-        self.check_given(t_world_sensor)?;
-        let stats = self.begin_filtered(filtered)?;
-        Ok(self.integrate(t_world_sensor, stats, exec, probe))
     }
 
     /// A given pose that is not finite counts the frame and refuses it.
@@ -551,6 +488,8 @@ mod log {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::executor::Serial;
+    use crate::stage::NoProbe;
     use crate::storage::Storage;
     use alloc::vec::Vec;
 
@@ -711,11 +650,14 @@ mod tests {
             // Over the capacity of 600 points; last, a scan whose first patch is not finite.
             let mut scan = patch(3.2, 2.5, z, 0.1);
             scan.extend(patch(1.0 + 0.05 * i as f32, 1.5, -1.3, 0.1));
-            let a = apart.process_filtered_with(
-                filter.filter(&scan, &config, &Serial),
-                &Serial,
-                &mut NoProbe,
-            );
+            let a = apart
+                .step(
+                    Scan::Filtered(filter.filter(&scan, &config, &Serial)),
+                    Known::Nothing,
+                    &Serial,
+                    &mut NoProbe,
+                )
+                .map(Stepped::into_outcome);
             let b = own.process_scan(&scan);
             assert_eq!(a, b);
             assert_eq!(apart.last_points(), own.last_points());
@@ -723,12 +665,14 @@ mod tests {
         assert!(apart.map().layer_count() > 0);
         let given = Pose::translation(0.1, 0.0, 0.0);
         let scan = patch(3.2, 1.5, -1.0, 0.1);
-        let a = apart.integrate_filtered_with(
-            filter.filter(&scan, &config, &Serial),
-            &given,
-            &Serial,
-            &mut NoProbe,
-        );
+        let a = apart
+            .step(
+                Scan::Filtered(filter.filter(&scan, &config, &Serial)),
+                Known::Pose(given),
+                &Serial,
+                &mut NoProbe,
+            )
+            .map(Stepped::into_outcome);
         assert_eq!(a, own.integrate_scan(&scan, &given));
         assert_eq!(apart.map().layer_count(), own.map().layer_count());
     }

@@ -1,6 +1,7 @@
 //! Finding the sensor in a known map with no pose to start from (docs/design.md §1.13): the
 //! coarse score that ranks pose hypotheses, and the settings of the search
-//! ([`Pipeline::relocalize_with`](crate::Pipeline::relocalize_with) runs it).
+//! ([`Pipeline::step`](crate::Pipeline::step) runs it for
+//! [`Known::Somewhere`](crate::pipeline::Known::Somewhere)).
 //!
 //! A hypothesis is a candidate position (the caller's: e.g. where the map's own sensor went)
 //! turned to one of [`Search::yaw_steps`] headings about the world's vertical. Each is scored

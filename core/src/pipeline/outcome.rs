@@ -37,11 +37,72 @@ pub enum RegistrationStatus {
     /// The pose was given ([`Pipeline::integrate_scan`](super::Pipeline::integrate_scan)).
     Given,
     /// The pose was found in a known map without a prediction
-    /// ([`Pipeline::relocalize_with`](super::Pipeline::relocalize_with)).
+    /// ([`Known::Somewhere`](super::Known::Somewhere)).
     Relocalized,
     /// A search for the pose in a known map found no convincing one: the map and the motion
     /// model are unchanged, and the pose given is the best attempt's, not to be trusted.
     NotLocalized,
+}
+
+impl RegistrationStatus {
+    /// Every status, in the order of declaration (the order reports list them in).
+    pub const ALL: [RegistrationStatus; 10] = [
+        RegistrationStatus::FirstScan,
+        RegistrationStatus::Converged,
+        RegistrationStatus::Degenerate,
+        RegistrationStatus::TooFewResiduals,
+        RegistrationStatus::SolverFailed,
+        RegistrationStatus::Recovered,
+        RegistrationStatus::NotConverged,
+        RegistrationStatus::Given,
+        RegistrationStatus::Relocalized,
+        RegistrationStatus::NotLocalized,
+    ];
+
+    /// The status's name, as reports and messages write it (the variant's name).
+    pub const fn name(self) -> &'static str {
+        match self {
+            RegistrationStatus::FirstScan => "FirstScan",
+            RegistrationStatus::Converged => "Converged",
+            RegistrationStatus::Degenerate => "Degenerate",
+            RegistrationStatus::TooFewResiduals => "TooFewResiduals",
+            RegistrationStatus::SolverFailed => "SolverFailed",
+            RegistrationStatus::Recovered => "Recovered",
+            RegistrationStatus::NotConverged => "NotConverged",
+            RegistrationStatus::Given => "Given",
+            RegistrationStatus::Relocalized => "Relocalized",
+            RegistrationStatus::NotLocalized => "NotLocalized",
+        }
+    }
+
+    /// The status named `name` ([`name`](Self::name)'s inverse).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.name() == name)
+    }
+
+    /// Registered normally: the first scan, converged, meshed at a given pose, or found in a
+    /// known map. Any other status is worth a look (and fails a strict run).
+    pub const fn is_normal(self) -> bool {
+        matches!(
+            self,
+            RegistrationStatus::FirstScan
+                | RegistrationStatus::Converged
+                | RegistrationStatus::Given
+                | RegistrationStatus::Relocalized
+        )
+    }
+
+    /// Registered, normally or not: the normal statuses and [`Recovered`](Self::Recovered)
+    /// (named and counted, but not a failure).
+    pub const fn is_registered(self) -> bool {
+        self.is_normal() || matches!(self, RegistrationStatus::Recovered)
+    }
+}
+
+impl fmt::Display for RegistrationStatus {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Why a scan was not used. The map and motion model are unchanged.
@@ -136,7 +197,7 @@ pub struct ScanStats {
     pub fusion: FusionStats,
 }
 
-/// The result of [`Pipeline::process_scan`](super::Pipeline::process_scan).
+/// What [`Pipeline::step`](super::Pipeline::step) did with a scan it used.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanOutcome {
     /// The estimated sensor pose in the world (the first scan's frame).
@@ -145,4 +206,22 @@ pub struct ScanOutcome {
     pub status: RegistrationStatus,
     /// Per-stage counts.
     pub stats: ScanStats,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::RegistrationStatus;
+
+    #[test]
+    fn every_status_is_listed_once_and_named_as_its_variant() {
+        for (i, s) in RegistrationStatus::ALL.into_iter().enumerate() {
+            assert_eq!(s as usize, i, "ALL is in the order of declaration");
+            assert_eq!(alloc::format!("{s:?}"), s.name());
+            assert_eq!(RegistrationStatus::from_name(s.name()), Some(s));
+        }
+        assert_eq!(RegistrationStatus::from_name("Skipped"), None);
+        assert!(RegistrationStatus::Recovered.is_registered());
+        assert!(!RegistrationStatus::Recovered.is_normal());
+        assert!(!RegistrationStatus::NotConverged.is_registered());
+    }
 }

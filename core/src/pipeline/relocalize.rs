@@ -7,17 +7,15 @@ use super::register::Attempt;
 use super::{Pipeline, RegistrationStatus, ScanOutcome, ScanStats};
 use crate::capacity::Capacity;
 use crate::executor::Executor;
-use crate::filter::Filtered;
-use crate::math::{turned_in_yaw, Point, Pose};
+use crate::math::{turned_in_yaw, Pose};
 use crate::motion::ConstantVelocity;
 use crate::real::Real;
 use crate::relocalize::{
     same_place, surface_hits, Hits, Paging, Search, Shortlist, CHUNK, MAX_KEEP, MAX_YAW_STEPS,
 };
 use crate::stage::{Probe, Stage};
-use crate::ScanError;
 
-/// What a search for the pose found ([`Pipeline::relocalize_with`]).
+/// What a search for the pose found ([`Known::Somewhere`](super::Known::Somewhere)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Relocalized {
@@ -40,54 +38,21 @@ pub struct Relocalized {
 }
 
 impl<C: Capacity, R: Real> Pipeline<C, R> {
-    /// Finds the pose of a scan (sensor-frame points) in the map without a prediction: each
-    /// of `candidates` turned to `search.yaw_steps` headings is scored coarsely, the
+    /// The search for a filtered scan's pose ([`Known::Somewhere`](super::Known::Somewhere)):
+    /// each of `candidates` turned to `search.yaw_steps` headings is scored coarsely, the
     /// `search.keep` best distinct ones are registered in full, and the best registered pose
     /// is accepted when its registration settled, enough of the scan lies on the map there
     /// (`search.min_hit_share`, `search.min_wall_share`) and no pose elsewhere explains
-    /// `search.ambiguity_ratio` as much. Accepted, the motion model restarts from it (and the
-    /// scan is fused unless map updates are off); not accepted, the map and the motion model
-    /// are unchanged, and the next scan may try again. `paging` makes the map hold what lies
-    /// around each chunk of candidates and each registration
-    /// ([`AllResident`](crate::relocalize::AllResident) when the whole map is resident).
+    /// `search.ambiguity_ratio` as much.
     #[allow(clippy::too_many_arguments)]
-    pub fn relocalize_with(
-        &mut self,
-        points_sensor: &[Point],
-        candidates: &[Pose],
-        search: &Search,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-        paging: &mut impl Paging,
-    ) -> Result<Relocalized, ScanError> {
-        let stats = self.begin(points_sensor, exec, probe)?;
-        Ok(self.relocalize(stats, candidates, search, exec, probe, paging))
-    }
-
-    /// [`relocalize_with`](Self::relocalize_with) for a scan already filtered by a
-    /// [`ScanFilter`](crate::filter::ScanFilter): the same result.
-    #[allow(clippy::too_many_arguments)]
-    pub fn relocalize_filtered_with(
-        &mut self,
-        filtered: Filtered<'_>,
-        candidates: &[Pose],
-        search: &Search,
-        exec: &impl Executor,
-        probe: &mut impl Probe,
-        paging: &mut impl Paging,
-    ) -> Result<Relocalized, ScanError> {
-        let stats = self.begin_filtered(filtered)?;
-        Ok(self.relocalize(stats, candidates, search, exec, probe, paging))
-    }
-
-    fn relocalize(
+    pub(super) fn relocalize(
         &mut self,
         mut stats: ScanStats,
         candidates: &[Pose],
         search: &Search,
         exec: &impl Executor,
         probe: &mut impl Probe,
-        paging: &mut impl Paging,
+        paging: &mut (dyn Paging + Send),
     ) -> Relocalized {
         let lattice = self.config.lattice().table();
         let max_var = self.config.register.variance_register as f32;

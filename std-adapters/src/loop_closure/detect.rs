@@ -1,10 +1,10 @@
 //! Finding a revisit and checking it (docs/design.md §1.14): which earlier frames a keyframe
 //! may be near given how far the odometry may have drifted since, the local map they made,
-//! and the search of [`Pipeline::relocalize_with`] of the keyframe's scan in it.
+//! and the search of [`Pipeline::step`] (the pose known to be somewhere near the keyframe's) of the keyframe's scan in it.
 
 use crate::loop_closure::settings::LoopSettings;
 use slamesh_core::math::rotation_angle;
-use slamesh_core::pipeline::Relocalized;
+use slamesh_core::pipeline::{Known, Relocalized, Scan, Stepped};
 use slamesh_core::relocalize::{along_path, AllResident, Search};
 use slamesh_core::{Capacity, NoProbe, Pipeline, Point, Pose, RegistrationStatus, Serial};
 
@@ -105,14 +105,14 @@ pub fn verify<C: Capacity, E>(
     along_path(revisit.near.iter().map(|p| &p.pose), spacing, |c| {
         candidates.push(c)
     });
-    let Ok(found) = pipeline.relocalize_with(
-        points,
-        &candidates,
-        &Search::default(),
-        &Serial,
-        &mut NoProbe,
-        &mut AllResident,
-    ) else {
+    let known = Known::Somewhere {
+        candidates: &candidates,
+        search: &Search::default(),
+        paging: &mut AllResident,
+    };
+    let Ok(Stepped::Searched(found)) =
+        pipeline.step(Scan::Raw(points), known, &Serial, &mut NoProbe)
+    else {
         return Ok(None);
     };
     if found.outcome.status != RegistrationStatus::Relocalized {

@@ -6,6 +6,8 @@
 //! | where frames come from | [`source`] |
 //! | the capacity classes and how to choose one | [`capacity`] |
 //! | the run loop: start or resume, a step per frame, finish | [`session`] |
+//! | one frame as named stages: read, prepare, register, update the map, record | `step` |
+//! | why a frame was skipped | [`frame_error`] |
 //! | the per-frame records, the summary, `report.json` and the trajectories | [`report`] |
 //! | time per stage | [`timing`] |
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
@@ -16,6 +18,7 @@
 
 pub mod capacity;
 pub mod checkpoint;
+pub mod frame_error;
 pub mod lookahead;
 pub mod map_pager;
 pub mod memory;
@@ -26,9 +29,11 @@ pub mod scale;
 pub mod session;
 mod setup;
 pub mod source;
+mod step;
 pub mod timing;
 pub mod window;
 
+pub use frame_error::{FrameError, FrameFault};
 pub use report::{FrameRecord, Summary};
 pub use session::{run, Run, RunError, RunOptions};
 pub use source::{FrameSource, Input};

@@ -98,7 +98,7 @@ impl FrameRecord {
         FrameRecord {
             frame,
             file,
-            status: "Skipped".into(),
+            status: SKIPPED.into(),
             error: None,
             reason: None,
             ms: StageMs::default(),
@@ -194,19 +194,15 @@ pub struct Summary {
     pub poses: Vec<(usize, Pose)>,
 }
 
-/// Statuses of a frame registered normally: the first scan, converged, or meshed at a given
-/// pose. Any other status, and a skipped frame, is a frame not registered normally.
-pub const NORMAL_STATUSES: [&str; 4] = ["FirstScan", "Converged", "Given", "Relocalized"];
+/// The status of a frame that could not be read or used (beside the registration statuses,
+/// [`RegistrationStatus::name`]).
+pub const SKIPPED: &str = "Skipped";
 
-/// Statuses of a frame registered, normally or not: a recovered frame is named on the
-/// terminal and counted, but is not among [`Health::not_registered`] (nor fails `--strict`).
-pub const REGISTERED_STATUSES: [&str; 5] = [
-    "FirstScan",
-    "Converged",
-    "Given",
-    "Relocalized",
-    "Recovered",
-];
+/// Whether a record's status is one of a frame registered, normally or not
+/// ([`RegistrationStatus::is_registered`]); a skipped frame is not.
+pub fn is_registered(status: &str) -> bool {
+    RegistrationStatus::from_name(status).is_some_and(RegistrationStatus::is_registered)
+}
 
 /// How the run's frames went.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -237,19 +233,15 @@ impl Health {
     pub fn of<R: std::borrow::Borrow<FrameRecord>>(
         records: impl IntoIterator<Item = Result<R, FileError>>,
     ) -> Result<Self, FileError> {
-        const ORDER: [&str; 11] = [
-            "FirstScan",
-            "Converged",
-            "Given",
-            "Degenerate",
-            "TooFewResiduals",
-            "SolverFailed",
-            "Recovered",
-            "NotConverged",
-            "Relocalized",
-            "NotLocalized",
-            "Skipped",
-        ];
+        const ORDER: [&str; 11] = {
+            let mut order = [SKIPPED; 11];
+            let mut k = 0;
+            while k < RegistrationStatus::ALL.len() {
+                order[k] = RegistrationStatus::ALL[k].name();
+                k += 1;
+            }
+            order
+        };
         let mut counts = [0usize; ORDER.len()];
         let mut other: Vec<(String, usize)> = Vec::new();
         let mut not_registered = Vec::new();
@@ -263,7 +255,7 @@ impl Health {
                     None => other.push((r.status.clone(), 1)),
                 },
             }
-            if !REGISTERED_STATUSES.contains(&r.status.as_str()) {
+            if !is_registered(&r.status) {
                 not_registered.push(NotRegistered {
                     frame: r.frame,
                     file: r.file.clone(),
@@ -447,7 +439,7 @@ pub fn cost_by_outcome<'a>(frames: impl IntoIterator<Item = &'a FrameRecord>) ->
 fn group_costs(costs: impl IntoIterator<Item = Cost>) -> Vec<OutcomeCost> {
     let mut by: Vec<(String, Vec<Cost>)> = Vec::new();
     for c in costs {
-        if c.status == "Skipped" {
+        if c.status == SKIPPED {
             continue;
         }
         match by.iter_mut().find(|(s, _)| *s == c.status) {

@@ -17,23 +17,20 @@ use crate::io::map_file::MapWriter;
 use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::loop_closure::LoopClosure;
 use crate::parallel::Workers;
-use crate::run::capacity;
 use crate::run::checkpoint::{self, Progress};
-use crate::run::lookahead::{LookAhead, Scan};
-use crate::run::map_pager::{self, MapPager};
+use crate::run::lookahead::LookAhead;
+use crate::run::map_pager::MapPager;
 use crate::run::memory;
 use crate::run::report::{
-    frames_path, registration_reason, spreads, updated_triangles, write_report, write_topview,
-    write_trajectories, FrameRecord, Health, Summary,
+    frames_path, spreads, write_report, write_topview, write_trajectories, FrameRecord, Health,
+    Summary,
 };
 use crate::run::saved_map;
 use crate::run::setup::Setup;
 use crate::run::source::FrameSource;
-use crate::run::timing::{StageMs, StageTimer};
+use crate::run::timing::StageTimer;
 use crate::run::window::Window;
-use slamesh_core::deskew;
-use slamesh_core::relocalize::{Paging, Search};
-use slamesh_core::{Capacity, Pipeline, Pose, RegistrationStatus};
+use slamesh_core::{Capacity, Pipeline, Pose};
 use std::borrow::Cow;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -79,35 +76,35 @@ pub fn run<C: Capacity>(
 /// write. [`Run::start`] (or [`Run::resume`]), one [`Run::step`] per frame in order from
 /// [`Run::next_frame`], then [`Run::finish`].
 pub struct Run<'a, C: Capacity> {
-    opts: Cow<'a, RunOptions>,
-    pipeline: Pipeline<C>,
-    workers: Workers,
-    window: Window,
+    pub(super) opts: Cow<'a, RunOptions>,
+    pub(super) pipeline: Pipeline<C>,
+    pub(super) workers: Workers,
+    pub(super) window: Window,
     /// The layer budget a memory cap allows.
-    max_layers: Option<usize>,
-    spool: MeshSpool,
-    frame_lines: BufWriter<File>,
-    frames_path: PathBuf,
-    checkpoint_path: PathBuf,
+    pub(super) max_layers: Option<usize>,
+    pub(super) spool: MeshSpool,
+    pub(super) frame_lines: BufWriter<File>,
+    pub(super) frames_path: PathBuf,
+    pub(super) checkpoint_path: PathBuf,
     /// What a checkpoint saves: poses, skipped frames, totals.
-    progress: Progress,
-    timer: StageTimer,
+    pub(super) progress: Progress,
+    pub(super) timer: StageTimer,
     /// The next frame, read and filtered ahead (with two threads or more).
-    ahead: LookAhead,
-    started: Instant,
+    pub(super) ahead: LookAhead,
+    pub(super) started: Instant,
     /// Loop seconds before this process (from the checkpoint when resuming).
-    seconds_before: f64,
+    pub(super) seconds_before: f64,
     /// Started from a saved map with no pose given: where to search for the pose, until a
     /// frame finds it ([`saved_map::candidates`]).
-    search: Option<Vec<Pose>>,
+    pub(super) search: Option<Vec<Pose>>,
     /// The path of the saved map the run started from (a map it saves keeps it first).
-    map_path: Vec<(f64, Pose)>,
+    pub(super) map_path: Vec<(f64, Pose)>,
     /// The map file being written (`save_map`): cells a window evicts go in as they leave.
-    saved_map: Option<MapWriter>,
+    pub(super) saved_map: Option<MapWriter>,
     /// The saved map paged in under the memory cap (localizing only).
-    pager: Option<MapPager>,
+    pub(super) pager: Option<MapPager>,
     /// Loop closure's thread, when on.
-    closer: Option<LoopClosure<C>>,
+    pub(super) closer: Option<LoopClosure<C>>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -242,7 +239,7 @@ impl<'a, C: Capacity> Run<'a, C> {
 
     /// The body-frame motion between the last two used frames and the seconds between their
     /// stamps: what deskewing extrapolates. `None` before two frames were used.
-    fn last_motion(&self, source: &impl FrameSource) -> Option<(Pose, f64)> {
+    pub(super) fn last_motion(&self, source: &impl FrameSource) -> Option<(Pose, f64)> {
         let (before, last) = self.pipeline.motion().history();
         let [.., (a, _), (b, _)] = self.progress.poses[..] else {
             return None;
@@ -251,249 +248,8 @@ impl<'a, C: Capacity> Run<'a, C> {
         Some((before?.inverse() * last?, dt))
     }
 
-    /// Runs frame `i`: reads it, estimates its pose (or takes the given one), counts the
-    /// triangles it updated, applies the window, spools its record and, when one is due,
-    /// writes a checkpoint. A frame that cannot be read or used is recorded as skipped with
-    /// its file, index and reason; only an output that cannot be written is an error.
-    pub fn step(
-        &mut self,
-        source: &mut impl FrameSource,
-        i: usize,
-    ) -> Result<FrameRecord, RunError> {
-        let label = source.label(i);
-        let mut rec = FrameRecord::skipped(i, label.clone());
-        if let Some(c) = &mut self.closer {
-            for closed in c.apply(&mut self.pipeline, &mut self.progress.poses, i) {
-                log::info!("frame {i}: {}", closed.describe());
-                rec.loop_closures.push(closed);
-            }
-        }
-        let read = self.ahead.take(source, i);
-        let deskew = self.opts.deskew;
-        // After the read: a recording knows a frame's stamp once it has read the message.
-        let stamp = source.stamp(i);
-        rec.stamp = stamp;
-        rec.points_dropped_by_reader = read.dropped_by_reader;
-        let motion = self.last_motion(source);
-        // The next frame is read here while this one registers on the pool, and filtered
-        // ahead unless it is to be deskewed (with this frame's motion) or outgrows capacity.
-        let (workers, config) = (&self.workers, &self.opts.config);
-        let look_ahead = &mut self.ahead;
-        let mut read_next = Some(|| {
-            look_ahead.read_ahead(source, i + 1, workers, config, |points, times| {
-                (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
-            })
-        });
-        // A paged map: the tiles around the predicted pose (while the pose is searched for,
-        // the search pages).
-        if let (Some(pager), None) = (&mut self.pager, &self.search) {
-            let predicted = self.pipeline.motion().predict();
-            pager.around(self.pipeline.map_mut(), &predicted);
-        }
-        let (pipeline, timer) = (&mut self.pipeline, &mut self.timer);
-        let filter = &self.opts.config.filter;
-        // Started from a saved map with no pose: this frame searches the map for it.
-        let search = self.search.as_deref();
-        let mut paging = map_pager::Paged(self.pager.as_mut());
-        let mut found: Option<slamesh_core::pipeline::Relocalized> = None;
-        // The motion, interval and reference time a deskewed scan was moved with: its pose is
-        // the reference time's, and the trajectory takes it back to the stamp.
-        let mut to_stamp: Option<(Pose, f64, f64)> = None;
-        let mut ahead = None;
-        let outcome = read.scan.map_err(|e| e.to_string()).and_then(|scan| {
-            let (mut points, times) = match scan {
-                Scan::Raw { points, times } => (points, times),
-                Scan::Filtered { points, ahead: a } => {
-                    rec.points = points;
-                    ahead = Some(a);
-                    (Vec::new(), None)
-                }
-            };
-            if ahead.is_none() {
-                rec.points = points.len();
-            }
-            if let (Deskew::Auto, Some(times), Some((m, dt))) = (deskew, &times, motion) {
-                let t = Instant::now();
-                let d = deskew::deskew(&mut points, times, &m, dt)
-                    .map_err(|e| format!("{}: frame {i}: cannot deskew: {e:?}", label))?;
-                rec.deskewed_points = d.moved;
-                rec.ms.deskew = t.elapsed().as_secs_f64() * 1e3;
-                // The points now sit in the sensor frame at `reference_s`.
-                to_stamp = (d.moved > 0).then_some((m, dt, d.reference_s));
-            }
-            if points.len() > C::POINTS {
-                let n = capacity::points_in_range(&points, filter);
-                if n > C::POINTS {
-                    let advice = match capacity::class_holding(n) {
-                        Some(c) => format!("run with --capacity {}", c.flag),
-                        None => "no class holds it: thin the scan, or narrow \
-                                 filter.range_min_m and filter.range_max_m"
-                            .to_string(),
-                    };
-                    return Err(format!(
-                        "{}: frame {i}: {n} points within range, more than the {} capacity \
-                         holds ({}): {advice}",
-                        label,
-                        C::NAME,
-                        C::POINTS
-                    ));
-                }
-            }
-            let given = match &self.opts.given_poses {
-                Some(p) => Some(p.pose_at(i, stamp).ok_or_else(|| match p.stamps {
-                    Some(_) => format!(
-                        "{}: frame {i}: no given pose within {:.3} s of its time {:.6}",
-                        label,
-                        p.tolerance_s(),
-                        stamp
-                    ),
-                    None => format!("{}: frame {i}: no given pose (line {})", label, i + 1),
-                })?),
-                None => None,
-            };
-            // A given pose is the stamp's; a deskewed scan is fused at its reference time.
-            let given = given.map(|g| match to_stamp {
-                Some((m, dt, reference)) => deskew::pose_at(&g, &m, dt, reference),
-                None => g,
-            });
-            // On a worker of the pool: its serial stages leave the other thread to the filter.
-            let r = workers.install_beside(
-                || match (given, &ahead, search) {
-                    (Some(pose), None, _) => {
-                        pipeline.integrate_scan_with(&points, &pose, workers, timer)
-                    }
-                    (None, None, None) => pipeline.process_scan_with(&points, workers, timer),
-                    (None, None, Some(c)) => pipeline
-                        .relocalize_with(
-                            &points,
-                            c,
-                            &Search::default(),
-                            workers,
-                            timer,
-                            &mut paging,
-                        )
-                        .map(|r| found.insert(r).outcome),
-                    (Some(pose), Some(a), _) => {
-                        pipeline.integrate_filtered_with(a.filtered(), &pose, workers, timer)
-                    }
-                    (None, Some(a), None) => {
-                        pipeline.process_filtered_with(a.filtered(), workers, timer)
-                    }
-                    (None, Some(a), Some(c)) => pipeline
-                        .relocalize_filtered_with(
-                            a.filtered(),
-                            c,
-                            &Search::default(),
-                            workers,
-                            timer,
-                            &mut paging,
-                        )
-                        .map(|r| found.insert(r).outcome),
-                },
-                || read_next.take().map_or((), |mut next| next()),
-            );
-            r.map_err(|e| format!("{}: frame {i}: {e}", label))
-        });
-        // A frame that did not reach the pipeline: the next one is read now.
-        if let Some(mut next) = read_next.take() {
-            next();
-        }
-        rec.ms = StageMs {
-            read: read.ms,
-            deskew: rec.ms.deskew,
-            ..self.timer.take()
-        };
-        // A filter run ahead counts in the total only for the time this step waited for it.
-        let mut not_waited = 0.0;
-        if let Some(a) = &ahead {
-            rec.ms.filter = a.filter_ms;
-            not_waited = a.filter_ms - a.wait_ms;
-        }
-        if let Some(e) = self.pager.as_mut().and_then(MapPager::take_error) {
-            return Err(e.into());
-        }
-        let outcome = outcome.and_then(|o| match &found {
-            Some(r) if o.status == RegistrationStatus::NotLocalized => {
-                Err(format!("{label}: frame {i}: {}", saved_map::not_found(r)))
-            }
-            _ => Ok(o),
-        });
-        match outcome {
-            Ok(o) => {
-                rec.status = format!("{:?}", o.status);
-                rec.reason = registration_reason(o.status, &o.stats, &self.opts.config);
-                if let Some(r) = found.filter(|_| o.status == RegistrationStatus::Relocalized) {
-                    let found = saved_map::found(&r);
-                    log::info!("frame {i}: {found}");
-                    rec.relocalization = Some(found);
-                    self.search = None;
-                }
-                rec.take_stats(&o.stats);
-                let t = Instant::now();
-                rec.triangles_updated = updated_triangles(&self.pipeline, &self.workers);
-                rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
-                let t = Instant::now();
-                if !self.window.is_off() {
-                    let spool = self.opts.window.save_evicted.then_some(&mut self.spool);
-                    rec.evicted_cells = self.window.evict_to(
-                        self.pipeline.map_mut(),
-                        o.stats.frame,
-                        &o.t_world_sensor,
-                        spool,
-                        self.saved_map.as_mut(),
-                    )?;
-                    self.progress.evicted_cells += rec.evicted_cells;
-                }
-                rec.ms.evict = t.elapsed().as_secs_f64() * 1e3;
-                rec.ms.total = rec.ms.pipeline() + rec.ms.evict - not_waited;
-                // The pose of a deskewed scan is its reference time's (the middle of the sweep);
-                // the stamp lies between it and the previous frame's, so the motion between
-                // the two estimates interpolates it (the predicted motion would extrapolate).
-                let at_stamp = match (to_stamp, self.pipeline.motion().history()) {
-                    (Some((_, dt, reference)), (Some(before), Some(last))) => deskew::pose_at(
-                        &o.t_world_sensor,
-                        &(before.inverse() * last),
-                        dt,
-                        -reference,
-                    ),
-                    _ => o.t_world_sensor,
-                };
-                self.progress.poses.push((i, at_stamp));
-                rec.latency_ms = source.arrival(i).map(|a| a.elapsed().as_secs_f64() * 1e3);
-                self.progress.used_ms.push(rec.ms);
-                if let Some(c) = &mut self.closer {
-                    let counter = self.pipeline.frames();
-                    c.observe(i, counter, &o, self.pipeline.last_points());
-                }
-            }
-            Err(e) => {
-                if found.is_some() {
-                    // The search ran and found no convincing pose.
-                    rec.status = format!("{:?}", RegistrationStatus::NotLocalized);
-                }
-                rec.error = Some(e.clone());
-                self.progress.skipped.push(e);
-            }
-        }
-        rec.map_cells = self.pipeline.map().cell_count();
-        rec.map_layers = self.pipeline.map().layer_count();
-        rec.rss_mb = memory::rss_bytes().map(memory::mb);
-        let cannot_write =
-            |e: std::io::Error| FileError::at(&self.frames_path, format!("cannot write: {e}"));
-        serde_json::to_writer(&mut self.frame_lines, &rec)
-            .map_err(std::io::Error::from)
-            .and_then(|()| self.frame_lines.write_all(b"\n"))
-            .map_err(cannot_write)?;
-        if let Some(every) = self.opts.checkpoint_every.filter(|&n| n > 0) {
-            if (i + 1).is_multiple_of(every) && i + 1 < source.frames() {
-                self.checkpoint(i + 1)?;
-            }
-        }
-        Ok(rec)
-    }
-
     /// Saves everything a killed run needs to continue at frame `next`.
-    fn checkpoint(&mut self, next: usize) -> Result<(), RunError> {
+    pub(super) fn checkpoint(&mut self, next: usize) -> Result<(), RunError> {
         self.frame_lines
             .flush()
             .map_err(|e| FileError::at(&self.frames_path, format!("cannot write: {e}")))?;

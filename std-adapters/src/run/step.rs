@@ -1,0 +1,387 @@
+//! One frame of a run, as named stages ([`Run::step`]): close loops, read, prepare (deskew,
+//! capacity, the given pose), register (the core's one entry point, with the next frame read
+//! beside it), update the map (mesh counts, the window), record (the frame's line, the
+//! checkpoint). A frame that cannot be used is a [`FrameError`]: recorded as skipped, the run
+//! goes on; only an output that cannot be written stops it ([`RunError`]).
+
+use crate::io::error::FileError;
+use crate::run::capacity;
+use crate::run::frame_error::{FrameError, FrameFault};
+use crate::run::lookahead::{Ahead, Scan as ReadScan};
+use crate::run::map_pager::{self, MapPager};
+use crate::run::memory;
+use crate::run::options::{Deskew, RunError};
+use crate::run::report::{registration_reason, updated_triangles, FrameRecord};
+use crate::run::saved_map;
+use crate::run::session::Run;
+use crate::run::source::FrameSource;
+use crate::run::timing::StageMs;
+use slamesh_core::deskew;
+use slamesh_core::pipeline::{Known, Scan, Stepped};
+use slamesh_core::relocalize::{Paging, Search};
+use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
+use std::io::Write;
+use std::time::Instant;
+
+/// A frame's scan on its way to the pipeline.
+#[derive(Debug, Default)]
+pub(super) struct Frame {
+    /// Its points as read (none when filtered ahead), deskewed once prepared.
+    points: Vec<Point>,
+    /// Their times relative to the stamp, when the source records them.
+    times: Option<Vec<f32>>,
+    /// The scan filtered ahead on the pool, instead of `points`.
+    ahead: Option<Ahead>,
+    /// The motion, interval and reference time a deskewed scan was moved with: its pose is
+    /// the reference time's, and the trajectory takes it back to the stamp.
+    to_stamp: Option<(Pose, f64, f64)>,
+    /// The pose to mesh it at (meshing at given poses), at the scan's time.
+    given: Option<Pose>,
+}
+
+impl Frame {
+    /// The frame as read, counting its points into `rec`.
+    fn of(
+        scan: Result<ReadScan, FileError>,
+        rec: &mut FrameRecord,
+    ) -> (Self, Result<(), FrameFault>) {
+        match scan {
+            Ok(ReadScan::Raw { points, times }) => {
+                rec.points = points.len();
+                let frame = Frame {
+                    points,
+                    times,
+                    ..Frame::default()
+                };
+                (frame, Ok(()))
+            }
+            Ok(ReadScan::Filtered { points, ahead }) => {
+                rec.points = points;
+                (
+                    Frame {
+                        ahead: Some(ahead),
+                        ..Frame::default()
+                    },
+                    Ok(()),
+                )
+            }
+            Err(e) => (Frame::default(), Err(FrameFault::Unreadable(e))),
+        }
+    }
+}
+
+impl<C: Capacity> Run<'_, C> {
+    /// Runs frame `i`: the stages below, in order. A frame that cannot be read or used is
+    /// recorded as skipped with its file, index and reason; only an output that cannot be
+    /// written is an error.
+    pub fn step(
+        &mut self,
+        source: &mut impl FrameSource,
+        i: usize,
+    ) -> Result<FrameRecord, RunError> {
+        let label = source.label(i);
+        let mut rec = FrameRecord::skipped(i, label.clone());
+        self.close_loops(i, &mut rec);
+        let read = self.ahead.take(source, i);
+        // After the read: a recording knows a frame's stamp once it has read the message.
+        rec.stamp = source.stamp(i);
+        rec.points_dropped_by_reader = read.dropped_by_reader;
+        let motion = self.last_motion(source);
+        self.page_around_prediction();
+        let (mut frame, readable) = Frame::of(read.scan, &mut rec);
+        let ready = readable.and_then(|()| self.prepare(&mut frame, motion, i, &mut rec));
+        let stepped = self.register(source, i, &frame, ready);
+        let not_waited = self.take_timings(read.ms, &frame, &mut rec);
+        if let Some(e) = self.pager.as_mut().and_then(MapPager::take_error) {
+            return Err(e.into());
+        }
+        match stepped.and_then(found_or_not) {
+            Ok(stepped) => {
+                self.take_outcome(&stepped, &mut rec);
+                let o = stepped.into_outcome();
+                self.update_map(&o, &mut rec)?;
+                rec.ms.total = rec.ms.pipeline() + rec.ms.evict - not_waited;
+                self.keep_pose(source, i, &o, &frame, &mut rec);
+            }
+            Err(fault) => self.skip(FrameError::new(&label, i, fault), &mut rec),
+        }
+        self.record(source, i, &mut rec)?;
+        Ok(rec)
+    }
+
+    /// Applies the loops the closer found since the last frame.
+    fn close_loops(&mut self, i: usize, rec: &mut FrameRecord) {
+        if let Some(c) = &mut self.closer {
+            for closed in c.apply(&mut self.pipeline, &mut self.progress.poses, i) {
+                log::info!("frame {i}: {}", closed.describe());
+                rec.loop_closures.push(closed);
+            }
+        }
+    }
+
+    /// A paged map: the tiles around the predicted pose (while the pose is searched for, the
+    /// search pages).
+    fn page_around_prediction(&mut self) {
+        if let (Some(pager), None) = (&mut self.pager, &self.search) {
+            let predicted = self.pipeline.motion().predict();
+            pager.around(self.pipeline.map_mut(), &predicted);
+        }
+    }
+
+    /// Deskews the scan with the last motion, checks it fits the capacity and takes its
+    /// given pose, if the run meshes at given poses.
+    fn prepare(
+        &mut self,
+        frame: &mut Frame,
+        motion: Option<(Pose, f64)>,
+        i: usize,
+        rec: &mut FrameRecord,
+    ) -> Result<(), FrameFault> {
+        if let (Deskew::Auto, Some(times), Some((m, dt))) = (self.opts.deskew, &frame.times, motion)
+        {
+            let t = Instant::now();
+            let d = deskew::deskew(&mut frame.points, times, &m, dt)
+                .map_err(FrameFault::CannotDeskew)?;
+            rec.deskewed_points = d.moved;
+            rec.ms.deskew = t.elapsed().as_secs_f64() * 1e3;
+            // The points now sit in the sensor frame at `reference_s`.
+            frame.to_stamp = (d.moved > 0).then_some((m, dt, d.reference_s));
+        }
+        fits_capacity::<C>(&frame.points, &self.opts.config.filter)?;
+        frame.given = self.given_pose(i, rec.stamp, frame.to_stamp)?;
+        Ok(())
+    }
+
+    /// The pose given for frame `i` (stamp `stamp`), moved to a deskewed scan's reference time.
+    fn given_pose(
+        &self,
+        i: usize,
+        stamp: f64,
+        to_stamp: Option<(Pose, f64, f64)>,
+    ) -> Result<Option<Pose>, FrameFault> {
+        let Some(p) = &self.opts.given_poses else {
+            return Ok(None);
+        };
+        let g = p.pose_at(i, stamp).ok_or(FrameFault::NoGivenPose {
+            by_time: p.stamps.as_ref().map(|_| (p.tolerance_s(), stamp)),
+            line: i + 1,
+        })?;
+        // A given pose is the stamp's; a deskewed scan is fused at its reference time.
+        Ok(Some(match to_stamp {
+            Some((m, dt, reference)) => deskew::pose_at(&g, &m, dt, reference),
+            None => g,
+        }))
+    }
+
+    /// The core's step on a worker of the pool, with what is known of the pose (the given
+    /// one, nothing, or a search of the saved map), while this thread reads the next frame
+    /// (and starts filtering it unless it is to be deskewed or outgrows the capacity). A
+    /// frame that is not ready still has the next one read.
+    fn register(
+        &mut self,
+        source: &mut impl FrameSource,
+        i: usize,
+        frame: &Frame,
+        ready: Result<(), FrameFault>,
+    ) -> Result<Stepped, FrameFault> {
+        let Run {
+            pipeline,
+            workers,
+            timer,
+            ahead,
+            opts,
+            pager,
+            search,
+            ..
+        } = self;
+        let (deskew, config, workers) = (opts.deskew, &opts.config, &*workers);
+        let mut read_next = Some(|| {
+            ahead.read_ahead(source, i + 1, workers, config, |points, times| {
+                (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
+            })
+        });
+        let everywhere = Search::default();
+        let stepped = ready.and_then(|()| {
+            let scan = match &frame.ahead {
+                Some(a) => Scan::Filtered(a.filtered()),
+                None => Scan::Raw(&frame.points),
+            };
+            let mut paging = map_pager::Paged(pager.as_mut());
+            let known = match (frame.given, search.as_deref()) {
+                (Some(pose), _) => Known::Pose(pose),
+                (None, None) => Known::Nothing,
+                (None, Some(candidates)) => Known::Somewhere {
+                    candidates,
+                    search: &everywhere,
+                    paging: &mut paging,
+                },
+            };
+            // On a worker of the pool: its serial stages leave the other thread to the filter.
+            workers
+                .install_beside(
+                    || pipeline.step(scan, known, workers, timer),
+                    || read_next.take().map_or((), |mut next| next()),
+                )
+                .map_err(FrameFault::Refused)
+        });
+        if let Some(mut next) = read_next.take() {
+            next();
+        }
+        stepped
+    }
+
+    /// The stages' times into `rec`; returns the filter's time run ahead that this step did
+    /// not wait for (not part of the frame's total).
+    fn take_timings(&mut self, read_ms: f64, frame: &Frame, rec: &mut FrameRecord) -> f64 {
+        rec.ms = StageMs {
+            read: read_ms,
+            deskew: rec.ms.deskew,
+            ..self.timer.take()
+        };
+        let Some(a) = &frame.ahead else {
+            return 0.0;
+        };
+        rec.ms.filter = a.filter_ms;
+        a.filter_ms - a.wait_ms
+    }
+
+    /// The outcome's status, reason and counts into `rec`; a pose found in the saved map ends
+    /// the search.
+    fn take_outcome(&mut self, stepped: &Stepped, rec: &mut FrameRecord) {
+        let o = stepped.outcome();
+        rec.status = o.status.name().to_string();
+        rec.reason = registration_reason(o.status, &o.stats, &self.opts.config);
+        if let Stepped::Searched(r) = stepped {
+            if o.status == RegistrationStatus::Relocalized {
+                let found = saved_map::found(r);
+                log::info!("frame {}: {found}", rec.frame);
+                rec.relocalization = Some(found);
+                self.search = None;
+            }
+        }
+        rec.take_stats(&o.stats);
+    }
+
+    /// Counts the triangles the frame updated and applies the window (cells it evicts go to
+    /// the mesh spool and the map being saved).
+    fn update_map(
+        &mut self,
+        o: &slamesh_core::ScanOutcome,
+        rec: &mut FrameRecord,
+    ) -> Result<(), RunError> {
+        let t = Instant::now();
+        rec.triangles_updated = updated_triangles(&self.pipeline, &self.workers);
+        rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
+        if !self.window.is_off() {
+            let spool = self.opts.window.save_evicted.then_some(&mut self.spool);
+            rec.evicted_cells = self.window.evict_to(
+                self.pipeline.map_mut(),
+                o.stats.frame,
+                &o.t_world_sensor,
+                spool,
+                self.saved_map.as_mut(),
+            )?;
+            self.progress.evicted_cells += rec.evicted_cells;
+        }
+        rec.ms.evict = t.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
+
+    /// Keeps the frame's pose at its stamp (and shows the frame to loop closure).
+    fn keep_pose(
+        &mut self,
+        source: &impl FrameSource,
+        i: usize,
+        o: &slamesh_core::ScanOutcome,
+        frame: &Frame,
+        rec: &mut FrameRecord,
+    ) {
+        // The pose of a deskewed scan is its reference time's (the middle of the sweep); the
+        // stamp lies between it and the previous frame's, so the motion between the two
+        // estimates interpolates it (the predicted motion would extrapolate).
+        let at_stamp = match (frame.to_stamp, self.pipeline.motion().history()) {
+            (Some((_, dt, reference)), (Some(before), Some(last))) => deskew::pose_at(
+                &o.t_world_sensor,
+                &(before.inverse() * last),
+                dt,
+                -reference,
+            ),
+            _ => o.t_world_sensor,
+        };
+        self.progress.poses.push((i, at_stamp));
+        rec.latency_ms = source.arrival(i).map(|a| a.elapsed().as_secs_f64() * 1e3);
+        self.progress.used_ms.push(rec.ms);
+        if let Some(c) = &mut self.closer {
+            let counter = self.pipeline.frames();
+            c.observe(i, counter, o, self.pipeline.last_points());
+        }
+    }
+
+    /// A frame not used: its status and error into `rec`, its error among the skipped.
+    fn skip(&mut self, e: FrameError, rec: &mut FrameRecord) {
+        if let FrameFault::NotLocalized(_) = e.fault {
+            // The search ran and found no convincing pose.
+            rec.status = RegistrationStatus::NotLocalized.name().to_string();
+        }
+        let e = e.to_string();
+        rec.error = Some(e.clone());
+        self.progress.skipped.push(e);
+    }
+
+    /// The map's size and the process's memory into `rec`; its line into the report's spool;
+    /// a checkpoint when one is due.
+    fn record(
+        &mut self,
+        source: &impl FrameSource,
+        i: usize,
+        rec: &mut FrameRecord,
+    ) -> Result<(), RunError> {
+        rec.map_cells = self.pipeline.map().cell_count();
+        rec.map_layers = self.pipeline.map().layer_count();
+        rec.rss_mb = memory::rss_bytes().map(memory::mb);
+        let cannot_write =
+            |e: std::io::Error| FileError::at(&self.frames_path, format!("cannot write: {e}"));
+        serde_json::to_writer(&mut self.frame_lines, &*rec)
+            .map_err(std::io::Error::from)
+            .and_then(|()| self.frame_lines.write_all(b"\n"))
+            .map_err(cannot_write)?;
+        if let Some(every) = self.opts.checkpoint_every.filter(|&n| n > 0) {
+            if (i + 1).is_multiple_of(every) && i + 1 < source.frames() {
+                self.checkpoint(i + 1)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A search that found no convincing pose is a frame not used.
+fn found_or_not(stepped: Stepped) -> Result<Stepped, FrameFault> {
+    match stepped {
+        Stepped::Searched(r) if r.outcome.status == RegistrationStatus::NotLocalized => {
+            Err(FrameFault::NotLocalized(r))
+        }
+        s => Ok(s),
+    }
+}
+
+/// Refuses a scan with more points within range than the capacity `C` holds, naming the
+/// class that would hold them, rather than cut it silently.
+fn fits_capacity<C: Capacity>(
+    points: &[Point],
+    filter: &slamesh_core::config::FilterConfig,
+) -> Result<(), FrameFault> {
+    if points.len() <= C::POINTS {
+        return Ok(());
+    }
+    let n = capacity::points_in_range(points, filter);
+    if n <= C::POINTS {
+        return Ok(());
+    }
+    Err(FrameFault::OverCapacity {
+        points: n,
+        class: C::NAME,
+        holds: C::POINTS,
+        larger: capacity::class_holding(n),
+    })
+}
