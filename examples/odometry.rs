@@ -11,7 +11,7 @@ use slamesh::eval::odometry::consecutive_errors;
 use slamesh::io::kitti;
 use slamesh::io::scans::ScanFolder;
 use slamesh::parallel::Rayon;
-use slamesh_core::pipeline::{Known, Scan, Stepped};
+use slamesh_core::pipeline::{Known, Scan};
 use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose, Real};
 use std::path::Path;
 use std::time::Instant;

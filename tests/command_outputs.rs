@@ -494,40 +494,64 @@ fn bench_takes_a_preset() {
 }
 
 #[test]
-fn the_capacity_class_fits_the_first_scan_and_a_scan_too_large_for_it_is_refused() {
+fn the_capacity_class_fits_the_first_scans_and_a_scan_too_large_for_it_is_refused() {
     let dir = scratch("capacity");
     let (_, scans) = drive(3);
     let scans_dir = write_scan_folder(&dir, &scans);
-    // Points within the default range limits (1.2 to 100 m) in the first scan, and the class
-    // the rule gives: the smallest of 2 048, 36 000, 72 000, 140 000 points that holds them
-    // with a quarter to spare.
-    let n = scans[0]
-        .iter()
-        .filter(|p| {
-            let r = p.iter().map(|c| c * c).sum::<f32>().sqrt();
-            (1.2..=100.0).contains(&r)
-        })
-        .count();
-    let (name, flag) = [
-        (2_048, "tiny", "tiny"),
-        (36_000, "16-beam", "16"),
-        (72_000, "32-beam", "32"),
-    ]
-    .into_iter()
-    .find(|(points, _, _)| *points as f64 >= 1.25 * n as f64)
-    .map_or(("64-beam", "64"), |(_, name, flag)| (name, flag));
+    // Points within the default range limits (1.2 to 100 m) in a scan, and the class the rule
+    // gives for the median of the first scans: the smallest of 2 048, 36 000, 72 000, 140 000
+    // points that holds them with a quarter to spare.
+    let in_range = |scan: &[slamesh_core::Point]| {
+        scan.iter()
+            .filter(|p| {
+                let r = p.iter().map(|c| c * c).sum::<f32>().sqrt();
+                (1.2..=100.0).contains(&r)
+            })
+            .count()
+    };
+    let class_of = |n: usize| {
+        [
+            (2_048, "tiny", "tiny"),
+            (36_000, "16-beam", "16"),
+            (72_000, "32-beam", "32"),
+        ]
+        .into_iter()
+        .find(|(points, _, _)| *points as f64 >= 1.25 * n as f64)
+        .map_or(("64-beam", "64"), |(_, name, flag)| (name, flag))
+    };
+    let median = |counts: &[usize]| {
+        let mut sorted: Vec<(usize, usize)> = counts.iter().copied().enumerate().collect();
+        sorted.sort_by_key(|&(_, n)| n);
+        sorted[sorted.len() / 2]
+    };
+    let counts: Vec<usize> = scans.iter().map(|s| in_range(s)).collect();
+    let (frame, median_n) = median(&counts);
+    let (name, flag) = class_of(median_n);
     let out = dir.join("auto");
     // Without -q: the choice is an info message.
     let o = slamesh_ok(&["run", s(&scans_dir), "--out", s(&out)]);
     let stderr = text(&o.stderr);
     assert!(
         stderr.contains(&format!(
-            "capacity {name} (--capacity {flag}): frame 0 has {n} points within range"
+            "capacity {name} (--capacity {flag}): frame {frame} has {median_n} points within \
+             range, the median of the first 3 readable scans"
         )),
-        "{n} points: {stderr}"
+        "{median_n} points: {stderr}"
     );
     assert_eq!(report(&out)["summary"]["capacity"], name);
 
+    // One odd first scan (a partial sweep of 64 points) does not choose for the whole run.
+    let mut odd = vec![scans[0][..64].to_vec()];
+    odd.extend(scans.iter().cloned());
+    let odd_dir = write_scan_folder(&dir.join("odd"), &odd);
+    let out = dir.join("odd-auto");
+    slamesh_ok(&["run", s(&odd_dir), "--out", s(&out), "-q"]);
+    let odd_counts: Vec<usize> = odd.iter().map(|s| in_range(s)).collect();
+    let (odd_name, _) = class_of(median(&odd_counts).1);
+    assert_ne!(odd_name, "tiny");
+    assert_eq!(report(&out)["summary"]["capacity"], odd_name);
+
+    let n = counts[0];
     // The tiny class cannot hold these scans: each is refused, naming the class that can.
     let holding = [(36_000, "16"), (72_000, "32"), (140_000, "64")]
         .into_iter()

@@ -12,13 +12,11 @@ use pyo3::prelude::*;
 use slamesh::io::config_file::{self, Settings};
 use slamesh::io::mesh_spool::{MeshColour, MeshFormat, MeshSpool};
 use slamesh::io::FileError;
-use slamesh::run::capacity::{self, Class};
+use slamesh::run::capacity::{self, ClassId};
 use slamesh::run::scale::fit_to_scene;
 use slamesh::run::session::Deskew;
-use slamesh::run::{FrameSource, Run, RunError, RunOptions};
-use slamesh_core::{
-    Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, Point, Pose, SmallCapacity,
-};
+use slamesh::run::{FrameRecord, FrameSource, Run, RunError, RunOptions};
+use slamesh_core::{Capacity, Config, Point, Pose};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -61,24 +59,55 @@ type PoseArrays<'py> = (
     Bound<'py, PyArray3<f64>>,
 );
 
-/// A run of one capacity class.
-enum AnyRun {
-    Tiny(Box<Run<'static, SmallCapacity>>),
-    L16(Box<Run<'static, Lidar16Capacity>>),
-    L32(Box<Run<'static, Lidar32Capacity>>),
-    L64(Box<Run<'static, KittiCapacity>>),
+/// A run of one capacity class, whichever it is: the command's [`Run`] behind what the
+/// engine asks of it (the class is chosen once, by [`slamesh::with_capacity!`]).
+trait AnyRun: Send {
+    /// Runs frame `i` of `source`: its record, and its pose when it was used.
+    fn step(
+        &mut self,
+        source: &mut Pushed,
+        i: usize,
+    ) -> Result<(FrameRecord, Option<Pose>), RunError>;
+    /// The used frames' indices and poses.
+    fn poses(&self) -> &[(usize, Pose)];
+    /// The capacity class's name.
+    fn class_name(&self) -> &'static str;
+    /// The configuration in use.
+    fn config(&self) -> Config;
+    /// Writes the map's mesh to `path` (welded binary PLY); its vertex and triangle counts.
+    fn write_mesh(&self, path: &Path) -> Result<(u64, u64), FileError>;
 }
 
-/// `$body` with `$r` the run, whatever its class.
-macro_rules! with_run {
-    ($any:expr, $r:ident => $body:expr) => {
-        match $any {
-            AnyRun::Tiny($r) => $body,
-            AnyRun::L16($r) => $body,
-            AnyRun::L32($r) => $body,
-            AnyRun::L64($r) => $body,
-        }
-    };
+impl<C: Capacity> AnyRun for Run<'static, C> {
+    fn step(
+        &mut self,
+        source: &mut Pushed,
+        i: usize,
+    ) -> Result<(FrameRecord, Option<Pose>), RunError> {
+        let rec = Run::step(self, source, i)?;
+        let pose = self
+            .poses()
+            .last()
+            .filter(|(j, _)| *j == i)
+            .map(|(_, p)| *p);
+        Ok((rec, pose))
+    }
+    fn poses(&self) -> &[(usize, Pose)] {
+        Run::poses(self)
+    }
+    fn class_name(&self) -> &'static str {
+        C::NAME
+    }
+    fn config(&self) -> Config {
+        *self.pipeline().config()
+    }
+    fn write_mesh(&self, path: &Path) -> Result<(u64, u64), FileError> {
+        let p = self.pipeline();
+        let mut spool = MeshSpool::new(path, p.config().lattice(), &p.config().mesh)?;
+        spool.add_map(p.map())?;
+        let counts = spool.finish(&[(path.to_path_buf(), MeshFormat::Ply)])?;
+        Ok((counts.vertices, counts.triangles))
+    }
 }
 
 /// What a run needs before its first frame: the settings, the class asked for and the
@@ -86,7 +115,7 @@ macro_rules! with_run {
 struct Start {
     settings: Settings,
     /// The class asked for; `None`: chosen on the first frame.
-    capacity: Option<Class>,
+    capacity: Option<ClassId>,
     opts: RunOptions,
 }
 
@@ -94,7 +123,7 @@ struct Start {
 enum Stage {
     /// No frame yet.
     Waiting(Box<Start>),
-    Running(AnyRun),
+    Running(Box<dyn AnyRun>),
     /// A run that could not start keeps the reason.
     Failed(String),
 }
@@ -130,21 +159,15 @@ impl Engine {
                 "preset and config: give one (a configuration file names every parameter)",
             ));
         }
-        let classes = capacity::classes();
         let capacity = match capacity {
             "auto" => None,
-            flag => Some(
-                classes
-                    .into_iter()
-                    .find(|c| c.flag == flag)
-                    .ok_or_else(|| {
-                        let flags: Vec<_> = classes.iter().map(|c| c.flag).collect();
-                        PyValueError::new_err(format!(
-                            "capacity: {flag:?} is not one of auto, {}",
-                            flags.join(", ")
-                        ))
-                    })?,
-            ),
+            flag => Some(ClassId::from_flag(flag).ok_or_else(|| {
+                let flags: Vec<_> = ClassId::ALL.iter().map(|c| c.flag()).collect();
+                PyValueError::new_err(format!(
+                    "capacity: {flag:?} is not one of auto, {}",
+                    flags.join(", ")
+                ))
+            })?),
         };
         let settings = match &config {
             Some(path) => config_file::read(path).map_err(error)?,
@@ -205,13 +228,7 @@ impl Engine {
                     *stage = start(stage, source);
                 }
                 let result = match stage {
-                    Stage::Running(run) => with_run!(run, r => r
-                    .step(source, i)
-                    .map(|rec| {
-                        let pose = r.poses().last().filter(|(j, _)| *j == i).map(|(_, p)| *p);
-                        (rec, pose)
-                    })
-                    .map_err(|e| e.to_string())),
+                    Stage::Running(run) => run.step(source, i).map_err(|e| e.to_string()),
                     Stage::Failed(e) => Err(e.clone()),
                     Stage::Waiting(_) => Err("the run did not start".into()),
                 };
@@ -234,7 +251,7 @@ impl Engine {
     fn poses<'py>(&self, py: Python<'py>) -> PoseArrays<'py> {
         let state = self.lock();
         let poses: &[(usize, Pose)] = match &state.stage {
-            Stage::Running(run) => with_run!(run, r => r.poses()),
+            Stage::Running(run) => run.poses(),
             _ => &[],
         };
         let index = poses.iter().map(|(i, _)| *i as u64).collect();
@@ -255,7 +272,7 @@ impl Engine {
                 .map_err(|e| FileError::at(&folder, format!("cannot create: {e}")))?;
             let state = self.lock();
             let poses: &[(usize, Pose)] = match &state.stage {
-                Stage::Running(run) => with_run!(run, r => r.poses()),
+                Stage::Running(run) => run.poses(),
                 _ => &[],
             };
             slamesh::run::report::write_trajectories(&folder, &state.source, poses)
@@ -287,7 +304,7 @@ impl Engine {
     #[getter]
     fn capacity(&self) -> Option<&'static str> {
         match &self.lock().stage {
-            Stage::Running(run) => Some(with_run!(run, r => class_name(r.pipeline()))),
+            Stage::Running(run) => Some(run.class_name()),
             _ => None,
         }
     }
@@ -298,7 +315,7 @@ impl Engine {
     fn config_toml(&self) -> String {
         let state = self.lock();
         let config = match &state.stage {
-            Stage::Running(run) => with_run!(run, r => *r.pipeline().config()),
+            Stage::Running(run) => run.config(),
             Stage::Waiting(start) => start.settings.config,
             Stage::Failed(_) => slamesh_core::Config::default(),
         };
@@ -316,13 +333,7 @@ impl Engine {
         let Stage::Running(run) = &state.stage else {
             return Err(FileError::at(path, "no mesh yet: no frame was registered"));
         };
-        with_run!(run, r => {
-            let p = r.pipeline();
-            let mut spool = MeshSpool::new(path, p.config().lattice(), &p.config().mesh)?;
-            spool.add_map(p.map())?;
-            let counts = spool.finish(&[(path.to_path_buf(), MeshFormat::Ply)])?;
-            Ok((counts.vertices, counts.triangles))
-        })
+        run.write_mesh(path)
     }
 }
 
@@ -352,22 +363,14 @@ fn start(stage: &mut Stage, source: &mut Pushed) -> Stage {
         config: settings.config,
         ..opts
     };
-    let class = capacity.unwrap_or_else(|| capacity::choose(source, &opts));
+    let class = capacity.unwrap_or_else(|| capacity::choose(source, &opts).id);
     source.frame = first;
-    let run = match class.flag {
-        "tiny" => Run::start(source, opts).map(|r| AnyRun::Tiny(Box::new(r))),
-        "16" => Run::start(source, opts).map(|r| AnyRun::L16(Box::new(r))),
-        "32" => Run::start(source, opts).map(|r| AnyRun::L32(Box::new(r))),
-        _ => Run::start(source, opts).map(|r| AnyRun::L64(Box::new(r))),
-    };
+    let run = slamesh::with_capacity!(class, C => Run::<C>::start(source, opts)
+        .map(|r| Box::new(r) as Box<dyn AnyRun>));
     match run {
         Ok(r) => Stage::Running(r),
         Err(e) => Stage::Failed(RunError::to_string(&e)),
     }
-}
-
-fn class_name<C: Capacity>(_: &slamesh_core::Pipeline<C>) -> &'static str {
-    C::NAME
 }
 
 /// A new folder for an engine's spools, in the system's temporary folder.

@@ -4,14 +4,14 @@
 use crate::cli::error::CliError;
 use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
-use crate::cli::run::{auto_capacity, frame_messages, print_summary, CapacityFlag};
+use crate::cli::run::{frame_messages, print_summary, CapacityFlag};
 use crate::cli::settings::{Profile, WindowFlags};
 use crate::demo::run_demo;
 use crate::io::mesh_spool::MeshFormat;
+use crate::run::capacity;
 use crate::run::RunOptions;
 use crate::say;
 use clap::Args;
-use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use slamesh_sim::Drive;
 use std::path::PathBuf;
 
@@ -69,18 +69,11 @@ pub fn demo(args: &DemoArgs, quiet: bool) -> Result<(), CliError> {
         bar.set_message(format!("{} ms", rec.ms.total.round()));
         bar.inc(1);
     };
-    let flag = match args.capacity {
-        CapacityFlag::Auto => auto_capacity(&mut Drive::town(frames.min(10), seed), &opts),
-        given => given,
-    };
-    let r = match flag {
-        CapacityFlag::Tiny => run_demo::<SmallCapacity>(frames, seed, &opts, on_frame),
-        CapacityFlag::L16 => run_demo::<Lidar16Capacity>(frames, seed, &opts, on_frame),
-        CapacityFlag::L32 => run_demo::<Lidar32Capacity>(frames, seed, &opts, on_frame),
-        CapacityFlag::Auto | CapacityFlag::L64 => {
-            run_demo::<KittiCapacity>(frames, seed, &opts, on_frame)
-        }
-    }?;
+    let class = args
+        .capacity
+        .class()
+        .unwrap_or_else(|| capacity::choose(&mut Drive::town(frames.min(10), seed), &opts).id);
+    let r = crate::with_capacity!(class, C => run_demo::<C>(frames, seed, &opts, on_frame))?;
     bar.finish_and_clear();
     notices.finish();
     print_summary(&r.summary, out);

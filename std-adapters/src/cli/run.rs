@@ -9,13 +9,12 @@ use crate::io::mesh_spool::{MeshColour, MeshFormat};
 use crate::io::trajectory::Trajectory;
 use crate::io::{kitti, trajectory, FileError};
 use crate::loop_closure::settings::LoopSettings;
-use crate::run::capacity;
+use crate::run::capacity::{self, ClassId};
 use crate::run::session::{Deskew, InitialPose};
 use crate::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
 use crate::say;
 use clap::Args;
 use indicatif::ProgressBar;
-use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
 use std::path::{Path, PathBuf};
 
 /// `slamesh run`'s arguments (and most of `slamesh mesh`'s).
@@ -147,6 +146,19 @@ pub enum CapacityFlag {
     /// `KittiCapacity`.
     #[value(name = "64")]
     L64,
+}
+
+impl CapacityFlag {
+    /// The class named, or `None` for `auto`.
+    pub fn class(self) -> Option<ClassId> {
+        match self {
+            CapacityFlag::Auto => None,
+            CapacityFlag::Tiny => Some(ClassId::Tiny),
+            CapacityFlag::L16 => Some(ClassId::L16),
+            CapacityFlag::L32 => Some(ClassId::L32),
+            CapacityFlag::L64 => Some(ClassId::L64),
+        }
+    }
 }
 
 /// `slamesh mesh`'s arguments.
@@ -342,18 +354,11 @@ fn run_with(
         ));
         bar.inc(1);
     };
-    let flag = match args.capacity {
-        CapacityFlag::Auto => auto_capacity(&mut source, &opts),
-        given => given,
-    };
-    let summary = match flag {
-        CapacityFlag::Tiny => run::<SmallCapacity>(&mut source, &opts, on_frame),
-        CapacityFlag::L16 => run::<Lidar16Capacity>(&mut source, &opts, on_frame),
-        CapacityFlag::L32 => run::<Lidar32Capacity>(&mut source, &opts, on_frame),
-        CapacityFlag::Auto | CapacityFlag::L64 => {
-            run::<KittiCapacity>(&mut source, &opts, on_frame)
-        }
-    }?;
+    let class = args
+        .capacity
+        .class()
+        .unwrap_or_else(|| capacity::choose(&mut source, &opts).id);
+    let summary = crate::with_capacity!(class, C => run::<C>(&mut source, &opts, on_frame))?;
     bar.finish_and_clear();
     notices.finish();
     print_summary(&summary, &args.out);
@@ -396,16 +401,6 @@ pub fn frame_messages(rec: &FrameRecord, bar: &ProgressBar, notices: &mut FrameN
                 rec.ms.total
             )
         });
-    }
-}
-
-/// `--capacity auto`: the class [`capacity::choose`] picks for `source`.
-pub fn auto_capacity(source: &mut impl FrameSource, opts: &RunOptions) -> CapacityFlag {
-    match capacity::choose(source, opts).flag {
-        "tiny" => CapacityFlag::Tiny,
-        "16" => CapacityFlag::L16,
-        "32" => CapacityFlag::L32,
-        _ => CapacityFlag::L64,
     }
 }
 

@@ -11,13 +11,87 @@ use crate::run::source::FrameSource;
 use crate::run::window::Window;
 use slamesh_core::config::FilterConfig;
 use slamesh_core::filter::Preparation;
-use slamesh_core::{
-    Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, Point, SmallCapacity,
-};
+use slamesh_core::{Capacity, Point};
+#[cfg(doc)]
+use slamesh_core::{KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
+
+/// The compiled-in capacity classes, smallest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ClassId {
+    /// [`SmallCapacity`].
+    Tiny,
+    /// [`Lidar16Capacity`].
+    L16,
+    /// [`Lidar32Capacity`].
+    L32,
+    /// [`KittiCapacity`].
+    L64,
+}
+
+/// Runs `$body` with `$C` standing for the capacity type of the [`ClassId`] `$class`: the one
+/// place a class chosen at run time becomes a type (the command, the demo and the Python
+/// module all dispatch through it).
+///
+/// ```
+/// use slamesh::run::capacity::ClassId;
+/// use slamesh::core::Capacity;
+/// let points = slamesh::with_capacity!(ClassId::L16, C => C::POINTS);
+/// assert_eq!(points, 36_000);
+/// ```
+#[macro_export]
+macro_rules! with_capacity {
+    ($class:expr, $C:ident => $body:expr) => {
+        match $class {
+            $crate::run::capacity::ClassId::Tiny => {
+                type $C = $crate::core::SmallCapacity;
+                $body
+            }
+            $crate::run::capacity::ClassId::L16 => {
+                type $C = $crate::core::Lidar16Capacity;
+                $body
+            }
+            $crate::run::capacity::ClassId::L32 => {
+                type $C = $crate::core::Lidar32Capacity;
+                $body
+            }
+            $crate::run::capacity::ClassId::L64 => {
+                type $C = $crate::core::KittiCapacity;
+                $body
+            }
+        }
+    };
+}
+
+impl ClassId {
+    /// Every class, smallest first.
+    pub const ALL: [ClassId; 4] = [ClassId::Tiny, ClassId::L16, ClassId::L32, ClassId::L64];
+
+    /// Its value of `--capacity` (and of the Python module's `capacity`).
+    pub const fn flag(self) -> &'static str {
+        match self {
+            ClassId::Tiny => "tiny",
+            ClassId::L16 => "16",
+            ClassId::L32 => "32",
+            ClassId::L64 => "64",
+        }
+    }
+
+    /// The class whose flag is `flag`.
+    pub fn from_flag(flag: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|c| c.flag() == flag)
+    }
+
+    /// Its numbers.
+    pub fn class(self) -> Class {
+        crate::with_capacity!(self, C => Class::of::<C>(self))
+    }
+}
 
 /// One compiled-in capacity.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Class {
+    /// Which it is.
+    pub id: ClassId,
     /// Its name in messages ([`Capacity::NAME`]).
     pub name: &'static str,
     /// Its value of `--capacity`.
@@ -32,10 +106,11 @@ pub struct Class {
 }
 
 impl Class {
-    fn of<C: Capacity>(flag: &'static str) -> Self {
+    fn of<C: Capacity>(id: ClassId) -> Self {
         Class {
+            id,
             name: C::NAME,
-            flag,
+            flag: id.flag(),
             points: C::POINTS,
             bytes: C::memory_bytes(),
             least_cap_bytes: Window::least_cap_bytes::<C>(0, false),
@@ -45,12 +120,7 @@ impl Class {
 
 /// The classes, smallest first.
 pub fn classes() -> [Class; 4] {
-    [
-        Class::of::<SmallCapacity>("tiny"),
-        Class::of::<Lidar16Capacity>("16"),
-        Class::of::<Lidar32Capacity>("32"),
-        Class::of::<KittiCapacity>("64"),
-    ]
+    ClassId::ALL.map(ClassId::class)
 }
 
 /// Room kept above the first scan's points when choosing a class: later scans may see more.
@@ -92,15 +162,27 @@ pub fn points_in_range(scan: &[Point], filter: &FilterConfig) -> usize {
     scan.iter().filter(|p| prep.point(p).is_ok()).count()
 }
 
-/// The class `auto` chooses: the smallest for the first readable scan of `source` (of the
-/// first ten), counting its points within the configuration's range limits, under the memory
-/// cap when there is one ([`class_under_cap`]); the largest when no scan is readable. Says what
+/// Readable scans among the first frames that `auto` looks at ([`choose`]).
+pub const CHOICE_SCANS: usize = 5;
+
+/// The class `auto` chooses: the smallest for the median of the first [`CHOICE_SCANS`]
+/// readable scans of `source` (of the first ten; a live source's that have come), counting
+/// their points within the configuration's range limits, so that one odd first scan (a
+/// partial sweep, a cut-off file) does not choose for the whole run; under the memory cap
+/// when there is one ([`class_under_cap`]); the largest when no scan is readable. Says what
 /// it chose.
 pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
-    let Some((i, n)) = (0..source.frames().min(10)).find_map(|i| {
-        let scan = source.read(i).ok()?;
-        Some((i, points_in_range(&scan, &opts.config.filter)))
-    }) else {
+    let mut seen: Vec<(usize, usize)> = Vec::new();
+    for i in 0..source.frames().min(10) {
+        if seen.len() == CHOICE_SCANS || (!seen.is_empty() && source.would_wait(i)) {
+            break;
+        }
+        if let Ok(scan) = source.read(i) {
+            seen.push((i, points_in_range(&scan, &opts.config.filter)));
+        }
+    }
+    seen.sort_by_key(|&(_, n)| n);
+    let Some(&(i, n)) = seen.get(seen.len() / 2) else {
         let all = classes();
         return all[all.len() - 1];
     };
@@ -124,9 +206,11 @@ pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
         None => class_for(n),
     };
     log::info!(
-        "capacity {} (--capacity {}): frame {i} has {n} points within range",
+        "capacity {} (--capacity {}): frame {i} has {n} points within range, the median of \
+         the first {} readable scans",
         class.name,
-        class.flag
+        class.flag,
+        seen.len()
     );
     class
 }
@@ -134,6 +218,18 @@ pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_class_is_its_capacity_type() {
+        for id in ClassId::ALL {
+            let c = id.class();
+            assert_eq!(ClassId::from_flag(c.flag), Some(id));
+            let (name, points) = crate::with_capacity!(id, C => (C::NAME, C::POINTS));
+            assert_eq!((c.name, c.points), (name, points));
+        }
+        let points: Vec<usize> = classes().iter().map(|c| c.points).collect();
+        assert!(points.windows(2).all(|w| w[0] < w[1]), "smallest first");
+    }
 
     #[test]
     fn the_smallest_class_with_headroom_is_chosen() {

@@ -144,76 +144,53 @@ pub fn read(file: &Path, map: &mut MeshMap) -> Result<Progress, FileError> {
     let bytes = std::fs::read(file).map_err(|e| FileError::at(file, e.to_string()))?;
     let bad = |reason: String| FileError::at(file, format!("not a usable checkpoint: {reason}"));
     let mut d = Decoder { bytes: &bytes };
-    if d.take(MAGIC.len()).map_err(&bad)? != MAGIC {
-        return Err(bad("it does not start with the checkpoint signature".into()));
+    let progress = read_progress(&mut d).map_err(&bad)?;
+    read_map(&mut d, map).map_err(&bad)?;
+    if !d.bytes.is_empty() {
+        return Err(bad(format!("{} bytes after the map", d.bytes.len())));
     }
-    let version = d.u32().map_err(&bad)?;
+    Ok(progress)
+}
+
+/// The run's progress: the signature and version, then everything before the map.
+fn read_progress(d: &mut Decoder) -> Result<Progress, String> {
+    if d.take(MAGIC.len())? != MAGIC {
+        return Err("it does not start with the checkpoint signature".into());
+    }
+    let version = d.u32()?;
     if version != VERSION {
-        return Err(bad(format!(
+        return Err(format!(
             "format version {version}, this program reads {VERSION}"
-        )));
+        ));
     }
-    let fingerprint = d.string().map_err(&bad)?;
-    let next_frame = d.u64().map_err(&bad)? as usize;
-    let pipeline_frames = d.u32().map_err(&bad)?;
+    let fingerprint = d.string()?;
+    let next_frame = d.u64()? as usize;
+    let pipeline_frames = d.u32()?;
     let mut motion = [None, None];
     for m in &mut motion {
-        let known = d.u8().map_err(&bad)? != 0;
-        let pose = d.pose().map_err(&bad)?;
+        let known = d.u8()? != 0;
+        let pose = d.pose()?;
         *m = known.then_some(pose);
     }
-    let n = d.count(8 + 56).map_err(&bad)?;
+    let n = d.count(8 + 56)?;
     let mut poses = Vec::with_capacity(n);
     for _ in 0..n {
-        poses.push((d.u64().map_err(&bad)? as usize, d.pose().map_err(&bad)?));
+        poses.push((d.u64()? as usize, d.pose()?));
     }
-    let n = d.count(4).map_err(&bad)?;
+    let n = d.count(4)?;
     let mut skipped = Vec::with_capacity(n);
     for _ in 0..n {
-        skipped.push(d.string().map_err(&bad)?);
+        skipped.push(d.string()?);
     }
-    let evicted_cells = d.u64().map_err(&bad)? as usize;
-    let n = d.count(8 * StageMs::NAMES.len()).map_err(&bad)?;
+    let evicted_cells = d.u64()? as usize;
+    let n = d.count(8 * StageMs::NAMES.len())?;
     let mut used_ms = Vec::with_capacity(n);
     for _ in 0..n {
         let mut v = [0.0; StageMs::NAMES.len()];
         for x in &mut v {
-            *x = d.f64().map_err(&bad)?;
+            *x = d.f64()?;
         }
         used_ms.push(StageMs::from_values(v));
-    }
-    let seconds = d.f64().map_err(&bad)?;
-    let report_bytes = d.u64().map_err(&bad)?;
-    let mesh = MeshCounts {
-        vertices: d.u64().map_err(&bad)?,
-        triangles: d.u64().map_err(&bad)?,
-    };
-    let cells = d.count(17).map_err(&bad)?;
-    for _ in 0..cells {
-        let key = CellKey::new(
-            d.i32().map_err(&bad)?,
-            d.i32().map_err(&bad)?,
-            d.i32().map_err(&bad)?,
-        );
-        let last_seen = d.u32().map_err(&bad)?;
-        let axes = d.u8().map_err(&bad)?;
-        for _ in 0..axes {
-            let axis = match d.u8().map_err(&bad)? {
-                0 => Axis::X,
-                1 => Axis::Y,
-                2 => Axis::Z,
-                a => return Err(bad(format!("axis {a}"))),
-            };
-            let mut layer = Layer::UNKNOWN;
-            for v in layer.pred.iter_mut().chain(layer.var.iter_mut()) {
-                *v = f32::from_le_bytes(d.array().map_err(&bad)?);
-            }
-            map.insert_layer(key, axis, layer, last_seen)
-                .map_err(|e| bad(format!("its map does not fit this capacity: {e}")))?;
-        }
-    }
-    if !d.bytes.is_empty() {
-        return Err(bad(format!("{} bytes after the map", d.bytes.len())));
     }
     Ok(Progress {
         fingerprint,
@@ -224,10 +201,38 @@ pub fn read(file: &Path, map: &mut MeshMap) -> Result<Progress, FileError> {
         skipped,
         evicted_cells,
         used_ms,
-        seconds,
-        report_bytes,
-        mesh,
+        seconds: d.f64()?,
+        report_bytes: d.u64()?,
+        mesh: MeshCounts {
+            vertices: d.u64()?,
+            triangles: d.u64()?,
+        },
     })
+}
+
+/// The map's cells and layers, into `map`.
+fn read_map(d: &mut Decoder, map: &mut MeshMap) -> Result<(), String> {
+    let cells = d.count(17)?;
+    for _ in 0..cells {
+        let key = CellKey::new(d.i32()?, d.i32()?, d.i32()?);
+        let last_seen = d.u32()?;
+        let axes = d.u8()?;
+        for _ in 0..axes {
+            let axis = match d.u8()? {
+                0 => Axis::X,
+                1 => Axis::Y,
+                2 => Axis::Z,
+                a => return Err(format!("axis {a}")),
+            };
+            let mut layer = Layer::UNKNOWN;
+            for v in layer.pred.iter_mut().chain(layer.var.iter_mut()) {
+                *v = f32::from_le_bytes(d.array()?);
+            }
+            map.insert_layer(key, axis, layer, last_seen)
+                .map_err(|e| format!("its map does not fit this capacity: {e}"))?;
+        }
+    }
+    Ok(())
 }
 
 fn put_u32(e: &mut Vec<u8>, v: u32) {

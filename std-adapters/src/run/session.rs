@@ -293,20 +293,17 @@ impl<'a, C: Capacity> Run<'a, C> {
         if let Some(p) = &self.pager {
             log::info!("map paged: {}", p.stats());
         }
-        if let Some(mut saved) = self.saved_map.take() {
-            saved.add_map(&map)?;
-            let mut path = std::mem::take(&mut self.map_path);
-            path.extend(poses.iter().map(|(i, p)| (source.stamp(*i), *p)));
-            saved.set_frames(frames_seen);
-            let stats = saved.finish(&path)?;
-            log::info!(
-                "map saved to {}: {} cells, {} layers, {:.1} MB",
-                self.opts.save_map.as_deref().unwrap_or(out).display(),
-                stats.cells,
-                stats.layers,
-                stats.bytes as f64 / 1e6
-            );
-        }
+        let stamps = poses.iter().map(|(i, p)| (source.stamp(*i), *p));
+        let shown_as = self.opts.save_map.as_deref().unwrap_or(out);
+        let start = std::mem::take(&mut self.map_path);
+        save_map(
+            self.saved_map.take(),
+            start,
+            &map,
+            stamps,
+            frames_seen,
+            shown_as,
+        )?;
         self.spool.add_map(&map)?;
         self.spool.colour_by(self.opts.mesh_colour);
         if self.opts.picture {
@@ -348,4 +345,32 @@ impl<'a, C: Capacity> Run<'a, C> {
         let _ = std::fs::remove_file(&self.checkpoint_path);
         Ok(summary)
     }
+}
+
+/// Finishes the map file being written (`saved`, from `--save-map`, shown as `shown_as`):
+/// the cells still in `map`, the path of the map the run started from (`start`) followed by
+/// this run's (`stamped` poses).
+fn save_map(
+    saved: Option<MapWriter>,
+    mut start: Vec<(f64, Pose)>,
+    map: &slamesh_core::map::MeshMap,
+    stamped: impl Iterator<Item = (f64, Pose)>,
+    frames_seen: u32,
+    shown_as: &std::path::Path,
+) -> Result<(), RunError> {
+    let Some(mut saved) = saved else {
+        return Ok(());
+    };
+    saved.add_map(map)?;
+    start.extend(stamped);
+    saved.set_frames(frames_seen);
+    let stats = saved.finish(&start)?;
+    log::info!(
+        "map saved to {}: {} cells, {} layers, {:.1} MB",
+        shown_as.display(),
+        stats.cells,
+        stats.layers,
+        stats.bytes as f64 / 1e6
+    );
+    Ok(())
 }

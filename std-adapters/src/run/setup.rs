@@ -14,6 +14,7 @@ use crate::run::saved_map::{self, MapStart};
 use crate::run::window::{CapTooSmall, Window};
 use slamesh_core::motion::ConstantVelocity;
 use slamesh_core::{Capacity, Pipeline};
+use std::path::Path;
 
 /// See the module docs.
 pub(crate) struct Setup<C: Capacity> {
@@ -37,36 +38,11 @@ impl<C: Capacity> Setup<C> {
             .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
         let workers = Workers::new(opts.threads).map_err(RunError::Threads)?;
         let mut window = opts.window.rules();
-        let mut max_layers = None;
         // With two threads or more, the next frame is read and filtered ahead on the pool;
         // under a cap too tight for the filter's buffers twice, read ahead only.
         let threads = workers.threads() > 1;
-        let mut filter_ahead = threads;
-        if let Some(cap) = opts.window.memory_cap_mb {
-            let (cap_bytes, other) = ((cap * 1e6) as usize, memory::other_bytes());
-            let too_small = |e: CapTooSmall| RunError::MemoryCapTooSmall {
-                cap_mb: cap,
-                class: C::NAME,
-                needed_bytes: e.needed_bytes,
-            };
-            let budget = match Window::max_layers::<C>(cap_bytes, other, filter_ahead) {
-                Ok(budget) => budget,
-                Err(e) if filter_ahead => {
-                    let budget =
-                        Window::max_layers::<C>(cap_bytes, other, false).map_err(too_small)?;
-                    log::info!(
-                        "memory cap {cap} MB: each frame is read ahead but filtered in line \
-                         (filtering ahead needs a cap of {:.0} MB)",
-                        e.needed_bytes as f64 / 1e6
-                    );
-                    filter_ahead = false;
-                    budget
-                }
-                Err(e) => return Err(too_small(e)),
-            };
-            window.max_layers = Some(budget);
-            max_layers = Some(budget);
-        }
+        let (max_layers, filter_ahead) = layer_budget::<C>(opts, threads)?;
+        window.max_layers = max_layers;
         let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
         let mut pipeline =
             Pipeline::<C>::with_map_layers(opts.config, map_layers).map_err(RunError::Config)?;
@@ -81,71 +57,17 @@ impl<C: Capacity> Setup<C> {
             let start = match max_layers.filter(|_| opts.localize_only) {
                 Some(budget) => {
                     let p = MapPager::open(path, budget, opts.config.filter.range_max_m)?;
-                    let f = p.file();
-                    log::info!(
-                        "map {}: {} tile blocks, {} poses of path, {:.1} MB, paged by tile \
-                         within a budget of {budget} layers",
-                        path.display(),
-                        f.index.len(),
-                        f.poses.len(),
-                        f.bytes as f64 / 1e6
-                    );
-                    let start = MapStart {
-                        frames: f.info.frames,
-                        path: f.poses.clone(),
-                        layers: 0,
-                        bytes: f.bytes,
-                        load_s: 0.0,
-                    };
+                    let start = paged_start(path, &p, budget);
                     pager = Some(p);
                     start
                 }
-                None => {
-                    let start = saved_map::load(path, pipeline.map_mut())?;
-                    log::info!(
-                        "map {}: {} cells, {} layers, {} poses of path, {:.1} MB, loaded in \
-                         {:.2} s",
-                        path.display(),
-                        pipeline.map().cell_count(),
-                        start.layers,
-                        start.path.len(),
-                        start.bytes as f64 / 1e6,
-                        start.load_s
-                    );
-                    start
-                }
+                None => loaded_start(path, &mut pipeline)?,
             };
-            let motion = match opts.initial_pose {
-                Some(InitialPose::MapEnd) => {
-                    let [.., before, last] = start.path[..] else {
-                        return Err(FileError::at(
-                            path,
-                            "--initial-pose end: the map's path has fewer than two poses",
-                        )
-                        .into());
-                    };
-                    ConstantVelocity::from_history(Some(before.1), Some(last.1))
-                }
-                _ => ConstantVelocity::new(),
-            };
+            let motion = start_motion(path, &start, opts.initial_pose)?;
             pipeline.restore_progress(start.frames, motion);
             map_start = Some(start);
         }
-        let closer = match opts.loop_closure {
-            Some(_) if max_layers.is_some() || !window.is_off() => {
-                return Err(RunError::Config(slamesh_core::ConfigError {
-                    field: "loop closure",
-                    reason: "it rebuilds the whole map, so it does not run with a memory cap or \
-                             a sliding window yet: leave out one of the two",
-                }))
-            }
-            Some(s) => Some(LoopClosure::start(
-                opts.config,
-                s,
-                &out.join(".loop-closure.scans"),
-            )?),
-            None => None,
-        };
+        let closer = loop_closer(opts, max_layers.is_some() || !window.is_off())?;
         Ok(Setup {
             closer,
             pipeline,
@@ -160,5 +82,113 @@ impl<C: Capacity> Setup<C> {
                 _ => LookAhead::off(),
             },
         })
+    }
+}
+
+/// The layer budget a memory cap allows (none without a cap), and whether the next frame can
+/// still be filtered ahead (`threads`: there is a pool to filter on) within it.
+fn layer_budget<C: Capacity>(
+    opts: &RunOptions,
+    threads: bool,
+) -> Result<(Option<usize>, bool), RunError> {
+    let Some(cap) = opts.window.memory_cap_mb else {
+        return Ok((None, threads));
+    };
+    let (cap_bytes, other) = ((cap * 1e6) as usize, memory::other_bytes());
+    let too_small = |e: CapTooSmall| RunError::MemoryCapTooSmall {
+        cap_mb: cap,
+        class: C::NAME,
+        needed_bytes: e.needed_bytes,
+    };
+    match Window::max_layers::<C>(cap_bytes, other, threads) {
+        Ok(budget) => Ok((Some(budget), threads)),
+        Err(e) if threads => {
+            let budget = Window::max_layers::<C>(cap_bytes, other, false).map_err(too_small)?;
+            log::info!(
+                "memory cap {cap} MB: each frame is read ahead but filtered in line \
+                 (filtering ahead needs a cap of {:.0} MB)",
+                e.needed_bytes as f64 / 1e6
+            );
+            Ok((Some(budget), false))
+        }
+        Err(e) => Err(too_small(e)),
+    }
+}
+
+/// A saved map opened for paging within `budget` layers: where it starts (nothing resident).
+fn paged_start(path: &Path, p: &MapPager, budget: usize) -> MapStart {
+    let f = p.file();
+    log::info!(
+        "map {}: {} tile blocks, {} poses of path, {:.1} MB, paged by tile \
+         within a budget of {budget} layers",
+        path.display(),
+        f.index.len(),
+        f.poses.len(),
+        f.bytes as f64 / 1e6
+    );
+    MapStart {
+        frames: f.info.frames,
+        path: f.poses.clone(),
+        layers: 0,
+        bytes: f.bytes,
+        load_s: 0.0,
+    }
+}
+
+/// A saved map loaded whole into `pipeline`'s map.
+fn loaded_start<C: Capacity>(
+    path: &Path,
+    pipeline: &mut Pipeline<C>,
+) -> Result<MapStart, RunError> {
+    let start = saved_map::load(path, pipeline.map_mut())?;
+    log::info!(
+        "map {}: {} cells, {} layers, {} poses of path, {:.1} MB, loaded in {:.2} s",
+        path.display(),
+        pipeline.map().cell_count(),
+        start.layers,
+        start.path.len(),
+        start.bytes as f64 / 1e6,
+        start.load_s
+    );
+    Ok(start)
+}
+
+/// The motion model a run from a saved map starts with: moving as the map's path last moved
+/// (`--initial-pose end`), else at rest.
+fn start_motion(
+    path: &Path,
+    start: &MapStart,
+    initial: Option<InitialPose>,
+) -> Result<ConstantVelocity, RunError> {
+    if initial != Some(InitialPose::MapEnd) {
+        return Ok(ConstantVelocity::new());
+    }
+    let [.., before, last] = start.path[..] else {
+        return Err(FileError::at(
+            path,
+            "--initial-pose end: the map's path has fewer than two poses",
+        )
+        .into());
+    };
+    Ok(ConstantVelocity::from_history(Some(before.1), Some(last.1)))
+}
+
+/// Loop closure's thread when asked for; refused beside a memory cap or a window (`bounded`).
+fn loop_closer<C: Capacity>(
+    opts: &RunOptions,
+    bounded: bool,
+) -> Result<Option<LoopClosure<C>>, RunError> {
+    match opts.loop_closure {
+        Some(_) if bounded => Err(RunError::Config(slamesh_core::ConfigError {
+            field: "loop closure",
+            reason: "it rebuilds the whole map, so it does not run with a memory cap or \
+                     a sliding window yet: leave out one of the two",
+        })),
+        Some(s) => Ok(Some(LoopClosure::start(
+            opts.config,
+            s,
+            &opts.out.join(".loop-closure.scans"),
+        )?)),
+        None => Ok(None),
     }
 }
