@@ -499,7 +499,7 @@ fn the_capacity_class_fits_the_first_scans_and_a_scan_too_large_for_it_is_refuse
     let (_, scans) = drive(3);
     let scans_dir = write_scan_folder(&dir, &scans);
     // Points within the default range limits (1.2 to 100 m) in a scan, and the class the rule
-    // gives for the median of the first scans: the smallest of 2 048, 36 000, 72 000, 140 000
+    // gives for the largest of the first scans: the smallest of 2 048, 36 000, 72 000, 140 000
     // points that holds them with a quarter to spare.
     let in_range = |scan: &[slamesh_core::Point]| {
         scan.iter()
@@ -519,24 +519,24 @@ fn the_capacity_class_fits_the_first_scans_and_a_scan_too_large_for_it_is_refuse
         .find(|(points, _, _)| *points as f64 >= 1.25 * n as f64)
         .map_or(("64-beam", "64"), |(_, name, flag)| (name, flag))
     };
-    let median = |counts: &[usize]| {
-        let mut sorted: Vec<(usize, usize)> = counts.iter().copied().enumerate().collect();
-        sorted.sort_by_key(|&(_, n)| n);
-        sorted[sorted.len() / 2]
+    // The first of the largest.
+    let most = |counts: &[usize]| {
+        let max = *counts.iter().max().unwrap();
+        (counts.iter().position(|&n| n == max).unwrap(), max)
     };
     let counts: Vec<usize> = scans.iter().map(|s| in_range(s)).collect();
-    let (frame, median_n) = median(&counts);
-    let (name, flag) = class_of(median_n);
+    let (frame, most_n) = most(&counts);
+    let (name, flag) = class_of(most_n);
     let out = dir.join("auto");
     // Without -q: the choice is an info message.
     let o = slamesh_ok(&["run", s(&scans_dir), "--out", s(&out)]);
     let stderr = text(&o.stderr);
     assert!(
         stderr.contains(&format!(
-            "capacity {name} (--capacity {flag}): frame {frame} has {median_n} points within \
-             range, the median of the first 3 readable scans"
+            "capacity {name} (--capacity {flag}): frame {frame} has {most_n} points within \
+             range, the most of the first 3 readable scans"
         )),
-        "{median_n} points: {stderr}"
+        "{most_n} points: {stderr}"
     );
     assert_eq!(report(&out)["summary"]["capacity"], name);
 
@@ -547,7 +547,7 @@ fn the_capacity_class_fits_the_first_scans_and_a_scan_too_large_for_it_is_refuse
     let out = dir.join("odd-auto");
     slamesh_ok(&["run", s(&odd_dir), "--out", s(&out), "-q"]);
     let odd_counts: Vec<usize> = odd.iter().map(|s| in_range(s)).collect();
-    let (odd_name, _) = class_of(median(&odd_counts).1);
+    let (odd_name, _) = class_of(most(&odd_counts).1);
     assert_ne!(odd_name, "tiny");
     assert_eq!(report(&out)["summary"]["capacity"], odd_name);
 

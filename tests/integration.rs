@@ -16,6 +16,7 @@ mod command_outputs;
 mod degenerate;
 mod demo;
 mod deskew;
+mod docs_examples;
 mod hard_motion;
 mod health;
 mod kitti_odometry;

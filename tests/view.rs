@@ -5,7 +5,8 @@
 use foxglove::messages::{PointCloud, SceneUpdate};
 use foxglove::Decode;
 use slamesh::io::recording::mcap::messages_of;
-use slamesh::run::{run, FrameRecord, RunOptions};
+use slamesh::run::sink::FnSink;
+use slamesh::run::{run_to, FrameEvent, FrameRecord, RunOptions, Sinks};
 use slamesh::view::{View, ViewOptions};
 use slamesh_core::{Config, KittiCapacity, Pipeline};
 use slamesh_sim::Drive;
@@ -29,14 +30,20 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
         out: out.clone(),
         config: Config::default(),
         threads: 2,
-        view: ViewOptions {
-            serve: None,
-            record: true,
-        },
         ..RunOptions::default()
     };
+    let view = ViewOptions {
+        serve: None,
+        record: true,
+    };
     let mut records: Vec<FrameRecord> = Vec::new();
-    run::<KittiCapacity>(&mut drive, &opts, |r| records.push(r.clone())).unwrap();
+    // The view is one of the run's sinks, beside one that keeps the records.
+    let mut sinks = Sinks::new();
+    sinks.add(View::for_run(&view, &out, &opts.config).unwrap().unwrap());
+    sinks.add(FnSink::new("records", |e: &FrameEvent| {
+        records.push(e.record.clone())
+    }));
+    run_to::<KittiCapacity>(&mut drive, &opts, sinks).unwrap();
     assert!(!out.join("slam.mcap.tmp").exists());
     let bytes = std::fs::read(out.join("slam.mcap")).unwrap();
 

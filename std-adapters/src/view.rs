@@ -10,8 +10,9 @@
 //! | `/mesh` | `foxglove.SceneUpdate` | one entity per map layer the frame changed (id `x,y,z,axis`), its shown triangles; an entity replaces the one of the same id |
 //! | `/loop_closures` | `foxglove.Log` | each loop closed (`--loop-closure on`): the frames, the score and the correction; the whole corrected trajectory and map are sent with it |
 //!
-//! The SLAM loop only copies the frame's points, pose and changed layers into an [`Update`]
-//! and offers it to a bounded queue ([`QUEUE`] frames); when the queue is full the update is
+//! The view is one of a run's sinks ([`crate::run::sink`]): the SLAM loop only copies the
+//! frame's points, pose and changed layers into a [`MapUpdate`] and offers it to a bounded
+//! queue ([`QUEUE`] frames, [`WhenFull::DropNewest`]); when the queue is full the update is
 //! dropped and counted, so the loop never waits for the view. A thread of its own turns updates
 //! into messages and hands them to the SDK: its WebSocket server keeps a bounded backlog per
 //! client and drops the oldest messages of a client that does not read; its MCAP writer writes
@@ -20,18 +21,18 @@
 //! messages cannot change or stop the run.
 
 use crate::io::error::FileError;
+use crate::run::sink::{FrameEvent, MapUpdate, Queued, Sink, WhenFull};
 use foxglove::messages::{
     Color, FrameTransform, Log, PackedElementField, Point3, PointCloud, Pose as FgPose,
     PosesInFrame, Quaternion, SceneEntity, SceneUpdate, Timestamp, TriangleListPrimitive, Vector3,
 };
-use foxglove::{Context, WebSocketServer};
+use foxglove::{Channel, Context, McapWriterHandle, WebSocketServer, WebSocketServerHandle};
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::config::Config;
 use slamesh_core::layer::{Layer, Shown};
-use slamesh_core::{Capacity, Pipeline, Point, Pose};
+use slamesh_core::{Capacity, Pipeline, Pose};
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
-use std::thread::JoinHandle;
+use std::sync::Arc;
 
 /// Frames the queue between the SLAM loop and the view's thread holds.
 pub const QUEUE: usize = 4;
@@ -60,45 +61,6 @@ impl ViewOptions {
     }
 }
 
-/// One frame for the view: copied out of the pipeline by the SLAM loop.
-#[derive(Debug, Clone)]
-pub struct Update {
-    /// Frame index.
-    pub frame: usize,
-    /// The frame's time (seconds).
-    pub stamp_s: f64,
-    /// The estimated sensor pose.
-    pub pose: Pose,
-    /// The scan's points as registered, sensor frame.
-    pub points: Vec<Point>,
-    /// The map layers the frame changed, as they are after it (every layer after a loop
-    /// closure).
-    pub layers: Vec<(CellKey, Axis, Layer)>,
-    /// After a loop closure: the whole corrected trajectory and what was closed.
-    pub closed: Option<(Vec<Pose>, Vec<String>)>,
-}
-
-impl Update {
-    /// The last frame `pipeline` took (frame `frame`, at `stamp_s`); `None` before the first.
-    pub fn of<C: Capacity>(pipeline: &Pipeline<C>, frame: usize, stamp_s: f64) -> Option<Self> {
-        let pose = pipeline.pose()?;
-        let map = pipeline.map();
-        let layers = pipeline
-            .last_scan()
-            .iter()
-            .filter_map(|s| map.layer(&s.key, s.axis).map(|l| (s.key, s.axis, *l)))
-            .collect();
-        Some(Update {
-            frame,
-            stamp_s,
-            pose,
-            points: pipeline.last_points().to_vec(),
-            layers,
-            closed: None,
-        })
-    }
-}
-
 /// What the view did, for the closing lines.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ViewStats {
@@ -108,14 +70,13 @@ pub struct ViewStats {
     pub dropped: usize,
 }
 
-/// The running view: the queue's sending end and the thread behind it.
+/// The running view: the publisher on its thread behind a bounded queue, and the recording
+/// to rename when the run ends.
 pub struct View {
-    tx: Option<SyncSender<Update>>,
-    thread: Option<JoinHandle<Result<usize, String>>>,
+    queue: Option<Queued>,
     /// The address the server listens on, if serving (the port is the real one when `:0`
     /// was asked for).
     pub address: Option<String>,
-    dropped: usize,
     record: Option<(PathBuf, PathBuf)>,
 }
 
@@ -163,34 +124,24 @@ impl View {
             }
             None => None,
         };
-        let (tx, rx) = sync_channel(QUEUE);
-        let config = *config;
-        let thread = std::thread::Builder::new()
-            .name("slamesh-view".into())
-            .spawn(move || {
-                let sent = publish(&ctx, rx, &config);
-                if let Some(w) = writer {
-                    w.close().map_err(|e| e.to_string())?;
-                }
-                if let Some(s) = server {
-                    // Not waiting for the clients: one that does not read would hold the run.
-                    s.stop().detach_all();
-                }
-                Ok(sent)
-            })
+        let publisher = Publisher::new(ctx, config, writer, server);
+        let queue = Queued::new(publisher, QUEUE, WhenFull::DropNewest)
             .map_err(|e| FileError::at(out, format!("cannot start the view: {e}")))?;
         Ok(Some(View {
-            tx: Some(tx),
-            thread: Some(thread),
+            queue: Some(queue),
             address,
-            dropped: 0,
             record,
         }))
     }
 
-    /// The view `opts` asks for, started, its address said on the terminal.
-    pub fn for_run(opts: &crate::run::RunOptions) -> Result<Option<Self>, FileError> {
-        let view = Self::start(&opts.view, &opts.out, &opts.config)?;
+    /// The view `opts` asks for (the recording in `out`), started, its address said on the
+    /// terminal.
+    pub fn for_run(
+        opts: &ViewOptions,
+        out: &Path,
+        config: &Config,
+    ) -> Result<Option<Self>, FileError> {
+        let view = Self::start(opts, out, config)?;
         if let Some(a) = view.as_ref().and_then(|v| v.address.as_ref()) {
             log::info!(
                 "view: serving ws://{a} (Foxglove app: Open connection, Foxglove WebSocket)"
@@ -199,95 +150,42 @@ impl View {
         Ok(view)
     }
 
-    /// Finishes `view` if there is one ([`View::finish`]) and says what it did.
-    pub fn close(view: Option<Self>) -> Result<(), FileError> {
-        if let Some(v) = view {
-            let stats = v.finish()?;
-            log::info!(
-                "view: {} frames shown or recorded, {} dropped (the view was behind)",
-                stats.sent,
-                stats.dropped
-            );
-        }
-        Ok(())
-    }
-
     /// Offers the last frame of `pipeline` to the view; never waits (a full queue drops it).
     pub fn frame<C: Capacity>(&mut self, pipeline: &Pipeline<C>, frame: usize, stamp_s: f64) {
-        let (Some(tx), Some(update)) = (&self.tx, Update::of(pipeline, frame, stamp_s)) else {
+        let Some(update) = MapUpdate::of(pipeline, frame, stamp_s) else {
             return;
         };
-        match tx.try_send(update) {
-            Ok(()) => {}
-            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => self.dropped += 1,
-        }
+        self.offer(update);
     }
 
-    /// Offers the frame `record` describes, as [`View::frame`], or as [`View::loop_closed`]
-    /// (with the trajectory `path` gives) when loop closures came with it; nothing for a frame
-    /// that failed.
-    pub fn show<C: Capacity>(
-        &mut self,
-        pipeline: &Pipeline<C>,
-        record: &crate::run::FrameRecord,
-        path: impl FnOnce() -> Vec<Pose>,
-    ) {
-        if record.error.is_some() {
-            return;
-        }
-        if record.loop_closures.is_empty() {
-            self.frame(pipeline, record.frame, record.stamp);
-        } else {
-            self.loop_closed(
-                pipeline,
-                record.frame,
-                record.stamp,
-                path(),
-                &record.loop_closures,
-            );
-        }
-    }
-
-    /// Offers the last frame of `pipeline` after a loop closure: with the whole map, the whole
-    /// corrected `path` and the closures' descriptions. Never waits.
-    pub fn loop_closed<C: Capacity>(
-        &mut self,
-        pipeline: &Pipeline<C>,
-        frame: usize,
-        stamp_s: f64,
-        path: Vec<Pose>,
-        closures: &[crate::loop_closure::Closure],
-    ) {
-        let (Some(tx), Some(mut update)) = (&self.tx, Update::of(pipeline, frame, stamp_s)) else {
-            return;
-        };
-        update.layers = pipeline
-            .map()
-            .layers()
-            .map(|l| (l.key, l.axis, *l.layer))
-            .collect();
-        update.closed = Some((path, closures.iter().map(|c| c.describe()).collect()));
-        if tx.try_send(update).is_err() {
-            self.dropped += 1;
+    fn offer(&mut self, update: MapUpdate) {
+        if let Some(q) = &mut self.queue {
+            let event = FrameEvent {
+                record: crate::run::FrameRecord::skipped(update.frame, String::new()),
+                pose: Some(update.pose),
+                map: Some(update),
+            };
+            // A publisher that stopped says why when the view finishes.
+            let _ = q.frame(Arc::new(event));
         }
     }
 
     /// Sends what is queued, closes the recording (renamed to `slam.mcap`) and the server.
     pub fn finish(mut self) -> Result<ViewStats, FileError> {
-        self.tx = None;
-        let sent = match self.thread.take().map(JoinHandle::join) {
-            Some(Ok(Ok(sent))) => sent,
-            Some(Ok(Err(e))) => return Err(self.file_error(e)),
-            Some(Err(_)) => return Err(self.file_error("the view's thread panicked".into())),
-            None => 0,
+        let Some(queue) = self.queue.take() else {
+            return Ok(ViewStats::default());
         };
+        let (stats, result) = queue.end();
+        if let Err(e) = result {
+            return Err(self.file_error(e));
+        }
         if let Some((tmp, path)) = &self.record {
             std::fs::rename(tmp, path)
                 .map_err(|e| FileError::at(path, format!("cannot write: {e}")))?;
         }
         Ok(ViewStats {
-            sent,
-            dropped: self.dropped,
+            sent: stats.delivered,
+            dropped: stats.dropped,
         })
     }
 
@@ -299,30 +197,88 @@ impl View {
     }
 }
 
+/// The view as one of a run's sinks: it shows each used frame's map update (a frame that
+/// failed has none).
+impl Sink for View {
+    fn name(&self) -> String {
+        "view".into()
+    }
+    fn wants_map(&self) -> bool {
+        true
+    }
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+        if event.map.is_some() {
+            if let Some(q) = &mut self.queue {
+                return q.frame(event);
+            }
+        }
+        Ok(())
+    }
+    fn finish(&mut self) -> Result<Option<String>, String> {
+        let view = View {
+            queue: self.queue.take(),
+            address: self.address.take(),
+            record: self.record.take(),
+        };
+        let stats = view.finish().map_err(|e| e.to_string())?;
+        Ok(Some(format!(
+            "{} frames shown or recorded, {} dropped (the view was behind)",
+            stats.sent, stats.dropped
+        )))
+    }
+}
+
 /// `host:port` split; `None` when it is not that.
 fn split_address(addr: &str) -> Option<(&str, u16)> {
     let (host, port) = addr.rsplit_once(':')?;
     Some((host.trim_matches(['[', ']']), port.parse().ok()?))
 }
 
-/// Turns every update from `rx` into messages on `ctx`'s channels until the SLAM loop closes
-/// the queue; returns how many it published.
-fn publish(ctx: &std::sync::Arc<Context>, rx: Receiver<Update>, config: &Config) -> usize {
-    let scan = ctx.channel_builder("/scan").build::<PointCloud>();
-    let tf = ctx.channel_builder("/tf").build::<FrameTransform>();
-    let trajectory = ctx.channel_builder("/trajectory").build::<PosesInFrame>();
-    let mesh = ctx.channel_builder("/mesh").build::<SceneUpdate>();
-    let closures = ctx.channel_builder("/loop_closures").build::<Log>();
-    let lattice = config.lattice().table();
-    let shown = Shown::new(&config.mesh);
-    let mut poses: Vec<FgPose> = Vec::new();
-    let mut last = None;
-    let mut sent = 0;
-    for u in rx {
+/// Turns each update into messages on its context's channels (on the queue's thread); at the
+/// end, the trajectory once more, then closes the recording and stops the server.
+struct Publisher {
+    scan: Channel<PointCloud>,
+    tf: Channel<FrameTransform>,
+    trajectory: Channel<PosesInFrame>,
+    mesh: Channel<SceneUpdate>,
+    closures: Channel<Log>,
+    lattice: slamesh_core::lattice::LatticeTable,
+    shown: Shown,
+    poses: Vec<FgPose>,
+    last: Option<(Timestamp, u64)>,
+    sent: usize,
+    writer: Option<McapWriterHandle<std::io::BufWriter<std::fs::File>>>,
+    server: Option<WebSocketServerHandle>,
+}
+
+impl Publisher {
+    fn new(
+        ctx: Arc<Context>,
+        config: &Config,
+        writer: Option<McapWriterHandle<std::io::BufWriter<std::fs::File>>>,
+        server: Option<WebSocketServerHandle>,
+    ) -> Self {
+        Publisher {
+            scan: ctx.channel_builder("/scan").build::<PointCloud>(),
+            tf: ctx.channel_builder("/tf").build::<FrameTransform>(),
+            trajectory: ctx.channel_builder("/trajectory").build::<PosesInFrame>(),
+            mesh: ctx.channel_builder("/mesh").build::<SceneUpdate>(),
+            closures: ctx.channel_builder("/loop_closures").build::<Log>(),
+            lattice: config.lattice().table(),
+            shown: Shown::new(&config.mesh),
+            poses: Vec::new(),
+            last: None,
+            sent: 0,
+            writer,
+            server,
+        }
+    }
+
+    fn publish(&mut self, u: &MapUpdate) {
         let nanos = (u.stamp_s.max(0.0) * 1e9) as u64;
         let time = timestamp(u.stamp_s);
-        scan.log_with_time(&point_cloud(&u, time), nanos);
-        tf.log_with_time(
+        self.scan.log_with_time(&point_cloud(u, time), nanos);
+        self.tf.log_with_time(
             &FrameTransform {
                 timestamp: Some(time),
                 parent_frame_id: "world".into(),
@@ -332,9 +288,9 @@ fn publish(ctx: &std::sync::Arc<Context>, rx: Receiver<Update>, config: &Config)
             },
             nanos,
         );
-        poses.push(fg_pose(&u.pose));
+        self.poses.push(fg_pose(&u.pose));
         if let Some((path, notes)) = &u.closed {
-            poses = path.iter().map(fg_pose).collect();
+            self.poses = path.iter().map(fg_pose).collect();
             for note in notes {
                 let log = Log {
                     timestamp: Some(time),
@@ -343,31 +299,57 @@ fn publish(ctx: &std::sync::Arc<Context>, rx: Receiver<Update>, config: &Config)
                     name: "slamesh".into(),
                     ..Log::default()
                 };
-                closures.log_with_time(&log, nanos);
+                self.closures.log_with_time(&log, nanos);
             }
         }
-        if sent % TRAJECTORY_EVERY == 0 || u.closed.is_some() {
-            trajectory.log_with_time(&poses_in_frame(&poses, time), nanos);
+        if self.sent % TRAJECTORY_EVERY == 0 || u.closed.is_some() {
+            let poses = poses_in_frame(&self.poses, time);
+            self.trajectory.log_with_time(&poses, nanos);
         }
         let entities = u
             .layers
             .iter()
-            .map(|(key, axis, layer)| entity(key, *axis, layer, &lattice, shown, time))
+            .map(|(key, axis, layer)| entity(key, *axis, layer, &self.lattice, self.shown, time))
             .collect();
-        mesh.log_with_time(
+        self.mesh.log_with_time(
             &SceneUpdate {
                 deletions: Vec::new(),
                 entities,
             },
             nanos,
         );
-        last = Some((time, nanos));
-        sent += 1;
+        self.last = Some((time, nanos));
+        self.sent += 1;
     }
-    if let Some((time, nanos)) = last {
-        trajectory.log_with_time(&poses_in_frame(&poses, time), nanos);
+}
+
+impl Sink for Publisher {
+    fn name(&self) -> String {
+        "view".into()
     }
-    sent
+    fn wants_map(&self) -> bool {
+        true
+    }
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+        if let Some(u) = &event.map {
+            self.publish(u);
+        }
+        Ok(())
+    }
+    fn finish(&mut self) -> Result<Option<String>, String> {
+        if let Some((time, nanos)) = self.last {
+            let poses = poses_in_frame(&self.poses, time);
+            self.trajectory.log_with_time(&poses, nanos);
+        }
+        if let Some(w) = self.writer.take() {
+            w.close().map_err(|e| e.to_string())?;
+        }
+        if let Some(s) = self.server.take() {
+            // Not waiting for the clients: one that does not read would hold the run.
+            s.stop().detach_all();
+        }
+        Ok(None)
+    }
 }
 
 fn timestamp(s: f64) -> Timestamp {
@@ -420,7 +402,7 @@ fn poses_in_frame(poses: &[FgPose], time: Timestamp) -> PosesInFrame {
 }
 
 /// The scan in the world frame: float32 x, y, z.
-fn point_cloud(u: &Update, time: Timestamp) -> PointCloud {
+fn point_cloud(u: &MapUpdate, time: Timestamp) -> PointCloud {
     let mut data = Vec::with_capacity(u.points.len() * 12);
     for p in &u.points {
         let w = u.pose * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);

@@ -65,6 +65,18 @@ where
     cli.run().map_err(|e| e.to_string())
 }
 
+/// Parses a command line as `slamesh` would (its arguments without the program's name),
+/// without running it: `Err` with clap's message. The examples in the README and the docs are
+/// checked with it (`tests/docs_examples.rs`).
+pub fn parse_args<I, T>(args: I) -> Result<(), String>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let argv = std::iter::once(OsString::from("slamesh")).chain(args.into_iter().map(Into::into));
+    Cli::try_parse_from(argv).map(|_| ()).map_err(|e| e.to_string())
+}
+
 /// The command line.
 #[derive(Parser)]
 #[command(

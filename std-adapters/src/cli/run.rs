@@ -11,7 +11,8 @@ use crate::io::{kitti, trajectory, FileError};
 use crate::loop_closure::settings::LoopSettings;
 use crate::run::capacity::{self, ClassId};
 use crate::run::session::{Deskew, InitialPose};
-use crate::run::{run, FrameRecord, FrameSource, Input, RunOptions, Summary};
+use crate::run::sink::FnSink;
+use crate::run::{run_to, FrameEvent, FrameRecord, FrameSource, Input, RunOptions, Sinks, Summary};
 use crate::say;
 use clap::Args;
 use indicatif::ProgressBar;
@@ -64,8 +65,8 @@ pub struct RunArgs {
     pub no_picture: bool,
     /// The capacity class: how many points a scan may keep within range, and how large the
     /// map may grow (tiny: 2 048 points, 0.33 MB; 16: 36 000, 35.7 MB; 32: 72 000, 71.3 MB;
-    /// 64: 140 000, 137.5 MB). auto takes the smallest that holds the first scan's points
-    /// within range with a quarter to spare.
+    /// 64: 140 000, 137.5 MB). auto takes the smallest that holds the points within range of
+    /// the largest of the first five scans with a quarter to spare.
     #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
     pub capacity: CapacityFlag,
     /// Start from a saved map (written by --save-map): map on from it, in its frame (with
@@ -91,15 +92,18 @@ pub struct RunArgs {
     #[arg(long, value_enum, default_value_t = OnOff::Off)]
     pub loop_closure: OnOff,
     /// Serve a live view for the Foxglove app on ADDR (default 127.0.0.1:8765, this machine
-    /// only; reach it from a laptop through an SSH tunnel). It only publishes.
-    #[cfg(feature = "view")]
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::view::DEFAULT_ADDRESS)]
+    /// only; reach it from a laptop through an SSH tunnel). It only publishes. Needs a build
+    /// with the feature `view` (`cargo install --path std-adapters --features view`).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = VIEW_ADDRESS)]
     pub view: Option<String>,
-    /// Record the view's channels to slam.mcap in the output folder (opens in the Foxglove app).
-    #[cfg(feature = "view")]
+    /// Record the view's channels to slam.mcap in the output folder (opens in the Foxglove
+    /// app). Needs a build with the feature `view`, as `--view` does.
     #[arg(long)]
     pub record: bool,
 }
+
+/// The address `--view` serves on when none is given: this machine only.
+const VIEW_ADDRESS: &str = "127.0.0.1:8765";
 
 /// A feature turned on or off.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -327,11 +331,6 @@ fn run_with(
             DeskewFlag::Auto => Deskew::Auto,
             DeskewFlag::Off => Deskew::Off,
         },
-        #[cfg(feature = "view")]
-        view: crate::view::ViewOptions {
-            serve: args.view.clone(),
-            record: args.record,
-        },
     };
     let bar = match source {
         Input::Live(_) => crate::cli::progress_open(quiet),
@@ -345,7 +344,8 @@ fn run_with(
         args.out.display()
     );
     let mut notices = FrameNotices::default();
-    let on_frame = |rec: &FrameRecord| {
+    let on_frame = |e: &FrameEvent| {
+        let rec = &e.record;
         frame_messages(rec, &bar, &mut notices);
         bar.set_message(format!(
             "{} ms, {} MB",
@@ -354,11 +354,13 @@ fn run_with(
         ));
         bar.inc(1);
     };
+    let mut sinks = view_sinks(args, &opts)?;
+    sinks.add(FnSink::new("progress", on_frame));
     let class = args
         .capacity
         .class()
         .unwrap_or_else(|| capacity::choose(&mut source, &opts).id);
-    let summary = crate::with_capacity!(class, C => run::<C>(&mut source, &opts, on_frame))?;
+    let summary = crate::with_capacity!(class, C => run_to::<C>(&mut source, &opts, sinks))?;
     bar.finish_and_clear();
     notices.finish();
     print_summary(&summary, &args.out);
@@ -373,6 +375,49 @@ fn run_with(
         return Err(CliError::NotRegistered { frames: bad.len() });
     }
     Ok(())
+}
+
+/// The live view and its recording, when asked for (`--view`, `--record`): a sink of the run.
+/// In a build without the feature `view`, asking for them is an error that says how to get
+/// them.
+fn view_sinks<'a>(args: &RunArgs, opts: &RunOptions) -> Result<Sinks<'a>, CliError> {
+    #[cfg_attr(not(feature = "view"), allow(unused_mut))]
+    let mut sinks = Sinks::new();
+    #[cfg(feature = "view")]
+    {
+        let view = crate::view::ViewOptions {
+            serve: args.view.clone(),
+            record: args.record,
+        };
+        if view.is_on() {
+            // The recording goes into the output folder, made before the run makes it.
+            std::fs::create_dir_all(&opts.out).map_err(|e| {
+                FileError::at(&opts.out, format!("cannot create the output folder: {e}"))
+            })?;
+        }
+        if let Some(v) = crate::view::View::for_run(&view, &opts.out, &opts.config)? {
+            sinks.add(v);
+        }
+    }
+    #[cfg(not(feature = "view"))]
+    {
+        let _ = opts;
+        let flag = match (&args.view, args.record) {
+            (Some(_), _) => Some("--view"),
+            (None, true) => Some("--record"),
+            (None, false) => None,
+        };
+        if let Some(flag) = flag {
+            return Err(CliError::BadFlag {
+                flag,
+                reason: "this slamesh was built without the live view: build it with the \
+                         feature view (cargo install --path std-adapters --features view, or \
+                         cargo run --release --features slamesh/view -- run ...)"
+                    .into(),
+            });
+        }
+    }
+    Ok(sinks)
 }
 
 /// What the terminal says about one frame: a rate-limited warning when it was skipped or not

@@ -165,12 +165,12 @@ pub fn points_in_range(scan: &[Point], filter: &FilterConfig) -> usize {
 /// Readable scans among the first frames that `auto` looks at ([`choose`]).
 pub const CHOICE_SCANS: usize = 5;
 
-/// The class `auto` chooses: the smallest for the median of the first [`CHOICE_SCANS`]
+/// The class `auto` chooses: the smallest for the largest of the first [`CHOICE_SCANS`]
 /// readable scans of `source` (of the first ten; a live source's that have come), counting
-/// their points within the configuration's range limits, so that one odd first scan (a
-/// partial sweep, a cut-off file) does not choose for the whole run; under the memory cap
-/// when there is one ([`class_under_cap`]); the largest when no scan is readable. Says what
-/// it chose.
+/// their points within the configuration's range limits, so that one odd small first scan (a
+/// partial sweep, a cut-off file) does not choose a class too small for the sensor's whole
+/// sweeps; under the memory cap when there is one ([`class_under_cap`]); the largest when no
+/// scan is readable. Says what it chose.
 pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
     let mut seen: Vec<(usize, usize)> = Vec::new();
     for i in 0..source.frames().min(10) {
@@ -181,8 +181,12 @@ pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
             seen.push((i, points_in_range(&scan, &opts.config.filter)));
         }
     }
-    seen.sort_by_key(|&(_, n)| n);
-    let Some(&(i, n)) = seen.get(seen.len() / 2) else {
+    // The first of the largest.
+    let Some((i, n)) = seen
+        .iter()
+        .copied()
+        .reduce(|a, b| if b.1 > a.1 { b } else { a })
+    else {
         let all = classes();
         return all[all.len() - 1];
     };
@@ -206,8 +210,8 @@ pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
         None => class_for(n),
     };
     log::info!(
-        "capacity {} (--capacity {}): frame {i} has {n} points within range, the median of \
-         the first {} readable scans",
+        "capacity {} (--capacity {}): frame {i} has {n} points within range, the most of the \
+         first {} readable scans",
         class.name,
         class.flag,
         seen.len()

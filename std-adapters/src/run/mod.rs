@@ -8,6 +8,7 @@
 //! | the run loop: start or resume, a step per frame, finish | [`session`] |
 //! | one frame as named stages: read, prepare, register, update the map, record | `step` |
 //! | why a frame was skipped | [`frame_error`] |
+//! | one way out: what a run produces, fanned out to its sinks (bounded queues for slow ones) | [`sink`] |
 //! | the per-frame records, the summary, `report.json` and the trajectories | [`report`] |
 //! | time per stage | [`timing`] |
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
@@ -28,6 +29,7 @@ pub mod saved_map;
 pub mod scale;
 pub mod session;
 mod setup;
+pub mod sink;
 pub mod source;
 mod step;
 pub mod timing;
@@ -35,5 +37,6 @@ pub mod window;
 
 pub use frame_error::{FrameError, FrameFault};
 pub use report::{FrameRecord, Summary};
-pub use session::{run, Run, RunError, RunOptions};
+pub use session::{run, run_to, Run, RunError, RunOptions};
+pub use sink::{FrameEvent, Sink, Sinks};
 pub use source::{FrameSource, Input};

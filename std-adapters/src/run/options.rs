@@ -6,6 +6,7 @@ use crate::io::error::FileError;
 use crate::io::mesh_spool::{MeshColour, MeshFormat};
 use crate::io::trajectory::Trajectory;
 use crate::loop_closure::settings::LoopSettings;
+use crate::run::sink::SinkError;
 use slamesh_core::{Config, ConfigError};
 use std::fmt;
 use std::path::PathBuf;
@@ -57,9 +58,6 @@ pub struct RunOptions {
     /// the default: off). Pair it with `config.map.stale_after_frames` (the command sets
     /// [`LoopSettings::stale_after_frames`]).
     pub loop_closure: Option<LoopSettings>,
-    /// The live view and its recording (`--view`, `--record`).
-    #[cfg(feature = "view")]
-    pub view: crate::view::ViewOptions,
 }
 
 /// `--initial-pose`: where a run from a saved map starts.
@@ -102,6 +100,8 @@ pub enum RunError {
     },
     /// An input or output file could not be read or written.
     File(FileError),
+    /// A sink failed ([`crate::run::sink`]); the run's own outputs were written.
+    Sink(SinkError),
 }
 
 impl fmt::Display for RunError {
@@ -121,6 +121,7 @@ impl fmt::Display for RunError {
                 *needed_bytes as f64 / 1e6
             ),
             RunError::File(e) => write!(f, "{e}"),
+            RunError::Sink(e) => write!(f, "{e}"),
         }
     }
 }
@@ -131,6 +132,7 @@ impl std::error::Error for RunError {
             RunError::Config(e) => Some(e),
             RunError::Threads(e) => Some(e),
             RunError::File(e) => Some(e),
+            RunError::Sink(e) => Some(e),
             RunError::MemoryCapTooSmall { .. } => None,
         }
     }

@@ -27,6 +27,7 @@ use crate::run::report::{
 };
 use crate::run::saved_map;
 use crate::run::setup::Setup;
+use crate::run::sink::{FnSink, FrameEvent, MapUpdate, Sinks};
 use crate::run::source::FrameSource;
 use crate::run::timing::StageTimer;
 use crate::run::window::Window;
@@ -39,37 +40,45 @@ use std::time::Instant;
 
 pub use crate::run::options::{Deskew, InitialPose, RunError, RunOptions};
 
-/// Runs over every frame of `source`; `on_frame` sees each record as it is made (for progress
-/// and messages). Writes the outputs into `opts.out`. With `opts.resume`, continues from the
-/// checkpoint there.
-pub fn run<C: Capacity>(
+/// Runs over every frame of `source`, offering each frame's event to `sinks` as it is made,
+/// and writes the outputs into `opts.out`; then tells the sinks the run is over. With
+/// `opts.resume`, continues from the checkpoint there. A sink that fails is the error, after
+/// the outputs are written.
+pub fn run_to<C: Capacity>(
     source: &mut impl FrameSource,
     opts: &RunOptions,
-    mut on_frame: impl FnMut(&FrameRecord),
+    mut sinks: Sinks<'_>,
 ) -> Result<Summary, RunError> {
     let mut run = if opts.resume {
         Run::<C>::resume(source, opts)?
     } else {
         Run::<C>::start(source, opts)?
     };
-    #[cfg(feature = "view")]
-    let mut view = crate::view::View::for_run(opts)?;
+    let want_map = sinks.want_map();
     // `has` waits for a live source's next frame (a file's are all there).
     let mut i = run.next_frame();
     while source.has(i) {
         let record = run.step(source, i)?;
-        #[cfg(feature = "view")]
-        if let Some(v) = &mut view {
-            v.show(&run.pipeline, &record, || {
-                run.progress.poses.iter().map(|(_, p)| *p).collect()
-            });
-        }
-        on_frame(&record);
+        sinks.frame(run.event(record, want_map));
         i += 1;
     }
-    #[cfg(feature = "view")]
-    crate::view::View::close(view)?;
-    run.finish(source)
+    let summary = run.finish(source)?;
+    sinks.finish().map_err(RunError::Sink)?;
+    Ok(summary)
+}
+
+/// [`run_to`] with one sink: `on_frame` sees each record as it is made (for progress and
+/// messages).
+pub fn run<C: Capacity>(
+    source: &mut impl FrameSource,
+    opts: &RunOptions,
+    mut on_frame: impl FnMut(&FrameRecord),
+) -> Result<Summary, RunError> {
+    let mut sinks = Sinks::new();
+    sinks.add(FnSink::new("on_frame", |e: &FrameEvent| {
+        on_frame(&e.record)
+    }));
+    run_to::<C>(source, opts, sinks)
 }
 
 /// A run in progress: the pipeline, its executor and window, and the spools of what it will
@@ -230,6 +239,36 @@ impl<'a, C: Capacity> Run<'a, C> {
     /// The pipeline as it stands.
     pub fn pipeline(&self) -> &Pipeline<C> {
         &self.pipeline
+    }
+
+    /// What the sinks are told of the frame `record` describes: its pose at its stamp when it
+    /// was used, and with `want_map` the map as it changed it (the whole map and the corrected
+    /// path when loops were closed with it).
+    pub fn event(&self, record: FrameRecord, want_map: bool) -> FrameEvent {
+        let poses = &self.progress.poses;
+        let pose = (record.error.is_none())
+            .then(|| {
+                poses
+                    .last()
+                    .filter(|(j, _)| *j == record.frame)
+                    .map(|(_, p)| *p)
+            })
+            .flatten();
+        let map = match (
+            want_map && record.error.is_none(),
+            record.loop_closures.is_empty(),
+        ) {
+            (false, _) => None,
+            (true, true) => MapUpdate::of(&self.pipeline, record.frame, record.stamp),
+            (true, false) => MapUpdate::after_closure(
+                &self.pipeline,
+                record.frame,
+                record.stamp,
+                poses.iter().map(|(_, p)| *p).collect(),
+                record.loop_closures.iter().map(|c| c.describe()).collect(),
+            ),
+        };
+        FrameEvent { record, pose, map }
     }
 
     /// The poses so far: each used frame's index and pose (at its stamp), in order.
