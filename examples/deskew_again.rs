@@ -22,7 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let frames: usize = std::env::args().nth(1).map_or(Ok(200), |a| a.parse())?;
     let mut drive = Drive::car(frames + 1, 1);
     drive.sweep_s = Some(0.1);
-    let config = slamesh::io::config_file::preset("default").ok_or("no default preset")?;
+    let config = slamesh::run::config_file::preset("default").ok_or("no default preset")?;
     // The true pose at the middle of each sweep.
     let truth: Vec<Pose> = (0..frames)
         .map(|i| {

@@ -17,9 +17,9 @@
 mod flags;
 
 use flags::Flags;
-use slamesh::io::config_file;
-use slamesh::io::scans::{read_scan, ScanFolder};
+use slamesh::run::config_file;
 use slamesh::run::scale;
+use slamesh::sources::scans::{read_scan, ScanFolder};
 use slamesh_core::bounded::BoundedVec;
 use slamesh_core::bucket::{bucket, Placement};
 use slamesh_core::filter::ScanFilter;

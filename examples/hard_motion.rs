@@ -23,8 +23,8 @@ mod flags;
 
 use flags::Flags;
 use slamesh::eval::odometry::{ate_rmse, consecutive_errors};
-use slamesh::io::config_file;
 use slamesh::parallel::Workers;
+use slamesh::run::config_file;
 use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::{Lidar32Capacity, NoProbe, Pipeline, Point, Pose, ScanError, ScanOutcome};
 use slamesh_sim::town::Carried;

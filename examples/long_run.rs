@@ -13,8 +13,8 @@
 mod flags;
 
 use flags::Flags;
-use slamesh::io::config_file::WindowSettings;
-use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::outputs::mesh_spool::MeshFormat;
+use slamesh::run::config_file::WindowSettings;
 use slamesh::run::{memory, FrameSource};
 use slamesh::run::{run, RunOptions};
 use slamesh_core::{Config, KittiCapacity};

@@ -8,9 +8,9 @@
 //! firmware's) instead of `f64`.
 
 use slamesh::eval::odometry::consecutive_errors;
-use slamesh::io::kitti;
-use slamesh::io::scans::ScanFolder;
+use slamesh::formats::kitti;
 use slamesh::parallel::Rayon;
+use slamesh::sources::scans::ScanFolder;
 use slamesh_core::pipeline::{Known, Scan};
 use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose, Real};
 use std::path::Path;

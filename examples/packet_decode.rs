@@ -12,8 +12,8 @@
 mod flags;
 
 use flags::Flags;
-use slamesh::io::capture::Capture;
-use slamesh::io::packets::{identify, PacketOptions, Sensor, SensorHint, SensorStream};
+use slamesh::sources::capture::Capture;
+use slamesh::sources::packets::{identify, PacketOptions, Sensor, SensorHint, SensorStream};
 use std::io::Cursor;
 use std::path::Path;
 use std::time::Instant;

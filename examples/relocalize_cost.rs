@@ -10,7 +10,7 @@
 mod flags;
 
 use flags::Flags;
-use slamesh::io::kitti::read_bin;
+use slamesh::formats::kitti::read_bin;
 use slamesh::parallel::Workers;
 use slamesh::run::saved_map;
 use slamesh_core::pipeline::{Known, Scan, Stepped};

@@ -17,7 +17,8 @@ mod flags;
 
 use flags::Flags;
 use slamesh::eval::odometry::{consecutive_errors, segment_errors};
-use slamesh::io::{config_file, trajectory};
+use slamesh::formats::trajectory;
+use slamesh::run::config_file;
 use slamesh::run::session::Deskew;
 use slamesh::run::{run, RunOptions};
 use slamesh_core::{KittiCapacity, Pose};

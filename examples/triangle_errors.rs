@@ -14,9 +14,9 @@
 mod flags;
 
 use flags::Flags;
-use slamesh::io::config_file;
-use slamesh::io::mesh_weld::weld;
+use slamesh::outputs::mesh_weld::weld;
 use slamesh::parallel::Workers;
+use slamesh::run::config_file;
 use slamesh_core::layer::{lattice_triangle, triangle_neighbours, Shown, TRIANGLES};
 use slamesh_core::map::LayerRef;
 use slamesh_core::pipeline::{Known, Scan};

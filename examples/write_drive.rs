@@ -20,7 +20,7 @@
 mod flags;
 
 use flags::Flags;
-use slamesh::io::trajectory::write_kitti_line;
+use slamesh::formats::trajectory::write_kitti_line;
 use slamesh_sim::Drive;
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};

@@ -1,7 +1,10 @@
 //! The layout rules the code keeps (docs/design.md §2), checked on the sources:
 //! - the core's modules import each other without a loop;
 //! - no source file holds more than 600 lines before its tests;
-//! - every section of docs/design.md that a source cites exists there.
+//! - every section of docs/design.md that a source cites exists there;
+//! - the std crate's rooms import only from rooms below their own ([`ROOMS`]);
+//! - a run reads as short named stages: no function in `run/` over 80 lines, `Run::step` at
+//!   most 60.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -205,5 +208,154 @@ fn every_cited_design_section_exists() {
     assert!(
         missing.is_empty(),
         "cited but not in docs/design.md: {missing:?}"
+    );
+}
+
+/// The std crate's rooms, lowest first: a module may import only from rooms below its own
+/// (docs/design.md §2). A new top-level module must be placed here.
+const ROOMS: [(&str, u8); 13] = [
+    ("io", 0),
+    ("parallel", 0),
+    ("formats", 1),
+    ("sources", 2),
+    ("outputs", 2),
+    ("eval", 3),
+    ("loop_closure", 3),
+    ("run", 4),
+    ("view", 5),
+    ("demo", 6),
+    ("cli", 7),
+    // Test helpers, and the crate root's macros: used anywhere.
+    ("test_support", 9),
+    ("lib", 9),
+];
+
+/// The room of `module`, if it is one.
+fn room(module: &str) -> Option<u8> {
+    ROOMS.iter().find(|(m, _)| *m == module).map(|(_, r)| *r)
+}
+
+/// `(file, its room, the rooms it imports)` for every source of the std crate.
+fn std_imports() -> Vec<(PathBuf, String, BTreeSet<String>)> {
+    let src = root().join("std-adapters/src");
+    sources(&src)
+        .into_iter()
+        .map(|p| {
+            let rel = p.strip_prefix(&src).unwrap();
+            let first = rel
+                .components()
+                .next()
+                .unwrap()
+                .as_os_str()
+                .to_string_lossy();
+            let own = first.trim_end_matches(".rs").to_string();
+            let text = std::fs::read_to_string(&p).unwrap();
+            let uses = imported_modules(&code_before_tests(&text));
+            (p, own, uses)
+        })
+        .collect()
+}
+
+#[test]
+fn no_import_runs_up_from_a_lower_room_to_a_higher_one() {
+    let mut up = Vec::new();
+    let mut unplaced = BTreeSet::new();
+    let files = std_imports();
+    assert!(files.len() > 60, "found only {} files", files.len());
+    for (p, own, uses) in &files {
+        if own == "main" {
+            continue;
+        }
+        let Some(mine) = room(own) else {
+            unplaced.insert(own.clone());
+            continue;
+        };
+        for u in uses.iter().filter(|u| *u != own) {
+            match room(u) {
+                Some(theirs) if theirs >= mine && mine < 9 => {
+                    up.push(format!("{} ({own}) imports {u}", p.display()))
+                }
+                _ => {}
+            }
+        }
+    }
+    assert!(
+        unplaced.is_empty(),
+        "top-level modules with no room in ROOMS: {unplaced:?}"
+    );
+    assert!(
+        up.is_empty(),
+        "imports that run up or sideways:\n{}",
+        up.join("\n")
+    );
+}
+
+#[test]
+fn the_room_check_catches_a_planted_upward_import() {
+    let lines = ["use crate::run::Run;", "use crate::formats::ply;"];
+    let uses = imported_modules(&code_before_tests(&lines.join("\n")));
+    let upward: Vec<&String> = uses
+        .iter()
+        .filter(|u| room(u).unwrap() >= room("sources").unwrap())
+        .collect();
+    assert_eq!(upward, [&"run".to_string()]);
+}
+
+/// `(name, lines)` of each function in `text` (rustfmt's layout: the closing brace at the
+/// indentation of the `fn` line).
+fn functions(text: &str) -> Vec<(String, usize)> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    for (i, l) in lines.iter().enumerate() {
+        let t = l.trim_start();
+        let indent = &l[..l.len() - t.len()];
+        let t = t
+            .trim_start_matches("pub(crate) ")
+            .trim_start_matches("pub(super) ")
+            .trim_start_matches("pub ")
+            .trim_start_matches("const ");
+        let Some(rest) = t.strip_prefix("fn ") else {
+            continue;
+        };
+        let name: String = rest
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let close = format!("{indent}}}");
+        let end = (i..lines.len())
+            .find(|&j| lines[j] == close || (j == i && l.trim_end().ends_with('}')))
+            .unwrap_or(i);
+        out.push((name, end - i + 1));
+    }
+    out
+}
+
+#[test]
+fn a_run_reads_as_short_named_stages() {
+    let dir = root().join("std-adapters/src/run");
+    let mut long = Vec::new();
+    let mut step = None;
+    for p in sources(&dir) {
+        let text = std::fs::read_to_string(&p).unwrap();
+        let before_tests: String = text
+            .lines()
+            .take_while(|l| l.trim() != "#[cfg(test)]")
+            .collect::<Vec<_>>()
+            .join("\n");
+        for (name, n) in functions(&before_tests) {
+            if n > 80 {
+                long.push(format!("{}: {name}, {n} lines", p.display()));
+            }
+            if name == "step" && p.ends_with("step.rs") {
+                step = Some(n);
+            }
+        }
+    }
+    assert!(long.is_empty(), "functions over 80 lines in run/: {long:?}");
+    let step = step.expect("Run::step in run/step.rs");
+    assert!(step <= 60, "Run::step is {step} lines");
+    assert_eq!(
+        functions("fn a() {\n    x\n}\n\n    pub(super) fn b(\n        y: u8,\n    ) {\n    }\nfn c() {}\n"),
+        [("a".to_string(), 3), ("b".to_string(), 4), ("c".to_string(), 1)]
     );
 }

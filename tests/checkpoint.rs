@@ -6,7 +6,7 @@
 use crate::common;
 
 use common::{scratch, slamesh_command, slamesh_run, slamesh_run_ok, write_bin};
-use slamesh::io::ply::read_ply_mesh;
+use slamesh::formats::ply::read_ply_mesh;
 use slamesh::run::FrameSource;
 use slamesh_sim::Drive;
 use std::path::Path;

@@ -4,8 +4,8 @@
 use crate::common;
 
 use common::{scratch, slamesh_ok, slamesh_run, slamesh_run_ok, write_bin};
-use slamesh::io::pcd::encode_pcd;
-use slamesh::io::trajectory::{self, write_tum_line};
+use slamesh::formats::pcd::encode_pcd;
+use slamesh::formats::trajectory::{self, write_tum_line};
 use slamesh_core::{Point, Pose};
 use slamesh_sim::{sensor_pose, Lidar, Scene, SurfaceDistance};
 use std::path::Path;
@@ -181,6 +181,16 @@ fn inputs_that_cannot_run_are_clear_errors() {
     assert!(!o.status.success());
     assert!(text(&o.stderr).contains("0.bin: empty file"));
     assert!(text(&o.stderr).contains("no frame could be used"));
+    // Its report says why; no empty trajectory or mesh is left behind.
+    assert!(out.join("report.json").is_file());
+    for empty in [
+        "poses_kitti.txt",
+        "poses_tum.txt",
+        "mesh.ply",
+        "topview.png",
+    ] {
+        assert!(!out.join(empty).exists(), "{empty} left behind");
+    }
 
     let cfg = dir.join("bad.toml");
     std::fs::write(&cfg, "[grid]\ncell_size = 2\n").unwrap();
@@ -258,7 +268,7 @@ fn pcd_and_ply_folders_run_and_mesh_mode_uses_the_given_poses() {
         out
     };
     let out = mesh_at("mesh", &poses, &["--obj"]);
-    let vertices = slamesh::io::ply::read_ply_points(&out.join("mesh.ply")).unwrap();
+    let vertices = slamesh::formats::ply::read_ply_points(&out.join("mesh.ply")).unwrap();
     assert!(vertices.len() > 1000, "{} vertices", vertices.len());
     let on_street = share_on_the_street(&vertices, &truth[0], 0.1);
     assert!(on_street > 0.95, "{on_street} of the vertices within 10 cm");
@@ -281,7 +291,7 @@ fn pcd_and_ply_folders_run_and_mesh_mode_uses_the_given_poses() {
         &rel.iter().map(|p| shift * p).collect::<Vec<_>>(),
     );
     let moved = mesh_at("mesh-moved", &moved_poses, &[]);
-    let moved = slamesh::io::ply::read_ply_points(&moved.join("mesh.ply")).unwrap();
+    let moved = slamesh::formats::ply::read_ply_points(&moved.join("mesh.ply")).unwrap();
     // The mesh moved with the poses: on the street once the shift is undone, not before.
     let undone = share_on_the_street(&moved, &(truth[0] * shift.inverse()), 0.1);
     assert!(undone > 0.95, "{undone} of the moved vertices within 10 cm");

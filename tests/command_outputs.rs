@@ -12,9 +12,9 @@ use common::{
     write_scan_folder,
 };
 use nalgebra::{Point3, Translation3, UnitQuaternion};
-use slamesh::io::config_file::{self, PRESETS};
-use slamesh::io::ply::{read_ply_mesh, read_ply_points};
-use slamesh::io::trajectory::{self, write_kitti_line, write_tum_line};
+use slamesh::formats::ply::{read_ply_mesh, read_ply_points};
+use slamesh::formats::trajectory::{self, write_kitti_line, write_tum_line};
+use slamesh::run::config_file::{self, PRESETS};
 use slamesh_core::{Point, Pose};
 use slamesh_sim::{Scene, SurfaceDistance};
 use std::path::Path;
@@ -271,7 +271,7 @@ fn eval_reads_kitti_folders_and_calib_files_scores_meshes_and_builds_references(
     }
     let lifted: Vec<Point> = cloud.iter().map(|p| [p[0], p[1], p[2] + 0.5]).collect();
     let lifted_path = dir.join("lifted.ply");
-    slamesh::io::ply::write_points(&lifted_path, &lifted).unwrap();
+    slamesh::formats::ply::write_points(&lifted_path, &lifted).unwrap();
     let off = scores(&lifted_path);
     assert!(off[0].1 < 0.5 * matched[0].1, "lifted cloud: {off:?}");
     std::fs::remove_dir_all(&dir).unwrap();

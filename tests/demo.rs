@@ -4,8 +4,8 @@
 //! the measured errors (dated below; update them with a change that legitimately moves them).
 
 use slamesh::demo::run_demo;
-use slamesh::io::config_file::WindowSettings;
-use slamesh::io::mesh_spool::MeshFormat;
+use slamesh::outputs::mesh_spool::MeshFormat;
+use slamesh::run::config_file::WindowSettings;
 use slamesh::run::RunOptions;
 use slamesh_core::KittiCapacity;
 
@@ -21,7 +21,7 @@ fn the_first_100_town_frames_write_everything_track_and_reach_the_mesh_targets()
     let out = std::env::temp_dir().join(format!("slamesh-demo-{}", std::process::id()));
     let opts = RunOptions {
         out: out.clone(),
-        config: slamesh::io::config_file::preset("town").unwrap(),
+        config: slamesh::run::config_file::preset("town").unwrap(),
         preset: "town".into(),
         window: WindowSettings::default(),
         threads: 2,

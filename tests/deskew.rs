@@ -5,7 +5,7 @@
 //! below those of the rolling scans left bent.
 
 use slamesh::eval::odometry::consecutive_errors;
-use slamesh::io::trajectory;
+use slamesh::formats::trajectory;
 use slamesh::run::session::Deskew;
 use slamesh::run::{run, RunOptions};
 use slamesh_core::{Config, KittiCapacity, Pose};

@@ -4,7 +4,7 @@
 //! other shell line must name something that exists here (an example, a tool, a file) or be a
 //! known program. The commands at the top of the README run in CI itself (`.ci/run`).
 
-use slamesh::io::config_file;
+use slamesh::run::config_file;
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
@@ -32,7 +32,14 @@ fn blocks(text: &str, lang: &str) -> Vec<(usize, String)> {
         let fence = line.trim_start().strip_prefix("```");
         match (&mut open, fence) {
             (None, Some(tag)) => {
-                open = Some((i + 2, if tag.trim() == lang { String::new() } else { "\0".into() }))
+                open = Some((
+                    i + 2,
+                    if tag.trim() == lang {
+                        String::new()
+                    } else {
+                        "\0".into()
+                    },
+                ))
             }
             (Some(_), Some(_)) => {
                 let (at, body) = open.take().unwrap();
@@ -114,20 +121,27 @@ fn filled(args: &str) -> Vec<String> {
 fn command_of(line: &str) -> &str {
     let mut rest = line.trim();
     loop {
-        if let Some((cd, after)) = rest.split_once("&&").filter(|(a, _)| a.trim_start().starts_with("cd ")) {
+        if let Some((cd, after)) = rest
+            .split_once("&&")
+            .filter(|(a, _)| a.trim_start().starts_with("cd "))
+        {
             let _ = cd;
             rest = after.trim();
             continue;
         }
         match rest.split_once(' ') {
-            Some((first, after)) if first.contains('=') && !first.starts_with('-') => rest = after.trim(),
+            Some((first, after)) if first.contains('=') && !first.starts_with('-') => {
+                rest = after.trim()
+            }
             _ => return rest,
         }
     }
 }
 
 /// Programs the docs may run that are not this project's.
-const OTHER_PROGRAMS: [&str; 9] = ["cargo", "pip", "ssh", "cd", "printf", "python3", "git", "time", "bash"];
+const OTHER_PROGRAMS: [&str; 9] = [
+    "cargo", "pip", "ssh", "cd", "printf", "python3", "git", "time", "bash",
+];
 
 #[test]
 fn every_toml_block_parses_as_a_configuration() {
@@ -193,7 +207,10 @@ fn check_other(cmd: &str, bad: &mut Vec<String>, doc: &Path, at: usize) {
             bad.push(format!("{}:{at}: no script {script}", doc.display()));
         }
     } else if !OTHER_PROGRAMS.contains(&first) {
-        bad.push(format!("{}:{at}: unknown program in `{cmd}`", doc.display()));
+        bad.push(format!(
+            "{}:{at}: unknown program in `{cmd}`",
+            doc.display()
+        ));
     }
 }
 
@@ -203,9 +220,15 @@ fn the_block_reader_finds_commands_through_loops_placeholders_and_prefixes() {
     let sh = blocks(md, "sh");
     assert_eq!(sh.len(), 1);
     let lines = shell_lines(&sh[0].1);
-    assert_eq!(lines, ["slamesh run a --out b", "slamesh run x --loop-closure off"]);
+    assert_eq!(
+        lines,
+        ["slamesh run a --out b", "slamesh run x --loop-closure off"]
+    );
     assert_eq!(blocks(md, "toml")[0].1, "preset = \"kitti\"\n");
-    assert_eq!(filled("bench d --threads N [--seed S] 0X"), ["bench", "d", "--threads", "2", "00"]);
+    assert_eq!(
+        filled("bench d --threads N [--seed S] 0X"),
+        ["bench", "d", "--threads", "2", "00"]
+    );
     assert_eq!(command_of("cd x && SLAMESH_DATA=y cargo run"), "cargo run");
     // A stale flag is caught.
     assert!(slamesh::cli::parse_args(["run", "a", "--out", "b", "--no-such-flag"]).is_err());

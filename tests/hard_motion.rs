@@ -5,8 +5,8 @@
 //! azimuth profiles find (also the default) spares most frames recovery. The figures of
 //! longer drives are in docs/benchmarks.md ("Hard motion").
 
-use slamesh::io::config_file::preset;
 use slamesh::parallel::Workers;
+use slamesh::run::config_file::preset;
 use slamesh_core::pipeline::{Known, Scan};
 use slamesh_core::{Config, Lidar32Capacity, Pipeline, Pose, RegistrationStatus};
 use slamesh_sim::town::Carried;

@@ -12,7 +12,8 @@ use crate::common;
 
 use common::{kitti_mini, scratch, slamesh_run_ok};
 use slamesh::eval::odometry::consecutive_errors;
-use slamesh::io::{kitti, trajectory};
+use slamesh::formats::kitti;
+use slamesh::formats::trajectory;
 
 const SEQUENCES: [&str; 5] = ["00", "01", "02", "03", "04"];
 

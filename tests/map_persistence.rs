@@ -6,9 +6,9 @@ use crate::common;
 
 use common::{kitti_mini, scratch};
 use nalgebra::{Translation3, UnitQuaternion};
-use slamesh::io::map_file::{MapFile, MapWriter};
-use slamesh::io::mesh_spool::MeshFormat;
-use slamesh::io::trajectory;
+use slamesh::formats::map_file::{MapFile, MapWriter};
+use slamesh::formats::trajectory;
+use slamesh::outputs::mesh_spool::MeshFormat;
 use slamesh::run::session::InitialPose;
 use slamesh::run::{run, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::map::MeshMap;
@@ -200,7 +200,7 @@ fn linked(seq: &Path, order: &[usize], dir: &Path) -> PathBuf {
 }
 
 fn kitti_config() -> Config {
-    slamesh::io::config_file::preset("kitti").unwrap()
+    slamesh::run::config_file::preset("kitti").unwrap()
 }
 
 /// Each kitti-mini sequence mapped and saved, then its scans localized in reverse order with
@@ -367,7 +367,8 @@ fn damaged_map_files_are_refused_by_name() {
     };
     let step = (good.len() / 150).max(1);
     for cut in (0..good.len()).step_by(step) {
-        refused(&good[..cut]);
+        let e = refused(&good[..cut]);
+        assert!(cut < 16 || e.contains("truncated"), "cut at {cut}: {e}");
     }
     for i in (0..good.len())
         .step_by(step / 2 + 1)
@@ -471,7 +472,7 @@ fn a_place_the_map_does_not_hold_is_not_localized() {
 fn a_windowed_run_saves_the_cells_it_evicted() {
     let dir = scratch("map-window");
     let windowed = RunOptions {
-        window: slamesh::io::config_file::WindowSettings {
+        window: slamesh::run::config_file::WindowSettings {
             max_age_frames: Some(3),
             ..Default::default()
         },
@@ -507,7 +508,8 @@ fn save_map_localize_and_map_on_from_the_command_line() {
     common::slamesh_run_ok(&scans_dir, &mapped, &["--save-map", p(&map)]);
     let file = MapFile::open(&map).unwrap();
     assert_eq!((file.info.frames, file.poses.len()), (6, 6));
-    let run_poses = slamesh::io::trajectory::read_kitti(&mapped.join("poses_kitti.txt")).unwrap();
+    let run_poses =
+        slamesh::formats::trajectory::read_kitti(&mapped.join("poses_kitti.txt")).unwrap();
 
     // Localize from a given pose (the map's origin, tried first), the map left as it is.
     let here = dir.join("here");
@@ -522,7 +524,7 @@ fn save_map_localize_and_map_on_from_the_command_line() {
         "0 0 0 0",
         "-q",
     ]);
-    let poses = slamesh::io::trajectory::read_kitti(&here.join("poses_kitti.txt")).unwrap();
+    let poses = slamesh::formats::trajectory::read_kitti(&here.join("poses_kitti.txt")).unwrap();
     for (a, b) in poses.iter().zip(&run_poses) {
         assert!((a.translation.vector - b.translation.vector).norm() < 0.02);
     }

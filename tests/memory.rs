@@ -8,7 +8,7 @@
 
 mod common;
 
-use slamesh::io::config_file::WindowSettings;
+use slamesh::run::config_file::WindowSettings;
 use slamesh::run::memory;
 use slamesh::run::window::Window;
 use slamesh::run::{FrameRecord, Summary};

@@ -9,7 +9,7 @@
 
 mod common;
 
-use slamesh::io::config_file::WindowSettings;
+use slamesh::run::config_file::WindowSettings;
 use slamesh::run::lookahead::LookAhead;
 use slamesh::run::memory;
 use slamesh::run::window::Window;

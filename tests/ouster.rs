@@ -5,10 +5,10 @@
 
 use crate::common;
 
-use slamesh::io::capture::Capture;
-use slamesh::io::ouster::Sensor;
-use slamesh::io::packets::{read_metadata, PacketOptions};
-use slamesh::io::replay::Replay;
+use slamesh::sources::capture::Capture;
+use slamesh::sources::ouster::Sensor;
+use slamesh::sources::packets::{read_metadata, PacketOptions};
+use slamesh::sources::replay::Replay;
 use std::path::{Path, PathBuf};
 
 fn fixture(name: &str) -> PathBuf {
@@ -225,7 +225,7 @@ fn damaged_ouster_packets_are_skipped_and_counted() {
 /// run, given the metadata, takes its three turns and tracks them as the replay does.
 #[test]
 fn a_live_ouster_stream_runs() {
-    use slamesh::io::live::{Live, LiveOptions};
+    use slamesh::sources::live::{Live, LiveOptions};
     let options = LiveOptions {
         packets: PacketOptions {
             metadata: Some(fixture("ouster-os1-128-lowdata.json")),

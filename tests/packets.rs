@@ -4,10 +4,10 @@
 
 use crate::common;
 
-use slamesh::io::capture::Capture;
-use slamesh::io::packets::PacketOptions;
-use slamesh::io::replay::Replay;
-use slamesh::io::velodyne::{self, Decoder};
+use slamesh::sources::capture::Capture;
+use slamesh::sources::packets::PacketOptions;
+use slamesh::sources::replay::Replay;
+use slamesh::sources::velodyne::{self, Decoder};
 use std::path::{Path, PathBuf};
 
 fn fixture(name: &str) -> PathBuf {
@@ -305,7 +305,7 @@ fn a_live_stream_runs_at_its_rate_and_three_times_faster() {
 /// whole sweep and ends.
 #[test]
 fn a_full_queue_drops_whole_sweeps_and_counts_them() {
-    use slamesh::io::live::{Live, LiveOptions};
+    use slamesh::sources::live::{Live, LiveOptions};
     let options = LiveOptions {
         queue: 1,
         packets: PacketOptions {
@@ -392,8 +392,8 @@ fn hdl64e() -> (PathBuf, PacketOptions) {
 /// the two-point distance corrections, both banks, the firing times.
 #[test]
 fn hdl64e_packets_decode_to_the_independent_decoders_points() {
-    use slamesh::io::packets::read_calibration;
-    use slamesh::io::velodyne::hdl64::{Generation, Hdl64};
+    use slamesh::sources::packets::read_calibration;
+    use slamesh::sources::velodyne::hdl64::{Generation, Hdl64};
     let (capture, options) = hdl64e();
     let calibration = read_calibration(options.calibration.as_deref().unwrap()).unwrap();
     let decoder = Hdl64::new(Generation::S2, &calibration).unwrap();

@@ -127,7 +127,7 @@ fn the_run_loop_filtering_ahead_writes_what_one_thread_writes() {
                     out: out.clone(),
                     threads,
                     input: "simulated car".into(),
-                    mesh_formats: vec![slamesh::io::mesh_spool::MeshFormat::Ply],
+                    mesh_formats: vec![slamesh::outputs::mesh_spool::MeshFormat::Ply],
                     ..RunOptions::default()
                 };
                 let mut used = 0;

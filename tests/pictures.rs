@@ -7,9 +7,9 @@
 use crate::common;
 
 use common::{scratch, slamesh, slamesh_ok, slamesh_run_ok, street_drive, write_scan_folder};
-use slamesh::io::ply::read_ply_mesh;
-use slamesh::io::topview::map::{self, MapPicture};
-use slamesh::io::trajectory::read_kitti;
+use slamesh::formats::ply::read_ply_mesh;
+use slamesh::formats::trajectory::read_kitti;
+use slamesh::outputs::topview::map::{self, MapPicture};
 use slamesh_core::{Point, Pose};
 use slamesh_sim::Drive;
 use std::path::Path;
@@ -92,7 +92,13 @@ fn run_draws_a_picture_of_its_mesh_and_path() {
 }
 
 /// The run's mesh and path drawn as the run draws its picture.
-fn picture(out: &Path) -> (slamesh::io::topview::TopView, Option<map::Cut>, Vec<Pose>) {
+fn picture(
+    out: &Path,
+) -> (
+    slamesh::outputs::topview::TopView,
+    Option<map::Cut>,
+    Vec<Pose>,
+) {
     let mesh = read_ply_mesh(&out.join("mesh.ply")).unwrap();
     let path = read_kitti(&out.join("poses_kitti.txt")).unwrap();
     let triangles: Vec<[Point; 3]> = mesh
@@ -120,7 +126,7 @@ fn picture(out: &Path) -> (slamesh::io::topview::TopView, Option<map::Cut>, Vec<
 
 /// What a picture shows on a grid every 0.5 m within 6 m of the path: for each drawn point,
 /// its height against the sensor's (the path's nearest pose).
-fn heights_near_path(view: &slamesh::io::topview::TopView, path: &[Pose]) -> Vec<f32> {
+fn heights_near_path(view: &slamesh::outputs::topview::TopView, path: &[Pose]) -> Vec<f32> {
     let mut out = Vec::new();
     let mut seen = std::collections::HashSet::new();
     for p in path.iter().step_by(5) {
@@ -168,7 +174,7 @@ fn an_indoor_map_is_drawn_without_its_roof() {
     );
     // Drawn whole, the same neighbourhood shows the ceiling.
     let mesh = read_ply_mesh(&out.join("mesh.ply")).unwrap();
-    let mut whole = slamesh::io::topview::TopView::new([-50.0, -50.0], [50.0, 50.0], 1000);
+    let mut whole = slamesh::outputs::topview::TopView::new([-50.0, -50.0], [50.0, 50.0], 1000);
     whole.triangles(
         mesh.triangles
             .iter()

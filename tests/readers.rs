@@ -3,7 +3,7 @@
 //! fields and a field of COUNT 3 before `x`. Both must decode to the points the script wrote
 //! (`expected.txt`), exactly: they are multiples of 1/8.
 
-use slamesh::io::pcd::read_pcd;
+use slamesh::formats::pcd::read_pcd;
 use std::path::{Path, PathBuf};
 
 fn fixture(name: &str) -> PathBuf {

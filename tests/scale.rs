@@ -7,7 +7,7 @@ use crate::common;
 
 use common::{scratch, slamesh_ok, slamesh_run_ok, write_scan_folder};
 use slamesh::eval::odometry::consecutive_errors;
-use slamesh::io::trajectory::read_kitti;
+use slamesh::formats::trajectory::read_kitti;
 use slamesh_core::Pose;
 use slamesh_sim::Drive;
 
@@ -46,7 +46,7 @@ fn an_office_walk_is_fitted_to_its_scale_and_tracked_with_no_options() {
     );
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    let config = slamesh::io::config_file::parse(report["config"].as_str().unwrap()).unwrap();
+    let config = slamesh::run::config_file::parse(report["config"].as_str().unwrap()).unwrap();
     let cell = config.config.grid.cell_size_m;
     assert!((0.5..0.7).contains(&cell), "{cell}");
     let fitted = mean_step_cm(&out);

@@ -4,9 +4,9 @@
 
 use foxglove::messages::{PointCloud, SceneUpdate};
 use foxglove::Decode;
-use slamesh::io::recording::mcap::messages_of;
 use slamesh::run::sink::FnSink;
 use slamesh::run::{run_to, FrameEvent, FrameRecord, RunOptions, Sinks};
+use slamesh::sources::recording::mcap::messages_of;
 use slamesh::view::{View, ViewOptions};
 use slamesh_core::{Config, KittiCapacity, Pipeline};
 use slamesh_sim::Drive;

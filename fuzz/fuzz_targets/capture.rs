@@ -4,9 +4,9 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::capture::Capture;
-use slamesh::io::sweep::Sweeps;
-use slamesh::io::velodyne::{self, tables::MODELS, Decoder};
+use slamesh::sources::capture::Capture;
+use slamesh::sources::sweep::Sweeps;
+use slamesh::sources::velodyne::{self, tables::MODELS, Decoder};
 use std::io::Cursor;
 use std::path::Path;
 

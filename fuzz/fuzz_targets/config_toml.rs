@@ -9,7 +9,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    if let Ok(settings) = slamesh::io::config_file::parse(text) {
+    if let Ok(settings) = slamesh::run::config_file::parse(text) {
         assert!(settings.config.validate().is_ok());
         assert!(Pipeline::<SmallCapacity>::new(settings.config).is_ok());
     }

@@ -6,7 +6,7 @@ use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 
 fuzz_target!(|data: &[u8]| {
-    match slamesh::io::kitti::parse_bin(Path::new("fuzz.bin"), data) {
+    match slamesh::formats::kitti::parse_bin(Path::new("fuzz.bin"), data) {
         Ok(points) => assert_eq!(points.len() * 16, data.len()),
         Err(e) => assert!(!e.reason.is_empty()),
     }

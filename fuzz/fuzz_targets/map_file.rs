@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::map_file::MapFile;
+use slamesh::formats::map_file::MapFile;
 use slamesh_core::map::MeshMap;
 use std::io::Cursor;
 use std::path::Path;

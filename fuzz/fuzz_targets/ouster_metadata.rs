@@ -4,8 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::ouster::metadata::Metadata;
-use slamesh::io::ouster::Sensor;
+use slamesh::sources::ouster::metadata::Metadata;
+use slamesh::sources::ouster::Sensor;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {

@@ -5,9 +5,9 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::ouster::metadata::Metadata;
-use slamesh::io::ouster::packet::Profile;
-use slamesh::io::ouster::{sniff, Sensor};
+use slamesh::sources::ouster::metadata::Metadata;
+use slamesh::sources::ouster::packet::Profile;
+use slamesh::sources::ouster::{sniff, Sensor};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, packet)) = data.split_first() else {

@@ -7,7 +7,7 @@ use std::path::Path;
 
 fuzz_target!(|data: &[u8]| {
     let path = Path::new("fuzz.pcd");
-    if let Err(e) = slamesh::io::pcd::parse_pcd(path, data) {
+    if let Err(e) = slamesh::formats::pcd::parse_pcd(path, data) {
         assert_eq!(e.path, path);
         assert!(!e.reason.is_empty());
     }

@@ -8,8 +8,8 @@ use std::path::Path;
 
 fuzz_target!(|data: &[u8]| {
     let path = Path::new("fuzz.ply");
-    let _ = slamesh::io::ply::parse_ply_points(path, data);
-    if let Ok(mesh) = slamesh::io::ply::parse_ply_mesh(path, data) {
+    let _ = slamesh::formats::ply::parse_ply_points(path, data);
+    if let Ok(mesh) = slamesh::formats::ply::parse_ply_mesh(path, data) {
         let n = mesh.vertices.len() as u64;
         assert!(mesh.triangles.iter().flatten().all(|&i| u64::from(i) < n));
         assert_eq!(mesh.triangle_corners().count(), mesh.triangles.len());

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::pointcloud2::Cloud;
+use slamesh::formats::pointcloud2::Cloud;
 
 fuzz_target!(|data: &[u8]| {
     for cloud in [Cloud::parse_ros1(data), Cloud::parse_cdr(data)] {

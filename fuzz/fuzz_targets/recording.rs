@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::recording::{mcap, ros2, rosbag1, Container};
+use slamesh::sources::recording::{mcap, ros2, rosbag1, Container};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, rest)) = data.split_first() else {

@@ -4,8 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::velodyne::calibration::Calibration;
-use slamesh::io::velodyne::hdl64::{Generation, Hdl64};
+use slamesh::sources::velodyne::calibration::Calibration;
+use slamesh::sources::velodyne::hdl64::{Generation, Hdl64};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {

@@ -4,9 +4,9 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::io::velodyne::calibration::Calibration;
-use slamesh::io::velodyne::hdl64::{self, Generation, Hdl64};
-use slamesh::io::velodyne::{tables::MODELS, Decoder};
+use slamesh::sources::velodyne::calibration::Calibration;
+use slamesh::sources::velodyne::hdl64::{self, Generation, Hdl64};
+use slamesh::sources::velodyne::{tables::MODELS, Decoder};
 use std::sync::OnceLock;
 
 /// The fixtures' HDL-64E calibration, read once.

@@ -5,7 +5,7 @@ use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use slamesh::io::ply::PlyMesh;
+use slamesh::formats::ply::PlyMesh;
 use slamesh_core::{Point, Pose};
 
 /// A mesh as arrays: vertices (V, 3), triangles (F, 3), normals (V, 3) or (0, 3), variances

@@ -9,10 +9,10 @@ use crate::{error, FrameError};
 use numpy::{PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use slamesh::io::config_file::{self, Settings};
-use slamesh::io::mesh_spool::{MeshColour, MeshFormat, MeshSpool};
 use slamesh::io::FileError;
+use slamesh::outputs::mesh_spool::{MeshColour, MeshFormat, MeshSpool};
 use slamesh::run::capacity::{self, ClassId};
+use slamesh::run::config_file::{self, Settings};
 use slamesh::run::scale::fit_to_scene;
 use slamesh::run::session::Deskew;
 use slamesh::run::{FrameRecord, FrameSource, Run, RunError, RunOptions};
@@ -292,7 +292,7 @@ impl Engine {
         let mesh = py
             .detach(|| {
                 self.write_mesh(&path)?;
-                let m = slamesh::io::ply::read_ply_mesh(&path);
+                let m = slamesh::formats::ply::read_ply_mesh(&path);
                 let _ = std::fs::remove_file(&path);
                 m
             })
@@ -319,7 +319,7 @@ impl Engine {
             Stage::Waiting(start) => start.settings.config,
             Stage::Failed(_) => slamesh_core::Config::default(),
         };
-        slamesh::io::config_file::documented_toml(&config, &state.preset)
+        slamesh::run::config_file::documented_toml(&config, &state.preset)
     }
 }
 

@@ -52,7 +52,7 @@ fn command(py: Python<'_>, args: Vec<String>) -> PyResult<()> {
 #[pyfunction]
 fn read_mesh<'py>(py: Python<'py>, path: std::path::PathBuf) -> PyResult<arrays::MeshArrays<'py>> {
     let mesh = py
-        .detach(|| slamesh::io::ply::read_ply_mesh(&path))
+        .detach(|| slamesh::formats::ply::read_ply_mesh(&path))
         .map_err(error)?;
     Ok(arrays::mesh(py, mesh))
 }
@@ -64,7 +64,7 @@ fn _slamesh(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("SlameshError", py.get_type::<SlameshError>())?;
     m.add("FrameError", py.get_type::<FrameError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("PRESETS", slamesh::io::config_file::PRESETS.to_vec())?;
+    m.add("PRESETS", slamesh::run::config_file::PRESETS.to_vec())?;
     m.add_function(wrap_pyfunction!(command, m)?)?;
     m.add_function(wrap_pyfunction!(read_mesh, m)?)?;
     m.add_class::<engine::Engine>()?;

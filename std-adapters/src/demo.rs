@@ -6,10 +6,11 @@ use crate::eval::odometry::{
     ate_rmse, consecutive_errors, end_drift, path_length, segment_errors, ConsecutiveErrors,
     SegmentError, KITTI_SEGMENTS,
 };
-use crate::io::mesh_spool::MeshFormat;
-use crate::io::topview::TopView;
-use crate::io::trajectory::write_kitti_line;
-use crate::io::{atomic::write_atomic, ply};
+use crate::formats::ply;
+use crate::formats::trajectory::write_kitti_line;
+use crate::io::atomic::write_atomic;
+use crate::outputs::mesh_spool::MeshFormat;
+use crate::outputs::topview::TopView;
 use crate::run::{FrameRecord, Run, RunError, RunOptions, Summary};
 use slamesh_core::{Capacity, Point, Pose};
 use slamesh_sim::{Drive, SurfaceDistance};

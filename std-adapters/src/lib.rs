@@ -1,13 +1,17 @@
 //! # slamesh
 //!
-//! The std side of slamesh around the `no_std` [`slamesh_core`] pipeline. Its folders follow
-//! the data flow:
+//! The std side of slamesh around the `no_std` [`slamesh_core`] pipeline. Its rooms follow
+//! the data flow, lowest first; a room imports only from rooms below it (docs/design.md §2.1,
+//! checked by `tests/architecture.rs`):
 //!
 //! | concern | module |
 //! |---|---|
-//! | readers and writers, one module per format | [`io`] |
+//! | file errors and write-then-rename | [`io`] |
 //! | the core's loops on several threads | [`parallel`] |
-//! | a run: frame source, run loop, report, window, checkpoint | [`run`] |
+//! | file formats, one module each, reader and writer together | [`formats`] |
+//! | one way in: where frames come from (folders, recordings, captures, live packets) | [`sources`] |
+//! | what a run writes beside its report: the mesh, the picture | [`outputs`] |
+//! | a run: its stages, sinks, configuration, report, window, checkpoint | [`run`] |
 //! | odometry and mesh accuracy | [`eval`] |
 //! | loop closure: revisits found, the pose graph, the map rebuilt | [`loop_closure`] |
 //! | the simulated demo (feature `sim`) | `demo` |
@@ -25,10 +29,13 @@ pub mod cli;
 #[cfg(feature = "sim")]
 pub mod demo;
 pub mod eval;
+pub mod formats;
 pub mod io;
 pub mod loop_closure;
+pub mod outputs;
 pub mod parallel;
 pub mod run;
+pub mod sources;
 #[cfg(feature = "view")]
 pub mod view;
 

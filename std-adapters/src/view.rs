@@ -237,6 +237,8 @@ fn split_address(addr: &str) -> Option<(&str, u16)> {
 /// Turns each update into messages on its context's channels (on the queue's thread); at the
 /// end, the trajectory once more, then closes the recording and stops the server.
 struct Publisher {
+    /// The context the channels, the server and the writer log through: held while they do.
+    _ctx: Arc<Context>,
     scan: Channel<PointCloud>,
     tf: Channel<FrameTransform>,
     trajectory: Channel<PosesInFrame>,
@@ -271,6 +273,7 @@ impl Publisher {
             sent: 0,
             writer,
             server,
+            _ctx: ctx,
         }
     }
 

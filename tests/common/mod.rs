@@ -136,7 +136,7 @@ pub fn street_drive(frames: usize) -> (Vec<Pose>, Vec<Vec<Point>>) {
 /// apart); returns each frame's record and the summary. Every frame must be used.
 pub fn run_drive<C: slamesh_core::Capacity>(
     drive: &mut slamesh_sim::Drive,
-    window: slamesh::io::config_file::WindowSettings,
+    window: slamesh::run::config_file::WindowSettings,
     name: &str,
 ) -> (Vec<slamesh::run::FrameRecord>, slamesh::run::Summary) {
     let frames = drive.poses.len();
@@ -147,7 +147,7 @@ pub fn run_drive<C: slamesh_core::Capacity>(
         preset: "default".into(),
         window,
         threads: 2,
-        mesh_formats: vec![slamesh::io::mesh_spool::MeshFormat::Ply],
+        mesh_formats: vec![slamesh::outputs::mesh_spool::MeshFormat::Ply],
         given_poses: None,
         input: format!("simulated drive ({name})"),
         ..slamesh::run::RunOptions::default()

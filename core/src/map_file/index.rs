@@ -91,10 +91,7 @@ pub fn read_trailer(bytes: &[u8]) -> Result<Trailer, MapFileError> {
     let stored = r.u32()?;
     let tag = r.array::<4>()?;
     if tag != END_TAG {
-        return Err(MapFileError::Tag {
-            expected: END_TAG,
-            found: tag,
-        });
+        return Err(MapFileError::NoTrailer { found: tag });
     }
     let computed = Crc32::of(body);
     if stored != computed {

@@ -179,6 +179,12 @@ pub enum MapFileError {
         /// Its offset in the block.
         at: usize,
     },
+    /// The file does not end with the trailer: cut off (a map is written whole, then renamed,
+    /// so a file without its end was truncated after it was written).
+    NoTrailer {
+        /// The 4 bytes where the trailer's `MEND` should be.
+        found: [u8; 4],
+    },
     /// The map refused a cell (its capacity).
     Map(MapError),
 }
@@ -204,6 +210,11 @@ impl fmt::Display for MapFileError {
                 write_tag(f, expected)?;
                 write!(f, " block, found ")?;
                 write_tag(f, found)
+            }
+            MapFileError::NoTrailer { found } => {
+                write!(f, "truncated: the file does not end with its MEND trailer (found ")?;
+                write_tag(f, found)?;
+                write!(f, "); it was cut off after it was written")
             }
             MapFileError::Malformed { what, at } => write!(f, "{what} (byte {at} of the block)"),
             MapFileError::Map(e) => write!(f, "{e}: the map does not fit this capacity"),

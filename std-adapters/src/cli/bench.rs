@@ -5,7 +5,7 @@
 use crate::cli::error::CliError;
 use crate::cli::input::InputArgs;
 use crate::cli::settings::Profile;
-use crate::io::config_file::WindowSettings;
+use crate::run::config_file::WindowSettings;
 use crate::run::report::{cost_by_outcome, spreads, FrameRecord, Summary};
 use crate::run::timing::StageMs;
 use crate::run::{run, RunOptions};

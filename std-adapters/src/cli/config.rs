@@ -1,6 +1,6 @@
 //! `slamesh config`: print a configuration file with every parameter and its documentation.
 
-use crate::io::config_file::{self, PRESETS};
+use crate::run::config_file::{self, PRESETS};
 use crate::say;
 use clap::Args;
 

@@ -7,7 +7,7 @@ use crate::cli::progress;
 use crate::cli::run::{frame_messages, print_summary, CapacityFlag};
 use crate::cli::settings::{Profile, WindowFlags};
 use crate::demo::run_demo;
-use crate::io::mesh_spool::MeshFormat;
+use crate::outputs::mesh_spool::MeshFormat;
 use crate::run::capacity;
 use crate::run::RunOptions;
 use crate::say;

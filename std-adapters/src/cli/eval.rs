@@ -6,9 +6,11 @@ use crate::cli::run::read_given_poses;
 use crate::eval::mesh as mesh_eval;
 use crate::eval::odometry::{self as eval, consecutive_errors};
 use crate::eval::topology::Topology;
-use crate::io::scans::{read_scan, ScanFolder};
-use crate::io::{kitti, ply, trajectory};
+use crate::formats::kitti;
+use crate::formats::ply;
+use crate::formats::trajectory;
 use crate::say;
+use crate::sources::scans::{read_scan, ScanFolder};
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -326,14 +328,14 @@ fn kitti_reference(sequence: &Path) -> Result<trajectory::Trajectory, crate::io:
     })
 }
 
-/// Writes `PREFIX_trajectory.png` and `PREFIX_error.png` ([`crate::io::topview::plots`]).
+/// Writes `PREFIX_trajectory.png` and `PREFIX_error.png` ([`crate::outputs::topview::plots`]).
 fn write_plots(
     prefix: &Path,
     estimate: &[slamesh_core::Pose],
     reference: &[slamesh_core::Pose],
     ate: f64,
 ) -> Result<(), CliError> {
-    use crate::io::topview::plots;
+    use crate::outputs::topview::plots;
     let align = eval::rigid_alignment(estimate, reference);
     let aligned: Vec<_> = estimate.iter().map(|p| align * p).collect();
     let errors = eval::ate_errors(estimate, reference);

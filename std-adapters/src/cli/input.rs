@@ -1,10 +1,10 @@
 //! Where a command's frames come from (`run`, `mesh`, `localize`, `bench`): the input and how
 //! to read it.
 
-use crate::io::kitti::BinFields;
-use crate::io::packets::PacketOptions;
+use crate::formats::kitti::BinFields;
 use crate::io::FileError;
 use crate::run::Input;
+use crate::sources::packets::PacketOptions;
 use clap::Args;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -55,7 +55,7 @@ impl InputArgs {
         let live = self
             .input
             .to_str()
-            .and_then(crate::io::live::address)
+            .and_then(crate::sources::live::address)
             .is_some();
         if live {
             let flag = stop.clone();

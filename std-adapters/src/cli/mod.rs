@@ -74,7 +74,9 @@ where
     T: Into<OsString> + Clone,
 {
     let argv = std::iter::once(OsString::from("slamesh")).chain(args.into_iter().map(Into::into));
-    Cli::try_parse_from(argv).map(|_| ()).map_err(|e| e.to_string())
+    Cli::try_parse_from(argv)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
 }
 
 /// The command line.
@@ -102,10 +104,19 @@ enum Command {
     /// poses_tum.txt, mesh.ply and report.json into --out.
     Run(run::RunArgs),
     /// Build the mesh at given poses (meshing only; default preset: meshing).
+    #[command(
+        mut_arg("loop_closure", |a| a.hide(true)),
+        mut_arg("initial_pose", |a| a.hide(true)),
+        mut_arg("map", |a| a.hide(true))
+    )]
     Mesh(run::MeshArgs),
     /// Localize in a saved map (--map, written by `run --save-map`): from --initial-pose or,
     /// without it, by searching the map; the map stays as it is unless --update. Writes what
     /// `run` writes.
+    #[command(
+        mut_arg("map", |a| a.required(true)),
+        mut_arg("loop_closure", |a| a.hide(true))
+    )]
     Localize(run::LocalizeArgs),
     /// Compare a trajectory with reference poses (consecutive-frame errors, end-point drift,
     /// ATE, segment errors), score a mesh against a point cloud, or build such a cloud.

@@ -3,9 +3,9 @@
 //! leaves out what is above a height (a roof).
 
 use crate::cli::error::CliError;
-use crate::io::ply::read_ply_mesh;
-use crate::io::topview::map::Cut;
-use crate::io::topview::{Projection, TopView};
+use crate::formats::ply::read_ply_mesh;
+use crate::outputs::topview::map::Cut;
+use crate::outputs::topview::{Projection, TopView};
 use crate::say;
 use clap::{Args, ValueEnum};
 use slamesh_core::Point;

@@ -5,10 +5,12 @@ use crate::cli::input::InputArgs;
 use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
 use crate::cli::settings::{Profile, WindowFlags};
-use crate::io::mesh_spool::{MeshColour, MeshFormat};
-use crate::io::trajectory::Trajectory;
-use crate::io::{kitti, trajectory, FileError};
+use crate::formats::kitti;
+use crate::formats::trajectory;
+use crate::formats::trajectory::Trajectory;
+use crate::io::FileError;
 use crate::loop_closure::settings::LoopSettings;
+use crate::outputs::mesh_spool::{MeshColour, MeshFormat};
 use crate::run::capacity::{self, ClassId};
 use crate::run::session::{Deskew, InitialPose};
 use crate::run::sink::FnSink;
@@ -194,6 +196,13 @@ pub struct LocalizeArgs {
 /// Localizes in a saved map (`--map`, required): registration against it without updating
 /// it (unless `--update`), the same outputs as `run`.
 pub fn localize(args: &LocalizeArgs, quiet: bool) -> Result<(), CliError> {
+    if args.run.loop_closure == OnOff::On {
+        return Err(not_for(
+            "--loop-closure",
+            "localize",
+            "the map is fixed (run --map FILE maps on from it, and closes loops)",
+        ));
+    }
     if args.run.map.is_none() {
         return Err(CliError::BadFlag {
             flag: "--map",
@@ -203,6 +212,14 @@ pub fn localize(args: &LocalizeArgs, quiet: bool) -> Result<(), CliError> {
         });
     }
     run_in_map(&args.run, !args.update, quiet)
+}
+
+/// A flag `run` takes that `command` does not, and why.
+fn not_for(flag: &'static str, command: &str, why: &str) -> CliError {
+    CliError::BadFlag {
+        flag,
+        reason: format!("not for {command}: {why}"),
+    }
 }
 
 /// `--initial-pose`: "x y z yaw_deg", a TUM line "t x y z qx qy qz qw", or "end".
@@ -232,9 +249,8 @@ fn parse_pose(text: &str) -> Result<slamesh_core::Pose, String> {
             t(x, y, z),
             nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw.to_radians()),
         )),
-        [_, _, _, _, _, _, _, _] => {
-            crate::io::trajectory::tum_pose(&v).ok_or_else(|| "the quaternion is zero".to_string())
-        }
+        [_, _, _, _, _, _, _, _] => crate::formats::trajectory::tum_pose(&v)
+            .ok_or_else(|| "the quaternion is zero".to_string()),
         _ => Err(format!(
             "{} numbers: give \"x y z yaw_deg\" or a TUM line \"t x y z qx qy qz qw\"",
             v.len()
@@ -244,6 +260,16 @@ fn parse_pose(text: &str) -> Result<slamesh_core::Pose, String> {
 
 /// Meshes at the given poses (preset `meshing` unless told otherwise).
 pub fn mesh(args: &MeshArgs, quiet: bool) -> Result<(), CliError> {
+    let run = &args.run;
+    for (flag, given) in [
+        ("--loop-closure", run.loop_closure == OnOff::On),
+        ("--initial-pose", run.initial_pose.is_some()),
+        ("--map", run.map.is_some()),
+    ] {
+        if given {
+            return Err(not_for(flag, "mesh", "the poses are given"));
+        }
+    }
     let poses = read_given_poses(&args.poses, args.calib.as_deref())?;
     run_with(&args.run, "meshing", Some(poses), quiet, false)
 }
@@ -484,6 +510,14 @@ pub fn print_summary(s: &Summary, out: &Path) {
             "slamesh: {bad} frame(s) not registered normally: listed in report.json (summary.health); \
              --strict makes this an error"
         );
+    }
+    if s.used == 0 {
+        say!(
+            "slamesh: wrote {}/report.json only (every frame's reason): no frame was used, so \
+             there is no trajectory or mesh",
+            out.display()
+        );
+        return;
     }
     say!(
         "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json{1}",

@@ -3,7 +3,7 @@
 //! scene's scale ([`crate::run::scale::fit_to_scene`]).
 
 use crate::cli::error::CliError;
-use crate::io::config_file::{self, Settings, WindowSettings, PRESETS};
+use crate::run::config_file::{self, Settings, WindowSettings, PRESETS};
 use clap::Args;
 use std::path::PathBuf;
 

@@ -1,5 +1,5 @@
 //! Why a welded mesh has boundary edges: each edge of a shown triangle that no other shown
-//! triangle shares after welding ([`crate::io::mesh_weld`]), put down to one cause.
+//! triangle shares after welding ([`crate::outputs::mesh_weld`]), put down to one cause.
 //!
 //! What a layer shows is what it shows in the welded mesh (its `shown_mask` with the fused
 //! variances of its merged vertices). An edge inside a layer's
@@ -81,7 +81,7 @@ impl Masks {
 }
 
 /// Counts the open edges of `layers`' shown triangles by cause, with `shown_masks` what each
-/// layer shows in their welded mesh ([`WeldedMesh::shown`](crate::io::mesh_weld::WeldedMesh::shown) of
+/// layer shows in their welded mesh ([`WeldedMesh::shown`](crate::outputs::mesh_weld::WeldedMesh::shown) of
 /// `weld(layers, ..)`).
 pub fn seam_causes<'a>(
     layers: impl IntoIterator<Item = LayerRef<'a>>,
@@ -194,7 +194,7 @@ pub fn seam_causes<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::mesh_weld::weld;
+    use crate::outputs::mesh_weld::weld;
     use slamesh_core::config::MeshConfig;
     use slamesh_core::lattice::VERTICES;
     use slamesh_core::map::MeshMap;

@@ -7,8 +7,8 @@
 
 use crate::run::memory;
 use crate::run::options::RunOptions;
-use crate::run::source::FrameSource;
 use crate::run::window::Window;
+use crate::sources::FrameSource;
 use slamesh_core::config::FilterConfig;
 use slamesh_core::filter::Preparation;
 use slamesh_core::{Capacity, Point};
@@ -162,6 +162,10 @@ pub fn points_in_range(scan: &[Point], filter: &FilterConfig) -> usize {
     scan.iter().filter(|p| prep.point(p).is_ok()).count()
 }
 
+/// A scan with fewer than one in this many of its neighbours' points is worth a warning: a
+/// cut-off file or a partial sweep ([`choose`], and the run's step).
+pub const SMALL_SCAN_RATIO: usize = 4;
+
 /// Readable scans among the first frames that `auto` looks at ([`choose`]).
 pub const CHOICE_SCANS: usize = 5;
 
@@ -190,6 +194,13 @@ pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
         let all = classes();
         return all[all.len() - 1];
     };
+    for &(j, m) in seen.iter().filter(|&&(_, m)| m * SMALL_SCAN_RATIO < n) {
+        log::warn!(
+            "{}: frame {j}: {m} points within range, far fewer than frame {i}'s {n}: a cut-off \
+             file or a partial sweep? (it does not choose the capacity class)",
+            source.label(j)
+        );
+    }
     let class = match opts.window.memory_cap_mb {
         Some(cap) => {
             let other = memory::other_bytes();

@@ -16,7 +16,7 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
-use crate::io::mesh_spool::MeshCounts;
+use crate::outputs::mesh_spool::MeshCounts;
 use crate::run::timing::StageMs;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use slamesh_core::cell::{Axis, CellKey};
@@ -335,7 +335,7 @@ impl<'a> Decoder<'a> {
 /// What identifies a run for resuming: its input, frames, capacity, configuration, window and
 /// given poses (the thread count is left out: it does not change the results).
 pub fn fingerprint<C: slamesh_core::Capacity>(
-    source: &impl crate::run::source::FrameSource,
+    source: &impl crate::sources::FrameSource,
     opts: &crate::run::options::RunOptions,
 ) -> String {
     format!(

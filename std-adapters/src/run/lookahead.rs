@@ -22,7 +22,7 @@
 
 use crate::io::error::FileError;
 use crate::parallel::{Workers, Yielding};
-use crate::run::source::FrameSource;
+use crate::sources::FrameSource;
 use slamesh_core::filter::{FilterStats, Filtered, ScanFilter};
 use slamesh_core::{Capacity, Config, Point};
 use std::path::Path;

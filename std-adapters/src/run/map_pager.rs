@@ -10,8 +10,8 @@
 //! tiles are the only memory besides the map. Only a map that takes no updates is paged: what
 //! leaves is what the file holds.
 
+use crate::formats::map_file::MapFile;
 use crate::io::error::FileError;
-use crate::io::map_file::MapFile;
 use slamesh_core::cell::CellKey;
 use slamesh_core::lattice::VERTICES;
 use slamesh_core::map::MeshMap;

@@ -28,8 +28,8 @@ pub const WELD_BYTES_PER_LAYER: usize = 14 * 1024;
 /// usual [`SET_LAYERS`], so that welding holds about 3 MB at once (for more seams between
 /// sets).
 ///
-/// [`MeshSpool::set_layers`]: crate::io::mesh_spool::MeshSpool::set_layers
-/// [`SET_LAYERS`]: crate::io::mesh_spool::SET_LAYERS
+/// [`MeshSpool::set_layers`]: crate::outputs::mesh_spool::MeshSpool::set_layers
+/// [`SET_LAYERS`]: crate::outputs::mesh_spool::SET_LAYERS
 pub const CAPPED_SET_LAYERS: usize = 256;
 
 /// The rest of the process's growth under a memory cap, beside the pipeline and welding: IO

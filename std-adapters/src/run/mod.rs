@@ -3,7 +3,7 @@
 //!
 //! | what | module |
 //! |---|---|
-//! | where frames come from | [`source`] |
+//! | configuration files: presets, parameters, the window's settings | [`config_file`] |
 //! | the capacity classes and how to choose one | [`capacity`] |
 //! | the run loop: start or resume, a step per frame, finish | [`session`] |
 //! | one frame as named stages: read, prepare, register, update the map, record | `step` |
@@ -19,6 +19,7 @@
 
 pub mod capacity;
 pub mod checkpoint;
+pub mod config_file;
 pub mod frame_error;
 pub mod lookahead;
 pub mod map_pager;
@@ -30,13 +31,12 @@ pub mod scale;
 pub mod session;
 mod setup;
 pub mod sink;
-pub mod source;
 mod step;
 pub mod timing;
 pub mod window;
 
+pub use crate::sources::{FrameSource, Input};
 pub use frame_error::{FrameError, FrameFault};
 pub use report::{FrameRecord, Summary};
 pub use session::{run, run_to, Run, RunError, RunOptions};
 pub use sink::{FrameEvent, Sink, Sinks};
-pub use source::{FrameSource, Input};

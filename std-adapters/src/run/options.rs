@@ -1,11 +1,11 @@
 //! What a run is asked to do ([`RunOptions`], [`Deskew`]) and why it may not start or finish
 //! ([`RunError`]).
 
-use crate::io::config_file::WindowSettings;
+use crate::formats::trajectory::Trajectory;
 use crate::io::error::FileError;
-use crate::io::mesh_spool::{MeshColour, MeshFormat};
-use crate::io::trajectory::Trajectory;
 use crate::loop_closure::settings::LoopSettings;
+use crate::outputs::mesh_spool::{MeshColour, MeshFormat};
+use crate::run::config_file::WindowSettings;
 use crate::run::sink::SinkError;
 use slamesh_core::{Config, ConfigError};
 use std::fmt;

@@ -6,16 +6,16 @@
 //! pose (the report lists the skipped frames). `report.json` is written at the end from the
 //! frame records spooled during the run, so they cost no memory.
 
+use crate::formats::trajectory::{write_kitti_line, write_tum_line};
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
-use crate::io::mesh_spool::MeshSpool;
-use crate::io::topview::map::{self, MapPicture};
-use crate::io::trajectory::{write_kitti_line, write_tum_line};
 use crate::loop_closure::{Closure, LoopReport};
+use crate::outputs::mesh_spool::MeshSpool;
+use crate::outputs::topview::map::{self, MapPicture};
 use crate::parallel::Workers;
 use crate::run::options::RunOptions;
-use crate::run::source::FrameSource;
 use crate::run::timing::StageMs;
+use crate::sources::FrameSource;
 use serde::{Deserialize, Serialize};
 use slamesh_core::layer::Shown;
 use slamesh_core::{Capacity, Config, Pipeline, Pose, RegistrationStatus, ScanStats};
@@ -503,7 +503,7 @@ const PICTURE_MARGIN_M: f64 = 40.0;
 const PICTURE_PIXELS: usize = 1000;
 
 /// Writes `file`, a PNG of the spooled mesh from above with `path`
-/// ([`crate::io::topview::map`]: a roof over the path cut away, start and end marked, a scale
+/// ([`crate::outputs::topview::map`]: a roof over the path cut away, start and end marked, a scale
 /// bar, a colour scale and a legend): heights coloured from 3 m below the first sensor pose to
 /// the mesh's top (2 to 20 m), covering the path and [`PICTURE_MARGIN_M`] around it,
 /// [`PICTURE_PIXELS`] on its long side (7 bytes a pixel while it is drawn: 7 MB). The mesh
@@ -544,7 +544,7 @@ pub(crate) fn write_report(
     let head = Head {
         input: &opts.input,
         preset: &opts.preset,
-        config: crate::io::config_file::documented_toml(&opts.config, &opts.preset),
+        config: crate::run::config_file::documented_toml(&opts.config, &opts.preset),
         summary,
     };
     write_atomic(&out.join("report.json"), |w| {

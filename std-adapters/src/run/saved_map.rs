@@ -1,4 +1,4 @@
-//! A run that starts from a saved map ([`crate::io::map_file`]): loading it into the
+//! A run that starts from a saved map ([`crate::formats::map_file`]): loading it into the
 //! pipeline, the places to search for the first pose when none is given, and what a map file
 //! written at the end says about itself.
 //!
@@ -7,9 +7,9 @@
 //! where the mapping one drove, in another lane perhaps); each is tried at every heading
 //! ([`slamesh_core::relocalize`]).
 
-use crate::io::config_file;
+use crate::formats::map_file::{MapFile, MapInfo};
 use crate::io::error::FileError;
-use crate::io::map_file::{MapFile, MapInfo};
+use crate::run::config_file;
 use crate::run::options::InitialPose;
 use slamesh_core::map::MeshMap;
 use slamesh_core::pipeline::Relocalized;

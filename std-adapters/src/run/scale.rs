@@ -12,8 +12,8 @@
 //!   configuration's own and at least [`MIN_RANGE_M`] (KITTI's 10th percentiles are 5 m: it
 //!   keeps 1.2 m).
 
-use crate::io::config_file::Settings;
-use crate::run::source::FrameSource;
+use crate::run::config_file::Settings;
+use crate::sources::FrameSource;
 use slamesh_core::{Config, Point};
 
 /// Median range over cell edge that the fitted cell keeps.
@@ -123,7 +123,7 @@ mod tests {
 
     #[test]
     fn a_street_keeps_the_configuration_and_a_room_shrinks_it() {
-        let base = crate::io::config_file::preset("town").unwrap();
+        let base = crate::run::config_file::preset("town").unwrap();
         let street = fit(&base, &shell(10.0, 1000)).unwrap();
         assert_eq!(street.config, base);
         assert!((street.median_range_m - 10.0).abs() < 1e-3);

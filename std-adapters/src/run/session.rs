@@ -11,11 +11,11 @@
 //! frames; with `resume`, a killed run continues from its last checkpoint and ends with the
 //! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
 
+use crate::formats::map_file::MapWriter;
 use crate::io::atomic::open_cut;
 use crate::io::error::FileError;
-use crate::io::map_file::MapWriter;
-use crate::io::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::loop_closure::LoopClosure;
+use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::lookahead::LookAhead;
@@ -28,9 +28,9 @@ use crate::run::report::{
 use crate::run::saved_map;
 use crate::run::setup::Setup;
 use crate::run::sink::{FnSink, FrameEvent, MapUpdate, Sinks};
-use crate::run::source::FrameSource;
 use crate::run::timing::StageTimer;
 use crate::run::window::Window;
+use crate::sources::FrameSource;
 use slamesh_core::{Capacity, Pipeline, Pose};
 use std::borrow::Cow;
 use std::fs::File;
@@ -114,6 +114,8 @@ pub struct Run<'a, C: Capacity> {
     pub(super) pager: Option<MapPager>,
     /// Loop closure's thread, when on.
     pub(super) closer: Option<LoopClosure<C>>,
+    /// The raw point counts of the last frames read (a scan far smaller is named).
+    pub(super) recent_points: std::collections::VecDeque<usize>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -228,6 +230,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             timer: StageTimer::new(),
             ahead: setup.ahead,
             started: Instant::now(),
+            recent_points: Default::default(),
         })
     }
 
@@ -328,7 +331,11 @@ impl<'a, C: Capacity> Run<'a, C> {
         let frames_seen = self.pipeline.frames();
         let map = self.pipeline.into_map();
         let out = &self.opts.out;
-        write_trajectories(out, source, &poses)?;
+        // A run that used no frame writes its report (with every frame's reason) and no empty
+        // trajectory, mesh or picture.
+        if !poses.is_empty() {
+            write_trajectories(out, source, &poses)?;
+        }
         if let Some(p) = &self.pager {
             log::info!("map paged: {}", p.stats());
         }
@@ -343,19 +350,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             frames_seen,
             shown_as,
         )?;
-        self.spool.add_map(&map)?;
-        self.spool.colour_by(self.opts.mesh_colour);
-        if self.opts.picture {
-            let path: Vec<Pose> = poses.iter().map(|(_, p)| *p).collect();
-            write_topview(&mut self.spool, &path, &out.join("topview.png"))?;
-        }
-        let outputs: Vec<(PathBuf, MeshFormat)> = self
-            .opts
-            .mesh_formats
-            .iter()
-            .map(|&f| (out.join(f.file_name()), f))
-            .collect();
-        let counts: MeshCounts = self.spool.finish(&outputs)?;
+        let counts = write_mesh(self.spool, &map, &self.opts, &poses)?;
         let summary = Summary {
             frames: source.frames(),
             used: poses.len(),
@@ -384,6 +379,30 @@ impl<'a, C: Capacity> Run<'a, C> {
         let _ = std::fs::remove_file(&self.checkpoint_path);
         Ok(summary)
     }
+}
+
+/// Writes the mesh files and the picture from `spool` with `map`'s cells added; none when no
+/// frame was used (`poses` empty).
+fn write_mesh(
+    mut spool: MeshSpool,
+    map: &slamesh_core::map::MeshMap,
+    opts: &RunOptions,
+    poses: &[(usize, Pose)],
+) -> Result<MeshCounts, RunError> {
+    let (out, used) = (&opts.out, !poses.is_empty());
+    spool.add_map(map)?;
+    spool.colour_by(opts.mesh_colour);
+    if opts.picture && used {
+        let path: Vec<Pose> = poses.iter().map(|(_, p)| *p).collect();
+        write_topview(&mut spool, &path, &out.join("topview.png"))?;
+    }
+    let outputs: Vec<(PathBuf, MeshFormat)> = opts
+        .mesh_formats
+        .iter()
+        .filter(|_| used)
+        .map(|&f| (out.join(f.file_name()), f))
+        .collect();
+    Ok(spool.finish(&outputs)?)
 }
 
 /// Finishes the map file being written (`saved`, from `--save-map`, shown as `shown_as`):

@@ -424,7 +424,10 @@ mod tests {
         assert_eq!(seen[0], 0, "the first frame finds room");
         let dropped = 40 - seen.len();
         assert!(
-            said.contains(&format!("{} frames delivered, {dropped} dropped", seen.len())),
+            said.contains(&format!(
+                "{} frames delivered, {dropped} dropped",
+                seen.len()
+            )),
             "{said}"
         );
     }

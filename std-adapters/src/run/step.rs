@@ -5,7 +5,7 @@
 //! goes on; only an output that cannot be written stops it ([`RunError`]).
 
 use crate::io::error::FileError;
-use crate::run::capacity;
+use crate::run::capacity::{self, SMALL_SCAN_RATIO};
 use crate::run::frame_error::{FrameError, FrameFault};
 use crate::run::lookahead::{Ahead, Scan as ReadScan};
 use crate::run::map_pager::{self, MapPager};
@@ -14,14 +14,17 @@ use crate::run::options::{Deskew, RunError};
 use crate::run::report::{registration_reason, updated_triangles, FrameRecord};
 use crate::run::saved_map;
 use crate::run::session::Run;
-use crate::run::source::FrameSource;
 use crate::run::timing::StageMs;
+use crate::sources::FrameSource;
 use slamesh_core::deskew;
 use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{Paging, Search};
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
 use std::io::Write;
 use std::time::Instant;
+
+/// Frames whose point counts a scan is compared with ([`Run::note_small_scan`]).
+pub(super) const RECENT_SCANS: usize = 9;
 
 /// A frame's scan on its way to the pipeline.
 #[derive(Debug, Default)]
@@ -89,6 +92,7 @@ impl<C: Capacity> Run<'_, C> {
         let motion = self.last_motion(source);
         self.page_around_prediction();
         let (mut frame, readable) = Frame::of(read.scan, &mut rec);
+        self.note_small_scan(&rec);
         let ready = readable.and_then(|()| self.prepare(&mut frame, motion, i, &mut rec));
         let stepped = self.register(source, i, &frame, ready);
         let not_waited = self.take_timings(read.ms, &frame, &mut rec);
@@ -117,6 +121,31 @@ impl<C: Capacity> Run<'_, C> {
                 rec.loop_closures.push(closed);
             }
         }
+    }
+
+    /// Says when a scan is far smaller than the frames read before it ([`SMALL_SCAN_RATIO`]):
+    /// a cut-off file or a partial sweep. It is used all the same.
+    fn note_small_scan(&mut self, rec: &FrameRecord) {
+        let n = rec.points;
+        if n == 0 {
+            return;
+        }
+        let mut recent: Vec<usize> = self.recent_points.iter().copied().collect();
+        recent.sort_unstable();
+        if let Some(&typical) = recent.get(recent.len() / 2) {
+            if n * SMALL_SCAN_RATIO < typical {
+                log::warn!(
+                    "{}: frame {}: {n} points, far fewer than the {typical} of the frames before \
+                     it: a cut-off file or a partial sweep?",
+                    rec.file,
+                    rec.frame
+                );
+            }
+        }
+        if self.recent_points.len() == RECENT_SCANS {
+            self.recent_points.pop_front();
+        }
+        self.recent_points.push_back(n);
     }
 
     /// A paged map: the tiles around the predicted pose (while the pose is searched for, the

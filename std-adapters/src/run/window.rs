@@ -17,9 +17,9 @@
 //! of the process as the caller measures it. This is the formula of the least cap
 //! ([`Window::least_cap_bytes`]), written once here; docs/benchmarks.md measures its parts.
 
+use crate::formats::map_file::MapWriter;
 use crate::io::error::FileError;
-use crate::io::map_file::MapWriter;
-use crate::io::mesh_spool::MeshSpool;
+use crate::outputs::mesh_spool::MeshSpool;
 use crate::run::lookahead::LookAhead;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::layer::Layer;

@@ -1,7 +1,7 @@
 //! The records a mesh is spooled as and written from: a vertex record (position, normal,
 //! variance as `f32`), a face record, the colour ramp over a vertex's float, and the counts of
-//! a finished file. Shared by the spool ([`crate::io::mesh_spool`]) and the writers that read
-//! its records ([`crate::io::ply`], [`crate::io::obj`]), so that neither depends on the other.
+//! a finished file. Shared by the spool ([`crate::outputs::mesh_spool`]) and the writers that read
+//! its records ([`crate::formats::ply`], [`crate::formats::obj`]), so that neither depends on the other.
 
 /// Bytes of a spooled vertex: x, y, z, nx, ny, nz, variance as little-endian `f32` (a PLY
 /// vertex record without colour).
@@ -24,7 +24,7 @@ impl VertexColour {
     pub fn of(&self, record: &[u8; VERTEX_BYTES]) -> [u8; 3] {
         let v = float(record, self.field);
         let f = (v - self.low) / (self.high - self.low).max(1e-6);
-        crate::io::topview::ramp(f).map(|c| (c * 255.0).clamp(0.0, 255.0) as u8)
+        ramp(f).map(|c| (c * 255.0).clamp(0.0, 255.0) as u8)
     }
 }
 
@@ -41,4 +41,24 @@ pub struct MeshCounts {
     pub vertices: u64,
     /// Triangles written.
     pub triangles: u64,
+}
+
+/// A blue-green-yellow-red ramp over `f` in 0..1 (the picture's and the PLY colours).
+pub fn ramp(f: f32) -> [f32; 3] {
+    let f = f.clamp(0.0, 1.0);
+    let stops = [
+        [0.15, 0.3, 0.8],
+        [0.1, 0.7, 0.6],
+        [0.9, 0.85, 0.3],
+        [0.85, 0.3, 0.2],
+    ];
+    let x = f * 3.0;
+    let i = (x.floor() as usize).min(2);
+    let t = x - i as f32;
+    let (a, b) = (stops[i], stops[i + 1]);
+    [
+        a[0] + t * (b[0] - a[0]),
+        a[1] + t * (b[1] - a[1]),
+        a[2] + t * (b[2] - a[2]),
+    ]
 }

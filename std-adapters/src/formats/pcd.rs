@@ -2,9 +2,9 @@
 //! `binary_compressed` data. Reads the `x`, `y`, `z` fields (any numeric type); other fields
 //! are skipped. Errors name the file, the header line where it applies, and the reason.
 
+use crate::formats::lzf;
+use crate::formats::pointcloud2;
 use crate::io::error::FileError;
-use crate::io::lzf;
-use crate::io::pointcloud2;
 use slamesh_core::Point;
 use std::path::Path;
 
@@ -202,7 +202,7 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileError> {
 
 /// Reads a PCD file's points and, if it has a time field (`t`, `time`, `timestamp`,
 /// `time_stamp` or `offset_time`), each point's time relative to `stamp` (seconds) by the
-/// table in [`crate::io::pointcloud2`].
+/// table in [`crate::formats::pointcloud2`].
 pub fn read_pcd_timed(
     path: &Path,
     stamp: f64,

@@ -4,7 +4,7 @@
 //! with a `metadata.yaml`), picks the `sensor_msgs/PointCloud2` topic ([`choose_topic`]), and
 //! reads its messages one at a time, never the whole file: memory holds one chunk of the
 //! recording and one cloud. Messages of other topics are skipped undecoded. Each cloud is
-//! decoded by [`crate::io::pointcloud2`]; a malformed one is an error naming the recording,
+//! decoded by [`crate::formats::pointcloud2`]; a malformed one is an error naming the recording,
 //! the topic, the message's index and the reason, and the run skips that frame.
 //!
 //! | container | module | compression |
@@ -19,8 +19,8 @@ pub mod mcap;
 pub mod ros2;
 pub mod rosbag1;
 
+use crate::formats::pointcloud2::{Cloud, DecodedScan};
 use crate::io::error::FileError;
-use crate::io::pointcloud2::{Cloud, DecodedScan};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -370,7 +370,7 @@ impl Recording {
     }
 }
 
-impl crate::run::FrameSource for Recording {
+impl crate::sources::FrameSource for Recording {
     fn frames(&self) -> usize {
         self.stamps.len()
     }

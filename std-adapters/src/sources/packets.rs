@@ -1,13 +1,13 @@
 //! A sensor's packet stream made sweeps, wherever the packets come from (a capture file,
-//! [`crate::io::replay`]; a socket, [`crate::io::live`]): which datagrams are the sensor's
+//! [`crate::sources::replay`]; a socket, [`crate::sources::live`]): which datagrams are the sensor's
 //! data, which sensor it is, each packet decoded and its firings cut into turns.
 
 use crate::io::error::FileError;
-use crate::io::ouster;
-use crate::io::sweep::{Sweep, Sweeps};
-use crate::io::velodyne::calibration::Calibration;
-use crate::io::velodyne::hdl64::{self, Generation, Hdl64};
-use crate::io::velodyne::{self, tables::Model, Decoder, POSITION_PACKET_BYTES};
+use crate::sources::ouster;
+use crate::sources::sweep::{Sweep, Sweeps};
+use crate::sources::velodyne::calibration::Calibration;
+use crate::sources::velodyne::hdl64::{self, Generation, Hdl64};
+use crate::sources::velodyne::{self, tables::Model, Decoder, POSITION_PACKET_BYTES};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -23,7 +23,7 @@ pub struct StreamStats {
     pub gaps: u64,
     /// Firings in part turns at the ends, or cut off by a jump in time (no sweep).
     pub partial_firings: u64,
-    /// Jumps in the packets' time ([`crate::io::sweep::MAX_GAP_S`]).
+    /// Jumps in the packets' time ([`crate::sources::sweep::MAX_GAP_S`]).
     pub time_jumps: u64,
 }
 

@@ -6,7 +6,7 @@
 //! - the socket is read on its own thread and never waits for the run: a sweep that finds the
 //!   queue full is dropped whole (counted, [`LiveStats::sweeps_dropped`]), never a part of one;
 //! - frames are the sweeps the run took, in order; each keeps its stamp (the middle of its
-//!   firings, [`crate::io::sweep::Sweep::stamp`]) and the instant its last packet came, for
+//!   firings, [`crate::sources::sweep::Sweep::stamp`]) and the instant its last packet came, for
 //!   the latency from packet to pose;
 //! - the stream ends when [`PacketOptions::stop`] is set (the command sets it on Ctrl-C), after
 //!   [`PacketOptions::idle`] without a packet, or on a socket error; a run then writes its
@@ -16,8 +16,8 @@
 //! time of hour is kept within it); an Ouster's are its own clock's, as its packets carry them.
 
 use crate::io::error::FileError;
-use crate::io::packets::{self, PacketOptions, SensorHint, SensorStream, StreamStats};
-use crate::io::sweep::Sweep;
+use crate::sources::packets::{self, PacketOptions, SensorHint, SensorStream, StreamStats};
+use crate::sources::sweep::Sweep;
 use serde::Serialize;
 use slamesh_core::Point;
 use std::net::{SocketAddr, UdpSocket};

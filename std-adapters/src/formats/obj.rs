@@ -1,9 +1,9 @@
 //! OBJ meshes: the writer (text, 1-based indices, positions and normals).
 
-use crate::io::mesh_records::{MeshCounts, FACE_BYTES, VERTEX_BYTES};
+use crate::formats::mesh_records::{MeshCounts, FACE_BYTES, VERTEX_BYTES};
 use std::io::{Read, Result, Write};
 
-/// Writes an OBJ mesh from spooled records ([`crate::io::mesh_spool`]): `counts.vertices`
+/// Writes an OBJ mesh from spooled records ([`crate::outputs::mesh_spool`]): `counts.vertices`
 /// vertex records (x, y, z, nx, ny, nz, variance as little-endian `f32`; the variance is not
 /// written) as `v` and `vn` lines, and `counts.triangles` face records (a `u8` 3 and three
 /// little-endian `u32` indices from 0) as `f` lines naming each corner's position and normal.

@@ -9,9 +9,9 @@
 //! Writing: point clouds ([`write_points`]) and the run's mesh from its spool
 //! ([`write_mesh_records`]: binary little-endian, a per-vertex `variance`).
 
+use crate::formats::mesh_records::{MeshCounts, VertexColour, VERTEX_BYTES};
+use crate::formats::pointcloud2;
 use crate::io::error::FileError;
-use crate::io::mesh_records::{MeshCounts, VertexColour, VERTEX_BYTES};
-use crate::io::pointcloud2;
 use slamesh_core::Point;
 use std::io::{Read, Write};
 use std::path::Path;
@@ -170,7 +170,7 @@ pub fn parse_ply_points(path: &Path, bytes: &[u8]) -> Result<Vec<Point>, FileErr
 
 /// Reads a PLY file's vertices and, if they have a time property (`t`, `time`, `timestamp`,
 /// `time_stamp` or `offset_time`), each one's time relative to `stamp` (seconds) by the table
-/// in [`crate::io::pointcloud2`].
+/// in [`crate::formats::pointcloud2`].
 pub fn read_ply_timed(
     path: &Path,
     stamp: f64,
@@ -475,7 +475,7 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
     Ok(mesh)
 }
 
-/// Writes a binary little-endian PLY mesh from spooled records ([`crate::io::mesh_spool`]):
+/// Writes a binary little-endian PLY mesh from spooled records ([`crate::outputs::mesh_spool`]):
 /// `counts.vertices` vertex records (x, y, z, nx, ny, nz, variance as little-endian `f32`,
 /// PLY's own binary records, copied after the header, with `red green blue` appended when
 /// `colour` is given) and `counts.triangles` face records (a `u8` 3 and three little-endian

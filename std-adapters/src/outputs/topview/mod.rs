@@ -11,6 +11,7 @@ pub mod glyphs;
 pub mod map;
 pub mod plots;
 
+use crate::formats::mesh_records::ramp;
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
 use slamesh_core::{Point, Pose};
@@ -403,26 +404,6 @@ impl TopView {
 
 /// The picture's background.
 const BACKGROUND: [u8; 3] = [24, 24, 28];
-
-/// A blue-green-yellow-red ramp over `f` in 0..1 (the picture's and the PLY colours).
-pub fn ramp(f: f32) -> [f32; 3] {
-    let f = f.clamp(0.0, 1.0);
-    let stops = [
-        [0.15, 0.3, 0.8],
-        [0.1, 0.7, 0.6],
-        [0.9, 0.85, 0.3],
-        [0.85, 0.3, 0.2],
-    ];
-    let x = f * 3.0;
-    let i = (x.floor() as usize).min(2);
-    let t = x - i as f32;
-    let (a, b) = (stops[i], stops[i + 1]);
-    [
-        a[0] + t * (b[0] - a[0]),
-        a[1] + t * (b[1] - a[1]),
-        a[2] + t * (b[2] - a[2]),
-    ]
-}
 
 fn shade(c: [f32; 3], light: f32) -> [u8; 3] {
     c.map(|v| (v * light * 255.0).clamp(0.0, 255.0) as u8)

@@ -3,7 +3,7 @@
 //! A [`MeshSpool`] collects sets of layers as they come (the cells one eviction of a
 //! sliding-window map removes, then the map at the end) into spool files next to the output,
 //! so that memory stays flat however long the run; [`MeshSpool::finish`] writes the final
-//! files atomically. Each set is welded ([`crate::io::mesh_weld`]) with its neighbours in
+//! files atomically. Each set is welded ([`crate::outputs::mesh_weld`]) with its neighbours in
 //! the other sets of the same call: the vertices neighbouring cells share are merged, across
 //! sets too, and every vertex has a normal. Vertices of layers added by different calls are
 //! not merged (a seam where an eviction cut the map).
@@ -11,11 +11,11 @@
 //! A face may use a vertex of an earlier set; the spool keeps that vertex's position once
 //! more, in face order, so that [`MeshSpool::for_each_triangle`] reads one set at a time.
 
+use crate::formats::mesh_records::float;
+pub use crate::formats::mesh_records::{MeshCounts, VertexColour, FACE_BYTES, VERTEX_BYTES};
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
-use crate::io::mesh_records::float;
-pub use crate::io::mesh_records::{MeshCounts, VertexColour, FACE_BYTES, VERTEX_BYTES};
-use crate::io::mesh_weld::{weld_set, Neighbour, SeamLinks, WeldedMesh};
+use crate::outputs::mesh_weld::{weld_set, Neighbour, SeamLinks, WeldedMesh};
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::config::MeshConfig;
 use slamesh_core::lattice::Lattice;
@@ -446,11 +446,15 @@ impl MeshSpool {
             let mut vertices = BufReader::new(File::open(&paths[0])?);
             let mut faces = BufReader::new(File::open(&paths[1])?);
             match format {
-                MeshFormat::Ply => {
-                    crate::io::ply::write_mesh_records(w, &mut vertices, &mut faces, counts, colour)
-                }
+                MeshFormat::Ply => crate::formats::ply::write_mesh_records(
+                    w,
+                    &mut vertices,
+                    &mut faces,
+                    counts,
+                    colour,
+                ),
                 MeshFormat::Obj => {
-                    crate::io::obj::write_mesh_records(w, &mut vertices, &mut faces, counts)
+                    crate::formats::obj::write_mesh_records(w, &mut vertices, &mut faces, counts)
                 }
             }
         })
@@ -573,8 +577,8 @@ impl Drop for MeshSpool {
 mod tests {
     use super::*;
     use crate::eval::topology::Topology;
-    use crate::io::mesh_weld::weld;
-    use crate::io::ply::{read_ply_mesh, read_ply_points};
+    use crate::formats::ply::{read_ply_mesh, read_ply_points};
+    use crate::outputs::mesh_weld::weld;
     use slamesh_core::cell::{Axis, CellKey};
     use slamesh_core::lattice::VERTICES;
     use slamesh_core::layer::Layer;
@@ -798,7 +802,7 @@ mod tests {
             if format == MeshFormat::Ply {
                 let pts = read_ply_points(&target).unwrap();
                 assert_eq!(pts.len(), 36);
-                let mesh = crate::io::ply::read_ply_mesh(&target).unwrap();
+                let mesh = crate::formats::ply::read_ply_mesh(&target).unwrap();
                 assert_eq!((mesh.vertices.len(), mesh.triangles.len()), (36, 50));
                 assert!(pts.iter().all(|p| (p[2] - 0.5).abs() < 1e-6));
                 // The variance is the last float of each vertex record, after the normal.
@@ -847,7 +851,7 @@ mod tests {
         let header_end = text.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
         let header = String::from_utf8_lossy(&text[..header_end]);
         assert!(header.contains("property uchar red\nproperty uchar green\nproperty uchar blue\n"));
-        let mesh = crate::io::ply::read_ply_mesh(&target).unwrap();
+        let mesh = crate::formats::ply::read_ply_mesh(&target).unwrap();
         assert!(mesh.vertices.iter().all(|p| (p[2] - 0.5).abs() < 1e-6));
         // Vertex 0 (variance 0.1, the hiding limit) is red; the others (0) blue.
         let record = VERTEX_BYTES + 3;

@@ -1,10 +1,10 @@
 //! KITTI odometry files: Velodyne `.bin` scans and `calib.txt` (its `poses.txt` is a KITTI
-//! trajectory: [`crate::io::trajectory`]).
+//! trajectory: [`crate::formats::trajectory`]).
 //!
 //! Every error names the file and, where it applies, the line and the reason.
 
+use crate::formats::trajectory::parse_numbers;
 use crate::io::error::FileError;
-use crate::io::trajectory::parse_numbers;
 use slamesh_core::math::pose_from_row;
 use slamesh_core::{Point, Pose};
 use std::path::{Path, PathBuf};
@@ -195,7 +195,7 @@ pub fn lidar_poses(camera_poses: &[Pose], tr: &Pose) -> Vec<Pose> {
 /// The reference LiDAR poses of a KITTI sequence folder: its `poses.txt` (camera frame)
 /// turned into the LiDAR frame with its `calib.txt`.
 pub fn reference_lidar_poses(sequence: &Path) -> Result<Vec<Pose>, FileError> {
-    let camera = crate::io::trajectory::read_kitti(&sequence.join("poses.txt"))?;
+    let camera = crate::formats::trajectory::read_kitti(&sequence.join("poses.txt"))?;
     Ok(lidar_poses(
         &camera,
         &read_calib_tr(&sequence.join("calib.txt"))?,

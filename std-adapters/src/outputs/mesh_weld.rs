@@ -29,7 +29,7 @@
 //! the side of the layer's `+axis` (a vertex in no usable triangle gets the axis itself).
 //!
 //! Memory: what is welded together is held at once (each used vertex with its position,
-//! weld line and output index), so callers weld bounded sets ([`crate::io::mesh_spool`]).
+//! weld line and output index), so callers weld bounded sets ([`crate::outputs::mesh_spool`]).
 
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::lattice::{Lattice, N, VERTICES};

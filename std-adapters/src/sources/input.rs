@@ -2,12 +2,12 @@
 //! (and, with the `sim` feature, for a simulated drive), and [`Input`], the command's input:
 //! a folder of scans or a robot recording, told apart by content.
 
+use crate::formats::kitti::BinFields;
 use crate::io::error::FileError;
-use crate::io::kitti::BinFields;
-use crate::io::live::{Live, LiveOptions};
-use crate::io::packets::PacketOptions;
-use crate::io::replay::Replay;
-use crate::io::scans::{read_scan_as, ScanFolder};
+use crate::sources::live::{Live, LiveOptions};
+use crate::sources::packets::PacketOptions;
+use crate::sources::replay::Replay;
+use crate::sources::scans::{read_scan_as, ScanFolder};
 use slamesh_core::Point;
 
 /// Frames to run over.
@@ -62,7 +62,7 @@ pub enum Input {
     Live(Box<Live>),
     /// A ROS 1 bag, an MCAP file or a ROS 2 bag folder.
     #[cfg(feature = "recordings")]
-    Recording(crate::io::recording::Recording),
+    Recording(crate::sources::recording::Recording),
 }
 
 impl Input {
@@ -84,14 +84,14 @@ impl Input {
         bin_fields: BinFields,
         packets: &PacketOptions,
     ) -> Result<Self, FileError> {
-        if let Some(addr) = path.to_str().and_then(crate::io::live::address) {
+        if let Some(addr) = path.to_str().and_then(crate::sources::live::address) {
             let live = LiveOptions {
                 packets: packets.clone(),
                 ..LiveOptions::default()
             };
             return Ok(Input::Live(Box::new(Live::open(addr, &live)?)));
         }
-        if crate::io::capture::is_capture(path) {
+        if crate::sources::capture::is_capture(path) {
             return Ok(Input::Capture(Box::new(Replay::open(path, packets)?)));
         }
         if packets.sensor.is_some() || packets.metadata.is_some() || packets.calibration.is_some() {
@@ -102,8 +102,8 @@ impl Input {
             ));
         }
         #[cfg(feature = "recordings")]
-        if let Some(container) = crate::io::recording::Container::detect(path) {
-            let rec = crate::io::recording::Recording::open(container?, topic)?;
+        if let Some(container) = crate::sources::recording::Container::detect(path) {
+            let rec = crate::sources::recording::Recording::open(container?, topic)?;
             return Ok(Input::Recording(rec));
         }
         if topic.is_some() {
@@ -124,9 +124,9 @@ impl Input {
                 "{} scan files (times {})",
                 f.len(),
                 match f.stamps_from {
-                    crate::io::scans::Stamps::TimesTxt => "from times.txt",
-                    crate::io::scans::Stamps::FileNames => "from the file names",
-                    crate::io::scans::Stamps::Assumed10Hz =>
+                    crate::sources::scans::Stamps::TimesTxt => "from times.txt",
+                    crate::sources::scans::Stamps::FileNames => "from the file names",
+                    crate::sources::scans::Stamps::Assumed10Hz =>
                         "assumed 10 Hz: no times.txt, and the file names are not times",
                 }
             ),
@@ -250,8 +250,8 @@ impl FrameSource for ScanFolder {
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
         match ext.as_deref() {
-            Some("pcd") => crate::io::pcd::read_pcd_timed(path, self.stamps[i]),
-            Some("ply") => crate::io::ply::read_ply_timed(path, self.stamps[i]),
+            Some("pcd") => crate::formats::pcd::read_pcd_timed(path, self.stamps[i]),
+            Some("ply") => crate::formats::ply::read_ply_timed(path, self.stamps[i]),
             _ => Ok((self.read(i)?, None)),
         }
     }

@@ -1,6 +1,6 @@
 //! A packet capture replayed as frames: the sensor's packets in a `.pcap` or `.pcapng` file,
-//! decoded ([`crate::io::velodyne`], [`crate::io::ouster`]) and cut into sweeps
-//! ([`crate::io::sweep`]), one frame a sweep, each point with its firing time.
+//! decoded ([`crate::sources::velodyne`], [`crate::sources::ouster`]) and cut into sweeps
+//! ([`crate::sources::sweep`]), one frame a sweep, each point with its firing time.
 //!
 //! Opening reads the whole capture once, streaming, to find its sweeps and their stamps (so
 //! that a run knows its frames); frames are then read in order by decoding again from where
@@ -10,10 +10,10 @@
 //! none, is refused with what was found. Packets that are not the sensor's data (its position
 //! packets, other traffic) are skipped; damaged ones are counted and skipped.
 
-use crate::io::capture::{Capture, CaptureStats};
 use crate::io::error::FileError;
-use crate::io::packets::{self, PacketOptions, Sensor, SensorHint, SensorStream, StreamStats};
-use crate::io::sweep::Sweep;
+use crate::sources::capture::{Capture, CaptureStats};
+use crate::sources::packets::{self, PacketOptions, Sensor, SensorHint, SensorStream, StreamStats};
+use crate::sources::sweep::Sweep;
 use serde::Serialize;
 use slamesh_core::Point;
 use std::path::{Path, PathBuf};
@@ -222,7 +222,7 @@ fn find_sensor(path: &Path, hint: &SensorHint) -> Result<(Sensor, u16), FileErro
         (None, Some(name)) => format!("no {name} data packets"),
         (None, None) => format!(
             "no Velodyne data packets ({} bytes)",
-            crate::io::velodyne::DATA_PACKET_BYTES
+            crate::sources::velodyne::DATA_PACKET_BYTES
         ),
     };
     Err(FileError::at(

@@ -7,8 +7,10 @@
 //! `1700000000.123456.pcd` or `1700000000123456789.bin`); otherwise 10 Hz is assumed
 //! ([`Stamps`] says which).
 
+use crate::formats::kitti;
+use crate::formats::pcd;
+use crate::formats::ply;
 use crate::io::error::FileError;
-use crate::io::{kitti, pcd, ply};
 use slamesh_core::Point;
 use std::cmp::Ordering;
 use std::path::{Path, PathBuf};

@@ -1,0 +1,28 @@
+//! One way in: where frames come from. A [`FrameSource`] yields scans in order (each with its
+//! stamp, and its points' times when the sensor gives them); [`Input`] opens whichever a path
+//! or address names. Sources read their files through [`crate::formats`].
+//!
+//! | what | module |
+//! |---|---|
+//! | the source interface, and the input a path or address names | [`input`] |
+//! | folders of scans in natural order, or one file | [`scans`] |
+//! | robot recordings: ROS 1 bags, MCAP, ROS 2 bag folders (feature `recordings`) | `recording` |
+//! | packet captures (pcap, pcapng) to UDP datagrams | [`capture`] |
+//! | Velodyne data packets | [`velodyne`] |
+//! | Ouster lidar packets and the sensor's metadata JSON | [`ouster`] |
+//! | packets to sweeps, whichever the sensor | [`packets`] (turns cut in [`sweep`]) |
+//! | a capture replayed as frames; packets taken live from a socket | [`replay`], [`live`] |
+
+pub mod capture;
+pub mod input;
+pub mod live;
+pub mod ouster;
+pub mod packets;
+#[cfg(feature = "recordings")]
+pub mod recording;
+pub mod replay;
+pub mod scans;
+pub mod sweep;
+pub mod velodyne;
+
+pub use input::{FrameSource, Input};
