@@ -541,11 +541,23 @@ fn the_capacity_class_fits_the_first_scans_and_a_scan_too_large_for_it_is_refuse
     assert_eq!(report(&out)["summary"]["capacity"], name);
 
     // One odd first scan (a partial sweep of 64 points) does not choose for the whole run.
+    // Both it and a cut-off scan later on are named.
     let mut odd = vec![scans[0][..64].to_vec()];
     odd.extend(scans.iter().cloned());
+    odd.push(scans[2][..64].to_vec());
     let odd_dir = write_scan_folder(&dir.join("odd"), &odd);
     let out = dir.join("odd-auto");
-    slamesh_ok(&["run", s(&odd_dir), "--out", s(&out), "-q"]);
+    let o = slamesh_ok(&["run", s(&odd_dir), "--out", s(&out), "-q"]);
+    let stderr = text(&o.stderr);
+    assert!(
+        stderr.lines().any(|l| l.contains("000000.bin: frame 0: ")
+            && l.contains("points within range, far fewer than frame")),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("000004.bin: frame 4: 64 points, far fewer than the"),
+        "{stderr}"
+    );
     let odd_counts: Vec<usize> = odd.iter().map(|s| in_range(s)).collect();
     let (odd_name, _) = class_of(most(&odd_counts).1);
     assert_ne!(odd_name, "tiny");

@@ -36,6 +36,37 @@ fn png_pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
 }
 
 #[test]
+fn the_demo_draws_its_picture_as_a_run_does_with_the_true_path() {
+    let dir = scratch("demo-picture");
+    let out = dir.join("demo");
+    slamesh_ok(&[
+        "demo",
+        "--frames",
+        "40",
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    let (w, h, pixels) = png_pixels(&out.join("topview.png"));
+    assert!((995..=1005).contains(&w.max(h)), "{w} x {h}: a run's size");
+    let count = |c: [u8; 3]| pixels.iter().filter(|p| **p == c).count();
+    assert!(count([60, 220, 60]) > 0, "a start marker");
+    assert!(count([230, 40, 40]) > 5, "the estimated path");
+    // The legend's black box holds three lines (the path, the true path, start and end): 22
+    // pixels a line from y = 8 and x = 8, so its third line's row is black at its left edge.
+    assert_eq!(
+        pixels[74 * w as usize + 10],
+        [0, 0, 0],
+        "a legend of three lines"
+    );
+    assert!(
+        count([255, 255, 255]) > 50,
+        "the legend's text and the true path"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn run_draws_a_picture_of_its_mesh_and_path() {
     let dir = scratch("picture");
     let (_, scans) = street_drive(4);
@@ -118,6 +149,7 @@ fn picture(
             Ok(())
         },
         &path,
+        None,
         how,
     )
     .unwrap();

@@ -9,8 +9,10 @@ use crate::eval::odometry::{
 use crate::formats::ply;
 use crate::formats::trajectory::write_kitti_line;
 use crate::io::atomic::write_atomic;
+use crate::io::FileError;
 use crate::outputs::mesh_spool::MeshFormat;
-use crate::outputs::topview::TopView;
+use crate::outputs::topview::map::{self, MapPicture};
+use crate::run::report::{PICTURE_MARGIN_M, PICTURE_PIXELS};
 use crate::run::{FrameRecord, Run, RunError, RunOptions, Summary};
 use slamesh_core::{Capacity, Point, Pose};
 use slamesh_sim::{Drive, SurfaceDistance};
@@ -84,24 +86,24 @@ pub fn run_demo<C: Capacity>(
     let (scores, reference) = true_surface_scores(&drive, &triangles, seed, &mesh_eval::THRESHOLDS);
     ply::write_points(&opts.out.join("reference.ply"), &reference)?;
 
-    // The picture: the mesh by height, the true path in white, the estimate in red.
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in truth.iter().chain(&estimate) {
-        let t = p.translation.vector;
-        lo = [lo[0].min(t.x - 40.0), lo[1].min(t.y - 40.0)];
-        hi = [hi[0].max(t.x + 40.0), hi[1].max(t.y + 40.0)];
-    }
-    let mut view = TopView::new(lo, hi, 1600);
-    let z_top = triangles
-        .iter()
-        .flatten()
-        .map(|v| v[2])
-        .fold(2.0f32, f32::max);
-    let (z_lo, z_hi) = (-3.0f32, z_top.min(20.0));
-    view.triangles(triangles.iter().copied(), z_lo, z_hi);
-    view.path(&truth, [255, 255, 255]);
-    view.path(&estimate, [230, 40, 40]);
-    view.scale_bar();
+    // The picture, as a run's (its legend, colour scale, start and end), with the true path in
+    // white under the estimate.
+    let how = MapPicture {
+        pixels: PICTURE_PIXELS,
+        margin_m: PICTURE_MARGIN_M,
+        z_lo: -3.0,
+        z_top: triangles
+            .iter()
+            .flatten()
+            .map(|v| v[2])
+            .fold(2.0f32, f32::max)
+            .min(20.0),
+    };
+    let all = |f: &mut dyn FnMut([Point; 3])| -> Result<(), FileError> {
+        triangles.iter().for_each(|t| f(*t));
+        Ok(())
+    };
+    let (mut view, _) = map::draw(all, &estimate, Some(&truth), how)?;
     view.write_png(&opts.out.join("topview.png"))?;
 
     Ok(DemoReport {

@@ -305,7 +305,7 @@ impl Publisher {
                 self.closures.log_with_time(&log, nanos);
             }
         }
-        if self.sent % TRAJECTORY_EVERY == 0 || u.closed.is_some() {
+        if self.sent.is_multiple_of(TRAJECTORY_EVERY) || u.closed.is_some() {
             let poses = poses_in_frame(&self.poses, time);
             self.trajectory.log_with_time(&poses, nanos);
         }

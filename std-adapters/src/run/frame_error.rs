@@ -48,8 +48,8 @@ pub enum FrameFault {
     },
     /// The pipeline refused the scan.
     Refused(ScanError),
-    /// A search for the pose in a saved map found no convincing one.
-    NotLocalized(Relocalized),
+    /// A search for the pose in a saved map found no convincing one (what it saw).
+    NotLocalized(Box<Relocalized>),
 }
 
 impl FrameError {

@@ -498,9 +498,9 @@ pub fn write_trajectories(
 }
 
 /// Metres of map around the path that the picture shows.
-const PICTURE_MARGIN_M: f64 = 40.0;
+pub(crate) const PICTURE_MARGIN_M: f64 = 40.0;
 /// Pixels on the picture's long side.
-const PICTURE_PIXELS: usize = 1000;
+pub(crate) const PICTURE_PIXELS: usize = 1000;
 
 /// Writes `file`, a PNG of the spooled mesh from above with `path`
 /// ([`crate::outputs::topview::map`]: a roof over the path cut away, start and end marked, a scale
@@ -522,7 +522,7 @@ pub(crate) fn write_topview(
         z_lo: -3.0,
         z_top: spool.z_range().1.clamp(2.0, 20.0),
     };
-    let (mut view, _) = map::draw(|f| spool.for_each_triangle(|t, _| f(t)), path, how)?;
+    let (mut view, _) = map::draw(|f| spool.for_each_triangle(|t, _| f(t)), path, None, how)?;
     view.write_png(file)
 }
 

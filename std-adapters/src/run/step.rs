@@ -388,7 +388,7 @@ impl<C: Capacity> Run<'_, C> {
 fn found_or_not(stepped: Stepped) -> Result<Stepped, FrameFault> {
     match stepped {
         Stepped::Searched(r) if r.outcome.status == RegistrationStatus::NotLocalized => {
-            Err(FrameFault::NotLocalized(r))
+            Err(FrameFault::NotLocalized(Box::new(r)))
         }
         s => Ok(s),
     }

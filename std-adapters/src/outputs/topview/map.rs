@@ -202,14 +202,16 @@ pub struct MapPicture {
 
 /// Draws a run's picture: the triangles that `triangles` hands to the function it is given
 /// (called twice: roofs, then drawing), the path, its start and end, a scale bar, the colour
-/// scale and a legend. Returns the picture (to write) and the cut it made, if any.
+/// scale and a legend; with `truth` (the demo's), the true path in white under the estimate.
+/// Returns the picture (to write) and the cut it made, if any.
 pub fn draw<E>(
     mut triangles: impl FnMut(&mut dyn FnMut([Point; 3])) -> Result<(), E>,
     path: &[Pose],
+    truth: Option<&[Pose]>,
     how: MapPicture,
 ) -> Result<(TopView, Option<Cut>), E> {
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in path {
+    for p in path.iter().chain(truth.into_iter().flatten()) {
         let t = p.translation.vector;
         lo = [lo[0].min(t.x - how.margin_m), lo[1].min(t.y - how.margin_m)];
         hi = [hi[0].max(t.x + how.margin_m), hi[1].max(t.y + how.margin_m)];
@@ -231,6 +233,9 @@ pub fn draw<E>(
             view.triangles(std::iter::once(t), how.z_lo, z_hi);
         }
     })?;
+    if let Some(truth) = truth {
+        view.path(truth, TRUTH);
+    }
     view.path(path, PATH);
     if let (Some(first), Some(last)) = (path.first(), path.last()) {
         let (a, b) = (first.translation.vector, last.translation.vector);
@@ -243,6 +248,9 @@ pub fn draw<E>(
         "red: path".to_string(),
         "green: start, white: end".to_string(),
     ];
+    if truth.is_some() {
+        legend.insert(1, "white: true path".to_string());
+    }
     legend.extend(cut.as_ref().map(Cut::describe));
     view.legend(&legend);
     Ok((view, cut))
@@ -250,6 +258,8 @@ pub fn draw<E>(
 
 /// The path's colour.
 const PATH: [u8; 3] = [230, 40, 40];
+/// The true path's colour (the demo's).
+const TRUTH: [u8; 3] = [255, 255, 255];
 /// The start's marker.
 const START: [u8; 3] = [60, 220, 60];
 /// The end's marker.
@@ -303,6 +313,7 @@ mod tests {
                 Ok(())
             },
             path,
+            None,
             how,
         )
         .unwrap()
