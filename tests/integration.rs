@@ -30,4 +30,5 @@ mod readers;
 mod recordings;
 mod scale;
 mod single_precision;
+mod sinks;
 mod synthetic_registration;

@@ -78,9 +78,9 @@ fn ate(est: &[Pose], truth: &[Pose]) -> f64 {
 /// 30 degrees off.
 #[test]
 fn a_second_drive_localizes_in_a_saved_town_map_from_an_unknown_start() {
-    const MAPPED: usize = 260;
+    const MAPPED: usize = 180;
     const START: usize = 90;
-    const FRAMES: usize = 120;
+    const FRAMES: usize = 60;
     let dir = scratch("map-town");
     let map_file = dir.join("town.slamesh");
     let mut first = Drive::town(MAPPED, 5);
