@@ -89,8 +89,9 @@ where
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
-    /// More messages: -v adds each frame's outcome, -vv everything (RUST_LOG, when set,
-    /// overrides both this and -q, e.g. RUST_LOG=slamesh=debug).
+    /// More messages: -v adds the details (for the commands that run frames: each frame's
+    /// outcome), -vv everything (RUST_LOG, when set, overrides both this and -q, e.g.
+    /// RUST_LOG=slamesh=debug).
     #[arg(short, long, global = true, action = ArgAction::Count)]
     verbose: u8,
     /// No progress bar, and only warnings and errors.
