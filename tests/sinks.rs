@@ -1,10 +1,11 @@
 //! One way out (`slamesh::run::sink`): a run fans each frame's event out to the sinks it is
-//! given, in frame order; a sink that asks for the map gets each used frame's changes; a slow
-//! sink behind a dropping queue changes nothing the run writes.
+//! given, in frame order; a sink that asks for the map gets each used frame's changes; every
+//! sink is told the end with the run's summary; a slow sink behind a dropping queue changes
+//! nothing the run writes.
 
 use crate::common::scratch;
 use slamesh::run::sink::{FnSink, Queued, Sink, WhenFull};
-use slamesh::run::{run_to, FrameEvent, RunOptions, Sinks};
+use slamesh::run::{run_to, FrameEvent, RunOptions, Sinks, Summary};
 use slamesh_core::{Config, KittiCapacity};
 use slamesh_sim::Drive;
 use std::sync::{Arc, Mutex};
@@ -38,6 +39,22 @@ impl Sink for MapWatcher {
     }
 }
 
+/// Keeps the frames the run used, from the summary it is told at the end.
+struct End(Arc<Mutex<Option<usize>>>);
+
+impl Sink for End {
+    fn name(&self) -> String {
+        "end".into()
+    }
+    fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), String> {
+        Ok(())
+    }
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+        *self.0.lock().unwrap() = summary.map(|s| s.used);
+        Ok(None)
+    }
+}
+
 /// Takes 100 ms a frame.
 struct Slow;
 
@@ -58,6 +75,7 @@ fn a_run_fans_each_frame_out_to_its_sinks_in_order() {
     let (with, plain) = (dir.join("with"), dir.join("plain"));
     let mut events: Vec<(usize, bool)> = Vec::new();
     let seen = Arc::new(Mutex::new(Vec::new()));
+    let used = Arc::new(Mutex::new(None));
     let summary = {
         let mut sinks = Sinks::new();
         sinks.add(FnSink::new("events", |e: &FrameEvent| {
@@ -65,9 +83,12 @@ fn a_run_fans_each_frame_out_to_its_sinks_in_order() {
         }));
         sinks.add(MapWatcher(Arc::clone(&seen)));
         sinks.add(Queued::new(Slow, 1, WhenFull::DropNewest).unwrap());
+        sinks.add(Queued::new(End(Arc::clone(&used)), 1, WhenFull::DropNewest).unwrap());
         run_to::<KittiCapacity>(&mut Drive::town(frames, 1), &options(&with), sinks).unwrap()
     };
     assert_eq!(events, (0..frames).map(|i| (i, true)).collect::<Vec<_>>());
+    // The end reaches a queued sink with the summary, however full its queue was.
+    assert_eq!(*used.lock().unwrap(), Some(frames));
     let seen = seen.lock().unwrap().clone();
     assert_eq!(seen.len(), frames, "every used frame's map changes");
     for (k, (frame, points, layers)) in seen.iter().enumerate() {

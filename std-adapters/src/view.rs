@@ -22,6 +22,7 @@
 
 use crate::io::error::FileError;
 use crate::run::sink::{FrameEvent, MapUpdate, Queued, Sink, WhenFull};
+use crate::run::Summary;
 use foxglove::messages::{
     Color, FrameTransform, Log, PackedElementField, Point3, PointCloud, Pose as FgPose,
     PosesInFrame, Quaternion, SceneEntity, SceneUpdate, Timestamp, TriangleListPrimitive, Vector3,
@@ -214,7 +215,7 @@ impl Sink for View {
         }
         Ok(())
     }
-    fn finish(&mut self) -> Result<Option<String>, String> {
+    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
         let view = View {
             queue: self.queue.take(),
             address: self.address.take(),
@@ -339,7 +340,7 @@ impl Sink for Publisher {
         }
         Ok(())
     }
-    fn finish(&mut self) -> Result<Option<String>, String> {
+    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
         if let Some((time, nanos)) = self.last {
             let poses = poses_in_frame(&self.poses, time);
             self.trajectory.log_with_time(&poses, nanos);

@@ -146,7 +146,7 @@ pub struct Spread {
 }
 
 /// The end of a run (the `summary` of `report.json`).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Default, Serialize)]
 pub struct Summary {
     /// Frames in the input.
     pub frames: usize,

@@ -63,7 +63,7 @@ pub fn run_to<C: Capacity>(
         i += 1;
     }
     let summary = run.finish(source)?;
-    sinks.finish().map_err(RunError::Sink)?;
+    sinks.finish(&summary).map_err(RunError::Sink)?;
     Ok(summary)
 }
 

@@ -2,8 +2,8 @@
 //!
 //! After each frame the run makes one [`FrameEvent`] (the frame's record: status, reason,
 //! counts and timings; its pose; and, when a sink asks for it, the map as the frame changed
-//! it, [`MapUpdate`]) and offers it to each sink in turn; at the end it tells each sink the run
-//! is over. A sink is anything that takes these: the progress line on the terminal, the live
+//! it, [`MapUpdate`]) and offers it to each sink in turn; at the end, once its own files are
+//! written, it tells each sink the run is over, with its [`Summary`]. A sink is anything that takes these: the progress line on the terminal, the live
 //! view, and later a ROS 2 publisher or a navigation map.
 //!
 //! A sink runs on the run's thread, so a slow one would stall the run: wrap it in
@@ -13,7 +13,7 @@
 //! Guarantees: events reach a sink in frame order; [`Sink::finish`] is called once, after the
 //! last event, and a queued sink has been given every event it did not drop by then.
 
-use crate::run::report::FrameRecord;
+use crate::run::report::{FrameRecord, Summary};
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::layer::Layer;
 use slamesh_core::{Capacity, Pipeline, Point, Pose};
@@ -125,8 +125,10 @@ pub trait Sink {
     /// One frame, in frame order.
     fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String>;
 
-    /// The run is over: write what is left. Returns a line saying what it did, if any.
-    fn finish(&mut self) -> Result<Option<String>, String> {
+    /// The run is over (with its summary when it finished; `None` when the sink is closed
+    /// without one): write what is left. Returns a line saying what it did, if any.
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+        let _ = summary;
         Ok(None)
     }
 }
@@ -175,6 +177,12 @@ pub struct QueueStats {
 
 type Finished = (usize, Result<Option<String>, String>);
 
+/// What goes through a [`Queued`] sink's queue.
+enum Message {
+    Frame(Arc<FrameEvent>),
+    End(Arc<Summary>),
+}
+
 /// A sink on a thread of its own behind a bounded queue, so that it cannot stall the run
 /// beyond its [`WhenFull`] policy. Dropped without [`Sink::finish`], it still closes the queue
 /// and waits for the sink's thread.
@@ -182,7 +190,7 @@ pub struct Queued {
     name: String,
     wants_map: bool,
     when_full: WhenFull,
-    tx: Option<SyncSender<Arc<FrameEvent>>>,
+    tx: Option<SyncSender<Message>>,
     thread: Option<JoinHandle<Finished>>,
     dropped: usize,
     /// The first error the sink returned: it gets no more events after it.
@@ -197,19 +205,23 @@ impl Queued {
         when_full: WhenFull,
     ) -> std::io::Result<Self> {
         let (name, wants_map) = (sink.name(), sink.wants_map());
-        let (tx, rx) = sync_channel::<Arc<FrameEvent>>(capacity.max(1));
+        let (tx, rx) = sync_channel::<Message>(capacity.max(1));
         let thread = std::thread::Builder::new()
             .name(format!("slamesh-sink-{name}"))
             .spawn(move || {
                 let mut delivered = 0;
-                for event in rx {
+                for message in rx {
+                    let event = match message {
+                        Message::Frame(event) => event,
+                        Message::End(summary) => return (delivered, sink.finish(Some(&summary))),
+                    };
                     if let Err(e) = sink.frame(event) {
                         // The queue's other end sees the error when it sends next or finishes.
                         return (delivered, Err(e));
                     }
                     delivered += 1;
                 }
-                (delivered, sink.finish())
+                (delivered, sink.finish(None))
             })?;
         Ok(Queued {
             name,
@@ -257,6 +269,7 @@ impl Sink for Queued {
         let Some(tx) = &self.tx else {
             return Ok(());
         };
+        let event = Message::Frame(event);
         let sent = match self.when_full {
             WhenFull::Wait => tx.send(event).map_err(|_| ()),
             WhenFull::DropNewest => match tx.try_send(event) {
@@ -277,9 +290,14 @@ impl Sink for Queued {
         }
         Ok(())
     }
-    fn finish(&mut self) -> Result<Option<String>, String> {
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
         if let Some(e) = self.failed.take() {
             return Err(e);
+        }
+        if let (Some(tx), Some(s)) = (&self.tx, summary) {
+            // Waits for room whatever the policy: the end is never dropped. A sink that
+            // stopped says why below.
+            let _ = tx.send(Message::End(Arc::new(s.clone())));
         }
         let (stats, result) = self.close();
         let said = result?;
@@ -345,11 +363,11 @@ impl<'a> Sinks<'a> {
             });
     }
 
-    /// Tells every sink the run is over; says what each did. The first sink that failed,
-    /// during the run or now, is the error.
-    pub fn finish(mut self) -> Result<(), SinkError> {
+    /// Tells every sink the run is over, with its summary; says what each did. The first sink
+    /// that failed, during the run or now, is the error.
+    pub fn finish(mut self, summary: &Summary) -> Result<(), SinkError> {
         for s in &mut self.sinks {
-            match s.finish() {
+            match s.finish(Some(summary)) {
                 Ok(Some(line)) => log::info!("{}: {line}", s.name()),
                 Ok(None) => {}
                 Err(reason) => self.errors.push(SinkError {
@@ -394,7 +412,7 @@ mod tests {
             self.seen.lock().unwrap().push(event.record.frame);
             Ok(())
         }
-        fn finish(&mut self) -> Result<Option<String>, String> {
+        fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
             Ok(Some(format!("saw {}", self.seen.lock().unwrap().len())))
         }
     }
@@ -414,7 +432,7 @@ mod tests {
         // 40 frames offered to a sink that takes 50 ms each: offering them took no sleep.
         let offered = t.elapsed();
         assert!(offered < Duration::from_millis(500), "{offered:?}");
-        let said = q.finish().unwrap().unwrap();
+        let said = q.finish(None).unwrap().unwrap();
         let seen = seen.lock().unwrap().clone();
         assert!(seen.len() >= 2 && seen.len() < 40, "{seen:?}");
         assert!(
@@ -444,7 +462,7 @@ mod tests {
         for i in 0..20 {
             sinks.frame(event(i));
         }
-        sinks.finish().unwrap();
+        sinks.finish(&Summary::default()).unwrap();
         assert_eq!(*seen.lock().unwrap(), (0..20).collect::<Vec<_>>());
     }
 
@@ -475,7 +493,7 @@ mod tests {
             for i in 0..10 {
                 sinks.frame(event(i));
             }
-            let e = sinks.finish().unwrap_err();
+            let e = sinks.finish(&Summary::default()).unwrap_err();
             assert_eq!(
                 e,
                 SinkError {
