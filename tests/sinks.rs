@@ -1,11 +1,14 @@
-//! One way out (`slamesh::run::sink`): a run fans each frame's event out to the sinks it is
+//! One way in and one way out: samples that are not scans (an IMU's) come in with their frame
+//! from the source and go out with its event. A run (`slamesh::run::sink`) fans each frame's
+//! event out to the sinks it is
 //! given, in frame order; a sink that asks for the map gets each used frame's changes; every
 //! sink is told the end with the run's summary; a slow sink behind a dropping queue changes
 //! nothing the run writes.
 
 use crate::common::scratch;
 use slamesh::run::sink::{FnSink, Queued, Sink, WhenFull};
-use slamesh::run::{run_to, FrameEvent, RunOptions, Sinks, Summary};
+use slamesh::run::{run_to, FrameEvent, FrameSource, RunOptions, Sinks, Summary};
+use slamesh::sources::{ImuReading, Sample};
 use slamesh_core::{Config, KittiCapacity};
 use slamesh_sim::Drive;
 use std::sync::{Arc, Mutex};
@@ -110,5 +113,62 @@ fn a_run_fans_each_frame_out_to_its_sinks_in_order() {
             "{f}"
         );
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A drive whose frames each come with four IMU readings (the one way in for what is not a
+/// scan).
+struct WithImu(Drive);
+
+impl FrameSource for WithImu {
+    fn frames(&self) -> usize {
+        self.0.frames()
+    }
+    fn label(&self, i: usize) -> String {
+        self.0.label(i)
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        self.0.stamp(i)
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<slamesh_core::Point>, slamesh::FileError> {
+        self.0.read(i)
+    }
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        (1..=4)
+            .map(|k| {
+                Sample::Imu(ImuReading {
+                    stamp: self.0.stamp(i) - 0.1 + 0.025 * k as f64,
+                    gyro: [0.0, 0.0, i as f64],
+                    accel: [0.0, 0.0, 9.81],
+                })
+            })
+            .collect()
+    }
+}
+
+#[test]
+fn samples_between_scans_reach_the_sinks_with_their_frame() {
+    let dir = scratch("sinks-imu");
+    let mut got: Vec<(usize, usize, f64)> = Vec::new();
+    let summary = {
+        let mut sinks = Sinks::new();
+        sinks.add(FnSink::new("imu", |e: &FrameEvent| {
+            let gyro_z = match e.samples.first() {
+                Some(Sample::Imu(r)) => r.gyro[2],
+                None => f64::NAN,
+            };
+            got.push((e.record.frame, e.record.samples, gyro_z));
+            assert_eq!(e.samples.len(), e.record.samples);
+            assert!(e.samples.windows(2).all(|w| w[0].stamp() < w[1].stamp()));
+        }));
+        let mut source = WithImu(Drive::town(4, 1));
+        run_to::<KittiCapacity>(&mut source, &options(&dir), sinks).unwrap()
+    };
+    assert_eq!(summary.used, 4);
+    assert_eq!(
+        got,
+        (0..4).map(|i| (i, 4, i as f64)).collect::<Vec<_>>(),
+        "each frame's own readings"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

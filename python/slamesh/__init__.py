@@ -139,6 +139,21 @@ def _times(times: Any, n: int) -> Optional[np.ndarray]:
     return t
 
 
+def _imu(imu: Any) -> Optional[np.ndarray]:
+    """``imu`` as a C-contiguous (M, 7) float64 array of finite numbers, or ``ValueError``."""
+    if imu is None:
+        return None
+    a = np.ascontiguousarray(np.asarray(imu), dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 7:
+        raise ValueError(
+            "imu: an (M, 7) array is needed (time, gyro x y z, accelerometer x y z), "
+            f"this one has shape {a.shape}"
+        )
+    if not np.isfinite(a).all():
+        raise ValueError("imu: some values are not finite")
+    return a
+
+
 class Pipeline:
     """slamesh's pipeline: register frames one by one, get the poses and the mesh map.
 
@@ -179,14 +194,21 @@ class Pipeline:
         self._next_stamp = 0.0
 
     def register(
-        self, points: Any, times: Any = None, stamp: Optional[float] = None
+        self,
+        points: Any,
+        times: Any = None,
+        stamp: Optional[float] = None,
+        imu: Any = None,
     ) -> Registration:
         """Registers one scan and fuses it into the map.
 
         ``points``: (N, 3) float32 or float64 sensor-frame points (float64 is rounded to
         float32, as slamesh stores points). ``times``: optional (N,) seconds of each point from
         ``stamp``, for deskewing. ``stamp``: the frame's time in seconds (default: 0.1 s after
-        the previous frame's, a 10 Hz sensor).
+        the previous frame's, a 10 Hz sensor). ``imu``: optional IMU readings since the last
+        frame, an (M, 7) array of rows ``time, gyro x, y, z (rad/s), accelerometer x, y, z
+        (m/s^2)``; they travel with the frame (``record["samples"]`` counts them) to the run's
+        sinks; the pose does not use them yet.
 
         Raises ``ValueError`` for a bad array (the frame is not counted) and ``FrameError``
         when the pipeline skipped the frame (counted, as the command counts it); either way the
@@ -194,11 +216,12 @@ class Pipeline:
         """
         pts = _points(points)
         t = _times(times, pts.shape[0])
+        readings = _imu(imu)
         if stamp is None:
             stamp = self._next_stamp
         stamp = float(stamp)
         self._next_stamp = stamp + 0.1
-        record, pose = self._engine.register(pts, t, stamp)
+        record, pose = self._engine.register(pts, t, stamp, readings)
         rec = json.loads(record)
         return Registration(
             pose=pose,

@@ -6,6 +6,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReado
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use slamesh::formats::ply::PlyMesh;
+use slamesh::sources::{ImuReading, Sample};
 use slamesh_core::{Point, Pose};
 
 /// A mesh as arrays: vertices (V, 3), triangles (F, 3), normals (V, 3) or (0, 3), variances
@@ -39,6 +40,33 @@ pub(crate) fn times(t: &PyReadonlyArray1<'_, f32>, n: usize) -> PyResult<Vec<f32
         )));
     }
     Ok(t.iter().copied().collect())
+}
+
+/// IMU readings from an (M, 7) float64 array: time (s), gyro x y z (rad/s), accelerometer
+/// x y z (m/s²) a row, every value finite.
+pub(crate) fn imu(a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Sample>> {
+    let a = a.as_array();
+    if a.ncols() != 7 {
+        return Err(PyValueError::new_err(format!(
+            "imu: an (M, 7) array is needed (time, gyro x y z, accelerometer x y z), this one \
+             has {} columns",
+            a.ncols()
+        )));
+    }
+    a.rows()
+        .into_iter()
+        .enumerate()
+        .map(|(k, r)| {
+            if !r.iter().all(|v| v.is_finite()) {
+                return Err(PyValueError::new_err(format!("imu: row {k} is not finite")));
+            }
+            Ok(Sample::Imu(ImuReading {
+                stamp: r[0],
+                gyro: [r[1], r[2], r[3]],
+                accel: [r[4], r[5], r[6]],
+            }))
+        })
+        .collect()
 }
 
 /// Points as an (N, 3) float32 array.

@@ -15,7 +15,7 @@ use slamesh::run::capacity::{self, ClassId};
 use slamesh::run::config_file::{self, Settings};
 use slamesh::run::scale::fit_to_scene;
 use slamesh::run::session::Deskew;
-use slamesh::run::{FrameRecord, FrameSource, Run, RunError, RunOptions};
+use slamesh::run::{FrameRecord, FrameSource, Run, RunError, RunOptions, Sample};
 use slamesh_core::{Capacity, Config, Point, Pose};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -26,9 +26,17 @@ use std::sync::Mutex;
 struct Pushed {
     stamps: Vec<f64>,
     frame: Option<(Vec<Point>, Option<Vec<f32>>)>,
+    /// The samples pushed with the last frame (an IMU's), until the run takes them.
+    samples: Vec<Sample>,
 }
 
 impl FrameSource for Pushed {
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        match i + 1 == self.stamps.len() {
+            true => std::mem::take(&mut self.samples),
+            false => Vec::new(),
+        }
+    }
     fn frames(&self) -> usize {
         self.stamps.len()
     }
@@ -201,17 +209,23 @@ impl Engine {
     }
 
     /// Registers one frame: its report record (JSON) and its pose, or `FrameError` when the
-    /// frame was skipped. The GIL is released while it runs.
-    #[pyo3(signature = (points, times, stamp))]
+    /// frame was skipped. `imu`: the IMU's readings since the last frame, (M, 7) rows of
+    /// time, gyro x y z (rad/s), accelerometer x y z (m/s²). The GIL is released while it runs.
+    #[pyo3(signature = (points, times, stamp, imu=None))]
     fn register<'py>(
         &self,
         py: Python<'py>,
         points: PyReadonlyArray2<'py, f32>,
         times: Option<PyReadonlyArray1<'py, f32>>,
         stamp: f64,
+        imu: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<(String, Bound<'py, PyArray2<f64>>)> {
         let points = arrays::points(&points)?;
         let times = times.map(|t| arrays::times(&t, points.len())).transpose()?;
+        let samples = imu
+            .map(|a| arrays::imu(&a))
+            .transpose()?
+            .unwrap_or_default();
         if !stamp.is_finite() {
             return Err(PyValueError::new_err(format!(
                 "stamp: {stamp} is not finite"
@@ -223,6 +237,7 @@ impl Engine {
                 let State { source, stage, .. } = &mut *state;
                 source.stamps.push(stamp);
                 source.frame = Some((points, times));
+                source.samples = samples;
                 let i = source.stamps.len() - 1;
                 if let Stage::Waiting(_) = stage {
                     *stage = start(stage, source);

@@ -142,6 +142,27 @@ def test_times_must_match_the_points():
     assert p.register(scans[0], times=np.zeros(len(scans[0]))).status == "FirstScan"
 
 
+def test_imu_readings_travel_with_their_frame_and_a_bad_array_is_refused():
+    scans = first_scans()
+    p = slamesh.Pipeline(preset="kitti")
+    plain = slamesh.Pipeline(preset="kitti")
+    for k, scan in enumerate(scans[:3]):
+        # 20 readings at 200 Hz since the last frame: time, gyro x y z, accelerometer x y z.
+        t = 0.1 * k - 0.1 + 0.005 * np.arange(1, 21)
+        imu = np.column_stack([t, np.zeros((20, 5)), np.full(20, 9.81)])
+        r = p.register(scan, stamp=0.1 * k, imu=imu)
+        assert r.record["samples"] == 20, r.record
+        q = plain.register(scan, stamp=0.1 * k)
+        assert "samples" not in q.record
+        # They do not move the pose (yet): the same pose as without them.
+        assert np.array_equal(r.pose, q.pose)
+    with pytest.raises(ValueError, match=r"imu: an \(M, 7\) array"):
+        p.register(scans[2], stamp=0.3, imu=np.zeros((4, 6)))
+    with pytest.raises(ValueError, match="imu: some values are not finite"):
+        p.register(scans[2], stamp=0.3, imu=np.full((2, 7), np.nan))
+    assert p.register(scans[2], stamp=0.3).frame == 3
+
+
 def test_mesh_arrays_round_trip_through_save_mesh(tmp_path):
     p = slamesh.Pipeline(preset="kitti")
     for points in first_scans():

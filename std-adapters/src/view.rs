@@ -165,6 +165,7 @@ impl View {
                 record: crate::run::FrameRecord::skipped(update.frame, String::new()),
                 pose: Some(update.pose),
                 map: Some(update),
+                samples: Vec::new(),
             };
             // A publisher that stopped says why when the view finishes.
             let _ = q.frame(Arc::new(event));

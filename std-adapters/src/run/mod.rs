@@ -35,7 +35,7 @@ mod step;
 pub mod timing;
 pub mod window;
 
-pub use crate::sources::{FrameSource, Input};
+pub use crate::sources::{FrameSource, Input, Sample};
 pub use frame_error::{FrameError, FrameFault};
 pub use report::{FrameRecord, Summary};
 pub use session::{run, run_to, Run, RunError, RunOptions};

@@ -89,6 +89,13 @@ pub struct FrameRecord {
     /// A live input: milliseconds from the frame's last packet to its pose.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub latency_ms: Option<f64>,
+    /// Samples that are not scans (an IMU's readings) the source gave with this frame.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub samples: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl FrameRecord {
@@ -121,6 +128,7 @@ impl FrameRecord {
             relocalization: None,
             loop_closures: Vec::new(),
             latency_ms: None,
+            samples: 0,
         }
     }
 

@@ -30,7 +30,7 @@ use crate::run::setup::Setup;
 use crate::run::sink::{FnSink, FrameEvent, MapUpdate, Sinks};
 use crate::run::timing::StageTimer;
 use crate::run::window::Window;
-use crate::sources::FrameSource;
+use crate::sources::{FrameSource, Sample};
 use slamesh_core::{Capacity, Pipeline, Pose};
 use std::borrow::Cow;
 use std::fs::File;
@@ -116,6 +116,8 @@ pub struct Run<'a, C: Capacity> {
     pub(super) closer: Option<LoopClosure<C>>,
     /// The raw point counts of the last frames read (a scan far smaller is named).
     pub(super) recent_points: std::collections::VecDeque<usize>,
+    /// The samples that are not scans that came with the last frame, for its event.
+    pub(super) samples: Vec<Sample>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -231,6 +233,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             ahead: setup.ahead,
             started: Instant::now(),
             recent_points: Default::default(),
+            samples: Vec::new(),
         })
     }
 
@@ -245,9 +248,10 @@ impl<'a, C: Capacity> Run<'a, C> {
     }
 
     /// What the sinks are told of the frame `record` describes: its pose at its stamp when it
-    /// was used, and with `want_map` the map as it changed it (the whole map and the corrected
-    /// path when loops were closed with it).
-    pub fn event(&self, record: FrameRecord, want_map: bool) -> FrameEvent {
+    /// was used, the samples that came with it, and with `want_map` the map as it changed it
+    /// (the whole map and the corrected path when loops were closed with it).
+    pub fn event(&mut self, record: FrameRecord, want_map: bool) -> FrameEvent {
+        let samples = std::mem::take(&mut self.samples);
         let poses = &self.progress.poses;
         let pose = (record.error.is_none())
             .then(|| {
@@ -271,7 +275,12 @@ impl<'a, C: Capacity> Run<'a, C> {
                 record.loop_closures.iter().map(|c| c.describe()).collect(),
             ),
         };
-        FrameEvent { record, pose, map }
+        FrameEvent {
+            record,
+            pose,
+            map,
+            samples,
+        }
     }
 
     /// The poses so far: each used frame's index and pose (at its stamp), in order.

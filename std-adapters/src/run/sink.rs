@@ -14,6 +14,7 @@
 //! last event, and a queued sink has been given every event it did not drop by then.
 
 use crate::run::report::{FrameRecord, Summary};
+use crate::sources::Sample;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::layer::Layer;
 use slamesh_core::{Capacity, Pipeline, Point, Pose};
@@ -32,6 +33,9 @@ pub struct FrameEvent {
     /// The map as the frame changed it, when a sink wants it ([`Sink::wants_map`]) and the
     /// frame was used.
     pub map: Option<MapUpdate>,
+    /// The samples that are not scans (an IMU's readings) that came with the frame, in time
+    /// order.
+    pub samples: Vec<Sample>,
 }
 
 /// The map as one frame changed it: copied out of the pipeline by the run, only when a sink
@@ -394,6 +398,7 @@ mod tests {
             record: FrameRecord::skipped(frame, format!("{frame}.bin")),
             pose: None,
             map: None,
+            samples: Vec::new(),
         }
     }
 

@@ -86,6 +86,8 @@ impl<C: Capacity> Run<'_, C> {
         let mut rec = FrameRecord::skipped(i, label.clone());
         self.close_loops(i, &mut rec);
         let read = self.ahead.take(source, i);
+        self.samples = source.samples(i);
+        rec.samples = self.samples.len();
         // After the read: a recording knows a frame's stamp once it has read the message.
         rec.stamp = source.stamp(i);
         rec.points_dropped_by_reader = read.dropped_by_reader;

@@ -10,6 +10,35 @@ use crate::sources::replay::Replay;
 use crate::sources::scans::{read_scan_as, ScanFolder};
 use slamesh_core::Point;
 
+/// A timed measurement a source carries beside its scans, on the scans' clock: the one way
+/// in for what is not a scan (an IMU's readings; the run hands them to its sinks with their
+/// frame, and the IMU's motion prior will take them from there).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sample {
+    /// One reading of an inertial measurement unit, in its own frame.
+    Imu(ImuReading),
+}
+
+impl Sample {
+    /// Its time (seconds, the scans' clock).
+    pub fn stamp(&self) -> f64 {
+        match self {
+            Sample::Imu(r) => r.stamp,
+        }
+    }
+}
+
+/// One IMU reading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuReading {
+    /// Its time (seconds).
+    pub stamp: f64,
+    /// Angular velocity (rad/s) about x, y, z.
+    pub gyro: [f64; 3],
+    /// Specific force (m/s², gravity included) along x, y, z.
+    pub accel: [f64; 3],
+}
+
 /// Frames to run over.
 pub trait FrameSource {
     /// Number of frames.
@@ -47,6 +76,12 @@ pub trait FrameSource {
     /// What the reader counted over the whole input, for `report.json` (`summary.input`).
     fn input_report(&self) -> Option<serde_json::Value> {
         None
+    }
+    /// The samples that are not scans (an IMU's) with stamps after frame `i - 1`'s and up to
+    /// frame `i`'s, in time order. The run takes them once a frame, right after reading frame
+    /// `i`. By default none: a source of scans only.
+    fn samples(&mut self, _i: usize) -> Vec<Sample> {
+        Vec::new()
     }
 }
 

@@ -1,5 +1,6 @@
 //! One way in: where frames come from. A [`FrameSource`] yields scans in order (each with its
-//! stamp, and its points' times when the sensor gives them); [`Input`] opens whichever a path
+//! stamp, and its points' times when the sensor gives them) and, between them, the other
+//! timed samples it carries ([`Sample`]: an IMU's readings); [`Input`] opens whichever a path
 //! or address names. Sources read their files through [`crate::formats`].
 //!
 //! | what | module |
@@ -25,4 +26,4 @@ pub mod scans;
 pub mod sweep;
 pub mod velodyne;
 
-pub use input::{FrameSource, Input};
+pub use input::{FrameSource, ImuReading, Input, Sample};
