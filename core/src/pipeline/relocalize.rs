@@ -54,90 +54,10 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         probe: &mut impl Probe,
         paging: &mut (dyn Paging + Send),
     ) -> Relocalized {
-        let lattice = self.config.lattice().table();
-        let max_var = self.config.register.variance_register as f32;
-        // The coarse score's subsample: every k-th filtered point.
-        let stride = (self.points.len() / search.coarse_points.max(1)).max(1);
-        let mut shortlist = Shortlist::new(search.keep);
-        let steps = search.yaw_steps.clamp(1, MAX_YAW_STEPS);
-        let yaw = |k: usize| core::f64::consts::TAU * k as f64 / steps as f64;
-        let mut hypotheses = 0;
-        // The coarse score, candidates spread over the executor's workers; offered to the
-        // shortlist in candidate order, so the result does not depend on the executor.
-        probe.enter(Stage::Associate);
-        for chunk in candidates.chunks(CHUNK) {
-            if let Some(middle) = chunk.get(chunk.len() / 2) {
-                paging.around(&mut self.map, middle);
-            }
-            let (map, points) = (&self.map, &self.points);
-            exec.map_in_order(
-                chunk,
-                || (),
-                |_, c| {
-                    let mut hits = [0usize; MAX_YAW_STEPS];
-                    for (k, h) in hits.iter_mut().enumerate().take(steps) {
-                        let sample = points.iter().step_by(stride);
-                        let pose = turned_in_yaw(c, yaw(k));
-                        *h = surface_hits(
-                            map,
-                            &lattice,
-                            sample,
-                            &pose,
-                            search.coarse_tol_m,
-                            max_var,
-                        )
-                        .any;
-                    }
-                    hits
-                },
-                |hits| {
-                    let c = candidates
-                        .get(hypotheses / steps)
-                        .copied()
-                        .unwrap_or_else(Pose::identity);
-                    for (k, h) in hits.iter().enumerate().take(steps) {
-                        shortlist.offer(*h, turned_in_yaw(&c, yaw(k)), search);
-                        hypotheses += 1;
-                    }
-                },
-            );
-        }
-        probe.enter(Stage::Done);
-        let r = self.config.register;
-        // Every registered attempt: whether it converged and settled, its share of the scan on
-        // the map's surfaces, and the attempt.
-        let mut tried: heapless::Vec<(bool, Hits, Attempt), MAX_KEEP> = heapless::Vec::new();
-        let mut registered = 0;
-        for &(_, guess) in shortlist.clone().items() {
-            stats.recovery_attempts += 1;
-            registered += 1;
-            paging.around(&mut self.map, &guess);
-            let mut a = self.register(
-                guess,
-                r.recovery.rounds,
-                r.initial_cross_cell_overlap,
-                &r.lm,
-                exec,
-                probe,
-                &mut stats,
-            );
-            if a.status == RegistrationStatus::Converged && a.verdict.is_plausible(&r.recovery) {
-                a = self.polish(a, exec, probe, &mut stats);
-            }
-            let hits = surface_hits(
-                &self.map,
-                &lattice,
-                self.points.iter(),
-                &a.pose,
-                search.fine_tol_m,
-                max_var,
-            );
-            let settled = matches!(
-                a.status,
-                RegistrationStatus::Converged | RegistrationStatus::Degenerate
-            ) && a.verdict.is_plausible(&r.recovery);
-            let _ = tried.push((settled, hits, a));
-        }
+        let (shortlist, hypotheses) =
+            self.coarse_shortlist(candidates, search, exec, probe, paging);
+        let tried = self.register_shortlist(&shortlist, search, exec, probe, paging, &mut stats);
+        let registered = shortlist.items().len();
         // The best: settled first, then by share; the runner-up: the best settled one elsewhere.
         let rank = |t: &(bool, Hits, Attempt)| (t.0, t.1.share());
         let best = tried.iter().max_by(|x, y| {
@@ -189,5 +109,115 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             settled,
             runner_up_share: runner_up,
         }
+    }
+
+    /// Every candidate turned to `search.yaw_steps` headings, scored coarsely against the map
+    /// (a subsample of the scan within `search.coarse_tol_m` of its surfaces), candidates spread
+    /// over the executor's workers and offered to the shortlist in candidate order, so the
+    /// result does not depend on the executor. Returns the shortlist and the hypotheses scored.
+    fn coarse_shortlist(
+        &mut self,
+        candidates: &[Pose],
+        search: &Search,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+        paging: &mut (dyn Paging + Send),
+    ) -> (Shortlist, usize) {
+        let lattice = self.config.lattice().table();
+        let max_var = self.config.register.variance_register as f32;
+        // The coarse score's subsample: every k-th filtered point.
+        let stride = (self.points.len() / search.coarse_points.max(1)).max(1);
+        let mut shortlist = Shortlist::new(search.keep);
+        let steps = search.yaw_steps.clamp(1, MAX_YAW_STEPS);
+        let yaw = |k: usize| core::f64::consts::TAU * k as f64 / steps as f64;
+        let mut hypotheses = 0;
+        probe.enter(Stage::Associate);
+        for chunk in candidates.chunks(CHUNK) {
+            if let Some(middle) = chunk.get(chunk.len() / 2) {
+                paging.around(&mut self.map, middle);
+            }
+            let (map, points) = (&self.map, &self.points);
+            exec.map_in_order(
+                chunk,
+                || (),
+                |_, c| {
+                    let mut hits = [0usize; MAX_YAW_STEPS];
+                    for (k, h) in hits.iter_mut().enumerate().take(steps) {
+                        let sample = points.iter().step_by(stride);
+                        let pose = turned_in_yaw(c, yaw(k));
+                        *h = surface_hits(
+                            map,
+                            &lattice,
+                            sample,
+                            &pose,
+                            search.coarse_tol_m,
+                            max_var,
+                        )
+                        .any;
+                    }
+                    hits
+                },
+                |hits| {
+                    let c = candidates
+                        .get(hypotheses / steps)
+                        .copied()
+                        .unwrap_or_else(Pose::identity);
+                    for (k, h) in hits.iter().enumerate().take(steps) {
+                        shortlist.offer(*h, turned_in_yaw(&c, yaw(k)), search);
+                        hypotheses += 1;
+                    }
+                },
+            );
+        }
+        probe.enter(Stage::Done);
+        (shortlist, hypotheses)
+    }
+
+    /// Each shortlisted guess registered in full as recovery registers its guesses (polished
+    /// when it converged plausibly): whether it converged and settled, its share of the scan on
+    /// the map's surfaces (within `search.fine_tol_m`), and the attempt.
+    fn register_shortlist(
+        &mut self,
+        shortlist: &Shortlist,
+        search: &Search,
+        exec: &impl Executor,
+        probe: &mut impl Probe,
+        paging: &mut (dyn Paging + Send),
+        stats: &mut ScanStats,
+    ) -> heapless::Vec<(bool, Hits, Attempt), MAX_KEEP> {
+        let lattice = self.config.lattice().table();
+        let max_var = self.config.register.variance_register as f32;
+        let r = self.config.register;
+        let mut tried = heapless::Vec::new();
+        for &(_, guess) in shortlist.items() {
+            stats.recovery_attempts += 1;
+            paging.around(&mut self.map, &guess);
+            let mut a = self.register(
+                guess,
+                r.recovery.rounds,
+                r.initial_cross_cell_overlap,
+                &r.lm,
+                exec,
+                probe,
+                stats,
+            );
+            if a.status == RegistrationStatus::Converged && a.verdict.is_plausible(&r.recovery) {
+                a = self.polish(a, exec, probe, stats);
+            }
+            let hits = surface_hits(
+                &self.map,
+                &lattice,
+                self.points.iter(),
+                &a.pose,
+                search.fine_tol_m,
+                max_var,
+            );
+            let settled = matches!(
+                a.status,
+                RegistrationStatus::Converged | RegistrationStatus::Degenerate
+            ) && a.verdict.is_plausible(&r.recovery);
+            let _ = tried.push((settled, hits, a));
+        }
+        tried
     }
 }

@@ -6,7 +6,7 @@ use crate::cli::error::CliError;
 use crate::cli::input::InputArgs;
 use crate::cli::settings::Profile;
 use crate::run::config_file::WindowSettings;
-use crate::run::report::{cost_by_outcome, spreads, FrameRecord, Summary};
+use crate::run::report::{cost_by_outcome, spreads, FrameRecord, OutcomeCost, Summary};
 use crate::run::timing::StageMs;
 use crate::run::{run, RunOptions};
 use crate::say;
@@ -141,28 +141,33 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
             1000.0 / total.max(1e-9),
             peak.map_or("unknown".into(), |m| format!("{m:.0} MB"))
         );
-        say!(
-            "{:<14} {:>7} {:>10} {:>10} {:>7} {:>7}",
-            "outcome",
-            "frames",
-            "median ms",
-            "p95 ms",
-            "rounds",
-            "guesses"
-        );
-        for o in cost_by_outcome(&outcomes) {
-            say!(
-                "{:<14} {:>7} {:>10.2} {:>10.2} {:>7.1} {:>7.1}",
-                o.status,
-                o.frames,
-                o.median_ms,
-                o.p95_ms,
-                o.rounds,
-                o.recovery_attempts
-            );
-        }
+        say_outcomes(&cost_by_outcome(&outcomes));
     }
     Ok(())
+}
+
+/// Each registration outcome's cost a frame, as a table.
+fn say_outcomes(costs: &[OutcomeCost]) {
+    say!(
+        "{:<14} {:>7} {:>10} {:>10} {:>7} {:>7}",
+        "outcome",
+        "frames",
+        "median ms",
+        "p95 ms",
+        "rounds",
+        "guesses"
+    );
+    for o in costs {
+        say!(
+            "{:<14} {:>7} {:>10.2} {:>10.2} {:>7.1} {:>7.1}",
+            o.status,
+            o.frames,
+            o.median_ms,
+            o.p95_ms,
+            o.rounds,
+            o.recovery_attempts
+        );
+    }
 }
 
 /// `--scaling`: the same passes on each of [`thread_counts`], the median whole frame's time

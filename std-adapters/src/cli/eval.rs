@@ -4,11 +4,11 @@
 use crate::cli::error::CliError;
 use crate::cli::run::read_given_poses;
 use crate::eval::mesh as mesh_eval;
-use crate::eval::odometry::{self as eval, consecutive_errors};
+use crate::eval::odometry::{self as eval, consecutive_errors, ConsecutiveErrors, SegmentError};
 use crate::eval::topology::Topology;
 use crate::formats::kitti;
 use crate::formats::ply;
-use crate::formats::trajectory;
+use crate::formats::trajectory::{self, Trajectory};
 use crate::say;
 use crate::sources::scans::{read_scan, ScanFolder};
 use clap::Args;
@@ -141,30 +141,7 @@ fn trajectory_errors(
     // Matched by time when both carry times (TUM files, a KITTI folder's times.txt), so that
     // frames a run skipped do not shift the pairs; by line otherwise.
     let (pairs, missing) = est_t.pair_with(&ref_t);
-    if !missing.is_empty() {
-        let named: Vec<String> = missing
-            .iter()
-            .take(5)
-            .map(|&i| match &est_t.stamps {
-                Some(s) => format!("line {} (time {:.6})", i + 1, s[i]),
-                None => format!("line {}", i + 1),
-            })
-            .collect();
-        log::warn!(
-            "{} estimated poses have no reference pose{}: {}{}",
-            missing.len(),
-            if est_t.stamps.is_some() && ref_t.stamps.is_some() {
-                format!(
-                    " within {:.3} s",
-                    est_t.tolerance_s().max(ref_t.tolerance_s())
-                )
-            } else {
-                String::new()
-            },
-            named.join(", "),
-            if missing.len() > 5 { ", ..." } else { "" }
-        );
-    }
+    warn_unpaired(&est_t, &ref_t, &missing);
     let est: Vec<_> = pairs.iter().map(|&(i, _)| est_t.poses[i]).collect();
     let reference: Vec<_> = pairs.iter().map(|&(_, k)| ref_t.poses[k]).collect();
     let e = consecutive_errors(&est, &reference);
@@ -197,34 +174,73 @@ fn trajectory_errors(
             })
         );
     } else {
-        say!("frame pairs:                 {}", e.pairs);
-        say!(
-            "consecutive translation:     mean {:.2} cm, max {:.2} cm",
-            e.mean_translation_m * 100.0,
-            e.max_translation_m * 100.0
-        );
-        say!(
-            "consecutive rotation:        mean {:.4} deg",
-            e.mean_rotation_deg
-        );
-        say!(
-            "end-point error:             {:.3} m over {:.1} m ({:.3} %)",
-            end_m,
-            path_m,
-            drift_percent
-        );
-        say!("ATE (rigidly aligned):       {:.3} m RMSE", ate);
-        for s in &segments {
-            say!(
-                "{:>4.0} m segments:             {:.3} % translation, {:.4} deg/100 m ({} segments)",
-                s.length_m,
-                s.translation_percent,
-                s.rotation_deg_per_100m,
-                s.segments
-            );
-        }
+        say_errors(&e, path_m, (end_m, drift_percent), ate, &segments);
     }
     Ok(())
+}
+
+/// Names the estimated poses that found no reference pose (the first five).
+fn warn_unpaired(est_t: &Trajectory, ref_t: &Trajectory, missing: &[usize]) {
+    if missing.is_empty() {
+        return;
+    }
+    let named: Vec<String> = missing
+        .iter()
+        .take(5)
+        .map(|&i| match &est_t.stamps {
+            Some(s) => format!("line {} (time {:.6})", i + 1, s[i]),
+            None => format!("line {}", i + 1),
+        })
+        .collect();
+    let within = match (&est_t.stamps, &ref_t.stamps) {
+        (Some(_), Some(_)) => format!(
+            " within {:.3} s",
+            est_t.tolerance_s().max(ref_t.tolerance_s())
+        ),
+        _ => String::new(),
+    };
+    log::warn!(
+        "{} estimated poses have no reference pose{within}: {}{}",
+        missing.len(),
+        named.join(", "),
+        if missing.len() > 5 { ", ..." } else { "" }
+    );
+}
+
+/// The trajectory's errors as lines for a person.
+fn say_errors(
+    e: &ConsecutiveErrors,
+    path_m: f64,
+    (end_m, drift_percent): (f64, f64),
+    ate: f64,
+    segments: &[SegmentError],
+) {
+    say!("frame pairs:                 {}", e.pairs);
+    say!(
+        "consecutive translation:     mean {:.2} cm, max {:.2} cm",
+        e.mean_translation_m * 100.0,
+        e.max_translation_m * 100.0
+    );
+    say!(
+        "consecutive rotation:        mean {:.4} deg",
+        e.mean_rotation_deg
+    );
+    say!(
+        "end-point error:             {:.3} m over {:.1} m ({:.3} %)",
+        end_m,
+        path_m,
+        drift_percent
+    );
+    say!("ATE (rigidly aligned):       {:.3} m RMSE", ate);
+    for s in segments {
+        say!(
+            "{:>4.0} m segments:             {:.3} % translation, {:.4} deg/100 m ({} segments)",
+            s.length_m,
+            s.translation_percent,
+            s.rotation_deg_per_100m,
+            s.segments
+        );
+    }
 }
 
 fn mesh_scores(mesh: &Path, cloud: &Path, json: bool) -> Result<(), CliError> {

@@ -12,6 +12,7 @@ use crate::io::FileError;
 use crate::loop_closure::settings::LoopSettings;
 use crate::outputs::mesh_spool::{MeshColour, MeshFormat};
 use crate::run::capacity::{self, ClassId};
+use crate::run::config_file::Settings;
 use crate::run::session::{Deskew, InitialPose};
 use crate::run::sink::FnSink;
 use crate::run::{run_to, FrameEvent, FrameRecord, FrameSource, Input, RunOptions, Sinks, Summary};
@@ -307,57 +308,12 @@ fn run_with(
         crate::run::scale::fit_to_scene(&mut s, &mut source);
     }
     if let Some(p) = &given {
-        let how = match p.stamps {
-            Some(_) => format!(
-                "matched to frames by time (within {:.3} s)",
-                p.tolerance_s()
-            ),
-            None => "taken in line order".to_string(),
-        };
-        if p.poses.len() < source.frames() {
-            log::warn!(
-                "{} poses for {} frames, {how}; frames without a pose are skipped",
-                p.poses.len(),
-                source.frames()
-            );
-        } else {
-            log::info!("{} poses, {how}", p.poses.len());
-        }
-    }
-    let mut mesh_formats = vec![MeshFormat::Ply];
-    if args.obj {
-        mesh_formats.push(MeshFormat::Obj);
+        say_given_poses(p, source.frames());
     }
     if args.loop_closure == OnOff::On {
         LoopSettings::default().configure(&mut s.config);
     }
-    let opts = RunOptions {
-        out: args.out.clone(),
-        config: s.config,
-        preset: s.preset.to_string(),
-        window: s.window,
-        threads: args.threads,
-        mesh_formats,
-        mesh_colour: match args.colour {
-            ColourFlag::None => MeshColour::None,
-            ColourFlag::Height => MeshColour::Height,
-            ColourFlag::Variance => MeshColour::Variance,
-        },
-        given_poses: given,
-        input: args.source.input.display().to_string(),
-        checkpoint_every: args.checkpoint_every.map(|n| n as usize),
-        resume: args.resume,
-        picture: !args.no_picture,
-        map: args.map.clone(),
-        localize_only,
-        initial_pose: args.initial_pose,
-        save_map: args.save_map.clone(),
-        loop_closure: (args.loop_closure == OnOff::On).then(LoopSettings::default),
-        deskew: match args.deskew {
-            DeskewFlag::Auto => Deskew::Auto,
-            DeskewFlag::Off => Deskew::Off,
-        },
-    };
+    let opts = run_options(args, &s, given, localize_only);
     let bar = match source {
         Input::Live(_) => crate::cli::progress_open(quiet),
         _ => progress(source.frames(), quiet),
@@ -390,17 +346,82 @@ fn run_with(
     bar.finish_and_clear();
     notices.finish();
     print_summary(&summary, &args.out);
+    judge(&summary, args.strict)
+}
+
+/// The run's end as an exit status: an error when no frame was used, or (`--strict`) when a
+/// frame was not registered normally, each named.
+fn judge(summary: &Summary, strict: bool) -> Result<(), CliError> {
     if summary.used == 0 {
         return Err(CliError::NoFrameUsed);
     }
     let bad = &summary.health.not_registered;
-    if args.strict && !bad.is_empty() {
+    if strict && !bad.is_empty() {
         for b in bad {
             log::error!("frame {} ({}): {}: {}", b.frame, b.file, b.status, b.reason);
         }
         return Err(CliError::NotRegistered { frames: bad.len() });
     }
     Ok(())
+}
+
+/// Says how `poses` are matched to the input's `frames`, and warns when some frames have none.
+fn say_given_poses(p: &Trajectory, frames: usize) {
+    let how = match p.stamps {
+        Some(_) => format!(
+            "matched to frames by time (within {:.3} s)",
+            p.tolerance_s()
+        ),
+        None => "taken in line order".to_string(),
+    };
+    if p.poses.len() < frames {
+        log::warn!(
+            "{} poses for {frames} frames, {how}; frames without a pose are skipped",
+            p.poses.len()
+        );
+    } else {
+        log::info!("{} poses, {how}", p.poses.len());
+    }
+}
+
+/// The run's options from the command line and the resolved settings `s`.
+fn run_options(
+    args: &RunArgs,
+    s: &Settings,
+    given: Option<Trajectory>,
+    localize_only: bool,
+) -> RunOptions {
+    let mut mesh_formats = vec![MeshFormat::Ply];
+    if args.obj {
+        mesh_formats.push(MeshFormat::Obj);
+    }
+    RunOptions {
+        out: args.out.clone(),
+        config: s.config,
+        preset: s.preset.to_string(),
+        window: s.window,
+        threads: args.threads,
+        mesh_formats,
+        mesh_colour: match args.colour {
+            ColourFlag::None => MeshColour::None,
+            ColourFlag::Height => MeshColour::Height,
+            ColourFlag::Variance => MeshColour::Variance,
+        },
+        given_poses: given,
+        input: args.source.input.display().to_string(),
+        checkpoint_every: args.checkpoint_every.map(|n| n as usize),
+        resume: args.resume,
+        picture: !args.no_picture,
+        map: args.map.clone(),
+        localize_only,
+        initial_pose: args.initial_pose,
+        save_map: args.save_map.clone(),
+        loop_closure: (args.loop_closure == OnOff::On).then(LoopSettings::default),
+        deskew: match args.deskew {
+            DeskewFlag::Auto => Deskew::Auto,
+            DeskewFlag::Off => Deskew::Off,
+        },
+    }
 }
 
 /// The live view and its recording, when asked for (`--view`, `--record`): a sink of the run.
