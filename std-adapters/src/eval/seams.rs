@@ -80,6 +80,89 @@ impl Masks {
     }
 }
 
+/// The layers by place, to look across a cell face from one of them.
+struct Neighbourhood<'a> {
+    by_place: HashMap<(CellKey, Axis), (&'a Layer, u64)>,
+    table: LatticeTable,
+    lattice: &'a Lattice,
+    shown: Shown,
+    /// How close two layers' vertices on a shared face are when merged (m).
+    tolerance: f32,
+}
+
+impl Neighbourhood<'_> {
+    /// Counts the edge `(p, q)` of a shown triangle of `l` into `c` by what lies across its
+    /// cell face: merged (not counted), a shown triangle not merged, a hidden one, a layer of
+    /// another axis, or nothing seen. An edge not on the lattice's border is not counted.
+    fn border_edge(&self, l: &LayerRef<'_>, (p, q): (usize, usize), c: &mut SeamCauses) {
+        let (a, b) = l.axis.locations();
+        let d = l.axis.index();
+        // A border edge: which face, and the mirrored vertices across it.
+        let ((pa, pb), (qa, qb)) = ((p / N, p % N), (q / N, q % N));
+        let (axis_off, step, mirror) = if pa == qa && (pa == 0 || pa == N - 1) {
+            let to = N - 1 - pa;
+            (a, if pa == 0 { -1 } else { 1 }, [to * N + pb, to * N + qb])
+        } else if pb == qb && (pb == 0 || pb == N - 1) {
+            let to = N - 1 - pb;
+            (b, if pb == 0 { -1 } else { 1 }, [pa * N + to, qa * N + to])
+        } else {
+            return;
+        };
+        let Some(side) = l.key.offset(Axis::from_index(axis_off), step) else {
+            return;
+        };
+        let here = [l.layer.pred[p], l.layer.pred[q]].map(f64::from);
+        let world = |key: &CellKey, pred: f64| {
+            let corner = key.min_corner(self.lattice.cell_size);
+            corner[d] + pred
+        };
+        // The same-axis layers across: side by side, or one cell up or down.
+        let mut best: Option<Result<(), bool>> = None;
+        for up in [0, -1, 1] {
+            let Some(key) = side.offset(l.axis, up) else {
+                continue;
+            };
+            let Some(&(n, n_mask)) = self.by_place.get(&(key, l.axis)) else {
+                continue;
+            };
+            let close = mirror.iter().zip(&here).all(|(&m, &h)| {
+                let theirs = world(&key, f64::from(n.pred[m]));
+                (theirs - world(&l.key, h)).abs() <= f64::from(self.tolerance)
+            });
+            let state = on_border(mirror[0], mirror[1]).map_or(Err(true), |t| {
+                Masks::of(n, n_mask, &self.table, self.shown).state(t)
+            });
+            if state.is_ok() && close {
+                // Merged: not an open edge.
+                return;
+            }
+            best = match (best, state) {
+                (Some(Ok(())), _) => best,
+                _ => Some(state),
+            };
+        }
+        match best {
+            Some(Ok(())) => c.not_merged += 1,
+            Some(Err(true)) => c.hidden_variance += 1,
+            Some(Err(false)) => c.hidden_slope += 1,
+            None => {
+                let other_axis = Axis::ALL.iter().any(|&x| {
+                    x != l.axis
+                        && ([0, -1, 1].iter().any(|&up| {
+                            side.offset(l.axis, up)
+                                .is_some_and(|k| self.by_place.contains_key(&(k, x)))
+                        }) || self.by_place.contains_key(&(l.key, x)))
+                });
+                if other_axis {
+                    c.orientation += 1;
+                } else {
+                    c.unseen += 1;
+                }
+            }
+        }
+    }
+}
+
 /// Counts the open edges of `layers`' shown triangles by cause, with `shown_masks` what each
 /// layer shows in their welded mesh ([`WeldedMesh::shown`](crate::outputs::mesh_weld::WeldedMesh::shown) of
 /// `weld(layers, ..)`).
@@ -90,18 +173,20 @@ pub fn seam_causes<'a>(
     shown: Shown,
 ) -> SeamCauses {
     let layers: Vec<LayerRef<'a>> = layers.into_iter().collect();
-    let by_place: HashMap<(CellKey, Axis), (&Layer, u64)> = layers
-        .iter()
-        .zip(shown_masks)
-        .map(|(l, &m)| ((l.key, l.axis), (l.layer, m)))
-        .collect();
-    let table = lattice.table();
-    let tolerance = (lattice.cell_size / (N - 1) as f64 / 2.0) as f32;
+    let near = Neighbourhood {
+        by_place: layers
+            .iter()
+            .zip(shown_masks)
+            .map(|(l, &m)| ((l.key, l.axis), (l.layer, m)))
+            .collect(),
+        table: lattice.table(),
+        lattice,
+        shown,
+        tolerance: (lattice.cell_size / (N - 1) as f64 / 2.0) as f32,
+    };
     let mut c = SeamCauses::default();
     for (l, &shown_mask) in layers.iter().zip(shown_masks) {
-        let (a, b) = l.axis.locations();
-        let d = l.axis.index();
-        let masks = Masks::of(l.layer, shown_mask, &table, shown);
+        let masks = Masks::of(l.layer, shown_mask, &near.table, shown);
         for t in (0..TRIANGLES).filter(|&t| masks.shown & (1 << t) != 0) {
             let tri = lattice_triangle(t);
             for k in 0..3 {
@@ -119,72 +204,7 @@ pub fn seam_causes<'a>(
                     }
                     continue;
                 }
-                // A border edge: which face, and the mirrored vertices across it.
-                let ((pa, pb), (qa, qb)) = ((p / N, p % N), (q / N, q % N));
-                let (axis_off, step, mirror) = if pa == qa && (pa == 0 || pa == N - 1) {
-                    let to = N - 1 - pa;
-                    (a, if pa == 0 { -1 } else { 1 }, [to * N + pb, to * N + qb])
-                } else if pb == qb && (pb == 0 || pb == N - 1) {
-                    let to = N - 1 - pb;
-                    (b, if pb == 0 { -1 } else { 1 }, [pa * N + to, qa * N + to])
-                } else {
-                    continue;
-                };
-                let Some(side) = l.key.offset(Axis::from_index(axis_off), step) else {
-                    continue;
-                };
-                let here = [l.layer.pred[p], l.layer.pred[q]].map(f64::from);
-                let world = |key: &CellKey, pred: f64| {
-                    let corner = key.min_corner(lattice.cell_size);
-                    corner[d] + pred
-                };
-                // The same-axis layers across: side by side, or one cell up or down.
-                let mut best: Option<Result<(), bool>> = None;
-                let mut merged = false;
-                for up in [0, -1, 1] {
-                    let Some(key) = side.offset(l.axis, up) else {
-                        continue;
-                    };
-                    let Some(&(n, n_mask)) = by_place.get(&(key, l.axis)) else {
-                        continue;
-                    };
-                    let close = mirror.iter().zip(&here).all(|(&m, &h)| {
-                        let theirs = world(&key, f64::from(n.pred[m]));
-                        (theirs - world(&l.key, h)).abs() <= f64::from(tolerance)
-                    });
-                    let state = on_border(mirror[0], mirror[1])
-                        .map_or(Err(true), |t| Masks::of(n, n_mask, &table, shown).state(t));
-                    if state.is_ok() && close {
-                        merged = true;
-                        break;
-                    }
-                    best = match (best, state) {
-                        (Some(Ok(())), _) => best,
-                        _ => Some(state),
-                    };
-                }
-                if merged {
-                    continue;
-                }
-                match best {
-                    Some(Ok(())) => c.not_merged += 1,
-                    Some(Err(true)) => c.hidden_variance += 1,
-                    Some(Err(false)) => c.hidden_slope += 1,
-                    None => {
-                        let other_axis = Axis::ALL.iter().any(|&x| {
-                            x != l.axis
-                                && ([0, -1, 1].iter().any(|&up| {
-                                    side.offset(l.axis, up)
-                                        .is_some_and(|k| by_place.contains_key(&(k, x)))
-                                }) || by_place.contains_key(&(l.key, x)))
-                        });
-                        if other_axis {
-                            c.orientation += 1;
-                        } else {
-                            c.unseen += 1;
-                        }
-                    }
-                }
+                near.border_edge(l, (p, q), &mut c);
             }
         }
     }
