@@ -91,70 +91,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         } else {
             Tracker::Double(Box::new(Pipeline::new(config)?))
         };
-        let mut ms = Vec::with_capacity(frames);
-        let mut estimate = Vec::with_capacity(frames);
-        let mut statuses: BTreeMap<String, usize> = BTreeMap::new();
-        let mut step_signals = vec![[f64::NAN; 4]; frames];
-        let mut frame_status = Vec::with_capacity(frames);
-        for (i, signals_i) in step_signals.iter_mut().enumerate() {
-            let scan = drive.scan(i);
-            let start = Instant::now();
-            let result = pipeline.process(&scan, &workers);
-            ms.push(start.elapsed().as_secs_f64() * 1e3);
-            let status = match result {
-                Ok(o) => {
-                    estimate.push(o.t_world_sensor);
-                    let st = &o.stats;
-                    let layers = st.scan_layers.max(1) as f64;
-                    let fused = (st.fusion.fused + st.fusion.added).max(1) as f64;
-                    *signals_i = [
-                        st.associate.residuals as f64 / layers,
-                        st.fusion.added as f64 / fused,
-                        st.lm_iterations as f64,
-                        st.conditioning,
-                    ];
-                    format!("{:?}", o.status)
-                        + &match st.recovery_attempts {
-                            0 => String::new(),
-                            n => format!(" after {n} guesses"),
-                        }
-                        + &format!(" ({} rounds)", st.rounds)
-                }
-                Err(e) => {
-                    estimate.push(*estimate.last().unwrap_or(&Pose::identity()));
-                    format!("rejected ({e})")
-                }
-            };
-            let kind = status
-                .split([' ', '('])
-                .next()
-                .unwrap_or_default()
-                .to_string();
-            *statuses.entry(kind).or_default() += 1;
-            frame_status.push(status);
-        }
-        let mut good = 0;
-        for i in 1..frames {
-            let step = |p: &[Pose]| p[i - 1].inverse() * p[i];
-            let e = step(&truth).inverse() * step(&estimate);
-            let (t, r) = (e.translation.vector.norm(), e.rotation.angle().to_degrees());
-            let turn = step(&truth).rotation.angle().to_degrees();
-            if t <= 0.05 && r <= 0.5 {
-                good += 1;
-            }
-            seen.push((t <= 0.05 && r <= 0.5, step_signals[i]));
-            if steps {
-                let v = e.translation.vector * 100.0;
-                println!(
-                    "{name} step {i}: turn {turn:.1} deg; error {:.2} cm ({:.2}, {:.2}, {:.2} in the sensor frame), {r:.3} deg; {}",
-                    t * 100.0,
-                    v.x,
-                    v.y,
-                    v.z,
-                    frame_status[i]
-                );
-            }
-        }
+        let Tracked {
+            mut ms,
+            estimate,
+            statuses,
+            step_signals,
+            frame_status,
+        } = track(&mut pipeline, &drive, frames, &workers);
+        let good = judge_steps(
+            name,
+            &truth,
+            &estimate,
+            &step_signals,
+            &frame_status,
+            steps,
+            &mut seen,
+        );
         let c = consecutive_errors(&estimate, &truth);
         ms.sort_by(f64::total_cmp);
         println!(
@@ -171,36 +123,145 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     if signals {
-        let names = [
-            "matched share of layers",
-            "new share of fused layers",
-            "LM iterations",
-            "conditioning",
-        ];
-        for (k, name) in names.iter().enumerate() {
-            for tracked in [true, false] {
-                let mut v: Vec<f64> = seen
-                    .iter()
-                    .filter(|(g, s)| *g == tracked && s[k].is_finite())
-                    .map(|(_, s)| s[k])
-                    .collect();
-                v.sort_by(f64::total_cmp);
-                if v.is_empty() {
-                    continue;
-                }
-                let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
-                println!(
-                    "{name}, {} steps ({}): min {:.3}, 5 % {:.3}, median {:.3}, 95 % {:.3}, max {:.3}",
-                    if tracked { "tracked" } else { "lost" },
-                    v.len(),
-                    q(0.0),
-                    q(0.05),
-                    q(0.5),
-                    q(0.95),
-                    q(1.0)
-                );
-            }
-        }
+        print_signals(&seen);
     }
     Ok(())
+}
+
+/// What tracking one drive gave, frame by frame.
+struct Tracked {
+    /// Each frame's time (ms).
+    ms: Vec<f64>,
+    /// Each frame's pose (the last one again for a rejected frame).
+    estimate: Vec<Pose>,
+    /// Frames by outcome.
+    statuses: BTreeMap<String, usize>,
+    /// Each frame's signals: matched share of layers, new share of fused layers, LM
+    /// iterations, conditioning.
+    step_signals: Vec<[f64; 4]>,
+    /// Each frame's outcome in words.
+    frame_status: Vec<String>,
+}
+
+/// Runs `pipeline` over the first `frames` scans of `drive`.
+fn track(pipeline: &mut Tracker, drive: &Drive, frames: usize, workers: &Workers) -> Tracked {
+    let mut ms = Vec::with_capacity(frames);
+    let mut estimate = Vec::with_capacity(frames);
+    let mut statuses: BTreeMap<String, usize> = BTreeMap::new();
+    let mut step_signals = vec![[f64::NAN; 4]; frames];
+    let mut frame_status = Vec::with_capacity(frames);
+    for (i, signals_i) in step_signals.iter_mut().enumerate() {
+        let scan = drive.scan(i);
+        let start = Instant::now();
+        let result = pipeline.process(&scan, &workers);
+        ms.push(start.elapsed().as_secs_f64() * 1e3);
+        let status = match result {
+            Ok(o) => {
+                estimate.push(o.t_world_sensor);
+                let st = &o.stats;
+                let layers = st.scan_layers.max(1) as f64;
+                let fused = (st.fusion.fused + st.fusion.added).max(1) as f64;
+                *signals_i = [
+                    st.associate.residuals as f64 / layers,
+                    st.fusion.added as f64 / fused,
+                    st.lm_iterations as f64,
+                    st.conditioning,
+                ];
+                format!("{:?}", o.status)
+                    + &match st.recovery_attempts {
+                        0 => String::new(),
+                        n => format!(" after {n} guesses"),
+                    }
+                    + &format!(" ({} rounds)", st.rounds)
+            }
+            Err(e) => {
+                estimate.push(*estimate.last().unwrap_or(&Pose::identity()));
+                format!("rejected ({e})")
+            }
+        };
+        let kind = status
+            .split([' ', '('])
+            .next()
+            .unwrap_or_default()
+            .to_string();
+        *statuses.entry(kind).or_default() += 1;
+        frame_status.push(status);
+    }
+    Tracked {
+        ms,
+        estimate,
+        statuses,
+        step_signals,
+        frame_status,
+    }
+}
+
+/// Each signal's spread over the tracked and the lost steps.
+fn print_signals(seen: &[(bool, [f64; 4])]) {
+    let names = [
+        "matched share of layers",
+        "new share of fused layers",
+        "LM iterations",
+        "conditioning",
+    ];
+    for (k, name) in names.iter().enumerate() {
+        for tracked in [true, false] {
+            let mut v: Vec<f64> = seen
+                .iter()
+                .filter(|(g, s)| *g == tracked && s[k].is_finite())
+                .map(|(_, s)| s[k])
+                .collect();
+            v.sort_by(f64::total_cmp);
+            if v.is_empty() {
+                continue;
+            }
+            let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+            println!(
+                "{name}, {} steps ({}): min {:.3}, 5 % {:.3}, median {:.3}, 95 % {:.3}, max {:.3}",
+                if tracked { "tracked" } else { "lost" },
+                v.len(),
+                q(0.0),
+                q(0.05),
+                q(0.5),
+                q(0.95),
+                q(1.0)
+            );
+        }
+    }
+}
+
+/// Counts the steps within 5 cm and 0.5 degree of the truth, keeping each step's signals in
+/// `seen`; with `steps`, prints each step.
+fn judge_steps(
+    name: &str,
+    truth: &[Pose],
+    estimate: &[Pose],
+    step_signals: &[[f64; 4]],
+    frame_status: &[String],
+    steps: bool,
+    seen: &mut Vec<(bool, [f64; 4])>,
+) -> usize {
+    let mut good = 0;
+    for i in 1..estimate.len() {
+        let step = |p: &[Pose]| p[i - 1].inverse() * p[i];
+        let e = step(&truth).inverse() * step(&estimate);
+        let (t, r) = (e.translation.vector.norm(), e.rotation.angle().to_degrees());
+        let turn = step(&truth).rotation.angle().to_degrees();
+        if t <= 0.05 && r <= 0.5 {
+            good += 1;
+        }
+        seen.push((t <= 0.05 && r <= 0.5, step_signals[i]));
+        if steps {
+            let v = e.translation.vector * 100.0;
+            println!(
+                "{name} step {i}: turn {turn:.1} deg; error {:.2} cm ({:.2}, {:.2}, {:.2} in the sensor frame), {r:.3} deg; {}",
+                t * 100.0,
+                v.x,
+                v.y,
+                v.z,
+                frame_status[i]
+            );
+        }
+    }
+    good
 }
