@@ -90,16 +90,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             c.1 += u64::from(error > 0.1);
         }
     }
-    println!("variance / limit   triangles (share > 0.1 m off) by confident neighbours 0, 1, 2, 3");
-    let mut lo = 0.0;
-    for (hi, row) in BINS.iter().zip(&counts) {
-        print!("{lo:5.2} to {hi:5.2}");
-        for &(n, off) in row {
-            print!("  {n:6} ({:4.1} %)", 100.0 * off as f64 / n.max(1) as f64);
-        }
-        println!();
-        lo = *hi;
-    }
+    print_by_variance(&counts);
     // Welded: the layers' own shown triangles against those shown by the fused variances.
     let welded = weld(pipeline.map().layers(), &config.lattice(), shown);
     let mut by_rule = [(0u64, 0u64, 0u64); 2];
@@ -115,6 +106,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
         }
     }
+    print_welded(by_rule);
+    Ok(())
+}
+
+/// Triangles by variance bin and confident neighbours, with the share off the truth.
+fn print_by_variance(counts: &[[(u64, u64); 4]; BINS.len()]) {
+    println!("variance / limit   triangles (share > 0.1 m off) by confident neighbours 0, 1, 2, 3");
+    let mut lo = 0.0;
+    for (hi, row) in BINS.iter().zip(counts) {
+        print!("{lo:5.2} to {hi:5.2}");
+        for &(n, off) in row {
+            print!("  {n:6} ({:4.1} %)", 100.0 * off as f64 / n.max(1) as f64);
+        }
+        println!();
+        lo = *hi;
+    }
+}
+
+/// The welded mesh's triangles shown by their own variances and by the fused ones only, with
+/// the shares off the truth.
+fn print_welded(by_rule: [(u64, u64, u64); 2]) {
     for (name, (n, off1, off2)) in ["own variances", "fused only"].iter().zip(by_rule) {
         let share = |k: u64| 100.0 * k as f64 / n.max(1) as f64;
         println!(
@@ -123,5 +135,4 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             share(off2)
         );
     }
-    Ok(())
 }
