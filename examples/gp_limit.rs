@@ -27,7 +27,7 @@ use slamesh_core::gp::{predict_in, select_training, GpScratch, Sample, Variances
 use slamesh_core::math::{exp, exp_f32, sqrt_f32};
 use slamesh_core::pca::{choose_layers, Shape};
 use slamesh_core::sort::KeySorter;
-use slamesh_core::{Capacity, KittiCapacity, Pose, Serial};
+use slamesh_core::{Capacity, Config, KittiCapacity, Pose, Serial};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -116,35 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let base = config_file::preset("default").ok_or("no default preset")?;
     let config = scale::fit(&base, &first).map_or(base, |f| f.config);
     let lattice = config.lattice();
-    let mut filter = ScanFilter::new::<KittiCapacity>();
-    let mut work = BoundedVec::with_capacity(KittiCapacity::POINTS);
-    let mut sorter = KeySorter::with_capacity(KittiCapacity::SORT_ENTRIES);
-    let mut cells = BoundedVec::with_capacity(KittiCapacity::SCAN_CELLS);
-    // Every layer's training samples, over all scans.
-    let mut layers: Vec<Vec<Sample>> = Vec::new();
-    for path in &folder.paths {
-        let raw = read_scan(path)?;
-        let points = filter.filter(&raw, &config, &Serial).points.to_vec();
-        let placement = Placement::<f64>::new(&Pose::identity(), config.grid.cell_size_m);
-        let min_points = config.grid.min_points;
-        bucket(
-            &points,
-            &placement,
-            min_points,
-            &mut work,
-            &mut sorter,
-            &mut cells,
-            &Serial,
-        );
-        for c in cells.iter() {
-            let pts = c.points(&work);
-            if let Shape::Surface(axes) = choose_layers::<f64>(pts) {
-                for axis in axes {
-                    layers.push(select_training(pts, axis, lattice.cell_size).to_vec());
-                }
-            }
-        }
-    }
+    let layers = training_samples(&folder, &config)?;
     let scans = folder.paths.len() as f64;
     let mean_m = layers.iter().map(|s| s.len() as f64).sum::<f64>() / layers.len() as f64;
     let w = layers
@@ -209,4 +181,42 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         least * n / scans * 1e3
     );
     Ok(())
+}
+
+/// Every layer's training samples, over all the scans of `folder`, as the pipeline would
+/// reconstruct them at the identity pose.
+fn training_samples(
+    folder: &ScanFolder,
+    config: &Config,
+) -> Result<Vec<Vec<Sample>>, Box<dyn std::error::Error>> {
+    let lattice = config.lattice();
+    let mut filter = ScanFilter::new::<KittiCapacity>();
+    let mut work = BoundedVec::with_capacity(KittiCapacity::POINTS);
+    let mut sorter = KeySorter::with_capacity(KittiCapacity::SORT_ENTRIES);
+    let mut cells = BoundedVec::with_capacity(KittiCapacity::SCAN_CELLS);
+    let mut layers: Vec<Vec<Sample>> = Vec::new();
+    for path in &folder.paths {
+        let raw = read_scan(path)?;
+        let points = filter.filter(&raw, config, &Serial).points.to_vec();
+        let placement = Placement::<f64>::new(&Pose::identity(), config.grid.cell_size_m);
+        let min_points = config.grid.min_points;
+        bucket(
+            &points,
+            &placement,
+            min_points,
+            &mut work,
+            &mut sorter,
+            &mut cells,
+            &Serial,
+        );
+        for c in cells.iter() {
+            let pts = c.points(&work);
+            if let Shape::Surface(axes) = choose_layers::<f64>(pts) {
+                for axis in axes {
+                    layers.push(select_training(pts, axis, lattice.cell_size).to_vec());
+                }
+            }
+        }
+    }
+    Ok(layers)
 }
