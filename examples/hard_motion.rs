@@ -153,7 +153,7 @@ fn track(pipeline: &mut Tracker, drive: &Drive, frames: usize, workers: &Workers
     for (i, signals_i) in step_signals.iter_mut().enumerate() {
         let scan = drive.scan(i);
         let start = Instant::now();
-        let result = pipeline.process(&scan, &workers);
+        let result = pipeline.process(&scan, workers);
         ms.push(start.elapsed().as_secs_f64() * 1e3);
         let status = match result {
             Ok(o) => {
@@ -244,9 +244,9 @@ fn judge_steps(
     let mut good = 0;
     for i in 1..estimate.len() {
         let step = |p: &[Pose]| p[i - 1].inverse() * p[i];
-        let e = step(&truth).inverse() * step(&estimate);
+        let e = step(truth).inverse() * step(estimate);
         let (t, r) = (e.translation.vector.norm(), e.rotation.angle().to_degrees());
-        let turn = step(&truth).rotation.angle().to_degrees();
+        let turn = step(truth).rotation.angle().to_degrees();
         if t <= 0.05 && r <= 0.5 {
             good += 1;
         }

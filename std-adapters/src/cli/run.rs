@@ -204,14 +204,7 @@ pub fn localize(args: &LocalizeArgs, quiet: bool) -> Result<(), CliError> {
             "the map is fixed (run --map FILE maps on from it, and closes loops)",
         ));
     }
-    if args.run.map.is_none() {
-        return Err(CliError::BadFlag {
-            flag: "--map",
-            reason: "localize needs the map to localize in: --map FILE (written by run \
-                     --save-map)"
-                .into(),
-        });
-    }
+    // `--map` is required by the parser (`cli::Command::Localize`).
     run_in_map(&args.run, !args.update, quiet)
 }
 

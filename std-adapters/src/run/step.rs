@@ -82,8 +82,7 @@ impl<C: Capacity> Run<'_, C> {
         source: &mut impl FrameSource,
         i: usize,
     ) -> Result<FrameRecord, RunError> {
-        let label = source.label(i);
-        let mut rec = FrameRecord::skipped(i, label.clone());
+        let mut rec = FrameRecord::skipped(i, source.label(i));
         self.close_loops(i, &mut rec);
         let read = self.ahead.take(source, i);
         self.samples = source.samples(i);
@@ -109,7 +108,7 @@ impl<C: Capacity> Run<'_, C> {
                 rec.ms.total = rec.ms.pipeline() + rec.ms.evict - not_waited;
                 self.keep_pose(source, i, &o, &frame, &mut rec);
             }
-            Err(fault) => self.skip(FrameError::new(&label, i, fault), &mut rec),
+            Err(fault) => self.skip(FrameError::new(&rec.file, i, fault), &mut rec),
         }
         self.record(source, i, &mut rec)?;
         Ok(rec)
@@ -132,9 +131,14 @@ impl<C: Capacity> Run<'_, C> {
         if n == 0 {
             return;
         }
-        let mut recent: Vec<usize> = self.recent_points.iter().copied().collect();
-        recent.sort_unstable();
-        if let Some(&typical) = recent.get(recent.len() / 2) {
+        // Their median, sorted in place of a copy: no allocation on the frame's path.
+        let mut recent = [0usize; RECENT_SCANS];
+        let k = self.recent_points.len();
+        for (r, &n) in recent.iter_mut().zip(&self.recent_points) {
+            *r = n;
+        }
+        recent[..k].sort_unstable();
+        if let Some(&typical) = recent[..k].get(k / 2) {
             if n * SMALL_SCAN_RATIO < typical {
                 log::warn!(
                     "{}: frame {}: {n} points, far fewer than the {typical} of the frames before \
