@@ -6,6 +6,7 @@
 //! nothing the run writes.
 
 use crate::common::scratch;
+use slamesh::run::files::{ReportFile, Trajectories};
 use slamesh::run::sink::{FnSink, Queued, Sink, WhenFull};
 use slamesh::run::{run_to, FrameEvent, FrameSource, RunOptions, Sinks, Summary};
 use slamesh::sources::{ImuReading, Sample};
@@ -113,6 +114,28 @@ fn a_run_fans_each_frame_out_to_its_sinks_in_order() {
             "{f}"
         );
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_runs_own_files_are_sinks_that_write_the_same_files_elsewhere() {
+    let dir = scratch("file-sinks");
+    let (own, copy) = (dir.join("own"), dir.join("copy"));
+    std::fs::create_dir_all(&copy).unwrap();
+    let mut sinks = Sinks::new();
+    let report = ReportFile::create(&options(&copy)).unwrap();
+    sinks.add(Queued::new(report, 2, WhenFull::Wait).unwrap());
+    sinks.add(Trajectories::new(&copy));
+    run_to::<KittiCapacity>(&mut Drive::town(5, 3), &options(&own), sinks).unwrap();
+    for f in ["report.json", "poses_tum.txt", "poses_kitti.txt"] {
+        let (a, b) = (
+            std::fs::read(own.join(f)).unwrap(),
+            std::fs::read(copy.join(f)),
+        );
+        assert!(a.len() > 100, "{f}: {} bytes", a.len());
+        assert_eq!(a, b.unwrap(), "{f}");
+    }
+    assert!(!copy.join(".report.frames.spool").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -290,7 +290,11 @@ impl Engine {
                 Stage::Running(run) => run.poses(),
                 _ => &[],
             };
-            slamesh::run::report::write_trajectories(&folder, &state.source, poses)
+            let stamped: Vec<(usize, f64, Pose)> = poses
+                .iter()
+                .map(|&(i, p)| (i, state.source.stamp(i), p))
+                .collect();
+            slamesh::run::files::write_trajectories(&folder, state.source.frames(), &stamped)
         })
         .map_err(error)
     }

@@ -9,7 +9,8 @@
 //! | one frame as named stages: read, prepare, register, update the map, record | `step` |
 //! | why a frame was skipped | [`frame_error`] |
 //! | one way out: what a run produces, fanned out to its sinks (bounded queues for slow ones) | [`sink`] |
-//! | the per-frame records, the summary, `report.json` and the trajectories | [`report`] |
+//! | the per-frame records, the summary, the frames' health | [`report`] |
+//! | the run's own files as sinks: `report.json`, the trajectories | [`files`] |
 //! | time per stage | [`timing`] |
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
 //! | saving and resuming a killed run | [`checkpoint`] |
@@ -20,6 +21,7 @@
 pub mod capacity;
 pub mod checkpoint;
 pub mod config_file;
+pub mod files;
 pub mod frame_error;
 pub mod lookahead;
 pub mod map_pager;

@@ -1,26 +1,17 @@
-//! What a run reports: a record per frame, the summary, the per-stage spreads, and the files
-//! `report.json`, `poses_tum.txt` and `poses_kitti.txt`.
-//!
-//! Trajectories: the TUM file has one line per used frame with its timestamp; the KITTI file
-//! has one line per frame (KITTI files have no timestamps), a skipped frame repeating the last
-//! pose (the report lists the skipped frames). `report.json` is written at the end from the
-//! frame records spooled during the run, so they cost no memory.
+//! What a run reports: a record per frame, the summary, the per-stage spreads, the frames'
+//! health and what each outcome cost. The files they are written to are sinks of
+//! [`crate::run::files`].
 
-use crate::formats::trajectory::{write_kitti_line, write_tum_line};
-use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
 use crate::loop_closure::{Closure, LoopReport};
 use crate::outputs::mesh_spool::MeshSpool;
 use crate::outputs::topview::map::{self, MapPicture};
 use crate::parallel::Workers;
-use crate::run::options::RunOptions;
 use crate::run::timing::StageMs;
-use crate::sources::FrameSource;
 use serde::{Deserialize, Serialize};
 use slamesh_core::layer::Shown;
 use slamesh_core::{Capacity, Config, Pipeline, Pose, RegistrationStatus, ScanStats};
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// What happened to one frame (a line of `report.json`).
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -200,6 +191,9 @@ pub struct Summary {
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,
+    /// Each used frame's stamp (seconds), in the order of [`poses`](Self::poses).
+    #[serde(skip)]
+    pub stamps: Vec<f64>,
 }
 
 /// The status of a frame that could not be read or used (beside the registration statuses,
@@ -476,35 +470,6 @@ fn group_costs(costs: impl IntoIterator<Item = Cost>) -> Vec<OutcomeCost> {
     out
 }
 
-/// Writes `poses_tum.txt` (used frames, with their stamps) and `poses_kitti.txt` (every frame,
-/// a skipped one holding the last pose) into `out`.
-pub fn write_trajectories(
-    out: &Path,
-    source: &impl FrameSource,
-    poses: &[(usize, Pose)],
-) -> Result<(), FileError> {
-    write_atomic(&out.join("poses_tum.txt"), |w| {
-        writeln!(
-            w,
-            "# timestamp tx ty tz qx qy qz qw (LiDAR pose in the first LiDAR frame)"
-        )?;
-        poses
-            .iter()
-            .try_for_each(|(i, p)| write_tum_line(w, source.stamp(*i), p))
-    })?;
-    write_atomic(&out.join("poses_kitti.txt"), |w| {
-        let mut held = Pose::identity();
-        let mut next = poses.iter().peekable();
-        for i in 0..source.frames() {
-            if let Some((_, p)) = next.next_if(|(j, _)| *j == i) {
-                held = *p;
-            }
-            write_kitti_line(w, &held)?;
-        }
-        Ok(())
-    })
-}
-
 /// Metres of map around the path that the picture shows.
 pub(crate) const PICTURE_MARGIN_M: f64 = 40.0;
 /// Pixels on the picture's long side.
@@ -532,55 +497,6 @@ pub(crate) fn write_topview(
     };
     let (mut view, _) = map::draw(|f| spool.for_each_triangle(|t, _| f(t)), path, None, how)?;
     view.write_png(file)
-}
-
-/// Writes `report.json` into `out`: the run, its configuration and summary, then the frame
-/// records spooled in `frames` (one JSON object a line).
-pub(crate) fn write_report(
-    out: &Path,
-    opts: &RunOptions,
-    summary: &Summary,
-    frames: &Path,
-) -> Result<(), FileError> {
-    #[derive(Serialize)]
-    struct Head<'a> {
-        input: &'a str,
-        preset: &'a str,
-        config: String,
-        summary: &'a Summary,
-    }
-    let head = Head {
-        input: &opts.input,
-        preset: &opts.preset,
-        config: crate::run::config_file::documented_toml(&opts.config, &opts.preset),
-        summary,
-    };
-    write_atomic(&out.join("report.json"), |w| {
-        let head = serde_json::to_string_pretty(&head).map_err(std::io::Error::from)?;
-        // The head object without its closing brace, then the streamed frame records.
-        let open = head
-            .trim_end()
-            .strip_suffix('}')
-            .unwrap_or(&head)
-            .trim_end();
-        w.write_all(open.as_bytes())?;
-        w.write_all(b",\n  \"frames\": [\n")?;
-        let lines = std::io::BufReader::new(std::fs::File::open(frames)?);
-        for (k, line) in std::io::BufRead::lines(lines).enumerate() {
-            let line = line?;
-            if k > 0 {
-                w.write_all(b",\n")?;
-            }
-            w.write_all(b"    ")?;
-            w.write_all(line.as_bytes())?;
-        }
-        w.write_all(b"\n  ]\n}\n")
-    })
-}
-
-/// The run's frame records, spooled one JSON object a line until `report.json` is written.
-pub(crate) fn frames_path(opts: &RunOptions) -> PathBuf {
-    opts.out.join(".report.frames.spool")
 }
 
 /// Triangles of the map layers the last scan updated (the mesh a viewer would refresh).

@@ -1,5 +1,6 @@
 //! One run of the pipeline over a sequence of frames, with everything the command writes:
-//! trajectories (KITTI and TUM), the mesh, and `report.json`.
+//! trajectories (KITTI and TUM) and `report.json` (through their sinks, [`crate::run::files`]),
+//! the mesh and the map file.
 //!
 //! [`run`] (or a [`Run`], step by step) reads each frame from a [`FrameSource`], estimates its pose (or takes a given one),
 //! extracts the mesh of the cells it updated, applies the sliding window, and records timings,
@@ -12,19 +13,16 @@
 //! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
 
 use crate::formats::map_file::MapWriter;
-use crate::io::atomic::open_cut;
 use crate::io::error::FileError;
 use crate::loop_closure::LoopClosure;
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::checkpoint::{self, Progress};
+use crate::run::files::{ReportFile, Trajectories};
 use crate::run::lookahead::LookAhead;
 use crate::run::map_pager::MapPager;
 use crate::run::memory;
-use crate::run::report::{
-    frames_path, spreads, write_report, write_topview, write_trajectories, FrameRecord, Health,
-    Summary,
-};
+use crate::run::report::{spreads, write_topview, FrameRecord, Summary};
 use crate::run::saved_map;
 use crate::run::setup::Setup;
 use crate::run::sink::{FnSink, FrameEvent, MapUpdate, Sinks};
@@ -33,8 +31,6 @@ use crate::run::window::Window;
 use crate::sources::{FrameSource, Sample};
 use slamesh_core::{Capacity, Pipeline, Pose};
 use std::borrow::Cow;
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -92,8 +88,8 @@ pub struct Run<'a, C: Capacity> {
     /// The layer budget a memory cap allows.
     pub(super) max_layers: Option<usize>,
     pub(super) spool: MeshSpool,
-    pub(super) frame_lines: BufWriter<File>,
-    pub(super) frames_path: PathBuf,
+    /// `report.json`, its frame records spooled as they come.
+    pub(super) report: ReportFile,
     pub(super) checkpoint_path: PathBuf,
     /// What a checkpoint saves: poses, skipped frames, totals.
     pub(super) progress: Progress,
@@ -134,11 +130,9 @@ impl<'a, C: Capacity> Run<'a, C> {
             opts.config.lattice(),
             &opts.config.mesh,
         )?;
-        let frames_path = frames_path(&opts);
-        let frames = File::create(&frames_path)
-            .map_err(|e| FileError::at(&frames_path, format!("cannot create: {e}")))?;
+        let report = ReportFile::create(&opts)?;
         let progress = Progress::new(checkpoint::fingerprint::<C>(source, &opts));
-        Self::assemble(opts, setup, spool, frames, progress)
+        Self::assemble(opts, setup, spool, report, progress)
     }
 
     /// The run killed after the checkpoint in `opts.out`, continued from it; refused when the
@@ -180,15 +174,15 @@ impl<'a, C: Capacity> Run<'a, C> {
             &opts.config.mesh,
             progress.mesh,
         )?;
-        let frames = open_cut(&frames_path(&opts), progress.report_bytes)?;
-        Self::assemble(opts, setup, spool, frames, progress)
+        let report = ReportFile::resume(&opts, progress.report_bytes)?;
+        Self::assemble(opts, setup, spool, report, progress)
     }
 
     fn assemble(
         opts: Cow<'a, RunOptions>,
         setup: Setup<C>,
         mut spool: MeshSpool,
-        frames: File,
+        report: ReportFile,
         progress: Progress,
     ) -> Result<Self, RunError> {
         if setup.max_layers.is_some() {
@@ -204,7 +198,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             }
             _ => None,
         };
-        let (frames_path, checkpoint_path) = (frames_path(&opts), checkpoint::path(&opts.out));
+        let checkpoint_path = checkpoint::path(&opts.out);
         let saved_map = match &opts.save_map {
             Some(path) => Some(MapWriter::create(
                 path,
@@ -224,8 +218,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             window: setup.window,
             max_layers: setup.max_layers,
             spool,
-            frame_lines: BufWriter::new(frames),
-            frames_path,
+            report,
             checkpoint_path,
             seconds_before: progress.seconds,
             progress,
@@ -301,16 +294,14 @@ impl<'a, C: Capacity> Run<'a, C> {
 
     /// Saves everything a killed run needs to continue at frame `next`.
     pub(super) fn checkpoint(&mut self, next: usize) -> Result<(), RunError> {
-        self.frame_lines
-            .flush()
-            .map_err(|e| FileError::at(&self.frames_path, format!("cannot write: {e}")))?;
+        let report_bytes = self.report.mark()?;
         self.spool.flush()?;
         let p = &mut self.progress;
         p.next_frame = next;
         p.pipeline_frames = self.pipeline.frames();
         p.motion = self.pipeline.motion().history();
         p.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
-        p.report_bytes = self.frames_path.metadata().map_or(0, |m| m.len());
+        p.report_bytes = report_bytes;
         p.mesh = self.spool.counts();
         checkpoint::write(&self.checkpoint_path, p, self.pipeline.map())?;
         Ok(())
@@ -330,11 +321,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             seconds,
             ..
         } = self.progress;
-        self.frame_lines
-            .flush()
-            .map_err(|e| FileError::at(&self.frames_path, format!("cannot write: {e}")))?;
-        drop(self.frame_lines);
-        let (health, cost_by_outcome) = Health::of_spool(&self.frames_path)?;
+        let (health, cost_by_outcome) = self.report.health()?;
         // The scan buffers go before the mesh is welded: writing needs no more than the run.
         drop(std::mem::take(&mut self.ahead));
         let frames_seen = self.pipeline.frames();
@@ -342,20 +329,18 @@ impl<'a, C: Capacity> Run<'a, C> {
         let out = &self.opts.out;
         // A run that used no frame writes its report (with every frame's reason) and no empty
         // trajectory, mesh or picture.
-        if !poses.is_empty() {
-            write_trajectories(out, source, &poses)?;
-        }
         if let Some(p) = &self.pager {
             log::info!("map paged: {}", p.stats());
         }
-        let stamps = poses.iter().map(|(i, p)| (source.stamp(*i), *p));
+        let stamps: Vec<f64> = poses.iter().map(|(i, _)| source.stamp(*i)).collect();
+        let stamped = poses.iter().zip(&stamps).map(|((_, p), t)| (*t, *p));
         let shown_as = self.opts.save_map.as_deref().unwrap_or(out);
         let start = std::mem::take(&mut self.map_path);
         save_map(
             self.saved_map.take(),
             start,
             &map,
-            stamps,
+            stamped,
             frames_seen,
             shown_as,
         )?;
@@ -381,9 +366,10 @@ impl<'a, C: Capacity> Run<'a, C> {
             loop_closure,
             input: source.input_report(),
             poses,
+            stamps,
         };
-        write_report(out, &self.opts, &summary, &self.frames_path)?;
-        let _ = std::fs::remove_file(&self.frames_path);
+        Trajectories::new(out).write(&summary)?;
+        self.report.write(&summary)?;
         // The run is complete: nothing is left to resume.
         let _ = std::fs::remove_file(&self.checkpoint_path);
         Ok(summary)

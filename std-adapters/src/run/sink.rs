@@ -3,8 +3,9 @@
 //! After each frame the run makes one [`FrameEvent`] (the frame's record: status, reason,
 //! counts and timings; its pose; and, when a sink asks for it, the map as the frame changed
 //! it, [`MapUpdate`]) and offers it to each sink in turn; at the end, once its own files are
-//! written, it tells each sink the run is over, with its [`Summary`]. A sink is anything that takes these: the progress line on the terminal, the live
-//! view, and later a ROS 2 publisher or a navigation map.
+//! written, it tells each sink the run is over, with its [`Summary`]. A sink is anything that
+//! takes these: the progress line on the terminal, the live view, the run's own report and
+//! trajectories ([`crate::run::files`]), and later a ROS 2 publisher or a navigation map.
 //!
 //! A sink runs on the run's thread, so a slow one would stall the run: wrap it in
 //! [`Queued`], which hands events to a thread of its own through a bounded queue with a named

@@ -20,7 +20,6 @@ use slamesh_core::deskew;
 use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{Paging, Search};
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
-use std::io::Write;
 use std::time::Instant;
 
 /// Frames whose point counts a scan is compared with ([`Run::note_small_scan`]).
@@ -375,12 +374,7 @@ impl<C: Capacity> Run<'_, C> {
         rec.map_cells = self.pipeline.map().cell_count();
         rec.map_layers = self.pipeline.map().layer_count();
         rec.rss_mb = memory::rss_bytes().map(memory::mb);
-        let cannot_write =
-            |e: std::io::Error| FileError::at(&self.frames_path, format!("cannot write: {e}"));
-        serde_json::to_writer(&mut self.frame_lines, &*rec)
-            .map_err(std::io::Error::from)
-            .and_then(|()| self.frame_lines.write_all(b"\n"))
-            .map_err(cannot_write)?;
+        self.report.add(rec)?;
         if let Some(every) = self.opts.checkpoint_every.filter(|&n| n > 0) {
             if (i + 1).is_multiple_of(every) && i + 1 < source.frames() {
                 self.checkpoint(i + 1)?;
