@@ -69,7 +69,8 @@ fn the_parallel_sort_orders_entries_exactly_as_the_serial_one() {
             .wrapping_add(1_442_695_040_888_963_407);
         (seed >> 33) as i32
     };
-    // Parts of at least 65 536 entries: three parts from 196 608, two from 131 072.
+    // Parts of at least 16 384 entries (up to the three threads): three from 49 152, two
+    // from 32 768.
     let capacity = 200_000;
     let (mut serial_sorter, mut parallel_sorter) = (
         KeySorter::with_capacity(capacity),
@@ -81,8 +82,9 @@ fn the_parallel_sort_orders_entries_exactly_as_the_serial_one() {
         (200_000, 4, 0, 1),
         (200_000, 700, 3, 1),
         (150_000, 100_000, 5, 1),
-        (131_071, 300, 1, 1),
-        (131_072, 300, 1, 1),
+        (32_767, 300, 1, 1),
+        (32_768, 300, 1, 1),
+        (49_152, 300, 1, 1),
         (140_000, 3, 0, 2048),
         (25_000, 1, 0, 1),
     ] {
@@ -105,15 +107,16 @@ fn the_parallel_sort_orders_entries_exactly_as_the_serial_one() {
     }
 }
 
-/// With two threads the run loop filters the next frame on a thread of its own
-/// (`run/lookahead.rs`): the same poses and mesh as one thread, which filters in line; and a
-/// rolling sweep's frames, deskewed before filtering, are filtered in line.
+/// With two threads or more the run loop filters the next frame as a task of its own
+/// (`run/lookahead.rs`; yielding on two threads, its loops spread over the pool on more): the
+/// same poses and mesh as one thread, which filters in line; and a rolling sweep's frames,
+/// deskewed before filtering, are filtered in line.
 #[test]
 fn the_run_loop_filtering_ahead_writes_what_one_thread_writes() {
     use slamesh::run::{run, RunOptions};
     use slamesh_sim::Drive;
     for sweep in [None, Some(0.1)] {
-        let outputs: Vec<(String, Vec<u8>, usize)> = [1, 2]
+        let outputs: Vec<(String, Vec<u8>, usize)> = [1, 2, 4]
             .iter()
             .map(|&threads| {
                 let mut drive = Drive::car(12, 3);
@@ -142,6 +145,7 @@ fn the_run_loop_filtering_ahead_writes_what_one_thread_writes() {
             })
             .collect();
         assert_eq!(outputs[0].2, 12);
-        assert_eq!(outputs[0], outputs[1], "sweep {sweep:?}");
+        assert_eq!(outputs[0], outputs[1], "sweep {sweep:?}, 2 threads");
+        assert_eq!(outputs[0], outputs[2], "sweep {sweep:?}, 4 threads");
     }
 }

@@ -17,13 +17,27 @@ use slamesh_core::bounded::BoundedVec;
 use slamesh_core::executor::{Executor, Serial};
 use slamesh_core::sort::{moves_nothing, Entry, Histogram, KeySorter, RADIX};
 
-/// Raw points per task of the parallel filter.
+/// Most points a task of the parallel filter and placement takes.
 const POINTS_PER_TASK: usize = 8192;
+/// Fewest points a task of the parallel filter and placement takes, so that a task outweighs
+/// its scheduling: a bucketed scan of 20 000 points is cut into about 20 tasks, enough for
+/// 16 threads, where tasks of [`POINTS_PER_TASK`] made three.
+const MIN_POINTS_PER_TASK: usize = 1024;
 /// Layers a task of the update's move (`Executor::update_each`) takes at least, so that a
 /// task outweighs its scheduling.
 const LAYERS_PER_TASK: usize = 256;
-/// Fewest entries per part of a parallel sort (fewer are sorted serially).
-const MIN_SORT_PART: usize = 65_536;
+/// Fewest entries per part of a parallel sort (fewer are sorted serially): a bucketed 64-beam
+/// scan (about 20 000 points) is sorted in one or two parts, a raw scan filtered ahead (about
+/// 120 000) in up to seven.
+const MIN_SORT_PART: usize = 16_384;
+/// [`MIN_SORT_PART`] below [`SPREAD_FROM`] threads.
+const MIN_SORT_PART_ON_TWO: usize = 65_536;
+/// Threads from which the pool's loops are cut finely ([`task_len`], [`MIN_SORT_PART`]) and
+/// the filter run ahead spreads its own loops over the pool (`run/lookahead.rs`). On two
+/// threads the second one filters the next frame most of the time: a task handed to it waits,
+/// and bucketing whose sort was split in two took a quarter longer (docs/benchmarks.md, "All
+/// the cores"), so there the tasks stay long and the filter yields.
+pub const SPREAD_FROM: usize = 3;
 
 /// Reconstructs cells on a dedicated rayon pool.
 #[derive(Debug)]
@@ -119,8 +133,8 @@ impl Executor for Rayon {
         });
     }
 
-    /// `src` is cut into tasks of 8 192 items; each task writes what it keeps to
-    /// the front of its own stretch of `dst`, and the stretches are then closed up in order.
+    /// `src` is cut into tasks ([`task_len`]); each task writes what it keeps to the front of
+    /// its own stretch of `dst`, and the stretches are then closed up in order.
     fn filter_map_into<T, U, A>(
         &self,
         src: &[T],
@@ -138,94 +152,179 @@ impl Executor for Rayon {
             return false;
         }
         dst.extend_default(start + src.len());
-        let per_task: Vec<(usize, A)> = self.pool.install(|| {
-            dst[start..]
-                .par_chunks_mut(POINTS_PER_TASK)
-                .zip(src.par_chunks(POINTS_PER_TASK))
-                .map(|(d, s)| {
-                    let mut counts = A::default();
-                    let mut kept = 0;
-                    for item in s {
-                        if let Some(out) = unit(item, &mut counts) {
-                            d[kept] = out;
-                            kept += 1;
-                        }
-                    }
-                    (kept, counts)
-                })
-                .collect()
-        });
-        // Each task wrote its kept outputs to the front of its chunk: close the gaps, in order
-        // (a slot is written only after the value it held has moved).
-        let mut end = start;
-        let mut tallies = Vec::with_capacity(per_task.len());
-        for (k, (kept, r)) in per_task.into_iter().enumerate() {
-            let from = start + k * POINTS_PER_TASK;
-            if from != end {
-                for i in 0..kept {
-                    dst.swap(end + i, from + i);
-                }
-            }
-            end += kept;
-            tallies.push(r);
-        }
-        dst.truncate(end);
-        tallies.into_iter().for_each(tally);
+        let task = task_len(src.len(), self.threads());
+        let per_task = self
+            .pool
+            .install(|| filter_in_tasks(src, &mut dst[start..], task, &unit));
+        close_up(dst, start, task, per_task, tally);
         true
     }
 
     fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
-        let parts = self.threads().min(entries.len() / MIN_SORT_PART);
-        if parts < 2 {
-            return sorter.sort(entries);
-        }
-        let Some((plan, spare)) = sorter.radix(entries) else {
-            return sorter.sort(entries);
-        };
-        let part_len = entries.len().div_ceil(parts);
-        for pass in 0..plan.passes() {
-            let counts: Vec<Histogram> = self.pool.install(|| {
-                entries
-                    .par_chunks(part_len)
-                    .map(|part| {
-                        let mut h = [0u32; RADIX];
-                        plan.count(part, pass, &mut h);
-                        h
-                    })
-                    .collect()
-            });
-            if moves_nothing(&counts.iter().collect::<Vec<_>>()) {
-                continue;
-            }
-            // The output cut into one run per (digit, part), digit after digit, part after
-            // part, each as long as the part's count of the digit: each part fills its own
-            // runs in input order, so the pass is stable.
-            let mut runs: Vec<Vec<&mut [Entry]>> =
-                counts.iter().map(|_| Vec::with_capacity(RADIX)).collect();
-            let mut rest: &mut [Entry] = &mut spare[..];
-            for d in 0..RADIX {
-                for (part_runs, count) in runs.iter_mut().zip(&counts) {
-                    let (run, tail) = std::mem::take(&mut rest).split_at_mut(count[d] as usize);
-                    part_runs.push(run);
-                    rest = tail;
+        let threads = self.threads();
+        self.pool
+            .install(|| sort_in_parts(sorter, entries, threads));
+    }
+}
+
+/// Points a task of a parallel filter or placement takes out of `n` on `threads` threads: about
+/// four tasks a thread, between [`MIN_POINTS_PER_TASK`] and [`POINTS_PER_TASK`]
+/// ([`POINTS_PER_TASK`] below [`SPREAD_FROM`] threads). Any length gives the same result (the
+/// kept outputs are closed up in input order).
+fn task_len(n: usize, threads: usize) -> usize {
+    if threads < SPREAD_FROM {
+        return POINTS_PER_TASK;
+    }
+    n.div_ceil(4 * threads)
+        .clamp(MIN_POINTS_PER_TASK, POINTS_PER_TASK)
+}
+
+/// `src` cut into tasks of `task` items on the current pool, each writing the outputs `unit`
+/// keeps to the front of its own stretch of `dst` (as long as `src`): each task's count kept
+/// and tally, in order.
+fn filter_in_tasks<T, U, A>(
+    src: &[T],
+    dst: &mut [U],
+    task: usize,
+    unit: &(impl Fn(&T, &mut A) -> Option<U> + Sync),
+) -> Vec<(usize, A)>
+where
+    T: Sync,
+    U: Send,
+    A: Default + Send,
+{
+    dst.par_chunks_mut(task)
+        .zip(src.par_chunks(task))
+        .map(|(d, s)| {
+            let mut counts = A::default();
+            let mut kept = 0;
+            for item in s {
+                if let Some(out) = unit(item, &mut counts) {
+                    d[kept] = out;
+                    kept += 1;
                 }
             }
-            self.pool.install(|| {
-                entries
-                    .par_chunks(part_len)
-                    .zip(runs.par_iter_mut())
-                    .for_each(|(part, runs)| {
-                        for e in part {
-                            let run = &mut runs[plan.digit(&e.0, pass)];
-                            if let Some((slot, tail)) = std::mem::take(run).split_first_mut() {
-                                *slot = *e;
-                                *run = tail;
-                            }
-                        }
-                    })
-            });
-            std::mem::swap(entries, spare);
+            (kept, counts)
+        })
+        .collect()
+}
+
+/// Closes up what [`filter_in_tasks`] wrote from `start` on (tasks of `task` items), in order,
+/// and hands each task's tally to `tally`.
+fn close_up<U, A>(
+    dst: &mut BoundedVec<U>,
+    start: usize,
+    task: usize,
+    per_task: Vec<(usize, A)>,
+    mut tally: impl FnMut(A),
+) {
+    // A slot is written only after the value it held has moved.
+    let mut end = start;
+    let mut tallies = Vec::with_capacity(per_task.len());
+    for (k, (kept, r)) in per_task.into_iter().enumerate() {
+        let from = start + k * task;
+        if from != end {
+            for i in 0..kept {
+                dst.swap(end + i, from + i);
+            }
         }
+        end += kept;
+        tallies.push(r);
+    }
+    dst.truncate(end);
+    tallies.into_iter().for_each(&mut tally);
+}
+
+/// [`KeySorter::sort`]'s order, its passes cut into up to `threads` parts of at least
+/// [`MIN_SORT_PART`] entries ([`MIN_SORT_PART_ON_TWO`] below [`SPREAD_FROM`] threads) run at once on the
+/// current pool (fewer: serially).
+fn sort_in_parts(sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>, threads: usize) {
+    let min_part = match threads {
+        ..SPREAD_FROM => MIN_SORT_PART_ON_TWO,
+        _ => MIN_SORT_PART,
+    };
+    let parts = threads.min(entries.len() / min_part);
+    if parts < 2 {
+        return sorter.sort(entries);
+    }
+    let Some((plan, spare)) = sorter.radix(entries) else {
+        return sorter.sort(entries);
+    };
+    let part_len = entries.len().div_ceil(parts);
+    for pass in 0..plan.passes() {
+        let counts: Vec<Histogram> = entries
+            .par_chunks(part_len)
+            .map(|part| {
+                let mut h = [0u32; RADIX];
+                plan.count(part, pass, &mut h);
+                h
+            })
+            .collect();
+        if moves_nothing(&counts.iter().collect::<Vec<_>>()) {
+            continue;
+        }
+        // The output cut into one run per (digit, part), digit after digit, part after
+        // part, each as long as the part's count of the digit: each part fills its own
+        // runs in input order, so the pass is stable.
+        let mut runs: Vec<Vec<&mut [Entry]>> =
+            counts.iter().map(|_| Vec::with_capacity(RADIX)).collect();
+        let mut rest: &mut [Entry] = &mut spare[..];
+        for d in 0..RADIX {
+            for (part_runs, count) in runs.iter_mut().zip(&counts) {
+                let (run, tail) = std::mem::take(&mut rest).split_at_mut(count[d] as usize);
+                part_runs.push(run);
+                rest = tail;
+            }
+        }
+        entries
+            .par_chunks(part_len)
+            .zip(runs.par_iter_mut())
+            .for_each(|(part, runs)| {
+                for e in part {
+                    let run = &mut runs[plan.digit(&e.0, pass)];
+                    if let Some((slot, tail)) = std::mem::take(run).split_first_mut() {
+                        *slot = *e;
+                        *run = tail;
+                    }
+                }
+            });
+        std::mem::swap(entries, spare);
+    }
+}
+
+/// The filter's and the sort's loops spread over the pool the calling thread works for, for a
+/// job spawned on a run's pool beside the pipeline (the look-ahead's filter on more than two
+/// threads): its tasks share the pool's threads with the pipeline's. Its other loops are
+/// serial. The same results as [`Serial`], in the same order.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct OnThisPool;
+
+impl Executor for OnThisPool {
+    fn filter_map_into<T, U, A>(
+        &self,
+        src: &[T],
+        dst: &mut BoundedVec<U>,
+        unit: impl Fn(&T, &mut A) -> Option<U> + Sync + Send,
+        tally: impl FnMut(A),
+    ) -> bool
+    where
+        T: Sync,
+        U: Default + Clone + Send,
+        A: Default + Send,
+    {
+        let start = dst.len();
+        if src.len() > dst.capacity() - start {
+            return false;
+        }
+        dst.extend_default(start + src.len());
+        let task = task_len(src.len(), rayon::current_num_threads());
+        let per_task = filter_in_tasks(src, &mut dst[start..], task, &unit);
+        close_up(dst, start, task, per_task, tally);
+        true
+    }
+
+    fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
+        sort_in_parts(sorter, entries, rayon::current_num_threads());
     }
 }
 
@@ -400,7 +499,7 @@ mod tests {
     }
 
     #[test]
-    fn the_yielding_loops_give_the_serial_ones_results() {
+    fn the_yielding_and_pool_loops_give_the_serial_ones_results() {
         let pool = Rayon::new(2).unwrap();
         let src: Vec<u32> = (0..20_000).collect();
         let unit = |x: &u32, n: &mut usize| {
@@ -420,6 +519,20 @@ mod tests {
             (serial[..].to_vec(), seen_serial),
             (yielding[..].to_vec(), seen_yielding)
         );
+        // Spread over the pool of the calling thread, in tasks of every length it may choose.
+        for threads in [2, 3, 16] {
+            let pool = Rayon::new(threads).unwrap();
+            let mut spread = BoundedVec::with_capacity(src.len());
+            let mut seen_spread = 0;
+            pool.pool.install(|| {
+                assert!(OnThisPool.filter_map_into(&src, &mut spread, unit, |n| seen_spread += n));
+            });
+            assert_eq!(
+                (serial[..].to_vec(), seen_serial),
+                (spread[..].to_vec(), seen_spread),
+                "{threads} threads"
+            );
+        }
         // Too many for the room left: refused, as the serial loop refuses.
         let mut small = BoundedVec::with_capacity(10);
         assert!(!Yielding.filter_map_into(&src, &mut small, unit, |_| {}));

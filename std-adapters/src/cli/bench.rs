@@ -170,42 +170,170 @@ fn say_outcomes(costs: &[OutcomeCost]) {
     }
 }
 
-/// `--scaling`: the same passes on each of [`thread_counts`], the median whole frame's time
-/// and the speed against one thread.
+/// `--scaling`: the same passes on each of [`thread_counts`]: each stage's median and the whole
+/// frame's, the speed against one thread, and what Amdahl's law projects from the 1- and
+/// 2-thread medians ([`Amdahl`]) beside what was measured.
 fn scaling(
     source: &mut crate::run::Input,
     opts: &RunOptions,
     repeat: usize,
     json: bool,
 ) -> Result<(), CliError> {
-    let mut rows = Vec::new();
+    let mut rows: Vec<ScalingRow> = Vec::new();
     for threads in thread_counts() {
         let opts = RunOptions {
             threads,
             ..opts.clone()
         };
         let (timed, _, summary) = time_passes(source, &opts, repeat)?;
-        let total = spreads(&timed)
+        let medians = spreads(&timed)
             .into_iter()
-            .find(|(n, _)| n == "total")
-            .map_or(0.0, |(_, s)| s.median);
-        rows.push((summary.threads, total));
-    }
-    let one = rows.first().map_or(0.0, |r| r.1);
-    if json {
-        let rows: Vec<_> = rows
-            .iter()
-            .map(|(t, ms)| serde_json::json!({"threads": t, "median_ms": ms, "speed_vs_one": one / ms.max(1e-9)}))
+            .filter(|(n, _)| n != "read" && n != "evict")
+            .map(|(n, s)| (n, s.median))
             .collect();
-        say!(
-            "{}",
-            serde_json::json!({"input": opts.input, "scaling": rows})
-        );
+        rows.push(ScalingRow {
+            threads: summary.threads,
+            medians,
+        });
+    }
+    let whole = Amdahl::fit(&rows, "total");
+    if json {
+        say!("{}", scaling_json(&opts.input, &rows, whole.as_ref()));
     } else {
-        say!("{:>8} {:>10} {:>12}", "threads", "median ms", "speed vs 1");
-        for (t, ms) in &rows {
-            say!("{:>8} {:>10.2} {:>12.2}", t, ms, one / ms.max(1e-9));
-        }
+        say_scaling(&rows, whole.as_ref());
     }
     Ok(())
+}
+
+/// One thread count's medians (ms) by stage, `total` last.
+struct ScalingRow {
+    threads: usize,
+    medians: Vec<(String, f64)>,
+}
+
+impl ScalingRow {
+    fn median(&self, stage: &str) -> f64 {
+        self.medians
+            .iter()
+            .find(|(n, _)| n == stage)
+            .map_or(0.0, |(_, ms)| *ms)
+    }
+}
+
+/// Amdahl's law fitted to a stage's 1- and 2-thread medians: the share `serial` of its
+/// one-thread time that does not shrink with threads, so that `n` threads would take
+/// `t1 * (serial + (1 - serial) / n)`.
+struct Amdahl {
+    t1: f64,
+    serial: f64,
+}
+
+impl Amdahl {
+    /// The fit of `stage` in `rows`; `None` without both a 1- and a 2-thread row, or when the
+    /// stage takes no time.
+    fn fit(rows: &[ScalingRow], stage: &str) -> Option<Self> {
+        let at = |n: usize| {
+            rows.iter()
+                .find(|r| r.threads == n)
+                .map(|r| r.median(stage))
+        };
+        let (t1, t2) = (at(1)?, at(2)?);
+        (t1 > 0.0).then(|| Amdahl {
+            t1,
+            serial: (2.0 * t2 / t1 - 1.0).clamp(0.0, 1.0),
+        })
+    }
+
+    /// The projected speed on `n` threads against one.
+    fn speed(&self, n: usize) -> f64 {
+        1.0 / (self.serial + (1.0 - self.serial) / n.max(1) as f64)
+    }
+
+    /// The milliseconds of the one-thread time that do not shrink.
+    fn serial_ms(&self) -> f64 {
+        self.t1 * self.serial
+    }
+}
+
+/// The thread counts a projection is stated for: those measured and up to 16.
+fn projected_counts(rows: &[ScalingRow]) -> Vec<usize> {
+    let mut n: Vec<usize> = rows.iter().map(|r| r.threads).collect();
+    n.extend([4, 8, 16]);
+    n.sort_unstable();
+    n.dedup();
+    n
+}
+
+fn say_scaling(rows: &[ScalingRow], whole: Option<&Amdahl>) {
+    let Some(first) = rows.first() else { return };
+    let names: Vec<&str> = first.medians.iter().map(|(n, _)| n.as_str()).collect();
+    let head: String = names.iter().map(|n| format!(" {n:>11}")).collect();
+    say!("median ms a frame by stage:");
+    say!("{:>8}{head} {:>8}", "threads", "speed");
+    let one = first.median("total");
+    for r in rows {
+        let cells: String = r
+            .medians
+            .iter()
+            .map(|(_, ms)| format!(" {ms:>11.2}"))
+            .collect();
+        let speed = one / r.median("total").max(1e-9);
+        say!("{:>8}{cells} {:>7.2}x", r.threads, speed);
+    }
+    let fits: Vec<Option<Amdahl>> = names.iter().map(|n| Amdahl::fit(rows, n)).collect();
+    let serial: String = fits
+        .iter()
+        .map(|f| {
+            f.as_ref().map_or(format!(" {:>11}", "-"), |f| {
+                format!(" {:>11.2}", f.serial_ms())
+            })
+        })
+        .collect();
+    say!("{:>8}{serial}", "serial");
+    let Some(whole) = whole else { return };
+    say!(
+        "Amdahl from 1 and 2 threads: {:.0} % of a frame's one-thread time is serial ({:.2} ms, the row above by stage); projected speed:",
+        whole.serial * 100.0,
+        whole.serial_ms()
+    );
+    for n in projected_counts(rows) {
+        let measured = rows
+            .iter()
+            .find(|r| r.threads == n)
+            .map_or(String::new(), |r| {
+                format!(" (measured {:.2}x)", one / r.median("total").max(1e-9))
+            });
+        say!("{:>8} {:>6.2}x{measured}", n, whole.speed(n));
+    }
+}
+
+fn scaling_json(input: &str, rows: &[ScalingRow], whole: Option<&Amdahl>) -> serde_json::Value {
+    let one = rows.first().map_or(0.0, |r| r.median("total"));
+    let measured: Vec<_> = rows
+        .iter()
+        .map(|r| {
+            let stages: serde_json::Map<String, serde_json::Value> = r
+                .medians
+                .iter()
+                .map(|(n, ms)| (n.clone(), (*ms).into()))
+                .collect();
+            let total = r.median("total");
+            serde_json::json!({"threads": r.threads, "median_ms": total,
+                "speed_vs_one": one / total.max(1e-9), "stage_median_ms": stages})
+        })
+        .collect();
+    let amdahl = whole.map(|w| {
+        let serial_ms: serde_json::Map<String, serde_json::Value> = rows[0]
+            .medians
+            .iter()
+            .filter_map(|(n, _)| Amdahl::fit(rows, n).map(|f| (n.clone(), f.serial_ms().into())))
+            .collect();
+        let projected: Vec<_> = projected_counts(rows)
+            .into_iter()
+            .map(|n| serde_json::json!({"threads": n, "speed_vs_one": w.speed(n)}))
+            .collect();
+        serde_json::json!({"serial_share": w.serial, "serial_ms": w.serial_ms(),
+            "stage_serial_ms": serial_ms, "projected": projected})
+    });
+    serde_json::json!({"input": input, "scaling": measured, "amdahl_from_1_and_2": amdahl})
 }

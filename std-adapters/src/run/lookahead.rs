@@ -2,10 +2,13 @@
 //! (on the run's thread: a source need not be `Send`) and filtered by the core's
 //! [`ScanFilter`] as one task on the run's rayon pool. The pipeline runs on the pool too
 //! ([`Workers::install_beside`]), so no thread of the run waits beside the pool's and the
-//! scheduler has no more threads than cores to share out. The filter runs with the
-//! [`Yielding`] executor: between pieces of its work it runs the pipeline's waiting parallel
-//! tasks first, so its own work lands where the pipeline runs serially (bucketing, the
-//! solve, the update).
+//! scheduler has no more threads than cores to share out. On two threads the filter runs with
+//! the [`Yielding`] executor: between pieces of its work it runs the pipeline's waiting
+//! parallel tasks first, so its own work lands where the pipeline runs serially (bucketing,
+//! the solve, the update). On more ([`SPREAD_FROM`]) its own loops are spread over
+//! the pool too ([`OnThisPool`]): run serially it took longer than the whole of the rest of a
+//! frame on 8 and 16 threads, and the pipeline waited for it (docs/benchmarks.md, "All the
+//! cores").
 //!
 //! What it guarantees:
 //! - the same filtered points as the pipeline's own filter (the same function at the same
@@ -21,7 +24,7 @@
 //!   ([`FrameSource::would_wait`]).
 
 use crate::io::error::FileError;
-use crate::parallel::{Workers, Yielding};
+use crate::parallel::{OnThisPool, Workers, Yielding, SPREAD_FROM};
 use crate::sources::FrameSource;
 use slamesh_core::filter::{FilterStats, Filtered, ScanFilter};
 use slamesh_core::{Capacity, Config, Point};
@@ -184,9 +187,14 @@ impl LookAhead {
                 if let Some(mut filter) = self.filter.take() {
                     let n = points.len();
                     let (raw, outbox, config) = (std::mem::take(points), outbox.clone(), *config);
+                    let spread = pool.threads() >= SPREAD_FROM;
                     pool.spawn(move || {
                         let t = Instant::now();
-                        let f = filter.filter(&raw, &config, &Yielding);
+                        let f = if spread {
+                            filter.filter(&raw, &config, &OnThisPool)
+                        } else {
+                            filter.filter(&raw, &config, &Yielding)
+                        };
                         let (points, stats) = (f.points.to_vec(), f.stats);
                         let ms = t.elapsed().as_secs_f64() * 1e3;
                         let _ = outbox.send((filter, points, stats, ms));
@@ -274,8 +282,15 @@ mod tests {
 
     #[test]
     fn frames_come_back_in_order_filtered_ahead_raw_or_failed() {
+        // Two threads: the filter yields; four: it spreads over the pool.
+        for threads in [2, 4] {
+            in_order_filtered_ahead_raw_or_failed(threads);
+        }
+    }
+
+    fn in_order_filtered_ahead_raw_or_failed(threads: usize) {
         let config = Config::default();
-        let workers = Workers::new(2).unwrap();
+        let workers = Workers::new(threads).unwrap();
         let mut ahead = LookAhead::new::<KittiCapacity>();
         let mut source = Rows;
         let yes = |_: &[Point], _: &Option<Vec<f32>>| true;
