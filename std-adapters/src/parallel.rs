@@ -133,8 +133,7 @@ impl Executor for Rayon {
         });
     }
 
-    /// `src` is cut into tasks ([`task_len`]); each task writes what it keeps to the front of
-    /// its own stretch of `dst`, and the stretches are then closed up in order.
+    /// [`OnThisPool`]'s, on this pool.
     fn filter_map_into<T, U, A>(
         &self,
         src: &[T],
@@ -147,17 +146,13 @@ impl Executor for Rayon {
         U: Default + Clone + Send,
         A: Default + Send,
     {
-        let start = dst.len();
-        if src.len() > dst.capacity() - start {
-            return false;
-        }
-        dst.extend_default(start + src.len());
-        let task = task_len(src.len(), self.threads());
-        let per_task = self
+        // The tallies are handed over here: `tally` need not be `Send`.
+        let mut tallies = Vec::new();
+        let fits = self
             .pool
-            .install(|| filter_in_tasks(src, &mut dst[start..], task, &unit));
-        close_up(dst, start, task, per_task, tally);
-        true
+            .install(|| OnThisPool.filter_map_into(src, dst, unit, |a| tallies.push(a)));
+        tallies.into_iter().for_each(tally);
+        fits
     }
 
     fn sort(&self, sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>) {
@@ -300,6 +295,8 @@ fn sort_in_parts(sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>, thread
 pub struct OnThisPool;
 
 impl Executor for OnThisPool {
+    /// `src` is cut into tasks ([`task_len`]); each task writes what it keeps to the front of
+    /// its own stretch of `dst`, and the stretches are then closed up in order.
     fn filter_map_into<T, U, A>(
         &self,
         src: &[T],
