@@ -22,6 +22,7 @@ mod health;
 mod kitti_odometry;
 mod loop_closure;
 mod map_persistence;
+mod navmap;
 mod ouster;
 mod packets;
 mod parallel;

@@ -1,5 +1,6 @@
-//! The TOML configuration reader on arbitrary text: every configuration it accepts is one the
-//! pipeline accepts too.
+//! The TOML readers on arbitrary text: every configuration the configuration reader accepts is
+//! one the pipeline accepts too, and every robot file the navigation map's reader accepts
+//! passes its own check.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -12,5 +13,8 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(settings) = slamesh::run::config_file::parse(text) {
         assert!(settings.config.validate().is_ok());
         assert!(Pipeline::<SmallCapacity>::new(settings.config).is_ok());
+    }
+    if let Ok(robot) = slamesh::navmap::Robot::parse(text) {
+        assert!(robot.check().is_ok());
     }
 });

@@ -32,6 +32,7 @@ pub mod eval;
 pub mod formats;
 pub mod io;
 pub mod loop_closure;
+pub mod navmap;
 pub mod outputs;
 pub mod parallel;
 pub mod run;

@@ -32,7 +32,7 @@ const LAYERS_PER_TASK: usize = 256;
 const MIN_SORT_PART: usize = 16_384;
 /// [`MIN_SORT_PART`] below [`SPREAD_FROM`] threads.
 const MIN_SORT_PART_ON_TWO: usize = 65_536;
-/// Threads from which the pool's loops are cut finely ([`task_len`], [`MIN_SORT_PART`]) and
+/// Threads from which the pool's loops are cut finely (`task_len`, `MIN_SORT_PART`) and
 /// the filter run ahead spreads its own loops over the pool (`run/lookahead.rs`). On two
 /// threads the second one filters the next frame most of the time: a task handed to it waits,
 /// and bucketing whose sort was split in two took a quarter longer (docs/benchmarks.md, "All
@@ -295,7 +295,7 @@ fn sort_in_parts(sorter: &mut KeySorter, entries: &mut BoundedVec<Entry>, thread
 pub struct OnThisPool;
 
 impl Executor for OnThisPool {
-    /// `src` is cut into tasks ([`task_len`]); each task writes what it keeps to the front of
+    /// `src` is cut into tasks (`task_len`); each task writes what it keeps to the front of
     /// its own stretch of `dst`, and the stretches are then closed up in order.
     fn filter_map_into<T, U, A>(
         &self,

@@ -16,6 +16,7 @@ pub mod demo;
 pub mod error;
 pub mod eval;
 pub mod input;
+pub mod navmap;
 pub mod notices;
 pub mod render;
 pub mod run;
@@ -133,6 +134,9 @@ enum Command {
     Config(config::ConfigArgs),
     /// Draw a picture of a PLY mesh: from above (hill-shaded, with a scale bar) or obliquely.
     Render(render::RenderArgs),
+    /// Make a navigation map from a saved map or a PLY mesh: Nav2's map.yaml + map.pgm (an
+    /// occupancy grid for --robot) and the ground's elevation grids.
+    Navmap(navmap::NavMapArgs),
 }
 
 impl Cli {
@@ -171,6 +175,7 @@ impl Cli {
             Command::Eval(a) => eval::eval(a),
             Command::Bench(a) => bench::bench(a),
             Command::Render(a) => render::render(a),
+            Command::Navmap(a) => navmap::navmap(a),
             #[cfg(feature = "sim")]
             Command::Demo(a) => demo::demo(a, quiet),
             Command::Config(a) => {

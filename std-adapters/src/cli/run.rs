@@ -66,6 +66,13 @@ pub struct RunArgs {
     /// Do not draw topview.png (the mesh from above with the path; 7 MB while it is drawn).
     #[arg(long)]
     pub no_picture: bool,
+    /// Also write a navigation map for --robot: Nav2's map.yaml + map.pgm and the elevation
+    /// grids (elevation.asc, elevation_variance.asc, navmap.json).
+    #[arg(long)]
+    pub navmap: bool,
+    /// The robot and cell size of --navmap.
+    #[command(flatten)]
+    pub robot: crate::cli::navmap::RobotArgs,
     /// The capacity class: how many points a scan may keep within range, and how large the
     /// map may grow (tiny: 2 048 points, 0.33 MB; 16: 36 000, 35.7 MB; 32: 72 000, 71.3 MB;
     /// 64: 140 000, 137.5 MB). auto takes the smallest that holds the points within range of
@@ -410,6 +417,7 @@ fn run_options(
         initial_pose: args.initial_pose,
         save_map: args.save_map.clone(),
         loop_closure: (args.loop_closure == OnOff::On).then(LoopSettings::default),
+        navmap: args.navmap.then(|| args.robot.options()),
         deskew: match args.deskew {
             DeskewFlag::Auto => Deskew::Auto,
             DeskewFlag::Off => Deskew::Off,

@@ -58,6 +58,9 @@ pub struct RunOptions {
     /// the default: off). Pair it with `config.map.stale_after_frames` (the command sets
     /// [`LoopSettings::stale_after_frames`]).
     pub loop_closure: Option<LoopSettings>,
+    /// Also write a navigation map (`--navmap`: Nav2's `map.yaml` + `map.pgm`, the elevation
+    /// grids, [`crate::navmap`]) from the mesh at the end.
+    pub navmap: Option<crate::navmap::NavMapOptions>,
 }
 
 /// `--initial-pose`: where a run from a saved map starts.

@@ -188,6 +188,9 @@ pub struct Summary {
     /// sweeps).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub input: Option<serde_json::Value>,
+    /// The navigation map written (`--navmap`): its counts, size, robot and which way was up.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub navmap: Option<crate::navmap::files::NavMapSummary>,
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,

@@ -15,6 +15,7 @@
 use crate::formats::map_file::MapWriter;
 use crate::io::error::FileError;
 use crate::loop_closure::LoopClosure;
+use crate::navmap::files::NavMapSummary;
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::checkpoint::{self, Progress};
@@ -344,7 +345,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             frames_seen,
             shown_as,
         )?;
-        let counts = write_mesh(self.spool, &map, &self.opts, &poses)?;
+        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses)?;
         let summary = Summary {
             frames: source.frames(),
             used: poses.len(),
@@ -365,6 +366,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             health,
             loop_closure,
             input: source.input_report(),
+            navmap,
             poses,
             stamps,
         };
@@ -376,14 +378,14 @@ impl<'a, C: Capacity> Run<'a, C> {
     }
 }
 
-/// Writes the mesh files and the picture from `spool` with `map`'s cells added; none when no
-/// frame was used (`poses` empty).
+/// Writes the mesh files, the picture and the navigation map from `spool` with `map`'s cells
+/// added; none when no frame was used (`poses` empty).
 fn write_mesh(
     mut spool: MeshSpool,
     map: &slamesh_core::map::MeshMap,
     opts: &RunOptions,
     poses: &[(usize, Pose)],
-) -> Result<MeshCounts, RunError> {
+) -> Result<(MeshCounts, Option<NavMapSummary>), RunError> {
     let (out, used) = (&opts.out, !poses.is_empty());
     spool.add_map(map)?;
     spool.colour_by(opts.mesh_colour);
@@ -391,13 +393,20 @@ fn write_mesh(
         let path: Vec<Pose> = poses.iter().map(|(_, p)| *p).collect();
         write_topview(&mut spool, &path, &out.join("topview.png"))?;
     }
+    let navmap = match (&opts.navmap, used) {
+        (Some(how), true) => {
+            let path: Vec<_> = poses.iter().map(|(_, p)| p.translation.vector).collect();
+            crate::navmap::make(&mut spool, &path, how, out)?
+        }
+        _ => None,
+    };
     let outputs: Vec<(PathBuf, MeshFormat)> = opts
         .mesh_formats
         .iter()
         .filter(|_| used)
         .map(|&f| (out.join(f.file_name()), f))
         .collect();
-    Ok(spool.finish(&outputs)?)
+    Ok((spool.finish(&outputs)?, navmap))
 }
 
 /// Finishes the map file being written (`saved`, from `--save-map`, shown as `shown_as`):

@@ -1,0 +1,167 @@
+//! A navigation map's files, each written to a temporary name then renamed:
+//! - `map.yaml` + `map.pgm`: the occupancy grid as Nav2's `map_saver` writes it (trinary: 0
+//!   occupied, 254 free, 205 unknown; rows top-down, the YAML's `origin` the lower-left
+//!   pixel's corner), loadable by `map_server` as it is, with a `free_thresh` that keeps
+//!   unknown space unknown;
+//! - `elevation.asc`, `elevation_variance.asc`: the ground's height (m) and the variance of
+//!   the ground samples in each cell (m²), ESRI ASCII grids (GDAL, QGIS and
+//!   `numpy.loadtxt(path, skiprows=6)` read them), -9999 where no ground was seen, over the
+//!   same cells as the image;
+//! - `navmap.json`: the counts, the grid's size and origin, the robot and which way was up.
+//!
+//! The grid's frame is the map frame turned so that up is its z (the same frame when up is
+//! the map's z axis): x and y as the map's, for a map made level.
+
+use crate::io::atomic::write_atomic;
+use crate::io::error::FileError;
+use crate::navmap::grid::{CellIndex, Grid, Occupancy};
+use crate::navmap::NavMapOptions;
+use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
+
+/// Nav2's pixel values (`map_saver`, trinary).
+const OCCUPIED: u8 = 0;
+const FREE: u8 = 254;
+const UNKNOWN: u8 = 205;
+/// What the elevation grids hold where no ground was seen.
+const NO_DATA: &str = "-9999";
+
+/// What a navigation map holds (`navmap.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NavMapSummary {
+    /// Cells free, occupied and unknown in the image.
+    pub free: usize,
+    /// See [`free`](Self::free).
+    pub occupied: usize,
+    /// See [`free`](Self::free).
+    pub unknown: usize,
+    /// The image's width and height (cells).
+    pub width: usize,
+    /// See [`width`](Self::width).
+    pub height: usize,
+    /// Cell size (m).
+    pub resolution_m: f64,
+    /// The lower-left corner of the lower-left cell (m, grid frame).
+    pub origin: [f64; 2],
+    /// Which way was up, and what said so.
+    pub up: String,
+    /// The robot it was made for.
+    pub robot: crate::navmap::Robot,
+}
+
+/// Writes the navigation map of `grid` into `dir`; `None` (and nothing written) when the grid
+/// saw nothing.
+pub fn write(
+    dir: &Path,
+    grid: &Grid,
+    opts: &NavMapOptions,
+) -> Result<Option<NavMapSummary>, FileError> {
+    let Some((lo, hi)) = grid.bounds() else {
+        return Ok(None);
+    };
+    let (width, height) = ((hi.0 - lo.0 + 1) as usize, (hi.1 - lo.1 + 1) as usize);
+    let res = grid.resolution();
+    let origin = [lo.0 as f64 * res, lo.1 as f64 * res];
+    let mut counts = [0usize; 3];
+    write_atomic(&dir.join("map.pgm"), |w| {
+        write!(
+            w,
+            "P5\n# CREATOR: slamesh navmap {res:.3} m/pix\n{width} {height}\n255\n"
+        )?;
+        let mut row = Vec::with_capacity(width);
+        for iy in (lo.1..=hi.1).rev() {
+            row.clear();
+            for ix in lo.0..=hi.0 {
+                let (k, pixel) = match grid.occupancy(ix, iy) {
+                    Occupancy::Free => (0, FREE),
+                    Occupancy::Occupied => (1, OCCUPIED),
+                    Occupancy::Unknown => (2, UNKNOWN),
+                };
+                counts[k] += 1;
+                row.push(pixel);
+            }
+            w.write_all(&row)?;
+        }
+        Ok(())
+    })?;
+    let (_, up) = opts.up();
+    write_atomic(&dir.join("map.yaml"), |w| write_yaml(w, res, origin, &up))?;
+    write_elevation(dir, grid, (lo, hi), origin)?;
+    let summary = NavMapSummary {
+        free: counts[0],
+        occupied: counts[1],
+        unknown: counts[2],
+        width,
+        height,
+        resolution_m: res,
+        origin,
+        up,
+        robot: opts.robot,
+    };
+    write_atomic(&dir.join("navmap.json"), |w| {
+        serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::from)?;
+        w.write_all(b"\n")
+    })?;
+    Ok(Some(summary))
+}
+
+/// `map.yaml` as Nav2's `map_saver` writes it, but for `free_thresh`.
+fn write_yaml(w: &mut impl Write, res: f64, origin: [f64; 2], up: &str) -> std::io::Result<()> {
+    writeln!(w, "image: map.pgm")?;
+    writeln!(w, "mode: trinary")?;
+    writeln!(w, "resolution: {res}")?;
+    writeln!(w, "origin: [{}, {}, 0]", origin[0], origin[1])?;
+    writeln!(w, "negate: 0")?;
+    writeln!(w, "occupied_thresh: 0.65")?;
+    writeln!(
+        w,
+        "# Below 0.196, not map_saver's 0.25: map_server takes a pixel p as free when\n\
+         # (255 - p) / 255 < free_thresh, and the unknown pixel 205 gives 0.196, so 0.25 would\n\
+         # load every unknown cell as free (slam_toolbox issue 587)."
+    )?;
+    writeln!(w, "free_thresh: 0.19")?;
+    writeln!(w, "# up: {up}")
+}
+
+/// `elevation.asc` and `elevation_variance.asc` over the cells `lo..=hi`.
+fn write_elevation(
+    dir: &Path,
+    grid: &Grid,
+    (lo, hi): (CellIndex, CellIndex),
+    origin: [f64; 2],
+) -> Result<(), FileError> {
+    let header = |w: &mut dyn Write| {
+        write!(
+            w,
+            "ncols {}\nnrows {}\nxllcorner {}\nyllcorner {}\ncellsize {}\nNODATA_value {NO_DATA}\n",
+            hi.0 - lo.0 + 1,
+            hi.1 - lo.1 + 1,
+            origin[0],
+            origin[1],
+            grid.resolution()
+        )
+    };
+    for (name, variance) in [("elevation.asc", false), ("elevation_variance.asc", true)] {
+        write_atomic(&dir.join(name), |w| {
+            header(w)?;
+            for iy in (lo.1..=hi.1).rev() {
+                let mut line = String::new();
+                for ix in lo.0..=hi.0 {
+                    if ix > lo.0 {
+                        line.push(' ');
+                    }
+                    match grid.elevation(ix, iy) {
+                        Some((_, v)) if variance => line.push_str(&format!("{v:.6}")),
+                        Some((h, _)) => line.push_str(&format!("{h:.3}")),
+                        None => line.push_str(NO_DATA),
+                    }
+                }
+                line.push('\n');
+                w.write_all(line.as_bytes())?;
+            }
+            Ok(())
+        })?;
+    }
+    Ok(())
+}

@@ -1,0 +1,570 @@
+//! The 2.5D grid a navigation map is made of, from the mesh's triangles.
+//!
+//! The triangles are turned level first (the `up` direction made the grid's z) and sampled
+//! densely (points at most half a cell apart, on every triangle whatever its slope), in two
+//! passes over them:
+//! 1. **floor**: each cell keeps its lowest sample of a triangle no steeper than the robot's
+//!    slope limit. **Ground** is the floor the robot can reach: grown from the cells under its
+//!    path (or, with no path, from the largest stretch of floor) to neighbouring floor cells
+//!    no more than a step (plus a cell's rise at the slope limit) higher or lower. A car's
+//!    roof or a pavement behind a kerb higher than a step is floor, not ground.
+//! 2. **classify**: a cell is judged against its own ground, or where it has none against the
+//!    lowest ground within about two metres (`REFERENCE_M`): a sample standing above that by
+//!    more than a step and no more than the robot's height makes the cell an obstacle; a
+//!    ground sample gives the cell's height and spread for the elevation grid.
+//!
+//! A cell is then occupied (an obstacle stands in it), free (ground seen, nothing standing on
+//! it) or unknown (everything else: nothing seen, only what the robot passes under, a surface
+//! with no ground near enough to judge it). The mesh holds only vertices whose Gaussian-process
+//! variance is within the mesh's limit (`mesh.max_variance`), so a surface the map is unsure
+//! of is no surface here: unknown, never free.
+//!
+//! Memory: cells are kept in tiles of 64 x 64, made where a triangle falls (24 bytes a cell),
+//! none for the space between streets.
+
+use crate::io::error::FileError;
+use crate::navmap::robot::Robot;
+use nalgebra::{Rotation3, Vector3};
+use slamesh_core::Point;
+use std::collections::HashMap;
+
+/// Cells along a tile's side.
+const TILE: i64 = 64;
+const TILE_CELLS: usize = (TILE * TILE) as usize;
+
+/// What a navigation map says of a cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Occupancy {
+    /// Nothing seen there (or only what the robot passes under).
+    Unknown,
+    /// Ground seen, nothing standing on it.
+    Free,
+    /// Something stands there between a step and the robot's height above the ground.
+    Occupied,
+}
+
+/// Anything that hands over a mesh's triangles (map frame), as many times as asked.
+pub trait Triangles {
+    /// Calls `each` with every triangle's three corners.
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError>;
+}
+
+impl Triangles for crate::outputs::mesh_spool::MeshSpool {
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
+        self.for_each_triangle(|t, _| each(t))
+    }
+}
+
+impl Triangles for crate::formats::ply::PlyMesh {
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
+        self.triangle_corners().for_each(each);
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Cell {
+    /// The lowest floor sample (level frame z), infinite for none.
+    floor: f32,
+    /// Whether that floor is ground: reachable from the path.
+    ground: bool,
+    /// The height the cell is judged against: its ground, or the lowest ground near it
+    /// (infinite for none).
+    reference: f32,
+    /// Ground samples within a step of `reference`, the sum of their heights above it and of
+    /// its squares.
+    n: u32,
+    sum: f32,
+    sum_sq: f32,
+    obstacle: bool,
+}
+
+impl Default for Cell {
+    fn default() -> Self {
+        Cell {
+            floor: f32::INFINITY,
+            ground: false,
+            reference: f32::INFINITY,
+            n: 0,
+            sum: 0.0,
+            sum_sq: 0.0,
+            obstacle: false,
+        }
+    }
+}
+
+/// How far (m) a cell with no ground of its own looks for ground to be judged against.
+pub const REFERENCE_M: f64 = 2.0;
+/// How far (cells) the ground grows across a gap in the floor.
+const BRIDGE_CELLS: i64 = 3;
+/// How far (m) from a point of the path its ground is looked for.
+const SEED_M: f64 = 1.0;
+
+type Tile = Box<[Cell; TILE_CELLS]>;
+
+/// A navigation grid: cells of `resolution` metres in the level frame.
+pub struct Grid {
+    resolution: f64,
+    robot: Robot,
+    /// Map frame to level frame.
+    level: Rotation3<f64>,
+    tiles: HashMap<(i64, i64), Tile>,
+}
+
+/// A cell's index: column and row (level frame x and y over the resolution, floored).
+pub type CellIndex = (i64, i64);
+
+impl Grid {
+    /// The grid of the triangles `mesh` hands over, for `robot`, with cells of `resolution`
+    /// metres, `up` (map frame) taken as up; `path` (sensor positions, map frame) is where the
+    /// robot's ground is grown from (empty: from the largest stretch of floor).
+    pub fn build(
+        mesh: &mut dyn Triangles,
+        robot: Robot,
+        resolution: f64,
+        up: Vector3<f64>,
+        path: &[Vector3<f64>],
+    ) -> Result<Grid, FileError> {
+        let level = Rotation3::rotation_between(&up, &Vector3::z()).unwrap_or_else(|| {
+            Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+        });
+        let mut grid = Grid {
+            resolution,
+            robot,
+            level,
+            tiles: HashMap::new(),
+        };
+        let floor_cos = robot.max_slope_deg.to_radians().cos();
+        mesh.each_triangle(&mut |t| {
+            let (corners, is_floor) = grid.levelled(t, floor_cos);
+            grid.samples(&corners, |g, ix, iy, z| {
+                let c = g.cell_mut(ix, iy);
+                if is_floor {
+                    c.floor = c.floor.min(z as f32);
+                }
+            });
+        })?;
+        let seeds = grid.seeds(path);
+        grid.grow_ground(seeds);
+        grid.set_references();
+        mesh.each_triangle(&mut |t| {
+            let (corners, is_floor) = grid.levelled(t, floor_cos);
+            grid.samples(&corners, |g, ix, iy, z| g.classify(ix, iy, z, is_floor));
+        })?;
+        Ok(grid)
+    }
+
+    /// Pass 2 for one sample of height `z` in cell `(ix, iy)`, of a floor triangle or not.
+    fn classify(&mut self, ix: i64, iy: i64, z: f64, is_floor: bool) {
+        let (step, height) = (self.robot.max_step_m as f32, self.robot.height_m as f32);
+        let c = self.cell_mut(ix, iy);
+        let above = z as f32 - c.reference;
+        if !above.is_finite() {
+            return;
+        }
+        if above > step && above <= height {
+            c.obstacle = true;
+        } else if is_floor && c.ground && above <= step {
+            c.n += 1;
+            c.sum += above;
+            c.sum_sq += above * above;
+        }
+    }
+
+    /// The floor cells the ground grows from: for each point of `path` (map frame), the
+    /// highest floor cell below it within [`SEED_M`]; with no path, the cells of the largest
+    /// stretch of floor.
+    fn seeds(&self, path: &[Vector3<f64>]) -> Vec<CellIndex> {
+        let r = (SEED_M / self.resolution).ceil() as i64;
+        let mut seeds: Vec<CellIndex> = path
+            .iter()
+            .filter_map(|p| {
+                let q = self.level * p;
+                let (cx, cy) = self.index_of(q.x, q.y);
+                disc(r)
+                    .into_iter()
+                    .map(|(dx, dy)| (cx + dx, cy + dy))
+                    .filter_map(|(ix, iy)| {
+                        let f = self.cell(ix, iy)?.floor;
+                        (f.is_finite() && (f as f64) < q.z).then_some((f, (ix, iy)))
+                    })
+                    .max_by(|a, b| a.0.total_cmp(&b.0))
+                    .map(|(_, i)| i)
+            })
+            .collect();
+        if seeds.is_empty() {
+            seeds = self.largest_floor();
+        }
+        seeds.sort_unstable();
+        seeds.dedup();
+        seeds
+    }
+
+    /// The cells of the largest stretch of floor (cells joined as [`grow_ground`](Self::grow_ground) joins them).
+    fn largest_floor(&self) -> Vec<CellIndex> {
+        let mut seen: std::collections::HashSet<CellIndex> = Default::default();
+        let mut best: Vec<CellIndex> = Vec::new();
+        for (ix, iy) in self.floor_cells() {
+            if seen.contains(&(ix, iy)) {
+                continue;
+            }
+            let part = self.stretch(vec![(ix, iy)], |i| seen.insert(i));
+            if part.len() > best.len() {
+                best = part;
+            }
+        }
+        best
+    }
+
+    /// Every cell with floor, in a fixed order.
+    fn floor_cells(&self) -> Vec<CellIndex> {
+        let mut keys: Vec<&(i64, i64)> = self.tiles.keys().collect();
+        keys.sort_unstable();
+        let mut out = Vec::new();
+        for &(tx, ty) in keys {
+            for (k, c) in self.tiles[&(tx, ty)].iter().enumerate() {
+                if c.floor.is_finite() {
+                    out.push((tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE));
+                }
+            }
+        }
+        out
+    }
+
+    /// The floor cells joined to `from` through neighbours within [`BRIDGE_CELLS`] (a gap in
+    /// the mesh between scan rings is bridged) whose floors differ by no more than a step and
+    /// a cell's rise at the slope limit; `visit` says whether a cell is new (and marks it).
+    fn stretch(
+        &self,
+        from: Vec<CellIndex>,
+        mut visit: impl FnMut(CellIndex) -> bool,
+    ) -> Vec<CellIndex> {
+        // One cell's rise at the slope limit over a step, whatever the gap: a gap is unseen,
+        // and a kerb must not be bridged as a slope.
+        let rise = (self.robot.max_step_m
+            + self.resolution * self.robot.max_slope_deg.to_radians().tan())
+            as f32;
+        let near: Vec<(i64, i64, f32)> = disc(BRIDGE_CELLS)
+            .into_iter()
+            .filter(|&d| d != (0, 0))
+            .map(|(dx, dy)| (dx, dy, rise))
+            .collect();
+        let floor = |i: CellIndex| {
+            self.cell(i.0, i.1)
+                .map(|c| c.floor)
+                .filter(|f| f.is_finite())
+        };
+        let mut queue: Vec<CellIndex> = from.into_iter().filter(|&i| visit(i)).collect();
+        let mut out = Vec::new();
+        while let Some(i) = queue.pop() {
+            let Some(f) = floor(i) else { continue };
+            out.push(i);
+            for &(dx, dy, rise) in &near {
+                let n = (i.0 + dx, i.1 + dy);
+                if floor(n).is_some_and(|g| (g - f).abs() <= rise) && visit(n) {
+                    queue.push(n);
+                }
+            }
+        }
+        out
+    }
+
+    /// Marks the floor reachable from `seeds` as ground.
+    fn grow_ground(&mut self, seeds: Vec<CellIndex>) {
+        let mut seen: std::collections::HashSet<CellIndex> = Default::default();
+        let reached = self.stretch(seeds, |i| seen.insert(i));
+        for (ix, iy) in reached {
+            self.cell_mut(ix, iy).ground = true;
+        }
+    }
+
+    /// Each cell's reference: its ground, or the lowest ground within about [`REFERENCE_M`]
+    /// (the lowest of the blocks of a metre around it).
+    fn set_references(&mut self) {
+        let block = (1.0 / self.resolution).round().max(1.0) as i64;
+        let reach = (REFERENCE_M / (block as f64 * self.resolution)).ceil() as i64;
+        let mut lowest: HashMap<(i64, i64), f32> = HashMap::new();
+        for (&(tx, ty), tile) in &self.tiles {
+            for (k, c) in tile.iter().enumerate().filter(|(_, c)| c.ground) {
+                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                let b = lowest
+                    .entry((ix.div_euclid(block), iy.div_euclid(block)))
+                    .or_insert(f32::INFINITY);
+                *b = b.min(c.floor);
+            }
+        }
+        for (&(tx, ty), tile) in self.tiles.iter_mut() {
+            for (k, c) in tile.iter_mut().enumerate() {
+                if c.ground {
+                    c.reference = c.floor;
+                    continue;
+                }
+                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                let (bx, by) = (ix.div_euclid(block), iy.div_euclid(block));
+                c.reference = (-reach..=reach)
+                    .flat_map(|dy| (-reach..=reach).map(move |dx| (bx + dx, by + dy)))
+                    .filter_map(|b| lowest.get(&b))
+                    .fold(f32::INFINITY, |m, &v| m.min(v));
+            }
+        }
+    }
+
+    /// The cell size (m).
+    pub fn resolution(&self) -> f64 {
+        self.resolution
+    }
+
+    /// The rotation from the map frame to the grid's level frame.
+    pub fn level(&self) -> Rotation3<f64> {
+        self.level
+    }
+
+    /// The cell holding level-frame `(x, y)`.
+    pub fn index_of(&self, x: f64, y: f64) -> CellIndex {
+        (
+            (x / self.resolution).floor() as i64,
+            (y / self.resolution).floor() as i64,
+        )
+    }
+
+    /// What the map says of cell `(ix, iy)`.
+    ///
+    /// Two rules beyond the cell's own: a cell with ground that touches an obstacle cell (of
+    /// its eight neighbours) is occupied, since the obstacle's edge (a wall's foot, which the
+    /// surface reconstruction rounds) may lie in it; and a cell where nothing was seen between
+    /// two free cells (a seam of the mesh between its voxel cells, one or two cells wide) is
+    /// free.
+    pub fn occupancy(&self, ix: i64, iy: i64) -> Occupancy {
+        match self.own(ix, iy) {
+            Occupancy::Free if self.touches_obstacle(ix, iy) => Occupancy::Occupied,
+            Occupancy::Unknown if self.in_seam(ix, iy) => Occupancy::Free,
+            own => own,
+        }
+    }
+
+    /// What the cell's own samples say.
+    fn own(&self, ix: i64, iy: i64) -> Occupancy {
+        match self.cell(ix, iy) {
+            Some(c) if c.obstacle => Occupancy::Occupied,
+            Some(c) if c.ground && c.n > 0 => Occupancy::Free,
+            _ => Occupancy::Unknown,
+        }
+    }
+
+    fn touches_obstacle(&self, ix: i64, iy: i64) -> bool {
+        (-1..=1)
+            .any(|dy| (-1..=1).any(|dx| self.cell(ix + dx, iy + dy).is_some_and(|c| c.obstacle)))
+    }
+
+    /// Whether nothing was seen in the cell and it lies between two cells free of their own,
+    /// in a row or a column, at most two cells apart.
+    fn in_seam(&self, ix: i64, iy: i64) -> bool {
+        let empty = |x, y| {
+            self.cell(x, y)
+                .is_none_or(|c| !c.floor.is_finite() && !c.obstacle)
+        };
+        let free = |x, y| self.own(x, y) == Occupancy::Free && !self.touches_obstacle(x, y);
+        empty(ix, iy)
+            && [(1, 0), (0, 1)].iter().any(|&(dx, dy)| {
+                (free(ix - dx, iy - dy) && free(ix + dx, iy + dy))
+                    || (free(ix - dx, iy - dy)
+                        && empty(ix + dx, iy + dy)
+                        && free(ix + 2 * dx, iy + 2 * dy))
+                    || (free(ix + dx, iy + dy)
+                        && empty(ix - dx, iy - dy)
+                        && free(ix - 2 * dx, iy - 2 * dy))
+            })
+    }
+
+    /// Cell `(ix, iy)`'s ground height (level frame) and the variance of the ground samples
+    /// in it; `None` where no ground was seen.
+    pub fn elevation(&self, ix: i64, iy: i64) -> Option<(f64, f64)> {
+        let c = self.cell(ix, iy).filter(|c| c.ground && c.n > 0)?;
+        let n = c.n as f64;
+        let mean = c.sum as f64 / n;
+        let var = (c.sum_sq as f64 / n - mean * mean).max(0.0);
+        Some((c.reference as f64 + mean, var))
+    }
+
+    /// The smallest box of cells holding every cell seen (free or occupied): its lowest and
+    /// highest corners, inclusive; `None` when none was.
+    pub fn bounds(&self) -> Option<(CellIndex, CellIndex)> {
+        let mut b: Option<(CellIndex, CellIndex)> = None;
+        for (&(tx, ty), tile) in &self.tiles {
+            for (k, c) in tile.iter().enumerate() {
+                if !(c.obstacle || (c.ground && c.n > 0)) {
+                    continue;
+                }
+                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                b = Some(match b {
+                    None => ((ix, iy), (ix, iy)),
+                    Some((lo, hi)) => ((lo.0.min(ix), lo.1.min(iy)), (hi.0.max(ix), hi.1.max(iy))),
+                });
+            }
+        }
+        b
+    }
+
+    /// The triangle `t` in the level frame, and whether it is floor (its normal within the
+    /// slope limit of up, either way round).
+    fn levelled(&self, t: [Point; 3], floor_cos: f64) -> ([Vector3<f64>; 3], bool) {
+        let p = t.map(|c| self.level * Vector3::new(c[0] as f64, c[1] as f64, c[2] as f64));
+        let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
+        let norm = n.norm();
+        let is_floor = norm > 0.0 && (n.z / norm).abs() >= floor_cos;
+        (p, is_floor)
+    }
+
+    /// Calls `each` with the grid, the cell and the height of every sample of the triangle:
+    /// a barycentric lattice with points at most half a cell apart.
+    fn samples(&mut self, p: &[Vector3<f64>; 3], mut each: impl FnMut(&mut Self, i64, i64, f64)) {
+        let longest = [(p[1] - p[0]), (p[2] - p[1]), (p[0] - p[2])]
+            .iter()
+            .map(|e| e.norm())
+            .fold(0.0f64, f64::max);
+        if !longest.is_finite() {
+            return;
+        }
+        // At most 4 096 steps along an edge: a triangle longer than that is cut coarser.
+        let steps = ((longest / (0.5 * self.resolution)).ceil() as usize).clamp(1, 4096);
+        let (u, v) = ((p[1] - p[0]) / steps as f64, (p[2] - p[0]) / steps as f64);
+        for i in 0..=steps {
+            for j in 0..=steps - i {
+                let q = p[0] + u * i as f64 + v * j as f64;
+                let (ix, iy) = self.index_of(q.x, q.y);
+                each(self, ix, iy, q.z);
+            }
+        }
+    }
+
+    fn cell(&self, ix: i64, iy: i64) -> Option<&Cell> {
+        let (key, k) = tile_of(ix, iy);
+        self.tiles.get(&key).map(|t| &t[k])
+    }
+
+    fn cell_mut(&mut self, ix: i64, iy: i64) -> &mut Cell {
+        let (key, k) = tile_of(ix, iy);
+        &mut self
+            .tiles
+            .entry(key)
+            .or_insert_with(|| Box::new([Cell::default(); TILE_CELLS]))[k]
+    }
+}
+
+/// The offsets of the cells within `r` cells of a cell (a disc), nearest rows first.
+fn disc(r: i64) -> Vec<(i64, i64)> {
+    (-r..=r)
+        .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
+        .filter(|(dx, dy)| dx * dx + dy * dy <= r * r)
+        .collect()
+}
+
+/// The tile holding cell `(ix, iy)` and the cell's place in it.
+fn tile_of(ix: i64, iy: i64) -> ((i64, i64), usize) {
+    let key = (ix.div_euclid(TILE), iy.div_euclid(TILE));
+    let k = (iy.rem_euclid(TILE) * TILE + ix.rem_euclid(TILE)) as usize;
+    (key, k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A floor of two triangles over `[x0, x1] x [y0, y1]` at height `z`.
+    fn floor(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Vec<[Point; 3]> {
+        vec![
+            [[x0, y0, z], [x1, y0, z], [x1, y1, z]],
+            [[x0, y0, z], [x1, y1, z], [x0, y1, z]],
+        ]
+    }
+
+    /// A wall from `(x, y0)` to `(x, y1)`, from `z0` to `z1`.
+    fn wall(x: f32, y0: f32, y1: f32, z0: f32, z1: f32) -> Vec<[Point; 3]> {
+        vec![
+            [[x, y0, z0], [x, y1, z0], [x, y1, z1]],
+            [[x, y0, z0], [x, y1, z1], [x, y0, z1]],
+        ]
+    }
+
+    struct Soup(Vec<[Point; 3]>);
+
+    impl Triangles for Soup {
+        fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
+            self.0.iter().copied().for_each(each);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn ground_walls_steps_ramps_and_overhangs() {
+        let mut soup = Vec::new();
+        // A street from x = 0 to 10, a kerb of 0.15 m up to a pavement from 10 to 12, a
+        // wall at x = 12; a roof over the street at 4 m; a gentle ramp (10 degrees) and a
+        // steep one (40) from y = 10 on.
+        soup.extend(floor(0.0, 0.0, 10.0, 10.0, 0.0));
+        soup.extend(floor(10.0, 0.0, 12.0, 10.0, 0.15));
+        soup.extend(wall(10.0, 0.0, 10.0, 0.0, 0.15));
+        soup.extend(wall(12.0, 0.0, 10.0, 0.15, 3.0));
+        soup.extend(floor(0.0, 0.0, 3.0, 3.0, 4.0));
+        let (t10, t40) = (10f32.to_radians().tan(), 40f32.to_radians().tan());
+        soup.push([[0.0, 10.0, 0.0], [4.0, 10.0, 0.0], [4.0, 14.0, 4.0 * t10]]);
+        soup.push([
+            [0.0, 10.0, 0.0],
+            [4.0, 14.0, 4.0 * t10],
+            [0.0, 14.0, 4.0 * t10],
+        ]);
+        soup.push([[6.0, 10.0, 0.0], [9.0, 10.0, 0.0], [9.0, 12.0, 2.0 * t40]]);
+        soup.push([
+            [6.0, 10.0, 0.0],
+            [9.0, 12.0, 2.0 * t40],
+            [6.0, 12.0, 2.0 * t40],
+        ]);
+        let path = [Vector3::new(5.0, 5.0, 1.7)];
+        let g = Grid::build(&mut Soup(soup), Robot::WHEELED, 0.1, Vector3::z(), &path).unwrap();
+        let at = |x: f64, y: f64| {
+            let (ix, iy) = g.index_of(x, y);
+            g.occupancy(ix, iy)
+        };
+        assert_eq!(at(5.05, 5.05), Occupancy::Free, "the street");
+        assert_eq!(at(1.05, 1.05), Occupancy::Free, "under the roof");
+        assert_eq!(at(12.05, 5.05), Occupancy::Occupied, "the wall");
+        // The kerb is higher than a step: the pavement is not reached, and within reference
+        // distance of the street it stands higher than a step above it.
+        assert_eq!(at(10.15, 5.05), Occupancy::Occupied, "the pavement's edge");
+        assert_eq!(at(11.55, 5.05), Occupancy::Occupied, "the pavement");
+        assert_eq!(at(2.05, 12.05), Occupancy::Free, "the gentle ramp");
+        assert_eq!(at(7.55, 10.45), Occupancy::Occupied, "the steep ramp");
+        assert_eq!(
+            at(7.55, 11.85),
+            Occupancy::Unknown,
+            "the steep ramp above the robot"
+        );
+        assert_eq!(at(20.0, 20.0), Occupancy::Unknown, "nothing seen");
+        let (ix, iy) = g.index_of(5.05, 5.05);
+        let (h, var) = g.elevation(ix, iy).unwrap();
+        assert!(h.abs() < 1e-6 && var < 1e-9, "{h} {var}");
+        let (lo, hi) = g.bounds().unwrap();
+        assert_eq!((lo, hi), ((0, 0), (120, 140)));
+    }
+
+    #[test]
+    fn a_tilted_map_is_levelled_by_its_up() {
+        // The street tilted by 20 degrees about x: with z as up its far side would stand above
+        // a step; with the tilt's up it is level ground.
+        let tilt = Rotation3::from_axis_angle(&Vector3::x_axis(), 20f64.to_radians());
+        let soup: Vec<[Point; 3]> = floor(0.0, 0.0, 10.0, 10.0, 0.0)
+            .into_iter()
+            .map(|t| {
+                t.map(|c| {
+                    let p = tilt * Vector3::new(c[0] as f64, c[1] as f64, c[2] as f64);
+                    [p.x as f32, p.y as f32, p.z as f32]
+                })
+            })
+            .collect();
+        let up = tilt * Vector3::z();
+        let path = [tilt * Vector3::new(5.0, 5.0, 1.7)];
+        let g = Grid::build(&mut Soup(soup), Robot::WHEELED, 0.1, up, &path).unwrap();
+        let (ix, iy) = g.index_of(5.05, 5.05);
+        assert_eq!(g.occupancy(ix, iy), Occupancy::Free);
+    }
+}

@@ -1,0 +1,84 @@
+//! Maps a planner reads, made from the mesh: a 2D occupancy grid as Nav2's `map_server` loads
+//! it (`map.yaml` + `map.pgm`) and a 2.5D elevation grid (ESRI ASCII grids of the ground's
+//! height and spread), for a robot profile.
+//!
+//! | what | module |
+//! |---|---|
+//! | the robot: radius, slope, step, height; profiles and its file | [`robot`] |
+//! | the grid: floor, ground grown from the path, obstacles, elevation | [`grid`] |
+//! | the files: Nav2's YAML and PGM, the elevation grids, `navmap.json` | [`files`] |
+//!
+//! Up is the map's z axis (the first scan taken as level) unless the caller gives another
+//! direction (an IMU's gravity, once it is used); the files say which.
+
+pub mod files;
+pub mod grid;
+pub mod robot;
+
+pub use grid::{Grid, Occupancy, Triangles};
+pub use robot::Robot;
+
+use crate::io::error::FileError;
+use nalgebra::Vector3;
+use std::path::Path;
+
+/// Builds the navigation map of the triangles `mesh` hands over (the ground grown from
+/// `path`, sensor positions in the map frame) and writes its files into `dir`
+/// ([`files::write`]); `None` when the mesh held nothing to map.
+pub fn make(
+    mesh: &mut dyn Triangles,
+    path: &[Vector3<f64>],
+    how: &NavMapOptions,
+    dir: &Path,
+) -> Result<Option<files::NavMapSummary>, FileError> {
+    let t = std::time::Instant::now();
+    let grid = Grid::build(mesh, how.robot, how.resolution_m, how.up().0, path)?;
+    let summary = files::write(dir, &grid, how)?;
+    match &summary {
+        Some(s) => log::info!(
+            "navigation map: {} x {} cells of {} m, {} free, {} occupied, {} unknown ({:.1} s)",
+            s.width,
+            s.height,
+            s.resolution_m,
+            s.free,
+            s.occupied,
+            s.unknown,
+            t.elapsed().as_secs_f64()
+        ),
+        None => log::warn!("navigation map: the mesh holds no ground or obstacle; none written"),
+    }
+    Ok(summary)
+}
+
+/// How a navigation map is made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NavMapOptions {
+    /// The robot it is for.
+    pub robot: Robot,
+    /// Cell size (m): 0.05 to 0.1 suits Nav2.
+    pub resolution_m: f64,
+    /// Up in the map frame, and where it came from; `None`: the map's z axis.
+    pub up: Option<(Vector3<f64>, String)>,
+}
+
+impl Default for NavMapOptions {
+    fn default() -> Self {
+        NavMapOptions {
+            robot: Robot::WHEELED,
+            resolution_m: 0.1,
+            up: None,
+        }
+    }
+}
+
+impl NavMapOptions {
+    /// Up (map frame) and what says so.
+    pub fn up(&self) -> (Vector3<f64>, String) {
+        self.up.clone().unwrap_or_else(|| {
+            (
+                Vector3::z(),
+                "the map's z axis (the first scan taken as level)".to_string(),
+            )
+        })
+    }
+}
