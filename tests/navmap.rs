@@ -250,16 +250,16 @@ fn the_town_s_navigation_map_against_the_truth() {
     );
     println!("town, {frames} frames: {s:?}");
     assert!(s.free > 40_000 && s.occupied > 2_000, "{s:?}");
-    // Issue 56's targets are 0.5 % and an IoU of 0.9; measured 1.1 % and 0.26 (0.45 within a
-    // cell): these bounds hold what is reached (docs/benchmarks.md, "Maps a planner reads").
+    // Issue 56's targets: at most 0.5 % (met: 0.33 % measured) and an IoU of 0.9 (not met:
+    // 0.26, 0.43 within a cell; docs/benchmarks.md, "Maps a planner reads").
     let bad = s.free_with_obstacle as f64 / s.free as f64;
     assert!(
-        bad <= 0.015,
+        bad <= 0.005,
         "{:.3} % of free cells hold an obstacle",
         bad * 100.0
     );
     assert!(
-        s.iou_within_a_cell >= 0.4,
+        s.iou_within_a_cell >= 0.38,
         "occupied IoU {:.3} ({:.3} within a cell)",
         s.iou,
         s.iou_within_a_cell
@@ -284,7 +284,7 @@ fn the_office_s_navigation_map_against_the_truth() {
         bad * 100.0
     );
     assert!(
-        s.iou_within_a_cell >= 0.35,
+        s.iou_within_a_cell >= 0.3,
         "occupied IoU {:.3} ({:.3} within a cell)",
         s.iou,
         s.iou_within_a_cell

@@ -19,7 +19,7 @@
 //! variance is within the mesh's limit (`mesh.max_variance`), so a surface the map is unsure
 //! of is no surface here: unknown, never free.
 //!
-//! Memory: cells are kept in tiles of 64 x 64, made where a triangle falls (24 bytes a cell),
+//! Memory: cells are kept in tiles of 64 x 64, made where a triangle falls (40 bytes a cell),
 //! none for the space between streets.
 
 use crate::io::error::FileError;
@@ -76,7 +76,12 @@ struct Cell {
     n: u32,
     sum: f32,
     sum_sq: f32,
+    /// The heights above `reference` samples stand at: bit `b` for `b` to `b + 1` tenths of a
+    /// metre (0 to 6.4 m).
+    heights: u64,
     obstacle: bool,
+    /// Seen from the path: a line of sight reaches it ([`Grid::carve`]).
+    visible: bool,
 }
 
 impl Default for Cell {
@@ -88,13 +93,22 @@ impl Default for Cell {
             n: 0,
             sum: 0.0,
             sum_sq: 0.0,
+            heights: 0,
             obstacle: false,
+            visible: false,
         }
     }
 }
 
 /// How far (m) a cell with no ground of its own looks for ground to be judged against.
 pub const REFERENCE_M: f64 = 2.0;
+/// How far (m) from an obstacle's cell ground is taken as the obstacle's edge: the surface
+/// reconstruction carries ground up to about two tenths under a car's or a wall's foot.
+const EDGE_M: f64 = 0.2;
+/// Metres of path between two points the lines of sight are cast from.
+const CARVE_EVERY_M: f64 = 2.0;
+/// How far (m) a line of sight reaches.
+const CARVE_RANGE_M: f64 = 40.0;
 /// How far (cells) the ground grows across a gap in the floor.
 const BRIDGE_CELLS: i64 = 3;
 /// How far (m) from a point of the path its ground is looked for.
@@ -109,6 +123,8 @@ pub struct Grid {
     /// Map frame to level frame.
     level: Rotation3<f64>,
     tiles: HashMap<(i64, i64), Tile>,
+    /// Whether lines of sight were cast (a path was given): free cells must then be seen.
+    carved: bool,
 }
 
 /// A cell's index: column and row (level frame x and y over the resolution, floored).
@@ -133,6 +149,7 @@ impl Grid {
             robot,
             level,
             tiles: HashMap::new(),
+            carved: false,
         };
         let floor_cos = robot.max_slope_deg.to_radians().cos();
         mesh.each_triangle(&mut |t| {
@@ -151,6 +168,7 @@ impl Grid {
             let (corners, is_floor) = grid.levelled(t, floor_cos);
             grid.samples(&corners, |g, ix, iy, z| g.classify(ix, iy, z, is_floor));
         })?;
+        grid.carve(path);
         Ok(grid)
     }
 
@@ -161,6 +179,9 @@ impl Grid {
         let above = z as f32 - c.reference;
         if !above.is_finite() {
             return;
+        }
+        if (0.0..6.4).contains(&above) {
+            c.heights |= 1 << (above * 10.0) as u32;
         }
         if above > step && above <= height {
             c.obstacle = true;
@@ -329,9 +350,9 @@ impl Grid {
 
     /// What the map says of cell `(ix, iy)`.
     ///
-    /// Two rules beyond the cell's own: a cell with ground that touches an obstacle cell (of
-    /// its eight neighbours) is occupied, since the obstacle's edge (a wall's foot, which the
-    /// surface reconstruction rounds) may lie in it; and a cell where nothing was seen between
+    /// Two rules beyond the cell's own: a cell with ground within [`EDGE_M`] of an obstacle
+    /// cell is occupied, since the obstacle's edge (a wall's foot, which the surface
+    /// reconstruction rounds and carries ground under) may lie in it; and a cell where nothing was seen between
     /// two free cells (a seam of the mesh between its voxel cells, one or two cells wide) is
     /// free.
     pub fn occupancy(&self, ix: i64, iy: i64) -> Occupancy {
@@ -346,14 +367,79 @@ impl Grid {
     fn own(&self, ix: i64, iy: i64) -> Occupancy {
         match self.cell(ix, iy) {
             Some(c) if c.obstacle => Occupancy::Occupied,
-            Some(c) if c.ground && c.n > 0 => Occupancy::Free,
+            Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => Occupancy::Free,
             _ => Occupancy::Unknown,
         }
     }
 
+    /// Casts lines of sight over the grid from points of `path` (map frame) every
+    /// [`CARVE_EVERY_M`], each out to [`CARVE_RANGE_M`] in directions a cell apart at that
+    /// range, and marks the cells they cross as seen. A line stops at a cell with a surface
+    /// at the sensor's height above the ground, or up to 0.2 m higher (a wall, not a car nor
+    /// a ceiling): ground the reconstruction carried behind a wall is not seen, so never free.
+    fn carve(&mut self, path: &[Vector3<f64>]) {
+        let r = (SEED_M / self.resolution).ceil() as i64;
+        let mut last: Option<Vector3<f64>> = None;
+        for p in path {
+            let q = self.level * p;
+            if last.is_some_and(|l| (l - q).xy().norm() < CARVE_EVERY_M) {
+                continue;
+            }
+            let (cx, cy) = self.index_of(q.x, q.y);
+            let under = disc(r)
+                .into_iter()
+                .filter_map(|(dx, dy)| self.cell(cx + dx, cy + dy).filter(|c| c.ground))
+                .map(|c| c.floor)
+                .filter(|&f| (f as f64) < q.z)
+                .fold(f32::NEG_INFINITY, f32::max);
+            if !under.is_finite() {
+                continue;
+            }
+            last = Some(q);
+            self.carve_from(q, q.z as f32 - under);
+            self.carved = true;
+        }
+    }
+
+    /// [`carve`](Self::carve)'s lines from level-frame `q`, the sensor `height` above ground.
+    fn carve_from(&mut self, q: Vector3<f64>, height: f32) {
+        // The tenths of a metre from the sensor's height to 0.2 m above it.
+        let from = (height * 10.0).clamp(0.0, 61.0) as u32;
+        let blocking: u64 = 0b111 << from;
+        let rays = (std::f64::consts::TAU * CARVE_RANGE_M / self.resolution).ceil() as usize;
+        let steps = (CARVE_RANGE_M / self.resolution) as usize;
+        for k in 0..rays {
+            let a = std::f64::consts::TAU * k as f64 / rays as f64;
+            let (dx, dy) = (a.cos() * self.resolution, a.sin() * self.resolution);
+            let mut at = None;
+            for s in 0..=steps {
+                let cell = self.index_of(q.x + dx * s as f64, q.y + dy * s as f64);
+                if at == Some(cell) {
+                    continue;
+                }
+                at = Some(cell);
+                let (key, k) = tile_of(cell.0, cell.1);
+                let Some(tile) = self.tiles.get_mut(&key) else {
+                    continue;
+                };
+                let c = &mut tile[k];
+                c.visible = true;
+                if c.heights & blocking != 0 {
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Whether an obstacle cell lies within [`EDGE_M`] of the cell.
     fn touches_obstacle(&self, ix: i64, iy: i64) -> bool {
-        (-1..=1)
-            .any(|dy| (-1..=1).any(|dx| self.cell(ix + dx, iy + dy).is_some_and(|c| c.obstacle)))
+        let r = (EDGE_M / self.resolution).round().max(1.0) as i64;
+        (-r..=r).any(|dy| {
+            (-r..=r).any(|dx| {
+                dx * dx + dy * dy <= r * r
+                    && self.cell(ix + dx, iy + dy).is_some_and(|c| c.obstacle)
+            })
+        })
     }
 
     /// Whether nothing was seen in the cell and it lies between two cells free of their own,
