@@ -314,11 +314,23 @@ fn the_command_s_navigation_maps() {
         &s(&saved),
     ]);
     slamesh_ok(&["navmap", &s(&saved), "--out", &s(&from_map), "-q"]);
-    for f in ["map.pgm", "map.yaml", "elevation.asc"] {
+    for f in ["map.pgm", "map.yaml", "elevation.asc", "navmesh.ply"] {
         assert_eq!(
             std::fs::read(run_out.join(f)).unwrap(),
             std::fs::read(from_map.join(f)).unwrap(),
             "{f}"
+        );
+    }
+    // The navigation mesh: the ground with its layers as named vertex properties.
+    let navmesh = run_out.join("navmesh.ply");
+    let mesh = slamesh::formats::ply::read_ply_mesh(&navmesh).unwrap();
+    assert!(mesh.vertices.len() > 100 && mesh.triangles.len() > mesh.vertices.len());
+    let bytes = std::fs::read(&navmesh).unwrap();
+    let header = String::from_utf8_lossy(&bytes[..600]);
+    for layer in ["slope_deg", "step_m", "roughness_m", "border", "cost"] {
+        assert!(
+            header.contains(&format!("property float {layer}\n")),
+            "{layer}"
         );
     }
     let report = std::fs::read_to_string(run_out.join("report.json")).unwrap();

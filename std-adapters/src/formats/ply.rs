@@ -518,6 +518,47 @@ pub fn write_mesh_records(
     Ok(())
 }
 
+/// Writes a binary little-endian PLY mesh: `vertices` (x, y, z as `float`), each of
+/// `properties` as a named `float` vertex property (one value a vertex, in order), and
+/// `triangles` (a `u8` 3 and three `u32` indices each) under the comment `comment`.
+pub fn write_mesh_with_properties(
+    w: &mut impl Write,
+    comment: &str,
+    vertices: &[Point],
+    properties: &[(&str, &[f32])],
+    triangles: &[[u32; 3]],
+) -> std::io::Result<()> {
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment {comment}\nelement vertex {}\n\
+         property float x\nproperty float y\nproperty float z\n",
+        vertices.len()
+    )?;
+    for (name, _) in properties {
+        writeln!(w, "property float {name}")?;
+    }
+    write!(
+        w,
+        "element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        triangles.len()
+    )?;
+    for (k, v) in vertices.iter().enumerate() {
+        for x in v {
+            w.write_all(&x.to_le_bytes())?;
+        }
+        for (_, values) in properties {
+            w.write_all(&values.get(k).copied().unwrap_or(f32::NAN).to_le_bytes())?;
+        }
+    }
+    for t in triangles {
+        w.write_all(&[3])?;
+        for i in t {
+            w.write_all(&i.to_le_bytes())?;
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,14 +7,18 @@
 //!   the ground samples in each cell (m²), ESRI ASCII grids (GDAL, QGIS and
 //!   `numpy.loadtxt(path, skiprows=6)` read them), -9999 where no ground was seen, over the
 //!   same cells as the image;
+//! - `navmesh.ply`: the seen ground as a mesh with its traversability layers as vertex
+//!   properties ([`crate::navmap::layers`]);
 //! - `navmap.json`: the counts, the grid's size and origin, the robot and which way was up.
 //!
 //! The grid's frame is the map frame turned so that up is its z (the same frame when up is
 //! the map's z axis): x and y as the map's, for a map made level.
 
+use crate::formats::ply::write_mesh_with_properties;
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
 use crate::navmap::grid::{CellIndex, Grid, Occupancy};
+use crate::navmap::layers::NavMesh;
 use crate::navmap::NavMapOptions;
 use serde::Serialize;
 use std::io::Write;
@@ -48,6 +52,8 @@ pub struct NavMapSummary {
     pub up: String,
     /// The robot it was made for.
     pub robot: crate::navmap::Robot,
+    /// The navigation mesh's vertices and triangles (`navmesh.ply`).
+    pub navmesh: [usize; 2],
 }
 
 /// Writes the navigation map of `grid` into `dir`; `None` (and nothing written) when the grid
@@ -88,6 +94,16 @@ pub fn write(
     let (_, up) = opts.up();
     write_atomic(&dir.join("map.yaml"), |w| write_yaml(w, res, origin, &up))?;
     write_elevation(dir, grid, (lo, hi), origin)?;
+    let mesh = NavMesh::of(grid, &opts.robot);
+    write_atomic(&dir.join("navmesh.ply"), |w| {
+        write_mesh_with_properties(
+            w,
+            "slamesh navmesh: the seen ground with its traversability for the robot",
+            &mesh.vertices,
+            &mesh.properties(),
+            &mesh.triangles,
+        )
+    })?;
     let summary = NavMapSummary {
         free: counts[0],
         occupied: counts[1],
@@ -98,6 +114,7 @@ pub fn write(
         origin,
         up,
         robot: opts.robot,
+        navmesh: [mesh.vertices.len(), mesh.triangles.len()],
     };
     write_atomic(&dir.join("navmap.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::from)?;

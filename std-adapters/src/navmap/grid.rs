@@ -474,6 +474,22 @@ impl Grid {
         Some((c.reference as f64 + mean, var))
     }
 
+    /// Every cell with an elevation ([`elevation`](Self::elevation)), row by row from the
+    /// lowest.
+    pub fn ground_cells(&self) -> Vec<CellIndex> {
+        let mut out = Vec::new();
+        for (&(tx, ty), tile) in &self.tiles {
+            for k in 0..TILE_CELLS {
+                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                if tile[k].n > 0 && self.elevation(ix, iy).is_some() {
+                    out.push((ix, iy));
+                }
+            }
+        }
+        out.sort_unstable_by_key(|&(x, y)| (y, x));
+        out
+    }
+
     /// The smallest box of cells holding every cell seen (free or occupied): its lowest and
     /// highest corners, inclusive; `None` when none was.
     pub fn bounds(&self) -> Option<(CellIndex, CellIndex)> {
@@ -633,6 +649,27 @@ mod tests {
         assert!(h.abs() < 1e-6 && var < 1e-9, "{h} {var}");
         let (lo, hi) = g.bounds().unwrap();
         assert_eq!((lo, hi), ((0, 0), (120, 140)));
+        // The traversability layers: the street level and cheap, the gentle ramp at its 10
+        // degrees and cheaper than lethal, the wall's foot lethal.
+        let mesh = crate::navmap::layers::NavMesh::of(&g, &Robot::WHEELED);
+        let at_vertex = |x: f32, y: f32| {
+            mesh.vertices
+                .iter()
+                .position(|v| (v[0] - x).abs() < 0.06 && (v[1] - y).abs() < 0.06)
+                .unwrap()
+        };
+        let street = at_vertex(5.05, 5.05);
+        assert!(mesh.slope_deg[street] < 0.5 && mesh.cost[street] < 0.1);
+        let ramp = at_vertex(2.05, 12.05);
+        assert!(
+            (mesh.slope_deg[ramp] - 10.0).abs() < 1.0,
+            "{}",
+            mesh.slope_deg[ramp]
+        );
+        assert!(mesh.cost[ramp] > 0.5 && mesh.cost[ramp] < 1.0);
+        let foot = at_vertex(9.85, 5.05);
+        assert_eq!(mesh.cost[foot], 1.0);
+        assert!(mesh.triangles.len() > mesh.vertices.len());
     }
 
     #[test]

@@ -6,13 +6,15 @@
 //! |---|---|
 //! | the robot: radius, slope, step, height; profiles and its file | [`robot`] |
 //! | the grid: floor, ground grown from the path, obstacles, elevation | [`grid`] |
-//! | the files: Nav2's YAML and PGM, the elevation grids, `navmap.json` | [`files`] |
+//! | traversability on a mesh of the ground: slope, step, roughness, border, cost | [`layers`] |
+//! | the files: Nav2's YAML and PGM, the elevation grids, `navmesh.ply`, `navmap.json` | [`files`] |
 //!
 //! Up is the map's z axis (the first scan taken as level) unless the caller gives another
 //! direction (an IMU's gravity, once it is used); the files say which.
 
 pub mod files;
 pub mod grid;
+pub mod layers;
 pub mod robot;
 
 pub use grid::{Grid, Occupancy, Triangles};
