@@ -104,7 +104,7 @@ impl Default for Cell {
 pub const REFERENCE_M: f64 = 2.0;
 /// How far (m) from an obstacle's cell ground is taken as the obstacle's edge: the surface
 /// reconstruction carries ground up to about two tenths under a car's or a wall's foot.
-const EDGE_M: f64 = 0.2;
+pub const EDGE_M: f64 = 0.2;
 /// Metres of path between two points the lines of sight are cast from.
 const CARVE_EVERY_M: f64 = 2.0;
 /// How far (m) a line of sight reaches.
