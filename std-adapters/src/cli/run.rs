@@ -66,8 +66,9 @@ pub struct RunArgs {
     /// Do not draw topview.png (the mesh from above with the path; 7 MB while it is drawn).
     #[arg(long)]
     pub no_picture: bool,
-    /// Also write a navigation map for --robot: Nav2's map.yaml + map.pgm and the elevation
-    /// grids (elevation.asc, elevation_variance.asc, navmap.json).
+    /// Also write a navigation map for --robot: Nav2's map.yaml + map.pgm, the elevation
+    /// grids (elevation.asc, elevation_variance.asc), the ground's traversability
+    /// (navmesh.ply) and navmap.json.
     #[arg(long)]
     pub navmap: bool,
     /// The robot and cell size of --navmap.
