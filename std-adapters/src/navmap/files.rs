@@ -28,6 +28,8 @@ use std::path::Path;
 const OCCUPIED: u8 = 0;
 const FREE: u8 = 254;
 const UNKNOWN: u8 = 205;
+/// The most cells an image may have (20 000 x 20 000: 2 km square at 0.1 m).
+const MAX_CELLS: usize = 400_000_000;
 /// What the elevation grids hold where no ground was seen.
 const NO_DATA: &str = "-9999";
 
@@ -67,6 +69,17 @@ pub fn write(
         return Ok(None);
     };
     let (width, height) = ((hi.0 - lo.0 + 1) as usize, (hi.1 - lo.1 + 1) as usize);
+    if width.saturating_mul(height) > MAX_CELLS {
+        return Err(FileError::at(
+            &dir.join("map.pgm"),
+            format!(
+                "{width} x {height} cells is more than a navigation map holds ({MAX_CELLS}): \
+                 the mesh spans {:.0} x {:.0} m; give a coarser --navmap-resolution",
+                width as f64 * grid.resolution(),
+                height as f64 * grid.resolution()
+            ),
+        ));
+    }
     let res = grid.resolution();
     let origin = [lo.0 as f64 * res, lo.1 as f64 * res];
     let mut counts = [0usize; 3];
@@ -181,4 +194,40 @@ fn write_elevation(
         })?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::navmap::grid::Triangles;
+    use nalgebra::Vector3;
+    use slamesh_core::Point;
+
+    /// Two floors of 2 x 2 m, 3 km apart on both axes.
+    struct FarApart;
+
+    impl Triangles for FarApart {
+        fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
+            for o in [0.0f32, 3000.0] {
+                each([[o, o, 0.0], [o + 2.0, o, 0.0], [o + 2.0, o + 2.0, 0.0]]);
+                each([[o, o, 0.0], [o + 2.0, o + 2.0, 0.0], [o, o + 2.0, 0.0]]);
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_map_too_large_for_an_image_is_refused_naming_its_size() {
+        let path = [
+            Vector3::new(1.0, 1.0, 1.7),
+            Vector3::new(3001.0, 3001.0, 1.7),
+        ];
+        let opts = NavMapOptions::default();
+        let grid = Grid::build(&mut FarApart, opts.robot, 0.1, Vector3::z(), &path).unwrap();
+        let dir = crate::test_support::scratch_dir("navmap-too-large");
+        let e = write(&dir, &grid, &opts).unwrap_err().to_string();
+        assert!(e.contains("map.pgm") && e.contains("coarser"), "{e}");
+        assert!(!dir.join("map.pgm").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -4,20 +4,20 @@
 //! densely (points at most half a cell apart, on every triangle whatever its slope), in two
 //! passes over them:
 //! 1. **floor**: each cell keeps its lowest sample of a triangle no steeper than the robot's
-//!    slope limit. **Ground** is the floor the robot can reach: grown from the cells under its
-//!    path (or, with no path, from the largest stretch of floor) to neighbouring floor cells
-//!    no more than a step (plus a cell's rise at the slope limit) higher or lower. A car's
-//!    roof or a pavement behind a kerb higher than a step is floor, not ground.
+//!    slope limit. **Ground** is the floor the robot can reach from its path
+//!    ([`crate::navmap::ground`]): a car's roof or a pavement behind a kerb higher than a step
+//!    is floor, not ground.
 //! 2. **classify**: a cell is judged against its own ground, or where it has none against the
-//!    lowest ground within about two metres (`REFERENCE_M`): a sample standing above that by
-//!    more than a step and no more than the robot's height makes the cell an obstacle; a
-//!    ground sample gives the cell's height and spread for the elevation grid.
+//!    lowest ground within about two metres: a sample standing above that by more than a step
+//!    and no more than the robot's height makes the cell an obstacle; a ground sample gives
+//!    the cell's height and spread for the elevation grid.
 //!
-//! A cell is then occupied (an obstacle stands in it), free (ground seen, nothing standing on
-//! it) or unknown (everything else: nothing seen, only what the robot passes under, a surface
-//! with no ground near enough to judge it). The mesh holds only vertices whose Gaussian-process
-//! variance is within the mesh's limit (`mesh.max_variance`), so a surface the map is unsure
-//! of is no surface here: unknown, never free.
+//! Then lines of sight from the path mark what it saw ([`crate::navmap::sight`]). A cell is
+//! occupied (an obstacle stands in it), free (ground in sight, nothing standing on it) or
+//! unknown (everything else: nothing seen, only what the robot passes under, a surface with no
+//! ground near enough to judge it, ground out of sight behind a wall). The mesh holds only
+//! triangles whose corners' mean Gaussian-process variance is below `mesh.variance_show`, so
+//! a surface the map is unsure of is no surface here: unknown, never free.
 //!
 //! Memory: cells are kept in tiles of 64 x 64, made where a triangle falls (40 bytes a cell),
 //! none for the space between streets.
@@ -29,8 +29,8 @@ use slamesh_core::Point;
 use std::collections::HashMap;
 
 /// Cells along a tile's side.
-const TILE: i64 = 64;
-const TILE_CELLS: usize = (TILE * TILE) as usize;
+pub(super) const TILE: i64 = 64;
+pub(super) const TILE_CELLS: usize = (TILE * TILE) as usize;
 
 /// What a navigation map says of a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -63,25 +63,25 @@ impl Triangles for crate::formats::ply::PlyMesh {
 }
 
 #[derive(Debug, Clone, Copy)]
-struct Cell {
+pub(super) struct Cell {
     /// The lowest floor sample (level frame z), infinite for none.
-    floor: f32,
+    pub(super) floor: f32,
     /// Whether that floor is ground: reachable from the path.
-    ground: bool,
+    pub(super) ground: bool,
     /// The height the cell is judged against: its ground, or the lowest ground near it
     /// (infinite for none).
-    reference: f32,
+    pub(super) reference: f32,
     /// Ground samples within a step of `reference`, the sum of their heights above it and of
     /// its squares.
-    n: u32,
-    sum: f32,
-    sum_sq: f32,
+    pub(super) n: u32,
+    pub(super) sum: f32,
+    pub(super) sum_sq: f32,
     /// The heights above `reference` samples stand at: bit `b` for `b` to `b + 1` tenths of a
     /// metre (0 to 6.4 m).
-    heights: u64,
-    obstacle: bool,
+    pub(super) heights: u64,
+    pub(super) obstacle: bool,
     /// Seen from the path: a line of sight reaches it ([`Grid::carve`]).
-    visible: bool,
+    pub(super) visible: bool,
 }
 
 impl Default for Cell {
@@ -100,31 +100,21 @@ impl Default for Cell {
     }
 }
 
-/// How far (m) a cell with no ground of its own looks for ground to be judged against.
-pub const REFERENCE_M: f64 = 2.0;
 /// How far (m) from an obstacle's cell ground is taken as the obstacle's edge: the surface
 /// reconstruction carries ground up to about two tenths under a car's or a wall's foot.
 pub const EDGE_M: f64 = 0.2;
-/// Metres of path between two points the lines of sight are cast from.
-const CARVE_EVERY_M: f64 = 2.0;
-/// How far (m) a line of sight reaches.
-const CARVE_RANGE_M: f64 = 40.0;
-/// How far (cells) the ground grows across a gap in the floor.
-const BRIDGE_CELLS: i64 = 3;
-/// How far (m) from a point of the path its ground is looked for.
-const SEED_M: f64 = 1.0;
 
-type Tile = Box<[Cell; TILE_CELLS]>;
+pub(super) type Tile = Box<[Cell; TILE_CELLS]>;
 
 /// A navigation grid: cells of `resolution` metres in the level frame.
 pub struct Grid {
-    resolution: f64,
-    robot: Robot,
+    pub(super) resolution: f64,
+    pub(super) robot: Robot,
     /// Map frame to level frame.
-    level: Rotation3<f64>,
-    tiles: HashMap<(i64, i64), Tile>,
+    pub(super) level: Rotation3<f64>,
+    pub(super) tiles: HashMap<(i64, i64), Tile>,
     /// Whether lines of sight were cast (a path was given): free cells must then be seen.
-    carved: bool,
+    pub(super) carved: bool,
 }
 
 /// A cell's index: column and row (level frame x and y over the resolution, floored).
@@ -192,144 +182,6 @@ impl Grid {
         }
     }
 
-    /// The floor cells the ground grows from: for each point of `path` (map frame), the
-    /// highest floor cell below it within [`SEED_M`]; with no path, the cells of the largest
-    /// stretch of floor.
-    fn seeds(&self, path: &[Vector3<f64>]) -> Vec<CellIndex> {
-        let r = (SEED_M / self.resolution).ceil() as i64;
-        let mut seeds: Vec<CellIndex> = path
-            .iter()
-            .filter_map(|p| {
-                let q = self.level * p;
-                let (cx, cy) = self.index_of(q.x, q.y);
-                disc(r)
-                    .into_iter()
-                    .map(|(dx, dy)| (cx + dx, cy + dy))
-                    .filter_map(|(ix, iy)| {
-                        let f = self.cell(ix, iy)?.floor;
-                        (f.is_finite() && (f as f64) < q.z).then_some((f, (ix, iy)))
-                    })
-                    .max_by(|a, b| a.0.total_cmp(&b.0))
-                    .map(|(_, i)| i)
-            })
-            .collect();
-        if seeds.is_empty() {
-            seeds = self.largest_floor();
-        }
-        seeds.sort_unstable();
-        seeds.dedup();
-        seeds
-    }
-
-    /// The cells of the largest stretch of floor (cells joined as [`grow_ground`](Self::grow_ground) joins them).
-    fn largest_floor(&self) -> Vec<CellIndex> {
-        let mut seen: std::collections::HashSet<CellIndex> = Default::default();
-        let mut best: Vec<CellIndex> = Vec::new();
-        for (ix, iy) in self.floor_cells() {
-            if seen.contains(&(ix, iy)) {
-                continue;
-            }
-            let part = self.stretch(vec![(ix, iy)], |i| seen.insert(i));
-            if part.len() > best.len() {
-                best = part;
-            }
-        }
-        best
-    }
-
-    /// Every cell with floor, in a fixed order.
-    fn floor_cells(&self) -> Vec<CellIndex> {
-        let mut keys: Vec<&(i64, i64)> = self.tiles.keys().collect();
-        keys.sort_unstable();
-        let mut out = Vec::new();
-        for &(tx, ty) in keys {
-            for (k, c) in self.tiles[&(tx, ty)].iter().enumerate() {
-                if c.floor.is_finite() {
-                    out.push((tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE));
-                }
-            }
-        }
-        out
-    }
-
-    /// The floor cells joined to `from` through neighbours within [`BRIDGE_CELLS`] (a gap in
-    /// the mesh between scan rings is bridged) whose floors differ by no more than a step and
-    /// a cell's rise at the slope limit; `visit` says whether a cell is new (and marks it).
-    fn stretch(
-        &self,
-        from: Vec<CellIndex>,
-        mut visit: impl FnMut(CellIndex) -> bool,
-    ) -> Vec<CellIndex> {
-        // One cell's rise at the slope limit over a step, whatever the gap: a gap is unseen,
-        // and a kerb must not be bridged as a slope.
-        let rise = (self.robot.max_step_m
-            + self.resolution * self.robot.max_slope_deg.to_radians().tan())
-            as f32;
-        let near: Vec<(i64, i64, f32)> = disc(BRIDGE_CELLS)
-            .into_iter()
-            .filter(|&d| d != (0, 0))
-            .map(|(dx, dy)| (dx, dy, rise))
-            .collect();
-        let floor = |i: CellIndex| {
-            self.cell(i.0, i.1)
-                .map(|c| c.floor)
-                .filter(|f| f.is_finite())
-        };
-        let mut queue: Vec<CellIndex> = from.into_iter().filter(|&i| visit(i)).collect();
-        let mut out = Vec::new();
-        while let Some(i) = queue.pop() {
-            let Some(f) = floor(i) else { continue };
-            out.push(i);
-            for &(dx, dy, rise) in &near {
-                let n = (i.0 + dx, i.1 + dy);
-                if floor(n).is_some_and(|g| (g - f).abs() <= rise) && visit(n) {
-                    queue.push(n);
-                }
-            }
-        }
-        out
-    }
-
-    /// Marks the floor reachable from `seeds` as ground.
-    fn grow_ground(&mut self, seeds: Vec<CellIndex>) {
-        let mut seen: std::collections::HashSet<CellIndex> = Default::default();
-        let reached = self.stretch(seeds, |i| seen.insert(i));
-        for (ix, iy) in reached {
-            self.cell_mut(ix, iy).ground = true;
-        }
-    }
-
-    /// Each cell's reference: its ground, or the lowest ground within about [`REFERENCE_M`]
-    /// (the lowest of the blocks of a metre around it).
-    fn set_references(&mut self) {
-        let block = (1.0 / self.resolution).round().max(1.0) as i64;
-        let reach = (REFERENCE_M / (block as f64 * self.resolution)).ceil() as i64;
-        let mut lowest: HashMap<(i64, i64), f32> = HashMap::new();
-        for (&(tx, ty), tile) in &self.tiles {
-            for (k, c) in tile.iter().enumerate().filter(|(_, c)| c.ground) {
-                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
-                let b = lowest
-                    .entry((ix.div_euclid(block), iy.div_euclid(block)))
-                    .or_insert(f32::INFINITY);
-                *b = b.min(c.floor);
-            }
-        }
-        for (&(tx, ty), tile) in self.tiles.iter_mut() {
-            for (k, c) in tile.iter_mut().enumerate() {
-                if c.ground {
-                    c.reference = c.floor;
-                    continue;
-                }
-                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
-                let (bx, by) = (ix.div_euclid(block), iy.div_euclid(block));
-                c.reference = (-reach..=reach)
-                    .flat_map(|dy| (-reach..=reach).map(move |dx| (bx + dx, by + dy)))
-                    .filter_map(|b| lowest.get(&b))
-                    .fold(f32::INFINITY, |m, &v| m.min(v));
-            }
-        }
-    }
-
     /// The cell size (m).
     pub fn resolution(&self) -> f64 {
         self.resolution
@@ -369,65 +221,6 @@ impl Grid {
             Some(c) if c.obstacle => Occupancy::Occupied,
             Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => Occupancy::Free,
             _ => Occupancy::Unknown,
-        }
-    }
-
-    /// Casts lines of sight over the grid from points of `path` (map frame) every
-    /// [`CARVE_EVERY_M`], each out to [`CARVE_RANGE_M`] in directions a cell apart at that
-    /// range, and marks the cells they cross as seen. A line stops at a cell with a surface
-    /// at the sensor's height above the ground, or up to 0.2 m higher (a wall, not a car nor
-    /// a ceiling): ground the reconstruction carried behind a wall is not seen, so never free.
-    fn carve(&mut self, path: &[Vector3<f64>]) {
-        let r = (SEED_M / self.resolution).ceil() as i64;
-        let mut last: Option<Vector3<f64>> = None;
-        for p in path {
-            let q = self.level * p;
-            if last.is_some_and(|l| (l - q).xy().norm() < CARVE_EVERY_M) {
-                continue;
-            }
-            let (cx, cy) = self.index_of(q.x, q.y);
-            let under = disc(r)
-                .into_iter()
-                .filter_map(|(dx, dy)| self.cell(cx + dx, cy + dy).filter(|c| c.ground))
-                .map(|c| c.floor)
-                .filter(|&f| (f as f64) < q.z)
-                .fold(f32::NEG_INFINITY, f32::max);
-            if !under.is_finite() {
-                continue;
-            }
-            last = Some(q);
-            self.carve_from(q, q.z as f32 - under);
-            self.carved = true;
-        }
-    }
-
-    /// [`carve`](Self::carve)'s lines from level-frame `q`, the sensor `height` above ground.
-    fn carve_from(&mut self, q: Vector3<f64>, height: f32) {
-        // The tenths of a metre from the sensor's height to 0.2 m above it.
-        let from = (height * 10.0).clamp(0.0, 61.0) as u32;
-        let blocking: u64 = 0b111 << from;
-        let rays = (std::f64::consts::TAU * CARVE_RANGE_M / self.resolution).ceil() as usize;
-        let steps = (CARVE_RANGE_M / self.resolution) as usize;
-        for k in 0..rays {
-            let a = std::f64::consts::TAU * k as f64 / rays as f64;
-            let (dx, dy) = (a.cos() * self.resolution, a.sin() * self.resolution);
-            let mut at = None;
-            for s in 0..=steps {
-                let cell = self.index_of(q.x + dx * s as f64, q.y + dy * s as f64);
-                if at == Some(cell) {
-                    continue;
-                }
-                at = Some(cell);
-                let (key, k) = tile_of(cell.0, cell.1);
-                let Some(tile) = self.tiles.get_mut(&key) else {
-                    continue;
-                };
-                let c = &mut tile[k];
-                c.visible = true;
-                if c.heights & blocking != 0 {
-                    break;
-                }
-            }
         }
     }
 
@@ -541,12 +334,12 @@ impl Grid {
         }
     }
 
-    fn cell(&self, ix: i64, iy: i64) -> Option<&Cell> {
+    pub(super) fn cell(&self, ix: i64, iy: i64) -> Option<&Cell> {
         let (key, k) = tile_of(ix, iy);
         self.tiles.get(&key).map(|t| &t[k])
     }
 
-    fn cell_mut(&mut self, ix: i64, iy: i64) -> &mut Cell {
+    pub(super) fn cell_mut(&mut self, ix: i64, iy: i64) -> &mut Cell {
         let (key, k) = tile_of(ix, iy);
         &mut self
             .tiles
@@ -556,7 +349,7 @@ impl Grid {
 }
 
 /// The offsets of the cells within `r` cells of a cell (a disc), nearest rows first.
-fn disc(r: i64) -> Vec<(i64, i64)> {
+pub(super) fn disc(r: i64) -> Vec<(i64, i64)> {
     (-r..=r)
         .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
         .filter(|(dx, dy)| dx * dx + dy * dy <= r * r)
@@ -564,7 +357,7 @@ fn disc(r: i64) -> Vec<(i64, i64)> {
 }
 
 /// The tile holding cell `(ix, iy)` and the cell's place in it.
-fn tile_of(ix: i64, iy: i64) -> ((i64, i64), usize) {
+pub(super) fn tile_of(ix: i64, iy: i64) -> ((i64, i64), usize) {
     let key = (ix.div_euclid(TILE), iy.div_euclid(TILE));
     let k = (iy.rem_euclid(TILE) * TILE + ix.rem_euclid(TILE)) as usize;
     (key, k)

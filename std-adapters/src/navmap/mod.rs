@@ -5,7 +5,9 @@
 //! | what | module |
 //! |---|---|
 //! | the robot: radius, slope, step, height; profiles and its file | [`robot`] |
-//! | the grid: floor, ground grown from the path, obstacles, elevation | [`grid`] |
+//! | the grid: cells in tiles, floor, obstacles, occupancy, elevation | [`grid`] |
+//! | the ground: grown from the path; the height each cell is judged against | [`ground`] |
+//! | what the path saw: lines of sight over the grid | [`sight`] |
 //! | traversability on a mesh of the ground: slope, step, roughness, border, cost | [`layers`] |
 //! | the files: Nav2's YAML and PGM, the elevation grids, `navmesh.ply`, `navmap.json` | [`files`] |
 //!
@@ -14,8 +16,10 @@
 
 pub mod files;
 pub mod grid;
+pub mod ground;
 pub mod layers;
 pub mod robot;
+pub mod sight;
 
 pub use grid::{Grid, Occupancy, Triangles};
 pub use robot::Robot;

@@ -1,0 +1,159 @@
+//! The ground of a navigation grid: the floor the robot can reach from its path, and the height
+//! every cell is judged against (docs/design.md §1.18).
+//!
+//! Ground grows from the floor cells under the path (or, with no path, the largest stretch of
+//! floor) to floor cells within [`BRIDGE_CELLS`] (a gap between scan rings is bridged) whose
+//! floor differs by no more than a step and a cell's rise at the slope limit; a kerb higher
+//! than a step, a car's roof or a table are floor, not ground. A cell with no ground of its own
+//! is judged against the lowest ground within about [`REFERENCE_M`].
+
+use crate::navmap::grid::{disc, CellIndex, Grid, TILE};
+use nalgebra::Vector3;
+use std::collections::HashMap;
+
+/// How far (m) a cell with no ground of its own looks for ground to be judged against.
+pub const REFERENCE_M: f64 = 2.0;
+/// How far (cells) the ground grows across a gap in the floor.
+pub const BRIDGE_CELLS: i64 = 3;
+/// How far (m) from a point of the path its ground is looked for.
+pub const SEED_M: f64 = 1.0;
+
+impl Grid {
+    /// The floor cells the ground grows from: for each point of `path` (map frame), the
+    /// highest floor cell below it within [`SEED_M`]; with no path, the cells of the largest
+    /// stretch of floor.
+    pub(super) fn seeds(&self, path: &[Vector3<f64>]) -> Vec<CellIndex> {
+        let r = (SEED_M / self.resolution).ceil() as i64;
+        let mut seeds: Vec<CellIndex> = path
+            .iter()
+            .filter_map(|p| {
+                let q = self.level * p;
+                let (cx, cy) = self.index_of(q.x, q.y);
+                disc(r)
+                    .into_iter()
+                    .map(|(dx, dy)| (cx + dx, cy + dy))
+                    .filter_map(|(ix, iy)| {
+                        let f = self.cell(ix, iy)?.floor;
+                        (f.is_finite() && (f as f64) < q.z).then_some((f, (ix, iy)))
+                    })
+                    .max_by(|a, b| a.0.total_cmp(&b.0))
+                    .map(|(_, i)| i)
+            })
+            .collect();
+        if seeds.is_empty() {
+            seeds = self.largest_floor();
+        }
+        seeds.sort_unstable();
+        seeds.dedup();
+        seeds
+    }
+
+    /// The cells of the largest stretch of floor (cells joined as [`grow_ground`](Self::grow_ground) joins them).
+    pub(super) fn largest_floor(&self) -> Vec<CellIndex> {
+        let mut seen: std::collections::HashSet<CellIndex> = Default::default();
+        let mut best: Vec<CellIndex> = Vec::new();
+        for (ix, iy) in self.floor_cells() {
+            if seen.contains(&(ix, iy)) {
+                continue;
+            }
+            let part = self.stretch(vec![(ix, iy)], |i| seen.insert(i));
+            if part.len() > best.len() {
+                best = part;
+            }
+        }
+        best
+    }
+
+    /// Every cell with floor, in a fixed order.
+    pub(super) fn floor_cells(&self) -> Vec<CellIndex> {
+        let mut keys: Vec<&(i64, i64)> = self.tiles.keys().collect();
+        keys.sort_unstable();
+        let mut out = Vec::new();
+        for &(tx, ty) in keys {
+            for (k, c) in self.tiles[&(tx, ty)].iter().enumerate() {
+                if c.floor.is_finite() {
+                    out.push((tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE));
+                }
+            }
+        }
+        out
+    }
+
+    /// The floor cells joined to `from` through neighbours within [`BRIDGE_CELLS`] (a gap in
+    /// the mesh between scan rings is bridged) whose floors differ by no more than a step and
+    /// a cell's rise at the slope limit; `visit` says whether a cell is new (and marks it).
+    pub(super) fn stretch(
+        &self,
+        from: Vec<CellIndex>,
+        mut visit: impl FnMut(CellIndex) -> bool,
+    ) -> Vec<CellIndex> {
+        // One cell's rise at the slope limit over a step, whatever the gap: a gap is unseen,
+        // and a kerb must not be bridged as a slope.
+        let rise = (self.robot.max_step_m
+            + self.resolution * self.robot.max_slope_deg.to_radians().tan())
+            as f32;
+        let near: Vec<(i64, i64, f32)> = disc(BRIDGE_CELLS)
+            .into_iter()
+            .filter(|&d| d != (0, 0))
+            .map(|(dx, dy)| (dx, dy, rise))
+            .collect();
+        let floor = |i: CellIndex| {
+            self.cell(i.0, i.1)
+                .map(|c| c.floor)
+                .filter(|f| f.is_finite())
+        };
+        let mut queue: Vec<CellIndex> = from.into_iter().filter(|&i| visit(i)).collect();
+        let mut out = Vec::new();
+        while let Some(i) = queue.pop() {
+            let Some(f) = floor(i) else { continue };
+            out.push(i);
+            for &(dx, dy, rise) in &near {
+                let n = (i.0 + dx, i.1 + dy);
+                if floor(n).is_some_and(|g| (g - f).abs() <= rise) && visit(n) {
+                    queue.push(n);
+                }
+            }
+        }
+        out
+    }
+
+    /// Marks the floor reachable from `seeds` as ground.
+    pub(super) fn grow_ground(&mut self, seeds: Vec<CellIndex>) {
+        let mut seen: std::collections::HashSet<CellIndex> = Default::default();
+        let reached = self.stretch(seeds, |i| seen.insert(i));
+        for (ix, iy) in reached {
+            self.cell_mut(ix, iy).ground = true;
+        }
+    }
+
+    /// Each cell's reference: its ground, or the lowest ground within about [`REFERENCE_M`]
+    /// (the lowest of the blocks of a metre around it).
+    pub(super) fn set_references(&mut self) {
+        let block = (1.0 / self.resolution).round().max(1.0) as i64;
+        let reach = (REFERENCE_M / (block as f64 * self.resolution)).ceil() as i64;
+        let mut lowest: HashMap<(i64, i64), f32> = HashMap::new();
+        for (&(tx, ty), tile) in &self.tiles {
+            for (k, c) in tile.iter().enumerate().filter(|(_, c)| c.ground) {
+                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                let b = lowest
+                    .entry((ix.div_euclid(block), iy.div_euclid(block)))
+                    .or_insert(f32::INFINITY);
+                *b = b.min(c.floor);
+            }
+        }
+        for (&(tx, ty), tile) in self.tiles.iter_mut() {
+            for (k, c) in tile.iter_mut().enumerate() {
+                if c.ground {
+                    c.reference = c.floor;
+                    continue;
+                }
+                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                let (bx, by) = (ix.div_euclid(block), iy.div_euclid(block));
+                c.reference = (-reach..=reach)
+                    .flat_map(|dy| (-reach..=reach).map(move |dx| (bx + dx, by + dy)))
+                    .filter_map(|b| lowest.get(&b))
+                    .fold(f32::INFINITY, |m, &v| m.min(v));
+            }
+        }
+    }
+}
