@@ -203,13 +203,14 @@ impl Grid {
     /// What the map says of cell `(ix, iy)`.
     ///
     /// Two rules beyond the cell's own: a cell with ground within [`EDGE_M`] of an obstacle
-    /// cell is occupied, since the obstacle's edge (a wall's foot, which the surface
-    /// reconstruction rounds and carries ground under) may lie in it; and a cell where nothing was seen between
-    /// two free cells (a seam of the mesh between its voxel cells, one or two cells wide) is
-    /// free.
+    /// cell is unknown, not free, since the obstacle's edge (a wall's foot, which the surface
+    /// reconstruction rounds and carries ground under) may lie in it (unknown rather than
+    /// occupied: a planner's inflation around the obstacle covers it, and a doorway keeps its
+    /// width); and a cell where nothing was seen between two free cells (a seam of the mesh
+    /// between its voxel cells, one or two cells wide) is free.
     pub fn occupancy(&self, ix: i64, iy: i64) -> Occupancy {
         match self.own(ix, iy) {
-            Occupancy::Free if self.touches_obstacle(ix, iy) => Occupancy::Occupied,
+            Occupancy::Free if self.touches_obstacle(ix, iy) => Occupancy::Unknown,
             Occupancy::Unknown if self.in_seam(ix, iy) => Occupancy::Free,
             own => own,
         }
