@@ -123,6 +123,37 @@ fn obstacle_at(scene: &Scene, x: f64, y: f64, lo: f64, hi: f64) -> bool {
         })
 }
 
+/// The objects of `scene` that may stand over `map` (`to_world` takes its frame to the
+/// world's): the truth looked up per cell, among a few hundred objects instead of the town's
+/// thousands.
+fn near_the_map(
+    scene: &Scene,
+    map: &Nav2Map,
+    to_world: &impl Fn(f64, f64) -> Point3<f64>,
+) -> Scene {
+    let (w, h) = (
+        map.width as f64 * map.resolution,
+        map.height as f64 * map.resolution,
+    );
+    let corners = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+        .map(|(dx, dy)| to_world(map.origin[0] + dx, map.origin[1] + dy));
+    let lo = corners
+        .iter()
+        .fold([f64::MAX; 2], |m, c| [m[0].min(c.x), m[1].min(c.y)]);
+    let hi = corners
+        .iter()
+        .fold([f64::MIN; 2], |m, c| [m[0].max(c.x), m[1].max(c.y)]);
+    let within = |c: &[f64; 3], reach: f64| {
+        (lo[0] - reach..=hi[0] + reach).contains(&c[0])
+            && (lo[1] - reach..=hi[1] + reach).contains(&c[1])
+    };
+    let mut near = scene.clone();
+    near.boxes
+        .retain(|b| within(&b.centre, b.half[0].hypot(b.half[1])));
+    near.spheres.retain(|s| within(&s.centre, s.radius));
+    near
+}
+
 /// How a navigation map compares with the truth.
 #[derive(Debug)]
 struct Scores {
@@ -166,6 +197,7 @@ fn score(drive: Drive, frames: usize, robot: Robot, name: &str) -> Scores {
     let level = Rotation3::rotation_between(&up, &Vector3::z()).unwrap();
     let to_world = |x: f64, y: f64| first * (level.inverse() * Point3::new(x, y, 0.0));
     let to_grid = |w: &Point3<f64>| level * first.inverse_transform_point(w);
+    let scene = near_the_map(&drive.scene, &map, &to_world);
     let mut seen: HashSet<(i64, i64)> = HashSet::new();
     let cell = |g: Point3<f64>| {
         (
@@ -193,7 +225,7 @@ fn score(drive: Drive, frames: usize, robot: Robot, name: &str) -> Scores {
             let truth = [-r, 0.0, r].iter().any(|dx| {
                 [-r, 0.0, r].iter().any(|dy| {
                     let w = to_world(x + dx, y + dy);
-                    obstacle_at(&drive.scene, w.x, w.y, step, height)
+                    obstacle_at(&scene, w.x, w.y, step, height)
                 })
             });
             let ours = map.value(col, row);
@@ -214,7 +246,7 @@ fn score(drive: Drive, frames: usize, robot: Robot, name: &str) -> Scores {
                                 } else {
                                     let [x2, y2] = map.centre(c2 as usize, r2 as usize);
                                     let w = to_world(x2, y2);
-                                    obstacle_at(&drive.scene, w.x, w.y, step, height)
+                                    obstacle_at(&scene, w.x, w.y, step, height)
                                 }
                         })
                     })
