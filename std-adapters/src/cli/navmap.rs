@@ -84,14 +84,9 @@ pub fn navmap(args: &NavMapArgs) -> Result<(), CliError> {
         return Err(FileError::at(&args.input, "its mesh holds no ground or obstacle").into());
     };
     say!(
-        "{}: {} x {} cells of {} m ({} free, {} occupied, {} unknown); up: {}",
+        "{}: {}; up: {}",
         args.out.join("map.yaml").display(),
-        s.width,
-        s.height,
-        s.resolution_m,
-        s.free,
-        s.occupied,
-        s.unknown,
+        s.describe(),
         s.up
     );
     Ok(())

@@ -42,13 +42,8 @@ pub fn make(
     let summary = files::write(dir, &grid, how)?;
     match &summary {
         Some(s) => log::info!(
-            "navigation map: {} x {} cells of {} m, {} free, {} occupied, {} unknown ({:.1} s)",
-            s.width,
-            s.height,
-            s.resolution_m,
-            s.free,
-            s.occupied,
-            s.unknown,
+            "navigation map: {} ({:.1} s)",
+            s.describe(),
             t.elapsed().as_secs_f64()
         ),
         None => log::warn!("navigation map: the mesh holds no ground or obstacle; none written"),
