@@ -427,17 +427,7 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
                         }
                     }
                     (None, Some((ct, it))) => {
-                        let count = next(ct).ok_or_else(truncated)?;
-                        if !(0.0..=1e6).contains(&count) {
-                            return Err(FileError::at(
-                                path,
-                                format!("a face with {count} corners"),
-                            ));
-                        }
-                        let mut corners = Vec::with_capacity(count as usize);
-                        for _ in 0..count as usize {
-                            corners.push(next(it).ok_or_else(truncated)? as u32);
-                        }
+                        let corners = read_list(&mut next, ct, it, path)?;
                         if Some(k) == face {
                             for w in corners.windows(2).skip(1) {
                                 mesh.triangles.push([corners[0], w[0], w[1]]);
@@ -458,7 +448,37 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<PlyMesh, FileError> {
             }
         }
     }
-    // Normals and variances are the vertices' only when every vertex has them.
+    checked(path, mesh)
+}
+
+/// A list property's values (a face's corners) through `next` (a scalar of the given type at
+/// a time): its count as `ct`, each value as `it`; a count over a million is refused.
+fn read_list(
+    next: &mut impl FnMut(&str) -> Option<f64>,
+    ct: &str,
+    it: &str,
+    path: &Path,
+) -> Result<Vec<u32>, FileError> {
+    let truncated = || {
+        FileError::at(
+            path,
+            "truncated: the data ends before the header's elements",
+        )
+    };
+    let count = next(ct).ok_or_else(truncated)?;
+    if !(0.0..=1e6).contains(&count) {
+        return Err(FileError::at(path, format!("a face with {count} corners")));
+    }
+    let mut corners = Vec::with_capacity(count as usize);
+    for _ in 0..count as usize {
+        corners.push(next(it).ok_or_else(truncated)? as u32);
+    }
+    Ok(corners)
+}
+
+/// The mesh read, its normals and variances kept only when every vertex has them, refused when
+/// a face refers to a vertex it does not have.
+fn checked(path: &Path, mut mesh: PlyMesh) -> Result<PlyMesh, FileError> {
     if mesh.normals.len() != mesh.vertices.len() {
         mesh.normals.clear();
     }
