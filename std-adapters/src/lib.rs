@@ -35,6 +35,8 @@ pub mod loop_closure;
 pub mod navmap;
 pub mod outputs;
 pub mod parallel;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod run;
 pub mod sources;
 #[cfg(feature = "view")]

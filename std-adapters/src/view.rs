@@ -166,6 +166,7 @@ impl View {
                 pose: Some(update.pose),
                 map: Some(update),
                 samples: Vec::new(),
+                information: None,
             };
             // A publisher that stopped says why when the view finishes.
             let _ = q.frame(Arc::new(event));

@@ -19,6 +19,8 @@ pub mod input;
 pub mod navmap;
 pub mod notices;
 pub mod render;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod run;
 pub mod settings;
 
@@ -137,6 +139,12 @@ enum Command {
     /// Make a navigation map from a saved map or a PLY mesh: Nav2's map.yaml + map.pgm (an
     /// occupancy grid for --robot) and the ground's elevation grids.
     Navmap(navmap::NavMapArgs),
+    /// Run as a ROS 2 node (no ROS installation needed): scans on `points`
+    /// (sensor_msgs/PointCloud2), poses on `odom` and `/tf`, the path, the mesh as markers
+    /// and diagnostics; `~/save_map` saves the map. Until SIGINT or SIGTERM, then writes what
+    /// `run` writes into --out. ROS arguments follow --ros-args.
+    #[cfg(feature = "ros2")]
+    Ros2(ros2::Ros2Args),
 }
 
 impl Cli {
@@ -149,8 +157,16 @@ impl Cli {
             (false, 1) => log::LevelFilter::Debug,
             (false, _) => log::LevelFilter::Trace,
         };
+        // The DDS stack's own log (ROS 2 node) is its maintainers' business: errors only, and
+        // warnings with -v; RUST_LOG=rustdds=debug shows it all.
+        let dds = match self.verbose {
+            0 => log::LevelFilter::Error,
+            _ => log::LevelFilter::Warn,
+        };
         let _ = env_logger::Builder::new()
             .filter_level(level)
+            .filter_module("rustdds", dds.min(level))
+            .filter_module("ros2_client", dds.min(level))
             .parse_env("RUST_LOG")
             .format(|buf, record| {
                 let level = match record.level() {
@@ -176,6 +192,8 @@ impl Cli {
             Command::Bench(a) => bench::bench(a),
             Command::Render(a) => render::render(a),
             Command::Navmap(a) => navmap::navmap(a),
+            #[cfg(feature = "ros2")]
+            Command::Ros2(a) => ros2::ros2(a, quiet),
             #[cfg(feature = "sim")]
             Command::Demo(a) => demo::demo(a, quiet),
             Command::Config(a) => {

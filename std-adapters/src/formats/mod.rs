@@ -13,6 +13,7 @@
 //! | `sensor_msgs/PointCloud2` messages (ROS 1 and CDR), any field layout | [`pointcloud2`] |
 //! | map files: the map saved for later runs, read whole or by tile (the std side) | [`map_file`] |
 //! | trajectories, KITTI and TUM | [`trajectory`] |
+//! | the ROS 2 command line (`--ros-args`) and parameter files | [`ros_args`] |
 
 pub mod kitti;
 pub mod lzf;
@@ -22,4 +23,5 @@ pub mod obj;
 pub mod pcd;
 pub mod ply;
 pub mod pointcloud2;
+pub mod ros_args;
 pub mod trajectory;

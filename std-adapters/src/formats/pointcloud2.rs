@@ -194,10 +194,21 @@ impl<'a> Cloud<'a> {
             1 | 3 => false,
             k => return Err(format!("unknown CDR representation {k}")),
         };
+        Self::parse_cdr_from(buf, 4, big)
+    }
+
+    /// Parses a ROS 2 message's CDR body, the bytes after the 4-byte header, in the byte order
+    /// the header said (what a DDS reader hands over).
+    pub fn parse_cdr_body(body: &'a [u8], big_endian: bool) -> Result<Self, String> {
+        Self::parse_cdr_from(body, 0, big_endian)
+    }
+
+    /// The CDR body starting at `start` in `buf` (alignment counted from there).
+    fn parse_cdr_from(buf: &'a [u8], start: usize, big: bool) -> Result<Self, String> {
         let mut b = Bytes {
             buf,
-            pos: 4,
-            align_from: Some(4),
+            pos: start,
+            align_from: Some(start),
             big,
         };
         let sec = b.u32("header.stamp")? as i32;

@@ -8,6 +8,7 @@
 //! | the run loop: start or resume, a step per frame, finish | [`session`] |
 //! | one frame as named stages: read, prepare, register, update the map, record | `step` |
 //! | why a frame was skipped | [`frame_error`] |
+//! | a live source's requests between frames: save the map, relocalize | `requests` |
 //! | one way out: what a run produces, fanned out to its sinks (bounded queues for slow ones) | [`sink`] |
 //! | the per-frame records, the summary, the frames' health | [`report`] |
 //! | the run's own files as sinks: `report.json`, the trajectories | [`files`] |
@@ -28,6 +29,7 @@ pub mod map_pager;
 pub mod memory;
 pub mod options;
 pub mod report;
+mod requests;
 pub mod saved_map;
 pub mod scale;
 pub mod session;

@@ -29,7 +29,8 @@ use crate::run::setup::Setup;
 use crate::run::sink::{FnSink, FrameEvent, MapUpdate, Sinks};
 use crate::run::timing::StageTimer;
 use crate::run::window::Window;
-use crate::sources::{FrameSource, Sample};
+use crate::sources::{FrameSource, Sample, Waited};
+use slamesh_core::lm::PoseInformation;
 use slamesh_core::{Capacity, Pipeline, Pose};
 use std::borrow::Cow;
 use std::path::PathBuf;
@@ -52,12 +53,21 @@ pub fn run_to<C: Capacity>(
         Run::<C>::start(source, opts)?
     };
     let want_map = sinks.want_map();
-    // `has` waits for a live source's next frame (a file's are all there).
+    // `wait` waits for a live source's next frame (a file's are all there), or a request.
     let mut i = run.next_frame();
-    while source.has(i) {
-        let record = run.step(source, i)?;
-        sinks.frame(run.event(record, want_map));
-        i += 1;
+    loop {
+        match source.wait(i) {
+            Waited::Frame => {
+                let record = run.step(source, i)?;
+                sinks.frame(run.event(record, want_map));
+                i += 1;
+            }
+            Waited::Request => {}
+            Waited::End => break,
+        }
+        for r in source.requests() {
+            run.serve(source, r);
+        }
     }
     let summary = run.finish(source)?;
     sinks.finish(&summary).map_err(RunError::Sink)?;
@@ -115,6 +125,9 @@ pub struct Run<'a, C: Capacity> {
     pub(super) recent_points: std::collections::VecDeque<usize>,
     /// The samples that are not scans that came with the last frame, for its event.
     pub(super) samples: Vec<Sample>,
+    /// How well the last used frame's registration pinned its pose down (for a sink's
+    /// covariance).
+    pub(super) information: Option<PoseInformation>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -228,6 +241,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             started: Instant::now(),
             recent_points: Default::default(),
             samples: Vec::new(),
+            information: None,
         })
     }
 
@@ -246,6 +260,7 @@ impl<'a, C: Capacity> Run<'a, C> {
     /// (the whole map and the corrected path when loops were closed with it).
     pub fn event(&mut self, record: FrameRecord, want_map: bool) -> FrameEvent {
         let samples = std::mem::take(&mut self.samples);
+        let information = self.information.take();
         let poses = &self.progress.poses;
         let pose = (record.error.is_none())
             .then(|| {
@@ -274,6 +289,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             pose,
             map,
             samples,
+            information: pose.and(information),
         }
     }
 

@@ -18,6 +18,7 @@ use crate::run::report::{FrameRecord, Summary};
 use crate::sources::Sample;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::layer::Layer;
+use slamesh_core::lm::PoseInformation;
 use slamesh_core::{Capacity, Pipeline, Point, Pose};
 use std::fmt;
 use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
@@ -37,6 +38,9 @@ pub struct FrameEvent {
     /// The samples that are not scans (an IMU's readings) that came with the frame, in time
     /// order.
     pub samples: Vec<Sample>,
+    /// How well the registration pinned the frame's pose down, when it was registered (the
+    /// inverse of its covariance, [`PoseInformation`]).
+    pub information: Option<PoseInformation>,
 }
 
 /// The map as one frame changed it: copied out of the pipeline by the run, only when a sink
@@ -400,6 +404,7 @@ mod tests {
             pose: None,
             map: None,
             samples: Vec::new(),
+            information: None,
         }
     }
 

@@ -294,6 +294,7 @@ impl<C: Capacity> Run<'_, C> {
             }
         }
         rec.take_stats(&o.stats);
+        self.information = Some(o.stats.information);
     }
 
     /// Counts the triangles the frame updated and applies the window (cells it evicts go to

@@ -83,6 +83,41 @@ pub trait FrameSource {
     fn samples(&mut self, _i: usize) -> Vec<Sample> {
         Vec::new()
     }
+    /// Waits for frame `i` as [`has`](Self::has) does, but also returns when a request comes
+    /// ([`Waited::Request`]), so that the run can serve it while no frame comes. By default,
+    /// [`has`](Self::has).
+    fn wait(&mut self, i: usize) -> Waited {
+        if self.has(i) {
+            Waited::Frame
+        } else {
+            Waited::End
+        }
+    }
+    /// What the source's user asked of the run since the last call (a live source's: a pose
+    /// to relocalize at, a map to save), served between frames. By default none.
+    fn requests(&mut self) -> Vec<Request> {
+        Vec::new()
+    }
+}
+
+/// What [`FrameSource::wait`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Waited {
+    /// The frame is there.
+    Frame,
+    /// A request came first ([`FrameSource::requests`]).
+    Request,
+    /// The stream has ended.
+    End,
+}
+
+/// What a live source's user asks of the run.
+#[derive(Debug)]
+pub enum Request {
+    /// Search for the pose near this one (in the map's frame) from the next frame on.
+    Relocalize(slamesh_core::Pose),
+    /// Save the map now; the answer (what was written, or why not) goes back on the sender.
+    SaveMap(std::sync::mpsc::Sender<Result<String, String>>),
 }
 
 /// What the command reads: a folder of scans (or one scan file), a robot recording, or a

@@ -16,6 +16,7 @@
 //! time of hour is kept within it); an Ouster's are its own clock's, as its packets carry them.
 
 use crate::io::error::FileError;
+use crate::sources::feed::{self, Feed, FeedSender, Offered, TimedScan};
 use crate::sources::packets::{self, PacketOptions, SensorHint, SensorStream, StreamStats};
 use crate::sources::sweep::Sweep;
 use serde::Serialize;
@@ -23,7 +24,6 @@ use slamesh_core::Point;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -64,27 +64,10 @@ pub struct LiveStats {
     pub error: Option<String>,
 }
 
-/// Frames kept for a second reading.
-const KEPT: usize = 2;
-
-enum Message {
-    Sweep(Sweep, Instant),
-    End,
-}
-
 /// A live stream as frames.
 pub struct Live {
-    label: String,
     local: SocketAddr,
-    rx: Receiver<Message>,
-    /// Each frame's stamp and the instant its last packet came.
-    frames: Vec<(f64, Instant)>,
-    /// The next sweep, taken from the queue ahead of its read.
-    next: Option<(Sweep, Instant)>,
-    /// The last frames read (at most [`KEPT`]), for a second reading: the command looks at the
-    /// first frame before the run reads it.
-    kept: Vec<(usize, Vec<Point>, Vec<f32>)>,
-    ended: bool,
+    feed: Feed,
     stats: Arc<Mutex<LiveStats>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
@@ -94,7 +77,7 @@ impl std::fmt::Debug for Live {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Live")
             .field("local", &self.local)
-            .field("frames", &self.frames.len())
+            .field("feed", &self.feed)
             .finish()
     }
 }
@@ -116,7 +99,7 @@ impl Live {
         socket
             .set_read_timeout(Some(Duration::from_millis(50)))
             .map_err(|e| err(e.to_string()))?;
-        let (tx, rx) = mpsc::sync_channel(options.queue.max(1));
+        let (tx, feed) = feed::channel(label.clone(), "sweep", options.queue);
         let stats = Arc::new(Mutex::new(LiveStats::default()));
         let listener = Listener {
             socket,
@@ -132,13 +115,8 @@ impl Live {
             .spawn(move || listener.run())
             .map_err(|e| err(format!("cannot start the listening thread: {e}")))?;
         Ok(Self {
-            label,
             local,
-            rx,
-            frames: Vec::new(),
-            next: None,
-            kept: Vec::new(),
-            ended: false,
+            feed,
             stats,
             stop: packets.stop.clone(),
             thread: Some(thread),
@@ -157,101 +135,38 @@ impl Live {
 
     /// Frames taken so far, and one more while the stream is open.
     pub fn frames(&self) -> usize {
-        self.frames.len() + usize::from(!self.ended || self.next.is_some())
+        self.feed.frames()
     }
 
     /// Whether frame `i` is there: waits for it while the stream is open.
     pub fn has(&mut self, i: usize) -> bool {
-        if i < self.frames.len() || self.next.is_some() && i == self.frames.len() {
-            return true;
-        }
-        if i > self.frames.len() || self.ended {
-            return false;
-        }
-        match self.rx.recv() {
-            Ok(Message::Sweep(s, at)) => {
-                self.next = Some((s, at));
-                true
-            }
-            Ok(Message::End) | Err(_) => {
-                self.ended = true;
-                false
-            }
-        }
+        self.feed.has(i)
     }
 
-    /// Whether reading frame `i` would wait: it has not come yet (taken from the queue if it
-    /// has).
+    /// Whether reading frame `i` would wait: it has not come yet.
     pub fn would_wait(&mut self, i: usize) -> bool {
-        if i < self.frames.len() || self.ended || self.next.is_some() {
-            return false;
-        }
-        match self.rx.try_recv() {
-            Ok(Message::Sweep(s, at)) => {
-                self.next = Some((s, at));
-                false
-            }
-            Ok(Message::End) | Err(mpsc::TryRecvError::Disconnected) => {
-                self.ended = true;
-                false
-            }
-            Err(mpsc::TryRecvError::Empty) => true,
-        }
+        self.feed.would_wait(i)
     }
 
     /// Frame `i`'s label.
     pub fn label(&self, i: usize) -> String {
-        format!("{} sweep {i}", self.label)
+        self.feed.label(i)
     }
 
     /// Frame `i`'s stamp.
     pub fn stamp(&self, i: usize) -> f64 {
-        match (self.frames.get(i), &self.next) {
-            (Some((t, _)), _) => *t,
-            (None, Some((s, _))) if i == self.frames.len() => s.stamp().unwrap_or(0.0),
-            _ => 0.0,
-        }
+        self.feed.stamp(i)
     }
 
     /// When frame `i`'s last packet came.
     pub fn arrival(&self, i: usize) -> Option<Instant> {
-        self.frames.get(i).map(|f| f.1)
+        self.feed.arrival(i)
     }
 
     /// Frame `i`, waiting for it: the next one, or one of the last two read (a live stream
     /// cannot go further back).
     pub fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
-        if let Some((_, points, times)) = self.kept.iter().find(|k| k.0 == i) {
-            return Ok((points.clone(), Some(times.clone())));
-        }
-        if i != self.frames.len() {
-            return Err(FileError::at(
-                Path::new(&self.label),
-                format!(
-                    "frame {i}: a live stream is read in order (next: {})",
-                    self.frames.len()
-                ),
-            ));
-        }
-        if !self.has(i) {
-            return Err(FileError::at(
-                Path::new(&self.label),
-                "the stream has ended",
-            ));
-        }
-        let Some((sweep, at)) = self.next.take() else {
-            return Err(FileError::at(
-                Path::new(&self.label),
-                "the stream has ended",
-            ));
-        };
-        self.frames.push((sweep.stamp().unwrap_or(0.0), at));
-        let times = sweep.relative_times();
-        if self.kept.len() == KEPT {
-            self.kept.remove(0);
-        }
-        self.kept.push((i, sweep.points.clone(), times.clone()));
-        Ok((sweep.points, Some(times)))
+        self.feed.read_timed(i)
     }
 }
 
@@ -259,7 +174,7 @@ impl Drop for Live {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         // The thread sees the flag within its read timeout.
-        while self.rx.try_recv().is_ok() {}
+        self.feed.drain();
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
@@ -274,7 +189,7 @@ struct Listener {
     idle: Option<Duration>,
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<LiveStats>>,
-    tx: SyncSender<Message>,
+    tx: FeedSender,
 }
 
 impl Listener {
@@ -329,10 +244,10 @@ impl Listener {
             let completed = done.is_some();
             let mut dropped = false;
             if let Some(sweep) = done {
-                match self.tx.try_send(Message::Sweep(sweep, Instant::now())) {
-                    Ok(()) => {}
-                    Err(TrySendError::Full(_)) => dropped = true,
-                    Err(TrySendError::Disconnected(_)) => break None,
+                match self.tx.offer(timed(sweep)) {
+                    Offered::Queued => {}
+                    Offered::Dropped => dropped = true,
+                    Offered::Closed => break None,
                 }
             }
             if let Ok(mut s) = self.stats.lock() {
@@ -346,11 +261,7 @@ impl Listener {
         if let Some(st) = &mut stream {
             // A turn that ended right at the cut is whole; it goes if the queue has room.
             if let Some(sweep) = st.finish() {
-                if self
-                    .tx
-                    .try_send(Message::Sweep(sweep, Instant::now()))
-                    .is_ok()
-                {
+                if self.tx.offer(timed(sweep)) == Offered::Queued {
                     if let Ok(mut s) = self.stats.lock() {
                         s.sweeps += 1;
                     }
@@ -364,7 +275,16 @@ impl Listener {
         if let Ok(mut s) = self.stats.lock() {
             s.error = error;
         }
-        // Not waiting: a full queue ends with the sender's drop, which the reader sees too.
-        let _ = self.tx.try_send(Message::End);
+        self.tx.end();
+    }
+}
+
+/// A sweep as the feed takes it, come now.
+fn timed(sweep: Sweep) -> TimedScan {
+    TimedScan {
+        stamp: sweep.stamp().unwrap_or(0.0),
+        times: Some(sweep.relative_times()),
+        points: sweep.points,
+        arrived: Instant::now(),
     }
 }

@@ -13,8 +13,10 @@
 //! | Ouster lidar packets and the sensor's metadata JSON | [`ouster`] |
 //! | packets to sweeps, whichever the sensor | [`packets`] (turns cut in [`sweep`]) |
 //! | a capture replayed as frames; packets taken live from a socket | [`replay`], [`live`] |
+//! | a live source's frames, handed over through a bounded queue | [`feed`] |
 
 pub mod capture;
+pub mod feed;
 pub mod input;
 pub mod live;
 pub mod ouster;
@@ -26,4 +28,4 @@ pub mod scans;
 pub mod sweep;
 pub mod velodyne;
 
-pub use input::{FrameSource, ImuReading, Input, Sample};
+pub use input::{FrameSource, ImuReading, Input, Request, Sample, Waited};

@@ -1,0 +1,203 @@
+//! `slamesh ros2`: the pipeline as a ROS 2 node ([`crate::ros2`]), until SIGINT or SIGTERM,
+//! then the outputs `run --out DIR` writes.
+//!
+//! The run's settings come from the flags, or from ROS parameters of the same names
+//! (`-p preset:=kitti`, `-p threads:=4`, `-p out:=DIR`, `-p map:=FILE`, `-p save_map:=FILE`,
+//! `-p localize:=true`), which win when both are given.
+
+use crate::cli::error::CliError;
+use crate::cli::notices::FrameNotices;
+use crate::cli::run::{frame_messages, print_summary, CapacityFlag};
+use crate::cli::settings::{Profile, WindowFlags};
+use crate::formats::ros_args::{ParamValue, RosArgs};
+use crate::outputs::mesh_spool::{MeshColour, MeshFormat};
+use crate::ros2::{NodeSettings, RosNode};
+use crate::run::capacity;
+use crate::run::config_file::Settings;
+use crate::run::sink::{FnSink, Queued, WhenFull};
+use crate::run::{run_to, FrameEvent, RunOptions, Sinks};
+use clap::Args;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// `slamesh ros2`'s arguments.
+#[derive(Args, Debug)]
+pub struct Ros2Args {
+    /// Output folder, written when the node stops (SIGINT, SIGTERM) as `run --out` writes
+    /// it (ROS parameter `out`).
+    #[arg(long, default_value = "slamesh-ros2")]
+    pub out: PathBuf,
+    /// Where the parameters come from (ROS parameters `preset`, `config`).
+    #[command(flatten)]
+    pub profile: Profile,
+    /// Reconstruction threads (1: serial; 0: one per core; ROS parameter `threads`).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// The sliding window's flags.
+    #[command(flatten)]
+    pub window: WindowFlags,
+    /// The capacity class (as `run --capacity`).
+    #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
+    pub capacity: CapacityFlag,
+    /// Start from a saved map (ROS parameter `map`): map on from it, in its frame; with
+    /// --localize only localize in it. An `initialpose` relocalizes in it.
+    #[arg(long, value_name = "FILE")]
+    pub map: Option<PathBuf>,
+    /// Only localize in --map (the map stays as it is; ROS parameter `localize`).
+    #[arg(long, requires = "map")]
+    pub localize: bool,
+    /// The map file `~/save_map` writes, and the whole map at the end (ROS parameter
+    /// `save_map`; default for the service: map.slamesh in the output folder).
+    #[arg(long, value_name = "FILE")]
+    pub save_map: Option<PathBuf>,
+    /// Do not draw topview.png at the end.
+    #[arg(long)]
+    pub no_picture: bool,
+    /// The ROS arguments: `--ros-args -r points:=/velodyne_points -p preset:=kitti
+    /// --params-file FILE.yaml -r __ns:=/robot1`.
+    #[arg(
+        trailing_var_arg = true,
+        allow_hyphen_values = true,
+        value_name = "ROS_ARGS"
+    )]
+    pub ros_args: Vec<String>,
+}
+
+fn node_error(reason: String) -> CliError {
+    CliError::BadFlag {
+        flag: "ros2",
+        reason,
+    }
+}
+
+/// The flags with the ROS parameters of the same names put over them.
+fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args, CliError> {
+    let p = &mut node.params;
+    let mut take_text = |k: &str| p.remove(k).map(|v| v.as_text());
+    let profile = Profile {
+        preset: take_text("preset").or(args.profile.preset.clone()),
+        config: take_text("config")
+            .map(PathBuf::from)
+            .or(args.profile.config.clone()),
+    };
+    let out = take_text("out").map_or(args.out.clone(), PathBuf::from);
+    let map = take_text("map").map(PathBuf::from).or(args.map.clone());
+    let save_map = take_text("save_map")
+        .map(PathBuf::from)
+        .or(args.save_map.clone());
+    let threads = match p.remove("threads") {
+        None => args.threads,
+        Some(ParamValue::Int(n)) if (0..=1024).contains(&n) => n as usize,
+        Some(v) => {
+            return Err(node_error(format!(
+                "parameter threads: {v:?} is not 0 to 1024"
+            )))
+        }
+    };
+    let localize = match p.remove("localize") {
+        None => args.localize,
+        Some(ParamValue::Bool(b)) => b,
+        Some(v) => {
+            return Err(node_error(format!(
+                "parameter localize: {v:?} is not true or false"
+            )))
+        }
+    };
+    if localize && map.is_none() {
+        return Err(node_error(
+            "localize needs a map (--map or -p map:=FILE)".into(),
+        ));
+    }
+    for k in p.keys() {
+        log::warn!("ROS parameter {k} is not one of slamesh's: ignored");
+    }
+    Ok(Ros2Args {
+        out,
+        profile,
+        threads,
+        window: args.window.clone(),
+        capacity: args.capacity,
+        map,
+        localize,
+        save_map,
+        no_picture: args.no_picture,
+        ros_args: Vec::new(),
+    })
+}
+
+/// Runs the node until it is stopped.
+pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
+    let ros = RosArgs::parse(&args.ros_args).map_err(node_error)?;
+    let mut node_settings = NodeSettings::from_process(&ros).map_err(node_error)?;
+    let args = with_parameters(args, &mut node_settings)?;
+    let mut s = match &args.map {
+        Some(map) if args.profile.preset.is_none() && args.profile.config.is_none() => {
+            crate::run::saved_map::config_of(map)?
+        }
+        _ => args.profile.resolve("default")?,
+    };
+    args.window.apply(&mut s.window)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {
+        log::warn!("SIGINT and SIGTERM will not end the node cleanly: {e}");
+    }
+    let mut node = RosNode::start(node_settings).map_err(node_error)?;
+    let mut source = node.listen(stop).map_err(node_error)?;
+    log::info!(
+        "ROS 2 node {} in domain {}{}: scans on {}, poses on {} (preset {}), output in {}",
+        node.settings.fqn(),
+        node.settings.domain_id,
+        if node.settings.localhost_only {
+            " (this machine only)"
+        } else {
+            ""
+        },
+        node.settings.topics.points,
+        node.settings.topics.odom,
+        s.preset,
+        args.out.display()
+    );
+    if args.map.is_none() {
+        crate::run::scale::fit_to_scene(&mut s, &mut source);
+    }
+    let opts = run_options(&args, &s);
+    let sink = node.publish(&opts.config, &source).map_err(node_error)?;
+    let sink = Queued::new(sink, 8, WhenFull::Wait)
+        .map_err(|e| node_error(format!("cannot start the publishing thread: {e}")))?;
+    let bar = crate::cli::progress_open(quiet);
+    let mut notices = FrameNotices::default();
+    let mut sinks = Sinks::new();
+    sinks.add(sink);
+    sinks.add(FnSink::new("progress", |e: &FrameEvent| {
+        frame_messages(&e.record, &bar, &mut notices);
+        bar.inc(1);
+    }));
+    let class = args
+        .capacity
+        .class()
+        .unwrap_or_else(|| capacity::choose(&mut source, &opts).id);
+    let summary = crate::with_capacity!(class, C => run_to::<C>(&mut source, &opts, sinks))?;
+    bar.finish_and_clear();
+    print_summary(&summary, &args.out);
+    Ok(())
+}
+
+fn run_options(args: &Ros2Args, s: &Settings) -> RunOptions {
+    RunOptions {
+        out: args.out.clone(),
+        config: s.config,
+        preset: s.preset.to_string(),
+        window: s.window,
+        threads: args.threads,
+        mesh_formats: vec![MeshFormat::Ply],
+        mesh_colour: MeshColour::None,
+        input: "ROS 2".into(),
+        picture: !args.no_picture,
+        map: args.map.clone(),
+        localize_only: args.localize,
+        save_map: args.save_map.clone(),
+        ..RunOptions::default()
+    }
+}

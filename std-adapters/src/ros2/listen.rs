@@ -1,0 +1,389 @@
+//! The node's way in: a thread of its own takes what comes on `points` (and `initialpose`,
+//! `/clock`, the `~/save_map` service) and hands scans to the run through a bounded queue
+//! ([`crate::sources::feed`]), so that the run reads the node as any other live source
+//! ([`Ros2Source`], a [`FrameSource`]).
+//!
+//! What it guarantees:
+//! - the DDS reader is drained as messages come; the thread never waits for the run: a scan
+//!   that finds the queue full is dropped whole, named in the log and counted
+//!   ([`Counts::dropped`]);
+//! - a message that is not a scan is skipped with its topic, stamp and reason, counted
+//!   ([`Counts::refused`]), never a crash;
+//! - requests (a pose to relocalize at, a map to save) reach the run between frames, also
+//!   while it waits for a scan ([`Request`]);
+//! - the stream ends when the stop flag is set (the command sets it on SIGINT and SIGTERM);
+//!   the run then writes its outputs as a finished one does.
+
+use crate::io::error::FileError;
+use crate::ros2::clouds::{FrameCheck, RawAdapter, RawMessage};
+use crate::ros2::messages::{Clock, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse};
+use crate::sources::feed::{Feed, FeedSender, Offered};
+use crate::sources::{FrameSource, Request, Waited};
+use ros2_client::{RmwRequestId, Server, Subscription};
+use rustdds::mio1::{Events, Interest, Poll, Token};
+use rustdds::no_key::SimpleDataReader;
+use serde::Serialize;
+use slamesh_core::Point;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// What the node's inputs counted, for `diagnostics` and `report.json`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Counts {
+    /// Messages taken on `points`.
+    pub received: u64,
+    /// Scans handed to the run.
+    pub queued: u64,
+    /// Scans dropped whole because the run was behind.
+    pub dropped: u64,
+    /// Messages that were not scans.
+    pub refused: u64,
+    /// The last refusal: topic, stamp and reason.
+    pub last_refused: Option<String>,
+    /// Poses taken on `initialpose`.
+    pub initial_poses: u64,
+    /// Map saves asked for on `~/save_map`.
+    pub save_requests: u64,
+    /// The latest `/clock` (seconds), when `use_sim_time` is set.
+    pub clock_s: Option<f64>,
+}
+
+/// The DDS endpoints the listening thread reads.
+pub struct Endpoints {
+    /// `points`, as raw CDR.
+    pub points: SimpleDataReader<RawMessage, RawAdapter>,
+    /// `initialpose`.
+    pub initialpose: Subscription<PoseWithCovarianceStamped>,
+    /// `/clock`, when `use_sim_time` is set.
+    pub clock: Option<Subscription<Clock>>,
+    /// `~/save_map`.
+    pub save_map: Server<TriggerRequest, TriggerResponse>,
+}
+
+/// The topic names, for messages.
+#[derive(Debug, Clone)]
+pub struct Names {
+    /// `points`.
+    pub points: String,
+    /// `initialpose`.
+    pub initialpose: String,
+}
+
+/// The node's inputs as frames.
+pub struct Ros2Source {
+    feed: Feed,
+    requests: Receiver<Request>,
+    counts: Arc<Mutex<Counts>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for Ros2Source {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ros2Source")
+            .field("feed", &self.feed)
+            .finish()
+    }
+}
+
+impl Ros2Source {
+    /// Starts the listening thread on `endpoints`; at most `queue` scans wait for the run;
+    /// scans not in `lidar_frame` (the first scan's, if `None`) are refused.
+    pub fn start(
+        endpoints: Endpoints,
+        names: Names,
+        queue: usize,
+        lidar_frame: Option<String>,
+        stop: Arc<AtomicBool>,
+    ) -> Result<Self, String> {
+        let (tx, feed) = crate::sources::feed::channel(names.points.clone(), "scan", queue);
+        let (request_tx, requests) = mpsc::channel();
+        let counts = Arc::new(Mutex::new(Counts::default()));
+        let listener = Listener {
+            endpoints,
+            names,
+            check: FrameCheck {
+                expected: lidar_frame,
+            },
+            tx,
+            requests: request_tx,
+            counts: counts.clone(),
+            stop: stop.clone(),
+            pending: Vec::new(),
+        };
+        let thread = std::thread::Builder::new()
+            .name("slamesh-ros2".into())
+            .spawn(move || listener.run())
+            .map_err(|e| format!("cannot start the listening thread: {e}"))?;
+        Ok(Ros2Source {
+            feed,
+            requests,
+            counts,
+            stop,
+            thread: Some(thread),
+        })
+    }
+
+    /// What the inputs counted so far.
+    pub fn counts(&self) -> Arc<Mutex<Counts>> {
+        self.counts.clone()
+    }
+}
+
+impl Drop for Ros2Source {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.feed.drain();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl FrameSource for Ros2Source {
+    fn frames(&self) -> usize {
+        self.feed.frames()
+    }
+    fn label(&self, i: usize) -> String {
+        self.feed.label(i)
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        self.feed.stamp(i)
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
+        self.feed.read_timed(i).map(|(p, _)| p)
+    }
+    fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        self.feed.read_timed(i)
+    }
+    fn has(&mut self, i: usize) -> bool {
+        self.feed.has(i)
+    }
+    fn wait(&mut self, i: usize) -> Waited {
+        self.feed.wait(i)
+    }
+    fn would_wait(&mut self, i: usize) -> bool {
+        self.feed.would_wait(i)
+    }
+    fn arrival(&self, i: usize) -> Option<Instant> {
+        self.feed.arrival(i)
+    }
+    fn requests(&mut self) -> Vec<Request> {
+        self.requests.try_iter().collect()
+    }
+    fn input_report(&self) -> Option<serde_json::Value> {
+        self.counts
+            .lock()
+            .ok()
+            .and_then(|c| serde_json::to_value(&*c).ok())
+    }
+}
+
+/// How long the thread waits for DDS before looking at the stop flag.
+const TICK: Duration = Duration::from_millis(100);
+
+const POINTS: Token = Token(0);
+const INITIALPOSE: Token = Token(1);
+const CLOCK: Token = Token(2);
+const SAVE_MAP: Token = Token(3);
+
+/// The listening thread's state.
+struct Listener {
+    endpoints: Endpoints,
+    names: Names,
+    check: FrameCheck,
+    tx: FeedSender,
+    requests: Sender<Request>,
+    counts: Arc<Mutex<Counts>>,
+    stop: Arc<AtomicBool>,
+    /// `~/save_map` calls the run has not answered yet.
+    pending: Vec<(RmwRequestId, Receiver<Result<String, String>>, Instant)>,
+}
+
+impl Listener {
+    fn run(mut self) {
+        let poll = match self.register() {
+            Ok(p) => Some(p),
+            Err(e) => {
+                log::error!("ROS 2: cannot wait for messages ({e}); looking every 10 ms");
+                None
+            }
+        };
+        let mut poll = poll;
+        let mut events = Events::with_capacity(16);
+        while !self.stop.load(Ordering::Relaxed) {
+            match &mut poll {
+                Some(p) => {
+                    if let Err(e) = p.poll(&mut events, Some(TICK)) {
+                        if e.kind() != std::io::ErrorKind::Interrupted {
+                            log::error!("ROS 2: waiting for messages failed: {e}");
+                            break;
+                        }
+                    }
+                }
+                None => std::thread::sleep(Duration::from_millis(10)),
+            }
+            if !self.take_points() {
+                break;
+            }
+            self.take_initial_poses();
+            self.take_clock();
+            self.take_save_requests();
+        }
+        self.tx.end();
+    }
+
+    fn register(&mut self) -> std::io::Result<Poll> {
+        let poll = Poll::new()?;
+        let r = poll.registry();
+        let e = &mut self.endpoints;
+        r.register(&mut e.points, POINTS, Interest::READABLE)?;
+        r.register(&mut e.initialpose, INITIALPOSE, Interest::READABLE)?;
+        if let Some(c) = &mut e.clock {
+            r.register(c, CLOCK, Interest::READABLE)?;
+        }
+        r.register(&mut e.save_map, SAVE_MAP, Interest::READABLE)?;
+        Ok(poll)
+    }
+
+    fn count(&self, f: impl FnOnce(&mut Counts)) {
+        if let Ok(mut c) = self.counts.lock() {
+            f(&mut c);
+        }
+    }
+
+    /// Every message waiting on `points`; false when the run has gone.
+    fn take_points(&mut self) -> bool {
+        loop {
+            let sample = match self.endpoints.points.try_take_one() {
+                Ok(Some(s)) => s,
+                Ok(None) => return true,
+                Err(e) => {
+                    self.refuse(None, format!("cannot read the message: {e}"));
+                    continue;
+                }
+            };
+            let arrived = Instant::now();
+            self.count(|c| c.received += 1);
+            let scan = match self.check.scan(&sample.into_value(), arrived) {
+                Ok(s) => s,
+                Err(r) => {
+                    self.refuse(r.stamp, r.reason);
+                    continue;
+                }
+            };
+            let stamp = scan.stamp;
+            match self.tx.offer(scan) {
+                Offered::Queued => self.count(|c| c.queued += 1),
+                Offered::Dropped => {
+                    let mut n = 0;
+                    self.count(|c| {
+                        c.dropped += 1;
+                        n = c.dropped;
+                    });
+                    if n.is_power_of_two() {
+                        log::warn!(
+                            "{}: scan at {stamp:.3} s dropped: the pipeline is behind ({n} dropped \
+                             so far)",
+                            self.names.points
+                        );
+                    }
+                }
+                Offered::Closed => return false,
+            }
+        }
+    }
+
+    fn refuse(&self, stamp: Option<f64>, reason: String) {
+        let at = stamp.map_or(String::new(), |s| format!(" at {s:.3} s"));
+        let line = format!("{}: message{at} skipped: {reason}", self.names.points);
+        let mut n = 0;
+        self.count(|c| {
+            c.refused += 1;
+            n = c.refused;
+            c.last_refused = Some(line.clone());
+        });
+        if n.is_power_of_two() {
+            log::warn!("{line} ({n} skipped so far)");
+        }
+    }
+
+    fn take_initial_poses(&mut self) {
+        while let Ok(Some((msg, _))) = self.endpoints.initialpose.take() {
+            match msg.pose.pose.to_pose() {
+                Some(pose) => {
+                    log::info!(
+                        "{}: relocalizing near ({:.2}, {:.2}, {:.2}) in {:?}",
+                        self.names.initialpose,
+                        pose.translation.vector.x,
+                        pose.translation.vector.y,
+                        pose.translation.vector.z,
+                        msg.header.frame_id
+                    );
+                    self.count(|c| c.initial_poses += 1);
+                    self.ask(Request::Relocalize(pose));
+                }
+                None => log::warn!(
+                    "{}: pose skipped: a number is not finite or the quaternion is zero",
+                    self.names.initialpose
+                ),
+            }
+        }
+    }
+
+    fn take_clock(&mut self) {
+        let Some(clock) = &self.endpoints.clock else {
+            return;
+        };
+        let mut last = None;
+        while let Ok(Some((msg, _))) = clock.take() {
+            last = Some(msg.clock.seconds());
+        }
+        if let Some(t) = last {
+            self.count(|c| c.clock_s = Some(t));
+        }
+    }
+
+    fn take_save_requests(&mut self) {
+        while let Ok(Some((id, _))) = self.endpoints.save_map.receive_request() {
+            self.count(|c| c.save_requests += 1);
+            let (reply_tx, reply_rx) = mpsc::channel();
+            self.ask(Request::SaveMap(reply_tx));
+            self.pending.push((id, reply_rx, Instant::now()));
+        }
+        // The run answers between frames; the answer goes out from here.
+        let mut waiting = Vec::new();
+        for (id, rx, asked) in std::mem::take(&mut self.pending) {
+            let answer = match rx.try_recv() {
+                Ok(a) => a,
+                Err(mpsc::TryRecvError::Empty) if asked.elapsed() < SAVE_TIMEOUT => {
+                    waiting.push((id, rx, asked));
+                    continue;
+                }
+                Err(mpsc::TryRecvError::Empty) => Err("the pipeline did not answer in time".into()),
+                Err(mpsc::TryRecvError::Disconnected) => Err("the run has ended".into()),
+            };
+            let (success, message) = match answer {
+                Ok(m) => (true, m),
+                Err(m) => (false, m),
+            };
+            let response = TriggerResponse { success, message };
+            if let Err(e) = self.endpoints.save_map.send_response(id, response) {
+                log::warn!("ROS 2: cannot answer save_map: {e:?}");
+            }
+        }
+        self.pending = waiting;
+    }
+
+    fn ask(&self, r: Request) {
+        if self.requests.send(r).is_ok() {
+            self.tx.wake();
+        }
+    }
+}
+
+/// How long a `~/save_map` call waits for the run's answer.
+const SAVE_TIMEOUT: Duration = Duration::from_secs(60);

@@ -1,0 +1,209 @@
+//! `mesh`: the map's shown triangles as RViz markers, one `TRIANGLE_LIST` marker a tile of
+//! [`TILE_CELLS`]³ cells (namespace `mesh`, id from the tile's key): only the tiles whose
+//! layers changed are sent again, and a marker replaces the tile's last one.
+//!
+//! Paced: a frame sends at most [`FRAME_POINTS`] points, in messages of at most about
+//! [`MESSAGE_POINTS`]; changed tiles wait their turn in the order they first changed, each
+//! sent with its latest triangles (a tile that changes again while it waits is sent once). A
+//! 64-beam scan changes more of the mesh than that, so the mesh on the topic lags the map by
+//! a few frames where the sensor looks, and the bursts stay small enough for a DDS reader's
+//! socket (large bursts were lost, and the DDS writer's repair of large samples is slow).
+//!
+//! Memory: the shown triangles of every tile seen, three points each (72 bytes a triangle),
+//! and the queue of tiles to send (one entry a tile at most).
+
+use crate::ros2::messages::{Colour, Header, Marker, MarkerArray, PoseMsg, Vector3};
+use slamesh_core::cell::{Axis, CellKey};
+use slamesh_core::lattice::{LatticeTable, VERTICES};
+use slamesh_core::layer::{Layer, Shown};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+
+/// Cells along a tile's edge.
+pub const TILE_CELLS: i32 = 8;
+
+/// Points in one message, at most, unless one tile has more (a tile's marker goes whole): about
+/// 60 KB, one UDP datagram on loopback.
+pub const MESSAGE_POINTS: usize = 2_500;
+
+/// Points a frame sends, at most (about 720 KB): more when one tile alone has more.
+pub const FRAME_POINTS: usize = 30_000;
+
+type TileKey = (i32, i32, i32);
+
+/// The map's triangles by tile, as last sent.
+pub struct MeshTiles {
+    lattice: LatticeTable,
+    shown: Shown,
+    /// Each tile's layers, each layer's triangles (three points each).
+    tiles: BTreeMap<TileKey, BTreeMap<(CellKey, u8), Vec<Vector3>>>,
+    /// Tiles to send, oldest change first, and the same as a set.
+    waiting: VecDeque<TileKey>,
+    queued: BTreeSet<TileKey>,
+}
+
+fn tile_of(key: &CellKey) -> (i32, i32, i32) {
+    (
+        key.x.div_euclid(TILE_CELLS),
+        key.y.div_euclid(TILE_CELLS),
+        key.z.div_euclid(TILE_CELLS),
+    )
+}
+
+/// A marker id for a tile: its key's three coordinates folded into 31 bits (two tiles 1 024
+/// tiles apart along an axis share one; a map that large has other limits first).
+fn tile_id(t: (i32, i32, i32)) -> i32 {
+    let b = |v: i32| (v.rem_euclid(1024)) as u32;
+    ((b(t.0) << 20) | (b(t.1) << 10) | b(t.2)) as i32
+}
+
+impl MeshTiles {
+    /// For the map's `lattice`, showing triangles as `shown` says.
+    pub fn new(lattice: LatticeTable, shown: Shown) -> Self {
+        MeshTiles {
+            lattice,
+            shown,
+            tiles: BTreeMap::new(),
+            waiting: VecDeque::new(),
+            queued: BTreeSet::new(),
+        }
+    }
+
+    fn queue(&mut self, tile: TileKey) {
+        if self.queued.insert(tile) {
+            self.waiting.push_back(tile);
+        }
+    }
+
+    /// Takes the layers a frame changed; their tiles wait to be sent.
+    pub fn update<'a>(&mut self, layers: impl IntoIterator<Item = &'a (CellKey, Axis, Layer)>) {
+        for (key, axis, layer) in layers {
+            let tile = tile_of(key);
+            self.queue(tile);
+            let vertices: Vec<Vector3> = (0..VERTICES)
+                .map(|j| {
+                    let v = layer.vertex(&self.lattice, key, *axis, j);
+                    Vector3 {
+                        x: v.x,
+                        y: v.y,
+                        z: v.z,
+                    }
+                })
+                .collect();
+            let triangles: Vec<Vector3> = layer
+                .triangles(&self.lattice, self.shown)
+                .flat_map(|t| t.map(|j| vertices[j]))
+                .collect();
+            let entry = self.tiles.entry(tile).or_default();
+            let id = (*key, *axis as u8);
+            if triangles.is_empty() {
+                entry.remove(&id);
+            } else {
+                entry.insert(id, triangles);
+            }
+        }
+    }
+
+    /// Forgets every tile's triangles (after a loop closure, whose update holds every layer):
+    /// every tile is sent again, deleted if the update leaves it empty.
+    pub fn clear(&mut self) {
+        let all: Vec<TileKey> = self.tiles.keys().copied().collect();
+        for t in all {
+            self.queue(t);
+        }
+        self.tiles.clear();
+    }
+
+    /// Tiles waiting to be sent.
+    pub fn waiting(&self) -> usize {
+        self.waiting.len()
+    }
+
+    /// The next waiting tiles' markers, `points` points at most (at least one tile), at
+    /// `header`'s stamp and frame, in messages of about [`MESSAGE_POINTS`] points: each tile's
+    /// triangles, or its deletion when it has none.
+    pub fn next_messages(&mut self, points: usize, header: &Header) -> Vec<MarkerArray> {
+        let mut out: Vec<MarkerArray> = Vec::new();
+        let (mut in_frame, mut in_message) = (0, 0);
+        while let Some(&t) = self.waiting.front() {
+            let n = self.points_of(t);
+            if in_frame > 0 && in_frame + n > points {
+                break;
+            }
+            self.waiting.pop_front();
+            self.queued.remove(&t);
+            let marker = self.marker(t, header);
+            if out.is_empty() || in_message > 0 && in_message + n > MESSAGE_POINTS {
+                out.push(MarkerArray::default());
+                in_message = 0;
+            }
+            in_frame += n;
+            in_message += n;
+            out.last_mut().expect("a message").markers.push(marker);
+        }
+        out
+    }
+
+    fn points_of(&self, t: TileKey) -> usize {
+        self.tiles
+            .get(&t)
+            .map_or(0, |layers| layers.values().map(Vec::len).sum())
+    }
+
+    fn marker(&self, t: TileKey, header: &Header) -> Marker {
+        {
+            {
+                let points: Vec<Vector3> = self
+                    .tiles
+                    .get(&t)
+                    .map(|layers| layers.values().flatten().copied().collect())
+                    .unwrap_or_default();
+                Marker {
+                    header: header.clone(),
+                    ns: "mesh".into(),
+                    id: tile_id(t),
+                    kind: Marker::TRIANGLE_LIST,
+                    action: if points.is_empty() {
+                        Marker::DELETE
+                    } else {
+                        Marker::ADD
+                    },
+                    pose: PoseMsg::default(),
+                    scale: Vector3 {
+                        x: 1.0,
+                        y: 1.0,
+                        z: 1.0,
+                    },
+                    color: Colour {
+                        r: 0.55,
+                        g: 0.7,
+                        b: 0.85,
+                        a: 1.0,
+                    },
+                    points,
+                    ..Marker::default()
+                }
+            }
+        }
+    }
+
+    /// Triangles held, over all tiles.
+    pub fn triangles(&self) -> usize {
+        self.tiles
+            .values()
+            .flat_map(|l| l.values())
+            .map(|t| t.len() / 3)
+            .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_and_ids() {
+        assert_eq!(tile_of(&CellKey { x: 7, y: -1, z: 8 }), (0, -1, 1));
+        assert_ne!(tile_id((0, 0, 1)), tile_id((0, 1, 0)));
+        assert!(tile_id((-1, -1, -1)) >= 0);
+    }
+}

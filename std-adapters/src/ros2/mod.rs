@@ -1,0 +1,30 @@
+//! `slamesh ros2`: the pipeline as a ROS 2 node, with no ROS installation. It speaks DDS, ROS
+//! 2's default middleware, through ros2-client on RustDDS (pure Rust), so a stock ROS 2
+//! robot's nodes (Fast DDS, Cyclone DDS) talk to it untouched (the choice: docs/design.md
+//! §2.5).
+//!
+//! The node is a run like any other: a live source of frames (the way in) and a sink of the
+//! run's events (the way out), so its poses are `slamesh run`'s on the same scans.
+//!
+//! | what | module |
+//! |---|---|
+//! | what the node is told: names, remaps, parameters, domain | [`settings`] |
+//! | the messages it sends and takes | [`messages`] |
+//! | `points`: PointCloud2 bytes to scans, bad messages refused | [`clouds`] |
+//! | the way in: subscriptions and the service on a thread, scans through a bounded queue | [`listen`] |
+//! | the way out: odometry, transforms, path, diagnostics | [`publish`] |
+//! | the mesh as RViz markers, a tile at a time | [`mesh_tiles`] |
+//! | the DDS participant, the node and its endpoints | [`node`] |
+
+pub mod clouds;
+pub mod listen;
+pub mod mesh_tiles;
+pub mod messages;
+pub mod node;
+pub mod publish;
+pub mod settings;
+
+pub use listen::Ros2Source;
+pub use node::RosNode;
+pub use publish::Ros2Sink;
+pub use settings::NodeSettings;

@@ -1,0 +1,216 @@
+//! The node itself: a DDS participant in the domain the environment names (on this machine
+//! only when it says so), a ROS 2 node on it, and the endpoints the way in and the way out
+//! use ([`crate::ros2::listen`], [`crate::ros2::publish`]).
+//!
+//! Quality of service, as ROS 2's own profiles are:
+//! - `points`: best effort, the last `queue` + 3 messages: it takes sensor drivers' best-effort
+//!   publishers and reliable ones alike (a reliable reader would not match a best-effort
+//!   writer);
+//! - `odom`, `path`, `/diagnostics`: reliable, volatile, the last 10; `mesh` the last 64
+//!   (a frame's tiles go out in several messages);
+//! - `/tf`: reliable, the last 100; `initialpose`, `/clock`: reliable and best effort, the
+//!   last 10 and 1; `~/save_map`: the services' default.
+
+use crate::ros2::clouds::{RawAdapter, RawMessage};
+use crate::ros2::listen::{Endpoints, Names, Ros2Source};
+use crate::ros2::mesh_tiles::MeshTiles;
+use crate::ros2::messages::{
+    Clock, DiagnosticArray, MarkerArray, Odometry, PathMsg, PoseWithCovarianceStamped, TfMessage,
+    TriggerRequest, TriggerResponse, Typed,
+};
+use crate::ros2::publish::{Publishers, Ros2Sink};
+use crate::ros2::settings::NodeSettings;
+use ros2_client::qos::{Durability, History, WhenFull};
+use ros2_client::{
+    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
+    ServiceMapping, ServiceTypeName, Subscription,
+};
+use rustdds::DomainParticipantBuilder;
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use slamesh_core::layer::Shown;
+use slamesh_core::Config;
+use std::net::{IpAddr, Ipv4Addr};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+/// A running node: its DDS participant and ROS 2 node (held while the endpoints are used).
+pub struct RosNode {
+    /// What it was told.
+    pub settings: NodeSettings,
+    context: Context,
+    node: Node,
+}
+
+/// Mesh messages a late or slow subscriber can still be sent again: a frame's tiles go out in
+/// several messages (a first frame's in dozens), and a reliable writer repairs only what its
+/// history still holds.
+const MESH_HISTORY: usize = 64;
+
+fn reliable(depth: usize) -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+/// `/a/b/c` as ros2-client names it: namespace `/a/b`, base name `c`.
+fn name(full: &str) -> Result<Name, String> {
+    let (ns, base) = full.rsplit_once('/').unwrap_or(("", full));
+    let ns = if ns.is_empty() { "/" } else { ns };
+    Name::new(ns, base).map_err(|e| format!("{full}: not a ROS 2 name ({e:?})"))
+}
+
+impl RosNode {
+    /// Joins the domain and starts the node.
+    pub fn start(settings: NodeSettings) -> Result<Self, String> {
+        let mut participant = DomainParticipantBuilder::new(settings.domain_id);
+        if settings.localhost_only {
+            participant = participant.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
+        }
+        let participant = participant
+            .build()
+            .map_err(|e| format!("cannot join DDS domain {}: {e:?}", settings.domain_id))?;
+        let context = Context::from_domain_participant(participant)
+            .map_err(|e| format!("cannot start ROS 2: {e:?}"))?;
+        let node_name = NodeName::new(&settings.namespace, &settings.name)
+            .map_err(|e| format!("{}: not a node name ({e:?})", settings.fqn()))?;
+        let node = context
+            .new_node(node_name, NodeOptions::new().enable_rosout(false))
+            .map_err(|e| format!("cannot start the node {}: {e:?}", settings.fqn()))?;
+        Ok(RosNode {
+            settings,
+            context,
+            node,
+        })
+    }
+
+    fn topic<M: Typed>(&mut self, full: &str, qos: &QosProfile) -> Result<rustdds::Topic, String> {
+        let (package, type_name) = M::TYPE;
+        self.node
+            .create_topic(&name(full)?, MessageTypeName::new(package, type_name), qos)
+            .map_err(|e| format!("{full}: cannot create the topic: {e:?}"))
+    }
+
+    fn publisher<M: Typed + Serialize>(
+        &mut self,
+        full: &str,
+        qos: QosProfile,
+    ) -> Result<Publisher<M>, String> {
+        let topic = self.topic::<M>(full, &qos)?;
+        self.node
+            .create_publisher(&topic, Some(qos))
+            .map_err(|e| format!("{full}: cannot publish: {e:?}"))
+    }
+
+    fn subscription<M: Typed + DeserializeOwned + 'static>(
+        &mut self,
+        full: &str,
+        qos: QosProfile,
+    ) -> Result<Subscription<M>, String> {
+        let topic = self.topic::<M>(full, &qos)?;
+        self.node
+            .create_subscription(&topic, Some(qos))
+            .map_err(|e| format!("{full}: cannot subscribe: {e:?}"))
+    }
+
+    /// The way in: subscriptions and the service, on a thread of their own, until `stop`.
+    pub fn listen(&mut self, stop: Arc<AtomicBool>) -> Result<Ros2Source, String> {
+        let t = self.settings.topics.clone();
+        let sensor = QosProfile::subscription_default()
+            .reliability_best_effort()
+            .durability(Durability::Volatile)
+            .history(History::KeepLast {
+                depth: self.settings.queue + 3,
+            });
+        let topic = self
+            .node
+            .create_topic(
+                &name(&t.points)?,
+                MessageTypeName::new("sensor_msgs", "PointCloud2"),
+                &sensor,
+            )
+            .map_err(|e| format!("{}: cannot create the topic: {e:?}", t.points))?;
+        let subscriber = self
+            .context
+            .domain_participant()
+            .create_subscriber(&(&sensor).into())
+            .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
+        let points = subscriber
+            .create_simple_datareader_no_key::<RawMessage, RawAdapter>(
+                &topic,
+                Some((&sensor).into()),
+            )
+            .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
+        let clock = match self.settings.use_sim_time {
+            true => Some(
+                self.subscription::<Clock>(
+                    &t.clock,
+                    QosProfile::subscription_default()
+                        .reliability_best_effort()
+                        .history(History::KeepLast { depth: 1 }),
+                )?,
+            ),
+            false => None,
+        };
+        let save_map = self
+            .node
+            .create_server::<TriggerRequest, TriggerResponse>(
+                ServiceMapping::Enhanced,
+                &name(&t.save_map)?,
+                &ServiceTypeName::new("std_srvs", "Trigger"),
+                reliable(10),
+                reliable(10),
+            )
+            .map_err(|e| format!("{}: cannot offer the service: {e:?}", t.save_map))?;
+        let endpoints = Endpoints {
+            points,
+            initialpose: self
+                .subscription::<PoseWithCovarianceStamped>(&t.initialpose, reliable(10))?,
+            clock,
+            save_map,
+        };
+        let names = Names {
+            points: t.points.clone(),
+            initialpose: t.initialpose.clone(),
+        };
+        Ros2Source::start(
+            endpoints,
+            names,
+            self.settings.queue,
+            self.settings.lidar_frame.clone(),
+            stop,
+        )
+    }
+
+    /// The way out: the publishers, as a sink of the run; `config` is the run's (the mesh's
+    /// lattice and what it shows); `source` the way in (its counts go into `diagnostics`).
+    pub fn publish(&mut self, config: &Config, source: &Ros2Source) -> Result<Ros2Sink, String> {
+        let s = self.settings.clone();
+        let t = &s.topics;
+        let publishers = Publishers {
+            odom: self.publisher::<Odometry>(&t.odom, reliable(10))?,
+            tf: match s.publish_tf {
+                true => Some(self.publisher::<TfMessage>(&t.tf, reliable(100))?),
+                false => None,
+            },
+            path: self.publisher::<PathMsg>(&t.path, reliable(10))?,
+            mesh: match s.publish_mesh {
+                true => Some(self.publisher::<MarkerArray>(&t.mesh, reliable(MESH_HISTORY))?),
+                false => None,
+            },
+            diagnostics: self.publisher::<DiagnosticArray>(&t.diagnostics, reliable(10))?,
+        };
+        let tiles = s
+            .publish_mesh
+            .then(|| MeshTiles::new(config.lattice().table(), Shown::new(&config.mesh)));
+        Ok(Ros2Sink::new(
+            publishers,
+            s.frames.clone(),
+            s.lidar_in_base,
+            tiles,
+            source.counts(),
+            s.fqn(),
+        ))
+    }
+}

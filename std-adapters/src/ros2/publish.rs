@@ -1,0 +1,458 @@
+//! The node's way out: a [`Sink`] of the run that publishes each frame as ROS 2 messages.
+//!
+//! | topic | type | what |
+//! |---|---|---|
+//! | `odom` | `nav_msgs/Odometry` | every registered scan: `base_link` in `odom`, stamped with the scan's stamp, its covariance from the registration, its velocity from the last two poses |
+//! | `/tf` | `tf2_msgs/TFMessage` | `odom -> base_link` and `map -> odom` with every pose |
+//! | `path` | `nav_msgs/Path` | the trajectory in `map` (corrected after a loop closure) |
+//! | `mesh` | `visualization_msgs/MarkerArray` | the tiles a frame changed ([`crate::ros2::mesh_tiles`]) |
+//! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | at most once a second: frames used and not, scans dropped and refused, latency |
+//!
+//! Frames: the engine estimates the LiDAR's pose in its world (the first scan's LiDAR frame,
+//! or a saved map's frame). `map` is that world seen from the robot: with `E` the LiDAR's pose
+//! on the robot (`lidar_in_base`), `base_link` in `map` is `E · T · E⁻¹`, so that the robot
+//! starts at the identity. `odom` is continuous: it starts at the identity on the first scan
+//! and follows the registered motion; a jump of the pose (a relocalization, a loop closure)
+//! goes into `map -> odom`, and `odom` goes on as it was moving.
+
+use crate::loop_closure::graph::local_covariance;
+use crate::ros2::listen::Counts;
+use crate::ros2::mesh_tiles::{MeshTiles, FRAME_POINTS};
+use crate::ros2::messages::{
+    Covariance, DiagnosticArray, DiagnosticStatus, Header, KeyValue, MarkerArray, Odometry,
+    PathMsg, PoseMsg, PoseStamped, PoseWithCovariance, TfMessage, Time, TransformStamped, Twist,
+    TwistWithCovariance, Vector3,
+};
+use crate::ros2::settings::Frames;
+use crate::run::sink::{FrameEvent, MapUpdate, Sink};
+use crate::run::Summary;
+use nalgebra::Matrix6;
+use ros2_client::Publisher;
+use slamesh_core::Pose;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// The node's publishers (those turned off are `None`).
+pub struct Publishers {
+    /// `odom`.
+    pub odom: Publisher<Odometry>,
+    /// `/tf`.
+    pub tf: Option<Publisher<TfMessage>>,
+    /// `path`.
+    pub path: Publisher<PathMsg>,
+    /// `mesh`.
+    pub mesh: Option<Publisher<MarkerArray>>,
+    /// `/diagnostics`.
+    pub diagnostics: Publisher<DiagnosticArray>,
+}
+
+/// How often `/diagnostics` is published, at most.
+const DIAGNOSTICS_EVERY: Duration = Duration::from_secs(1);
+/// Latencies kept for the median and the 95th percentile.
+const LATENCIES: usize = 100;
+
+/// `odom` kept continuous; jumps go to `map -> odom`.
+#[derive(Debug, Clone, Copy)]
+struct OdomFrame {
+    map_odom: Pose,
+    odom_base: Pose,
+    /// The last motion in `odom` (to carry it over a jump).
+    step: Pose,
+}
+
+impl OdomFrame {
+    /// The robot at `map_base`; `jumped` when the pose may have jumped.
+    fn next(last: Option<Self>, map_base: Pose, jumped: bool) -> Self {
+        let Some(l) = last else {
+            return OdomFrame {
+                map_odom: map_base,
+                odom_base: Pose::identity(),
+                step: Pose::identity(),
+            };
+        };
+        if jumped {
+            let odom_base = l.odom_base * l.step;
+            return OdomFrame {
+                map_odom: map_base * odom_base.inverse(),
+                odom_base,
+                step: l.step,
+            };
+        }
+        let odom_base = l.map_odom.inverse() * map_base;
+        OdomFrame {
+            map_odom: l.map_odom,
+            odom_base,
+            step: l.odom_base.inverse() * odom_base,
+        }
+    }
+}
+
+/// The sink that publishes (see the module docs).
+pub struct Ros2Sink {
+    publishers: Publishers,
+    frames: Frames,
+    lidar_in_base: Pose,
+    counts: Arc<Mutex<Counts>>,
+    node: String,
+    odom: Option<OdomFrame>,
+    last: Option<(f64, Pose)>,
+    path: PathMsg,
+    tiles: Option<MeshTiles>,
+    latencies: Vec<f64>,
+    used: u64,
+    not_used: u64,
+    published: u64,
+    /// Mesh messages published, their markers and their triangles.
+    markers: (u64, u64, u64),
+    last_diagnostics: Option<Instant>,
+}
+
+impl Ros2Sink {
+    /// Publishes on `publishers` in `frames`, the LiDAR at `lidar_in_base` on the robot;
+    /// `tiles` for `mesh`; `counts` are the inputs' (for `diagnostics`), `node` the node's
+    /// name.
+    pub fn new(
+        publishers: Publishers,
+        frames: Frames,
+        lidar_in_base: Pose,
+        tiles: Option<MeshTiles>,
+        counts: Arc<Mutex<Counts>>,
+        node: String,
+    ) -> Self {
+        let path = PathMsg {
+            header: Header {
+                stamp: Time::default(),
+                frame_id: frames.map.clone(),
+            },
+            poses: Vec::new(),
+        };
+        Ros2Sink {
+            publishers,
+            frames,
+            lidar_in_base,
+            counts,
+            node,
+            odom: None,
+            last: None,
+            path,
+            tiles,
+            latencies: Vec::new(),
+            used: 0,
+            not_used: 0,
+            published: 0,
+            markers: (0, 0, 0),
+            last_diagnostics: None,
+        }
+    }
+
+    fn header(&self, stamp: Time, frame: &str) -> Header {
+        Header {
+            stamp,
+            frame_id: frame.to_string(),
+        }
+    }
+
+    /// The robot in `map` from the LiDAR's pose in the engine's world.
+    fn base_of(&self, lidar: &Pose) -> Pose {
+        self.lidar_in_base * lidar * self.lidar_in_base.inverse()
+    }
+
+    fn publish_pose(&mut self, e: &FrameEvent, lidar: &Pose) -> Result<(), String> {
+        let stamp = Time::from_seconds(e.record.stamp);
+        let map_base = self.base_of(lidar);
+        let jumped = e.record.relocalization.is_some() || !e.record.loop_closures.is_empty();
+        let odom = OdomFrame::next(self.odom, map_base, jumped);
+        self.odom = Some(odom);
+        let covariance = e
+            .information
+            .as_ref()
+            .map_or(Covariance::default(), |info| {
+                // The registration's information is about the LiDAR's pose in the world; the
+                // robot's pose there is `T · E⁻¹`.
+                let base_in_world = lidar * self.lidar_in_base.inverse();
+                ros_covariance(&local_covariance(info, &base_in_world), &odom.odom_base)
+            });
+        let twist = self.velocity(e.record.stamp, &odom.odom_base);
+        let odometry = Odometry {
+            header: self.header(stamp, &self.frames.odom),
+            child_frame_id: self.frames.base.clone(),
+            pose: PoseWithCovariance {
+                pose: PoseMsg::from(&odom.odom_base),
+                covariance,
+            },
+            twist: TwistWithCovariance {
+                twist,
+                covariance: Covariance::default(),
+            },
+        };
+        self.publishers
+            .odom
+            .publish(odometry)
+            .map_err(|e| format!("odom: {e:?}"))?;
+        if let Some(tf) = &self.publishers.tf {
+            let transforms = vec![
+                TransformStamped {
+                    header: self.header(stamp, &self.frames.map),
+                    child_frame_id: self.frames.odom.clone(),
+                    transform: PoseMsg::from(&odom.map_odom),
+                },
+                TransformStamped {
+                    header: self.header(stamp, &self.frames.odom),
+                    child_frame_id: self.frames.base.clone(),
+                    transform: PoseMsg::from(&odom.odom_base),
+                },
+            ];
+            tf.publish(TfMessage { transforms })
+                .map_err(|e| format!("/tf: {e:?}"))?;
+        }
+        self.path.header.stamp = stamp;
+        let pose = PoseStamped {
+            header: self.header(stamp, &self.frames.map),
+            pose: PoseMsg::from(&map_base),
+        };
+        self.path.poses.push(pose);
+        if let Some(m) = &e.map {
+            if let Some((corrected, _)) = &m.closed {
+                self.correct_path(corrected);
+            }
+        }
+        self.publishers
+            .path
+            .publish(self.path.clone())
+            .map_err(|e| format!("path: {e:?}"))
+    }
+
+    /// The velocity in the robot's frame from its last two poses in `odom`.
+    fn velocity(&mut self, stamp: f64, odom_base: &Pose) -> Twist {
+        let last = self.last.replace((stamp, *odom_base));
+        let Some((t0, p0)) = last else {
+            return Twist::default();
+        };
+        let dt = stamp - t0;
+        if !(dt > 1e-6) {
+            return Twist::default();
+        }
+        let d = p0.inverse() * odom_base;
+        let v = d.translation.vector / dt;
+        let w = d.rotation.scaled_axis() / dt;
+        Twist {
+            linear: Vector3 {
+                x: v.x,
+                y: v.y,
+                z: v.z,
+            },
+            angular: Vector3 {
+                x: w.x,
+                y: w.y,
+                z: w.z,
+            },
+        }
+    }
+
+    /// The path after a loop closure: `corrected` holds every used frame's LiDAR pose.
+    fn correct_path(&mut self, corrected: &[Pose]) {
+        if corrected.len() != self.path.poses.len() {
+            return;
+        }
+        for (p, c) in self.path.poses.iter_mut().zip(corrected) {
+            p.pose = PoseMsg::from(&(self.lidar_in_base * c * self.lidar_in_base.inverse()));
+        }
+    }
+
+    /// The tiles the frame changed wait their turn; the next ones within a frame's budget go
+    /// out (all of them when `all`, at the end).
+    fn publish_mesh(&mut self, update: Option<&MapUpdate>, all: bool) -> Result<(), String> {
+        let (Some(tiles), Some(publisher)) = (&mut self.tiles, &self.publishers.mesh) else {
+            return Ok(());
+        };
+        if let Some(u) = update {
+            if u.closed.is_some() {
+                tiles.clear();
+            }
+            tiles.update(&u.layers);
+        }
+        // The mesh is in the engine's world; `map` is that world seen from the robot.
+        let header = Header {
+            stamp: update.map_or(self.path.header.stamp, |u| Time::from_seconds(u.stamp_s)),
+            frame_id: self.frames.map.clone(),
+        };
+        let budget = if all { usize::MAX } else { FRAME_POINTS };
+        let placed = PoseMsg::from(&self.lidar_in_base);
+        for mut message in tiles.next_messages(budget, &header) {
+            for m in &mut message.markers {
+                m.pose = placed;
+                self.markers.1 += 1;
+                self.markers.2 += m.points.len() as u64 / 3;
+            }
+            self.markers.0 += 1;
+            publisher
+                .publish(message)
+                .map_err(|e| format!("mesh: {e:?}"))?;
+        }
+        Ok(())
+    }
+
+    fn publish_diagnostics(&mut self, stamp: f64, force: bool) -> Result<(), String> {
+        let due = self
+            .last_diagnostics
+            .is_none_or(|t| t.elapsed() >= DIAGNOSTICS_EVERY);
+        if !(due || force) {
+            return Ok(());
+        }
+        self.last_diagnostics = Some(Instant::now());
+        let counts = self.counts.lock().map(|c| c.clone()).unwrap_or_default();
+        let stamp = counts.clock_s.unwrap_or(stamp);
+        let (median, p95) = percentiles(&self.latencies);
+        let level = if counts.dropped + counts.refused + self.not_used > 0 {
+            1
+        } else {
+            0
+        };
+        let kv = |k: &str, v: String| KeyValue {
+            key: k.into(),
+            value: v,
+        };
+        let status = DiagnosticStatus {
+            level,
+            name: format!("{}: pipeline", self.node),
+            message: format!(
+                "{} frames used, {} not; {} scans dropped (behind), {} refused",
+                self.used, self.not_used, counts.dropped, counts.refused
+            ),
+            hardware_id: String::new(),
+            values: vec![
+                kv("frames_used", self.used.to_string()),
+                kv("frames_not_used", self.not_used.to_string()),
+                kv("scans_received", counts.received.to_string()),
+                kv("scans_dropped", counts.dropped.to_string()),
+                kv("messages_refused", counts.refused.to_string()),
+                kv("last_refused", counts.last_refused.unwrap_or_default()),
+                kv("latency_median_ms", format!("{median:.1}")),
+                kv("latency_p95_ms", format!("{p95:.1}")),
+                kv("initial_poses", counts.initial_poses.to_string()),
+                kv("save_requests", counts.save_requests.to_string()),
+            ],
+        };
+        let array = DiagnosticArray {
+            header: Header {
+                stamp: Time::from_seconds(stamp),
+                frame_id: String::new(),
+            },
+            status: vec![status],
+        };
+        self.publishers
+            .diagnostics
+            .publish(array)
+            .map_err(|e| format!("/diagnostics: {e:?}"))
+    }
+}
+
+/// Median and 95th percentile (0 when there are none).
+fn percentiles(v: &[f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (0.0, 0.0);
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let at = |q: f64| s[((s.len() - 1) as f64 * q).round() as usize];
+    (at(0.5), at(0.95))
+}
+
+/// A covariance of `pose · exp(ε)`, `ε = (ω, ρ)` in the robot's frame, as ROS writes a pose's:
+/// `(x, y, z, rotation about x, y, z)`, along the axes of the frame `pose` is in.
+fn ros_covariance(local: &Matrix6<f64>, pose: &Pose) -> Covariance {
+    let r = pose.rotation.to_rotation_matrix().into_inner();
+    let mut b = Matrix6::zeros();
+    // Rows of ROS's order from columns of (ω, ρ): x, y, z from ρ; rotations from ω.
+    b.fixed_view_mut::<3, 3>(0, 3).copy_from(&r);
+    b.fixed_view_mut::<3, 3>(3, 0).copy_from(&r);
+    Covariance::from(&(b * local * b.transpose()))
+}
+
+impl Sink for Ros2Sink {
+    fn name(&self) -> String {
+        "ROS 2".into()
+    }
+
+    fn wants_map(&self) -> bool {
+        self.tiles.is_some()
+    }
+
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+        let e = &*event;
+        if let Some(lidar) = e.pose {
+            self.used += 1;
+            self.publish_pose(e, &lidar)?;
+            self.publish_mesh(e.map.as_ref(), false)?;
+            self.published += 1;
+        } else {
+            self.not_used += 1;
+        }
+        if let Some(ms) = e.record.latency_ms {
+            if self.latencies.len() == LATENCIES {
+                self.latencies.remove(0);
+            }
+            self.latencies.push(ms);
+        }
+        self.publish_diagnostics(e.record.stamp, false)
+    }
+
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+        let stamp = self.path.header.stamp.seconds();
+        self.publish_mesh(None, true)?;
+        self.publish_diagnostics(stamp, true)?;
+        let _ = summary;
+        Ok(Some(format!(
+            "published {} poses ({} frames not used), the mesh in {} messages ({} markers, {} \
+             triangles)",
+            self.published, self.not_used, self.markers.0, self.markers.1, self.markers.2
+        )))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pose(x: f64, yaw: f64) -> Pose {
+        Pose::from_parts(
+            nalgebra::Translation3::new(x, 0.0, 0.0),
+            nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw),
+        )
+    }
+
+    #[test]
+    fn odom_is_continuous_and_jumps_go_to_map_odom() {
+        let a = OdomFrame::next(None, pose(5.0, 0.0), false);
+        assert_eq!(a.odom_base, Pose::identity());
+        let b = OdomFrame::next(Some(a), pose(6.0, 0.0), false);
+        assert!((b.odom_base.translation.vector.x - 1.0).abs() < 1e-12);
+        // A jump: odom goes on by the last step, map -> odom takes the rest.
+        let c = OdomFrame::next(Some(b), pose(20.0, 0.5), true);
+        assert!((c.odom_base.translation.vector.x - 2.0).abs() < 1e-12);
+        let map_base = c.map_odom * c.odom_base;
+        assert!((map_base.translation.vector.x - 20.0).abs() < 1e-9);
+        assert!((map_base.rotation.angle() - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn covariance_moves_to_ros_order_and_axes() {
+        let mut local = Matrix6::zeros();
+        // Rotation about the robot's z (ω_z) and translation along its x (ρ_x).
+        local[(2, 2)] = 4.0;
+        local[(3, 3)] = 9.0;
+        let c = ros_covariance(&local, &pose(0.0, std::f64::consts::FRAC_PI_2));
+        // The robot's x is the frame's y; its z stays z.
+        assert!((c.0[7] - 9.0).abs() < 1e-9, "{:?}", c.0);
+        assert!((c.0[35] - 4.0).abs() < 1e-9);
+        assert!(c.0[0].abs() < 1e-9);
+    }
+
+    #[test]
+    fn percentiles_of_latencies() {
+        assert_eq!(percentiles(&[]), (0.0, 0.0));
+        let v: Vec<f64> = (1..=100).map(f64::from).collect();
+        let (m, p) = percentiles(&v);
+        assert!((m - 51.0).abs() < 1.0 && (p - 95.0).abs() < 1.0);
+    }
+}

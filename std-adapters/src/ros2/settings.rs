@@ -1,0 +1,331 @@
+//! What the node is told: its name and namespace, the topics' names after remapping, the
+//! frames, the DDS domain and discovery range, and the parameters (from `--ros-args` and the
+//! environment, [`crate::formats::ros_args`]).
+//!
+//! | parameter | type | default | what |
+//! |---|---|---|---|
+//! | `map_frame`, `odom_frame`, `base_frame` | text | `map`, `odom`, `base_link` | the frames of `/tf` and `odom` |
+//! | `lidar_in_base` | 6 or 7 doubles | identity | the LiDAR's pose on the robot: `[x, y, z, roll, pitch, yaw]` or `[x, y, z, qx, qy, qz, qw]` |
+//! | `lidar_frame` | text | the first scan's | scans in another frame are refused |
+//! | `queue` | integer | 2 | scans waiting for the pipeline, at most; a scan that finds it full is dropped |
+//! | `publish_tf`, `publish_mesh` | bool | true | whether `/tf` and `mesh` are published |
+//! | `use_sim_time` | bool | false | stamp `diagnostics` with `/clock` |
+//! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize` | | | as the command's flags of the same names |
+//!
+//! Environment: `ROS_DOMAIN_ID` (0 to 232), `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` or
+//! `OFF`: this machine only) and the older `ROS_LOCALHOST_ONLY=1`.
+
+use crate::formats::ros_args::{ParamValue, RosArgs};
+use slamesh_core::Pose;
+use std::collections::BTreeMap;
+
+/// The node's name unless `__node` says otherwise.
+pub const NODE_NAME: &str = "slamesh";
+
+/// The highest domain id ROS 2 allows.
+pub const MAX_DOMAIN_ID: u16 = 232;
+
+/// Where the node's topics are, resolved (absolute) and remapped.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Topics {
+    /// Scans in (`points`).
+    pub points: String,
+    /// RViz's pose estimate in (`initialpose`).
+    pub initialpose: String,
+    /// Simulated time in (`/clock`).
+    pub clock: String,
+    /// The pose of every scan out (`odom`).
+    pub odom: String,
+    /// The trajectory out (`path`).
+    pub path: String,
+    /// The mesh out (`mesh`).
+    pub mesh: String,
+    /// The node's health out (`/diagnostics`).
+    pub diagnostics: String,
+    /// Transforms out (`/tf`).
+    pub tf: String,
+    /// The map-saving service (`~/save_map`).
+    pub save_map: String,
+}
+
+/// The frames the node names.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Frames {
+    /// The map's frame (`map`).
+    pub map: String,
+    /// The odometry frame (`odom`).
+    pub odom: String,
+    /// The robot (`base_link`).
+    pub base: String,
+}
+
+/// Everything the node is told.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeSettings {
+    /// The node's namespace (`/` when none).
+    pub namespace: String,
+    /// The node's name.
+    pub name: String,
+    /// The DDS domain.
+    pub domain_id: u16,
+    /// Discovery on this machine only.
+    pub localhost_only: bool,
+    /// The topics.
+    pub topics: Topics,
+    /// The frames.
+    pub frames: Frames,
+    /// The LiDAR's pose in the robot's frame.
+    pub lidar_in_base: Pose,
+    /// The scans' frame, if named.
+    pub lidar_frame: Option<String>,
+    /// Scans waiting for the pipeline, at most.
+    pub queue: usize,
+    /// Publish `/tf`.
+    pub publish_tf: bool,
+    /// Publish `mesh`.
+    pub publish_mesh: bool,
+    /// Follow `/clock`.
+    pub use_sim_time: bool,
+    /// The rest of the parameters (`preset`, `threads`, ...), for the command.
+    pub params: BTreeMap<String, ParamValue>,
+}
+
+/// An environment variable's value, if set.
+pub type Env<'a> = &'a dyn Fn(&str) -> Option<String>;
+
+impl NodeSettings {
+    /// From the command line's ROS arguments and the environment (`env`, the process's by
+    /// [`NodeSettings::from_process`]). Errors name the argument, parameter or variable.
+    pub fn new(args: &RosArgs, env: Env) -> Result<Self, String> {
+        let namespace = match args.namespace.as_deref() {
+            None | Some("/") => "/".to_string(),
+            Some(ns) => format!("/{}", ns.trim_matches('/')),
+        };
+        let name = args.node.clone().unwrap_or_else(|| NODE_NAME.into());
+        check_name(&name).map_err(|e| format!("__node: {e}"))?;
+        let fqn = join(&namespace, &name);
+        let mut params = args.parameters(&fqn)?;
+        let mut take = |k: &str| params.remove(k);
+        let text =
+            |v: Option<ParamValue>, default: &str| v.map_or(default.to_string(), |v| v.as_text());
+        let flag = |k: &str, v: Option<ParamValue>, default: bool| match v {
+            None => Ok(default),
+            Some(ParamValue::Bool(b)) => Ok(b),
+            Some(other) => Err(format!("parameter {k}: {other:?} is not true or false")),
+        };
+        let frames = Frames {
+            map: text(take("map_frame"), "map"),
+            odom: text(take("odom_frame"), "odom"),
+            base: text(take("base_frame"), "base_link"),
+        };
+        let lidar_in_base = match take("lidar_in_base") {
+            None => Pose::identity(),
+            Some(v) => pose_of(&v).map_err(|e| format!("parameter lidar_in_base: {e}"))?,
+        };
+        let queue = match take("queue") {
+            None => 2,
+            Some(ParamValue::Int(n)) if (1..=1000).contains(&n) => n as usize,
+            Some(other) => return Err(format!("parameter queue: {other:?} is not 1 to 1000")),
+        };
+        let resolve = |n: &str| resolve(args, &namespace, &name, n);
+        let topics = Topics {
+            points: resolve("points"),
+            initialpose: resolve("initialpose"),
+            clock: resolve("/clock"),
+            odom: resolve("odom"),
+            path: resolve("path"),
+            mesh: resolve("mesh"),
+            diagnostics: resolve("/diagnostics"),
+            tf: resolve("/tf"),
+            save_map: resolve("~/save_map"),
+        };
+        Ok(NodeSettings {
+            lidar_frame: take("lidar_frame").map(|v| v.as_text()),
+            publish_tf: flag("publish_tf", take("publish_tf"), true)?,
+            publish_mesh: flag("publish_mesh", take("publish_mesh"), true)?,
+            use_sim_time: flag("use_sim_time", take("use_sim_time"), false)?,
+            domain_id: domain_id(env)?,
+            localhost_only: localhost_only(env),
+            namespace,
+            name,
+            topics,
+            frames,
+            lidar_in_base,
+            queue,
+            params,
+        })
+    }
+
+    /// [`new`](Self::new) with this process's environment.
+    pub fn from_process(args: &RosArgs) -> Result<Self, String> {
+        Self::new(args, &|k| std::env::var(k).ok())
+    }
+
+    /// The node's fully qualified name (`/ns/name`).
+    pub fn fqn(&self) -> String {
+        join(&self.namespace, &self.name)
+    }
+}
+
+fn join(namespace: &str, name: &str) -> String {
+    if namespace == "/" {
+        format!("/{name}")
+    } else {
+        format!("{namespace}/{name}")
+    }
+}
+
+fn check_name(name: &str) -> Result<(), String> {
+    let ok = !name.is_empty()
+        && !name.starts_with(|c: char| c.is_ascii_digit())
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "{name:?} is not a node name (letters, digits and _)"
+        ))
+    }
+}
+
+/// `name` as ROS resolves it for the node `node` in `namespace` (`~/x` is the node's own,
+/// `/x` absolute, `x` in the namespace), then renamed if a remap names it (given or resolved).
+pub fn resolve(args: &RosArgs, namespace: &str, node: &str, name: &str) -> String {
+    let absolute = |n: &str| {
+        if let Some(rest) = n.strip_prefix("~/") {
+            format!("{}/{rest}", join(namespace, node))
+        } else if n.starts_with('/') {
+            n.to_string()
+        } else {
+            join(namespace, n)
+        }
+    };
+    let resolved = absolute(name);
+    match args
+        .renamed(name)
+        .or_else(|| args.renamed(&resolved))
+        .or_else(|| name.strip_prefix('/').and_then(|bare| args.renamed(bare)))
+    {
+        Some(to) => absolute(to),
+        None => resolved,
+    }
+}
+
+/// `[x, y, z, roll, pitch, yaw]` (radians) or `[x, y, z, qx, qy, qz, qw]`.
+fn pose_of(v: &ParamValue) -> Result<Pose, String> {
+    let ParamValue::Doubles(d) = v else {
+        return Err(format!("{v:?} is not a list of numbers"));
+    };
+    if !d.iter().all(|x| x.is_finite()) {
+        return Err("a number is not finite".into());
+    }
+    let t = nalgebra::Translation3::new;
+    match d[..] {
+        [x, y, z, roll, pitch, yaw] => Ok(Pose::from_parts(
+            t(x, y, z),
+            nalgebra::UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+        )),
+        [x, y, z, qx, qy, qz, qw] => {
+            let q = nalgebra::Quaternion::new(qw, qx, qy, qz);
+            if q.norm() < 1e-9 {
+                return Err("the quaternion is zero".into());
+            }
+            Ok(Pose::from_parts(
+                t(x, y, z),
+                nalgebra::UnitQuaternion::from_quaternion(q),
+            ))
+        }
+        _ => Err(format!("{} numbers, not 6 or 7", d.len())),
+    }
+}
+
+fn domain_id(env: Env) -> Result<u16, String> {
+    match env("ROS_DOMAIN_ID").filter(|s| !s.trim().is_empty()) {
+        None => Ok(0),
+        Some(s) => s
+            .trim()
+            .parse::<u16>()
+            .ok()
+            .filter(|d| *d <= MAX_DOMAIN_ID)
+            .ok_or_else(|| {
+                format!("ROS_DOMAIN_ID={s:?} is not a domain id (0 to {MAX_DOMAIN_ID})")
+            }),
+    }
+}
+
+fn localhost_only(env: Env) -> bool {
+    match env("ROS_AUTOMATIC_DISCOVERY_RANGE").as_deref() {
+        Some("LOCALHOST") | Some("OFF") => true,
+        Some(_) => false,
+        None => env("ROS_LOCALHOST_ONLY").as_deref() == Some("1"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings(line: &str, env: &[(&str, &str)]) -> Result<NodeSettings, String> {
+        let args: Vec<String> = line.split_whitespace().map(String::from).collect();
+        let env: Vec<(String, String)> = env
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        NodeSettings::new(&RosArgs::parse(&args)?, &|k| {
+            env.iter().find(|(n, _)| n == k).map(|(_, v)| v.clone())
+        })
+    }
+
+    #[test]
+    fn defaults_need_no_arguments() {
+        let s = settings("", &[]).unwrap();
+        assert_eq!(s.fqn(), "/slamesh");
+        assert_eq!(s.topics.points, "/points");
+        assert_eq!(s.topics.tf, "/tf");
+        assert_eq!(s.topics.save_map, "/slamesh/save_map");
+        assert_eq!((s.domain_id, s.localhost_only, s.queue), (0, false, 2));
+        assert_eq!(s.frames.base, "base_link");
+        assert!(s.publish_tf && s.publish_mesh && !s.use_sim_time);
+    }
+
+    #[test]
+    fn namespaces_remaps_and_parameters() {
+        let s = settings(
+            "--ros-args -r __ns:=/robot1 -r points:=/velodyne_points -r __node:=mapper \
+             -p odom_frame:=odom1 -p queue:=4 -p lidar_in_base:=[0.5,0,1.0,0,0,0] \
+             -p preset:=kitti -r /diagnostics:=/robot1/diag",
+            &[("ROS_DOMAIN_ID", "7"), ("ROS_LOCALHOST_ONLY", "1")],
+        )
+        .unwrap();
+        assert_eq!(s.topics.points, "/velodyne_points");
+        assert_eq!(s.topics.odom, "/robot1/odom");
+        assert_eq!(s.topics.tf, "/tf");
+        assert_eq!(s.topics.diagnostics, "/robot1/diag");
+        assert_eq!(s.topics.save_map, "/robot1/mapper/save_map");
+        assert_eq!(s.frames.odom, "odom1");
+        assert_eq!(s.queue, 4);
+        assert_eq!(s.lidar_in_base.translation.vector.x, 0.5);
+        assert_eq!((s.domain_id, s.localhost_only), (7, true));
+        assert_eq!(s.params["preset"], ParamValue::Text("kitti".into()));
+    }
+
+    #[test]
+    fn bad_settings_say_which() {
+        for (line, env, what) in [
+            ("", [("ROS_DOMAIN_ID", "300")], "ROS_DOMAIN_ID"),
+            ("--ros-args -p queue:=0", [("X", "")], "queue"),
+            ("--ros-args -p publish_tf:=3", [("X", "")], "publish_tf"),
+            (
+                "--ros-args -p lidar_in_base:=[1,2]",
+                [("X", "")],
+                "lidar_in_base",
+            ),
+            ("--ros-args -r __node:=9x", [("X", "")], "__node"),
+        ] {
+            let e = settings(line, &env).unwrap_err();
+            assert!(e.contains(what), "{line}: {e}");
+        }
+        let s = settings("", &[("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")]).unwrap();
+        assert!(s.localhost_only);
+    }
+}

@@ -1,0 +1,311 @@
+"""A stock rclpy peer for `slamesh ros2`: it publishes a KITTI sequence's scans as
+sensor_msgs/PointCloud2, listens to what the node publishes, calls its services, and writes
+what it saw as JSON for tests/ros2/check_node.py to judge.
+
+It is an rclpy node that nobody on this project wrote the middleware of: rclpy and Fast DDS
+from the Python package registry (the `ros-rclpy` wheels), speaking DDS to the node.
+
+    peer.py SCENARIO --kitti DIR --out FILE.json [--rate HZ] [--qos reliable|best_effort]
+
+Scenarios:
+- `scans`: every scan of DIR at --rate, waiting for each one's Odometry (up to 5 s) before
+  the next is due; then `~/save_map`; records the Odometry, the path, the mesh markers,
+  the diagnostics and the topics' advertised types.
+- `hostile`: malformed clouds (each kind once), then a flood of one scan at 100 Hz for 3 s,
+  then one good scan; records diagnostics and the Odometry that still come.
+- `initialpose`: the first scan, then an `initialpose` at a given pose, then the second scan
+  twice; records the Odometry.
+"""
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import Odometry, Path
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import PointCloud2, PointField
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
+
+FLOAT32 = PointField.FLOAT32
+
+
+def kitti_scans(folder):
+    """(stamp, points N x 4 float32) of every scan in a KITTI sequence folder."""
+    names = sorted(os.listdir(os.path.join(folder, "velodyne")))
+    stamps = [float(l) for l in open(os.path.join(folder, "times.txt")) if l.strip()]
+    for name, stamp in zip(names, stamps):
+        pts = np.fromfile(os.path.join(folder, "velodyne", name), dtype=np.float32)
+        yield stamp, pts.reshape(-1, 4)
+
+
+def cloud(stamp, points, frame="velodyne"):
+    """A PointCloud2 of x, y, z, intensity float32 points."""
+    m = PointCloud2()
+    m.header.stamp.sec = int(math.floor(stamp))
+    m.header.stamp.nanosec = int(round((stamp - math.floor(stamp)) * 1e9))
+    m.header.frame_id = frame
+    m.height = 1
+    m.width = len(points)
+    m.fields = [
+        PointField(name=n, offset=4 * k, datatype=FLOAT32, count=1)
+        for k, n in enumerate(["x", "y", "z", "intensity"])
+    ]
+    m.is_bigendian = False
+    m.point_step = 16
+    m.row_step = 16 * len(points)
+    m.data = points.astype(np.float32).tobytes()
+    m.is_dense = True
+    return m
+
+
+def malformed(stamp, points):
+    """(name, message) for each kind of bad cloud the node must skip."""
+    out = []
+    m = cloud(stamp, points)
+    m.point_step = 8  # smaller than its fields
+    out.append(("point_step smaller than its fields", m))
+    m = cloud(stamp, points)
+    m.data = m.data[: len(m.data) // 2]  # shorter than width * height * point_step
+    out.append(("data shorter than width * height * point_step", m))
+    m = cloud(stamp, points)
+    m.fields = [f for f in m.fields if f.name != "z"]
+    out.append(("no z", m))
+    nan = np.full((1000, 4), np.nan, dtype=np.float32)
+    out.append(("only NaN points", cloud(stamp, nan)))
+    out.append(("an empty cloud", cloud(stamp, np.zeros((0, 4), dtype=np.float32))))
+    m = cloud(stamp, points[:100])
+    m.width = 2**31  # a huge width
+    m.row_step = 16
+    out.append(("a huge width", m))
+    out.append(("an unknown frame", cloud(stamp, points, frame="camera")))
+    return out
+
+
+class Peer:
+    def __init__(self, args):
+        self.args = args
+        self.node = rclpy.create_node("slamesh_peer")
+        qos = QoSProfile(
+            depth=10,
+            reliability=(
+                ReliabilityPolicy.BEST_EFFORT
+                if args.qos == "best_effort"
+                else ReliabilityPolicy.RELIABLE
+            ),
+            history=HistoryPolicy.KEEP_LAST,
+        )
+        self.points = self.node.create_publisher(PointCloud2, "points", qos)
+        self.initialpose = self.node.create_publisher(
+            PoseWithCovarianceStamped, "initialpose", 10
+        )
+        self.odom = []
+        self.received_at = []
+        self.paths = []
+        self.markers = 0
+        self.marker_points = 0
+        self.marker_frames = set()
+        self.diagnostics = []
+        n = self.node
+        n.create_subscription(Odometry, "odom", self.on_odom, 100)
+        n.create_subscription(Path, "path", lambda m: self.paths.append(len(m.poses)), 10)
+        # Raw: kept as bytes while the node sends, read at the end (rclpy turns a point into a
+        # Python object, too slow to keep up with a first frame's tiles).
+        self.mesh_bytes = []
+        n.create_subscription(
+            MarkerArray, "mesh", self.mesh_bytes.append, 1000, raw=True
+        )
+        n.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 100)
+        self.save_map = n.create_client(Trigger, "/slamesh/save_map")
+
+    def on_odom(self, m):
+        p, q = m.pose.pose.position, m.pose.pose.orientation
+        self.received_at.append(time.monotonic())
+        self.odom.append(
+            {
+                "stamp": m.header.stamp.sec + m.header.stamp.nanosec * 1e-9,
+                "frame": m.header.frame_id,
+                "child": m.child_frame_id,
+                "pose": [p.x, p.y, p.z, q.x, q.y, q.z, q.w],
+                "covariance": list(m.pose.covariance),
+            }
+        )
+
+    def read_markers(self):
+        for b in self.mesh_bytes:
+            m = deserialize_message(b, MarkerArray)
+            self.markers += len(m.markers)
+            for k in m.markers:
+                self.marker_points += len(k.points)
+                self.marker_frames.add(k.header.frame_id)
+
+    def on_diagnostics(self, m):
+        for s in m.status:
+            self.diagnostics.append({v.key: v.value for v in s.values} | {"level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level)})
+
+    def spin_for(self, seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+
+    def spin_quiet(self, count, quiet, seconds):
+        """Spins until `count()` has not changed for `quiet` seconds (`seconds` at most)."""
+        end = time.monotonic() + seconds
+        last, since = count(), time.monotonic()
+        while time.monotonic() < end and time.monotonic() - since < quiet:
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+            if count() != last:
+                last, since = count(), time.monotonic()
+
+    def spin_until(self, done, seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end and not done():
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+        return done()
+
+    def wait_for_node(self):
+        ok = self.spin_until(
+            lambda: self.points.get_subscription_count() > 0
+            and self.node.count_publishers("odom") > 0,
+            30,
+        )
+        if not ok:
+            sys.exit("the node did not appear within 30 s")
+        self.spin_for(0.5)
+
+    def advertised(self):
+        return {
+            name: types
+            for name, types in self.node.get_topic_names_and_types()
+            if name in ("/tf", "/odom", "/path", "/mesh", "/diagnostics", "/points")
+        }
+
+    def call_save_map(self):
+        if not self.save_map.wait_for_service(timeout_sec=10):
+            return {"success": False, "message": "no service"}
+        future = self.save_map.call_async(Trigger.Request())
+        self.spin_until(future.done, 60)
+        r = future.result()
+        return {"success": r.success, "message": r.message} if r else None
+
+    def publish_scans(self, scans, rate):
+        """Each scan at `rate`, each waiting for the last one's Odometry (5 s at most)."""
+        sent = []
+        period = 1.0 / rate
+        for stamp, pts in scans:
+            due = time.monotonic() + period
+            self.points.publish(cloud(stamp, pts))
+            sent.append(time.monotonic())
+            want = len(sent)
+            self.spin_until(lambda: len(self.odom) >= want, 5)
+            self.spin_until(lambda: time.monotonic() >= due, period)
+        return sent
+
+
+def scenario_scans(peer, args):
+    scans = list(kitti_scans(args.kitti))
+    peer.wait_for_node()
+    sent = peer.publish_scans(scans, args.rate)
+    peer.spin_until(lambda: len(peer.odom) >= len(scans), 10)
+    peer.spin_quiet(lambda: len(peer.mesh_bytes), 2.0, 30)
+    peer.read_markers()
+    latency = [
+        (r - s) * 1000.0 for s, r in zip(sent, peer.received_at[: len(sent)])
+    ]
+    return {
+        "scans": len(scans),
+        "sent_stamps": [s for s, _ in scans],
+        "odom": peer.odom,
+        "latency_ms": latency,
+        "paths": peer.paths,
+        "mesh_messages": len(peer.mesh_bytes),
+        "markers": peer.markers,
+        "marker_points": peer.marker_points,
+        "marker_frames": sorted(peer.marker_frames),
+        "diagnostics": peer.diagnostics,
+        "advertised": peer.advertised(),
+        "save_map": peer.call_save_map(),
+    }
+
+
+def scenario_hostile(peer, args):
+    scans = list(kitti_scans(args.kitti))
+    peer.wait_for_node()
+    stamp, pts = scans[0]
+    peer.points.publish(cloud(stamp, pts))
+    peer.spin_until(lambda: len(peer.odom) >= 1, 10)
+    bad = malformed(stamps_after(scans, 1), pts)
+    for _, m in bad:
+        peer.points.publish(m)
+        peer.spin_for(0.1)
+    # A flood: one scan again and again at 100 Hz for 3 s, stamps advancing.
+    flood_stamp, flood_pts = scans[1]
+    flood = 0
+    end = time.monotonic() + 3.0
+    while time.monotonic() < end:
+        peer.points.publish(cloud(flood_stamp + 0.001 * flood, flood_pts))
+        flood += 1
+        peer.spin_for(0.01)
+    peer.spin_for(3.0)
+    return {
+        "malformed": [n for n, _ in bad],
+        "flood": flood,
+        "odom": peer.odom,
+        "diagnostics": peer.diagnostics,
+    }
+
+
+def stamps_after(scans, k):
+    return scans[k][0] - 0.05
+
+
+def scenario_initialpose(peer, args):
+    scans = list(kitti_scans(args.kitti))
+    peer.wait_for_node()
+    peer.publish_scans(scans[:3], args.rate)
+    m = PoseWithCovarianceStamped()
+    m.header.frame_id = "map"
+    x, y, z, qx, qy, qz, qw = args.pose
+    m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = x, y, z
+    o = m.pose.pose.orientation
+    o.x, o.y, o.z, o.w = qx, qy, qz, qw
+    peer.initialpose.publish(m)
+    peer.spin_for(1.0)
+    peer.publish_scans(scans[3:], args.rate)
+    peer.spin_for(1.5)
+    return {"odom": peer.odom, "diagnostics": peer.diagnostics}
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("scenario", choices=["scans", "hostile", "initialpose"])
+    p.add_argument("--kitti", required=True)
+    p.add_argument("--out", required=True)
+    p.add_argument("--rate", type=float, default=10.0)
+    p.add_argument("--qos", choices=["reliable", "best_effort"], default="reliable")
+    p.add_argument("--pose", type=float, nargs=7, default=[0, 0, 0, 0, 0, 0, 1])
+    args = p.parse_args()
+    rclpy.init()
+    peer = Peer(args)
+    run = {
+        "scans": scenario_scans,
+        "hostile": scenario_hostile,
+        "initialpose": scenario_initialpose,
+    }[args.scenario]
+    result = run(peer, args)
+    with open(args.out, "w") as f:
+        json.dump(result, f)
+    peer.node.destroy_node()
+    rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    main()
