@@ -8,13 +8,14 @@ from the Python package registry (the `ros-rclpy` wheels), speaking DDS to the n
     peer.py SCENARIO --kitti DIR --out FILE.json [--rate HZ] [--qos reliable|best_effort]
 
 Scenarios:
-- `scans`: every scan of DIR at --rate, waiting for each one's Odometry (up to 5 s) before
-  the next is due; then `~/save_map`; records the Odometry, the path, the mesh markers,
+- `scans`: the scans of DIR (--first to --last) at --rate, waiting for each one's Odometry
+  (up to 5 s) before the next is due; then `~/save_map`; records the Odometry, the path, the mesh markers,
   the diagnostics and the topics' advertised types.
 - `hostile`: malformed clouds (each kind once), then a flood of one scan at 100 Hz for 3 s,
   then one good scan; records diagnostics and the Odometry that still come.
-- `initialpose`: the first scan, then an `initialpose` at a given pose, then the second scan
-  twice; records the Odometry.
+- `initialpose`: three scans, then an `initialpose` at --pose, then the rest; records the
+  Odometry and the path.
+- `idle`: subscribes to everything and never reads, for --seconds.
 """
 
 import argparse
@@ -113,10 +114,13 @@ class Peer:
         self.markers = 0
         self.marker_points = 0
         self.marker_frames = set()
+        self.marker_types = set()
+        self.marker_box = [[math.inf] * 3, [-math.inf] * 3]
         self.diagnostics = []
         n = self.node
         n.create_subscription(Odometry, "odom", self.on_odom, 100)
-        n.create_subscription(Path, "path", lambda m: self.paths.append(len(m.poses)), 10)
+        self.last_path = []
+        n.create_subscription(Path, "path", self.on_path, 10)
         # Raw: kept as bytes while the node sends, read at the end (rclpy turns a point into a
         # Python object, too slow to keep up with a first frame's tiles).
         self.mesh_bytes = []
@@ -139,6 +143,17 @@ class Peer:
             }
         )
 
+    def on_path(self, m):
+        self.paths.append(len(m.poses))
+        self.last_path = [
+            {
+                "stamp": p.header.stamp.sec + p.header.stamp.nanosec * 1e-9,
+                "frame": p.header.frame_id,
+                "xyz": [p.pose.position.x, p.pose.position.y, p.pose.position.z],
+            }
+            for p in m.poses
+        ]
+
     def read_markers(self):
         for b in self.mesh_bytes:
             m = deserialize_message(b, MarkerArray)
@@ -146,6 +161,15 @@ class Peer:
             for k in m.markers:
                 self.marker_points += len(k.points)
                 self.marker_frames.add(k.header.frame_id)
+                if k.action == 0:
+                    xyz = [(q.x, q.y, q.z) for q in k.points]
+                    lo = [min(v[i] for v in xyz) for i in range(3)]
+                    hi = [max(v[i] for v in xyz) for i in range(3)]
+                    self.marker_box = [
+                        [min(a, b) for a, b in zip(self.marker_box[0], lo)],
+                        [max(a, b) for a, b in zip(self.marker_box[1], hi)],
+                    ]
+                    self.marker_types.add(k.type)
 
     def on_diagnostics(self, m):
         for s in m.status:
@@ -211,7 +235,7 @@ class Peer:
 
 
 def scenario_scans(peer, args):
-    scans = list(kitti_scans(args.kitti))
+    scans = list(kitti_scans(args.kitti))[args.first : args.last]
     peer.wait_for_node()
     sent = peer.publish_scans(scans, args.rate)
     peer.spin_until(lambda: len(peer.odom) >= len(scans), 10)
@@ -230,6 +254,9 @@ def scenario_scans(peer, args):
         "markers": peer.markers,
         "marker_points": peer.marker_points,
         "marker_frames": sorted(peer.marker_frames),
+        "marker_types": sorted(peer.marker_types),
+        "marker_box": peer.marker_box,
+        "last_path": peer.last_path,
         "diagnostics": peer.diagnostics,
         "advertised": peer.advertised(),
         "save_map": peer.call_save_map(),
@@ -246,10 +273,10 @@ def scenario_hostile(peer, args):
     for _, m in bad:
         peer.points.publish(m)
         peer.spin_for(0.1)
-    # A flood: one scan again and again at 100 Hz for 3 s, stamps advancing.
+    # A flood: one scan again and again at 100 Hz for --flood-s, stamps advancing.
     flood_stamp, flood_pts = scans[1]
     flood = 0
-    end = time.monotonic() + 3.0
+    end = time.monotonic() + args.flood_s
     while time.monotonic() < end:
         peer.points.publish(cloud(flood_stamp + 0.001 * flood, flood_pts))
         flood += 1
@@ -281,17 +308,27 @@ def scenario_initialpose(peer, args):
     peer.spin_for(1.0)
     peer.publish_scans(scans[3:], args.rate)
     peer.spin_for(1.5)
-    return {"odom": peer.odom, "diagnostics": peer.diagnostics}
+    return {"odom": peer.odom, "diagnostics": peer.diagnostics, "last_path": peer.last_path}
+
+
+def scenario_idle(peer, args):
+    """A subscriber that never reads: subscribed to everything, it never spins."""
+    time.sleep(args.seconds)
+    return {}
 
 
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("scenario", choices=["scans", "hostile", "initialpose"])
+    p.add_argument("scenario", choices=["scans", "hostile", "initialpose", "idle"])
     p.add_argument("--kitti", required=True)
     p.add_argument("--out", required=True)
     p.add_argument("--rate", type=float, default=10.0)
     p.add_argument("--qos", choices=["reliable", "best_effort"], default="reliable")
     p.add_argument("--pose", type=float, nargs=7, default=[0, 0, 0, 0, 0, 0, 1])
+    p.add_argument("--flood-s", type=float, default=3.0)
+    p.add_argument("--first", type=int, default=0, help="scans: the first scan sent")
+    p.add_argument("--last", type=int, default=None, help="scans: the scan after the last")
+    p.add_argument("--seconds", type=float, default=30.0, help="idle: how long")
     args = p.parse_args()
     rclpy.init()
     peer = Peer(args)
@@ -299,6 +336,7 @@ def main():
         "scans": scenario_scans,
         "hostile": scenario_hostile,
         "initialpose": scenario_initialpose,
+        "idle": scenario_idle,
     }[args.scenario]
     result = run(peer, args)
     with open(args.out, "w") as f:

@@ -284,7 +284,7 @@ impl Listener {
                         c.dropped += 1;
                         n = c.dropped;
                     });
-                    if n.is_power_of_two() {
+                    if worth_saying(n) {
                         log::warn!(
                             "{}: scan at {stamp:.3} s dropped: the pipeline is behind ({n} dropped \
                              so far)",
@@ -306,7 +306,7 @@ impl Listener {
             n = c.refused;
             c.last_refused = Some(line.clone());
         });
-        if n.is_power_of_two() {
+        if worth_saying(n) {
             log::warn!("{line} ({n} skipped so far)");
         }
     }
@@ -383,6 +383,12 @@ impl Listener {
             self.tx.wake();
         }
     }
+}
+
+/// Whether the `n`th refusal or drop is logged: the first ten, then the 16th, 32nd, ... (all
+/// are counted).
+fn worth_saying(n: u64) -> bool {
+    n <= 10 || n.is_power_of_two()
 }
 
 /// How long a `~/save_map` call waits for the run's answer.

@@ -38,8 +38,9 @@ use std::sync::Arc;
 pub struct RosNode {
     /// What it was told.
     pub settings: NodeSettings,
-    context: Context,
+    /// Dropped before the context it lives in (fields drop in order).
     node: Node,
+    context: Context,
 }
 
 /// Mesh messages a late or slow subscriber can still be sent again: a frame's tiles go out in
@@ -80,8 +81,8 @@ impl RosNode {
             .map_err(|e| format!("cannot start the node {}: {e:?}", settings.fqn()))?;
         Ok(RosNode {
             settings,
-            context,
             node,
+            context,
         })
     }
 

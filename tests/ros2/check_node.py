@@ -1,0 +1,293 @@
+"""Drives `slamesh ros2` with a stock rclpy peer (tests/ros2/peer.py) and checks what it does.
+
+Run it inside a network namespace of its own with only loopback (no packet may leave the
+machine); tests/ros2/run.sh makes one. It needs a Python with rclpy (the `ros-rclpy` wheels).
+
+    check_node.py --slamesh BIN --python PY --data DIR --work DIR
+
+Checks, each printed as it passes (the first failure stops it with its reason):
+1. `scans`: the kitti-mini 00 scans at 10 Hz (reliable publisher, a second subscriber that
+   never reads): every scan gets an Odometry stamped with its stamp whose pose equals
+   `slamesh run`'s on the same folder; the node's own trajectory file is `run`'s byte for
+   byte; /tf, odom, path, mesh and /diagnostics are advertised with their types and carry
+   what they should; `~/save_map` writes a map that `slamesh localize` loads and localizes
+   in.
+2. the same from a best-effort publisher, and from a publisher that restarts halfway.
+3. `hostile`: malformed clouds are each skipped and counted, a 100 Hz flood drops scans
+   whole (named, counted) with memory flat, and the node still ends cleanly with its
+   outputs.
+4. `initialpose`: a pose 1.1 m off relocalizes the next scan to within 5 cm of `run`'s pose.
+"""
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+TYPES = {
+    "/tf": "tf2_msgs/msg/TFMessage",
+    "/odom": "nav_msgs/msg/Odometry",
+    "/path": "nav_msgs/msg/Path",
+    "/mesh": "visualization_msgs/msg/MarkerArray",
+    "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+    "/points": "sensor_msgs/msg/PointCloud2",
+}
+
+
+def fail(why):
+    sys.exit(f"FAIL: {why}")
+
+
+def ok(what):
+    print(f"ok: {what}", flush=True)
+
+
+def tum(path):
+    """{stamp: [x y z qx qy qz qw]} of a TUM file."""
+    out = {}
+    for line in open(path):
+        if line.startswith("#") or not line.strip():
+            continue
+        v = [float(x) for x in line.split()]
+        out[round(v[0], 6)] = v[1:]
+    return out
+
+
+class Node:
+    """`slamesh ros2` in the background, its memory sampled; `stop` sends SIGINT."""
+
+    def __init__(self, args, out, extra=()):
+        os.makedirs(os.path.dirname(out), exist_ok=True)
+        self.log = open(out + ".log", "w")
+        self.p = subprocess.Popen(
+            [args.slamesh, "ros2", "--out", out, "-q", *extra, "--ros-args",
+             "-p", "preset:=kitti", "-p", "threads:=2"],
+            stdout=self.log, stderr=subprocess.STDOUT,
+        )
+        self.out = out
+        self.rss = []
+
+    def sample(self):
+        try:
+            for line in open(f"/proc/{self.p.pid}/status"):
+                if line.startswith("VmRSS"):
+                    self.rss.append(int(line.split()[1]) / 1024)
+        except OSError:
+            pass
+
+    def stop(self):
+        self.p.send_signal(signal.SIGINT)
+        try:
+            rc = self.p.wait(timeout=120)
+        except subprocess.TimeoutExpired:
+            self.p.kill()
+            fail(f"the node did not stop within 120 s of SIGINT ({self.out}.log)")
+        self.log.close()
+        if rc != 0:
+            fail(f"the node exited with {rc}: {open(self.out + '.log').read()[-2000:]}")
+        return open(self.out + ".log").read()
+
+
+def peer(args, scenario, out, *extra, node=None, background=False):
+    cmd = [args.python, os.path.join(os.path.dirname(__file__), "peer.py"), scenario,
+           "--kitti", os.path.join(args.data, "kitti-mini", "00"), "--out", out, *extra]
+    p = subprocess.Popen(cmd)
+    if background:
+        return p
+    while p.poll() is None:
+        if node:
+            node.sample()
+        time.sleep(0.25)
+    if p.returncode != 0:
+        fail(f"the peer ({scenario}) failed with {p.returncode}")
+    return json.load(open(out))
+
+
+def same_poses(odom, reference, what):
+    if len(odom) != len(reference):
+        fail(f"{what}: {len(odom)} Odometry messages for {len(reference)} scans")
+    for o in odom:
+        ref = reference.get(round(o["stamp"], 6))
+        if ref is None:
+            fail(f"{what}: an Odometry stamped {o['stamp']} matches no scan")
+        worst = max(abs(a - b) for a, b in zip(o["pose"], ref))
+        if worst > 2e-9:
+            fail(f"{what}: the pose at {o['stamp']} differs from run's by {worst}")
+        if o["frame"] != "odom" or o["child"] != "base_link":
+            fail(f"{what}: frames {o['frame']} -> {o['child']}")
+
+
+def check_scans(args, reference, run_mesh):
+    node = Node(args, os.path.join(args.work, "scans", "out"))
+    idle = peer(args, "idle", os.path.join(args.work, "idle.json"), "--seconds", "25",
+                background=True)
+    r = peer(args, "scans", os.path.join(args.work, "scans.json"), node=node)
+    log = node.stop()
+    idle.wait()
+    same_poses(r["odom"], reference, "reliable 10 Hz")
+    ok(f"{len(r['odom'])} scans at 10 Hz, each with an Odometry equal to run's "
+       f"(latency median {sorted(r['latency_ms'])[len(r['latency_ms']) // 2]:.0f} ms)")
+    covs = [o["covariance"] for o in r["odom"][1:]]
+    if not all(c[0] > 0 and c[35] > 0 and abs(c[1] - c[6]) < 1e-12 for c in covs):
+        fail("a registered scan's covariance is not positive and symmetric")
+    ok("covariances positive and symmetric")
+    with open(os.path.join(node.out, "poses_tum.txt")) as a, open(args.run_tum) as b:
+        if a.read() != b.read():
+            fail("the node's poses_tum.txt differs from run's")
+    ok("the node's poses_tum.txt is run's byte for byte")
+    for topic, t in TYPES.items():
+        if r["advertised"].get(topic) != [t]:
+            fail(f"{topic} advertised as {r['advertised'].get(topic)}, not {t}")
+    ok("topics advertised with their types: " + ", ".join(sorted(TYPES)))
+    path = r["last_path"]
+    if len(path) != len(reference) or any(p["frame"] != "map" for p in path):
+        fail(f"the last path has {len(path)} poses for {len(reference)} scans")
+    for p in path:
+        ref = reference[round(p["stamp"], 6)]
+        if max(abs(a - b) for a, b in zip(p["xyz"], ref[:3])) > 1e-6:
+            fail(f"the path's pose at {p['stamp']} is not run's")
+    ok("path: every pose, in map")
+    box = r["marker_box"]
+    lo, hi = run_mesh
+    # Markers show layers as they were when sent; the final mesh is welded from the last
+    # ones: the same place, within a cell.
+    inside = all(lo[i] - 1.0 <= box[0][i] and box[1][i] <= hi[i] + 1.0 for i in range(3))
+    if not (r["markers"] > 0 and r["marker_points"] % 3 == 0 and inside
+            and r["marker_frames"] == ["map"] and r["marker_types"] == [11]):
+        fail(f"mesh markers: {r['markers']} markers, {r['marker_points']} points, frames "
+             f"{r['marker_frames']}, types {r['marker_types']}, box {box} vs the mesh's {run_mesh}")
+    ok(f"mesh: {r['markers']} triangle-list markers, {r['marker_points'] // 3} triangles, "
+       "in map, within a metre of the final mesh's bounds")
+    d = r["diagnostics"]
+    if not d or any(x["scans_dropped"] != "0" or x["messages_refused"] != "0" for x in d):
+        fail(f"diagnostics: {d[-1:] if d else 'none'}")
+    ok(f"diagnostics: {len(d)} messages, no drops")
+    saved = r["save_map"]
+    map_file = os.path.join(node.out, "map.slamesh")
+    if not (saved and saved["success"] and os.path.isfile(map_file)):
+        fail(f"~/save_map: {saved}")
+    loc = os.path.join(args.work, "localize")
+    subprocess.run([args.slamesh, "localize", os.path.join(args.data, "kitti-mini", "00"),
+                    "--map", map_file, "--out", loc, "--threads", "2", "-q"], check=True)
+    moved = tum(os.path.join(loc, "poses_tum.txt"))
+    worst = max(max(abs(a - b) for a, b in zip(moved[t][:3], reference[t][:3])) for t in moved)
+    if len(moved) != len(reference) or worst > 0.05:
+        fail(f"localize in the saved map: {len(moved)} poses, {worst:.3f} m off")
+    ok(f"~/save_map wrote a map that localize uses ({worst * 100:.1f} cm from run's poses); "
+       f"the node said: {saved['message']}")
+    if "skipped:" in log or "dropped:" in log:
+        fail("the node skipped a message of a well-formed run")
+
+
+def check_other_publishers(args, reference):
+    node = Node(args, os.path.join(args.work, "best_effort", "out"))
+    r = peer(args, "scans", os.path.join(args.work, "best_effort.json"), "--qos", "best_effort",
+             node=node)
+    node.stop()
+    same_poses(r["odom"], reference, "best-effort publisher")
+    ok("a best-effort publisher: every scan, the same poses")
+    node = Node(args, os.path.join(args.work, "restart", "out"))
+    first = peer(args, "scans", os.path.join(args.work, "restart1.json"), "--last", "5")
+    second = peer(args, "scans", os.path.join(args.work, "restart2.json"), "--first", "5")
+    node.stop()
+    same_poses(first["odom"] + second["odom"], reference, "a publisher that restarts")
+    ok("a publisher that restarts halfway: every scan, the same poses")
+
+
+def check_hostile(args):
+    node = Node(args, os.path.join(args.work, "hostile", "out"))
+    r = peer(args, "hostile", os.path.join(args.work, "hostile.json"), "--flood-s", "6",
+             node=node)
+    log = node.stop()
+    last = r["diagnostics"][-1]
+    if int(last["messages_refused"]) != len(r["malformed"]):
+        fail(f"{len(r['malformed'])} malformed clouds, {last['messages_refused']} refused")
+    for reason in ["lies past point_step", "fewer than", "no x, y and z", "empty cloud", "row_step",
+                   "not the scans'"]:
+        if reason not in log:
+            fail(f"no message in the node's log says {reason!r}")
+    ok(f"malformed clouds ({', '.join(r['malformed'])}): each skipped with its reason, counted")
+    dropped = int(last["scans_dropped"])
+    if dropped == 0 or "dropped: the pipeline is behind" not in log:
+        fail(f"a {r['flood']}-scan flood at 100 Hz dropped nothing: {last}")
+    rss = node.rss
+    half = len(rss) // 2
+    if not rss or max(rss[half:]) > 1.25 * max(rss[:half]) + 50:
+        fail(f"memory grew through the flood: {rss}")
+    ok(f"a flood of {r['flood']} scans at 100 Hz: {dropped} dropped whole and named, "
+       f"memory flat (peak {max(rss):.0f} MB, first half {max(rss[:half]):.0f} MB)")
+    if not os.path.isfile(os.path.join(node.out, "report.json")):
+        fail("no report.json after SIGINT")
+    ok("SIGINT: the outputs written")
+
+
+def check_initialpose(args, reference):
+    node = Node(args, os.path.join(args.work, "initialpose", "out"))
+    r = peer(args, "initialpose", os.path.join(args.work, "initialpose.json"),
+             "--pose", "1.0", "0", "0", "0", "0", "0", "1")
+    log = node.stop()
+    if "1 Relocalized" not in log:
+        fail("the initialpose did not relocalize: " + log[-500:])
+    worst = max(
+        max(abs(a - b) for a, b in zip(p["xyz"], reference[round(p["stamp"], 6)][:3]))
+        for p in r["last_path"]
+    )
+    if len(r["last_path"]) != len(reference) or worst > 0.05:
+        fail(f"after initialpose: {len(r['last_path'])} poses, {worst:.3f} m from run's")
+    ok(f"initialpose 1.1 m off: relocalized, every pose within {worst * 100:.1f} cm of run's")
+
+
+def mesh_bounds(ply):
+    """The bounding box of a binary or ASCII PLY's vertices (x, y, z first)."""
+    import numpy as np
+
+    with open(ply, "rb") as f:
+        header = []
+        while True:
+            line = f.readline().decode().strip()
+            header.append(line)
+            if line == "end_header":
+                break
+        n = int(next(l.split()[2] for l in header if l.startswith("element vertex")))
+        props = []
+        in_vertex = False
+        for l in header:
+            if l.startswith("element"):
+                in_vertex = l.startswith("element vertex")
+            elif l.startswith("property") and in_vertex:
+                props.append(l.split()[1])
+        sizes = {"float": 4, "double": 8, "uchar": 1, "uint8": 1, "float32": 4}
+        step = sum(sizes[p] for p in props)
+        data = np.frombuffer(f.read(n * step), dtype=np.uint8).reshape(n, step)
+        dt = "<f8" if props[0] == "double" else "<f4"
+        w = 8 if props[0] == "double" else 4
+        xyz = np.stack([data[:, k * w:(k + 1) * w].copy().view(dt)[:, 0] for k in range(3)], 1)
+        return xyz.min(0).tolist(), xyz.max(0).tolist()
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--slamesh", required=True)
+    p.add_argument("--python", required=True)
+    p.add_argument("--data", required=True)
+    p.add_argument("--work", required=True)
+    args = p.parse_args()
+    os.makedirs(args.work, exist_ok=True)
+    run = os.path.join(args.work, "run")
+    subprocess.run([args.slamesh, "run", os.path.join(args.data, "kitti-mini", "00"), "--out",
+                    run, "--preset", "kitti", "--threads", "2", "-q"], check=True,
+                   stdout=subprocess.DEVNULL)
+    args.run_tum = os.path.join(run, "poses_tum.txt")
+    reference = tum(args.run_tum)
+    check_scans(args, reference, mesh_bounds(os.path.join(run, "mesh.ply")))
+    check_other_publishers(args, reference)
+    check_hostile(args)
+    check_initialpose(args, reference)
+    print("PASS")
+
+
+if __name__ == "__main__":
+    main()
