@@ -157,11 +157,13 @@ impl Cli {
             (false, 1) => log::LevelFilter::Debug,
             (false, _) => log::LevelFilter::Trace,
         };
-        // The DDS stack's own log (ROS 2 node) is its maintainers' business: errors only, and
-        // warnings with -v; RUST_LOG=rustdds=debug shows it all.
+        // The DDS stack's own log (the ROS 2 node's) is for its maintainers: off, warnings
+        // with -v, more with -vv (its repair traffic logs errors by the hundred that are
+        // not the node's); RUST_LOG=rustdds=debug shows it all.
         let dds = match self.verbose {
-            0 => log::LevelFilter::Error,
-            _ => log::LevelFilter::Warn,
+            0 => log::LevelFilter::Off,
+            1 => log::LevelFilter::Warn,
+            _ => log::LevelFilter::Debug,
         };
         let _ = env_logger::Builder::new()
             .filter_level(level)

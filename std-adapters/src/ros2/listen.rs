@@ -190,6 +190,10 @@ const INITIALPOSE: Token = Token(1);
 const CLOCK: Token = Token(2);
 const SAVE_MAP: Token = Token(3);
 
+/// A `~/save_map` call waiting for the run's answer: its id, the answer's way back, when it
+/// came.
+type PendingSave = (RmwRequestId, Receiver<Result<String, String>>, Instant);
+
 /// The listening thread's state.
 struct Listener {
     endpoints: Endpoints,
@@ -200,7 +204,7 @@ struct Listener {
     counts: Arc<Mutex<Counts>>,
     stop: Arc<AtomicBool>,
     /// `~/save_map` calls the run has not answered yet.
-    pending: Vec<(RmwRequestId, Receiver<Result<String, String>>, Instant)>,
+    pending: Vec<PendingSave>,
 }
 
 impl Listener {

@@ -229,7 +229,7 @@ impl Ros2Sink {
             return Twist::default();
         };
         let dt = stamp - t0;
-        if !(dt > 1e-6) {
+        if dt.is_nan() || dt <= 1e-6 {
             return Twist::default();
         }
         let d = p0.inverse() * odom_base;
