@@ -9,7 +9,8 @@ from the Python package registry (the `ros-rclpy` wheels), speaking DDS to the n
 
 Scenarios:
 - `scans`: the scans of DIR (--first to --last) at --rate, waiting for each one's Odometry
-  (up to 5 s) before the next is due; then `~/save_map`; records the Odometry, the path, the mesh markers,
+  (up to 5 s) before the next is due, with --imu ten IMU readings before each; then
+  `~/save_map`; records the Odometry, the path, the mesh markers,
   the diagnostics and the topics' advertised types.
 - `hostile`: malformed clouds (each kind once), then a flood of one scan at 100 Hz for 3 s,
   then one good scan; records diagnostics and the Odometry that still come.
@@ -32,7 +33,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry, Path
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import PointCloud2, PointField
+from sensor_msgs.msg import Imu, PointCloud2, PointField
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
@@ -108,6 +109,8 @@ class Peer:
         self.initialpose = self.node.create_publisher(
             PoseWithCovarianceStamped, "initialpose", 10
         )
+        self.imu = self.node.create_publisher(Imu, "imu", 100)
+        self.imu_sent = 0
         self.odom = []
         self.received_at = []
         self.paths = []
@@ -175,6 +178,19 @@ class Peer:
         for s in m.status:
             self.diagnostics.append({v.key: v.value for v in s.values} | {"level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level)})
 
+    def publish_imu(self, t0, t1, n=10):
+        """`n` readings stamped between two scans' stamps (after `t0`, up to `t1`)."""
+        for j in range(n):
+            t = t0 + (j + 1) * (t1 - t0) / n
+            m = Imu()
+            m.header.stamp.sec = int(math.floor(t))
+            m.header.stamp.nanosec = int(round((t - math.floor(t)) * 1e9))
+            m.header.frame_id = "imu"
+            m.angular_velocity.z = 0.01
+            m.linear_acceleration.z = 9.81
+            self.imu.publish(m)
+            self.imu_sent += 1
+
     def spin_for(self, seconds):
         end = time.monotonic() + seconds
         while time.monotonic() < end:
@@ -220,16 +236,22 @@ class Peer:
         r = future.result()
         return {"success": r.success, "message": r.message} if r else None
 
-    def publish_scans(self, scans, rate):
-        """Each scan at `rate`, each waiting for the last one's Odometry (5 s at most)."""
+    def publish_scans(self, scans, rate, free=False):
+        """Each scan at `rate`, each waiting for the last one's Odometry (5 s at most) unless
+        `free` (a sensor's pace, whatever the node does)."""
         sent = []
         period = 1.0 / rate
-        for stamp, pts in scans:
-            due = time.monotonic() + period
-            self.points.publish(cloud(stamp, pts))
+        messages = [cloud(stamp, pts) for stamp, pts in scans]
+        start = time.monotonic()
+        for k, m in enumerate(messages):
+            due = start + (k + 1) * period
+            if self.args.imu and k > 0:
+                self.publish_imu(scans[k - 1][0], scans[k][0])
+            self.points.publish(m)
             sent.append(time.monotonic())
             want = len(sent)
-            self.spin_until(lambda: len(self.odom) >= want, 5)
+            if not free:
+                self.spin_until(lambda: len(self.odom) >= want, 5)
             self.spin_until(lambda: time.monotonic() >= due, period)
         return sent
 
@@ -237,12 +259,16 @@ class Peer:
 def scenario_scans(peer, args):
     scans = list(kitti_scans(args.kitti))[args.first : args.last]
     peer.wait_for_node()
-    sent = peer.publish_scans(scans, args.rate)
+    sent = peer.publish_scans(scans, args.rate, args.free)
     peer.spin_until(lambda: len(peer.odom) >= len(scans), 10)
     peer.spin_quiet(lambda: len(peer.mesh_bytes), 2.0, 30)
     peer.read_markers()
+    # Publication to Odometry, matched by stamp.
+    sent_at = {round(stamp, 6): t for (stamp, _), t in zip(scans, sent)}
     latency = [
-        (r - s) * 1000.0 for s, r in zip(sent, peer.received_at[: len(sent)])
+        (r - sent_at[round(o["stamp"], 6)]) * 1000.0
+        for o, r in zip(peer.odom, peer.received_at)
+        if round(o["stamp"], 6) in sent_at
     ]
     return {
         "scans": len(scans),
@@ -250,6 +276,7 @@ def scenario_scans(peer, args):
         "odom": peer.odom,
         "latency_ms": latency,
         "paths": peer.paths,
+        "imu_sent": peer.imu_sent,
         "mesh_messages": len(peer.mesh_bytes),
         "markers": peer.markers,
         "marker_points": peer.marker_points,
@@ -329,6 +356,8 @@ def main():
     p.add_argument("--first", type=int, default=0, help="scans: the first scan sent")
     p.add_argument("--last", type=int, default=None, help="scans: the scan after the last")
     p.add_argument("--seconds", type=float, default=30.0, help="idle: how long")
+    p.add_argument("--free", action="store_true", help="scans: do not wait for each Odometry")
+    p.add_argument("--imu", action="store_true", help="scans: IMU readings between the scans")
     args = p.parse_args()
     rclpy.init()
     peer = Peer(args)

@@ -12,10 +12,9 @@ use crate::cli::settings::{Profile, WindowFlags};
 use crate::formats::ros_args::{ParamValue, RosArgs};
 use crate::outputs::mesh_spool::{MeshColour, MeshFormat};
 use crate::ros2::{NodeSettings, RosNode};
-use crate::run::capacity;
 use crate::run::config_file::Settings;
 use crate::run::sink::{FnSink, Queued, WhenFull};
-use crate::run::{run_to, FrameEvent, RunOptions, Sinks};
+use crate::run::{FrameEvent, RunOptions, Sinks};
 use clap::Args;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -174,12 +173,9 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
         frame_messages(&e.record, &bar, &mut notices);
         bar.inc(1);
     }));
-    let class = args
-        .capacity
-        .class()
-        .unwrap_or_else(|| capacity::choose(&mut source, &opts).id);
-    let summary = crate::with_capacity!(class, C => run_to::<C>(&mut source, &opts, sinks))?;
+    let summary = args.capacity.run(&mut source, &opts, sinks)?;
     bar.finish_and_clear();
+    notices.finish();
     print_summary(&summary, &args.out);
     Ok(())
 }

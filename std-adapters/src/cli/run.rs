@@ -164,6 +164,19 @@ pub enum CapacityFlag {
 }
 
 impl CapacityFlag {
+    /// Runs `source` to its end in the class named, or (`auto`) the one its first scans need.
+    pub fn run(
+        self,
+        source: &mut impl FrameSource,
+        opts: &RunOptions,
+        sinks: Sinks<'_>,
+    ) -> Result<Summary, CliError> {
+        let class = self
+            .class()
+            .unwrap_or_else(|| capacity::choose(source, opts).id);
+        Ok(crate::with_capacity!(class, C => run_to::<C>(source, opts, sinks))?)
+    }
+
     /// The class named, or `None` for `auto`.
     pub fn class(self) -> Option<ClassId> {
         match self {
@@ -339,11 +352,7 @@ fn run_with(
     };
     let mut sinks = view_sinks(args, &opts)?;
     sinks.add(FnSink::new("progress", on_frame));
-    let class = args
-        .capacity
-        .class()
-        .unwrap_or_else(|| capacity::choose(&mut source, &opts).id);
-    let summary = crate::with_capacity!(class, C => run_to::<C>(&mut source, &opts, sinks))?;
+    let summary = args.capacity.run(&mut source, &opts, sinks)?;
     bar.finish_and_clear();
     notices.finish();
     print_summary(&summary, &args.out);

@@ -1,5 +1,5 @@
-//! The node's way in: a thread of its own takes what comes on `points` (and `initialpose`,
-//! `/clock`, the `~/save_map` service) and hands scans to the run through a bounded queue
+//! The node's way in: a thread of its own takes what comes on `points` (and `imu`,
+//! `initialpose`, `/clock`, the `~/save_map` service) and hands scans to the run through a bounded queue
 //! ([`crate::sources::feed`]), so that the run reads the node as any other live source
 //! ([`Ros2Source`], a [`FrameSource`]).
 //!
@@ -11,19 +11,24 @@
 //!   ([`Counts::refused`]), never a crash;
 //! - requests (a pose to relocalize at, a map to save) reach the run between frames, also
 //!   while it waits for a scan ([`Request`]);
+//! - IMU readings reach the run with the first frame stamped at or after them
+//!   ([`FrameSource::samples`]), at most [`IMU_KEPT`] waiting;
 //! - the stream ends when the stop flag is set (the command sets it on SIGINT and SIGTERM);
 //!   the run then writes its outputs as a finished one does.
 
 use crate::io::error::FileError;
 use crate::ros2::clouds::{FrameCheck, RawAdapter, RawMessage};
-use crate::ros2::messages::{Clock, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse};
+use crate::ros2::messages::{
+    Clock, Imu, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse,
+};
 use crate::sources::feed::{Feed, FeedSender, Offered};
-use crate::sources::{FrameSource, Request, Waited};
+use crate::sources::{FrameSource, ImuReading, Request, Sample, Waited};
 use ros2_client::{RmwRequestId, Server, Subscription};
 use rustdds::mio1::{Events, Interest, Poll, Token};
 use rustdds::no_key::SimpleDataReader;
 use serde::Serialize;
 use slamesh_core::Point;
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex};
@@ -45,6 +50,10 @@ pub struct Counts {
     pub last_refused: Option<String>,
     /// Poses taken on `initialpose`.
     pub initial_poses: u64,
+    /// Readings taken on `imu`.
+    pub imu_readings: u64,
+    /// Readings refused (a number not finite) or dropped (more than [`IMU_KEPT`] waiting).
+    pub imu_dropped: u64,
     /// Map saves asked for on `~/save_map`.
     pub save_requests: u64,
     /// The latest `/clock` (seconds), when `use_sim_time` is set.
@@ -57,6 +66,8 @@ pub struct Endpoints {
     pub points: SimpleDataReader<RawMessage, RawAdapter>,
     /// `initialpose`.
     pub initialpose: Subscription<PoseWithCovarianceStamped>,
+    /// `imu`.
+    pub imu: Subscription<Imu>,
     /// `/clock`, when `use_sim_time` is set.
     pub clock: Option<Subscription<Clock>>,
     /// `~/save_map`.
@@ -72,9 +83,17 @@ pub struct Names {
     pub initialpose: String,
 }
 
+/// IMU readings waiting for their frame, at most (ten seconds at 400 Hz): the oldest go
+/// first.
+pub const IMU_KEPT: usize = 4000;
+
+/// IMU readings waiting for the frame whose stamp follows theirs.
+type ImuQueue = Arc<Mutex<VecDeque<Sample>>>;
+
 /// The node's inputs as frames.
 pub struct Ros2Source {
     feed: Feed,
+    imu: ImuQueue,
     requests: Receiver<Request>,
     counts: Arc<Mutex<Counts>>,
     stop: Arc<AtomicBool>,
@@ -102,7 +121,9 @@ impl Ros2Source {
         let (tx, feed) = crate::sources::feed::channel(names.points.clone(), "scan", queue);
         let (request_tx, requests) = mpsc::channel();
         let counts = Arc::new(Mutex::new(Counts::default()));
+        let imu = ImuQueue::default();
         let listener = Listener {
+            imu: imu.clone(),
             endpoints,
             names,
             check: FrameCheck {
@@ -120,6 +141,7 @@ impl Ros2Source {
             .map_err(|e| format!("cannot start the listening thread: {e}"))?;
         Ok(Ros2Source {
             feed,
+            imu,
             requests,
             counts,
             stop,
@@ -171,6 +193,18 @@ impl FrameSource for Ros2Source {
     fn arrival(&self, i: usize) -> Option<Instant> {
         self.feed.arrival(i)
     }
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        let up_to = self.feed.stamp(i);
+        let Ok(mut q) = self.imu.lock() else {
+            return Vec::new();
+        };
+        let mut out: Vec<Sample> = Vec::new();
+        while q.front().is_some_and(|s| s.stamp() <= up_to) {
+            out.extend(q.pop_front());
+        }
+        out.sort_by(|a, b| a.stamp().total_cmp(&b.stamp()));
+        out
+    }
     fn requests(&mut self) -> Vec<Request> {
         self.requests.try_iter().collect()
     }
@@ -189,6 +223,7 @@ const POINTS: Token = Token(0);
 const INITIALPOSE: Token = Token(1);
 const CLOCK: Token = Token(2);
 const SAVE_MAP: Token = Token(3);
+const IMU: Token = Token(4);
 
 /// A `~/save_map` call waiting for the run's answer: its id, the answer's way back, when it
 /// came.
@@ -197,6 +232,7 @@ type PendingSave = (RmwRequestId, Receiver<Result<String, String>>, Instant);
 /// The listening thread's state.
 struct Listener {
     endpoints: Endpoints,
+    imu: ImuQueue,
     names: Names,
     check: FrameCheck,
     tx: FeedSender,
@@ -234,6 +270,7 @@ impl Listener {
                 break;
             }
             self.take_initial_poses();
+            self.take_imu();
             self.take_clock();
             self.take_save_requests();
         }
@@ -246,6 +283,7 @@ impl Listener {
         let e = &mut self.endpoints;
         r.register(&mut e.points, POINTS, Interest::READABLE)?;
         r.register(&mut e.initialpose, INITIALPOSE, Interest::READABLE)?;
+        r.register(&mut e.imu, IMU, Interest::READABLE)?;
         if let Some(c) = &mut e.clock {
             r.register(c, CLOCK, Interest::READABLE)?;
         }
@@ -335,6 +373,41 @@ impl Listener {
                     self.names.initialpose
                 ),
             }
+        }
+    }
+
+    /// Every IMU reading waiting; a reading with a number that is not finite is refused.
+    fn take_imu(&mut self) {
+        let (mut taken, mut dropped) = (0, 0);
+        while let Ok(Some((m, _))) = self.endpoints.imu.take() {
+            let (w, a) = (m.angular_velocity, m.linear_acceleration);
+            let reading = ImuReading {
+                stamp: m.header.stamp.seconds(),
+                gyro: [w.x, w.y, w.z],
+                accel: [a.x, a.y, a.z],
+            };
+            let finite = reading
+                .gyro
+                .iter()
+                .chain(&reading.accel)
+                .all(|v| v.is_finite());
+            let Ok(mut q) = self.imu.lock() else { return };
+            if !finite {
+                dropped += 1;
+                continue;
+            }
+            if q.len() == IMU_KEPT {
+                q.pop_front();
+                dropped += 1;
+            }
+            q.push_back(Sample::Imu(reading));
+            taken += 1;
+        }
+        if taken + dropped > 0 {
+            self.count(|c| {
+                c.imu_readings += taken;
+                c.imu_dropped += dropped;
+            });
         }
     }
 

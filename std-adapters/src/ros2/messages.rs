@@ -436,6 +436,26 @@ pub struct MarkerArray {
 }
 typed!(MarkerArray, "visualization_msgs", "MarkerArray");
 
+/// `sensor_msgs/Imu`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Imu {
+    /// Stamp and the IMU's frame.
+    pub header: Header,
+    /// Orientation, if the IMU estimates it.
+    pub orientation: Quaternion,
+    /// Its covariance (row by row; -1 first: none).
+    pub orientation_covariance: [f64; 9],
+    /// Angular velocity (rad/s).
+    pub angular_velocity: Vector3,
+    /// Its covariance.
+    pub angular_velocity_covariance: [f64; 9],
+    /// Specific force (m/s², gravity included).
+    pub linear_acceleration: Vector3,
+    /// Its covariance.
+    pub linear_acceleration_covariance: [f64; 9],
+}
+typed!(Imu, "sensor_msgs", "Imu");
+
 /// `rosgraph_msgs/Clock` (`/clock`, when `use_sim_time` is set).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Clock {

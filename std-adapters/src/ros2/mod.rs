@@ -1,7 +1,7 @@
 //! `slamesh ros2`: the pipeline as a ROS 2 node, with no ROS installation. It speaks DDS, ROS
 //! 2's default middleware, through ros2-client on RustDDS (pure Rust), so a stock ROS 2
 //! robot's nodes (Fast DDS, Cyclone DDS) talk to it untouched (the choice: docs/design.md
-//! §2.5).
+//! §2.2).
 //!
 //! The node is a run like any other: a live source of frames (the way in) and a sink of the
 //! run's events (the way out), so its poses are `slamesh run`'s on the same scans.

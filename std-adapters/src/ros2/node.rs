@@ -9,14 +9,15 @@
 //! - `odom`, `path`, `/diagnostics`: reliable, volatile, the last 10; `mesh` the last 64
 //!   (a frame's tiles go out in several messages);
 //! - `/tf`: reliable, the last 100; `initialpose`, `/clock`: reliable and best effort, the
-//!   last 10 and 1; `~/save_map`: the services' default.
+//!   last 10 and 1; `imu`: best effort, the last 400 (a second at 400 Hz); `~/save_map`: the
+//!   services' default.
 
 use crate::ros2::clouds::{RawAdapter, RawMessage};
 use crate::ros2::listen::{Endpoints, Names, Ros2Source};
 use crate::ros2::mesh_tiles::MeshTiles;
 use crate::ros2::messages::{
-    Clock, DiagnosticArray, MarkerArray, Odometry, PathMsg, PoseWithCovarianceStamped, TfMessage,
-    TriggerRequest, TriggerResponse, Typed,
+    Clock, DiagnosticArray, Imu, MarkerArray, Odometry, PathMsg, PoseWithCovarianceStamped,
+    TfMessage, TriggerRequest, TriggerResponse, Typed,
 };
 use crate::ros2::publish::{Publishers, Ros2Sink};
 use crate::ros2::settings::NodeSettings;
@@ -168,6 +169,12 @@ impl RosNode {
             points,
             initialpose: self
                 .subscription::<PoseWithCovarianceStamped>(&t.initialpose, reliable(10))?,
+            imu: self.subscription::<Imu>(
+                &t.imu,
+                QosProfile::subscription_default()
+                    .reliability_best_effort()
+                    .history(History::KeepLast { depth: 400 }),
+            )?,
             clock,
             save_map,
         };

@@ -330,6 +330,8 @@ impl Ros2Sink {
                 kv("latency_median_ms", format!("{median:.1}")),
                 kv("latency_p95_ms", format!("{p95:.1}")),
                 kv("initial_poses", counts.initial_poses.to_string()),
+                kv("imu_readings", counts.imu_readings.to_string()),
+                kv("imu_dropped", counts.imu_dropped.to_string()),
                 kv("save_requests", counts.save_requests.to_string()),
             ],
         };

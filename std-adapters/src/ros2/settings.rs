@@ -30,6 +30,8 @@ pub const MAX_DOMAIN_ID: u16 = 232;
 pub struct Topics {
     /// Scans in (`points`).
     pub points: String,
+    /// IMU readings in (`imu`).
+    pub imu: String,
     /// RViz's pose estimate in (`initialpose`).
     pub initialpose: String,
     /// Simulated time in (`/clock`).
@@ -130,6 +132,7 @@ impl NodeSettings {
         let resolve = |n: &str| resolve(args, &namespace, &name, n);
         let topics = Topics {
             points: resolve("points"),
+            imu: resolve("imu"),
             initialpose: resolve("initialpose"),
             clock: resolve("/clock"),
             odom: resolve("odom"),
@@ -307,6 +310,18 @@ mod tests {
         assert_eq!(s.lidar_in_base.translation.vector.x, 0.5);
         assert_eq!((s.domain_id, s.localhost_only), (7, true));
         assert_eq!(s.params["preset"], ParamValue::Text("kitti".into()));
+    }
+
+    #[test]
+    fn the_example_parameter_file_is_read_as_documented() {
+        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/ros2/params.yaml");
+        let s = settings(&format!("--ros-args --params-file {file}"), &[]).unwrap();
+        assert_eq!((s.queue, s.publish_tf, s.use_sim_time), (2, true, false));
+        assert_eq!(s.lidar_in_base, Pose::identity());
+        assert_eq!(s.frames.map, "map");
+        // What is left is the command's (cli/ros2.rs), as the module docs list.
+        let left: Vec<&str> = s.params.keys().map(String::as_str).collect();
+        assert_eq!(left, ["out", "preset", "threads"]);
     }
 
     #[test]
