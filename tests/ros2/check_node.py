@@ -122,7 +122,7 @@ def same_poses(odom, reference, what):
 
 def check_scans(args, reference, run_mesh):
     node = Node(args, os.path.join(args.work, "scans", "out"))
-    idle = peer(args, "idle", os.path.join(args.work, "idle.json"), "--seconds", "25",
+    idle = peer(args, "idle", os.path.join(args.work, "idle.json"), "--seconds", "8",
                 background=True)
     r = peer(args, "scans", os.path.join(args.work, "scans.json"), "--imu", node=node)
     log = node.stop()

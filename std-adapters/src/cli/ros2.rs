@@ -90,7 +90,8 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
         Some(ParamValue::Int(n)) if (0..=1024).contains(&n) => n as usize,
         Some(v) => {
             return Err(node_error(format!(
-                "parameter threads: {v:?} is not 0 to 1024"
+                "parameter threads: {} is not 0 to 1024",
+                v.as_text()
             )))
         }
     };
@@ -99,7 +100,8 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
         Some(ParamValue::Bool(b)) => b,
         Some(v) => {
             return Err(node_error(format!(
-                "parameter localize: {v:?} is not true or false"
+                "parameter localize: {} is not true or false",
+                v.as_text()
             )))
         }
     };

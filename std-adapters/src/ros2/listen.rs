@@ -304,8 +304,9 @@ impl Listener {
                 Ok(Some(s)) => s,
                 Ok(None) => return true,
                 Err(e) => {
+                    // Looked at again on the next wake-up, not in a loop here.
                     self.refuse(None, format!("cannot read the message: {e}"));
-                    continue;
+                    return true;
                 }
             };
             let arrived = Instant::now();

@@ -113,7 +113,10 @@ impl NodeSettings {
         let flag = |k: &str, v: Option<ParamValue>, default: bool| match v {
             None => Ok(default),
             Some(ParamValue::Bool(b)) => Ok(b),
-            Some(other) => Err(format!("parameter {k}: {other:?} is not true or false")),
+            Some(other) => Err(format!(
+                "parameter {k}: {} is not true or false",
+                other.as_text()
+            )),
         };
         let frames = Frames {
             map: text(take("map_frame"), "map"),
@@ -127,7 +130,12 @@ impl NodeSettings {
         let queue = match take("queue") {
             None => 2,
             Some(ParamValue::Int(n)) if (1..=1000).contains(&n) => n as usize,
-            Some(other) => return Err(format!("parameter queue: {other:?} is not 1 to 1000")),
+            Some(other) => {
+                return Err(format!(
+                    "parameter queue: {} is not 1 to 1000",
+                    other.as_text()
+                ))
+            }
         };
         let resolve = |n: &str| resolve(args, &namespace, &name, n);
         let topics = Topics {
@@ -217,7 +225,7 @@ pub fn resolve(args: &RosArgs, namespace: &str, node: &str, name: &str) -> Strin
 /// `[x, y, z, roll, pitch, yaw]` (radians) or `[x, y, z, qx, qy, qz, qw]`.
 fn pose_of(v: &ParamValue) -> Result<Pose, String> {
     let ParamValue::Doubles(d) = v else {
-        return Err(format!("{v:?} is not a list of numbers"));
+        return Err(format!("{} is not a list of numbers", v.as_text()));
     };
     if !d.iter().all(|x| x.is_finite()) {
         return Err("a number is not finite".into());
