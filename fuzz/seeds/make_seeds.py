@@ -162,3 +162,39 @@ put("velodyne_calibration", "flow", b"distance_resolution: 0.002\nlasers:\n"
                b"dist_correction: 1.4, dist_correction_x: 1.42, dist_correction_y: 1.41, "
                b"vert_offset_correction: 0.21, horiz_offset_correction: 0.026}\n"
                % (i, -0.4 + i * 0.01) for i in range(64)))
+
+
+# The ROS 2 node's command line and a parameter file (ros_args).
+put("ros_args", "command_line", b"--ros-args -r points:=/velodyne_points -p threads:=2 "
+    b"-p preset:=kitti -r __ns:=/robot1 -p lidar_in_base:=[0.0,0,1.2,0,0,0]")
+put("ros_args", "params_file", open("../examples/ros2/params.yaml", "rb").read())
+
+
+# The messages the ROS 2 node takes, in little-endian CDR as ROS 2 writes them (ros_messages):
+# an `initialpose` (PoseWithCovarianceStamped) and an `imu` reading.
+class Cdr:
+    def __init__(self):
+        self.b = bytearray()
+
+    def put(self, fmt, *v):
+        size = struct.calcsize("<" + fmt[-1])
+        self.b += b"\0" * (-len(self.b) % size)
+        self.b += struct.pack("<" + fmt, *v)
+        return self
+
+    def string(self, s):
+        data = s.encode() + b"\0"
+        return self.put("I", len(data)).raw(data)
+
+    def raw(self, data):
+        self.b += data
+        return self
+
+
+header = lambda c, frame: c.put("iI", 12, 500000000).string(frame)
+pose = header(Cdr(), "map").put("7d", 2.0, 0.5, 0.0, 0.0, 0.0, 0.38, 0.92).put("36d", *([0.1] * 36))
+put("ros_messages", "initialpose", bytes(pose.b))
+imu = (header(Cdr(), "imu").put("4d", 0, 0, 0, 1).put("9d", *([-1.0] + [0.0] * 8))
+       .put("3d", 0.01, -0.02, 0.3).put("9d", *([0.0] * 9)).put("3d", 0.1, 0.2, 9.81)
+       .put("9d", *([0.0] * 9)))
+put("ros_messages", "imu", bytes(imu.b))

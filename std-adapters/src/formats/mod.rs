@@ -14,6 +14,7 @@
 //! | map files: the map saved for later runs, read whole or by tile (the std side) | [`map_file`] |
 //! | trajectories, KITTI and TUM | [`trajectory`] |
 //! | the ROS 2 command line (`--ros-args`) and parameter files | [`ros_args`] |
+//! | ROS 2 messages as serde types laid out for CDR (odometry, transforms, markers, IMU, ...) | [`ros_messages`] |
 
 pub mod kitti;
 pub mod lzf;
@@ -24,4 +25,5 @@ pub mod pcd;
 pub mod ply;
 pub mod pointcloud2;
 pub mod ros_args;
+pub mod ros_messages;
 pub mod trajectory;

@@ -1,7 +1,7 @@
 //! The node's way in: a thread of its own takes what comes on `points` (and `imu`,
-//! `initialpose`, `/clock`, the `~/save_map` service) and hands scans to the run through a bounded queue
-//! ([`crate::sources::feed`]), so that the run reads the node as any other live source
-//! ([`Ros2Source`], a [`FrameSource`]).
+//! `initialpose`, `/clock`, the `~/save_map` service) and hands scans to the run through a
+//! bounded queue ([`crate::sources::feed`]), so that the run reads the node as any other live
+//! source ([`Ros2Source`], a [`FrameSource`]).
 //!
 //! What it guarantees:
 //! - the DDS reader is drained as messages come; the thread never waits for the run: a scan

@@ -200,6 +200,61 @@ impl MeshTiles {
 mod tests {
     use super::*;
 
+    /// A flat, certain layer: every triangle shown.
+    fn flat() -> Layer {
+        Layer {
+            pred: [0.5; VERTICES],
+            var: [0.01; VERTICES],
+        }
+    }
+
+    fn tiles() -> MeshTiles {
+        let config = slamesh_core::Config::default();
+        MeshTiles::new(config.lattice().table(), Shown::new(&config.mesh))
+    }
+
+    fn header() -> Header {
+        Header {
+            frame_id: "map".into(),
+            ..Header::default()
+        }
+    }
+
+    #[test]
+    fn changed_tiles_go_out_paced_once_each_and_emptied_ones_are_deleted() {
+        let mut t = tiles();
+        // Three tiles: two cells in tile (0, 0, 0), one in (1, 0, 0), one in (0, 2, 0).
+        let layers: Vec<(CellKey, Axis, Layer)> = [(0, 0), (1, 0), (8, 0), (0, 16)]
+            .iter()
+            .map(|&(x, y)| (CellKey { x, y, z: 0 }, Axis::Z, flat()))
+            .collect();
+        t.update(&layers);
+        assert_eq!(t.waiting(), 3);
+        let per_layer = t.triangles() / 4 * 3;
+        assert!(per_layer > 0);
+        // A budget of one layer's points: one tile a frame (the first whole, even if larger).
+        let first = t.next_messages(per_layer, &header());
+        assert_eq!(first.len(), 1);
+        assert_eq!(first[0].markers.len(), 1);
+        assert_eq!(first[0].markers[0].points.len(), 2 * per_layer);
+        // A tile changed again while it waits is still sent once, with its latest triangles.
+        t.update(&layers[2..3]);
+        let rest: Vec<Marker> = (0..4)
+            .flat_map(|_| t.next_messages(per_layer, &header()))
+            .flat_map(|m| m.markers)
+            .collect();
+        assert_eq!(rest.len(), 2);
+        assert_eq!(t.waiting(), 0);
+        assert!(rest
+            .iter()
+            .all(|m| m.action == Marker::ADD && m.header.frame_id == "map"));
+        // A layer that shows nothing empties its tile: the tile's marker is deleted.
+        t.update(&[(CellKey { x: 8, y: 0, z: 0 }, Axis::Z, Layer::UNKNOWN)]);
+        let gone = t.next_messages(usize::MAX, &header());
+        assert_eq!(gone[0].markers[0].action, Marker::DELETE);
+        assert_eq!(gone[0].markers[0].id, tile_id((1, 0, 0)));
+    }
+
     #[test]
     fn tiles_and_ids() {
         assert_eq!(tile_of(&CellKey { x: 7, y: -1, z: 8 }), (0, -1, 1));

@@ -9,7 +9,7 @@
 //! | what | module |
 //! |---|---|
 //! | what the node is told: names, remaps, parameters, domain | [`settings`] |
-//! | the messages it sends and takes | [`messages`] |
+//! | the messages it sends and takes (`formats::ros_messages`, as ros2-client takes them) | [`messages`] |
 //! | `points`: PointCloud2 bytes to scans, bad messages refused | [`clouds`] |
 //! | the way in: subscriptions and the service on a thread, scans through a bounded queue | [`listen`] |
 //! | the way out: odometry, transforms, path, diagnostics | [`publish`] |
