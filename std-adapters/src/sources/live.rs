@@ -240,42 +240,45 @@ impl Listener {
             }
             let Some(st) = &mut stream else { continue };
             let done = st.datagram(port, payload, now);
-            let counts = st.stats();
-            let completed = done.is_some();
-            let mut dropped = false;
-            if let Some(sweep) = done {
-                match self.tx.offer(timed(sweep)) {
-                    Offered::Queued => {}
-                    Offered::Dropped => dropped = true,
-                    Offered::Closed => break None,
-                }
-            }
-            if let Ok(mut s) = self.stats.lock() {
-                s.stream = counts;
-                s.sweeps += u64::from(completed);
-                if dropped {
-                    s.sweeps_dropped += 1;
-                }
+            if !self.hand_over(st, done) {
+                break None;
             }
         };
         if let Some(st) = &mut stream {
-            // A turn that ended right at the cut is whole; it goes if the queue has room.
-            if let Some(sweep) = st.finish() {
-                if self.tx.offer(timed(sweep)) == Offered::Queued {
-                    if let Ok(mut s) = self.stats.lock() {
-                        s.sweeps += 1;
-                    }
-                }
-            }
-            let counts = st.stats();
-            if let Ok(mut s) = self.stats.lock() {
-                s.stream = counts;
-            }
+            self.finish(st);
         }
         if let Ok(mut s) = self.stats.lock() {
             s.error = error;
         }
         self.tx.end();
+    }
+
+    /// Offers the sweep a datagram completed (if any) and counts; false when the run has gone.
+    fn hand_over(&self, st: &SensorStream, done: Option<Sweep>) -> bool {
+        let completed = done.is_some();
+        let offered = done.map(|sweep| self.tx.offer(timed(sweep)));
+        if let Ok(mut s) = self.stats.lock() {
+            s.stream = st.stats();
+            s.sweeps += u64::from(completed);
+            s.sweeps_dropped += u64::from(offered == Some(Offered::Dropped));
+        }
+        offered != Some(Offered::Closed)
+    }
+
+    /// The stream's end: a turn that ended right at the cut is whole, and goes if the queue
+    /// has room.
+    fn finish(&self, st: &mut SensorStream) {
+        if let Some(sweep) = st.finish() {
+            if self.tx.offer(timed(sweep)) == Offered::Queued {
+                if let Ok(mut s) = self.stats.lock() {
+                    s.sweeps += 1;
+                }
+            }
+        }
+        let counts = st.stats();
+        if let Ok(mut s) = self.stats.lock() {
+            s.stream = counts;
+        }
     }
 }
 
