@@ -299,39 +299,11 @@ impl<'a> Cloud<'a> {
             .map(|n| self.field(n))
             .find_map(|r| r.transpose())
             .transpose()?;
-        let (w, h, step) = (
-            self.width as usize,
-            self.height as usize,
-            self.point_step as usize,
-        );
-        let row = self.row_step as usize;
-        if w == 0 || h == 0 {
-            // No points, whatever the other sizes say: rows of nothing are not walked (a
-            // height of 4 billion empty rows would take seconds).
+        if !self.has_points()? {
             return Ok(DecodedScan {
                 times: time.map(|_| Vec::new()),
                 ..DecodedScan::default()
             });
-        }
-        if step == 0 {
-            return Err("point_step is 0".into());
-        }
-        if row < w.saturating_mul(step) {
-            return Err(format!(
-                "row_step {row} is shorter than width {w} x point_step {step}"
-            ));
-        }
-        let need = h
-            .checked_sub(1)
-            .map_or(Some(0), |r| r.checked_mul(row)?.checked_add(w * step));
-        match need {
-            Some(n) if n <= self.data.len() => {}
-            _ => {
-                return Err(format!(
-                    "data holds {} bytes, fewer than {h} rows of {w} points of {step} bytes",
-                    self.data.len()
-                ))
-            }
         }
         let big = self.is_bigendian;
         let mut out = DecodedScan::default();
@@ -367,6 +339,40 @@ impl<'a> Cloud<'a> {
             out.times = Some(relative_times(&f.name, f.datatype, &raw_times, self.stamp)?);
         }
         Ok(out)
+    }
+
+    /// Whether the cloud has points, its sizes checked against its data: an empty cloud has
+    /// none whatever the other sizes say (rows of nothing are not walked: a height of 4
+    /// billion empty rows would take seconds); a `point_step` of 0, a `row_step` shorter than
+    /// a row's points, or `data` shorter than the rows is an error.
+    fn has_points(&self) -> Result<bool, String> {
+        let (w, h, step) = (
+            self.width as usize,
+            self.height as usize,
+            self.point_step as usize,
+        );
+        let row = self.row_step as usize;
+        if w == 0 || h == 0 {
+            return Ok(false);
+        }
+        if step == 0 {
+            return Err("point_step is 0".into());
+        }
+        if row < w.saturating_mul(step) {
+            return Err(format!(
+                "row_step {row} is shorter than width {w} x point_step {step}"
+            ));
+        }
+        let need = h
+            .checked_sub(1)
+            .map_or(Some(0), |r| r.checked_mul(row)?.checked_add(w * step));
+        match need {
+            Some(n) if n <= self.data.len() => Ok(true),
+            _ => Err(format!(
+                "data holds {} bytes, fewer than {h} rows of {w} points of {step} bytes",
+                self.data.len()
+            )),
+        }
     }
 
     /// Reads every point of the (size-checked) data with `xyz`, and its time with `time` into
