@@ -110,27 +110,7 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
                 properties: Vec::new(),
                 lists: Vec::new(),
             }),
-            ["property", "list", count_type, item_type, name] => {
-                if type_size(count_type).is_none() || type_size(item_type).is_none() {
-                    return Err(bad(format!("property {name}: unknown list types")));
-                }
-                let e = elements
-                    .last_mut()
-                    .ok_or_else(|| bad("property before any element".into()))?;
-                e.properties.push((name.to_string(), None));
-                e.lists
-                    .push(Some((count_type.to_string(), item_type.to_string())));
-            }
-            ["property", t, name] => {
-                if type_size(t).is_none() {
-                    return Err(bad(format!("property {name}: unknown type {t:?}")));
-                }
-                let e = elements
-                    .last_mut()
-                    .ok_or_else(|| bad("property before any element".into()))?;
-                e.properties.push((name.to_string(), Some(t.to_string())));
-                e.lists.push(None);
-            }
+            ["property", ..] => add_property(&mut elements, &words[1..]).map_err(bad)?,
             ["end_header"] => break,
             _ => return Err(bad(format!("not a PLY header line: {line:?}"))),
         }
@@ -155,6 +135,38 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
         elements,
         start: pos,
     })
+}
+
+/// A `property` line's words after `property` (`list COUNT ITEM NAME` or `TYPE NAME`) as a
+/// property of the last element.
+fn add_property(elements: &mut [Element], words: &[&str]) -> Result<(), String> {
+    let (name, scalar, list) = match words {
+        ["list", count_type, item_type, name] => {
+            if type_size(count_type).is_none() || type_size(item_type).is_none() {
+                return Err(format!("property {name}: unknown list types"));
+            }
+            let list = (count_type.to_string(), item_type.to_string());
+            (name, None, Some(list))
+        }
+        [t, name] => {
+            if type_size(t).is_none() {
+                return Err(format!("property {name}: unknown type {t:?}"));
+            }
+            (name, Some(t.to_string()), None)
+        }
+        _ => {
+            return Err(format!(
+                "not a PLY property line: property {}",
+                words.join(" ")
+            ))
+        }
+    };
+    let e = elements
+        .last_mut()
+        .ok_or_else(|| "property before any element".to_string())?;
+    e.properties.push((name.to_string(), scalar));
+    e.lists.push(list);
+    Ok(())
 }
 
 /// Reads the vertex positions of a PLY file.
@@ -230,49 +242,71 @@ fn vertex_values(
     wanted: &[usize],
     bytes: &[u8],
 ) -> Result<Vec<f64>, FileError> {
-    let Header {
-        format,
-        elements,
-        start: pos,
-    } = header;
-    let format = *format;
-    let vertex = &elements[vi];
-    let fixed_size = |e: &Element| -> Option<usize> {
-        e.properties
-            .iter()
-            .map(|(_, t)| t.as_deref().and_then(type_size))
-            .sum()
-    };
-    let body = &bytes[*pos..];
-    if format == Format::Ascii {
-        let text = std::str::from_utf8(body)
-            .map_err(|_| FileError::at(path, "ascii PLY data is not text"))?;
-        let skip: usize = elements[..vi].iter().map(|e| e.count).sum();
-        let mut lines = text.lines().filter(|l| !l.trim().is_empty()).skip(skip);
-        // The header's count is untrusted: reserve no more than the text has lines for.
-        let mut out = Vec::with_capacity(vertex.count.min(body.len() / 2) * wanted.len());
-        for i in 0..vertex.count {
-            let line = lines.next().ok_or_else(|| {
-                FileError::at(
-                    path,
-                    format!("truncated: {} vertices declared, {i} present", vertex.count),
-                )
-            })?;
-            let words: Vec<&str> = line.split_whitespace().collect();
-            for (c, &k) in wanted.iter().enumerate() {
-                let w = words.get(k).ok_or_else(|| {
-                    FileError::at(path, format!("vertex {i} has only {} values", words.len()))
-                })?;
-                let bad = |_| FileError::at(path, format!("vertex {i}: not a number: {w:?}"));
-                out.push(if c < 3 {
-                    w.parse::<f32>().map_err(bad)? as f64
-                } else {
-                    w.parse::<f64>().map_err(bad)?
-                });
-            }
-        }
-        return Ok(out);
+    let body = &bytes[header.start..];
+    match header.format {
+        Format::Ascii => ascii_vertex_values(path, &header.elements, vi, wanted, body),
+        format => binary_vertex_values(path, &header.elements, vi, wanted, body, format),
     }
+}
+
+/// [`vertex_values`] of an ASCII body: a line an entry, the vertex element's after those of
+/// the elements before it.
+fn ascii_vertex_values(
+    path: &Path,
+    elements: &[Element],
+    vi: usize,
+    wanted: &[usize],
+    body: &[u8],
+) -> Result<Vec<f64>, FileError> {
+    let vertex = &elements[vi];
+    let text =
+        std::str::from_utf8(body).map_err(|_| FileError::at(path, "ascii PLY data is not text"))?;
+    let skip: usize = elements[..vi].iter().map(|e| e.count).sum();
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty()).skip(skip);
+    // The header's count is untrusted: reserve no more than the text has lines for.
+    let mut out = Vec::with_capacity(vertex.count.min(body.len() / 2) * wanted.len());
+    for i in 0..vertex.count {
+        let line = lines.next().ok_or_else(|| {
+            FileError::at(
+                path,
+                format!("truncated: {} vertices declared, {i} present", vertex.count),
+            )
+        })?;
+        let words: Vec<&str> = line.split_whitespace().collect();
+        for (c, &k) in wanted.iter().enumerate() {
+            let w = words.get(k).ok_or_else(|| {
+                FileError::at(path, format!("vertex {i} has only {} values", words.len()))
+            })?;
+            let bad = |_| FileError::at(path, format!("vertex {i}: not a number: {w:?}"));
+            out.push(if c < 3 {
+                w.parse::<f32>().map_err(bad)? as f64
+            } else {
+                w.parse::<f64>().map_err(bad)?
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// A fixed-size element's record size; `None` when it has a list property.
+fn fixed_size(e: &Element) -> Option<usize> {
+    e.properties
+        .iter()
+        .map(|(_, t)| t.as_deref().and_then(type_size))
+        .sum()
+}
+
+/// [`vertex_values`] of a binary body: fixed-size records after those of the elements
+/// before (which may not hold lists), checked to fit in the body.
+fn binary_vertex_values(
+    path: &Path,
+    elements: &[Element],
+    vi: usize,
+    wanted: &[usize],
+    body: &[u8],
+    format: Format,
+) -> Result<Vec<f64>, FileError> {
+    let vertex = &elements[vi];
     let mut start = 0usize;
     for e in &elements[..vi] {
         let size = fixed_size(e).ok_or_else(|| {
