@@ -9,12 +9,13 @@
 //! Writing: point clouds ([`write_points`]) and the run's mesh from its spool
 //! ([`write_mesh_records`]: binary little-endian, a per-vertex `variance`).
 
-use crate::formats::mesh_records::{MeshCounts, VertexColour, VERTEX_BYTES};
 use crate::formats::pointcloud2;
 use crate::io::error::FileError;
 use slamesh_core::Point;
-use std::io::{Read, Write};
 use std::path::Path;
+
+mod write;
+pub use write::{write_mesh_records, write_mesh_with_properties, write_points};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Format {
@@ -356,23 +357,6 @@ fn binary_vertex_values(
         .collect())
 }
 
-/// Writes `points` as a binary little-endian PLY point cloud (atomically).
-pub fn write_points(path: &Path, points: &[Point]) -> Result<(), FileError> {
-    crate::io::atomic::write_atomic(path, |w| {
-        use std::io::Write;
-        write!(
-            w,
-            "ply\nformat binary_little_endian 1.0\ncomment slamesh points\nelement vertex {}\n\
-             property float x\nproperty float y\nproperty float z\nend_header\n",
-            points.len()
-        )?;
-        for v in points.iter().flatten() {
-            w.write_all(&v.to_le_bytes())?;
-        }
-        Ok(())
-    })
-}
-
 /// A triangle mesh read from a PLY file.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PlyMesh {
@@ -527,90 +511,6 @@ fn checked(path: &Path, mut mesh: PlyMesh) -> Result<PlyMesh, FileError> {
         ));
     }
     Ok(mesh)
-}
-
-/// Writes a binary little-endian PLY mesh from spooled records ([`crate::outputs::mesh_spool`]):
-/// `counts.vertices` vertex records (x, y, z, nx, ny, nz, variance as little-endian `f32`,
-/// PLY's own binary records, copied after the header, with `red green blue` appended when
-/// `colour` is given) and `counts.triangles` face records (a `u8` 3 and three little-endian
-/// `u32`).
-pub fn write_mesh_records(
-    w: &mut impl Write,
-    vertices: &mut impl Read,
-    faces: &mut impl Read,
-    counts: MeshCounts,
-    colour: Option<VertexColour>,
-) -> std::io::Result<()> {
-    let colour_properties = if colour.is_some() {
-        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-    } else {
-        ""
-    };
-    write!(
-        w,
-        "ply\nformat binary_little_endian 1.0\ncomment slamesh mesh\n\
-         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
-         property float nx\nproperty float ny\nproperty float nz\n\
-         property float variance\n{colour_properties}element face {}\n\
-         property list uchar uint vertex_indices\nend_header\n",
-        counts.vertices, counts.triangles
-    )?;
-    match colour {
-        None => {
-            std::io::copy(&mut vertices.take(counts.vertices * VERTEX_BYTES as u64), w)?;
-        }
-        Some(c) => {
-            let mut rec = [0u8; VERTEX_BYTES];
-            for _ in 0..counts.vertices {
-                vertices.read_exact(&mut rec)?;
-                w.write_all(&rec)?;
-                w.write_all(&c.of(&rec))?;
-            }
-        }
-    }
-    std::io::copy(faces, w)?;
-    Ok(())
-}
-
-/// Writes a binary little-endian PLY mesh: `vertices` (x, y, z as `float`), each of
-/// `properties` as a named `float` vertex property (one value a vertex, in order), and
-/// `triangles` (a `u8` 3 and three `u32` indices each) under the comment `comment`.
-pub fn write_mesh_with_properties(
-    w: &mut impl Write,
-    comment: &str,
-    vertices: &[Point],
-    properties: &[(&str, &[f32])],
-    triangles: &[[u32; 3]],
-) -> std::io::Result<()> {
-    write!(
-        w,
-        "ply\nformat binary_little_endian 1.0\ncomment {comment}\nelement vertex {}\n\
-         property float x\nproperty float y\nproperty float z\n",
-        vertices.len()
-    )?;
-    for (name, _) in properties {
-        writeln!(w, "property float {name}")?;
-    }
-    write!(
-        w,
-        "element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
-        triangles.len()
-    )?;
-    for (k, v) in vertices.iter().enumerate() {
-        for x in v {
-            w.write_all(&x.to_le_bytes())?;
-        }
-        for (_, values) in properties {
-            w.write_all(&values.get(k).copied().unwrap_or(f32::NAN).to_le_bytes())?;
-        }
-    }
-    for t in triangles {
-        w.write_all(&[3])?;
-        for i in t {
-            w.write_all(&i.to_le_bytes())?;
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]
