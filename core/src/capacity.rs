@@ -37,6 +37,11 @@ pub trait Capacity: 'static {
     /// comparison sort, with the same results, for the smallest memories.
     const RADIX_SORT: bool = true;
 
+    /// IMU readings an [`ImuTrack`](crate::imu::ImuTrack) holds: a sweep and the time since the
+    /// scan before (at 400 Hz, 512 cover 1.28 s: a 1 Hz scanner). A full track forgets its
+    /// oldest half.
+    const IMU_SAMPLES: usize = 512;
+
     /// Entries of the radix sort's buffer: `POINTS` or none.
     const SORT_ENTRIES: usize = if Self::RADIX_SORT { Self::POINTS } else { 0 };
 
@@ -69,6 +74,12 @@ pub trait Capacity: 'static {
     fn memory_bytes_with_map_layers(layers: usize) -> usize {
         Self::scan_bytes() + map_bytes(layers.min(Self::MAP_CELLS), layers.min(Self::MAP_LAYERS))
     }
+}
+
+/// Bytes of an [`ImuTrack`](crate::imu::ImuTrack)'s buffer for capacity `C`, apart from the
+/// pipeline's [`Capacity::memory_bytes`].
+pub const fn imu_bytes<C: Capacity>() -> usize {
+    C::IMU_SAMPLES * size_of::<crate::imu::Reading>()
 }
 
 /// Bytes of a map for `cells` cells and `layers` layers: its hash table ([`table_bytes`]: an
@@ -139,6 +150,7 @@ impl Capacity for SmallCapacity {
     const MAP_CELLS: usize = 384;
     const MAP_LAYERS: usize = 512;
     const RADIX_SORT: bool = false;
+    const IMU_SAMPLES: usize = 128;
 }
 
 #[cfg(test)]

@@ -42,6 +42,8 @@ pub enum DeskewError {
     BadInterval,
     /// The motion is not finite.
     BadMotion,
+    /// The IMU's readings do not cover the sweep.
+    Imu(crate::imu::ImuGap),
 }
 
 /// A transform in `f32`, applied to points.
@@ -86,12 +88,6 @@ pub fn deskew(
     motion: &Pose,
     interval_s: f64,
 ) -> Result<Deskewed, DeskewError> {
-    if points.len() != times_s.len() {
-        return Err(DeskewError::LengthMismatch {
-            points: points.len(),
-            times: times_s.len(),
-        });
-    }
     if !(interval_s.is_finite() && interval_s > 0.0) {
         return Err(DeskewError::BadInterval);
     }
@@ -99,24 +95,37 @@ pub fn deskew(
     if !xi.iter().all(|v| v.is_finite()) {
         return Err(DeskewError::BadMotion);
     }
-    let (lo, hi) = times_s
-        .iter()
-        .filter(|t| t.is_finite())
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &t| {
-            (l.min(t), h.max(t))
+    deskew_by(points, times_s, |t, mid| Ok(se3_exp(&(xi * (t - mid)))))
+}
+
+/// [`deskew`] with the sensor's motion over the sweep given by `pose_at(t, reference)`: its
+/// pose at time `t` in its frame at the `reference` time (an IMU's rotation, say:
+/// [`crate::imu`]). `pose_at` is asked at [`STEPS`] + 1 instants; its first error is returned
+/// with every point left as it was.
+pub fn deskew_by(
+    points: &mut [Point],
+    times_s: &[f32],
+    mut pose_at: impl FnMut(f64, f64) -> Result<Pose, DeskewError>,
+) -> Result<Deskewed, DeskewError> {
+    if points.len() != times_s.len() {
+        return Err(DeskewError::LengthMismatch {
+            points: points.len(),
+            times: times_s.len(),
         });
-    if lo > hi {
+    }
+    let Some((lo, hi)) = time_span(times_s) else {
         return Ok(Deskewed {
             moved: 0,
             reference_s: 0.0,
         });
-    }
+    };
     let span = (hi - lo).max(f32::MIN_POSITIVE);
     let mid = (lo as f64 + hi as f64) / 2.0;
-    let table: [Affine; STEPS + 1] = core::array::from_fn(|k| {
+    let mut table = [Affine::of(&Pose::identity()); STEPS + 1];
+    for (k, entry) in table.iter_mut().enumerate() {
         let t = lo as f64 + span as f64 * k as f64 / STEPS as f64;
-        Affine::of(&se3_exp(&(xi * (t - mid))))
-    });
+        *entry = Affine::of(&pose_at(t, mid)?);
+    }
     let mut moved = 0;
     for (p, &t) in points.iter_mut().zip(times_s) {
         if !t.is_finite() {
@@ -134,6 +143,17 @@ pub fn deskew(
         moved,
         reference_s: mid,
     })
+}
+
+/// The earliest and the latest finite time, if any: the sweep's span.
+pub fn time_span(times_s: &[f32]) -> Option<(f32, f32)> {
+    let (lo, hi) = times_s
+        .iter()
+        .filter(|t| t.is_finite())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &t| {
+            (l.min(t), h.max(t))
+        });
+    (lo <= hi).then_some((lo, hi))
 }
 
 /// The pose `dt_s` seconds after `pose`, moving with the constant body velocity of `motion`

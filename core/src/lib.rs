@@ -10,6 +10,7 @@
 //! |---|---|
 //! | range filter, voxel down-sampling | [`filter`] |
 //! | constant-velocity prediction | [`motion`] |
+//! | the IMU's rotation as a prior and for deskewing | [`imu`] |
 //! | bucketing points into world-fixed cells | [`bucket`] (keys in [`cell`], sorted by [`sort`]) |
 //! | layer choice by PCA | [`pca`] |
 //! | Gaussian-process reconstruction of a layer | [`gp`] on the [`lattice`] |
@@ -62,6 +63,7 @@ pub mod executor;
 pub mod filter;
 pub mod fusion;
 pub mod gp;
+pub mod imu;
 pub mod lattice;
 pub mod layer;
 pub mod lm;

@@ -196,19 +196,22 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         mesh::triangles(&self.map, &self.config.mesh)
     }
 
-    /// Registration of the filtered scan, then the map update.
+    /// Registration of the filtered scan from `prior` (or the motion model's prediction), then
+    /// the map update.
     fn estimate(
         &mut self,
+        prior: Option<Pose>,
         mut stats: ScanStats,
         exec: &impl Executor,
         probe: &mut impl Probe,
     ) -> ScanOutcome {
-        let mut pose = self.motion.predict();
+        let mut pose = prior.unwrap_or_else(|| self.motion.predict());
         let mut status = RegistrationStatus::FirstScan;
         // The last round's reconstruction when it is also the map update's (see
         // `MapConfig::reconstruct_at_final_pose`): its bucketing and the pose it was made at.
         let mut for_update: Option<(BucketStats, Pose)> = None;
-        let profile_yaw = self.turn_by_profile(stats.frame);
+        // Kept up to date with a prior too, for the frames that come without one.
+        let profile_yaw = self.turn_by_profile(stats.frame).filter(|_| prior.is_none());
         if !self.map.is_empty() {
             let best = self.register_scan(pose, profile_yaw, exec, probe, &mut stats);
             stats.associate = best.associate;

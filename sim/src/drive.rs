@@ -1,5 +1,6 @@
 //! Simulated drives: true poses through a scene and the noisy scans a [`Lidar`] sees along them.
 
+use crate::imu::{ImuModel, Vibration};
 use crate::lidar::Lidar;
 use crate::scene::Scene;
 use nalgebra::{Point3, Translation3, UnitQuaternion};
@@ -35,6 +36,12 @@ pub struct Drive {
     /// from the pose at its own time, moving from `poses[i]` towards `poses[i + 1]`
     /// ([`Drive::scan_timed`]). `None`: every firing from `poses[i]`.
     pub sweep_s: Option<f64>,
+    /// Seconds between frames (frame `i` is stamped `i · period_s`).
+    pub period_s: f64,
+    /// An IMU on the scanner ([`Drive::with_imu`]).
+    pub imu: Option<ImuModel>,
+    /// The body's shaking over the smooth poses it was laid on ([`Drive::shaken`]).
+    pub shake: Option<(Vibration, Vec<Pose>)>,
 }
 
 impl Drive {
@@ -59,6 +66,9 @@ impl Drive {
             dropout: 0.0,
             seed,
             sweep_s: None,
+            period_s: 0.1,
+            imu: None,
+            shake: None,
         }
     }
 
@@ -78,6 +88,9 @@ impl Drive {
             dropout: 0.05,
             seed,
             sweep_s: None,
+            period_s: 0.1,
+            imu: None,
+            shake: None,
         }
     }
 
@@ -136,6 +149,7 @@ impl Drive {
         scene.boxes.extend(hall);
         let poses = crate::town::carried_poses(&scene, frames, how, seed);
         Drive {
+            period_s: 1.0 / crate::town::CARRIED_HZ,
             scene,
             lidar: Lidar {
                 beams: 32,
@@ -149,6 +163,8 @@ impl Drive {
             dropout: 0.05,
             seed,
             sweep_s: None,
+            imu: None,
+            shake: None,
         }
     }
 
@@ -164,6 +180,57 @@ impl Drive {
             dropout: 0.05,
             seed,
             sweep_s: None,
+            period_s: 0.1,
+            imu: None,
+            shake: None,
+        }
+    }
+
+    /// The drive shaken by `vibration` over its smooth attitude: every frame's pose (and every
+    /// firing's, in a rolling sweep) turned by the shake at its time.
+    pub fn shaken(mut self, vibration: Vibration) -> Self {
+        let smooth = std::mem::take(&mut self.poses);
+        let n = smooth.len();
+        self.shake = Some((vibration, smooth));
+        let shaken = (0..n).map(|i| self.pose_after(i, 0.0)).collect();
+        self.poses = shaken;
+        self
+    }
+
+    /// The true pose at `t` seconds (frame `i` at `i · period_s`): between two frames, moving
+    /// at the constant velocity from one to the next (past the last, the last step's), shaken
+    /// if the drive is ([`Drive::shaken`]).
+    pub fn pose_at(&self, t: f64) -> Pose {
+        let n = self.smooth_poses().len();
+        let i = ((t / self.period_s).floor().max(0.0) as usize).min(n.saturating_sub(1));
+        self.pose_after(i, t - i as f64 * self.period_s)
+    }
+
+    /// The poses the drive moves between, smooth (before any shake).
+    fn smooth_poses(&self) -> &[Pose] {
+        self.shake.as_ref().map_or(&self.poses, |(_, p)| p)
+    }
+
+    /// The true pose `dt` seconds after frame `i`'s stamp (see [`Drive::pose_at`]).
+    pub fn pose_after(&self, i: usize, dt: f64) -> Pose {
+        let poses = self.smooth_poses();
+        let Some(&from) = poses.get(i) else {
+            return Pose::identity();
+        };
+        let to = match (poses.get(i + 1), i.checked_sub(1)) {
+            (Some(next), _) => *next,
+            // The last frame: the step before, repeated.
+            (None, Some(prev)) => from * (poses[prev].inverse() * from),
+            (None, None) => from,
+        };
+        let step = se3_log(&(from.inverse() * to));
+        let smooth = from * se3_exp(&(step * (dt / self.period_s)));
+        match &self.shake {
+            Some((v, _)) => {
+                let t = i as f64 * self.period_s + dt;
+                smooth * nalgebra::Isometry3::from_parts(Translation3::identity(), v.at(t))
+            }
+            None => smooth,
         }
     }
 
@@ -199,20 +266,9 @@ impl Drive {
                 let n = p.len();
                 (p, vec![0.0; n])
             }
-            Some(period) => {
-                let (from, to) = match (self.poses.get(i + 1), i.checked_sub(1)) {
-                    (Some(next), _) => (self.poses[i], *next),
-                    // The last frame: the step before, repeated.
-                    (None, Some(prev)) => {
-                        let p = self.poses[i];
-                        (p, p * (self.poses[prev].inverse() * p))
-                    }
-                    (None, None) => (self.poses[i], self.poses[i]),
-                };
-                let step = se3_log(&(from.inverse() * to));
-                let pose_at = |t: f64| from * se3_exp(&(step * (t / period)));
-                self.lidar.scan_rolling(&self.scene, pose_at, period)
-            }
+            Some(period) => self
+                .lidar
+                .scan_rolling(&self.scene, |t| self.pose_after(i, t), period),
         };
         if self.dropout > 0.0 {
             let dropout = self.dropout;

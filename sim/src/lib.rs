@@ -9,12 +9,14 @@
 //! | the world: boxes, spheres, ground relief; ray casting | [`scene`] |
 //! | a spinning multi-beam scanner | [`lidar`] |
 //! | true poses and the noisy scans along them | [`drive`] |
+//! | an IMU on the scanner, a vibrating body | [`imu`] |
 //! | a procedural town and its loop | [`town`] |
 //! | an office floor and a walk through it | [`office`] |
 //! | the exact distance to the true surfaces (mesh precision) | [`truth`] |
 #![deny(missing_docs)]
 
 pub mod drive;
+pub mod imu;
 pub mod lidar;
 pub mod office;
 pub mod scene;
@@ -22,6 +24,7 @@ pub mod town;
 pub mod truth;
 
 pub use drive::{sensor_pose, Drive};
+pub use imu::{ImuModel, Vibration};
 pub use lidar::Lidar;
 pub use scene::{OrientedBox, Scene, Sphere, Terrain};
 pub use slamesh_core::random::SplitMix64;

@@ -118,7 +118,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         }
         if best.verdict.is_lost(&r.recovery) {
             if r.recovery.enabled {
-                best = self.recover(best, start, profile, exec, probe, stats);
+                best = self.recover(best, (start, predicted), profile, exec, probe, stats);
             } else if best.status == RegistrationStatus::Converged {
                 best.status = RegistrationStatus::NotConverged;
             }
@@ -235,13 +235,14 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
 
     /// Registers the scan again from the guesses of [`recovery::guesses`] around the last
     /// pose (nearest the scans' azimuth profiles' turn first, when they found one: `profile`),
-    /// after `first` (from `start`: the prediction or the profiles' guess) did not converge;
+    /// after `first` (from `start`: `predicted`, the motion model's or a prior, or the
+    /// profiles' guess) did not converge;
     /// stops at the first sure attempt, or a plausible one that agrees with the profiles, and
     /// returns the best by [`Verdict::score`] (docs/design.md §1.11).
     pub(super) fn recover(
         &mut self,
         first: Attempt,
-        start: Pose,
+        (start, predicted): (Pose, Pose),
         profile: Option<Pose>,
         exec: &impl Executor,
         probe: &mut impl Probe,
@@ -250,7 +251,6 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         let r = self.config.register;
         let rc = r.recovery;
         let last = self.motion.last().unwrap_or(first.pose);
-        let predicted = self.motion.predict();
         // First from where the first attempt ended (more rounds, wider reach), then from the
         // prediction if the first attempt started from the profiles' guess, then from the last
         // pose turned (about the profiles' turn).

@@ -4,6 +4,7 @@
 //! | known | done | status |
 //! |---|---|---|
 //! | [`Known::Nothing`] | registered against the map from the motion model's prediction, then fused | any but `Given`, `Relocalized`, `NotLocalized` |
+//! | [`Known::Near`] | the same from a prior pose (an IMU's) in place of the prediction | as `Nothing` |
 //! | [`Known::Pose`] | fused at that pose (meshing at poses from elsewhere) | `Given` |
 //! | [`Known::Somewhere`] | searched for among candidates in a known map, fused when found | `Relocalized` or `NotLocalized` |
 //!
@@ -36,6 +37,12 @@ pub enum Scan<'a> {
 pub enum Known<'a> {
     /// Nothing: the pose is estimated by registration against the map.
     Nothing,
+    /// A prior for the pose (the IMU's rotation on the motion model's translation:
+    /// [`crate::imu`]): estimated as with `Nothing`, from there instead of the motion model's
+    /// prediction, and without the azimuth profiles' turn (the prior measured it). The first
+    /// scan of a map is fused at it (a map levelled by gravity). A prior that is not finite
+    /// refuses the frame ([`ScanError::BadPose`]).
+    Near(Pose),
     /// The pose (world from sensor, from ground truth or an external odometry): the scan is
     /// fused there. A pose that is not finite refuses the frame ([`ScanError::BadPose`]).
     Pose(Pose),
@@ -90,7 +97,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         exec: &impl Executor,
         probe: &mut impl Probe,
     ) -> Result<Stepped, ScanError> {
-        if let Known::Pose(pose) = &known {
+        if let Known::Pose(pose) | Known::Near(pose) = &known {
             self.check_given(pose)?;
         }
         let stats = match scan {
@@ -98,7 +105,8 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             Scan::Filtered(filtered) => self.begin_filtered(filtered)?,
         };
         Ok(match known {
-            Known::Nothing => Stepped::Scan(self.estimate(stats, exec, probe)),
+            Known::Nothing => Stepped::Scan(self.estimate(None, stats, exec, probe)),
+            Known::Near(prior) => Stepped::Scan(self.estimate(Some(prior), stats, exec, probe)),
             Known::Pose(pose) => Stepped::Scan(self.integrate(&pose, stats, exec, probe)),
             Known::Somewhere {
                 candidates,

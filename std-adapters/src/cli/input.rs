@@ -46,6 +46,12 @@ pub struct InputArgs {
     /// run until Ctrl-C).
     #[arg(long, value_name = "S")]
     pub idle_timeout: Option<f64>,
+    /// The IMU: `off` ignores the readings an input carries; a CSV in EuRoC's `imu0/data.csv`
+    /// layout gives a folder of scans its readings (default: `imu0/data.csv` or `imu.csv` in
+    /// the folder or beside it, when there is one). Its place on the LiDAR is the
+    /// configuration's `[imu]` section.
+    #[arg(long, value_name = "off|FILE")]
+    pub imu: Option<String>,
 }
 
 impl InputArgs {

@@ -1,5 +1,6 @@
 //! `slamesh run` (estimate poses, build the mesh) and `slamesh mesh` (build it at given poses).
 
+use crate::run::inertial::ImuOptions;
 use crate::cli::error::CliError;
 use crate::cli::input::InputArgs;
 use crate::cli::notices::FrameNotices;
@@ -59,8 +60,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub strict: bool,
     /// Deskew scans whose points carry times (recordings with a `t`, `time`, `timestamp` or
-    /// `offset_time` field) with the motion between the last two frames: auto does whenever
-    /// the times exist.
+    /// `offset_time` field): auto with the IMU's rotations when its readings cover the sweep,
+    /// otherwise with the motion between the last two frames.
     #[arg(long, value_enum, default_value_t = DeskewFlag::Auto)]
     pub deskew: DeskewFlag,
     /// Do not draw topview.png (the mesh from above with the path; 7 MB while it is drawn).
@@ -128,8 +129,13 @@ pub enum OnOff {
 /// `--deskew`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DeskewFlag {
-    /// Whenever the points carry times.
+    /// Whenever the points carry times: with the IMU when it covers the sweep, otherwise with
+    /// the motion.
     Auto,
+    /// With the IMU's rotations (the motion where its readings do not cover the sweep).
+    Imu,
+    /// With the motion between the last two frames, even with an IMU.
+    Motion,
     /// Never.
     Off,
 }
@@ -430,7 +436,13 @@ fn run_options(
         navmap: args.navmap.then(|| args.robot.options()),
         deskew: match args.deskew {
             DeskewFlag::Auto => Deskew::Auto,
+            DeskewFlag::Imu => Deskew::Imu,
+            DeskewFlag::Motion => Deskew::Motion,
             DeskewFlag::Off => Deskew::Off,
+        },
+        imu: ImuOptions {
+            enabled: args.source.imu.as_deref() != Some("off"),
+            ..s.imu
         },
     }
 }

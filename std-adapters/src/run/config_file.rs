@@ -16,6 +16,7 @@
 //! configuration is checked with [`Config::validate`].
 
 use crate::io::error::FileError;
+use crate::run::inertial::ImuOptions;
 use crate::run::window::Window;
 use slamesh_core::Config;
 use std::fmt::Write as _;
@@ -78,6 +79,7 @@ pub fn preset_settings(name: &str) -> Result<Settings, String> {
         preset,
         window: WindowSettings::default(),
         scale_to_scene: scales_itself(preset),
+        imu: ImuOptions::default(),
     })
 }
 
@@ -204,6 +206,8 @@ pub struct Settings {
     /// Fit the configuration to the scale of the first usable scan ([`crate::run::scale`]):
     /// the preset [`scales_itself`] and none of the fields the fit sets is given.
     pub scale_to_scene: bool,
+    /// The `[imu]` section: the IMU's place on the LiDAR, its clock and limits.
+    pub imu: ImuOptions,
 }
 
 /// The `[window]` section.
@@ -268,10 +272,12 @@ pub fn parse(text: &str) -> Result<Settings, String> {
     };
     let mut config = preset(preset_name).unwrap_or_default();
     let mut window = WindowSettings::default();
+    let mut imu = ImuOptions::default();
     for (key, value) in &table {
         match (key.as_str(), value) {
             ("preset", _) => {}
             ("window", Value::Table(t)) => window = read_window(t)?,
+            ("imu", Value::Table(t)) => imu = read_imu(t)?,
             (section, Value::Table(t)) => set_section(&mut config, section, t)?,
             _ => return Err(format!("{key}: unknown top-level key")),
         }
@@ -293,6 +299,7 @@ pub fn parse(text: &str) -> Result<Settings, String> {
         preset: preset_name,
         window,
         scale_to_scene: scales_itself(preset_name) && !fitted_given,
+        imu,
     })
 }
 
@@ -346,6 +353,83 @@ fn read_window(t: &toml::Table) -> Result<WindowSettings, String> {
     Ok(w)
 }
 
+const IMU_DOCS: [(&str, &str, &str); 6] = [
+    (
+        "translation_m",
+        "The IMU's position in the LiDAR frame (metres): the lever arm.",
+        "[0.0, 0.0, 0.0]",
+    ),
+    (
+        "rotation_rpy_deg",
+        "The IMU's axes in the LiDAR frame: roll, pitch, yaw (degrees, applied yaw first).",
+        "[0.0, 0.0, 0.0]",
+    ),
+    (
+        "time_offset_s",
+        "Seconds added to an IMU stamp to put it on the LiDAR's clock.",
+        "0.0",
+    ),
+    (
+        "gyro_limit_deg_s",
+        "A gyro reading at or above this is counted as saturated (degrees a second).",
+        "2000.0",
+    ),
+    (
+        "accel_limit_m_s2",
+        "An accelerometer reading at or above this is counted as saturated (m/s²).",
+        "156.9",
+    ),
+    (
+        "bias_gain",
+        "Share of the registration's disagreement with the gyro taken into its bias a frame.",
+        "0.2",
+    ),
+];
+
+fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
+    let mut o = ImuOptions::default();
+    let c = &mut o.calibration;
+    let (mut translation, mut rpy) = ([0.0; 3], [0.0; 3]);
+    for (name, v) in t {
+        let e = |m: String| format!("[imu] {name}: {m}");
+        match name.as_str() {
+            "translation_m" => translation = triple(v).map_err(e)?,
+            "rotation_rpy_deg" => rpy = triple(v).map_err(e)?,
+            "time_offset_s" => c.time_offset_s = finite(v).map_err(e)?,
+            "gyro_limit_deg_s" => c.gyro_limit_rad_s = positive(v).map_err(e)?.to_radians(),
+            "accel_limit_m_s2" => c.accel_limit_m_s2 = positive(v).map_err(e)?,
+            "bias_gain" => o.bias_gain = positive(v).map_err(e)?.min(1.0),
+            _ => {
+                let known: Vec<&str> = IMU_DOCS.iter().map(|d| d.0).collect();
+                return Err(format!(
+                    "[imu] {name}: unknown parameter (known: {})",
+                    known.join(", ")
+                ));
+            }
+        }
+    }
+    let [r, p, y] = rpy.map(f64::to_radians);
+    o.calibration.lidar_from_imu = slamesh_core::Pose::from_parts(
+        nalgebra::Translation3::new(translation[0], translation[1], translation[2]),
+        nalgebra::UnitQuaternion::from_euler_angles(r, p, y),
+    );
+    Ok(o)
+}
+
+fn finite(v: &Value) -> Result<f64, String> {
+    let x = float(v)?;
+    x.is_finite()
+        .then_some(x)
+        .ok_or_else(|| format!("must be a finite number, found {x}"))
+}
+
+fn triple(v: &Value) -> Result<[f64; 3], String> {
+    let Some([a, b, c]) = v.as_array().map(Vec::as_slice) else {
+        return Err(format!("expected three numbers, found {v}"));
+    };
+    Ok([finite(a)?, finite(b)?, finite(c)?])
+}
+
 fn positive(v: &Value) -> Result<f64, String> {
     let x = float(v)?;
     if x > 0.0 && x.is_finite() {
@@ -385,6 +469,10 @@ pub fn documented_toml(config: &Config, preset: &str) -> String {
         } else {
             "..."
         };
+        let _ = writeln!(s, "# {doc}\n# {name} = {example}");
+    }
+    s.push_str("\n# The IMU, when the input has one (defaults: at the LiDAR, in its axes).\n[imu]\n");
+    for (name, doc, example) in IMU_DOCS {
         let _ = writeln!(s, "# {doc}\n# {name} = {example}");
     }
     s

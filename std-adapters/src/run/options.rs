@@ -61,6 +61,9 @@ pub struct RunOptions {
     /// Also write a navigation map (`--navmap`: Nav2's `map.yaml` + `map.pgm`, the elevation
     /// grids, [`crate::navmap`]) from the mesh at the end.
     pub navmap: Option<crate::navmap::NavMapOptions>,
+    /// What to do with an IMU's readings when the source gives them (`--imu`,
+    /// [`crate::run::inertial`]): by default, use them.
+    pub imu: crate::run::inertial::ImuOptions,
 }
 
 /// `--initial-pose`: where a run from a saved map starts.
@@ -74,13 +77,20 @@ pub enum InitialPose {
     MapEnd,
 }
 
-/// `--deskew`: whether scans whose points carry times are deskewed before registration
-/// ([`slamesh_core::deskew`]), with the motion between the last two used frames.
+/// `--deskew`: whether and how scans whose points carry times are deskewed before
+/// registration ([`slamesh_core::deskew`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Deskew {
-    /// Whenever the points have times and two frames were used before.
+    /// With the IMU's rotations when its readings cover the sweep ([`Deskew::Imu`]), otherwise
+    /// with the motion model ([`Deskew::Motion`]).
     #[default]
     Auto,
+    /// With the IMU's rotations at each point's time and the last step's velocity; a sweep
+    /// the readings do not cover (or a run without an IMU) falls back to the motion model.
+    Imu,
+    /// With the motion between the last two used frames, once two were used; the IMU's
+    /// readings still give the registration its prior.
+    Motion,
     /// Never.
     Off,
 }

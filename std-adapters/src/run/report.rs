@@ -83,6 +83,9 @@ pub struct FrameRecord {
     /// Samples that are not scans (an IMU's readings) the source gave with this frame.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub samples: usize,
+    /// What the IMU did for the frame (absent when no reading came yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imu: Option<crate::run::inertial::ImuFrame>,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -120,6 +123,7 @@ impl FrameRecord {
             loop_closures: Vec::new(),
             latency_ms: None,
             samples: 0,
+            imu: None,
         }
     }
 
@@ -191,6 +195,9 @@ pub struct Summary {
     /// The navigation map written (`--navmap`): its counts, size, robot and which way was up.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub navmap: Option<crate::navmap::files::NavMapSummary>,
+    /// What the IMU did, when readings came ([`crate::run::inertial`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imu: Option<crate::run::inertial::ImuSummary>,
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,
@@ -217,6 +224,10 @@ pub struct Health {
     pub counts: Vec<(String, usize)>,
     /// Each frame not registered normally, in frame order.
     pub not_registered: Vec<NotRegistered>,
+    /// Each frame the IMU's readings did not cover (run on the motion model), in frame order;
+    /// its status `ImuGap`, its reason the uncovered time.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub imu_gaps: Vec<NotRegistered>,
 }
 
 /// A frame not registered normally.
@@ -250,9 +261,18 @@ impl Health {
         let mut counts = [0usize; ORDER.len()];
         let mut other: Vec<(String, usize)> = Vec::new();
         let mut not_registered = Vec::new();
+        let mut imu_gaps = Vec::new();
         for r in records {
             let r = r?;
             let r = r.borrow();
+            if let Some(gap) = r.imu.as_ref().and_then(|i| i.gap.as_ref()) {
+                imu_gaps.push(NotRegistered {
+                    frame: r.frame,
+                    file: r.file.clone(),
+                    status: "ImuGap".into(),
+                    reason: gap.clone(),
+                });
+            }
             match ORDER.iter().position(|s| *s == r.status) {
                 Some(k) => counts[k] += 1,
                 None => match other.iter_mut().find(|(s, _)| *s == r.status) {
@@ -283,6 +303,7 @@ impl Health {
         Ok(Health {
             counts,
             not_registered,
+            imu_gaps,
         })
     }
 

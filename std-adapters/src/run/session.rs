@@ -20,6 +20,7 @@ use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::files::{ReportFile, Trajectories};
+use crate::run::inertial::Inertial;
 use crate::run::lookahead::LookAhead;
 use crate::run::map_pager::MapPager;
 use crate::run::memory;
@@ -128,6 +129,8 @@ pub struct Run<'a, C: Capacity> {
     /// How well the last used frame's registration pinned its pose down (for a sink's
     /// covariance).
     pub(super) information: Option<PoseInformation>,
+    /// The IMU's readings and what they give the frames.
+    pub(super) inertial: Inertial,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -213,6 +216,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             _ => None,
         };
         let checkpoint_path = checkpoint::path(&opts.out);
+        let inertial = Inertial::new::<C>(opts.imu);
         let saved_map = match &opts.save_map {
             Some(path) => Some(MapWriter::create(
                 path,
@@ -242,6 +246,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             recent_points: Default::default(),
             samples: Vec::new(),
             information: None,
+            inertial,
         })
     }
 
@@ -383,6 +388,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             loop_closure,
             input: source.input_report(),
             navmap,
+            imu: self.inertial.summary(),
             poses,
             stamps,
         };

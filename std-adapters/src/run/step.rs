@@ -16,7 +16,8 @@ use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::run::timing::StageMs;
 use crate::sources::FrameSource;
-use slamesh_core::deskew;
+use crate::run::inertial::ImuFrame;
+use slamesh_core::deskew::{self, DeskewError};
 use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{Paging, Search};
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
@@ -39,6 +40,12 @@ pub(super) struct Frame {
     to_stamp: Option<(Pose, f64, f64)>,
     /// The pose to mesh it at (meshing at given poses), at the scan's time.
     given: Option<Pose>,
+    /// The time its pose is at (the LiDAR's clock): the stamp, or a deskewed sweep's middle.
+    reference: f64,
+    /// Where the IMU puts it, to register from.
+    prior: Option<Pose>,
+    /// What the IMU did for it.
+    imu: ImuFrame,
 }
 
 impl Frame {
@@ -88,6 +95,7 @@ impl<C: Capacity> Run<'_, C> {
         rec.samples = self.samples.len();
         // After the read: a recording knows a frame's stamp once it has read the message.
         rec.stamp = source.stamp(i);
+        self.inertial.take(&self.samples, &rec.file, i);
         rec.points_dropped_by_reader = read.dropped_by_reader;
         let motion = self.last_motion(source);
         self.page_around_prediction();
@@ -162,8 +170,8 @@ impl<C: Capacity> Run<'_, C> {
         }
     }
 
-    /// Deskews the scan with the last motion, checks it fits the capacity and takes its
-    /// given pose, if the run meshes at given poses.
+    /// Deskews the scan (with the IMU's rotations, or the last motion), checks it fits the
+    /// capacity, takes its given pose, if the run meshes at given poses, and the IMU's prior.
     fn prepare(
         &mut self,
         frame: &mut Frame,
@@ -171,19 +179,55 @@ impl<C: Capacity> Run<'_, C> {
         i: usize,
         rec: &mut FrameRecord,
     ) -> Result<(), FrameFault> {
-        if let (Deskew::Auto, Some(times), Some((m, dt))) = (self.opts.deskew, &frame.times, motion)
-        {
+        frame.reference = rec.stamp;
+        if let Some(times) = frame.times.as_deref().filter(|_| self.opts.deskew != Deskew::Off) {
             let t = Instant::now();
-            let d = deskew::deskew(&mut frame.points, times, &m, dt)
-                .map_err(FrameFault::CannotDeskew)?;
-            rec.deskewed_points = d.moved;
+            let d = self.deskew(&mut frame.points, times, rec.stamp, motion, &mut frame.imu)?;
+            if let Some(d) = d.filter(|d| d.moved > 0) {
+                rec.deskewed_points = d.moved;
+                frame.reference = rec.stamp + d.reference_s;
+                // The points now sit in the sensor frame at `reference_s`.
+                frame.to_stamp = motion.map(|(m, dt)| (m, dt, d.reference_s));
+            }
             rec.ms.deskew = t.elapsed().as_secs_f64() * 1e3;
-            // The points now sit in the sensor frame at `reference_s`.
-            frame.to_stamp = (d.moved > 0).then_some((m, dt, d.reference_s));
         }
         fits_capacity::<C>(&frame.points, &self.opts.config.filter)?;
         frame.given = self.given_pose(i, rec.stamp, frame.to_stamp)?;
+        if frame.given.is_none() && self.search.is_none() && self.inertial.active() {
+            match self.inertial.prior(self.pipeline.motion().history(), frame.reference) {
+                Some(Ok(p)) => (frame.prior, frame.imu.prior) = (Some(p), true),
+                Some(Err(gap)) if frame.imu.gap.is_none() => frame.imu.missed(gap),
+                _ => {}
+            }
+        }
         Ok(())
+    }
+
+    /// Deskews `points` (times after `stamp`) as `--deskew` says: with the IMU's rotations when
+    /// they cover the sweep, otherwise with the last `motion`; `None` when neither can.
+    fn deskew(
+        &self,
+        points: &mut [Point],
+        times: &[f32],
+        stamp: f64,
+        motion: Option<(Pose, f64)>,
+        imu: &mut ImuFrame,
+    ) -> Result<Option<deskew::Deskewed>, FrameFault> {
+        if self.opts.deskew != Deskew::Motion && self.inertial.active() {
+            let history = self.pipeline.motion().history();
+            match self.inertial.deskew(points, times, stamp, history) {
+                Ok(d) => {
+                    imu.deskewed = true;
+                    return Ok(Some(d));
+                }
+                Err(DeskewError::Imu(gap)) => imu.missed(gap),
+                Err(e) => return Err(FrameFault::CannotDeskew(e)),
+            }
+        }
+        motion
+            .map(|(m, dt)| deskew::deskew(points, times, &m, dt))
+            .transpose()
+            .map_err(FrameFault::CannotDeskew)
     }
 
     /// The pose given for frame `i` (stamp `stamp`), moved to a deskewed scan's reference time.
@@ -243,7 +287,7 @@ impl<C: Capacity> Run<'_, C> {
             let mut paging = map_pager::Paged(pager.as_mut());
             let known = match (frame.given, search.as_deref()) {
                 (Some(pose), _) => Known::Pose(pose),
-                (None, None) => Known::Nothing,
+                (None, None) => frame.prior.map_or(Known::Nothing, Known::Near),
                 (None, Some(candidates)) => Known::Somewhere {
                     candidates,
                     search: &everywhere,
@@ -335,8 +379,15 @@ impl<C: Capacity> Run<'_, C> {
         // The pose of a deskewed scan is its reference time's (the middle of the sweep); the
         // stamp lies between it and the previous frame's, so the motion between the two
         // estimates interpolates it (the predicted motion would extrapolate).
-        let at_stamp = match (frame.to_stamp, self.pipeline.motion().history()) {
-            (Some((_, dt, reference)), (Some(before), Some(last))) => deskew::pose_at(
+        let history = self.pipeline.motion().history();
+        let by_imu = (frame.imu.deskewed)
+            .then(|| {
+                (self.inertial).moved(&o.t_world_sensor, frame.reference, rec.stamp, history)
+            })
+            .flatten();
+        let at_stamp = match (by_imu, frame.to_stamp, history) {
+            (Some(p), _, _) => p,
+            (None, Some((_, dt, reference)), (Some(before), Some(last))) => deskew::pose_at(
                 &o.t_world_sensor,
                 &(before.inverse() * last),
                 dt,
@@ -345,6 +396,11 @@ impl<C: Capacity> Run<'_, C> {
             _ => o.t_world_sensor,
         };
         self.progress.poses.push((i, at_stamp));
+        self.inertial.used(frame.reference, o.status, history);
+        if self.inertial.active() {
+            self.inertial.count(&frame.imu);
+            rec.imu = Some(frame.imu.clone());
+        }
         rec.latency_ms = source.arrival(i).map(|a| a.elapsed().as_secs_f64() * 1e3);
         self.progress.used_ms.push(rec.ms);
         if let Some(c) = &mut self.closer {

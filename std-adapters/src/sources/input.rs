@@ -28,16 +28,9 @@ impl Sample {
     }
 }
 
-/// One IMU reading.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ImuReading {
-    /// Its time (seconds).
-    pub stamp: f64,
-    /// Angular velocity (rad/s) about x, y, z.
-    pub gyro: [f64; 3],
-    /// Specific force (m/s², gravity included) along x, y, z.
-    pub accel: [f64; 3],
-}
+/// One IMU reading: the core's ([`slamesh_core::imu::ImuSample`]), in the IMU's own axes
+/// and on its clock.
+pub use slamesh_core::imu::ImuSample as ImuReading;
 
 /// Frames to run over.
 pub trait FrameSource {
@@ -327,7 +320,8 @@ impl FrameSource for ScanFolder {
     }
 }
 
-/// A simulated drive: its noisy scans, made on demand, 10 frames a second.
+/// A simulated drive: its noisy scans, made on demand, a frame every `period_s`; with an
+/// IMU, frame `i` brings the readings up to the end of its sweep (a period after its stamp).
 #[cfg(feature = "sim")]
 impl FrameSource for slamesh_sim::Drive {
     fn frames(&self) -> usize {
@@ -337,10 +331,16 @@ impl FrameSource for slamesh_sim::Drive {
         format!("simulated frame {i}")
     }
     fn stamp(&self, i: usize) -> f64 {
-        i as f64 * 0.1
+        i as f64 * self.period_s
     }
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
         Ok(self.scan(i))
+    }
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        let end = |i: usize| (i + 1) as f64 * self.period_s;
+        let after = i.checked_sub(1).map_or(f64::NEG_INFINITY, end);
+        let readings = self.imu_between(after.max(-1.0), end(i));
+        readings.into_iter().map(Sample::Imu).collect()
     }
     fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
         let (points, times) = self.scan_timed(i);

@@ -1,0 +1,496 @@
+//! The IMU as a motion prior (docs/design.md §1.14): the gyro's rotation between two scans
+//! starts the registration, and its rotation at each point's time deskews the sweep.
+//!
+//! [`ImuTrack`] owns a bounded buffer of readings (its capacity declared with the others:
+//! [`Capacity::IMU_SAMPLES`](crate::Capacity::IMU_SAMPLES)), already turned into the LiDAR's
+//! axes and onto its clock by the [`ImuCalibration`], and the gyro bias it estimates online
+//! from the registered rotations. It guarantees:
+//! - a reading that cannot be used is refused with its reason and counted ([`ImuFault`],
+//!   [`ImuCounts`]): a number that is not finite, a stamp not after the last one (out of order
+//!   or a duplicate); a saturated reading is kept and counted;
+//! - a rotation is given only over time the readings cover, with no gap longer than
+//!   [`GAP_PERIODS`] sampling periods (a rate is held at most that long past either end);
+//!   otherwise the caller hears [`ImuGap`] and falls back to its motion model;
+//! - nothing is allocated after construction: a full buffer forgets its oldest half.
+//!
+//! Between readings the rate is taken as linear (the trapezoid rule), minus the bias; the
+//! rotation over an interval is the product of the exponentials of its pieces. The lever arm
+//! does not enter a rotation (every point of a rigid body turns alike); it matters only for the
+//! accelerometer.
+
+use crate::bounded::BoundedVec;
+use crate::math::{Pose, Vec3};
+use nalgebra::UnitQuaternion;
+
+/// A gap longer than this many sampling periods breaks the readings' cover.
+pub const GAP_PERIODS: f64 = 2.0;
+
+/// Standard gravity (m/s²): what a still accelerometer reads, in magnitude.
+pub const GRAVITY_M_S2: f64 = 9.80665;
+
+/// One IMU reading as the sensor gives it: its stamp (seconds, the IMU's clock), the angular
+/// velocity (rad/s) and the specific force (m/s², gravity included), in the IMU's axes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ImuSample {
+    /// Seconds.
+    pub stamp: f64,
+    /// Angular velocity about x, y, z (rad/s).
+    pub gyro: [f64; 3],
+    /// Specific force along x, y, z (m/s²).
+    pub accel: [f64; 3],
+}
+
+/// Where the IMU sits on the LiDAR and how their clocks differ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuCalibration {
+    /// The IMU's pose in the LiDAR frame: its rotation turns the IMU's axes into the LiDAR's,
+    /// its translation is the lever arm (metres).
+    pub lidar_from_imu: Pose,
+    /// Added to an IMU stamp to put it on the LiDAR's clock (seconds).
+    pub time_offset_s: f64,
+    /// A gyro reading at or above this magnitude on any axis is counted as saturated (rad/s).
+    pub gyro_limit_rad_s: f64,
+    /// An accelerometer reading at or above this on any axis is counted as saturated (m/s²).
+    pub accel_limit_m_s2: f64,
+}
+
+impl Default for ImuCalibration {
+    /// At the LiDAR's origin, in its axes, on its clock; the limits of a common MEMS unit
+    /// (±2 000 °/s, ±16 g).
+    fn default() -> Self {
+        Self {
+            lidar_from_imu: Pose::identity(),
+            time_offset_s: 0.0,
+            gyro_limit_rad_s: 2000f64.to_radians(),
+            accel_limit_m_s2: 16.0 * GRAVITY_M_S2,
+        }
+    }
+}
+
+/// Why a reading was refused.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ImuFault {
+    /// A number in it is not finite.
+    NotFinite,
+    /// Its stamp comes before the last reading's.
+    OutOfOrder {
+        /// Its stamp on the LiDAR's clock (seconds).
+        t: f64,
+        /// The last reading's.
+        last: f64,
+    },
+    /// Its stamp is the last reading's.
+    Duplicate {
+        /// The stamp (seconds).
+        t: f64,
+    },
+}
+
+/// What the readings do not cover.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ImuGap {
+    /// No reading yet.
+    NoReadings,
+    /// No reading between `from` and `to` (seconds, the LiDAR's clock), which the interval
+    /// asked for needs.
+    Between {
+        /// Start of the uncovered time.
+        from: f64,
+        /// Its end.
+        to: f64,
+    },
+}
+
+/// Readings taken and refused, for a report.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ImuCounts {
+    /// Taken into the buffer.
+    pub taken: usize,
+    /// Refused: a number not finite.
+    pub not_finite: usize,
+    /// Refused: out of order.
+    pub out_of_order: usize,
+    /// Refused: a duplicate stamp.
+    pub duplicate: usize,
+    /// Taken, but at a sensor limit.
+    pub saturated: usize,
+    /// Forgotten early because the buffer was full.
+    pub forgotten_early: usize,
+}
+
+/// A reading as the track keeps it (the gyro's), in the LiDAR's axes and on its clock: a slot of its
+/// buffer ([`ImuTrack::in_slice`] takes caller storage of these).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reading {
+    t: f64,
+    gyro: Vec3,
+}
+
+impl Reading {
+    /// An empty slot, for a `static` buffer.
+    pub const EMPTY: Reading = Reading {
+        t: 0.0,
+        gyro: Vec3::new(0.0, 0.0, 0.0),
+    };
+}
+
+/// The IMU's readings, their calibration, and the gyro bias (LiDAR axes, rad/s).
+#[derive(Debug)]
+#[cfg_attr(feature = "alloc", derive(Clone))]
+pub struct ImuTrack {
+    readings: BoundedVec<Reading>,
+    calibration: ImuCalibration,
+    bias: Vec3,
+    /// The sampling period, smoothed over the readings (seconds; 0 before two readings).
+    period_s: f64,
+    counts: ImuCounts,
+}
+
+impl ImuTrack {
+    /// A track holding at most `capacity` readings, allocated now (feature `alloc`).
+    #[cfg(any(feature = "alloc", test))]
+    pub fn new(capacity: usize, calibration: ImuCalibration) -> Self {
+        Self::in_buffer(BoundedVec::with_capacity(capacity), calibration)
+    }
+
+    /// A track in caller storage (no allocator): it holds at most `slots.len()` readings.
+    pub fn in_slice(slots: &'static mut [Reading], calibration: ImuCalibration) -> Self {
+        Self::in_buffer(BoundedVec::in_slice(slots), calibration)
+    }
+
+    fn in_buffer(readings: BoundedVec<Reading>, calibration: ImuCalibration) -> Self {
+        Self {
+            readings,
+            calibration,
+            bias: Vec3::zeros(),
+            period_s: 0.0,
+            counts: ImuCounts::default(),
+        }
+    }
+
+    /// The calibration.
+    pub fn calibration(&self) -> &ImuCalibration {
+        &self.calibration
+    }
+
+    /// Counts so far.
+    pub fn counts(&self) -> ImuCounts {
+        self.counts
+    }
+
+    /// The gyro bias estimated so far, in the LiDAR's axes (rad/s).
+    pub fn bias(&self) -> Vec3 {
+        self.bias
+    }
+
+    /// The sampling period (seconds; 0 before two readings).
+    pub fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    /// The newest reading's time on the LiDAR's clock.
+    pub fn last_t(&self) -> Option<f64> {
+        self.readings.last().map(|r| r.t)
+    }
+
+    /// Takes one reading; refuses it, counted, when it cannot be used.
+    pub fn push(&mut self, s: &ImuSample) -> Result<(), ImuFault> {
+        let finite = s.stamp.is_finite() && s.gyro.iter().chain(&s.accel).all(|v| v.is_finite());
+        if !finite {
+            self.counts.not_finite += 1;
+            return Err(ImuFault::NotFinite);
+        }
+        let t = s.stamp + self.calibration.time_offset_s;
+        if let Some(last) = self.last_t() {
+            if t == last {
+                self.counts.duplicate += 1;
+                return Err(ImuFault::Duplicate { t });
+            }
+            if t < last {
+                self.counts.out_of_order += 1;
+                return Err(ImuFault::OutOfOrder { t, last });
+            }
+            let dt = t - last;
+            // A gap is no sampling period: the smoothed period follows regular steps only.
+            if self.period_s == 0.0 {
+                self.period_s = dt;
+            } else if dt <= GAP_PERIODS * self.period_s {
+                self.period_s += (dt - self.period_s) / 16.0;
+            }
+        }
+        let c = &self.calibration;
+        if s.gyro.iter().any(|v| libm::fabs(*v) >= c.gyro_limit_rad_s)
+            || s.accel.iter().any(|v| libm::fabs(*v) >= c.accel_limit_m_s2)
+        {
+            self.counts.saturated += 1;
+        }
+        let turn = c.lidar_from_imu.rotation;
+        let reading = Reading {
+            t,
+            gyro: turn * Vec3::from(s.gyro),
+        };
+        if self.readings.is_full() {
+            self.forget_oldest_half();
+        }
+        // Room was made above: a buffer of capacity 0 takes nothing.
+        if self.readings.push(reading).is_ok() {
+            self.counts.taken += 1;
+        }
+        Ok(())
+    }
+
+    /// Forgets the readings no rotation from `t` on needs (all before the last one at or
+    /// before `t`).
+    pub fn forget_before(&mut self, t: f64) {
+        let keep_from = self.readings.partition_point(|r| r.t <= t).saturating_sub(1);
+        self.drop_first(keep_from);
+    }
+
+    fn forget_oldest_half(&mut self) {
+        let n = self.readings.len().div_ceil(2);
+        self.counts.forgotten_early += n;
+        self.drop_first(n);
+    }
+
+    fn drop_first(&mut self, n: usize) {
+        if n == 0 {
+            return;
+        }
+        let len = self.readings.len();
+        self.readings.copy_within(n..len, 0);
+        self.readings.truncate(len - n);
+    }
+
+    /// The longest a rate is held past the readings, or a gap between two may last.
+    fn gap_limit(&self) -> f64 {
+        GAP_PERIODS * self.period_s
+    }
+
+    /// The gyro rate (bias removed) at `t`, linear between readings, held past the ends.
+    fn rate_at(&self, k: usize, t: f64) -> Vec3 {
+        let r = &self.readings;
+        let w = match (k.checked_sub(1).and_then(|j| r.get(j)), r.get(k)) {
+            (Some(a), Some(b)) => {
+                let f = ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0);
+                a.gyro + (b.gyro - a.gyro) * f
+            }
+            (Some(a), None) => a.gyro,
+            (None, Some(b)) => b.gyro,
+            (None, None) => Vec3::zeros(),
+        };
+        w - self.bias
+    }
+
+    /// Checks that the readings cover `[a, b]` (a ≤ b): within the gap limit of either end and
+    /// with no longer gap inside.
+    fn covers(&self, a: f64, b: f64) -> Result<(), ImuGap> {
+        let r = &self.readings;
+        let (Some(first), Some(last)) = (r.first(), r.last()) else {
+            return Err(ImuGap::NoReadings);
+        };
+        let limit = self.gap_limit();
+        if r.len() < 2 || a < first.t - limit {
+            return Err(ImuGap::Between { from: a, to: first.t });
+        }
+        if b > last.t + limit {
+            return Err(ImuGap::Between { from: last.t, to: b });
+        }
+        let start = r.partition_point(|x| x.t <= a).saturating_sub(1);
+        for w in r[start..].windows(2) {
+            if w[0].t >= b {
+                break;
+            }
+            if w[1].t - w[0].t > limit {
+                return Err(ImuGap::Between { from: w[0].t, to: w[1].t });
+            }
+        }
+        Ok(())
+    }
+
+    /// The LiDAR's rotation from time `a` to time `b` (seconds, its clock): `R(a)ᵀ R(b)`, in
+    /// its frame at `a`. Either order; an error when the readings do not cover the interval.
+    pub fn rotation(&self, a: f64, b: f64) -> Result<UnitQuaternion<f64>, ImuGap> {
+        if !(a.is_finite() && b.is_finite()) {
+            return Err(ImuGap::Between { from: a, to: b });
+        }
+        if b < a {
+            return self.rotation(b, a).map(|q| q.inverse());
+        }
+        self.covers(a, b)?;
+        let r = &self.readings;
+        let mut q = UnitQuaternion::identity();
+        // Pieces split at the readings' stamps; piece k ends at reading k (or at `b`).
+        let mut k = r.partition_point(|x| x.t <= a);
+        let mut u = a;
+        while u < b {
+            let v = r.get(k).map_or(b, |x| x.t.min(b));
+            let mean = (self.rate_at(k, u) + self.rate_at(k, v)) / 2.0;
+            q *= UnitQuaternion::from_scaled_axis(mean * (v - u));
+            u = v;
+            k += 1;
+        }
+        Ok(q)
+    }
+
+    /// Corrects the bias by `gain` of what the registered rotation from `a` to `b` says it is
+    /// off by: the gyro's rotation with the current bias, against the registration's,
+    /// `log(registeredᵀ · gyro) / (b - a)`. A disagreement above `max_rad` (a registration
+    /// that went wrong, or a wrong calibration) is not taken; returns the disagreement.
+    pub fn correct_bias(
+        &mut self,
+        a: f64,
+        b: f64,
+        registered: &UnitQuaternion<f64>,
+        gain: f64,
+        max_rad: f64,
+    ) -> Result<f64, ImuGap> {
+        let dt = b - a;
+        let gyro = self.rotation(a, b)?;
+        let off = (registered.inverse() * gyro).scaled_axis();
+        let angle = off.norm();
+        if dt > 0.0 && angle <= max_rad {
+            self.bias += off * (gain / dt);
+        }
+        Ok(angle)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Translation3;
+
+    fn sample(t: f64, gyro: [f64; 3]) -> ImuSample {
+        ImuSample {
+            stamp: t,
+            gyro,
+            accel: [0.0, 0.0, GRAVITY_M_S2],
+        }
+    }
+
+    /// A track of readings at `hz` from 0 to `until` s of a constant rate.
+    fn steady(hz: f64, until: f64, gyro: [f64; 3], c: ImuCalibration) -> ImuTrack {
+        let mut t = ImuTrack::new(8192, c);
+        for k in 0..=((until * hz) as usize) {
+            t.push(&sample(k as f64 / hz, gyro)).unwrap();
+        }
+        t
+    }
+
+    #[test]
+    fn a_steady_rate_integrates_to_its_rotation() {
+        let w = [0.1, -0.2, 0.5];
+        let t = steady(200.0, 1.0, w, ImuCalibration::default());
+        let q = t.rotation(0.13, 0.57).unwrap();
+        let want = UnitQuaternion::from_scaled_axis(Vec3::from(w) * 0.44);
+        assert!(q.angle_to(&want) < 1e-12);
+        let back = t.rotation(0.57, 0.13).unwrap();
+        assert!(back.angle_to(&want.inverse()) < 1e-12);
+        assert_eq!(t.rotation(0.3, 0.3).unwrap(), UnitQuaternion::identity());
+    }
+
+    #[test]
+    fn a_turned_imu_gives_the_rotation_in_the_lidar_axes() {
+        // The IMU turned 90 degrees about z and 0.3 m off: its x is the LiDAR's y.
+        let c = ImuCalibration {
+            lidar_from_imu: Pose::from_parts(
+                Translation3::new(0.3, 0.0, 0.0),
+                UnitQuaternion::from_scaled_axis(Vec3::z() * core::f64::consts::FRAC_PI_2),
+            ),
+            ..ImuCalibration::default()
+        };
+        let t = steady(100.0, 1.0, [0.4, 0.0, 0.0], c);
+        let q = t.rotation(0.0, 0.5).unwrap();
+        let want = UnitQuaternion::from_scaled_axis(Vec3::y() * 0.2);
+        assert!(q.angle_to(&want) < 1e-9, "{q:?}");
+    }
+
+    #[test]
+    fn the_time_offset_moves_the_readings_onto_the_lidar_clock() {
+        let c = ImuCalibration {
+            time_offset_s: 10.0,
+            ..ImuCalibration::default()
+        };
+        let t = steady(100.0, 1.0, [0.0, 0.0, 1.0], c);
+        assert_eq!(t.last_t(), Some(11.0));
+        assert!(t.rotation(10.0, 10.5).is_ok());
+        assert!(matches!(t.rotation(0.0, 0.5), Err(ImuGap::Between { .. })));
+    }
+
+    #[test]
+    fn gaps_and_uncovered_time_are_named() {
+        let mut t = ImuTrack::new(64, ImuCalibration::default());
+        assert_eq!(t.rotation(0.0, 1.0), Err(ImuGap::NoReadings));
+        for k in 0..10 {
+            t.push(&sample(k as f64 * 0.01, [0.0; 3])).unwrap();
+        }
+        for k in 20..30 {
+            t.push(&sample(k as f64 * 0.01, [0.0; 3])).unwrap();
+        }
+        // 0.09 to 0.20 is eleven periods.
+        assert_eq!(
+            t.rotation(0.0, 0.25),
+            Err(ImuGap::Between { from: 0.09, to: 0.2 })
+        );
+        assert!(t.rotation(0.2, 0.3).is_ok(), "held two periods past the end");
+        assert!(t.rotation(0.2, 0.35).is_err());
+        assert!(t.rotation(0.0, 0.08).is_ok());
+    }
+
+    #[test]
+    fn bad_readings_are_refused_and_counted() {
+        let mut t = ImuTrack::new(8, ImuCalibration::default());
+        t.push(&sample(1.0, [0.0; 3])).unwrap();
+        assert_eq!(t.push(&sample(1.0, [0.0; 3])), Err(ImuFault::Duplicate { t: 1.0 }));
+        assert_eq!(
+            t.push(&sample(0.5, [0.0; 3])),
+            Err(ImuFault::OutOfOrder { t: 0.5, last: 1.0 })
+        );
+        assert_eq!(t.push(&sample(f64::NAN, [0.0; 3])), Err(ImuFault::NotFinite));
+        assert_eq!(t.push(&sample(2.0, [f64::INFINITY, 0.0, 0.0])), Err(ImuFault::NotFinite));
+        t.push(&sample(1.1, [50.0, 0.0, 0.0])).unwrap();
+        let c = t.counts();
+        assert_eq!(
+            (c.taken, c.duplicate, c.out_of_order, c.not_finite, c.saturated),
+            (2, 1, 1, 2, 1)
+        );
+    }
+
+    #[test]
+    fn a_full_buffer_forgets_its_oldest_half_and_never_grows() {
+        let mut t = ImuTrack::new(10, ImuCalibration::default());
+        for k in 0..25 {
+            t.push(&sample(k as f64 * 0.01, [0.0; 3])).unwrap();
+        }
+        assert!(t.readings.len() <= 10);
+        assert_eq!(t.readings.capacity(), 10);
+        assert_eq!(t.last_t(), Some(0.24));
+        assert_eq!(t.counts().forgotten_early + t.readings.len(), 25);
+        t.forget_before(0.235);
+        assert_eq!(t.readings.len(), 2);
+        assert!(t.rotation(0.235, 0.24).is_ok());
+    }
+
+    #[test]
+    fn the_bias_is_learned_from_registered_rotations() {
+        // The gyro reads 0.01 rad/s about z more than the truth, which does not turn.
+        let mut t = steady(200.0, 30.0, [0.0, 0.0, 0.01], ImuCalibration::default());
+        for k in 0..200 {
+            let a = k as f64 * 0.1;
+            t.correct_bias(a, a + 0.1, &UnitQuaternion::identity(), 0.1, 0.05)
+                .unwrap();
+        }
+        assert!((t.bias() - Vec3::new(0.0, 0.0, 0.01)).norm() < 1e-6, "{}", t.bias());
+        let q = t.rotation(20.0, 29.0).unwrap();
+        assert!(q.angle() < 1e-5);
+        // A registration far off is not taken.
+        let wrong = UnitQuaternion::from_scaled_axis(Vec3::x() * 0.2);
+        let before = t.bias();
+        assert!(t.correct_bias(1.0, 1.1, &wrong, 0.1, 0.05).unwrap() > 0.19);
+        assert_eq!(t.bias(), before);
+    }
+}

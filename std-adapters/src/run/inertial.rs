@@ -1,0 +1,280 @@
+//! The IMU in a run (docs/design.md §1.14): the readings a source gives with each frame go
+//! into the core's [`ImuTrack`]; a frame whose time they cover is deskewed with the gyro's
+//! rotation at each point's time and registered from the gyro's rotation since the last used
+//! frame; the registered rotations correct the gyro bias.
+//!
+//! It owns the track, the reference times of the last two used frames (where their poses
+//! are) and the counts for the report. It guarantees that a frame the readings do not cover
+//! (a gap, no readings yet) is run exactly as without an IMU, and named; that a reading it
+//! refuses is named (the first ten of each frame's, then counted); and that without readings
+//! nothing it does changes a run's bytes.
+
+use crate::sources::Sample;
+use serde::{Deserialize, Serialize};
+use slamesh_core::deskew::{self, DeskewError, Deskewed};
+use slamesh_core::imu::{ImuCalibration, ImuGap, ImuTrack};
+use nalgebra::Vector3;
+use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
+
+/// What the run does with an IMU's readings (`--imu`, `--deskew`, the configuration's `imu`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuOptions {
+    /// Whether readings are used at all (`--imu off`: no).
+    pub enabled: bool,
+    /// Where the IMU sits on the LiDAR and its clock.
+    pub calibration: ImuCalibration,
+    /// Share of the registration's disagreement with the gyro taken into the bias each frame.
+    pub bias_gain: f64,
+    /// A disagreement above this (degrees over a frame) is not taken into the bias.
+    pub bias_max_deg: f64,
+}
+
+impl Default for ImuOptions {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            calibration: ImuCalibration::default(),
+            bias_gain: 0.2,
+            bias_max_deg: 1.0,
+        }
+    }
+}
+
+/// A frame's dealings with the IMU, for its record (`report.json`'s `imu`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ImuFrame {
+    /// Deskewed with the gyro's rotations.
+    pub deskewed: bool,
+    /// Registered from the gyro's prior.
+    pub prior: bool,
+    /// Why the readings could not serve the frame, when they could not (it ran on the motion
+    /// model): `ImuGap`, with the uncovered time.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap: Option<String>,
+}
+
+impl ImuFrame {
+    /// Notes that the readings did not cover the frame.
+    pub(super) fn missed(&mut self, gap: ImuGap) {
+        self.gap = Some(match gap {
+            ImuGap::NoReadings => "ImuGap: no IMU reading yet".into(),
+            ImuGap::Between { from, to } => {
+                format!("ImuGap: no IMU reading from {from:.4} s to {to:.4} s")
+            }
+        });
+    }
+}
+
+/// What the IMU did over a run (`report.json`'s `summary.imu`; absent without readings).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ImuSummary {
+    /// Readings taken and refused.
+    pub readings: ImuCountsReport,
+    /// Frames deskewed with the gyro.
+    pub deskewed_frames: usize,
+    /// Frames registered from the gyro's prior.
+    pub prior_frames: usize,
+    /// Frames the readings did not cover (run on the motion model).
+    pub gap_frames: usize,
+    /// The gyro bias the registrations taught it at the end (rad/s, the LiDAR's axes).
+    pub gyro_bias: [f64; 3],
+}
+
+/// [`ImuCounts`] as the report writes them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct ImuCountsReport {
+    /// Taken.
+    pub taken: usize,
+    /// Refused: a number not finite.
+    pub not_finite: usize,
+    /// Refused: out of order.
+    pub out_of_order: usize,
+    /// Refused: a duplicate stamp.
+    pub duplicate: usize,
+    /// Taken at a sensor limit.
+    pub saturated: usize,
+    /// Forgotten early (the track's buffer was full: a frame too long for the capacity).
+    pub forgotten_early: usize,
+}
+
+/// The velocity (m/s) at the last of `history`'s two poses (taken at `t_before` and `t_last`),
+/// in that pose's frame: the world's step between them, over their time. A body that shakes
+/// keeps moving where the world says, whatever its attitude at the one before. Zero while
+/// either pose is unknown.
+fn body_velocity(history: (Option<Pose>, Option<Pose>), t_before: Option<f64>, t_last: f64) -> Vector3<f64> {
+    match (history, t_before) {
+        ((Some(b), Some(l)), Some(t_b)) if t_last > t_b => {
+            l.rotation.inverse() * (l.translation.vector - b.translation.vector) / (t_last - t_b)
+        }
+        _ => Vector3::zeros(),
+    }
+}
+
+/// The IMU's part of a run.
+#[derive(Debug)]
+pub(super) struct Inertial {
+    options: ImuOptions,
+    track: ImuTrack,
+    /// Reference times (the LiDAR's clock) of the poses the motion model holds: the one
+    /// before the last, and the last.
+    refs: (Option<f64>, Option<f64>),
+    /// Whether any reading came: until one does, the run is as without an IMU.
+    seen: bool,
+    /// Frames deskewed with the gyro, registered from its prior, and not covered.
+    frames: (usize, usize, usize),
+}
+
+impl Inertial {
+    /// Ready for readings, holding at most the capacity's [`Capacity::IMU_SAMPLES`].
+    pub(super) fn new<C: Capacity>(options: ImuOptions) -> Self {
+        Self {
+            track: ImuTrack::new(C::IMU_SAMPLES, options.calibration),
+            options,
+            refs: (None, None),
+            seen: false,
+            frames: (0, 0, 0),
+        }
+    }
+
+    /// Counts a frame's dealings into the run's.
+    pub(super) fn count(&mut self, f: &ImuFrame) {
+        self.frames.0 += usize::from(f.deskewed);
+        self.frames.1 += usize::from(f.prior);
+        self.frames.2 += usize::from(f.gap.is_some());
+    }
+
+    /// The run's summary, if readings came.
+    pub(super) fn summary(&self) -> Option<ImuSummary> {
+        let c = self.track.counts();
+        self.seen.then(|| ImuSummary {
+            readings: ImuCountsReport {
+                taken: c.taken,
+                not_finite: c.not_finite,
+                out_of_order: c.out_of_order,
+                duplicate: c.duplicate,
+                saturated: c.saturated,
+                forgotten_early: c.forgotten_early,
+            },
+            deskewed_frames: self.frames.0,
+            prior_frames: self.frames.1,
+            gap_frames: self.frames.2,
+            gyro_bias: self.track.bias().into(),
+        })
+    }
+
+    /// Whether the run uses readings now: enabled and some came.
+    pub(super) fn active(&self) -> bool {
+        self.options.enabled && self.seen
+    }
+
+    /// Takes the readings that came with frame `frame` of `file`; names the refused.
+    pub(super) fn take(&mut self, samples: &[Sample], file: &str, frame: usize) {
+        if !self.options.enabled {
+            return;
+        }
+        let mut named = 0;
+        for Sample::Imu(r) in samples {
+            self.seen = true;
+            if let Err(e) = self.track.push(r) {
+                named += 1;
+                if named <= 10 {
+                    log::warn!("{file}: frame {frame}: IMU reading at {} s refused: {e:?}", r.stamp);
+                }
+            }
+        }
+    }
+
+    /// Deskews `points` (times `times` after `stamp`) with the gyro's rotation at each point's
+    /// time and the motion model's last velocity (`history`: its last two poses), turned into
+    /// the sweep's middle by the gyro: the IMU's deskew.
+    pub(super) fn deskew(
+        &self,
+        points: &mut [Point],
+        times: &[f32],
+        stamp: f64,
+        history: (Option<Pose>, Option<Pose>),
+    ) -> Result<Deskewed, DeskewError> {
+        let velocity = self.refs.1.map(|t_last| {
+            let v = body_velocity(history, self.refs.0, t_last);
+            move |mid: f64| -> Result<Vector3<f64>, ImuGap> {
+                Ok(self.track.rotation(t_last, mid)?.inverse() * v)
+            }
+        });
+        let mut at_mid = None;
+        deskew::deskew_by(points, times, |t, mid| {
+            let v = match (&velocity, at_mid) {
+                (_, Some(v)) => v,
+                (Some(turned), None) => *at_mid.insert(turned(stamp + mid).map_err(DeskewError::Imu)?),
+                (None, None) => *at_mid.insert(Vector3::zeros()),
+            };
+            self.relative(stamp + mid, stamp + t, &v)
+                .map_err(DeskewError::Imu)
+        })
+    }
+
+    /// The sensor's pose at `t` in its frame at `from` (the LiDAR's clock): the gyro's
+    /// rotation, and `velocity` (m/s, in the frame at `from`) for the translation.
+    fn relative(&self, from: f64, t: f64, velocity: &Vector3<f64>) -> Result<Pose, ImuGap> {
+        let turn = self.track.rotation(from, t)?;
+        Ok(Pose::from_parts((velocity * (t - from)).into(), turn))
+    }
+
+    /// `pose`, the pose at `from`, moved to `to` (a deskewed sweep's pose to its stamp's): the
+    /// gyro's rotation, and the velocity of the motion model's last step, which ends at `from`
+    /// (`history`: the poses before and at `from`). `None` where the readings do not cover it.
+    pub(super) fn moved(
+        &self,
+        pose: &Pose,
+        from: f64,
+        to: f64,
+        history: (Option<Pose>, Option<Pose>),
+    ) -> Option<Pose> {
+        let velocity = body_velocity(history, self.refs.1, from);
+        Some(pose * self.relative(from, to, &velocity).ok()?)
+    }
+
+    /// Where the sensor is at `t` (its clock): the last pose turned by the gyro's rotation
+    /// since, moved by the last step's translation scaled to the time (none while only one
+    /// pose is known). `None` before any pose.
+    pub(super) fn prior(
+        &self,
+        history: (Option<Pose>, Option<Pose>),
+        t: f64,
+    ) -> Option<Result<Pose, ImuGap>> {
+        let (before, last) = history;
+        let (last, t_last) = (last?, self.refs.1?);
+        let turn = match self.track.rotation(t_last, t) {
+            Ok(q) => q,
+            Err(e) => return Some(Err(e)),
+        };
+        let step = body_velocity((before, Some(last)), self.refs.0, t_last) * (t - t_last);
+        Some(Ok(last * Pose::from_parts(step.into(), turn)))
+    }
+
+    /// A frame's pose was taken at time `t` (the motion model now ends with it): its
+    /// registered rotation since the last corrects the bias when it converged, and readings no
+    /// rotation needs are forgotten.
+    pub(super) fn used(
+        &mut self,
+        t: f64,
+        status: RegistrationStatus,
+        history: (Option<Pose>, Option<Pose>),
+    ) {
+        if let ((Some(before), Some(last)), Some(t_before)) = (history, self.refs.1) {
+            if status == RegistrationStatus::Converged && self.active() {
+                let registered = (before.inverse() * last).rotation;
+                let o = &self.options;
+                // A frame the readings do not cover teaches nothing.
+                let _ = self.track.correct_bias(
+                    t_before,
+                    t,
+                    &registered,
+                    o.bias_gain,
+                    o.bias_max_deg.to_radians(),
+                );
+            }
+        }
+        self.refs = (self.refs.1, Some(t));
+        self.track.forget_before(t);
+    }
+}
