@@ -29,6 +29,9 @@ fn drive(scene: Scene, frames: usize, step_m: f64, max_range_m: f64) -> Drive {
         dropout: 0.0,
         seed: 11,
         sweep_s: None,
+        period_s: 0.1,
+        imu: None,
+        shake: None,
     }
 }
 

@@ -18,6 +18,7 @@ mod demo;
 mod deskew;
 mod docs_examples;
 mod hard_motion;
+mod imu;
 mod health;
 mod kitti_odometry;
 mod loop_closure;

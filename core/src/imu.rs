@@ -293,11 +293,11 @@ impl ImuTrack {
             return Err(ImuGap::NoReadings);
         };
         let limit = self.gap_limit();
-        if r.len() < 2 || a < first.t - limit {
-            return Err(ImuGap::Between { from: a, to: first.t });
-        }
         if b > last.t + limit {
             return Err(ImuGap::Between { from: last.t, to: b });
+        }
+        if a < first.t - limit {
+            return Err(ImuGap::Between { from: a, to: first.t });
         }
         let start = r.partition_point(|x| x.t <= a).saturating_sub(1);
         for w in r[start..].windows(2) {

@@ -164,6 +164,16 @@ put("velodyne_calibration", "flow", b"distance_resolution: 0.002\nlasers:\n"
                % (i, -0.4 + i * 0.01) for i in range(64)))
 
 
+# IMU readings as EuRoC's imu0/data.csv writes them (imu_csv): a header, readings 5 ms apart,
+# one out of order, one duplicate, one short line.
+put("imu_csv", "euroc", b"#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],"
+    b"w_RS_S_z [rad s^-1],a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n"
+    + b"".join(b"%d,%.6f,%.6f,%.6f,%.4f,%.4f,%.4f\n"
+               % (1403636579758555392 + k * 5000000, 0.01 * k, -0.02, 0.3, 0.1, -0.2, 9.81)
+               for k in range(40))
+    + b"1403636579758555392,0,0,0,0,0,9.8\n1403636579953555392,1,2,3\n")
+
+
 # The ROS 2 node's command line and a parameter file (ros_args).
 put("ros_args", "command_line", b"--ros-args -r points:=/velodyne_points -p threads:=2 "
     b"-p preset:=kitti -r __ns:=/robot1 -p lidar_in_base:=[0.0,0,1.2,0,0,0]")

@@ -1,6 +1,8 @@
 //! Where a command's frames come from (`run`, `mesh`, `localize`, `bench`): the input and how
 //! to read it.
 
+use crate::formats::imu_csv;
+use crate::sources::imu_readings::ImuReadings;
 use crate::formats::kitti::BinFields;
 use crate::io::FileError;
 use crate::run::Input;
@@ -69,7 +71,7 @@ impl InputArgs {
                 log::warn!("Ctrl-C will not end the run cleanly: {e}");
             }
         }
-        Input::open_with(
+        let mut input = Input::open_with(
             &self.input,
             self.topic.as_deref(),
             self.bin_fields.clone(),
@@ -84,6 +86,43 @@ impl InputArgs {
                     .map(Duration::from_secs_f64),
                 stop,
             },
-        )
+        )?;
+        self.attach_imu(&mut input)?;
+        Ok(input)
+    }
+
+    /// Gives a folder of scans its IMU's readings: `--imu FILE`, or a file beside it
+    /// ([`imu_csv::beside`]) unless `--imu off`; says when their times miss the scans'.
+    fn attach_imu(&self, input: &mut Input) -> Result<(), FileError> {
+        let asked = self.imu.as_deref().filter(|v| *v != "off");
+        let Input::Folder(folder) = input else {
+            return match asked {
+                Some(_) => Err(FileError::at(
+                    &self.input,
+                    "--imu FILE is for a folder of scans; a recording's or a live input's IMU                      readings come with it",
+                )),
+                None => Ok(()),
+            };
+        };
+        let path = match (self.imu.as_deref(), asked) {
+            (Some("off"), _) => return Ok(()),
+            (_, Some(file)) => Some(PathBuf::from(file)),
+            _ => imu_csv::beside(&self.input),
+        };
+        let Some(path) = path else { return Ok(()) };
+        let imu = ImuReadings::open(&path)?;
+        if let (Some((a, b)), Some(first), Some(last)) =
+            (imu.span(), folder.stamps.first(), folder.stamps.last())
+        {
+            log::info!("IMU readings from {}, {a:.3} s to {b:.3} s", path.display());
+            if b < *first || a > *last {
+                log::warn!(
+                    "{}: its readings ({a:.3} to {b:.3} s) miss the scans' times ({first:.3} to                      {last:.3} s): set [imu] time_offset_s in the configuration",
+                    path.display()
+                );
+            }
+        }
+        folder.imu = Some(imu);
+        Ok(())
     }
 }

@@ -283,6 +283,12 @@ impl FrameSource for Input {
             _ => None,
         }
     }
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        match self {
+            Input::Folder(f) => f.samples(i),
+            _ => Vec::new(),
+        }
+    }
     fn input_report(&self) -> Option<serde_json::Value> {
         match self {
             Input::Live(l) => serde_json::to_value(l.stats()).ok(),
@@ -304,6 +310,10 @@ impl FrameSource for ScanFolder {
     }
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
         read_scan_as(&self.paths[i], &self.bin_fields)
+    }
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        let stamps = &self.stamps;
+        self.imu.as_mut().map_or_else(Vec::new, |imu| imu.for_frame(stamps, i))
     }
     /// PCD and PLY files with a time field give their points' times; `.bin` files none.
     fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {

@@ -14,9 +14,11 @@
 //! | packets to sweeps, whichever the sensor | [`packets`] (turns cut in [`sweep`]) |
 //! | a capture replayed as frames; packets taken live from a socket | [`replay`], [`live`] |
 //! | a live source's frames, handed over through a bounded queue | [`feed`] |
+//! | an IMU's readings from a file, handed to a folder's frames | [`imu_readings`] |
 
 pub mod capture;
 pub mod feed;
+pub mod imu_readings;
 pub mod input;
 pub mod live;
 pub mod ouster;

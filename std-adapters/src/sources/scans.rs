@@ -40,6 +40,8 @@ pub struct ScanFolder {
     pub stamps_from: Stamps,
     /// The record layout of `.bin` files.
     pub bin_fields: kitti::BinFields,
+    /// An IMU's readings for the frames (`--imu FILE`, or a file beside the folder).
+    pub imu: Option<crate::sources::imu_readings::ImuReadings>,
 }
 
 impl ScanFolder {
@@ -54,6 +56,7 @@ impl ScanFolder {
                 stamps,
                 stamps_from,
                 bin_fields: kitti::BinFields::default(),
+                imu: None,
             });
         }
         if !input.exists() {
@@ -92,6 +95,7 @@ impl ScanFolder {
             stamps,
             stamps_from,
             bin_fields: kitti::BinFields::default(),
+            imu: None,
         })
     }
 

@@ -1,0 +1,87 @@
+//! An IMU's readings from a file of their own ([`crate::formats::imu_csv`]), handed to a
+//! folder of scans frame by frame: frame `i` brings the readings up to a frame period past
+//! its stamp (its sweep, when the stamp is the sweep's start; a little early when it is the
+//! end), the ones before with the frames before.
+//!
+//! Frames are asked for in order; the readings are handed in the file's order (the run's
+//! track refuses and counts any out of order), each once.
+
+use crate::formats::imu_csv;
+use crate::io::error::FileError;
+use crate::sources::{ImuReading, Sample};
+use std::path::Path;
+
+/// Readings waiting for their frames.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ImuReadings {
+    readings: Vec<ImuReading>,
+    /// The first reading not handed yet.
+    next: usize,
+}
+
+impl ImuReadings {
+    /// The readings of `path`, its skipped lines named (the first ten).
+    pub fn open(path: &Path) -> Result<Self, FileError> {
+        let csv = imu_csv::read(path)?;
+        for s in csv.skipped.iter().take(10) {
+            log::warn!("{}: {s}: skipped", path.display());
+        }
+        if csv.skipped.len() > 10 {
+            log::warn!("{}: {} lines skipped in all", path.display(), csv.skipped.len());
+        }
+        Ok(Self::new(csv.readings))
+    }
+
+    /// Readings in time order.
+    pub fn new(readings: Vec<ImuReading>) -> Self {
+        Self { readings, next: 0 }
+    }
+
+    /// The first and last stamps (seconds).
+    pub fn span(&self) -> Option<(f64, f64)> {
+        Some((self.readings.first()?.stamp, self.readings.last()?.stamp))
+    }
+
+    /// The readings not handed yet up to the first one stamped after `until`.
+    pub fn until(&mut self, until: f64) -> Vec<Sample> {
+        let rest = &self.readings[self.next..];
+        let n = rest.iter().position(|r| r.stamp > until).unwrap_or(rest.len());
+        self.next += n;
+        rest[..n].iter().copied().map(Sample::Imu).collect()
+    }
+
+    /// For frame `i` of `stamps`: the readings up to a frame period past its stamp (the
+    /// period to the next frame, or from the one before, or 0.1 s).
+    pub fn for_frame(&mut self, stamps: &[f64], i: usize) -> Vec<Sample> {
+        let Some(&t) = stamps.get(i) else {
+            return Vec::new();
+        };
+        let period = match (stamps.get(i + 1), i.checked_sub(1).and_then(|j| stamps.get(j))) {
+            (Some(next), _) if *next > t => next - t,
+            (_, Some(before)) if t > *before => t - before,
+            _ => 0.1,
+        };
+        self.until(t + period)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_frame_takes_the_readings_through_its_sweep_once() {
+        let r = |t: f64| ImuReading {
+            stamp: t,
+            gyro: [0.0; 3],
+            accel: [0.0; 3],
+        };
+        let mut imu = ImuReadings::new((0..50).map(|k| r(k as f64 * 0.01)).collect());
+        let stamps = [0.0, 0.1, 0.2];
+        let counts: Vec<usize> = (0..3).map(|i| imu.for_frame(&stamps, i).len()).collect();
+        // Up to 0.1, 0.2, 0.3 s: 0.00 to 0.10 is eleven readings.
+        assert_eq!(counts, [11, 10, 10]);
+        assert_eq!(imu.until(10.0).len(), 19);
+        assert_eq!(imu.span(), Some((0.0, 0.49)));
+    }
+}
