@@ -1,4 +1,4 @@
-//! The IMU as a motion prior (docs/design.md §1.14), measured on the simulator through the
+//! The IMU as a motion prior (docs/design.md §1.19), measured on the simulator through the
 //! whole command path (`slamesh::run::run`):
 //!
 //! - the car round the town with a rolling 0.1 s sweep, calm (`Drive::car`), and shaken by a
@@ -20,7 +20,7 @@ use flags::Flags;
 use nalgebra::{Translation3, UnitQuaternion};
 use slamesh::eval::odometry::{ate_rmse, consecutive_errors, segment_errors};
 use slamesh::formats::trajectory;
-use slamesh::run::inertial::ImuOptions;
+use slamesh::inertial::ImuOptions;
 use slamesh::run::{config_file, run, RunOptions};
 use slamesh_core::{Capacity, KittiCapacity, Lidar32Capacity, Pose};
 use slamesh_sim::town::Carried;

@@ -1,4 +1,4 @@
-//! The IMU as a motion prior (docs/design.md §1.14), through the command's run loop on the
+//! The IMU as a motion prior (docs/design.md §1.19), through the command's run loop on the
 //! simulator, with the IMU 0.3 m from the LiDAR and turned 90 degrees (configured):
 //! - a car shaken by a rough road within its rolling sweeps: with its IMU, as accurate as the
 //!   calm drive and never lost; without, lost on a third of its frames;
@@ -10,7 +10,7 @@ use crate::common::{scratch, slamesh_run_ok, write_bin};
 use nalgebra::{Translation3, UnitQuaternion};
 use slamesh::eval::odometry::consecutive_errors;
 use slamesh::formats::trajectory;
-use slamesh::run::inertial::ImuOptions;
+use slamesh::inertial::ImuOptions;
 use slamesh::run::{run, FrameSource, RunOptions, Sample, Summary};
 use slamesh_core::{Capacity, KittiCapacity, Lidar32Capacity, Point, Pose};
 use slamesh_sim::town::Carried;

@@ -1,4 +1,4 @@
-//! The IMU as a motion prior (docs/design.md §1.14): the gyro's rotation between two scans
+//! The IMU as a motion prior (docs/design.md §1.19): the gyro's rotation between two scans
 //! starts the registration, and its rotation at each point's time deskews the sweep.
 //!
 //! [`ImuTrack`] owns a bounded buffer of readings (its capacity declared with the others:

@@ -14,6 +14,7 @@
 //! | a run: its stages, sinks, configuration, report, window, checkpoint | [`run`] |
 //! | odometry and mesh accuracy | [`eval`] |
 //! | loop closure: revisits found, the pose graph, the map rebuilt | [`loop_closure`] |
+//! | the IMU in a run: its readings, the prior and the deskew they give | [`inertial`] |
 //! | the simulated demo (feature `sim`) | `demo` |
 //! | the `slamesh` command, one file per subcommand (feature `cli`) | `cli` |
 //! | the live view and its recording for the Foxglove app (feature `view`) | `view` |
@@ -30,6 +31,7 @@ pub mod cli;
 pub mod demo;
 pub mod eval;
 pub mod formats;
+pub mod inertial;
 pub mod io;
 pub mod loop_closure;
 pub mod navmap;

@@ -9,7 +9,7 @@ Checks, each printed as it passes (the first failure stops it with its reason):
 1. `scans`: the kitti-mini 00 scans at 10 Hz (reliable publisher, a second subscriber that
    never reads): every scan gets an Odometry stamped with its stamp whose pose equals
    `slamesh run`'s on the same folder; IMU readings between the scans reach the run with
-   their frames; the node's own trajectory file is `run`'s byte for byte; /tf, odom, path, mesh and /diagnostics are advertised with their types and carry
+   their frames (not used, `use_imu:=false`: the peer's readings are not the scans' motion); the node's own trajectory file is `run`'s byte for byte; /tf, odom, path, mesh and /diagnostics are advertised with their types and carry
    what they should; `~/save_map` writes a map that `slamesh localize` loads and localizes
    in.
 2. the same from a publisher that restarts halfway, best effort the second time.
@@ -57,14 +57,15 @@ def tum(path):
 
 
 class Node:
-    """`slamesh ros2` in the background, its memory sampled; `stop` sends SIGINT."""
+    """`slamesh ros2` in the background, its memory sampled; `stop` sends SIGINT. The IMU's
+    readings are counted, not used (`use_imu:=false`): the peer's are not the scans' motion."""
 
     def __init__(self, args, out, extra=()):
         os.makedirs(os.path.dirname(out), exist_ok=True)
         self.log = open(out + ".log", "w")
         self.p = subprocess.Popen(
             [args.slamesh, "ros2", "--out", out, "-q", *extra, "--ros-args",
-             "-p", "preset:=kitti", "-p", "threads:=2"],
+             "-p", "preset:=kitti", "-p", "threads:=2", "-p", "use_imu:=false"],
             stdout=self.log, stderr=subprocess.STDOUT,
         )
         self.out = out

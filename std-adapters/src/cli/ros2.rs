@@ -163,7 +163,7 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     if args.map.is_none() {
         crate::run::scale::fit_to_scene(&mut s, &mut source);
     }
-    let opts = run_options(&args, &s);
+    let opts = run_options(&args, &s, node.settings.use_imu);
     let sink = node.publish(&opts.config, &source).map_err(node_error)?;
     let sink = Queued::new(sink, 8, WhenFull::Wait)
         .map_err(|e| node_error(format!("cannot start the publishing thread: {e}")))?;
@@ -182,7 +182,7 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     Ok(())
 }
 
-fn run_options(args: &Ros2Args, s: &Settings) -> RunOptions {
+fn run_options(args: &Ros2Args, s: &Settings, use_imu: bool) -> RunOptions {
     RunOptions {
         out: args.out.clone(),
         config: s.config,
@@ -196,6 +196,10 @@ fn run_options(args: &Ros2Args, s: &Settings) -> RunOptions {
         map: args.map.clone(),
         localize_only: args.localize,
         save_map: args.save_map.clone(),
+        imu: crate::inertial::ImuOptions {
+            enabled: use_imu,
+            ..s.imu
+        },
         ..RunOptions::default()
     }
 }

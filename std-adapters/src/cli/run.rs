@@ -1,6 +1,6 @@
 //! `slamesh run` (estimate poses, build the mesh) and `slamesh mesh` (build it at given poses).
 
-use crate::run::inertial::ImuOptions;
+use crate::inertial::ImuOptions;
 use crate::cli::error::CliError;
 use crate::cli::input::InputArgs;
 use crate::cli::notices::FrameNotices;

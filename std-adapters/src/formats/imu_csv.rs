@@ -8,7 +8,7 @@
 //! and counts those out of order. Blank lines and further `#` lines are passed over.
 
 use crate::io::error::FileError;
-use crate::sources::ImuReading;
+use slamesh_core::imu::ImuSample as ImuReading;
 use std::path::Path;
 
 /// The readings of one file.

@@ -11,7 +11,8 @@
 //!   ([`Counts::refused`]), never a crash;
 //! - requests (a pose to relocalize at, a map to save) reach the run between frames, also
 //!   while it waits for a scan ([`Request`]);
-//! - IMU readings reach the run with the first frame stamped at or after them
+//! - IMU readings reach the run with the first frame whose stamp, plus the time since the
+//!   frame before (its sweep, when scans are stamped at the sweep's start), reaches theirs
 //!   ([`FrameSource::samples`]), at most [`IMU_KEPT`] waiting;
 //! - the stream ends when the stop flag is set (the command sets it on SIGINT and SIGTERM);
 //!   the run then writes its outputs as a finished one does.
@@ -98,6 +99,8 @@ pub struct Ros2Source {
     counts: Arc<Mutex<Counts>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    /// The stamp of the last frame the readings went with.
+    last_stamp: Option<f64>,
 }
 
 impl std::fmt::Debug for Ros2Source {
@@ -146,6 +149,7 @@ impl Ros2Source {
             counts,
             stop,
             thread: Some(thread),
+            last_stamp: None,
         })
     }
 
@@ -194,7 +198,14 @@ impl FrameSource for Ros2Source {
         self.feed.arrival(i)
     }
     fn samples(&mut self, i: usize) -> Vec<Sample> {
-        let up_to = self.feed.stamp(i);
+        let stamp = self.feed.stamp(i);
+        let period = self
+            .last_stamp
+            .replace(stamp)
+            .map(|before| stamp - before)
+            .filter(|p| *p > 0.0 && *p < 1.0)
+            .unwrap_or(0.1);
+        let up_to = stamp + period;
         let Ok(mut q) = self.imu.lock() else {
             return Vec::new();
         };

@@ -10,6 +10,7 @@
 //! | `queue` | integer | 2 | scans waiting for the pipeline, at most; a scan that finds it full is dropped |
 //! | `publish_tf`, `publish_mesh` | bool | true | whether `/tf` and `mesh` are published |
 //! | `use_sim_time` | bool | false | stamp `diagnostics` with `/clock` |
+//! | `use_imu` | bool | true | use the readings on `imu` (docs/design.md §1.19; its place on the LiDAR is the configuration's `[imu]`) |
 //! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize` | | | as the command's flags of the same names |
 //!
 //! Environment: `ROS_DOMAIN_ID` (0 to 232), `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` or
@@ -88,6 +89,8 @@ pub struct NodeSettings {
     pub publish_mesh: bool,
     /// Follow `/clock`.
     pub use_sim_time: bool,
+    /// Use the readings on `imu`.
+    pub use_imu: bool,
     /// The rest of the parameters (`preset`, `threads`, ...), for the command.
     pub params: BTreeMap<String, ParamValue>,
 }
@@ -155,6 +158,7 @@ impl NodeSettings {
             publish_tf: flag("publish_tf", take("publish_tf"), true)?,
             publish_mesh: flag("publish_mesh", take("publish_mesh"), true)?,
             use_sim_time: flag("use_sim_time", take("use_sim_time"), false)?,
+            use_imu: flag("use_imu", take("use_imu"), true)?,
             domain_id: domain_id(env)?,
             localhost_only: localhost_only(env),
             namespace,
@@ -324,7 +328,7 @@ mod tests {
     fn the_example_parameter_file_is_read_as_documented() {
         let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/ros2/params.yaml");
         let s = settings(&format!("--ros-args --params-file {file}"), &[]).unwrap();
-        assert_eq!((s.queue, s.publish_tf, s.use_sim_time), (2, true, false));
+        assert_eq!((s.queue, s.publish_tf, s.use_sim_time, s.use_imu), (2, true, false, true));
         assert_eq!(s.lidar_in_base, Pose::identity());
         assert_eq!(s.frames.map, "map");
         // What is left is the command's (cli/ros2.rs), as the module docs list.

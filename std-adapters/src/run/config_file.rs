@@ -16,7 +16,7 @@
 //! configuration is checked with [`Config::validate`].
 
 use crate::io::error::FileError;
-use crate::run::inertial::ImuOptions;
+use crate::inertial::ImuOptions;
 use crate::run::window::Window;
 use slamesh_core::Config;
 use std::fmt::Write as _;

@@ -24,7 +24,6 @@ pub mod checkpoint;
 pub mod config_file;
 pub mod files;
 pub mod frame_error;
-pub mod inertial;
 pub mod lookahead;
 pub mod map_pager;
 pub mod memory;

@@ -62,8 +62,8 @@ pub struct RunOptions {
     /// grids, [`crate::navmap`]) from the mesh at the end.
     pub navmap: Option<crate::navmap::NavMapOptions>,
     /// What to do with an IMU's readings when the source gives them (`--imu`,
-    /// [`crate::run::inertial`]): by default, use them.
-    pub imu: crate::run::inertial::ImuOptions,
+    /// [`crate::inertial`]): by default, use them.
+    pub imu: crate::inertial::ImuOptions,
 }
 
 /// `--initial-pose`: where a run from a saved map starts.

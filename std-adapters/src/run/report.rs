@@ -85,7 +85,7 @@ pub struct FrameRecord {
     pub samples: usize,
     /// What the IMU did for the frame (absent when no reading came yet).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub imu: Option<crate::run::inertial::ImuFrame>,
+    pub imu: Option<crate::inertial::ImuFrame>,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -195,9 +195,9 @@ pub struct Summary {
     /// The navigation map written (`--navmap`): its counts, size, robot and which way was up.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub navmap: Option<crate::navmap::files::NavMapSummary>,
-    /// What the IMU did, when readings came ([`crate::run::inertial`]).
+    /// What the IMU did, when readings came ([`crate::inertial`]).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub imu: Option<crate::run::inertial::ImuSummary>,
+    pub imu: Option<crate::inertial::ImuSummary>,
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,

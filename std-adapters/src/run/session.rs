@@ -20,7 +20,7 @@ use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::files::{ReportFile, Trajectories};
-use crate::run::inertial::Inertial;
+use crate::inertial::Inertial;
 use crate::run::lookahead::LookAhead;
 use crate::run::map_pager::MapPager;
 use crate::run::memory;

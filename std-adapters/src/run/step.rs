@@ -16,7 +16,7 @@ use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::run::timing::StageMs;
 use crate::sources::FrameSource;
-use crate::run::inertial::ImuFrame;
+use crate::inertial::ImuFrame;
 use slamesh_core::deskew::{self, DeskewError};
 use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{Paging, Search};

@@ -1,4 +1,4 @@
-//! The IMU in a run (docs/design.md §1.14): the readings a source gives with each frame go
+//! The IMU in a run, a room of its own below `run` (docs/design.md §1.19): the readings a source gives with each frame go
 //! into the core's [`ImuTrack`]; a frame whose time they cover is deskewed with the gyro's
 //! rotation at each point's time and registered from the gyro's rotation since the last used
 //! frame; the registered rotations correct the gyro bias.
@@ -55,7 +55,7 @@ pub struct ImuFrame {
 
 impl ImuFrame {
     /// Notes that the readings did not cover the frame.
-    pub(super) fn missed(&mut self, gap: ImuGap) {
+    pub fn missed(&mut self, gap: ImuGap) {
         self.gap = Some(match gap {
             ImuGap::NoReadings => "ImuGap: no IMU reading yet".into(),
             ImuGap::Between { from, to } => {
@@ -112,7 +112,7 @@ fn body_velocity(history: (Option<Pose>, Option<Pose>), t_before: Option<f64>, t
 
 /// The IMU's part of a run.
 #[derive(Debug)]
-pub(super) struct Inertial {
+pub struct Inertial {
     options: ImuOptions,
     track: ImuTrack,
     /// Reference times (the LiDAR's clock) of the poses the motion model holds: the one
@@ -126,7 +126,7 @@ pub(super) struct Inertial {
 
 impl Inertial {
     /// Ready for readings, holding at most the capacity's [`Capacity::IMU_SAMPLES`].
-    pub(super) fn new<C: Capacity>(options: ImuOptions) -> Self {
+    pub fn new<C: Capacity>(options: ImuOptions) -> Self {
         Self {
             track: ImuTrack::new(C::IMU_SAMPLES, options.calibration),
             options,
@@ -137,14 +137,14 @@ impl Inertial {
     }
 
     /// Counts a frame's dealings into the run's.
-    pub(super) fn count(&mut self, f: &ImuFrame) {
+    pub fn count(&mut self, f: &ImuFrame) {
         self.frames.0 += usize::from(f.deskewed);
         self.frames.1 += usize::from(f.prior);
         self.frames.2 += usize::from(f.gap.is_some());
     }
 
     /// The run's summary, if readings came.
-    pub(super) fn summary(&self) -> Option<ImuSummary> {
+    pub fn summary(&self) -> Option<ImuSummary> {
         let c = self.track.counts();
         self.seen.then(|| ImuSummary {
             readings: ImuCountsReport {
@@ -163,12 +163,12 @@ impl Inertial {
     }
 
     /// Whether the run uses readings now: enabled and some came.
-    pub(super) fn active(&self) -> bool {
+    pub fn active(&self) -> bool {
         self.options.enabled && self.seen
     }
 
     /// Takes the readings that came with frame `frame` of `file`; names the refused.
-    pub(super) fn take(&mut self, samples: &[Sample], file: &str, frame: usize) {
+    pub fn take(&mut self, samples: &[Sample], file: &str, frame: usize) {
         if !self.options.enabled {
             return;
         }
@@ -187,7 +187,7 @@ impl Inertial {
     /// Deskews `points` (times `times` after `stamp`) with the gyro's rotation at each point's
     /// time and the motion model's last velocity (`history`: its last two poses), turned into
     /// the sweep's middle by the gyro: the IMU's deskew.
-    pub(super) fn deskew(
+    pub fn deskew(
         &self,
         points: &mut [Point],
         times: &[f32],
@@ -222,7 +222,7 @@ impl Inertial {
     /// `pose`, the pose at `from`, moved to `to` (a deskewed sweep's pose to its stamp's): the
     /// gyro's rotation, and the velocity of the motion model's last step, which ends at `from`
     /// (`history`: the poses before and at `from`). `None` where the readings do not cover it.
-    pub(super) fn moved(
+    pub fn moved(
         &self,
         pose: &Pose,
         from: f64,
@@ -236,7 +236,7 @@ impl Inertial {
     /// Where the sensor is at `t` (its clock): the last pose turned by the gyro's rotation
     /// since, moved by the last step's translation scaled to the time (none while only one
     /// pose is known). `None` before any pose.
-    pub(super) fn prior(
+    pub fn prior(
         &self,
         history: (Option<Pose>, Option<Pose>),
         t: f64,
@@ -254,7 +254,7 @@ impl Inertial {
     /// A frame's pose was taken at time `t` (the motion model now ends with it): its
     /// registered rotation since the last corrects the bias when it converged, and readings no
     /// rotation needs are forgotten.
-    pub(super) fn used(
+    pub fn used(
         &mut self,
         t: f64,
         status: RegistrationStatus,
