@@ -36,7 +36,11 @@ fn mount() -> Pose {
 }
 
 /// Runs `drive` through the command's run loop and prints its line.
-fn measure<C: Capacity>(name: &str, mut drive: Drive, imu: bool) -> Result<(), Box<dyn std::error::Error>> {
+fn measure<C: Capacity>(
+    name: &str,
+    mut drive: Drive,
+    imu: bool,
+) -> Result<(), Box<dyn std::error::Error>> {
     let out = std::env::temp_dir().join(format!("slamesh-imu-{name}-{}", std::process::id()));
     let mut options = ImuOptions {
         enabled: imu,
@@ -61,12 +65,21 @@ fn measure<C: Capacity>(name: &str, mut drive: Drive, imu: bool) -> Result<(), B
     let seconds = t.elapsed().as_secs_f64();
     let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt"))?;
     std::fs::remove_dir_all(&out)?;
-    let truth: Vec<Pose> = drive.poses.iter().map(|p| drive.poses[0].inverse() * p).collect();
+    let truth: Vec<Pose> = drive
+        .poses
+        .iter()
+        .map(|p| drive.poses[0].inverse() * p)
+        .collect();
     let e = consecutive_errors(&estimate, &truth);
     if std::env::var_os("IMU_DEBUG").is_some() {
         for i in 1..estimate.len() {
-            let d = (truth[i - 1].inverse() * truth[i]).inverse() * (estimate[i - 1].inverse() * estimate[i]);
-            println!("  {i} {:.2} cm {:.3} deg", d.translation.vector.norm() * 100.0, d.rotation.angle().to_degrees());
+            let d = (truth[i - 1].inverse() * truth[i]).inverse()
+                * (estimate[i - 1].inverse() * estimate[i]);
+            println!(
+                "  {i} {:.2} cm {:.3} deg",
+                d.translation.vector.norm() * 100.0,
+                d.rotation.angle().to_degrees()
+            );
         }
     }
     let seg = |m: f64| {
@@ -99,7 +112,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         m.lidar_from_imu = mount();
         m
     };
-    println!("run                    frames notcnv recovd  step cm  100 m %  200 m %    ATE m       s");
+    println!(
+        "run                    frames notcnv recovd  step cm  100 m %  200 m %    ATE m       s"
+    );
     if only != Some("carried") {
         let car = || {
             let mut d = Drive::car(frames, seed);

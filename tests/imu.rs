@@ -81,7 +81,8 @@ fn a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one() {
     let shaken = car().shaken(Vibration::rough_road()).with_imu(imu(200.0));
     let truth = shaken.poses.clone();
     let (_, lost, blind) = run_drive::<KittiCapacity>(&mut shaken.clone(), &truth, false, "blind");
-    let (s, statuses, seeing) = run_drive::<KittiCapacity>(&mut shaken.clone(), &truth, true, "imu");
+    let (s, statuses, seeing) =
+        run_drive::<KittiCapacity>(&mut shaken.clone(), &truth, true, "imu");
     println!(
         "mean step error: calm {:.3} cm, shaken without the IMU {:.3} cm ({} frames not \
          converged), with it {:.3} cm",
@@ -91,10 +92,16 @@ fn a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one() {
         seeing * 100.0
     );
     assert!(seeing <= 1.3 * still, "{seeing} against {still}");
-    assert!(blind > 3.0 * still, "the shake is hard without the IMU: {blind}");
+    assert!(
+        blind > 3.0 * still,
+        "the shake is hard without the IMU: {blind}"
+    );
     assert_eq!(count(&statuses, "Converged"), 59, "{statuses:?}");
     let imu = s.imu.expect("the summary says what the IMU did");
-    assert_eq!((imu.deskewed_frames, imu.prior_frames, imu.gap_frames), (60, 59, 0));
+    assert_eq!(
+        (imu.deskewed_frames, imu.prior_frames, imu.gap_frames),
+        (60, 59, 0)
+    );
     // 200 Hz over the 6 s and the last sweep.
     assert_eq!(imu.readings.taken, 1201);
     assert!(s.health.imu_gaps.is_empty());
@@ -137,7 +144,11 @@ fn frames_the_readings_miss_run_on_the_motion_model_and_are_named() {
     let gaps: Vec<usize> = s.health.imu_gaps.iter().map(|g| g.frame).collect();
     // Frames 20 to 24 sweep through the hole; frame 25's prior reaches back into it.
     assert_eq!(gaps, [20, 21, 22, 23, 24, 25], "{:?}", s.health.imu_gaps);
-    assert!(s.health.imu_gaps.iter().all(|g| g.status == "ImuGap" && g.reason.contains("no IMU reading from")));
+    assert!(s
+        .health
+        .imu_gaps
+        .iter()
+        .all(|g| g.status == "ImuGap" && g.reason.contains("no IMU reading from")));
     assert_eq!(count(&statuses, "Converged"), 59);
     assert!(step < 0.01, "{step}");
 }
@@ -208,7 +219,11 @@ fn the_command_reads_an_imu_csv_beside_a_folder_of_scans() {
     let config = dir.join("imu.toml");
     let (with, without) = (dir.join("with"), dir.join("without"));
     slamesh_run_ok(&scans, &with, &["--config", config.to_str().unwrap()]);
-    slamesh_run_ok(&scans, &without, &["--config", config.to_str().unwrap(), "--imu", "off"]);
+    slamesh_run_ok(
+        &scans,
+        &without,
+        &["--config", config.to_str().unwrap(), "--imu", "off"],
+    );
     let (with, without) = (report(&with), report(&without));
     let imu = &with["summary"]["imu"];
     assert_eq!(imu["prior_frames"], 15, "{imu}");
@@ -224,7 +239,11 @@ fn the_command_reads_an_imu_csv_beside_a_folder_of_scans() {
     };
     assert_eq!(recovered(&with), 0);
     let frames = with["frames"].as_array().unwrap();
-    assert!(frames[1..].iter().all(|f| f["imu"]["prior"] == true), "{}", frames[1]);
+    assert!(
+        frames[1..].iter().all(|f| f["imu"]["prior"] == true),
+        "{}",
+        frames[1]
+    );
     assert!(without["frames"][1].get("imu").is_none());
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -246,7 +246,10 @@ impl ImuTrack {
     /// Forgets the readings no rotation from `t` on needs (all before the last one at or
     /// before `t`).
     pub fn forget_before(&mut self, t: f64) {
-        let keep_from = self.readings.partition_point(|r| r.t <= t).saturating_sub(1);
+        let keep_from = self
+            .readings
+            .partition_point(|r| r.t <= t)
+            .saturating_sub(1);
         self.drop_first(keep_from);
     }
 
@@ -294,10 +297,16 @@ impl ImuTrack {
         };
         let limit = self.gap_limit();
         if b > last.t + limit {
-            return Err(ImuGap::Between { from: last.t, to: b });
+            return Err(ImuGap::Between {
+                from: last.t,
+                to: b,
+            });
         }
         if a < first.t - limit {
-            return Err(ImuGap::Between { from: a, to: first.t });
+            return Err(ImuGap::Between {
+                from: a,
+                to: first.t,
+            });
         }
         let start = r.partition_point(|x| x.t <= a).saturating_sub(1);
         for w in r[start..].windows(2) {
@@ -305,7 +314,10 @@ impl ImuTrack {
                 break;
             }
             if w[1].t - w[0].t > limit {
-                return Err(ImuGap::Between { from: w[0].t, to: w[1].t });
+                return Err(ImuGap::Between {
+                    from: w[0].t,
+                    to: w[1].t,
+                });
             }
         }
         Ok(())
@@ -434,9 +446,15 @@ mod tests {
         // 0.09 to 0.20 is eleven periods.
         assert_eq!(
             t.rotation(0.0, 0.25),
-            Err(ImuGap::Between { from: 0.09, to: 0.2 })
+            Err(ImuGap::Between {
+                from: 0.09,
+                to: 0.2
+            })
         );
-        assert!(t.rotation(0.2, 0.3).is_ok(), "held two periods past the end");
+        assert!(
+            t.rotation(0.2, 0.3).is_ok(),
+            "held two periods past the end"
+        );
         assert!(t.rotation(0.2, 0.35).is_err());
         assert!(t.rotation(0.0, 0.08).is_ok());
     }
@@ -445,17 +463,32 @@ mod tests {
     fn bad_readings_are_refused_and_counted() {
         let mut t = ImuTrack::new(8, ImuCalibration::default());
         t.push(&sample(1.0, [0.0; 3])).unwrap();
-        assert_eq!(t.push(&sample(1.0, [0.0; 3])), Err(ImuFault::Duplicate { t: 1.0 }));
+        assert_eq!(
+            t.push(&sample(1.0, [0.0; 3])),
+            Err(ImuFault::Duplicate { t: 1.0 })
+        );
         assert_eq!(
             t.push(&sample(0.5, [0.0; 3])),
             Err(ImuFault::OutOfOrder { t: 0.5, last: 1.0 })
         );
-        assert_eq!(t.push(&sample(f64::NAN, [0.0; 3])), Err(ImuFault::NotFinite));
-        assert_eq!(t.push(&sample(2.0, [f64::INFINITY, 0.0, 0.0])), Err(ImuFault::NotFinite));
+        assert_eq!(
+            t.push(&sample(f64::NAN, [0.0; 3])),
+            Err(ImuFault::NotFinite)
+        );
+        assert_eq!(
+            t.push(&sample(2.0, [f64::INFINITY, 0.0, 0.0])),
+            Err(ImuFault::NotFinite)
+        );
         t.push(&sample(1.1, [50.0, 0.0, 0.0])).unwrap();
         let c = t.counts();
         assert_eq!(
-            (c.taken, c.duplicate, c.out_of_order, c.not_finite, c.saturated),
+            (
+                c.taken,
+                c.duplicate,
+                c.out_of_order,
+                c.not_finite,
+                c.saturated
+            ),
             (2, 1, 1, 2, 1)
         );
     }
@@ -484,7 +517,11 @@ mod tests {
             t.correct_bias(a, a + 0.1, &UnitQuaternion::identity(), 0.1, 0.05)
                 .unwrap();
         }
-        assert!((t.bias() - Vec3::new(0.0, 0.0, 0.01)).norm() < 1e-6, "{}", t.bias());
+        assert!(
+            (t.bias() - Vec3::new(0.0, 0.0, 0.01)).norm() < 1e-6,
+            "{}",
+            t.bias()
+        );
         let q = t.rotation(20.0, 29.0).unwrap();
         assert!(q.angle() < 1e-5);
         // A registration far off is not taken.

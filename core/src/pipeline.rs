@@ -211,7 +211,9 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         // `MapConfig::reconstruct_at_final_pose`): its bucketing and the pose it was made at.
         let mut for_update: Option<(BucketStats, Pose)> = None;
         // Kept up to date with a prior too, for the frames that come without one.
-        let profile_yaw = self.turn_by_profile(stats.frame).filter(|_| prior.is_none());
+        let profile_yaw = self
+            .turn_by_profile(stats.frame)
+            .filter(|_| prior.is_none());
         if !self.map.is_empty() {
             let best = self.register_scan(pose, profile_yaw, exec, probe, &mut stats);
             stats.associate = best.associate;

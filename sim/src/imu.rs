@@ -65,13 +65,23 @@ impl ImuModel {
     fn with_knots(mut self, seconds: f64) -> Self {
         let mut rng = SplitMix64(self.seed ^ 0xb1a5);
         let mut b: [f64; 6] = std::array::from_fn(|k| {
-            gaussian(&mut rng) * if k < 3 { self.gyro_bias } else { self.accel_bias }
+            gaussian(&mut rng)
+                * if k < 3 {
+                    self.gyro_bias
+                } else {
+                    self.accel_bias
+                }
         });
         self.knots = (0..seconds.max(0.0) as usize + 3)
             .map(|_| {
                 let now = b;
                 for (k, v) in b.iter_mut().enumerate() {
-                    *v += gaussian(&mut rng) * if k < 3 { self.gyro_walk } else { self.accel_walk };
+                    *v += gaussian(&mut rng)
+                        * if k < 3 {
+                            self.gyro_walk
+                        } else {
+                            self.accel_walk
+                        };
                 }
                 now
             })
@@ -124,7 +134,9 @@ impl Vibration {
         let [r, p, y] = self.axes.each_ref().map(|terms| {
             terms
                 .iter()
-                .map(|&(deg, hz, phase)| deg.to_radians() * (std::f64::consts::TAU * hz * t + phase).sin())
+                .map(|&(deg, hz, phase)| {
+                    deg.to_radians() * (std::f64::consts::TAU * hz * t + phase).sin()
+                })
                 .sum::<f64>()
         });
         UnitQuaternion::from_euler_angles(r, p, y)
@@ -158,7 +170,8 @@ impl Drive {
         // The angular velocity over ±0.1 ms; the acceleration over ±20 ms (the smooth drive's
         // velocity changes at the frames: a wider window spreads the change).
         let h = 1e-4;
-        let turn = (imu_at(t - h).rotation.inverse() * imu_at(t + h).rotation).scaled_axis() / (2.0 * h);
+        let turn =
+            (imu_at(t - h).rotation.inverse() * imu_at(t + h).rotation).scaled_axis() / (2.0 * h);
         let a = 0.02;
         let p = |t: f64| imu_at(t).translation.vector;
         let accel = (p(t + a) - 2.0 * p(t) + p(t - a)) / (a * a);
@@ -166,8 +179,13 @@ impl Drive {
         let bias = m.bias_at(t);
         let mut rng = SplitMix64(m.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ k);
         let gyro = std::array::from_fn(|j| turn[j] + bias[j] + m.gyro_noise * gaussian(&mut rng));
-        let accel = std::array::from_fn(|j| force[j] + bias[3 + j] + m.accel_noise * gaussian(&mut rng));
-        ImuSample { stamp: t, gyro, accel }
+        let accel =
+            std::array::from_fn(|j| force[j] + bias[3 + j] + m.accel_noise * gaussian(&mut rng));
+        ImuSample {
+            stamp: t,
+            gyro,
+            accel,
+        }
     }
 }
 
@@ -199,7 +217,11 @@ mod tests {
         let truth = imu(a).rotation.inverse() * imu(b).rotation;
         assert!(q.angle_to(&truth) < 1e-4, "{} rad off", q.angle_to(&truth));
         // A car's accelerometer reads about 1 g, up in the IMU's axes.
-        let mean: Vector3<f64> = readings.iter().map(|r| Vector3::from(r.accel)).sum::<Vector3<f64>>() / 200.0;
+        let mean: Vector3<f64> = readings
+            .iter()
+            .map(|r| Vector3::from(r.accel))
+            .sum::<Vector3<f64>>()
+            / 200.0;
         assert!((mean.norm() - GRAVITY_M_S2).abs() < 0.5, "{mean}");
     }
 

@@ -10,10 +10,10 @@
 //! nothing it does changes a run's bytes.
 
 use crate::sources::Sample;
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use slamesh_core::deskew::{self, DeskewError, Deskewed};
 use slamesh_core::imu::{ImuCalibration, ImuGap, ImuTrack};
-use nalgebra::Vector3;
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
 
 /// What the run does with an IMU's readings (`--imu`, `--deskew`, the configuration's `imu`).
@@ -101,7 +101,11 @@ pub struct ImuCountsReport {
 /// in that pose's frame: the world's step between them, over their time. A body that shakes
 /// keeps moving where the world says, whatever its attitude at the one before. Zero while
 /// either pose is unknown.
-fn body_velocity(history: (Option<Pose>, Option<Pose>), t_before: Option<f64>, t_last: f64) -> Vector3<f64> {
+fn body_velocity(
+    history: (Option<Pose>, Option<Pose>),
+    t_before: Option<f64>,
+    t_last: f64,
+) -> Vector3<f64> {
     match (history, t_before) {
         ((Some(b), Some(l)), Some(t_b)) if t_last > t_b => {
             l.rotation.inverse() * (l.translation.vector - b.translation.vector) / (t_last - t_b)
@@ -178,7 +182,10 @@ impl Inertial {
             if let Err(e) = self.track.push(r) {
                 named += 1;
                 if named <= 10 {
-                    log::warn!("{file}: frame {frame}: IMU reading at {} s refused: {e:?}", r.stamp);
+                    log::warn!(
+                        "{file}: frame {frame}: IMU reading at {} s refused: {e:?}",
+                        r.stamp
+                    );
                 }
             }
         }
@@ -204,7 +211,9 @@ impl Inertial {
         deskew::deskew_by(points, times, |t, mid| {
             let v = match (&velocity, at_mid) {
                 (_, Some(v)) => v,
-                (Some(turned), None) => *at_mid.insert(turned(stamp + mid).map_err(DeskewError::Imu)?),
+                (Some(turned), None) => {
+                    *at_mid.insert(turned(stamp + mid).map_err(DeskewError::Imu)?)
+                }
                 (None, None) => *at_mid.insert(Vector3::zeros()),
             };
             self.relative(stamp + mid, stamp + t, &v)

@@ -2,10 +2,10 @@
 //! to read it.
 
 use crate::formats::imu_csv;
-use crate::sources::imu_readings::ImuReadings;
 use crate::formats::kitti::BinFields;
 use crate::io::FileError;
 use crate::run::Input;
+use crate::sources::imu_readings::ImuReadings;
 use crate::sources::packets::PacketOptions;
 use clap::Args;
 use std::path::PathBuf;

@@ -1,6 +1,5 @@
 //! `slamesh run` (estimate poses, build the mesh) and `slamesh mesh` (build it at given poses).
 
-use crate::inertial::ImuOptions;
 use crate::cli::error::CliError;
 use crate::cli::input::InputArgs;
 use crate::cli::notices::FrameNotices;
@@ -9,6 +8,7 @@ use crate::cli::settings::{Profile, WindowFlags};
 use crate::formats::kitti;
 use crate::formats::trajectory;
 use crate::formats::trajectory::Trajectory;
+use crate::inertial::ImuOptions;
 use crate::io::FileError;
 use crate::loop_closure::settings::LoopSettings;
 use crate::outputs::mesh_spool::{MeshColour, MeshFormat};

@@ -23,10 +23,14 @@ pub struct ImuCsv {
 /// Reads a file (see the module docs); an error only when the file cannot be read or holds
 /// no reading at all.
 pub fn read(path: &Path) -> Result<ImuCsv, FileError> {
-    let bytes = std::fs::read(path).map_err(|e| FileError::at(path, format!("cannot read: {e}")))?;
+    let bytes =
+        std::fs::read(path).map_err(|e| FileError::at(path, format!("cannot read: {e}")))?;
     let csv = parse(&bytes);
     if csv.readings.is_empty() {
-        let why = csv.skipped.first().map_or("it is empty".to_string(), |s| s.clone());
+        let why = csv
+            .skipped
+            .first()
+            .map_or("it is empty".to_string(), |s| s.clone());
         return Err(FileError::at(path, format!("no IMU reading in it: {why}")));
     }
     Ok(csv)
@@ -58,7 +62,10 @@ pub fn parse(bytes: &[u8]) -> ImuCsv {
 fn reading(line: &str) -> Result<ImuReading, String> {
     let fields: Vec<&str> = line.split(',').map(str::trim).collect();
     if fields.len() != 7 {
-        return Err(format!("{} fields, 7 expected (stamp, gyro x y z, accelerometer x y z)", fields.len()));
+        return Err(format!(
+            "{} fields, 7 expected (stamp, gyro x y z, accelerometer x y z)",
+            fields.len()
+        ));
     }
     let ns: i64 = fields[0]
         .parse()
@@ -121,7 +128,10 @@ mod tests {
         let p = dir.join("imu.csv");
         std::fs::write(&p, "#timestamp\n1,2,3\n").unwrap();
         let e = read(&p).unwrap_err().to_string();
-        assert!(e.contains("imu.csv") && e.contains("line 2: 3 fields"), "{e}");
+        assert!(
+            e.contains("imu.csv") && e.contains("line 2: 3 fields"),
+            "{e}"
+        );
         assert!(read(&dir.join("none.csv")).is_err());
         assert_eq!(beside(&dir), Some(p));
     }

@@ -328,7 +328,10 @@ mod tests {
     fn the_example_parameter_file_is_read_as_documented() {
         let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/ros2/params.yaml");
         let s = settings(&format!("--ros-args --params-file {file}"), &[]).unwrap();
-        assert_eq!((s.queue, s.publish_tf, s.use_sim_time, s.use_imu), (2, true, false, true));
+        assert_eq!(
+            (s.queue, s.publish_tf, s.use_sim_time, s.use_imu),
+            (2, true, false, true)
+        );
         assert_eq!(s.lidar_in_base, Pose::identity());
         assert_eq!(s.frames.map, "map");
         // What is left is the command's (cli/ros2.rs), as the module docs list.

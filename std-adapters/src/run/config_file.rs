@@ -15,8 +15,8 @@
 //! Errors name the file, and the line or the parameter, and the reason; the assembled
 //! configuration is checked with [`Config::validate`].
 
-use crate::io::error::FileError;
 use crate::inertial::ImuOptions;
+use crate::io::error::FileError;
 use crate::run::window::Window;
 use slamesh_core::Config;
 use std::fmt::Write as _;
@@ -471,7 +471,9 @@ pub fn documented_toml(config: &Config, preset: &str) -> String {
         };
         let _ = writeln!(s, "# {doc}\n# {name} = {example}");
     }
-    s.push_str("\n# The IMU, when the input has one (defaults: at the LiDAR, in its axes).\n[imu]\n");
+    s.push_str(
+        "\n# The IMU, when the input has one (defaults: at the LiDAR, in its axes).\n[imu]\n",
+    );
     for (name, doc, example) in IMU_DOCS {
         let _ = writeln!(s, "# {doc}\n# {name} = {example}");
     }

@@ -13,6 +13,7 @@
 //! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
 
 use crate::formats::map_file::MapWriter;
+use crate::inertial::Inertial;
 use crate::io::error::FileError;
 use crate::loop_closure::LoopClosure;
 use crate::navmap::files::NavMapSummary;
@@ -20,7 +21,6 @@ use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::files::{ReportFile, Trajectories};
-use crate::inertial::Inertial;
 use crate::run::lookahead::LookAhead;
 use crate::run::map_pager::MapPager;
 use crate::run::memory;

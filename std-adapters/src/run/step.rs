@@ -4,6 +4,7 @@
 //! checkpoint). A frame that cannot be used is a [`FrameError`]: recorded as skipped, the run
 //! goes on; only an output that cannot be written stops it ([`RunError`]).
 
+use crate::inertial::ImuFrame;
 use crate::io::error::FileError;
 use crate::run::capacity::{self, SMALL_SCAN_RATIO};
 use crate::run::frame_error::{FrameError, FrameFault};
@@ -16,7 +17,6 @@ use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::run::timing::StageMs;
 use crate::sources::FrameSource;
-use crate::inertial::ImuFrame;
 use slamesh_core::deskew::{self, DeskewError};
 use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{Paging, Search};
@@ -180,7 +180,11 @@ impl<C: Capacity> Run<'_, C> {
         rec: &mut FrameRecord,
     ) -> Result<(), FrameFault> {
         frame.reference = rec.stamp;
-        if let Some(times) = frame.times.as_deref().filter(|_| self.opts.deskew != Deskew::Off) {
+        if let Some(times) = frame
+            .times
+            .as_deref()
+            .filter(|_| self.opts.deskew != Deskew::Off)
+        {
             let t = Instant::now();
             let d = self.deskew(&mut frame.points, times, rec.stamp, motion, &mut frame.imu)?;
             if let Some(d) = d.filter(|d| d.moved > 0) {
@@ -194,7 +198,10 @@ impl<C: Capacity> Run<'_, C> {
         fits_capacity::<C>(&frame.points, &self.opts.config.filter)?;
         frame.given = self.given_pose(i, rec.stamp, frame.to_stamp)?;
         if frame.given.is_none() && self.search.is_none() && self.inertial.active() {
-            match self.inertial.prior(self.pipeline.motion().history(), frame.reference) {
+            match self
+                .inertial
+                .prior(self.pipeline.motion().history(), frame.reference)
+            {
                 Some(Ok(p)) => (frame.prior, frame.imu.prior) = (Some(p), true),
                 Some(Err(gap)) if frame.imu.gap.is_none() => frame.imu.missed(gap),
                 _ => {}
@@ -381,9 +388,7 @@ impl<C: Capacity> Run<'_, C> {
         // estimates interpolates it (the predicted motion would extrapolate).
         let history = self.pipeline.motion().history();
         let by_imu = (frame.imu.deskewed)
-            .then(|| {
-                (self.inertial).moved(&o.t_world_sensor, frame.reference, rec.stamp, history)
-            })
+            .then(|| (self.inertial).moved(&o.t_world_sensor, frame.reference, rec.stamp, history))
             .flatten();
         let at_stamp = match (by_imu, frame.to_stamp, history) {
             (Some(p), _, _) => p,

@@ -27,7 +27,11 @@ impl ImuReadings {
             log::warn!("{}: {s}: skipped", path.display());
         }
         if csv.skipped.len() > 10 {
-            log::warn!("{}: {} lines skipped in all", path.display(), csv.skipped.len());
+            log::warn!(
+                "{}: {} lines skipped in all",
+                path.display(),
+                csv.skipped.len()
+            );
         }
         Ok(Self::new(csv.readings))
     }
@@ -45,7 +49,10 @@ impl ImuReadings {
     /// The readings not handed yet up to the first one stamped after `until`.
     pub fn until(&mut self, until: f64) -> Vec<Sample> {
         let rest = &self.readings[self.next..];
-        let n = rest.iter().position(|r| r.stamp > until).unwrap_or(rest.len());
+        let n = rest
+            .iter()
+            .position(|r| r.stamp > until)
+            .unwrap_or(rest.len());
         self.next += n;
         rest[..n].iter().copied().map(Sample::Imu).collect()
     }
@@ -56,7 +63,10 @@ impl ImuReadings {
         let Some(&t) = stamps.get(i) else {
             return Vec::new();
         };
-        let period = match (stamps.get(i + 1), i.checked_sub(1).and_then(|j| stamps.get(j))) {
+        let period = match (
+            stamps.get(i + 1),
+            i.checked_sub(1).and_then(|j| stamps.get(j)),
+        ) {
             (Some(next), _) if *next > t => next - t,
             (_, Some(before)) if t > *before => t - before,
             _ => 0.1,

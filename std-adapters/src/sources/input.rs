@@ -313,7 +313,9 @@ impl FrameSource for ScanFolder {
     }
     fn samples(&mut self, i: usize) -> Vec<Sample> {
         let stamps = &self.stamps;
-        self.imu.as_mut().map_or_else(Vec::new, |imu| imu.for_frame(stamps, i))
+        self.imu
+            .as_mut()
+            .map_or_else(Vec::new, |imu| imu.for_frame(stamps, i))
     }
     /// PCD and PLY files with a time field give their points' times; `.bin` files none.
     fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
