@@ -18,7 +18,7 @@
 //! does not enter a rotation (every point of a rigid body turns alike); it matters only for the
 //! accelerometer.
 
-use crate::bounded::BoundedVec;
+use crate::bounded::{BoundedVec, Empty};
 use crate::math::{Pose, Vec3};
 use nalgebra::UnitQuaternion;
 
@@ -130,9 +130,9 @@ pub struct Reading {
     gyro: Vec3,
 }
 
-impl Reading {
+impl Empty for Reading {
     /// An empty slot, for a `static` buffer.
-    pub const EMPTY: Reading = Reading {
+    const EMPTY: Reading = Reading {
         t: 0.0,
         gyro: Vec3::new(0.0, 0.0, 0.0),
     };

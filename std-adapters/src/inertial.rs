@@ -80,7 +80,7 @@ pub struct ImuSummary {
     pub gyro_bias: [f64; 3],
 }
 
-/// [`ImuCounts`] as the report writes them.
+/// [`ImuCounts`](slamesh_core::imu::ImuCounts) as the report writes them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct ImuCountsReport {
     /// Taken.

@@ -112,9 +112,9 @@ mod tests {
         let csv = parse(text.as_bytes());
         assert_eq!(csv.readings.len(), 2);
         let r = csv.readings[0];
-        assert!((r.stamp - 1403636579.758555392).abs() < 1e-6);
+        assert!((r.stamp - 1_403_636_579.758_555_4).abs() < 1e-6);
         assert_eq!(r.gyro[1], 0.14032447186034408);
-        assert_eq!(r.accel[2], -2.4026292499999999);
+        assert_eq!(r.accel[2], "-2.4026292499999999".parse::<f64>().unwrap());
         assert_eq!(csv.readings[1].accel, [0.4, 0.5, 9.8]);
         assert_eq!(csv.skipped.len(), 3, "{:?}", csv.skipped);
         assert!(csv.skipped[0].starts_with("line 5: 4 fields"));
