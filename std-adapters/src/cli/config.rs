@@ -15,8 +15,6 @@ pub struct ConfigArgs {
 /// Prints the preset as a documented TOML file.
 pub fn config(args: &ConfigArgs) {
     let c = config_file::preset(&args.preset).unwrap_or_default();
-    say!(
-        "{}",
-        config_file::documented_toml(&c, &args.preset).trim_end()
-    );
+    let text = config_file::documented_toml(&c, &args.preset) + &config_file::documented_imu_toml();
+    say!("{}", text.trim_end());
 }

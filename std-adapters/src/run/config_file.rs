@@ -471,7 +471,13 @@ pub fn documented_toml(config: &Config, preset: &str) -> String {
         };
         let _ = writeln!(s, "# {doc}\n# {name} = {example}");
     }
-    s.push_str(
+    s
+}
+
+/// The `[imu]` section's documentation, every parameter commented out with its default: what
+/// `slamesh config` adds to [`documented_toml`] (a map file keeps only the map's settings).
+pub fn documented_imu_toml() -> String {
+    let mut s = String::from(
         "\n# The IMU, when the input has one (defaults: at the LiDAR, in its axes).\n[imu]\n",
     );
     for (name, doc, example) in IMU_DOCS {
@@ -548,6 +554,41 @@ mod tests {
         assert_eq!(s.window.max_age_frames, Some(50));
         assert_eq!(s.window.memory_cap_mb, Some(120.0));
         assert!(s.window.save_evicted);
+    }
+
+    #[test]
+    fn the_imu_section_places_the_imu_and_names_its_mistakes() {
+        let s = parse(
+            "[imu]\ntranslation_m = [0.3, 0.0, -0.1]\nrotation_rpy_deg = [0.0, 0.0, 90.0]\n\
+             time_offset_s = -0.02\nbias_gain = 0.5\n",
+        )
+        .unwrap();
+        let c = s.imu.calibration;
+        assert_eq!(c.lidar_from_imu.translation.vector.x, 0.3);
+        let x = c.lidar_from_imu.rotation * nalgebra::Vector3::x();
+        assert!((x - nalgebra::Vector3::y()).norm() < 1e-12, "{x}");
+        assert_eq!((c.time_offset_s, s.imu.bias_gain), (-0.02, 0.5));
+        assert!(s.imu.enabled);
+        for (text, want) in [
+            (
+                "[imu]\ntranslation_m = [1, 2]\n",
+                "[imu] translation_m: expected three numbers",
+            ),
+            (
+                "[imu]\nlever = 1\n",
+                "[imu] lever: unknown parameter (known: translation_m",
+            ),
+            (
+                "[imu]\ngyro_limit_deg_s = -1\n",
+                "[imu] gyro_limit_deg_s: must be a positive",
+            ),
+        ] {
+            let e = parse(text).unwrap_err();
+            assert!(e.starts_with(want), "{text}: {e}");
+        }
+        // `slamesh config`'s section reads back as the defaults.
+        let documented = documented_toml(&Config::default(), "default") + &documented_imu_toml();
+        assert_eq!(parse(&documented).unwrap().imu, ImuOptions::default());
     }
 
     #[test]
