@@ -3,7 +3,9 @@
 //! gives the folder run's trajectories and mesh byte for byte, with the header stamps as the
 //! TUM times; a malformed cloud is skipped with a message naming the recording, topic, index
 //! and reason; a recording with several clouds, or a topic of another type, is refused with
-//! the topics listed.
+//! the topics listed. Each fixture's `/imu` topic (written by rosbags and mcap, as ROS 1 and
+//! CDR) is read beside the clouds with the values written; the runs that compare with the
+//! folder or the motion's deskewing leave it out (`--imu off`).
 
 use crate::common;
 
@@ -43,11 +45,11 @@ fn every_container_gives_the_folder_runs_outputs() {
     );
     for rec in RECORDINGS {
         let out = dir.join(rec.replace('/', "-"));
-        // The folder's scans have no point times: compare without deskewing.
+        // The folder's scans have no point times and no IMU: compare without either.
         slamesh_run_ok(
             &fixtures().join(rec),
             &out,
-            &["--no-picture", "--deskew", "off"],
+            &["--no-picture", "--deskew", "off", "--imu", "off"],
         );
         for f in ["poses_kitti.txt", "poses_tum.txt", "mesh.ply"] {
             let (a, b) = (
@@ -62,7 +64,11 @@ fn every_container_gives_the_folder_runs_outputs() {
 
 /// Points deskewed in each frame of a run on `rec` with `--deskew auto`.
 fn deskewed(rec: &str, out: &Path) -> Vec<u64> {
-    slamesh_run_ok(&fixtures().join(rec), out, &["--no-picture"]);
+    slamesh_run_ok(
+        &fixtures().join(rec),
+        out,
+        &["--no-picture", "--imu", "off"],
+    );
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     // Each frame's time in the report is its header stamp (make.py: 1317000000 + times.txt).
@@ -164,6 +170,59 @@ fn topics_are_chosen_or_refused_by_name_and_type() {
         &fixtures().join("bad/two-clouds.mcap"),
         &out,
         &["--topic", "/ouster/points", "--no-picture"],
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_imu_topic_is_read_beside_the_clouds_in_every_container() {
+    use slamesh::run::{FrameSource, Sample};
+    use slamesh::sources::recording::{Container, Recording};
+    for rec in RECORDINGS {
+        let path = fixtures().join(rec);
+        let container = Container::detect(&path).unwrap().unwrap();
+        let mut r = Recording::open(container, None).unwrap();
+        assert!(r.read_imu(None).unwrap(), "{rec}");
+        let mut readings = Vec::new();
+        for i in 0..r.frames() {
+            r.read(i).unwrap();
+            readings.extend(r.samples(i));
+        }
+        // make.py: a reading a microsecond before each cloud's stamp, both rates (0, 0, 9.81).
+        assert_eq!(readings.len(), 3, "{rec}");
+        for (i, Sample::Imu(s)) in readings.iter().enumerate() {
+            assert_eq!(
+                (s.gyro, s.accel),
+                ([0.0, 0.0, 9.81], [0.0, 0.0, 9.81]),
+                "{rec}"
+            );
+            assert!(
+                (s.stamp - r.stamp(i)).abs() < 1e-5,
+                "{rec}: {} {}",
+                s.stamp,
+                r.stamp(i)
+            );
+        }
+    }
+    let path = fixtures().join("mcap/cdr-none.mcap");
+    let mut r = Recording::open(Container::detect(&path).unwrap().unwrap(), None).unwrap();
+    let e = r
+        .read_imu(Some("/velodyne_points"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("holds sensor_msgs/msg/PointCloud2, not sensor_msgs/Imu"),
+        "{e}"
+    );
+    // Through the command: the readings reach the run, counted in its summary.
+    let dir = scratch("recordings-imu");
+    slamesh_run_ok(&path, &dir, &["--no-picture"]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["summary"]["imu"]["readings"]["taken"], 3,
+        "{}",
+        report["summary"]
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -174,6 +174,15 @@ put("imu_csv", "euroc", b"#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1
     + b"1403636579758555392,0,0,0,0,0,9.8\n1403636579953555392,1,2,3\n")
 
 
+# sensor_msgs/Imu as ROS 1 and CDR serialise it (imu_message): the stamp, the frame, then the
+# orientation, the rates and their covariances (37 doubles).
+imu_doubles = [0, 0, 0, 1] + [0] * 9 + [0.1, -0.2, 0.3] + [0] * 9 + [0.4, 0.5, 9.81] + [0] * 9
+put("imu_message", "ros1", struct.pack("<IIII", 7, 1317000000, 250000000, 3) + b"imu"
+    + struct.pack("<37d", *imu_doubles))
+put("imu_message", "cdr", bytes([0, 1, 0, 0]) + struct.pack("<iII", 1317000000, 250000000, 4)
+    + b"imu\0" + struct.pack("<37d", *imu_doubles))
+
+
 # The ROS 2 node's command line and a parameter file (ros_args).
 put("ros_args", "command_line", b"--ros-args -r points:=/velodyne_points -p threads:=2 "
     b"-p preset:=kitti -r __ns:=/robot1 -p lidar_in_base:=[0.0,0,1.2,0,0,0]")

@@ -54,6 +54,9 @@ pub struct InputArgs {
     /// configuration's `[imu]` section.
     #[arg(long, value_name = "off|FILE")]
     pub imu: Option<String>,
+    /// A recording's `sensor_msgs/Imu` topic (default: its only one, when it has one).
+    #[arg(long, value_name = "NAME")]
+    pub imu_topic: Option<String>,
 }
 
 impl InputArgs {
@@ -95,6 +98,17 @@ impl InputArgs {
     /// ([`imu_csv::beside`]) unless `--imu off`; says when their times miss the scans'.
     fn attach_imu(&self, input: &mut Input) -> Result<(), FileError> {
         let asked = self.imu.as_deref().filter(|v| *v != "off");
+        let off = self.imu.as_deref() == Some("off");
+        #[cfg(feature = "recordings")]
+        if let (Input::Recording(r), None) = (&mut *input, asked) {
+            if !off {
+                r.read_imu(self.imu_topic.as_deref())?;
+            }
+            return Ok(());
+        }
+        if self.imu_topic.is_some() {
+            return Err(FileError::at(&self.input, "--imu-topic is for recordings"));
+        }
         let Input::Folder(folder) = input else {
             return match asked {
                 Some(_) => Err(FileError::at(
@@ -104,10 +118,10 @@ impl InputArgs {
                 None => Ok(()),
             };
         };
-        let path = match (self.imu.as_deref(), asked) {
-            (Some("off"), _) => return Ok(()),
-            (_, Some(file)) => Some(PathBuf::from(file)),
-            _ => imu_csv::beside(&self.input),
+        let path = match asked {
+            _ if off => return Ok(()),
+            Some(file) => Some(PathBuf::from(file)),
+            None => imu_csv::beside(&self.input),
         };
         let Some(path) = path else { return Ok(()) };
         let imu = ImuReadings::open(&path)?;

@@ -14,10 +14,12 @@
 //! | map files: the map saved for later runs, read whole or by tile (the std side) | [`map_file`] |
 //! | trajectories, KITTI and TUM | [`trajectory`] |
 //! | IMU readings as a CSV in EuRoC's layout | [`imu_csv`] |
+//! | `sensor_msgs/Imu` messages (ROS 1 and CDR) | [`imu_message`] |
 //! | the ROS 2 command line (`--ros-args`) and parameter files | [`ros_args`] |
 //! | ROS 2 messages as serde types laid out for CDR (odometry, transforms, markers, IMU, ...) | [`ros_messages`] |
 
 pub mod imu_csv;
+pub mod imu_message;
 pub mod kitti;
 pub mod lzf;
 pub mod map_file;

@@ -286,6 +286,8 @@ impl FrameSource for Input {
     fn samples(&mut self, i: usize) -> Vec<Sample> {
         match self {
             Input::Folder(f) => f.samples(i),
+            #[cfg(feature = "recordings")]
+            Input::Recording(r) => r.samples(i),
             _ => Vec::new(),
         }
     }

@@ -12,9 +12,13 @@
 //! | ROS 1 bag (`#ROSBAG V2.0`) | [`rosbag1`] | none, bz2, lz4 |
 //! | MCAP, ROS 2 (`cdr`) or ROS 1 (`ros1`) messages | [`mcap`] | none, zstd, lz4 |
 //! | ROS 2 bag folder: `metadata.yaml` and `.db3` (`db3`) or `.mcap` files | [`ros2`] | as its files |
+//!
+//! A `sensor_msgs/Imu` topic (the only one, or `--imu-topic`'s) is read beside the clouds and
+//! its readings handed to the frames ([`imu_topic`]).
 
 #[cfg(feature = "db3")]
 pub mod db3;
+pub mod imu_topic;
 pub mod mcap;
 pub mod ros2;
 pub mod rosbag1;
@@ -286,6 +290,8 @@ pub struct Recording {
     stamps: Vec<Option<f64>>,
     /// Points the last decoded cloud dropped (NaN or no return).
     last_dropped: usize,
+    /// The IMU topic read beside the clouds ([`Recording::read_imu`]).
+    pub imu: Option<imu_topic::ImuTopic>,
 }
 
 impl Recording {
@@ -307,7 +313,27 @@ impl Recording {
             stream: None,
             next: 0,
             last_dropped: 0,
+            imu: None,
         })
+    }
+
+    /// Reads the IMU topic `wanted` (or the only one) beside the clouds; `Ok(false)` when the
+    /// recording has none. An error names the topics when the choice is not clear.
+    pub fn read_imu(&mut self, wanted: Option<&str>) -> Result<bool, FileError> {
+        let topics = self.container.topics()?;
+        let path = self.container.path();
+        let chosen =
+            imu_topic::choose_imu_topic(&topics, wanted).map_err(|e| FileError::at(&path, e))?;
+        let Some(topic) = chosen else {
+            return Ok(false);
+        };
+        log::info!(
+            "IMU readings from topic {} ({} messages)",
+            topic.name,
+            topic.messages
+        );
+        self.imu = Some(imu_topic::ImuTopic::open(&self.container, topic)?);
+        Ok(true)
     }
 
     /// The container read.
@@ -399,5 +425,12 @@ impl crate::sources::FrameSource for Recording {
     }
     fn dropped_by_reader(&self) -> usize {
         self.last_dropped
+    }
+    fn samples(&mut self, i: usize) -> Vec<crate::sources::Sample> {
+        let stamp = crate::sources::FrameSource::stamp(self, i);
+        let label = self.container.path().display().to_string();
+        self.imu
+            .as_mut()
+            .map_or_else(Vec::new, |imu| imu.for_frame(stamp, &label))
     }
 }
