@@ -3,6 +3,7 @@
 //! - a car shaken by a rough road within its rolling sweeps: with its IMU, as accurate as the
 //!   calm drive and never lost; without, lost on a third of its frames;
 //! - readings with a hole: the frames in it run on the motion model, named `ImuGap`;
+//! - readings in the wrong units: the IMU is set aside after five frames, named;
 //! - a hand-held rig's fast turns: with the IMU no frame needs recovery, also when the
 //!   readings come as a CSV beside a folder of scans (`slamesh run`); `--imu off` ignores them.
 
@@ -151,6 +152,50 @@ fn frames_the_readings_miss_run_on_the_motion_model_and_are_named() {
         .all(|g| g.status == "ImuGap" && g.reason.contains("no IMU reading from")));
     assert_eq!(count(&statuses, "Converged"), 59);
     assert!(step < 0.01, "{step}");
+}
+
+/// A drive whose IMU reports degrees a second where radians are due.
+struct InDegrees(Drive);
+
+impl FrameSource for InDegrees {
+    fn frames(&self) -> usize {
+        self.0.frames()
+    }
+    fn label(&self, i: usize) -> String {
+        self.0.label(i)
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        self.0.stamp(i)
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<Point>, slamesh::io::FileError> {
+        self.0.read(i)
+    }
+    fn read_timed(
+        &mut self,
+        i: usize,
+    ) -> Result<(Vec<Point>, Option<Vec<f32>>), slamesh::io::FileError> {
+        self.0.read_timed(i)
+    }
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        let mut s = self.0.samples(i);
+        for Sample::Imu(r) in &mut s {
+            r.gyro = r.gyro.map(f64::to_degrees);
+        }
+        s
+    }
+}
+
+#[test]
+fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
+    let d = car().shaken(Vibration::rough_road()).with_imu(imu(200.0));
+    let truth = d.poses.clone();
+    let (s, statuses, _) = run_drive::<KittiCapacity>(&mut InDegrees(d), &truth, true, "degrees");
+    let imu = s.imu.expect("readings came");
+    let why = imu.set_aside.expect("set aside");
+    assert!(why.contains("units (rad/s)"), "{why}");
+    // The frames after it ran on the motion model, to the end.
+    assert_eq!(statuses.len(), 60);
+    assert!(imu.prior_frames < 20, "{}", imu.prior_frames);
 }
 
 /// The hand-held rig's first `frames` scans, with its IMU at 400 Hz.

@@ -78,6 +78,10 @@ pub struct ImuSummary {
     pub gap_frames: usize,
     /// The gyro bias the registrations taught it at the end (rad/s, the LiDAR's axes).
     pub gyro_bias: [f64; 3],
+    /// Why the IMU was set aside during the run (its rotations kept missing the registered
+    /// ones), if it was.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub set_aside: Option<String>,
 }
 
 /// [`ImuCounts`](slamesh_core::imu::ImuCounts) as the report writes them.
@@ -126,6 +130,10 @@ pub struct Inertial {
     seen: bool,
     /// Frames deskewed with the gyro, registered from its prior, and not covered.
     frames: (usize, usize, usize),
+    /// Frames in a row whose rotation the gyro missed ([`Inertial::used`]).
+    disagreeing: usize,
+    /// Why the IMU was set aside, if it was.
+    set_aside: Option<String>,
 }
 
 impl Inertial {
@@ -137,6 +145,8 @@ impl Inertial {
             refs: (None, None),
             seen: false,
             frames: (0, 0, 0),
+            disagreeing: 0,
+            set_aside: None,
         }
     }
 
@@ -163,12 +173,13 @@ impl Inertial {
             prior_frames: self.frames.1,
             gap_frames: self.frames.2,
             gyro_bias: self.track.bias().into(),
+            set_aside: self.set_aside.clone(),
         })
     }
 
     /// Whether the run uses readings now: enabled and some came.
     pub fn active(&self) -> bool {
-        self.options.enabled && self.seen
+        self.options.enabled && self.seen && self.set_aside.is_none()
     }
 
     /// Takes the readings that came with frame `frame` of `file`; names the refused.
@@ -260,30 +271,64 @@ impl Inertial {
         Some(Ok(last * Pose::from_parts(step.into(), turn)))
     }
 
-    /// A frame's pose was taken at time `t` (the motion model now ends with it): its
-    /// registered rotation since the last corrects the bias when it converged, and readings no
-    /// rotation needs are forgotten.
+    /// A frame's pose was taken at time `t` (the motion model now ends with it; `from_prior`:
+    /// registered from the gyro's prior): its registered rotation since the last corrects the
+    /// bias when it is close, a run of misses sets the IMU aside ([`DISTRUST_AFTER`]), and
+    /// readings no rotation needs are forgotten.
     pub fn used(
         &mut self,
         t: f64,
         status: RegistrationStatus,
         history: (Option<Pose>, Option<Pose>),
+        from_prior: bool,
     ) {
+        use RegistrationStatus::{Converged, NotConverged, Recovered};
         if let ((Some(before), Some(last)), Some(t_before)) = (history, self.refs.1) {
-            if status == RegistrationStatus::Converged && self.active() {
+            if matches!(status, Converged | Recovered) && self.active() {
                 let registered = (before.inverse() * last).rotation;
                 let o = &self.options;
                 // A frame the readings do not cover teaches nothing.
-                let _ = self.track.correct_bias(
+                if let Ok(off) = self.track.correct_bias(
                     t_before,
                     t,
                     &registered,
                     o.bias_gain,
                     o.bias_max_deg.to_radians(),
-                );
+                ) {
+                    self.judge(off.to_degrees(), t - t_before);
+                }
+            } else if status == NotConverged && from_prior {
+                // Lost from the gyro's start: as telling as a miss.
+                self.judge(f64::INFINITY, t - t_before);
             }
         }
         self.refs = (self.refs.1, Some(t));
         self.track.forget_before(t);
     }
+
+    /// Counts registered frames whose rotation the gyro's misses by more than the bias may
+    /// take (and frames lost from its prior); [`DISTRUST_AFTER`] in a row and the IMU is set
+    /// aside, named: its axes, clock or units are not the LiDAR's (a wrong `[imu]`, degrees
+    /// for radians).
+    fn judge(&mut self, off_deg: f64, dt: f64) {
+        if off_deg <= self.options.bias_max_deg {
+            self.disagreeing = 0;
+            return;
+        }
+        self.disagreeing += 1;
+        if self.disagreeing == DISTRUST_AFTER {
+            let why = format!(
+                "the gyro's rotation missed the registered one by more than {:.1} degrees on {} \
+                 frames in a row ({off_deg:.1} degrees over {dt:.3} s, the last): its place or \
+                 clock in [imu] (rotation_rpy_deg, time_offset_s) or its units (rad/s) are not \
+                 right; the IMU is set aside, the motion model carries on",
+                self.options.bias_max_deg, DISTRUST_AFTER
+            );
+            log::warn!("IMU: {why}");
+            self.set_aside = Some(why);
+        }
+    }
 }
+
+/// Frames in a row whose rotation the gyro misses before the IMU is set aside.
+pub const DISTRUST_AFTER: usize = 5;

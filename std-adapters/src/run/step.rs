@@ -401,7 +401,7 @@ impl<C: Capacity> Run<'_, C> {
             _ => o.t_world_sensor,
         };
         self.progress.poses.push((i, at_stamp));
-        self.inertial.used(frame.reference, o.status, history);
+        (self.inertial).used(frame.reference, o.status, history, frame.imu.prior);
         if self.inertial.active() {
             self.inertial.count(&frame.imu);
             rec.imu = Some(frame.imu.clone());
