@@ -108,10 +108,10 @@ fn a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one() {
     assert!(s.health.imu_gaps.is_empty());
 }
 
-/// A drive whose IMU says nothing from 2.0 s to 2.5 s.
-struct Holed(Drive);
+/// A drive whose IMU's readings `alter` changes on their way to the run.
+struct Altered(Drive, fn(&mut Vec<Sample>));
 
-impl FrameSource for Holed {
+impl FrameSource for Altered {
     fn frames(&self) -> usize {
         self.0.frames()
     }
@@ -132,8 +132,20 @@ impl FrameSource for Holed {
     }
     fn samples(&mut self, i: usize) -> Vec<Sample> {
         let mut s = self.0.samples(i);
-        s.retain(|s| !(2.0..2.5).contains(&s.stamp()));
+        (self.1)(&mut s);
         s
+    }
+}
+
+/// Nothing from 2.0 s to 2.5 s.
+fn holed(s: &mut Vec<Sample>) {
+    s.retain(|s| !(2.0..2.5).contains(&s.stamp()));
+}
+
+/// Degrees a second where radians are due.
+fn in_degrees(s: &mut Vec<Sample>) {
+    for Sample::Imu(r) in s {
+        r.gyro = r.gyro.map(f64::to_degrees);
     }
 }
 
@@ -141,7 +153,8 @@ impl FrameSource for Holed {
 fn frames_the_readings_miss_run_on_the_motion_model_and_are_named() {
     let calm = car().with_imu(imu(200.0));
     let truth = calm.poses.clone();
-    let (s, statuses, step) = run_drive::<KittiCapacity>(&mut Holed(calm), &truth, true, "holed");
+    let (s, statuses, step) =
+        run_drive::<KittiCapacity>(&mut Altered(calm, holed), &truth, true, "holed");
     let gaps: Vec<usize> = s.health.imu_gaps.iter().map(|g| g.frame).collect();
     // Frames 20 to 24 sweep through the hole; frame 25's prior reaches back into it.
     assert_eq!(gaps, [20, 21, 22, 23, 24, 25], "{:?}", s.health.imu_gaps);
@@ -154,42 +167,12 @@ fn frames_the_readings_miss_run_on_the_motion_model_and_are_named() {
     assert!(step < 0.01, "{step}");
 }
 
-/// A drive whose IMU reports degrees a second where radians are due.
-struct InDegrees(Drive);
-
-impl FrameSource for InDegrees {
-    fn frames(&self) -> usize {
-        self.0.frames()
-    }
-    fn label(&self, i: usize) -> String {
-        self.0.label(i)
-    }
-    fn stamp(&self, i: usize) -> f64 {
-        self.0.stamp(i)
-    }
-    fn read(&mut self, i: usize) -> Result<Vec<Point>, slamesh::io::FileError> {
-        self.0.read(i)
-    }
-    fn read_timed(
-        &mut self,
-        i: usize,
-    ) -> Result<(Vec<Point>, Option<Vec<f32>>), slamesh::io::FileError> {
-        self.0.read_timed(i)
-    }
-    fn samples(&mut self, i: usize) -> Vec<Sample> {
-        let mut s = self.0.samples(i);
-        for Sample::Imu(r) in &mut s {
-            r.gyro = r.gyro.map(f64::to_degrees);
-        }
-        s
-    }
-}
-
 #[test]
 fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
     let d = car().shaken(Vibration::rough_road()).with_imu(imu(200.0));
     let truth = d.poses.clone();
-    let (s, statuses, _) = run_drive::<KittiCapacity>(&mut InDegrees(d), &truth, true, "degrees");
+    let (s, statuses, _) =
+        run_drive::<KittiCapacity>(&mut Altered(d, in_degrees), &truth, true, "degrees");
     let imu = s.imu.expect("readings came");
     let why = imu.set_aside.expect("set aside");
     assert!(why.contains("units (rad/s)"), "{why}");

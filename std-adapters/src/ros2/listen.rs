@@ -23,6 +23,7 @@ use crate::ros2::messages::{
     Clock, Imu, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse,
 };
 use crate::sources::feed::{Feed, FeedSender, Offered};
+use crate::sources::imu_readings::frame_period;
 use crate::sources::{FrameSource, ImuReading, Request, Sample, Waited};
 use ros2_client::{RmwRequestId, Server, Subscription};
 use rustdds::mio1::{Events, Interest, Poll, Token};
@@ -199,13 +200,8 @@ impl FrameSource for Ros2Source {
     }
     fn samples(&mut self, i: usize) -> Vec<Sample> {
         let stamp = self.feed.stamp(i);
-        let period = self
-            .last_stamp
-            .replace(stamp)
-            .map(|before| stamp - before)
-            .filter(|p| *p > 0.0 && *p < 1.0)
-            .unwrap_or(0.1);
-        let up_to = stamp + period;
+        let before = self.last_stamp.replace(stamp);
+        let up_to = stamp + frame_period(stamp, before, None);
         let Ok(mut q) = self.imu.lock() else {
             return Vec::new();
         };

@@ -63,16 +63,20 @@ impl ImuReadings {
         let Some(&t) = stamps.get(i) else {
             return Vec::new();
         };
-        let period = match (
-            stamps.get(i + 1),
-            i.checked_sub(1).and_then(|j| stamps.get(j)),
-        ) {
-            (Some(next), _) if *next > t => next - t,
-            (_, Some(before)) if t > *before => t - before,
-            _ => 0.1,
-        };
-        self.until(t + period)
+        let before = i.checked_sub(1).and_then(|j| stamps.get(j)).copied();
+        self.until(t + frame_period(t, before, stamps.get(i + 1).copied()))
     }
+}
+
+/// The period of the frame stamped `stamp` (seconds): to the next frame's stamp when it is
+/// known, else from the one before, else 0.1 s (10 Hz). A frame takes the IMU's readings up to
+/// a period past its stamp, wherever they come from (a folder's file, a recording's topic, the
+/// ROS 2 node's `imu`).
+pub fn frame_period(stamp: f64, before: Option<f64>, next: Option<f64>) -> f64 {
+    let valid = |p: f64| (p > 0.0 && p < 1.0).then_some(p);
+    next.and_then(|n| valid(n - stamp))
+        .or_else(|| before.and_then(|b| valid(stamp - b)))
+        .unwrap_or(0.1)
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@
 //! named, all counted); the frames go on.
 
 use crate::formats::imu_message;
+use crate::sources::imu_readings::frame_period;
 use crate::sources::recording::{Container, Encoding, Messages, Topic};
 use crate::sources::Sample;
 
@@ -77,13 +78,8 @@ impl ImuTopic {
     /// The readings up to a frame period past `stamp`, the stamp of the next frame (frames in
     /// order); `label` names the recording in messages.
     pub fn for_frame(&mut self, stamp: f64, label: &str) -> Vec<Sample> {
-        let period = self
-            .last_stamp
-            .replace(stamp)
-            .map(|before| stamp - before)
-            .filter(|p| *p > 0.0 && *p < 1.0)
-            .unwrap_or(0.1);
-        let until = stamp + period;
+        let before = self.last_stamp.replace(stamp);
+        let until = stamp + frame_period(stamp, before, None);
         let mut out = Vec::new();
         loop {
             let s = match self.held.take() {
