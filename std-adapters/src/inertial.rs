@@ -6,8 +6,9 @@
 //! It owns the track, the reference times of the last two used frames (where their poses
 //! are) and the counts for the report. It guarantees that a frame the readings do not cover
 //! (a gap, no readings yet) is run exactly as without an IMU, and named; that a reading it
-//! refuses is named (the first ten of each frame's, then counted); and that without readings
-//! nothing it does changes a run's bytes.
+//! refuses is named (the first ten of each frame's, then counted); that an IMU whose
+//! rotations keep missing the registered ones is set aside, named ([`DISTRUST_AFTER`]); and
+//! that without readings nothing it does changes a run's bytes.
 
 use crate::sources::Sample;
 use nalgebra::Vector3;
@@ -177,7 +178,7 @@ impl Inertial {
         })
     }
 
-    /// Whether the run uses readings now: enabled and some came.
+    /// Whether the run uses readings now: enabled, some came, and not set aside.
     pub fn active(&self) -> bool {
         self.options.enabled && self.seen && self.set_aside.is_none()
     }
@@ -254,8 +255,8 @@ impl Inertial {
     }
 
     /// Where the sensor is at `t` (its clock): the last pose turned by the gyro's rotation
-    /// since, moved by the last step's translation scaled to the time (none while only one
-    /// pose is known). `None` before any pose.
+    /// since, moved at the last step's velocity ([`body_velocity`]; none while only one pose
+    /// is known). `None` before any pose.
     pub fn prior(
         &self,
         history: (Option<Pose>, Option<Pose>),
