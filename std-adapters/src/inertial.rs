@@ -1,7 +1,7 @@
-//! The IMU in a run, a room of its own below `run` (docs/design.md §1.19): the readings a source gives with each frame go
-//! into the core's [`ImuTrack`]; a frame whose time they cover is deskewed with the gyro's
-//! rotation at each point's time and registered from the gyro's rotation since the last used
-//! frame; the registered rotations correct the gyro bias.
+//! The IMU in a run, a room of its own below `run` (docs/design.md §1.19): the readings a
+//! source gives with each frame go into the core's [`ImuTrack`]; a frame whose time they
+//! cover is deskewed with the gyro's rotation at each point's time and registered from the
+//! gyro's rotation since the last used frame; the registered rotations correct the gyro bias.
 //!
 //! It owns the track, the reference times of the last two used frames (where their poses
 //! are) and the counts for the report. It guarantees that a frame the readings do not cover
