@@ -13,7 +13,8 @@ cd "$(dirname "$0")"
 seconds=${1:-600}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(kitti_bin pcd ply config_toml core_scan pointcloud2 recording map_file capture velodyne_packet ouster_packet ouster_metadata velodyne_calibration)
+# By default every target Cargo.toml names (a new one is fuzzed the day it lands).
+[ ${#targets[@]} -gt 0 ] || mapfile -t targets < <(awk '/^\[\[bin\]\]/ { bin = 1 } bin && /^name = / { gsub(/"/, "", $3); print $3; bin = 0 }' Cargo.toml)
 jobs=${FUZZ_JOBS:-$(nproc)}
 sanitizer=${FUZZ_SANITIZER:-address}
 # One build for every target; each binary is then run as `cargo fuzz run` would run it.
