@@ -174,7 +174,9 @@ fn frames_the_readings_miss_run_on_the_motion_model_and_are_named() {
 
 #[test]
 fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
-    let d = car_frames(20).shaken(Vibration::rough_road()).with_imu(imu(200.0));
+    let d = car_frames(20)
+        .shaken(Vibration::rough_road())
+        .with_imu(imu(200.0));
     let truth = d.poses.clone();
     let (s, statuses, _) =
         run_drive::<KittiCapacity>(&mut Altered(d, in_degrees), &truth, true, "degrees");
