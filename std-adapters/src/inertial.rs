@@ -255,8 +255,8 @@ impl Inertial {
     }
 
     /// Where the sensor is at `t` (its clock): the last pose turned by the gyro's rotation
-    /// since, moved at the last step's velocity ([`body_velocity`]; none while only one pose
-    /// is known). `None` before any pose.
+    /// since, moved at the last step's velocity (the world's last step in the last pose's
+    /// frame; none while only one pose is known). `None` before any pose.
     pub fn prior(
         &self,
         history: (Option<Pose>, Option<Pose>),
