@@ -183,7 +183,8 @@ impl Inertial {
         self.options.enabled && self.seen && self.set_aside.is_none()
     }
 
-    /// Takes the readings that came with frame `frame` of `file`; names the refused.
+    /// Takes the readings that came with frame `frame` of `file`; names the refused (the first
+    /// ten a frame) and the saturated (the first ten of the run).
     pub fn take(&mut self, samples: &[Sample], file: &str, frame: usize) {
         if !self.options.enabled {
             return;
@@ -191,6 +192,7 @@ impl Inertial {
         let mut named = 0;
         for Sample::Imu(r) in samples {
             self.seen = true;
+            let saturated = self.track.counts().saturated;
             if let Err(e) = self.track.push(r) {
                 named += 1;
                 if named <= 10 {
@@ -199,6 +201,14 @@ impl Inertial {
                         r.stamp
                     );
                 }
+            } else if self.track.counts().saturated > saturated && saturated < 10 {
+                log::warn!(
+                    "{file}: frame {frame}: IMU reading at {} s at the sensor's limit \
+                     (gyro {:?} rad/s, accelerometer {:?} m/s²): saturated, kept",
+                    r.stamp,
+                    r.gyro,
+                    r.accel
+                );
             }
         }
     }
