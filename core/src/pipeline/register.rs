@@ -141,7 +141,6 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         stats: &mut ScanStats,
     ) -> Attempt {
         let r = self.config.register;
-        let reuse_last = !self.config.map.reconstruct_at_final_pose;
         let mut a = Attempt {
             pose: start,
             status: RegistrationStatus::Converged,
@@ -155,17 +154,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         for round in 0..rounds {
             let last = round + 1 == rounds;
             let reach = if last { 0 } else { reach };
-            // Every layer with exact variances: registration pairs the same vertices as
-            // with `Register` (it only compares variances with its threshold).
-            let purpose = if last && reuse_last {
-                Purpose::Update
-            } else {
-                Purpose::Register {
-                    reach,
-                    half_cells: reach > 0 && r.coarse_half_cells,
-                    since: self.stale_before(),
-                }
-            };
+            let purpose = self.round_purpose(last, reach);
             let (b, made) = self.reconstruct(&a.pose, exec, purpose, probe);
             stats.dropped_layers += made.dropped;
             if purpose == Purpose::Update {
@@ -183,54 +172,86 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             );
             stats.rounds += 1;
             probe.enter(Stage::Solve);
-            let verdict = |iterations, before: &Pose, after: &Pose| {
-                Verdict::of(
-                    a.associate.residuals,
-                    self.scan.len() + made.unpaired,
-                    iterations,
-                    lm_config.max_iterations,
-                    before,
-                    after,
-                    &r.recovery,
-                )
-            };
-            match lm::solve(&self.residuals, lm_config) {
-                Ok(sol) => {
-                    let pose = renormalized(sol.correction * a.pose);
-                    a.verdict = verdict(sol.iterations, &a.pose, &pose);
-                    a.pose = pose;
-                    stats.lm_iterations += sol.iterations;
-                    a.conditioning = sol.conditioning;
-                    a.degenerate_directions = sol.degenerate_directions;
-                    a.information = sol.information;
-                    if sol.degenerate_directions > 0 {
-                        a.status = RegistrationStatus::Degenerate;
-                    }
-                }
-                Err(e) => {
-                    // A scan too degenerate to solve is not lost, nor one with too few layers
-                    // to pair from any guess; one that found too little to pair, or numbers
-                    // that blew up, may be.
-                    a.verdict = verdict(lm_config.max_iterations, &a.pose, &a.pose);
-                    a.status = match e {
-                        LmError::TooFewResiduals { .. } => {
-                            a.verdict.hit_limit =
-                                self.scan.len() + made.unpaired >= lm_config.min_residuals;
-                            RegistrationStatus::TooFewResiduals
-                        }
-                        LmError::Degenerate { conditioning } => {
-                            a.verdict.hit_limit = false;
-                            a.conditioning = conditioning;
-                            a.degenerate_directions = 6;
-                            RegistrationStatus::Degenerate
-                        }
-                        LmError::NotFinite => RegistrationStatus::SolverFailed,
-                    };
-                    break;
-                }
+            if !self.solve_round(&mut a, made.unpaired, lm_config, stats) {
+                break;
             }
         }
         a
+    }
+
+    /// What a round with cross-cell `reach` reconstructs for: the map update's own layers in
+    /// the `last` round when they are reused for it, registration's otherwise. Every layer has
+    /// exact variances either way: registration pairs the same vertices as with `Register` (it
+    /// only compares variances with its threshold).
+    fn round_purpose(&self, last: bool, reach: u32) -> Purpose {
+        if last && !self.config.map.reconstruct_at_final_pose {
+            Purpose::Update
+        } else {
+            Purpose::Register {
+                reach,
+                half_cells: reach > 0 && self.config.register.coarse_half_cells,
+                since: self.stale_before(),
+            }
+        }
+    }
+
+    /// Solves the round's pairs (`unpaired` layers found none) from `a.pose` and takes the
+    /// outcome into `a`, the iterations into `stats`; false when the solve failed, which ends
+    /// the attempt.
+    fn solve_round(
+        &self,
+        a: &mut Attempt,
+        unpaired: usize,
+        lm_config: &LmConfig,
+        stats: &mut ScanStats,
+    ) -> bool {
+        let verdict = |residuals, iterations, before: &Pose, after: &Pose| {
+            Verdict::of(
+                residuals,
+                self.scan.len() + unpaired,
+                iterations,
+                lm_config.max_iterations,
+                before,
+                after,
+                &self.config.register.recovery,
+            )
+        };
+        match lm::solve(&self.residuals, lm_config) {
+            Ok(sol) => {
+                let pose = renormalized(sol.correction * a.pose);
+                a.verdict = verdict(a.associate.residuals, sol.iterations, &a.pose, &pose);
+                a.pose = pose;
+                stats.lm_iterations += sol.iterations;
+                a.conditioning = sol.conditioning;
+                a.degenerate_directions = sol.degenerate_directions;
+                a.information = sol.information;
+                if sol.degenerate_directions > 0 {
+                    a.status = RegistrationStatus::Degenerate;
+                }
+                true
+            }
+            Err(e) => {
+                // A scan too degenerate to solve is not lost, nor one with too few layers
+                // to pair from any guess; one that found too little to pair, or numbers
+                // that blew up, may be.
+                let n = a.associate.residuals;
+                a.verdict = verdict(n, lm_config.max_iterations, &a.pose, &a.pose);
+                a.status = match e {
+                    LmError::TooFewResiduals { .. } => {
+                        a.verdict.hit_limit = self.scan.len() + unpaired >= lm_config.min_residuals;
+                        RegistrationStatus::TooFewResiduals
+                    }
+                    LmError::Degenerate { conditioning } => {
+                        a.verdict.hit_limit = false;
+                        a.conditioning = conditioning;
+                        a.degenerate_directions = 6;
+                        RegistrationStatus::Degenerate
+                    }
+                    LmError::NotFinite => RegistrationStatus::SolverFailed,
+                };
+                false
+            }
+        }
     }
 
     /// Registers the scan again from the guesses of [`recovery::guesses`] around the last
