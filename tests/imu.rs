@@ -5,7 +5,9 @@
 //! - readings with a hole: the frames in it run on the motion model, named `ImuGap`;
 //! - readings in the wrong units: the IMU is set aside after five frames, named;
 //! - a hand-held rig's fast turns: with the IMU no frame needs recovery, also when the
-//!   readings come as a CSV beside a folder of scans (`slamesh run`); `--imu off` ignores them.
+//!   readings come as a CSV beside a folder of scans (`slamesh run`); `--imu off` ignores them;
+//! - a LiDAR mounted tilted: with its IMU the map is levelled, up is up in every pose, and the
+//!   navigation map says gravity gave it.
 
 use crate::common::{scratch, slamesh_run_ok, write_bin};
 use nalgebra::{Translation3, UnitQuaternion};
@@ -108,8 +110,8 @@ fn a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one() {
         (imu.deskewed_frames, imu.prior_frames, imu.gap_frames),
         (60, 59, 0)
     );
-    // 200 Hz over the 6 s and the last sweep.
-    assert_eq!(imu.readings.taken, 1201);
+    // 200 Hz over the second before the first frame, the 6 s and the last sweep.
+    assert_eq!(imu.readings.taken, 1400);
     assert!(s.health.imu_gaps.is_empty());
 }
 
@@ -183,9 +185,42 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
     let imu = s.imu.expect("readings came");
     let why = imu.set_aside.expect("set aside");
     assert!(why.contains("units (rad/s)"), "{why}");
+    // The check over the first frames says why: the gyro's angles are 57.3 times too large.
+    // (Judged on the frames after it was set aside: every frame before was lost.)
+    let check = imu.calibration_check.expect("judged by the run's end");
+    assert!(check.contains("degrees per second"), "{check}");
     // The frames after it ran on the motion model, to the end.
     assert_eq!(statuses.len(), 20);
     assert!(imu.prior_frames < 10, "{}", imu.prior_frames);
+}
+
+/// The readings of an IMU turned 15 degrees further about its z than `[imu]` says.
+fn turned(s: &mut Vec<Sample>) {
+    let q = UnitQuaternion::from_euler_angles(0.0, 0.0, 15f64.to_radians());
+    for Sample::Imu(r) in s {
+        r.gyro = (q * nalgebra::Vector3::from(r.gyro)).into();
+        r.accel = (q * nalgebra::Vector3::from(r.accel)).into();
+    }
+}
+
+#[test]
+fn an_imu_turned_from_its_configured_place_is_named_with_the_turn() {
+    let d = car_frames(30)
+        .shaken(Vibration::rough_road())
+        .with_imu(imu(200.0));
+    let truth = d.poses.clone();
+    let (s, _, _) = run_drive::<KittiCapacity>(&mut Altered(d, turned), &truth, true, "turned");
+    let check = s.imu.and_then(|i| i.calibration_check).expect("judged");
+    println!("{check}");
+    // Configured at 90 degrees of yaw, the IMU sits at 75.
+    let yaw: f64 = check
+        .split("rotation_rpy_deg = [")
+        .nth(1)
+        .and_then(|t| t.split(']').next())
+        .and_then(|rpy| rpy.split(", ").nth(2))
+        .and_then(|y| y.parse().ok())
+        .expect("the turn named");
+    assert!((yaw - 75.0).abs() < 2.0, "{check}");
 }
 
 /// The hand-held rig's first `frames` scans, with its IMU at 400 Hz.
@@ -262,7 +297,8 @@ fn the_command_reads_an_imu_csv_beside_a_folder_of_scans() {
     let (with, without) = (report(&with), report(&without));
     let imu = &with["summary"]["imu"];
     assert_eq!(imu["prior_frames"], 15, "{imu}");
-    assert_eq!(imu["readings"]["taken"], 16 * 200 + 1, "{imu}");
+    // 400 Hz over the second before the first frame and the 8 s.
+    assert_eq!(imu["readings"]["taken"], 400 + 16 * 200, "{imu}");
     assert!(without["summary"].get("imu").is_none());
     let recovered = |r: &serde_json::Value| {
         r["frames"]
@@ -281,4 +317,64 @@ fn the_command_reads_an_imu_csv_beside_a_folder_of_scans() {
     );
     assert!(without["frames"][1].get("imu").is_none());
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The angle (degrees) between up as the estimate and as the truth see it from the sensor.
+fn up_off_deg(estimate: &Pose, truth: &Pose) -> f64 {
+    let z = nalgebra::Vector3::z();
+    let seen = |p: &Pose| p.rotation.inverse() * z;
+    seen(estimate).angle(&seen(truth)).to_degrees()
+}
+
+#[test]
+fn a_tilted_lidar_maps_level_with_its_imu() {
+    // The LiDAR sits pitched 4 degrees and rolled 2 on the car: its first scan is not level.
+    let tilt = Pose::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_euler_angles(2f64.to_radians(), 4f64.to_radians(), 0.0),
+    );
+    let mut d = Drive::car(20, 1);
+    d.poses.iter_mut().for_each(|p| *p *= tilt);
+    let d = d.with_imu(imu(200.0));
+    let mut ups = Vec::new();
+    for use_imu in [true, false] {
+        let out = scratch(&format!("imu-level-{use_imu}"));
+        let mut imu = ImuOptions {
+            enabled: use_imu,
+            ..ImuOptions::default()
+        };
+        imu.calibration.lidar_from_imu = mount();
+        let opts = RunOptions {
+            out: out.clone(),
+            config: slamesh::run::config_file::preset("default").unwrap(),
+            threads: 2,
+            imu,
+            navmap: Some(slamesh::navmap::NavMapOptions::default()),
+            ..RunOptions::default()
+        };
+        let s = run::<KittiCapacity>(&mut d.clone(), &opts, |_| {}).unwrap();
+        let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
+        let worst = (estimate.iter().zip(&d.poses))
+            .map(|(e, t)| up_off_deg(e, t))
+            .fold(0.0, f64::max);
+        let navmap = std::fs::read_to_string(out.join("navmap.json")).unwrap();
+        ups.push((worst, s.imu.and_then(|i| i.gravity), navmap));
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+    let [(with, Some(g), navmap), (without, None, plain)] = &ups[..] else {
+        panic!("{ups:?}");
+    };
+    println!("up off by at most {with:.3} degrees with the IMU, {without:.3} without; {g:?}");
+    assert!(g.levelled && g.why_not.is_none(), "{g:?}");
+    // The first scan's true tilt: the mount's and the road's.
+    let z = nalgebra::Vector3::z();
+    let tilt_deg = (d.poses[0].rotation * z).angle(&z).to_degrees();
+    assert!(
+        (g.tilt_deg.unwrap() - tilt_deg).abs() < 0.5,
+        "{g:?} {tilt_deg}"
+    );
+    assert!(*with < 0.5, "{with}");
+    assert!(*without > tilt_deg - 0.5, "{without}");
+    assert!(navmap.contains("gravity: the IMU"), "{navmap}");
+    assert!(plain.contains("the map's z axis"), "{plain}");
 }

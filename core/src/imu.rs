@@ -122,12 +122,28 @@ pub struct ImuCounts {
     pub forgotten_early: usize,
 }
 
-/// A reading as the track keeps it (the gyro's), in the LiDAR's axes and on its clock: a slot of its
+/// The specific force over a stretch of readings ([`ImuTrack::mean_force`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForceMean {
+    /// The mean (m/s², the LiDAR's frame at the reference time).
+    pub mean: Vec3,
+    /// The readings' root-mean-square distance from the mean (m/s²): the body's own
+    /// acceleration and the sensor's noise.
+    pub spread: f64,
+    /// Readings averaged.
+    pub readings: usize,
+    /// The time they span (seconds).
+    pub seconds: f64,
+}
+
+/// A reading as the track keeps it, in the LiDAR's axes and on its clock: a slot of its
 /// buffer ([`ImuTrack::in_slice`] takes caller storage of these).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Reading {
     t: f64,
     gyro: Vec3,
+    /// The specific force where the IMU sits, in the LiDAR's axes (m/s²).
+    accel: Vec3,
 }
 
 impl Empty for Reading {
@@ -135,6 +151,7 @@ impl Empty for Reading {
     const EMPTY: Reading = Reading {
         t: 0.0,
         gyro: Vec3::new(0.0, 0.0, 0.0),
+        accel: Vec3::new(0.0, 0.0, 0.0),
     };
 }
 
@@ -232,6 +249,7 @@ impl ImuTrack {
         let reading = Reading {
             t,
             gyro: turn * Vec3::from(s.gyro),
+            accel: turn * Vec3::from(s.accel),
         };
         if self.readings.is_full() {
             self.forget_oldest_half();
@@ -348,6 +366,55 @@ impl ImuTrack {
         Ok(q)
     }
 
+    /// The specific force at the LiDAR's origin averaged over the readings held up to `t_ref`,
+    /// each turned by the gyro into the LiDAR's frame at `t_ref` ([`crate::gravity`] reads
+    /// gravity from it: the time before a first scan, when a body is most often still).
+    /// The lever arm's share is taken out of each reading: an IMU off the LiDAR's origin feels
+    /// `α × r + ω × (ω × r)` more as the body turns (`r` the IMU's place, `ω` the rate less the
+    /// bias, `α` its change between the neighbouring readings). An error when fewer than three
+    /// readings come before `t_ref`, or a gap breaks them or parts them from it.
+    pub fn mean_force(&self, t_ref: f64) -> Result<ForceMean, ImuGap> {
+        let r = &self.readings[..self.readings.partition_point(|x| x.t <= t_ref)];
+        let (Some(first), Some(last)) = (r.first(), r.last()) else {
+            return Err(ImuGap::NoReadings);
+        };
+        if r.len() < 3 {
+            return Err(ImuGap::NoReadings);
+        }
+        let arm = self.calibration.lidar_from_imu.translation.vector;
+        let rate = |k: usize| r[k].gyro - self.bias;
+        // The frame at `t_ref` from the frame at the first reading, then piece by piece on.
+        let mut q = self.rotation(t_ref, first.t)?;
+        let (mut sum, mut sum_sq) = (Vec3::zeros(), 0.0);
+        for k in 0..r.len() {
+            if k > 0 {
+                let dt = r[k].t - r[k - 1].t;
+                if dt > self.gap_limit() {
+                    return Err(ImuGap::Between {
+                        from: r[k - 1].t,
+                        to: r[k].t,
+                    });
+                }
+                q *= UnitQuaternion::from_scaled_axis((rate(k - 1) + rate(k)) * (dt / 2.0));
+            }
+            let (a, b) = (k.saturating_sub(1), (k + 1).min(r.len() - 1));
+            let alpha = (rate(b) - rate(a)) / (r[b].t - r[a].t);
+            let w = rate(k);
+            let at_origin = r[k].accel - alpha.cross(&arm) - w.cross(&w.cross(&arm));
+            let f = q * at_origin;
+            sum += f;
+            sum_sq += f.norm_squared();
+        }
+        let n = r.len() as f64;
+        let mean = sum / n;
+        Ok(ForceMean {
+            mean,
+            spread: libm::sqrt((sum_sq / n - mean.norm_squared()).max(0.0)),
+            readings: r.len(),
+            seconds: last.t - first.t,
+        })
+    }
+
     /// Corrects the bias by `gain` of what the registered rotation from `a` to `b` says it is
     /// off by: the gyro's rotation with the current bias, against the registration's,
     /// `log(registeredᵀ · gyro) / (b - a)`. A disagreement above `max_rad` (a registration
@@ -391,6 +458,54 @@ mod tests {
             t.push(&sample(k as f64 / hz, gyro)).unwrap();
         }
         t
+    }
+
+    #[test]
+    fn a_turning_imu_off_the_lidar_still_reads_gravity_at_its_origin() {
+        // The LiDAR turns about its own z at 2 rad/s, level; the IMU sits 0.3 m along its x,
+        // turned 90 degrees about z: it feels the centripetal pull besides gravity.
+        let mount = Pose::from_parts(
+            Translation3::new(0.3, 0.0, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, core::f64::consts::FRAC_PI_2),
+        );
+        let c = ImuCalibration {
+            lidar_from_imu: mount,
+            ..ImuCalibration::default()
+        };
+        let mut t = ImuTrack::new(512, c);
+        let w = Vec3::new(0.0, 0.0, 2.0);
+        let arm = mount.translation.vector;
+        let force_in_lidar = Vec3::z() * GRAVITY_M_S2 + w.cross(&w.cross(&arm));
+        let to_imu = mount.rotation.inverse();
+        for k in 0..=200 {
+            let s = ImuSample {
+                stamp: k as f64 / 200.0,
+                gyro: (to_imu * w).into(),
+                accel: (to_imu * force_in_lidar).into(),
+            };
+            t.push(&s).unwrap();
+        }
+        let f = t.mean_force(1.0).unwrap();
+        assert!(
+            (f.mean - Vec3::z() * GRAVITY_M_S2).norm() < 1e-6,
+            "{:?}",
+            f.mean
+        );
+        assert!(f.spread < 1e-6, "{}", f.spread);
+        assert_eq!((f.readings, f.seconds), (201, 1.0));
+        // Those up to the time asked, turned into its frame.
+        let half = t.mean_force(0.5).unwrap();
+        assert_eq!((half.readings, half.seconds), (101, 0.5));
+        assert!((half.mean - f.mean).norm() < 1e-6);
+        // A gap breaks them; no readings say nothing.
+        t.push(&ImuSample {
+            stamp: 2.0,
+            ..sample(2.0, [0.0; 3])
+        })
+        .unwrap();
+        assert!(matches!(t.mean_force(2.0), Err(ImuGap::Between { .. })));
+        let empty = ImuTrack::new(8, ImuCalibration::default());
+        assert_eq!(empty.mean_force(0.0), Err(ImuGap::NoReadings));
     }
 
     #[test]

@@ -11,6 +11,7 @@
 //! | range filter, voxel down-sampling | [`filter`] |
 //! | constant-velocity prediction | [`motion`] |
 //! | the IMU's rotation as a prior and for deskewing | [`imu`] |
+//! | up from the accelerometer, to level the map | [`gravity`] |
 //! | bucketing points into world-fixed cells | [`bucket`] (keys in [`cell`], sorted by [`sort`]) |
 //! | layer choice by PCA | [`pca`] |
 //! | Gaussian-process reconstruction of a layer | [`gp`] on the [`lattice`] |
@@ -63,6 +64,7 @@ pub mod executor;
 pub mod filter;
 pub mod fusion;
 pub mod gp;
+pub mod gravity;
 pub mod imu;
 pub mod lattice;
 pub mod layer;

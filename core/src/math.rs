@@ -78,6 +78,26 @@ pub fn se3_log(pose: &Pose) -> Twist {
     Twist::new(omega.x, omega.y, omega.z, rho.x, rho.y, rho.z)
 }
 
+/// The rotation `R` that best maps vectors `aₖ` onto `bₖ` in the least-squares sense (Kabsch),
+/// from their cross-covariance `h = Σ aₖ bₖᵀ`; always proper (no reflection). The identity
+/// when `h` is not finite or its decomposition fails.
+pub fn best_rotation(h: &Mat3) -> Rotation3<f64> {
+    if !h.iter().all(|v| v.is_finite()) {
+        return Rotation3::identity();
+    }
+    let svd = h.svd(true, true);
+    match (svd.u, svd.v_t) {
+        (Some(u), Some(v_t)) => {
+            let v = v_t.transpose();
+            let d = (v * u.transpose()).determinant().signum();
+            Rotation3::from_matrix_unchecked(
+                v * Mat3::from_diagonal(&Vec3::new(1.0, 1.0, d)) * u.transpose(),
+            )
+        }
+        _ => Rotation3::identity(),
+    }
+}
+
 /// A pose from 12 row-major `[R | t]` numbers; `None` if not finite. The rotation is
 /// re-orthonormalised (KITTI files carry 9 significant digits).
 pub fn pose_from_row(v: &[f64]) -> Option<Pose> {

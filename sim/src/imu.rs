@@ -151,20 +151,20 @@ impl Drive {
         self
     }
 
-    /// The IMU's readings with stamps in `(after, until]` seconds (none without an IMU).
+    /// The IMU's readings with stamps in `(after, until]` seconds (none without an IMU). Before
+    /// the first frame (negative times) the IMU reads the drive carried back at its first
+    /// step's velocity: a body steady while the LiDAR spins up.
     pub fn imu_between(&self, after: f64, until: f64) -> Vec<ImuSample> {
         let Some(m) = &self.imu else {
             return Vec::new();
         };
         let first = (after * m.rate_hz).floor() as i64 + 1;
         let last = (until * m.rate_hz).floor() as i64;
-        (first.max(0)..=last)
-            .map(|k| self.imu_reading(m, k as u64))
-            .collect()
+        (first..=last).map(|k| self.imu_reading(m, k)).collect()
     }
 
     /// Reading `k` of the IMU (at `k / rate_hz` seconds).
-    fn imu_reading(&self, m: &ImuModel, k: u64) -> ImuSample {
+    fn imu_reading(&self, m: &ImuModel, k: i64) -> ImuSample {
         let t = k as f64 / m.rate_hz;
         let imu_at = |t: f64| self.pose_at(t) * m.lidar_from_imu;
         // The angular velocity over ±0.1 ms; the acceleration over ±20 ms (the smooth drive's
@@ -177,7 +177,7 @@ impl Drive {
         let accel = (p(t + a) - 2.0 * p(t) + p(t - a)) / (a * a);
         let force = imu_at(t).rotation.inverse() * (accel + Vector3::z() * GRAVITY_M_S2);
         let bias = m.bias_at(t);
-        let mut rng = SplitMix64(m.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ k);
+        let mut rng = SplitMix64(m.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ k as u64);
         let gyro = std::array::from_fn(|j| turn[j] + bias[j] + m.gyro_noise * gaussian(&mut rng));
         let accel =
             std::array::from_fn(|j| force[j] + bias[3 + j] + m.accel_noise * gaussian(&mut rng));

@@ -90,18 +90,8 @@ pub fn rigid_alignment(estimate: &[Pose], reference: &[Pose]) -> Pose {
     for (a, b) in p.iter().zip(&q) {
         h += (a - mp) * (b - mq).transpose();
     }
-    let svd = h.svd(true, true);
-    let rotation = match (svd.u, svd.v_t) {
-        (Some(u), Some(v_t)) => {
-            let v = v_t.transpose();
-            let d = (v * u.transpose()).determinant().signum();
-            v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose()
-        }
-        _ => Matrix3::identity(),
-    };
-    let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
-        &nalgebra::Rotation3::from_matrix_unchecked(rotation),
-    );
+    let rotation =
+        nalgebra::UnitQuaternion::from_rotation_matrix(&slamesh_core::math::best_rotation(&h));
     let translation = mq - rotation * mp;
     Pose::from_parts(translation.into(), rotation)
 }

@@ -366,7 +366,8 @@ impl<'a, C: Capacity> Run<'a, C> {
             frames_seen,
             shown_as,
         )?;
-        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses)?;
+        let levelled = (self.inertial.gravity()).and_then(|g| g.up_source());
+        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses, levelled)?;
         let summary = Summary {
             frames: source.frames(),
             used: poses.len(),
@@ -401,12 +402,14 @@ impl<'a, C: Capacity> Run<'a, C> {
 }
 
 /// Writes the mesh files, the picture and the navigation map from `spool` with `map`'s cells
-/// added; none when no frame was used (`poses` empty).
+/// added; none when no frame was used (`poses` empty). `levelled` says what levelled the map,
+/// if anything did: the navigation map's up is then the map's z, and says so.
 fn write_mesh(
     mut spool: MeshSpool,
     map: &slamesh_core::map::MeshMap,
     opts: &RunOptions,
     poses: &[(usize, Pose)],
+    levelled: Option<String>,
 ) -> Result<(MeshCounts, Option<NavMapSummary>), RunError> {
     let (out, used) = (&opts.out, !poses.is_empty());
     spool.add_map(map)?;
@@ -418,7 +421,11 @@ fn write_mesh(
     let navmap = match (&opts.navmap, used) {
         (Some(how), true) => {
             let path: Vec<_> = poses.iter().map(|(_, p)| p.translation.vector).collect();
-            crate::navmap::make(&mut spool, &path, how, out)?
+            let mut how = how.clone();
+            if how.up.is_none() {
+                how.up = levelled.map(|why| (nalgebra::Vector3::z(), why));
+            }
+            crate::navmap::make(&mut spool, &path, &how, out)?
         }
         _ => None,
     };

@@ -198,10 +198,13 @@ impl<C: Capacity> Run<'_, C> {
         fits_capacity::<C>(&frame.points, &self.opts.config.filter)?;
         frame.given = self.given_pose(i, rec.stamp, frame.to_stamp)?;
         if frame.given.is_none() && self.search.is_none() && self.inertial.active() {
-            match self
-                .inertial
-                .prior(self.pipeline.motion().history(), frame.reference)
-            {
+            let history = self.pipeline.motion().history();
+            if history.1.is_none() && self.pipeline.map().is_empty() {
+                // The map's first scan: level when the accelerometer says which way is up.
+                frame.prior = self.inertial.level(frame.reference, &rec.file, i);
+                return Ok(());
+            }
+            match self.inertial.prior(history, frame.reference) {
                 Some(Ok(p)) => (frame.prior, frame.imu.prior) = (Some(p), true),
                 Some(Err(gap)) if frame.imu.gap.is_none() => frame.imu.missed(gap),
                 _ => {}

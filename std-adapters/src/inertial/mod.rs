@@ -10,10 +10,14 @@
 //! rotations keep missing the registered ones is set aside, named ([`DISTRUST_AFTER`]); and
 //! that without readings nothing it does changes a run's bytes.
 
+pub mod calibration;
+
 use crate::sources::Sample;
+use calibration::CalibrationCheck;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use slamesh_core::deskew::{self, DeskewError, Deskewed};
+use slamesh_core::gravity::{Gravity, NotLevel};
 use slamesh_core::imu::{ImuCalibration, ImuGap, ImuTrack};
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
 
@@ -83,6 +87,98 @@ pub struct ImuSummary {
     /// ones), if it was.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub set_aside: Option<String>,
+    /// Which way was up at the map's first scan, and whether the map was levelled by it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<GravityReport>,
+    /// Whether `[imu]` agreed with the registration over the first seconds
+    /// ([`calibration`]), when judged.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration_check: Option<String>,
+}
+
+/// What the accelerometer said of up at the map's first scan (`summary.imu.gravity`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GravityReport {
+    /// The first scan was placed level (the map's z axis is up).
+    pub levelled: bool,
+    /// Up in the first scan's frame (a unit vector), when the readings said.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub up: Option<[f64; 3]>,
+    /// The first scan's z axis from up (degrees), when the readings said.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tilt_deg: Option<f64>,
+    /// Readings averaged, the time they spanned (s), their mean's length and their spread
+    /// about it (m/s²); zero where none covered the scan.
+    pub readings: usize,
+    /// See [`readings`](Self::readings).
+    pub seconds: f64,
+    /// See [`readings`](Self::readings).
+    pub magnitude_m_s2: f64,
+    /// See [`readings`](Self::readings).
+    pub spread_m_s2: f64,
+    /// Why the map was not levelled, when it was not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub why_not: Option<String>,
+}
+
+impl GravityReport {
+    /// The report of a judgement: up, or the force the readings gave (if they covered the
+    /// scan) and why it was not up.
+    fn of(judged: Result<Gravity, (Option<slamesh_core::imu::ForceMean>, String)>) -> Self {
+        match judged {
+            Ok(g) => GravityReport {
+                levelled: true,
+                up: Some(g.up.into()),
+                tilt_deg: Some(g.tilt().to_degrees()),
+                readings: g.force.readings,
+                seconds: g.force.seconds,
+                magnitude_m_s2: g.force.mean.norm(),
+                spread_m_s2: g.force.spread,
+                why_not: None,
+            },
+            Err((force, why)) => GravityReport {
+                levelled: false,
+                up: None,
+                tilt_deg: None,
+                readings: force.map_or(0, |f| f.readings),
+                seconds: force.map_or(0.0, |f| f.seconds),
+                magnitude_m_s2: force.map_or(0.0, |f| f.mean.norm()),
+                spread_m_s2: force.map_or(0.0, |f| f.spread),
+                why_not: Some(why),
+            },
+        }
+    }
+
+    /// What a navigation map says of its up (`map.yaml`, `navmap.json`).
+    pub fn up_source(&self) -> Option<String> {
+        self.levelled.then(|| {
+            format!(
+                "gravity: the IMU's accelerometer over {:.1} s levelled the map at its first \
+                 scan (tilted {:.1} degrees)",
+                self.seconds,
+                self.tilt_deg.unwrap_or(0.0)
+            )
+        })
+    }
+}
+
+/// Why readings did not level the map, in words.
+fn not_level(why: NotLevel) -> String {
+    match why {
+        NotLevel::TooShort { seconds } => format!(
+            "the readings before it span {seconds:.2} s, less than {} s",
+            slamesh_core::gravity::MIN_SECONDS
+        ),
+        NotLevel::Unsteady { spread } => format!(
+            "the body was not steady: the specific force spread {spread:.2} m/s² about its \
+             mean (at most {})",
+            slamesh_core::gravity::MAX_SPREAD_M_S2
+        ),
+        NotLevel::NotGravity { magnitude } => format!(
+            "the mean specific force is {magnitude:.2} m/s², not gravity's 9.81 (a steady \
+             acceleration, or readings not in m/s²)"
+        ),
+    }
 }
 
 /// [`ImuCounts`](slamesh_core::imu::ImuCounts) as the report writes them.
@@ -135,6 +231,12 @@ pub struct Inertial {
     disagreeing: usize,
     /// Why the IMU was set aside, if it was.
     set_aside: Option<String>,
+    /// What the accelerometer said of up at the map's first scan.
+    gravity: Option<GravityReport>,
+    /// The gyro's rotations against the registered ones over the first seconds.
+    check: CalibrationCheck,
+    /// Its verdict, once given.
+    checked: Option<String>,
 }
 
 impl Inertial {
@@ -148,6 +250,9 @@ impl Inertial {
             frames: (0, 0, 0),
             disagreeing: 0,
             set_aside: None,
+            gravity: None,
+            check: CalibrationCheck::new(options.calibration.lidar_from_imu.rotation),
+            checked: None,
         }
     }
 
@@ -175,6 +280,8 @@ impl Inertial {
             gap_frames: self.frames.2,
             gyro_bias: self.track.bias().into(),
             set_aside: self.set_aside.clone(),
+            gravity: self.gravity.clone(),
+            calibration_check: self.checked.clone().or_else(|| self.check.pending()),
         })
     }
 
@@ -264,6 +371,43 @@ impl Inertial {
         Some(pose * self.relative(from, to, &velocity).ok()?)
     }
 
+    /// Where the map's first scan goes, its pose at `t` (its clock): level, its z axis turned
+    /// up, when the readings held say which way is up ([`Gravity`]); `None` otherwise (the map's
+    /// z is the first scan's). Named in the log either way, and in the summary.
+    pub fn level(&mut self, t: f64, file: &str, frame: usize) -> Option<Pose> {
+        let judged = match self.track.mean_force(t) {
+            Ok(f) => Gravity::judge(&f).map_err(|e| (Some(f), not_level(e))),
+            Err(ImuGap::NoReadings) => Err((None, "fewer than three IMU readings came".into())),
+            Err(ImuGap::Between { from, to }) => Err((
+                None,
+                format!("no IMU reading from {from:.4} s to {to:.4} s"),
+            )),
+        };
+        let level = judged.as_ref().ok().map(Gravity::level);
+        let report = GravityReport::of(judged);
+        match &report.why_not {
+            None => log::info!(
+                "{file}: frame {frame}: IMU: up from {} readings over {:.2} s (spread {:.3} \
+                 m/s²): the map is levelled, the first scan tilted {:.2} degrees",
+                report.readings,
+                report.seconds,
+                report.spread_m_s2,
+                report.tilt_deg.unwrap_or(0.0)
+            ),
+            Some(why) => log::warn!(
+                "{file}: frame {frame}: IMU: the map is not levelled ({why}); up is the first \
+                 scan's z axis"
+            ),
+        }
+        self.gravity = Some(report);
+        level.map(|q| Pose::from_parts(Vector3::zeros().into(), q))
+    }
+
+    /// What the accelerometer said of up at the map's first scan, once it was asked.
+    pub fn gravity(&self) -> Option<&GravityReport> {
+        self.gravity.as_ref()
+    }
+
     /// Where the sensor is at `t` (its clock): the last pose turned by the gyro's rotation
     /// since, moved at the last step's velocity (the world's last step in the last pose's
     /// frame; none while only one pose is known). `None` before any pose.
@@ -295,8 +439,15 @@ impl Inertial {
     ) {
         use RegistrationStatus::{Converged, NotConverged, Recovered};
         if let ((Some(before), Some(last)), Some(t_before)) = (history, self.refs.1) {
-            if matches!(status, Converged | Recovered) && self.active() {
-                let registered = (before.inverse() * last).rotation;
+            let registered = (before.inverse() * last).rotation;
+            let converged = matches!(status, Converged | Recovered);
+            // Checked also once the IMU is set aside: the motion model's frames tell why.
+            if let (true, true, Ok(gyro)) = (converged, self.seen, self.track.rotation(t_before, t))
+            {
+                let verdict = self.check.add(t, &gyro, &registered);
+                self.note_check(verdict);
+            }
+            if converged && self.active() {
                 let o = &self.options;
                 // A frame the readings do not cover teaches nothing.
                 if let Ok(off) = self.track.correct_bias(
@@ -317,6 +468,17 @@ impl Inertial {
         self.track.forget_before(t);
     }
 
+    /// Keeps and logs the calibration check's verdict, when one came.
+    fn note_check(&mut self, verdict: Option<String>) {
+        let Some(v) = verdict else { return };
+        if v.starts_with("consistent") || v.starts_with("not checked") {
+            log::info!("IMU calibration: {v}");
+        } else {
+            log::warn!("IMU calibration: {v}");
+        }
+        self.checked = Some(v);
+    }
+
     /// Counts registered frames whose rotation the gyro's misses by more than the bias may
     /// take (and frames lost from its prior); [`DISTRUST_AFTER`] in a row and the IMU is set
     /// aside, named: its axes, clock or units are not the LiDAR's (a wrong `[imu]`, degrees
@@ -328,6 +490,8 @@ impl Inertial {
         }
         self.disagreeing += 1;
         if self.disagreeing == DISTRUST_AFTER {
+            let verdict = self.check.take();
+            self.note_check(verdict);
             let why = format!(
                 "the gyro's rotation missed the registered one by more than {:.1} degrees on {} \
                  frames in a row ({off_deg:.1} degrees over {dt:.3} s, the last): its place or \
@@ -335,6 +499,10 @@ impl Inertial {
                  right; the IMU is set aside, the motion model carries on",
                 self.options.bias_max_deg, DISTRUST_AFTER
             );
+            let why = match &self.checked {
+                Some(v) if !v.starts_with("consistent") => format!("{why} ({v})"),
+                _ => why,
+            };
             log::warn!("IMU: {why}");
             self.set_aside = Some(why);
         }

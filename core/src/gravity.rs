@@ -1,0 +1,139 @@
+//! Which way is up, from the accelerometer (docs/design.md §1.19): a body that is still, or
+//! moves without accelerating, feels gravity alone, so the mean of its specific force points
+//! up. The map's first scan is placed turned by [`Gravity::level`], and the map's z axis is
+//! up from then on: the navigation maps need it.
+//!
+//! It owns the judgement of a [`ForceMean`] (from [`ImuTrack::mean_force`](crate::imu::ImuTrack::mean_force)):
+//! it guarantees that up is given only from readings that span [`MIN_SECONDS`], whose spread
+//! about their mean is at most [`MAX_SPREAD_M_S2`] (the body was steady) and whose mean is
+//! within [`MAX_OFF_G_M_S2`] of standard gravity (no steady acceleration, no wrong units);
+//! otherwise it names which of the three failed ([`NotLevel`]). A steady acceleration along
+//! the ground that the readings cannot tell from a tilt (about 0.1 rad a metre per second
+//! squared) is the one error it cannot see.
+
+use crate::imu::{ForceMean, GRAVITY_M_S2};
+use crate::math::Vec3;
+use nalgebra::UnitQuaternion;
+
+/// The least time the readings must span (seconds).
+pub const MIN_SECONDS: f64 = 0.2;
+/// The most the readings may spread about their mean (m/s², root mean square): a still
+/// MEMS sensor spreads a few hundredths; a hand carrying it a few tenths.
+pub const MAX_SPREAD_M_S2: f64 = 0.5;
+/// How far the mean's length may be from standard gravity (m/s²).
+pub const MAX_OFF_G_M_S2: f64 = 0.6;
+
+/// Up, read from the accelerometer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gravity {
+    /// Up as a unit vector in the LiDAR's frame at the reference time.
+    pub up: Vec3,
+    /// What the readings said (their mean's length is gravity's, m/s²).
+    pub force: ForceMean,
+}
+
+/// Why the readings did not say which way is up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NotLevel {
+    /// They span less than [`MIN_SECONDS`].
+    TooShort {
+        /// The time they span (seconds).
+        seconds: f64,
+    },
+    /// The body moved too much ([`MAX_SPREAD_M_S2`]).
+    Unsteady {
+        /// Their spread (m/s²).
+        spread: f64,
+    },
+    /// Their mean is not gravity's size ([`MAX_OFF_G_M_S2`]): a steady acceleration, or
+    /// readings not in m/s².
+    NotGravity {
+        /// The mean's length (m/s²).
+        magnitude: f64,
+    },
+}
+
+impl Gravity {
+    /// Up from `force`, when it can tell.
+    pub fn judge(force: &ForceMean) -> Result<Gravity, NotLevel> {
+        let magnitude = force.mean.norm();
+        if !(force.seconds >= MIN_SECONDS) {
+            Err(NotLevel::TooShort {
+                seconds: force.seconds,
+            })
+        } else if !(force.spread <= MAX_SPREAD_M_S2) {
+            Err(NotLevel::Unsteady {
+                spread: force.spread,
+            })
+        } else if !(libm::fabs(magnitude - GRAVITY_M_S2) <= MAX_OFF_G_M_S2) {
+            Err(NotLevel::NotGravity { magnitude })
+        } else {
+            Ok(Gravity {
+                up: force.mean / magnitude,
+                force: *force,
+            })
+        }
+    }
+
+    /// The smallest rotation that turns up onto the z axis: the attitude of a level frame
+    /// whose heading is the LiDAR's (an upside-down LiDAR is turned about its x axis).
+    pub fn level(&self) -> UnitQuaternion<f64> {
+        UnitQuaternion::rotation_between(&self.up, &Vec3::z()).unwrap_or_else(|| {
+            UnitQuaternion::from_axis_angle(&Vec3::x_axis(), core::f64::consts::PI)
+        })
+    }
+
+    /// The angle between the LiDAR's z axis and up (radians).
+    pub fn tilt(&self) -> f64 {
+        libm::acos(self.up.z.clamp(-1.0, 1.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn force(mean: Vec3, spread: f64, seconds: f64) -> ForceMean {
+        ForceMean {
+            mean,
+            spread,
+            readings: 200,
+            seconds,
+        }
+    }
+
+    #[test]
+    fn a_still_tilted_sensor_is_levelled_without_turning_its_heading() {
+        let tilt = UnitQuaternion::from_euler_angles(0.1, -0.05, 0.7);
+        // The sensor's attitude is `tilt`: it feels gravity's reaction, up, in its own axes.
+        let up_in_sensor = tilt.inverse() * Vec3::z() * GRAVITY_M_S2;
+        let g = Gravity::judge(&force(up_in_sensor, 0.02, 1.0)).unwrap();
+        let level = g.level();
+        assert!((level * g.up - Vec3::z()).norm() < 1e-12);
+        // Level, and the heading kept: the levelled x axis points, seen from above, along the
+        // map's x, as an unlevelled first scan's does (to within the tilts' product).
+        let x = level * Vec3::x();
+        assert!(libm::atan2(x.y, x.x).abs() < 0.01, "{x}");
+        assert!((g.tilt() - (tilt * Vec3::z()).z.acos()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn moving_short_or_wrong_readings_are_named() {
+        let up = Vec3::z() * GRAVITY_M_S2;
+        assert_eq!(
+            Gravity::judge(&force(up, 0.02, 0.1)),
+            Err(NotLevel::TooShort { seconds: 0.1 })
+        );
+        assert_eq!(
+            Gravity::judge(&force(up, 1.5, 1.0)),
+            Err(NotLevel::Unsteady { spread: 1.5 })
+        );
+        assert!(matches!(
+            Gravity::judge(&force(up / GRAVITY_M_S2, 0.0, 1.0)),
+            Err(NotLevel::NotGravity { .. })
+        ));
+        assert!(Gravity::judge(&force(Vec3::new(f64::NAN, 0.0, 0.0), 0.0, 1.0)).is_err());
+        let down = Gravity::judge(&force(-up, 0.0, 1.0)).unwrap();
+        assert!((down.level() * down.up - Vec3::z()).norm() < 1e-12);
+    }
+}
