@@ -12,7 +12,8 @@
 //! | the files: Nav2's YAML and PGM, the elevation grids, `navmesh.ply`, `navmap.json` | [`files`] |
 //!
 //! Up is the map's z axis (the first scan taken as level) unless the caller gives another
-//! direction (an IMU's gravity, once it is used); the files say which.
+//! direction; a run whose IMU levelled the map (docs/design.md §1.19) says gravity gave it.
+//! The files say which.
 
 pub mod files;
 pub mod grid;
