@@ -62,6 +62,40 @@ fn every_profile_decodes_to_the_ouster_sdks_points() {
     }
 }
 
+/// Every IMU packet of the moving OS1-128's capture (30, port 7503) decodes to what Ouster's
+/// SDK makes of it (`ouster-os1-128-lowdata.imu`, from the fixtures' make.py): the three
+/// timestamps exactly, the acceleration (m/s²) and angular velocity (rad/s) to the SDK's
+/// single precision.
+#[test]
+fn every_imu_packet_decodes_to_the_ouster_sdks_values() {
+    use slamesh::sources::ouster::imu_packet::ImuPacket;
+    let text = std::fs::read_to_string(fixture("ouster-os1-128-lowdata.imu")).unwrap();
+    let theirs: Vec<Vec<f64>> = (text.lines())
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split(' ').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let mut cap = Capture::open(&fixture("ouster-os1-128-lowdata.pcap")).unwrap();
+    let mut ours = Vec::new();
+    while let Some(d) = cap.next_datagram().unwrap() {
+        if d.udp.dst_port == 7503 {
+            ours.push(ImuPacket::decode(d.udp.payload).unwrap());
+        }
+    }
+    assert_eq!((ours.len(), theirs.len()), (30, 30));
+    for (k, (p, t)) in ours.iter().zip(&theirs).enumerate() {
+        let stamps = [p.sys_ts, p.accel_ts, p.gyro_ts];
+        assert_eq!(stamps.map(|s| s as f64), [t[0], t[1], t[2]], "packet {k}");
+        let values = [p.accel_m_s2(), p.gyro_rad_s()].concat();
+        for (j, (a, b)) in values.iter().zip(&t[3..]).enumerate() {
+            // The SDK computes in f32: within its rounding.
+            assert!(
+                (a - b).abs() <= 2.0 * f64::from(f32::EPSILON) * b.abs().max(1e-3),
+                "packet {k}, value {j}: {a} against the SDK's {b}"
+            );
+        }
+    }
+}
+
 /// The SDK's trajectory of the same capture (`sdk_poses_kitti.txt`, from the SDK's tests):
 /// each pose's translation.
 fn sdk_positions() -> Vec<[f64; 3]> {
@@ -96,6 +130,10 @@ fn a_replayed_ouster_capture_runs_end_to_end() {
     assert_eq!(input["stream"]["packets"], 192, "{input}");
     assert_eq!(input["stream"]["gaps"], 0, "{input}");
     assert_eq!(input["stream"]["partial_firings"], 0, "{input}");
+    // Its IMU packets, every one, went to the run.
+    assert_eq!(input["stream"]["imu_packets"], 30, "{input}");
+    let imu = &report["summary"]["imu"];
+    assert_eq!(imu["readings"]["taken"], 30, "{imu}");
 }
 
 /// Without its metadata an Ouster capture is refused with what to give; a wrong `--sensor`
@@ -242,18 +280,27 @@ fn a_live_ouster_stream_runs() {
         live.local_addr(),
         1.0,
     );
-    let mut points = Vec::new();
+    let (mut points, mut readings) = (Vec::new(), Vec::new());
     let mut i = 0;
     while live.has(i) {
         let (p, times) = live.read_timed(i).unwrap();
         assert!(times.is_some_and(|t| t.len() == p.len()));
         points.push(p.len());
+        readings.push(live.samples(i).len());
+        assert!(live.samples(i).is_empty(), "handed once");
         i += 1;
     }
-    // Its 192 lidar packets and 30 of its IMU's.
+    // Its 192 lidar packets and 30 of its IMU's, all to the one port.
     assert_eq!(sender.join().unwrap(), 222);
     let stats = live.stats();
     assert_eq!(points.len(), 3, "three turns: {stats:?}");
     assert!(points.iter().all(|n| *n > 50_000), "{points:?}");
     assert_eq!((stats.sweeps, stats.sweeps_dropped), (3, 0), "{stats:?}");
+    // The IMU's readings go with the turn they came before (100 a second: 10 a turn, less
+    // those after the last turn ended).
+    assert_eq!(stats.stream.imu_packets, 30, "{stats:?}");
+    assert!(
+        readings.iter().all(|n| (1..=12).contains(n)) && readings.iter().sum::<usize>() >= 20,
+        "{readings:?}"
+    );
 }

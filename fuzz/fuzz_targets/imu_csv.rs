@@ -1,7 +1,7 @@
 //! IMU readings on arbitrary bytes: the EuRoC CSV reader keeps what it can read and names
 //! the rest, never panics; the core's track takes whatever readings came (any stamps, any
-//! values) and counts each, and its rotations and bias corrections return a rotation or a
-//! gap, never panic.
+//! values) and counts each, and its rotations, bias corrections and gravity return an answer
+//! or a gap, never panic.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -19,6 +19,11 @@ fuzz_target!(|data: &[u8]| {
     for w in stamps.windows(2) {
         let _ = track.rotation(w[0], w[1]);
         let _ = track.correct_bias(w[0], w[1], &Pose::identity().rotation, 0.2, 0.1);
+    }
+    if let Some(&t) = stamps.last() {
+        if let Ok(f) = track.mean_force(t) {
+            let _ = slamesh_core::gravity::Gravity::judge(&f).map(|g| g.level());
+        }
     }
     let c = track.counts();
     assert_eq!(

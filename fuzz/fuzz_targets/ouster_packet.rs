@@ -28,6 +28,8 @@ fuzz_target!(|data: &[u8]| {
         beam_to_lidar: [1.0, 0.0, 0.0, 15.8, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
         lidar_to_sensor: [-1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 36.18, 0.0, 0.0, 0.0, 1.0],
         udp_port_lidar: None,
+        imu_to_sensor: slamesh::sources::ouster::metadata::IDENTITY,
+        udp_port_imu: None,
     });
     let _ = sniff(packet);
     let mut n = 0usize;

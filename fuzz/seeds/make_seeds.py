@@ -149,6 +149,19 @@ for name, profile, beams in [("ouster-os1-32-legacy", "LEGACY", 32),
     put("ouster_packet", name, bytes([pick]) + packet)
     put("ouster_metadata", name, open(f"../tests/fixtures/packets/{name}.json", "rb").read())
 
+# An Ouster's IMU packets: the moving OS1-128's 30 (port 7503), one after another; four of
+# them after its transform.
+cap = open("../tests/fixtures/packets/ouster-os1-128-lowdata.pcap", "rb").read()
+off, imu = 24, []
+while off + 16 <= len(cap):
+    incl, = struct.unpack("<I", cap[off + 8:off + 12])
+    if struct.unpack(">H", cap[off + 16 + 36:off + 16 + 38])[0] == 7503:
+        imu.append(cap[off + 16 + 42:off + 16 + incl])
+    off += 16 + incl
+put("ouster_imu_packet", "os1-128", b"\x00" + b"".join(imu))
+identity = struct.pack("<16d", *[1.0 if k % 5 == 0 else 0.0 for k in range(16)])
+put("ouster_imu_packet", "os1-128-transform", b"\x01" + identity + b"".join(imu[:4]))
+
 
 # The HDL-64E: a data packet of the capture made in tests/fixtures/packets (the target decodes
 # it with that folder's calibration), and the calibration itself, block style and flow style.

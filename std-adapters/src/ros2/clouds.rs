@@ -127,6 +127,7 @@ impl FrameCheck {
             points: decoded.points,
             times: decoded.times,
             arrived,
+            samples: Vec::new(),
         })
     }
 }

@@ -31,6 +31,18 @@ pub struct TimedScan {
     pub times: Option<Vec<f32>>,
     /// When it came.
     pub arrived: Instant,
+    /// What came with it (an IMU's readings up to it), for [`Feed::samples`].
+    pub samples: Vec<crate::sources::Sample>,
+}
+
+/// A frame read, kept for a second reading.
+#[derive(Debug)]
+struct Kept {
+    frame: usize,
+    points: Vec<Point>,
+    times: Option<Vec<f32>>,
+    /// Not handed yet.
+    samples: Vec<crate::sources::Sample>,
 }
 
 enum Message {
@@ -90,7 +102,7 @@ pub struct Feed {
     /// The next scan, taken from the queue ahead of its read.
     next: Option<TimedScan>,
     /// The last frames read (at most [`KEPT`]).
-    kept: Vec<(usize, Vec<Point>, Option<Vec<f32>>)>,
+    kept: Vec<Kept>,
     ended: bool,
 }
 
@@ -204,8 +216,8 @@ impl Feed {
     /// Frame `i`, waiting for it: the next one, or one of the last [`KEPT`] read (a live
     /// stream cannot go further back).
     pub fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
-        if let Some((_, points, times)) = self.kept.iter().find(|k| k.0 == i) {
-            return Ok((points.clone(), times.clone()));
+        if let Some(k) = self.kept.iter().find(|k| k.frame == i) {
+            return Ok((k.points.clone(), k.times.clone()));
         }
         let label = self.label.clone();
         let err = |why: String| FileError::at(Path::new(&label), why);
@@ -225,8 +237,19 @@ impl Feed {
         if self.kept.len() == KEPT {
             self.kept.remove(0);
         }
-        self.kept.push((i, scan.points.clone(), scan.times.clone()));
+        self.kept.push(Kept {
+            frame: i,
+            points: scan.points.clone(),
+            times: scan.times.clone(),
+            samples: scan.samples,
+        });
         Ok((scan.points, scan.times))
+    }
+
+    /// What came with frame `i`, once it was read: handed once.
+    pub fn samples(&mut self, i: usize) -> Vec<crate::sources::Sample> {
+        (self.kept.iter_mut().find(|k| k.frame == i))
+            .map_or_else(Vec::new, |k| std::mem::take(&mut k.samples))
     }
 
     /// Empties the queue, for a source that is closing.
@@ -241,6 +264,7 @@ mod tests {
 
     fn scan(stamp: f64) -> TimedScan {
         TimedScan {
+            samples: Vec::new(),
             stamp,
             points: vec![[stamp as f32, 0.0, 0.0]],
             times: None,

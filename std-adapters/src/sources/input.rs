@@ -286,9 +286,10 @@ impl FrameSource for Input {
     fn samples(&mut self, i: usize) -> Vec<Sample> {
         match self {
             Input::Folder(f) => f.samples(i),
+            Input::Capture(c) => c.samples(i),
+            Input::Live(l) => l.samples(i),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => r.samples(i),
-            _ => Vec::new(),
         }
     }
     fn input_report(&self) -> Option<serde_json::Value> {

@@ -19,7 +19,9 @@ use crate::io::error::FileError;
 use crate::sources::feed::{self, Feed, FeedSender, Offered, TimedScan};
 use crate::sources::packets::{self, PacketOptions, SensorHint, SensorStream, StreamStats};
 use crate::sources::sweep::Sweep;
+use crate::sources::Sample;
 use serde::Serialize;
+use slamesh_core::imu::ImuSample;
 use slamesh_core::Point;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::Path;
@@ -168,6 +170,12 @@ impl Live {
     pub fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
         self.feed.read_timed(i)
     }
+
+    /// The IMU's readings that came with frame `i` (an Ouster's IMU packets sent to the lidar
+    /// port), once it was read.
+    pub fn samples(&mut self, i: usize) -> Vec<Sample> {
+        self.feed.samples(i)
+    }
 }
 
 impl Drop for Live {
@@ -254,9 +262,9 @@ impl Listener {
     }
 
     /// Offers the sweep a datagram completed (if any) and counts; false when the run has gone.
-    fn hand_over(&self, st: &SensorStream, done: Option<Sweep>) -> bool {
+    fn hand_over(&self, st: &mut SensorStream, done: Option<Sweep>) -> bool {
         let completed = done.is_some();
-        let offered = done.map(|sweep| self.tx.offer(timed(sweep)));
+        let offered = done.map(|sweep| self.tx.offer(timed(sweep, st.take_imu())));
         if let Ok(mut s) = self.stats.lock() {
             s.stream = st.stats();
             s.sweeps += u64::from(completed);
@@ -269,7 +277,7 @@ impl Listener {
     /// has room.
     fn finish(&self, st: &mut SensorStream) {
         if let Some(sweep) = st.finish() {
-            if self.tx.offer(timed(sweep)) == Offered::Queued {
+            if self.tx.offer(timed(sweep, st.take_imu())) == Offered::Queued {
                 if let Ok(mut s) = self.stats.lock() {
                     s.sweeps += 1;
                 }
@@ -282,9 +290,10 @@ impl Listener {
     }
 }
 
-/// A sweep as the feed takes it, come now.
-fn timed(sweep: Sweep) -> TimedScan {
+/// A sweep as the feed takes it, come now, with the IMU's readings since the last one.
+fn timed(sweep: Sweep, imu: Vec<ImuSample>) -> TimedScan {
     TimedScan {
+        samples: imu.into_iter().map(Sample::Imu).collect(),
         stamp: sweep.stamp().unwrap_or(0.0),
         times: Some(sweep.relative_times()),
         points: sweep.points,

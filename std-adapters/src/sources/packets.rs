@@ -4,11 +4,13 @@
 
 use crate::io::error::FileError;
 use crate::sources::ouster;
+use crate::sources::ouster::imu_packet::ImuPacket;
 use crate::sources::sweep::{Sweep, Sweeps};
 use crate::sources::velodyne::calibration::Calibration;
 use crate::sources::velodyne::hdl64::{self, Generation, Hdl64};
 use crate::sources::velodyne::{self, tables::Model, Decoder, POSITION_PACKET_BYTES};
 use serde::Serialize;
+use slamesh_core::imu::ImuSample;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -25,6 +27,16 @@ pub struct StreamStats {
     pub partial_firings: u64,
     /// Jumps in the packets' time ([`crate::sources::sweep::MAX_GAP_S`]).
     pub time_jumps: u64,
+    /// An Ouster's IMU packets decoded (absent from the report when none came).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub imu_packets: u64,
+    /// Its IMU packets refused (another size than the legacy profile's).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub bad_imu_packets: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// How to read packets, from a capture or live.
@@ -248,6 +260,8 @@ pub struct SensorStream {
     port: u16,
     sweeps: Sweeps,
     stats: StreamStats,
+    /// An Ouster's IMU readings not taken yet ([`SensorStream::take_imu`]).
+    imu: Vec<ImuSample>,
 }
 
 #[derive(Debug)]
@@ -319,6 +333,24 @@ impl SensorStream {
             port,
             sweeps,
             stats: StreamStats::default(),
+            imu: Vec::new(),
+        }
+    }
+
+    /// The IMU readings decoded since the last call (an Ouster's IMU packets), in the sensor
+    /// frame ([`ouster::imu_packet`]).
+    pub fn take_imu(&mut self) -> Vec<ImuSample> {
+        std::mem::take(&mut self.imu)
+    }
+
+    /// An Ouster's IMU datagram: decoded into the readings waiting, or counted as refused.
+    fn ouster_imu(&mut self, o: &ouster::Sensor, payload: &[u8]) {
+        match ImuPacket::decode(payload) {
+            Ok(p) => {
+                self.stats.imu_packets += 1;
+                self.imu.push(p.sample(&o.metadata().imu_to_sensor));
+            }
+            Err(_) => self.stats.bad_imu_packets += 1,
         }
     }
 
@@ -332,9 +364,22 @@ impl SensorStream {
     }
 
     /// A datagram sent to `port`, received at `time_s` (any clock within half an hour of the
-    /// sensor's): the sweep it completed, if it did. Other ports' datagrams, a Velodyne's
-    /// position packets and an Ouster's IMU packets are passed over.
+    /// sensor's): the sweep it completed, if it did. An Ouster's IMU packets (to its IMU port,
+    /// or short ones to its lidar port) are decoded for [`take_imu`](Self::take_imu); other
+    /// ports' datagrams and a Velodyne's position packets are passed over.
     pub fn datagram(&mut self, port: u16, payload: &[u8], time_s: f64) -> Option<Sweep> {
+        if let Decoding::Ouster(o) = &self.decoding {
+            let imu_port = o
+                .metadata()
+                .udp_port_imu
+                .unwrap_or(ouster::metadata::IMU_PORT);
+            let short = port == self.port && payload.len() <= OUSTER_SMALL_BYTES;
+            if port == imu_port && port != self.port || short {
+                let o = o.clone();
+                self.ouster_imu(&o, payload);
+                return None;
+            }
+        }
         if port != self.port {
             return None;
         }
@@ -362,9 +407,6 @@ impl SensorStream {
                 }
             }
             Decoding::Ouster(o) => {
-                if payload.len() <= OUSTER_SMALL_BYTES {
-                    return None;
-                }
                 match o.decode(payload, |f| {
                     if let Some(s) = sweeps.push(f.point, f.time_s, f.azimuth) {
                         done = Some(s);

@@ -8,10 +8,12 @@
 //! (size, block flags, product byte) or named (`--sensor`); an Ouster's by its metadata
 //! (`--metadata`, or the capture's name with `.json`). A capture of another sensor, or of
 //! none, is refused with what was found. Packets that are not the sensor's data (its position
-//! packets, other traffic) are skipped; damaged ones are counted and skipped.
+//! packets, other traffic) are skipped; damaged ones are counted and skipped. An Ouster's IMU
+//! packets are kept from the index pass and handed to the frames by time.
 
 use crate::io::error::FileError;
 use crate::sources::capture::{Capture, CaptureStats};
+use crate::sources::imu_readings::ImuReadings;
 use crate::sources::packets::{self, PacketOptions, Sensor, SensorHint, SensorStream, StreamStats};
 use crate::sources::sweep::Sweep;
 use serde::Serialize;
@@ -47,6 +49,10 @@ pub struct Replay {
     options: PacketOptions,
     /// Each sweep's stamp and gaps.
     sweeps: Vec<(f64, u32)>,
+    /// The sweeps' stamps, for handing out the IMU's readings.
+    stamps: Vec<f64>,
+    /// An Ouster's IMU readings (its IMU packets), handed to the frames by time.
+    imu: ImuReadings,
     stats: ReplayStats,
     cursor: Option<Cursor>,
 }
@@ -72,14 +78,21 @@ impl Replay {
             port,
             options: options.clone(),
             sweeps: Vec::new(),
+            stamps: Vec::new(),
+            imu: ImuReadings::default(),
             stats: ReplayStats::default(),
             cursor: None,
         };
-        // The index pass.
+        // The index pass, which keeps the IMU's readings (a few bytes a millisecond).
         let mut cursor = replay.start()?;
+        let mut imu = Vec::new();
         while let Some(s) = replay.advance(&mut cursor)? {
             replay.sweeps.push((s.stamp().unwrap_or(0.0), s.gaps));
+            imu.append(&mut cursor.stream.take_imu());
         }
+        imu.append(&mut cursor.stream.take_imu());
+        replay.stamps = replay.sweeps.iter().map(|s| s.0).collect();
+        replay.imu = ImuReadings::new(imu);
         replay.stats = cursor.stats;
         if replay.sweeps.is_empty() {
             return Err(FileError::at(
@@ -156,7 +169,10 @@ impl Replay {
         };
         loop {
             let at = cursor.next;
-            match self.advance(&mut cursor)? {
+            let done = self.advance(&mut cursor)?;
+            // The IMU's readings came with the index pass.
+            cursor.stream.take_imu();
+            match done {
                 Some(s) if at == i => {
                     self.cursor = Some(cursor);
                     return Ok(s);
@@ -180,6 +196,12 @@ impl Replay {
     /// Frame `i`'s stamp: the middle of its firings' times ([`Sweep::stamp`]).
     pub fn stamp(&self, i: usize) -> f64 {
         self.sweeps.get(i).map_or(0.0, |s| s.0)
+    }
+
+    /// The IMU's readings for frame `i` (frames asked in order): those up to a frame period
+    /// past its stamp not handed before ([`ImuReadings::for_frame`]); none without an IMU.
+    pub fn samples(&mut self, i: usize) -> Vec<crate::sources::Sample> {
+        self.imu.for_frame(&self.stamps, i)
     }
 
     /// Frame `i`'s points and their times relative to its stamp.

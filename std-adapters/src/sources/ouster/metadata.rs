@@ -38,12 +38,19 @@ pub struct Metadata {
     pub lidar_to_sensor: [f64; 16],
     /// The port lidar packets go to, when the metadata says.
     pub udp_port_lidar: Option<u16>,
+    /// From the IMU's frame to the sensor frame (row-major 4x4, millimetres).
+    pub imu_to_sensor: [f64; 16],
+    /// The port IMU packets go to, when the metadata says.
+    pub udp_port_imu: Option<u16>,
 }
 
 /// The port Ouster sensors send lidar packets to unless set otherwise.
 pub const LIDAR_PORT: u16 = 7502;
+/// The port they send IMU packets to unless set otherwise.
+pub const IMU_PORT: u16 = 7503;
 
-const IDENTITY: [f64; 16] = [
+/// The identity as a row-major 4x4 matrix: a transform the metadata does not give.
+pub const IDENTITY: [f64; 16] = [
     1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
 ];
 
@@ -99,6 +106,106 @@ fn lidar_mode(mode: &str) -> Result<(u16, u16), String> {
     }
 }
 
+/// The beams' angles `name` (degrees); `missing` when absent.
+fn beam_angles(doc: &Value, name: &str, missing: &str) -> Result<Vec<f64>, String> {
+    numbers(
+        field(doc, &["beam_intrinsics", name], name).ok_or(missing)?,
+        name,
+    )
+}
+
+/// Columns a packet (`v`, 16 when absent), a divisor of the turn's.
+fn columns_per_packet(v: Option<&Value>, columns_per_frame: u16) -> Result<u16, String> {
+    let n = match v {
+        Some(v) => small(v, "columns_per_packet", 64)?,
+        None => 16,
+    };
+    if n == 0 || !columns_per_frame.is_multiple_of(n) {
+        return Err(format!(
+            "columns_per_packet is {n}, not a divisor of the {columns_per_frame} columns a turn"
+        ));
+    }
+    Ok(n)
+}
+
+/// The lidar packets' profile: the data format's (`in_format`), the configuration's, or the
+/// legacy one.
+fn lidar_profile(doc: &Value, in_format: Option<&Value>) -> Result<Profile, String> {
+    let name = in_format
+        .or_else(|| {
+            field(
+                doc,
+                &["config_params", "udp_profile_lidar"],
+                "udp_profile_lidar",
+            )
+        })
+        .and_then(Value::as_str)
+        .unwrap_or("LEGACY");
+    Profile::named(name).ok_or_else(|| {
+        format!(
+            "udp_profile_lidar {name:?} is not one this reader decodes ({})",
+            Profile::ALL.map(|p| p.name()).join(", ")
+        )
+    })
+}
+
+/// The UDP port `name`, when set (0 is not a port).
+fn port(doc: &Value, name: &str) -> Option<u16> {
+    field(doc, &["config_params", name], name)
+        .and_then(Value::as_u64)
+        .and_then(|p| u16::try_from(p).ok())
+        .filter(|p| *p != 0)
+}
+
+/// The beams' origin to the lidar frame: the transform, or the older offset along x.
+fn beam_to_lidar(doc: &Value) -> Result<[f64; 16], String> {
+    if let Some(v) = field(
+        doc,
+        &["beam_intrinsics", "beam_to_lidar_transform"],
+        "beam_to_lidar_transform",
+    ) {
+        return matrix(v, "beam_to_lidar_transform");
+    }
+    let n = field(
+        doc,
+        &["beam_intrinsics", "lidar_origin_to_beam_origin_mm"],
+        "lidar_origin_to_beam_origin_mm",
+    )
+    .map(|v| {
+        v.as_f64().filter(|f| f.is_finite()).ok_or(format!(
+            "lidar_origin_to_beam_origin_mm is {v}, not a number"
+        ))
+    })
+    .transpose()?
+    .unwrap_or(0.0);
+    let mut m = IDENTITY;
+    m[3] = n;
+    Ok(m)
+}
+
+/// The 4x4 transform `name` (under `group` in the nested layout); the identity when absent.
+fn transform(doc: &Value, group: &str, name: &str) -> Result<[f64; 16], String> {
+    match field(doc, &[group, name], name) {
+        Some(v) => matrix(v, name),
+        None => Ok(IDENTITY),
+    }
+}
+
+/// The first and last column sent (`column_window`), all of them when absent.
+fn column_window(v: Option<&Value>, columns_per_frame: u16) -> Result<(u16, u16), String> {
+    let Some(v) = v else {
+        return Ok((0, columns_per_frame - 1));
+    };
+    let w = numbers(v, "column_window")?;
+    let ok = |x: f64| x >= 0.0 && x < f64::from(columns_per_frame) && x.fract() == 0.0;
+    match w.as_slice() {
+        [a, b] if ok(*a) && ok(*b) => Ok((*a as u16, *b as u16)),
+        _ => Err(format!(
+            "column_window is {v}, not two columns below {columns_per_frame}"
+        )),
+    }
+}
+
 impl Metadata {
     /// Reads the metadata JSON's text.
     pub fn parse(text: &str) -> Result<Self, String> {
@@ -106,24 +213,12 @@ impl Metadata {
         if !doc.is_object() {
             return Err("not a JSON object".to_string());
         }
-        let altitude_deg = numbers(
-            field(
-                &doc,
-                &["beam_intrinsics", "beam_altitude_angles"],
-                "beam_altitude_angles",
-            )
-            .ok_or("no beam_altitude_angles: not an Ouster sensor's metadata")?,
+        let altitude_deg = beam_angles(
+            &doc,
             "beam_altitude_angles",
+            "no beam_altitude_angles: not an Ouster sensor's metadata",
         )?;
-        let azimuth_deg = numbers(
-            field(
-                &doc,
-                &["beam_intrinsics", "beam_azimuth_angles"],
-                "beam_azimuth_angles",
-            )
-            .ok_or("no beam_azimuth_angles")?,
-            "beam_azimuth_angles",
-        )?;
+        let azimuth_deg = beam_angles(&doc, "beam_azimuth_angles", "no beam_azimuth_angles")?;
         let mode = field(&doc, &["config_params", "lidar_mode"], "lidar_mode")
             .and_then(Value::as_str)
             .ok_or("no lidar_mode")?;
@@ -151,16 +246,8 @@ impl Metadata {
                 ));
             }
         }
-        let columns_per_packet = match in_format("columns_per_packet") {
-            Some(v) => small(v, "columns_per_packet", 64)?,
-            None => 16,
-        };
-        if columns_per_packet == 0 || columns_per_frame % columns_per_packet != 0 {
-            return Err(format!(
-                "columns_per_packet is {columns_per_packet}, not a divisor of the \
-                 {columns_per_frame} columns a turn"
-            ));
-        }
+        let columns_per_packet =
+            columns_per_packet(in_format("columns_per_packet"), columns_per_frame)?;
         if let Some(v) = in_format("columns_per_frame") {
             let w = small(v, "columns_per_frame", 4096)?;
             if w != columns_per_frame {
@@ -169,73 +256,13 @@ impl Metadata {
                 ));
             }
         }
-        let column_window = match in_format("column_window") {
-            Some(v) => {
-                let w = numbers(v, "column_window")?;
-                let ok = |x: f64| x >= 0.0 && x < f64::from(columns_per_frame) && x.fract() == 0.0;
-                match w.as_slice() {
-                    [a, b] if ok(*a) && ok(*b) => (*a as u16, *b as u16),
-                    _ => {
-                        return Err(format!(
-                            "column_window is {v}, not two columns below {columns_per_frame}"
-                        ))
-                    }
-                }
-            }
-            None => (0, columns_per_frame - 1),
-        };
-        let profile_name = in_format("udp_profile_lidar")
-            .or_else(|| {
-                field(
-                    &doc,
-                    &["config_params", "udp_profile_lidar"],
-                    "udp_profile_lidar",
-                )
-            })
-            .and_then(Value::as_str)
-            .unwrap_or("LEGACY");
-        let profile = Profile::named(profile_name).ok_or_else(|| {
-            format!(
-                "udp_profile_lidar {profile_name:?} is not one this reader decodes ({})",
-                Profile::ALL.map(|p| p.name()).join(", ")
-            )
-        })?;
-        let beam_to_lidar = match field(
-            &doc,
-            &["beam_intrinsics", "beam_to_lidar_transform"],
-            "beam_to_lidar_transform",
-        ) {
-            Some(v) => matrix(v, "beam_to_lidar_transform")?,
-            None => {
-                let n = field(
-                    &doc,
-                    &["beam_intrinsics", "lidar_origin_to_beam_origin_mm"],
-                    "lidar_origin_to_beam_origin_mm",
-                )
-                .map(|v| {
-                    v.as_f64().filter(|f| f.is_finite()).ok_or(format!(
-                        "lidar_origin_to_beam_origin_mm is {v}, not a number"
-                    ))
-                })
-                .transpose()?
-                .unwrap_or(0.0);
-                let mut m = IDENTITY;
-                m[3] = n;
-                m
-            }
-        };
-        let lidar_to_sensor = match field(
-            &doc,
-            &["lidar_intrinsics", "lidar_to_sensor_transform"],
-            "lidar_to_sensor_transform",
-        ) {
-            Some(v) => matrix(v, "lidar_to_sensor_transform")?,
-            None => IDENTITY,
-        };
-        let udp_port_lidar = field(&doc, &["config_params", "udp_port_lidar"], "udp_port_lidar")
-            .and_then(Value::as_u64)
-            .and_then(|p| u16::try_from(p).ok())
-            .filter(|p| *p != 0);
+        let column_window = column_window(in_format("column_window"), columns_per_frame)?;
+        let profile = lidar_profile(&doc, in_format("udp_profile_lidar"))?;
+        let beam_to_lidar = beam_to_lidar(&doc)?;
+        let lidar_to_sensor = transform(&doc, "lidar_intrinsics", "lidar_to_sensor_transform")?;
+        let imu_to_sensor = transform(&doc, "imu_intrinsics", "imu_to_sensor_transform")?;
+        let (udp_port_lidar, udp_port_imu) =
+            (port(&doc, "udp_port_lidar"), port(&doc, "udp_port_imu"));
         let prod_line = field(&doc, &["sensor_info", "prod_line"], "prod_line")
             .and_then(Value::as_str)
             .unwrap_or("Ouster")
@@ -253,6 +280,8 @@ impl Metadata {
             beam_to_lidar,
             lidar_to_sensor,
             udp_port_lidar,
+            imu_to_sensor,
+            udp_port_imu,
         })
     }
 }

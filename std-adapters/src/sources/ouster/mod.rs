@@ -1,6 +1,6 @@
 //! Ouster lidar packets decoded to points with each one's firing time: the OS0, OS1, OS2 and
 //! OSDome lines, legacy and profiled packets ([`packet`]), with the beam angles and transforms
-//! of the unit's own metadata ([`metadata`]).
+//! of the unit's own metadata ([`metadata`]); its IMU packets too ([`imu_packet`]).
 //!
 //! Every beam of a column fires at the column's timestamp, which the packet carries, so each
 //! point's time is exact. Its position follows Ouster's sensor documentation ("Lidar Range to
@@ -19,6 +19,7 @@
 //! out, a column with a measurement id out of range refuses the packet ([`PacketError`]), and
 //! columns the sensor marked invalid (outside its column window) give no points.
 
+pub mod imu_packet;
 pub mod metadata;
 pub mod packet;
 
@@ -347,6 +348,8 @@ mod tests {
                 -1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 36.18, 0.0, 0.0, 0.0, 1.0,
             ],
             udp_port_lidar: None,
+            imu_to_sensor: metadata::IDENTITY,
+            udp_port_imu: None,
         })
     }
 
