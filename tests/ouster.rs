@@ -304,3 +304,61 @@ fn a_live_ouster_stream_runs() {
         "{readings:?}"
     );
 }
+
+/// An Ouster sends its IMU packets to a port of their own (the metadata's `udp_port_imu`):
+/// live, that port is listened on beside the lidar port, and the readings go with the turns.
+#[test]
+fn a_live_ouster_s_imu_port_is_listened_on() {
+    use slamesh::sources::live::{Live, LiveOptions};
+    let dir = common::scratch("ouster-imu-port");
+    // A free port for the IMU, named in a copy of the metadata.
+    let imu_port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let meta = std::fs::read_to_string(fixture("ouster-os1-128-lowdata.json")).unwrap();
+    let meta = meta.replace(
+        "\"udp_port_imu\": 7503",
+        &format!("\"udp_port_imu\": {imu_port}"),
+    );
+    std::fs::write(dir.join("meta.json"), meta).unwrap();
+    let options = LiveOptions {
+        packets: PacketOptions {
+            metadata: Some(dir.join("meta.json")),
+            idle: Some(std::time::Duration::from_millis(2_000)),
+            ..PacketOptions::default()
+        },
+        queue: 4,
+    };
+    let mut live = Live::open("127.0.0.1:0", &options).unwrap();
+    let lidar = live.local_addr();
+    let imu = std::net::SocketAddr::new(lidar.ip(), imu_port);
+    let sender = common::send_capture_routed(
+        &fixture("ouster-os1-128-lowdata.pcap"),
+        move |port| if port == 7503 { imu } else { lidar },
+        1.0,
+    );
+    let mut readings = Vec::new();
+    let mut i = 0;
+    while live.has(i) {
+        live.read_timed(i).unwrap();
+        readings.push(live.samples(i).len());
+        i += 1;
+    }
+    assert_eq!(sender.join().unwrap(), 222);
+    let stats = live.stats();
+    assert_eq!(stats.sweeps, 3, "{stats:?}");
+    let port = stats.imu_port.expect("listened on its IMU port");
+    assert_eq!(
+        (port.port, port.packets, port.bad_packets),
+        (imu_port, 30, 0)
+    );
+    assert_eq!(stats.stream.imu_packets, 0, "none came to the lidar port");
+    assert!(
+        readings.iter().all(|n| (1..=12).contains(n)) && readings.iter().sum::<usize>() >= 20,
+        "{readings:?}"
+    );
+    drop(live);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

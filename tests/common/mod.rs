@@ -207,6 +207,16 @@ pub fn send_capture(
     to: std::net::SocketAddr,
     speed: f64,
 ) -> std::thread::JoinHandle<usize> {
+    send_capture_routed(path, move |_| to, speed)
+}
+
+/// As [`send_capture`], each datagram to the address `to` gives for the port the capture sent
+/// it to.
+pub fn send_capture_routed(
+    path: &Path,
+    to: impl Fn(u16) -> std::net::SocketAddr + Send + 'static,
+    speed: f64,
+) -> std::thread::JoinHandle<usize> {
     let frames = capture_frames(path);
     std::thread::spawn(move || {
         let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -219,7 +229,8 @@ pub fn send_capture(
             if due > now {
                 std::thread::sleep(std::time::Duration::from_secs_f64(due - now));
             }
-            socket.send_to(&f.0[42..], to).unwrap();
+            let port = u16::from_be_bytes([f.0[36], f.0[37]]);
+            socket.send_to(&f.0[42..], to(port)).unwrap();
             sent += 1;
         }
         sent

@@ -126,6 +126,11 @@ pub fn read_metadata(path: &Path) -> Result<ouster::Sensor, FileError> {
 }
 
 impl SensorHint {
+    /// The Ouster unit its metadata names, if it does.
+    pub fn ouster(&self) -> Option<&Arc<ouster::Sensor>> {
+        self.ouster.as_ref()
+    }
+
     /// From `--sensor`, `--metadata` and `--calibration`; for a capture, `beside` is its
     /// path, and an Ouster's metadata saved beside it with the same name (`drive.pcap`,
     /// `drive.json`) is found without `--metadata`.

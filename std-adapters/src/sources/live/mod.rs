@@ -15,6 +15,8 @@
 //! A Velodyne's packet times are placed in the hour of the host's clock (the sensor's own
 //! time of hour is kept within it); an Ouster's are its own clock's, as its packets carry them.
 
+pub mod imu_port;
+
 use crate::io::error::FileError;
 use crate::sources::feed::{self, Feed, FeedSender, Offered, TimedScan};
 use crate::sources::packets::{self, PacketOptions, SensorHint, SensorStream, StreamStats};
@@ -62,8 +64,24 @@ pub struct LiveStats {
     pub sweeps: u64,
     /// Whole sweeps dropped because the run was behind (the queue full).
     pub sweeps_dropped: u64,
+    /// An Ouster's IMU packets taken on its own port ([`imu_port`]), and those refused.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imu_port: Option<ImuPortStats>,
     /// Why the stream ended, if it was not asked to.
     pub error: Option<String>,
+}
+
+/// What the IMU port's thread counted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct ImuPortStats {
+    /// The port.
+    pub port: u16,
+    /// IMU packets decoded.
+    pub packets: u64,
+    /// Datagrams refused (not a legacy IMU packet).
+    pub bad_packets: u64,
+    /// Readings dropped unread (the run took none for [`imu_port::KEPT`] of them).
+    pub dropped: u64,
 }
 
 /// A live stream as frames.
@@ -73,6 +91,8 @@ pub struct Live {
     stats: Arc<Mutex<LiveStats>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    /// The thread on an Ouster's IMU port, when it has one of its own.
+    imu_thread: Option<JoinHandle<()>>,
 }
 
 impl std::fmt::Debug for Live {
@@ -103,7 +123,12 @@ impl Live {
             .map_err(|e| err(e.to_string()))?;
         let (tx, feed) = feed::channel(label.clone(), "sweep", options.queue);
         let stats = Arc::new(Mutex::new(LiveStats::default()));
+        let imu = hint
+            .ouster()
+            .and_then(|o| imu_port::listen(o, local, &packets.stop, &stats));
+        let (imu_readings, imu_thread) = imu.unzip();
         let listener = Listener {
+            imu: imu_readings,
             socket,
             hint,
             cut_deg: packets.cut_azimuth_deg,
@@ -122,6 +147,7 @@ impl Live {
             stats,
             stop: packets.stop.clone(),
             thread: Some(thread),
+            imu_thread,
         })
     }
 
@@ -186,6 +212,9 @@ impl Drop for Live {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
+        if let Some(t) = self.imu_thread.take() {
+            let _ = t.join();
+        }
     }
 }
 
@@ -198,6 +227,8 @@ struct Listener {
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<LiveStats>>,
     tx: FeedSender,
+    /// Readings from the IMU port's thread, when there is one.
+    imu: Option<imu_port::Readings>,
 }
 
 impl Listener {
@@ -264,7 +295,7 @@ impl Listener {
     /// Offers the sweep a datagram completed (if any) and counts; false when the run has gone.
     fn hand_over(&self, st: &mut SensorStream, done: Option<Sweep>) -> bool {
         let completed = done.is_some();
-        let offered = done.map(|sweep| self.tx.offer(timed(sweep, st.take_imu())));
+        let offered = done.map(|sweep| self.tx.offer(timed(sweep, self.imu_readings(st))));
         if let Ok(mut s) = self.stats.lock() {
             s.stream = st.stats();
             s.sweeps += u64::from(completed);
@@ -273,11 +304,22 @@ impl Listener {
         offered != Some(Offered::Closed)
     }
 
+    /// The IMU's readings since the last sweep: the lidar port's and the IMU port's, in time
+    /// order.
+    fn imu_readings(&self, st: &mut SensorStream) -> Vec<ImuSample> {
+        let mut readings = st.take_imu();
+        if let Some(shared) = &self.imu {
+            readings.extend(imu_port::take(shared));
+            readings.sort_by(|a, b| a.stamp.total_cmp(&b.stamp));
+        }
+        readings
+    }
+
     /// The stream's end: a turn that ended right at the cut is whole, and goes if the queue
     /// has room.
     fn finish(&self, st: &mut SensorStream) {
         if let Some(sweep) = st.finish() {
-            if self.tx.offer(timed(sweep, st.take_imu())) == Offered::Queued {
+            if self.tx.offer(timed(sweep, self.imu_readings(st))) == Offered::Queued {
                 if let Ok(mut s) = self.stats.lock() {
                     s.sweeps += 1;
                 }
