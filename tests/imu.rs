@@ -381,3 +381,36 @@ fn a_tilted_lidar_maps_level_with_its_imu() {
     assert!(navmap.contains("gravity: the IMU"), "{navmap}");
     assert!(plain.contains("the map's z axis"), "{plain}");
 }
+
+#[test]
+fn a_moving_start_finds_up_over_its_first_seconds() {
+    // The hand-held rig moves and turns from its first scan: too unsteady to level the map,
+    // up is read over the first seconds of motion instead, in the map's (the first scan's)
+    // frame, and handed to the navigation map.
+    let d = hand_held(16);
+    let out = scratch("imu-moving-up");
+    let mut imu = ImuOptions::default();
+    imu.calibration.lidar_from_imu = mount();
+    let opts = RunOptions {
+        out: out.clone(),
+        config: slamesh::run::config_file::preset("default").unwrap(),
+        threads: 2,
+        imu,
+        navmap: Some(slamesh::navmap::NavMapOptions::default()),
+        ..RunOptions::default()
+    };
+    let s = run::<Lidar32Capacity>(&mut d.clone(), &opts, |_| {}).unwrap();
+    let g = s.imu.and_then(|i| i.gravity).expect("up was looked for");
+    println!("{g:?}");
+    assert!(!g.levelled, "{g:?}");
+    let moving = g.moving.expect("read over the first seconds");
+    let up = nalgebra::Vector3::from(moving.up.expect("found"));
+    // The truth's up in the first scan's frame.
+    let truth = d.poses[0].rotation.inverse() * nalgebra::Vector3::z();
+    let off = up.angle(&truth).to_degrees();
+    println!("up from motion {off:.3} degrees from the truth's");
+    assert!(off < 1.0, "{off}");
+    let navmap = std::fs::read_to_string(out.join("navmap.json")).unwrap();
+    assert!(navmap.contains("of motion"), "{navmap}");
+    std::fs::remove_dir_all(&out).unwrap();
+}

@@ -10,6 +10,11 @@
 //! otherwise it names which of the three failed ([`NotLevel`]). A steady acceleration along
 //! the ground that the readings cannot tell from a tilt (about 0.1 rad a metre per second
 //! squared) is the one error it cannot see.
+//!
+//! A body that moves from the start is read over its first seconds instead
+//! ([`up_from_motion`]): the specific force in the map's frame (the registered attitudes turn
+//! it there) less the acceleration the registered positions show is gravity's reaction, up;
+//! the map keeps its frame, and up is handed to what needs it.
 
 use crate::imu::{ForceMean, GRAVITY_M_S2};
 use crate::math::Vec3;
@@ -89,6 +94,26 @@ impl Gravity {
     }
 }
 
+/// Up in the map's frame from a moving body's first seconds: `mean_force`, the specific force
+/// averaged over them in the map's frame (m/s²), less the mean acceleration the registered
+/// motion shows, `velocity_change / seconds` (m/s over s). Refused when the time is shorter
+/// than [`MIN_SECONDS`] or the difference is not gravity's size ([`MAX_OFF_G_M_S2`]).
+pub fn up_from_motion(
+    mean_force: &Vec3,
+    velocity_change: &Vec3,
+    seconds: f64,
+) -> Result<Vec3, NotLevel> {
+    if !(seconds >= MIN_SECONDS) {
+        return Err(NotLevel::TooShort { seconds });
+    }
+    let reaction = mean_force - velocity_change / seconds;
+    let magnitude = reaction.norm();
+    if !(libm::fabs(magnitude - GRAVITY_M_S2) <= MAX_OFF_G_M_S2) {
+        return Err(NotLevel::NotGravity { magnitude });
+    }
+    Ok(reaction / magnitude)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -135,5 +160,23 @@ mod tests {
         assert!(Gravity::judge(&force(Vec3::new(f64::NAN, 0.0, 0.0), 0.0, 1.0)).is_err());
         let down = Gravity::judge(&force(-up, 0.0, 1.0)).unwrap();
         assert!((down.level() * down.up - Vec3::z()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn a_moving_body_s_up_is_its_force_less_its_acceleration() {
+        // Up tilted in the map; the body sped up by 2 m/s along x over 4 s.
+        let up = Vec3::new(0.1, 0.0, 1.0).normalize();
+        let accel = Vec3::new(0.5, 0.0, 0.0);
+        let force = up * GRAVITY_M_S2 + accel;
+        let found = up_from_motion(&force, &(accel * 4.0), 4.0).unwrap();
+        assert!((found - up).norm() < 1e-12);
+        assert!(matches!(
+            up_from_motion(&force, &Vec3::zeros(), 0.1),
+            Err(NotLevel::TooShort { .. })
+        ));
+        assert!(matches!(
+            up_from_motion(&(force * 2.0), &Vec3::zeros(), 4.0),
+            Err(NotLevel::NotGravity { .. })
+        ));
     }
 }

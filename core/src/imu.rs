@@ -366,15 +366,17 @@ impl ImuTrack {
         Ok(q)
     }
 
-    /// The specific force at the LiDAR's origin averaged over the readings held up to `t_ref`,
-    /// each turned by the gyro into the LiDAR's frame at `t_ref` ([`crate::gravity`] reads
-    /// gravity from it: the time before a first scan, when a body is most often still).
+    /// The specific force at the LiDAR's origin averaged over the readings held after `after`
+    /// up to `t_ref`, each turned by the gyro into the LiDAR's frame at `t_ref`
+    /// ([`crate::gravity`] reads gravity from it: the time before a first scan, when a body is
+    /// most often still, or the time between two registered frames).
     /// The lever arm's share is taken out of each reading: an IMU off the LiDAR's origin feels
     /// `α × r + ω × (ω × r)` more as the body turns (`r` the IMU's place, `ω` the rate less the
     /// bias, `α` its change between the neighbouring readings). An error when fewer than three
     /// readings come before `t_ref`, or a gap breaks them or parts them from it.
-    pub fn mean_force(&self, t_ref: f64) -> Result<ForceMean, ImuGap> {
+    pub fn mean_force(&self, after: f64, t_ref: f64) -> Result<ForceMean, ImuGap> {
         let r = &self.readings[..self.readings.partition_point(|x| x.t <= t_ref)];
+        let r = &r[r.partition_point(|x| x.t <= after)..];
         let (Some(first), Some(last)) = (r.first(), r.last()) else {
             return Err(ImuGap::NoReadings);
         };
@@ -485,7 +487,7 @@ mod tests {
             };
             t.push(&s).unwrap();
         }
-        let f = t.mean_force(1.0).unwrap();
+        let f = t.mean_force(f64::NEG_INFINITY, 1.0).unwrap();
         assert!(
             (f.mean - Vec3::z() * GRAVITY_M_S2).norm() < 1e-6,
             "{:?}",
@@ -494,18 +496,27 @@ mod tests {
         assert!(f.spread < 1e-6, "{}", f.spread);
         assert_eq!((f.readings, f.seconds), (201, 1.0));
         // Those up to the time asked, turned into its frame.
-        let half = t.mean_force(0.5).unwrap();
+        let half = t.mean_force(f64::NEG_INFINITY, 0.5).unwrap();
         assert_eq!((half.readings, half.seconds), (101, 0.5));
         assert!((half.mean - f.mean).norm() < 1e-6);
+        let late = t.mean_force(0.5, 1.0).unwrap();
+        assert_eq!((late.readings, late.seconds), (100, 0.495));
+        assert!((late.mean - f.mean).norm() < 1e-6);
         // A gap breaks them; no readings say nothing.
         t.push(&ImuSample {
             stamp: 2.0,
             ..sample(2.0, [0.0; 3])
         })
         .unwrap();
-        assert!(matches!(t.mean_force(2.0), Err(ImuGap::Between { .. })));
+        assert!(matches!(
+            t.mean_force(f64::NEG_INFINITY, 2.0),
+            Err(ImuGap::Between { .. })
+        ));
         let empty = ImuTrack::new(8, ImuCalibration::default());
-        assert_eq!(empty.mean_force(0.0), Err(ImuGap::NoReadings));
+        assert_eq!(
+            empty.mean_force(f64::NEG_INFINITY, 0.0),
+            Err(ImuGap::NoReadings)
+        );
     }
 
     #[test]

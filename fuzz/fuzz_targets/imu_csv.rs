@@ -21,7 +21,7 @@ fuzz_target!(|data: &[u8]| {
         let _ = track.correct_bias(w[0], w[1], &Pose::identity().rotation, 0.2, 0.1);
     }
     if let Some(&t) = stamps.last() {
-        if let Ok(f) = track.mean_force(t) {
+        if let Ok(f) = track.mean_force(f64::NEG_INFINITY, t) {
             let _ = slamesh_core::gravity::Gravity::judge(&f).map(|g| g.level());
         }
     }

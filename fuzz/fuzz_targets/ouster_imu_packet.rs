@@ -36,7 +36,7 @@ fuzz_target!(|data: &[u8]| {
         }
     }
     if let Some(t) = last {
-        if let Ok(f) = track.mean_force(t) {
+        if let Ok(f) = track.mean_force(t - 0.5, t) {
             let _ = Gravity::judge(&f).map(|g| g.level());
         }
         let _ = track.rotation(t - 0.1, t);

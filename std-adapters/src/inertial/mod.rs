@@ -11,9 +11,11 @@
 //! that without readings nothing it does changes a run's bytes.
 
 pub mod calibration;
+pub mod moving_up;
 
 use crate::sources::Sample;
 use calibration::CalibrationCheck;
+use moving_up::{FirstSeconds, MovingUp};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use slamesh_core::deskew::{self, DeskewError, Deskewed};
@@ -119,6 +121,9 @@ pub struct GravityReport {
     /// Why the map was not levelled, when it was not.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub why_not: Option<String>,
+    /// Up from the first seconds of motion, when the map was not levelled ([`moving_up`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub moving: Option<MovingUp>,
 }
 
 impl GravityReport {
@@ -135,6 +140,7 @@ impl GravityReport {
                 magnitude_m_s2: g.force.mean.norm(),
                 spread_m_s2: g.force.spread,
                 why_not: None,
+                moving: None,
             },
             Err((force, why)) => GravityReport {
                 levelled: false,
@@ -145,20 +151,37 @@ impl GravityReport {
                 magnitude_m_s2: force.map_or(0.0, |f| f.mean.norm()),
                 spread_m_s2: force.map_or(0.0, |f| f.spread),
                 why_not: Some(why),
+                moving: None,
             },
         }
     }
 
-    /// What a navigation map says of its up (`map.yaml`, `navmap.json`).
-    pub fn up_source(&self) -> Option<String> {
-        self.levelled.then(|| {
+    /// Up for a navigation map (map frame) and what to say of it (`map.yaml`,
+    /// `navmap.json`): the map's z when the IMU levelled it, else up from the first seconds of
+    /// motion when they gave it.
+    pub fn navmap_up(&self) -> Option<(Vector3<f64>, String)> {
+        if self.levelled {
+            return Some((
+                Vector3::z(),
+                format!(
+                    "gravity: the IMU's accelerometer over {:.1} s levelled the map at its \
+                     first scan (tilted {:.1} degrees)",
+                    self.seconds,
+                    self.tilt_deg.unwrap_or(0.0)
+                ),
+            ));
+        }
+        let m = self.moving.as_ref()?;
+        let up = Vector3::from(m.up?);
+        Some((
+            up,
             format!(
-                "gravity: the IMU's accelerometer over {:.1} s levelled the map at its first \
-                 scan (tilted {:.1} degrees)",
-                self.seconds,
-                self.tilt_deg.unwrap_or(0.0)
-            )
-        })
+                "gravity: the IMU's accelerometer over the first {:.1} s of motion (the map's \
+                 z axis {:.1} degrees from it)",
+                m.seconds,
+                m.z_off_deg.unwrap_or(0.0)
+            ),
+        ))
     }
 }
 
@@ -235,6 +258,8 @@ pub struct Inertial {
     gravity: Option<GravityReport>,
     /// The gyro's rotations against the registered ones over the first seconds.
     check: CalibrationCheck,
+    /// Up over the first seconds of motion (a map not levelled).
+    moving: FirstSeconds,
     /// Its verdict, once given.
     checked: Option<String>,
 }
@@ -252,6 +277,7 @@ impl Inertial {
             set_aside: None,
             gravity: None,
             check: CalibrationCheck::new(options.calibration.lidar_from_imu.rotation),
+            moving: FirstSeconds::default(),
             checked: None,
         }
     }
@@ -280,7 +306,10 @@ impl Inertial {
             gap_frames: self.frames.2,
             gyro_bias: self.track.bias().into(),
             set_aside: self.set_aside.clone(),
-            gravity: self.gravity.clone(),
+            gravity: self.gravity.clone().map(|mut g| {
+                g.moving = self.moving.answer_given().cloned();
+                g
+            }),
             calibration_check: self.checked.clone().or_else(|| self.check.pending()),
         })
     }
@@ -375,7 +404,7 @@ impl Inertial {
     /// up, when the readings held say which way is up ([`Gravity`]); `None` otherwise (the map's
     /// z is the first scan's). Named in the log either way, and in the summary.
     pub fn level(&mut self, t: f64, file: &str, frame: usize) -> Option<Pose> {
-        let judged = match self.track.mean_force(t) {
+        let judged = match self.track.mean_force(f64::NEG_INFINITY, t) {
             Ok(f) => Gravity::judge(&f).map_err(|e| (Some(f), not_level(e))),
             Err(ImuGap::NoReadings) => Err((None, "fewer than three IMU readings came".into())),
             Err(ImuGap::Between { from, to }) => Err((
@@ -403,9 +432,12 @@ impl Inertial {
         level.map(|q| Pose::from_parts(Vector3::zeros().into(), q))
     }
 
-    /// What the accelerometer said of up at the map's first scan, once it was asked.
-    pub fn gravity(&self) -> Option<&GravityReport> {
-        self.gravity.as_ref()
+    /// Up for a navigation map and what gave it, when the IMU gave it
+    /// ([`GravityReport::navmap_up`]).
+    pub fn navmap_up(&self) -> Option<(Vector3<f64>, String)> {
+        let mut report = self.gravity.clone()?;
+        report.moving = self.moving.answer_given().cloned();
+        report.navmap_up()
     }
 
     /// Where the sensor is at `t` (its clock): the last pose turned by the gyro's rotation
@@ -441,6 +473,7 @@ impl Inertial {
         if let ((Some(before), Some(last)), Some(t_before)) = (history, self.refs.1) {
             let registered = (before.inverse() * last).rotation;
             let converged = matches!(status, Converged | Recovered);
+            self.read_up((&before, t_before), (&last, t), converged);
             // Checked also once the IMU is set aside: the motion model's frames tell why.
             if let (true, true, Ok(gyro)) = (converged, self.seen, self.track.rotation(t_before, t))
             {
@@ -466,6 +499,32 @@ impl Inertial {
         }
         self.refs = (self.refs.1, Some(t));
         self.track.forget_before(t);
+    }
+
+    /// Takes the interval between two registered frames into the moving body's up, when the
+    /// map was not levelled; logs the answer when it comes.
+    fn read_up(&mut self, from: (&Pose, f64), to: (&Pose, f64), registered: bool) {
+        if !self.active() || self.gravity.as_ref().is_none_or(|g| g.levelled) {
+            return;
+        }
+        let force = (self.track.mean_force(from.1, to.1)).map_err(|gap| match gap {
+            ImuGap::NoReadings => "fewer than three IMU readings between two frames".to_string(),
+            ImuGap::Between { from, to } => format!("no IMU reading from {from:.4} s to {to:.4} s"),
+        });
+        if let Some(m) = self.moving.add(from, to, registered, force) {
+            match (&m.up, &m.why_not) {
+                (Some(_), _) => log::info!(
+                    "IMU: up from the first {:.1} s of motion: the map's z axis is {:.2} degrees \
+                     from it",
+                    m.seconds,
+                    m.z_off_deg.unwrap_or(0.0)
+                ),
+                (None, why) => log::warn!(
+                    "IMU: no up from the first seconds of motion either ({}); up is the map's z",
+                    why.as_deref().unwrap_or("")
+                ),
+            }
+        }
     }
 
     /// Keeps and logs the calibration check's verdict, when one came.

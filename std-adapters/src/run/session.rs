@@ -366,8 +366,8 @@ impl<'a, C: Capacity> Run<'a, C> {
             frames_seen,
             shown_as,
         )?;
-        let levelled = (self.inertial.gravity()).and_then(|g| g.up_source());
-        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses, levelled)?;
+        let up = self.inertial.navmap_up();
+        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses, up)?;
         let summary = Summary {
             frames: source.frames(),
             used: poses.len(),
@@ -402,14 +402,14 @@ impl<'a, C: Capacity> Run<'a, C> {
 }
 
 /// Writes the mesh files, the picture and the navigation map from `spool` with `map`'s cells
-/// added; none when no frame was used (`poses` empty). `levelled` says what levelled the map,
-/// if anything did: the navigation map's up is then the map's z, and says so.
+/// added; none when no frame was used (`poses` empty). `up` is the IMU's up for the
+/// navigation map and what gave it, when it gave one.
 fn write_mesh(
     mut spool: MeshSpool,
     map: &slamesh_core::map::MeshMap,
     opts: &RunOptions,
     poses: &[(usize, Pose)],
-    levelled: Option<String>,
+    up: Option<(nalgebra::Vector3<f64>, String)>,
 ) -> Result<(MeshCounts, Option<NavMapSummary>), RunError> {
     let (out, used) = (&opts.out, !poses.is_empty());
     spool.add_map(map)?;
@@ -423,7 +423,7 @@ fn write_mesh(
             let path: Vec<_> = poses.iter().map(|(_, p)| p.translation.vector).collect();
             let mut how = how.clone();
             if how.up.is_none() {
-                how.up = levelled.map(|why| (nalgebra::Vector3::z(), why));
+                how.up = up;
             }
             crate::navmap::make(&mut spool, &path, &how, out)?
         }

@@ -1,0 +1,107 @@
+//! Up over a run's first seconds of motion, when its start was not steady enough to level the
+//! map (docs/design.md §1.19): between each two registered frames the IMU's specific force is
+//! turned into the map's frame by the registered attitude and summed; at the end of
+//! [`WINDOW_S`] the registered positions' change of velocity is taken out
+//! ([`slamesh_core::gravity::up_from_motion`]) and what is left points up, in the map's frame.
+//!
+//! It owns the sums (a fixed size) and guarantees one answer a run: up, or why not (a frame in
+//! the window not registered, readings that did not cover an interval, a result not
+//! gravity's size). The map keeps its frame; the navigation map takes up from here.
+
+use nalgebra::Vector3;
+use serde::Serialize;
+use slamesh_core::gravity::up_from_motion;
+use slamesh_core::imu::ForceMean;
+use slamesh_core::Pose;
+
+/// The time the sums span before up is read (seconds).
+pub const WINDOW_S: f64 = 5.0;
+
+/// What the first seconds of motion said of up (`summary.imu.gravity.moving`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MovingUp {
+    /// Up in the map's frame (a unit vector), when found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub up: Option<[f64; 3]>,
+    /// The map's z axis from up (degrees), when found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z_off_deg: Option<f64>,
+    /// The time read (seconds).
+    pub seconds: f64,
+    /// Why not, when not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub why_not: Option<String>,
+}
+
+/// The sums over the frames so far.
+#[derive(Debug, Default)]
+pub struct FirstSeconds {
+    /// Σ (force in the map's frame × readings), and the readings.
+    force: Vector3<f64>,
+    readings: usize,
+    /// The first interval's velocity and its middle's time.
+    first: Option<(Vector3<f64>, f64)>,
+    /// The answer, once given.
+    answer: Option<MovingUp>,
+}
+
+impl FirstSeconds {
+    /// Takes the interval from `before` (at `t_before`) to `last` (at `t`), both registered
+    /// (`registered`), and the IMU's force over it in the frame at `t` (`force`: the readings
+    /// did not cover it when an error); the answer when this interval ends the window or
+    /// spoils it.
+    pub fn add(
+        &mut self,
+        (before, t_before): (&Pose, f64),
+        (last, t): (&Pose, f64),
+        registered: bool,
+        force: Result<ForceMean, String>,
+    ) -> Option<&MovingUp> {
+        if self.answer.is_some() || t.partial_cmp(&t_before) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let middle = (t_before + t) / 2.0;
+        let spoilt = match (&force, registered) {
+            (_, false) => Some("a frame in the first seconds was not registered".to_string()),
+            (Err(why), _) => Some(why.clone()),
+            _ => None,
+        };
+        let seconds = self.first.map_or(0.0, |(_, m)| middle - m);
+        if let Some(why) = spoilt {
+            return self.answer(None, seconds, Some(why));
+        }
+        let f = force.as_ref().ok()?;
+        self.force += last.rotation * f.mean * f.readings as f64;
+        self.readings += f.readings;
+        let velocity = (last.translation.vector - before.translation.vector) / (t - t_before);
+        let (v0, _) = *self.first.get_or_insert((velocity, middle));
+        if seconds < WINDOW_S {
+            return None;
+        }
+        let mean = self.force / self.readings.max(1) as f64;
+        match up_from_motion(&mean, &(velocity - v0), seconds) {
+            Ok(up) => self.answer(Some(up), seconds, None),
+            Err(e) => self.answer(None, seconds, Some(format!("{e:?}"))),
+        }
+    }
+
+    fn answer(
+        &mut self,
+        up: Option<Vector3<f64>>,
+        seconds: f64,
+        why_not: Option<String>,
+    ) -> Option<&MovingUp> {
+        self.answer = Some(MovingUp {
+            up: up.map(Into::into),
+            z_off_deg: up.map(|u| u.angle(&Vector3::z()).to_degrees()),
+            seconds,
+            why_not,
+        });
+        self.answer.as_ref()
+    }
+
+    /// The answer, once given.
+    pub fn answer_given(&self) -> Option<&MovingUp> {
+        self.answer.as_ref()
+    }
+}
