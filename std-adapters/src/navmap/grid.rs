@@ -43,6 +43,13 @@ pub enum Occupancy {
     Occupied,
 }
 
+/// The rotation from the map frame to the level frame whose z is `up` (the smallest; up side
+/// down, a half turn about x).
+pub fn level_of(up: &Vector3<f64>) -> Rotation3<f64> {
+    Rotation3::rotation_between(up, &Vector3::z())
+        .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI))
+}
+
 /// Anything that hands over a mesh's triangles (map frame), as many times as asked.
 pub trait Triangles {
     /// Calls `each` with every triangle's three corners.
@@ -131,9 +138,7 @@ impl Grid {
         up: Vector3<f64>,
         path: &[Vector3<f64>],
     ) -> Result<Grid, FileError> {
-        let level = Rotation3::rotation_between(&up, &Vector3::z()).unwrap_or_else(|| {
-            Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
-        });
+        let level = level_of(&up);
         let mut grid = Grid {
             resolution,
             robot,

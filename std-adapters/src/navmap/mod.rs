@@ -10,6 +10,7 @@
 //! | what the path saw: lines of sight over the grid | [`sight`] |
 //! | traversability on a mesh of the ground: slope, step, roughness, border, cost | [`layers`] |
 //! | the files: Nav2's YAML and PGM, the elevation grids, `navmesh.ply`, `navmap.json` | [`files`] |
+//! | the grid kept current during a run, window by window | [`live`] |
 //!
 //! Up is the map's z axis (the first scan taken as level) unless the caller gives another
 //! direction; a run whose IMU levelled the map (docs/design.md §1.19) says gravity gave it.
@@ -19,6 +20,7 @@ pub mod files;
 pub mod grid;
 pub mod ground;
 pub mod layers;
+pub mod live;
 pub mod robot;
 pub mod sight;
 
