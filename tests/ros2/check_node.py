@@ -32,6 +32,7 @@ TYPES = {
     "/odom": "nav_msgs/msg/Odometry",
     "/path": "nav_msgs/msg/Path",
     "/mesh": "visualization_msgs/msg/MarkerArray",
+    "/map": "nav_msgs/msg/OccupancyGrid",
     "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
     "/points": "sensor_msgs/msg/PointCloud2",
 }
@@ -65,7 +66,8 @@ class Node:
         self.log = open(out + ".log", "w")
         self.p = subprocess.Popen(
             [args.slamesh, "ros2", "--out", out, "-q", *extra, "--ros-args",
-             "-p", "preset:=kitti", "-p", "threads:=2", "-p", "use_imu:=false"],
+             "-p", "preset:=kitti", "-p", "threads:=2", "-p", "use_imu:=false",
+             "-p", "map_every:=3"],
             stdout=self.log, stderr=subprocess.STDOUT,
         )
         self.out = out
@@ -162,6 +164,7 @@ def check_scans(args, reference, run_mesh):
              f"{r['marker_frames']}, types {r['marker_types']}, box {box} vs the mesh's {run_mesh}")
     ok(f"mesh: {r['markers']} triangle-list markers, {r['marker_points'] // 3} triangles, "
        "in map, within a metre of the final mesh's bounds")
+    check_grid(r, path)
     d = r["diagnostics"]
     if not d or any(x["scans_dropped"] != "0" or x["messages_refused"] != "0" for x in d):
         fail(f"diagnostics: {d[-1:] if d else 'none'}")
@@ -187,6 +190,25 @@ def check_scans(args, reference, run_mesh):
     ok(f"imu: {taken} readings taken, {with_frames} went with their frames")
     if "skipped:" in log or "dropped:" in log:
         fail("the node skipped a message of a well-formed run")
+
+
+def check_grid(r, path):
+    """`map`: OccupancyGrids as Nav2 reads them (every third scan), the last one whole: its
+    cells the info's width times height, each -1, 0 or 100, free street and occupied
+    surroundings, in `map` at 0.1 m, and the robot's path on it."""
+    g = r["last_grid"]
+    if r["grids"] < 2 or g is None:
+        fail(f"map: {r['grids']} occupancy grids")
+    ox, oy = g["origin"][:2]
+    res, w, h = g["resolution"], g["width"], g["height"]
+    on_grid = all(ox <= p["xyz"][0] <= ox + w * res and oy <= p["xyz"][1] <= oy + h * res
+                  for p in path)
+    if not (g["frame"] == "map" and abs(res - 0.1) < 1e-6 and g["cells"] == w * h
+            and set(g["values"]) <= {-1, 0, 100} and g["free"] > 1000
+            and g["occupied"] > 100 and on_grid):
+        fail(f"map: the last grid {g}")
+    ok(f"map: {r['grids']} occupancy grids, the last {w} x {h} cells of {res:.2f} m in map, "
+       f"{g['free']} free, {g['occupied']} occupied, the path on it")
 
 
 def check_other_publishers(args, reference):

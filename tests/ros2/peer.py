@@ -30,8 +30,8 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped
-from nav_msgs.msg import Odometry, Path
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, PointCloud2, PointField
 from std_srvs.srv import Trigger
@@ -131,6 +131,16 @@ class Peer:
             MarkerArray, "mesh", self.mesh_bytes.append, 1000, raw=True
         )
         n.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 100)
+        # As Nav2's map subscribers ask: reliable, transient local, the last one.
+        self.grids = 0
+        self.last_grid = None
+        latched = QoSProfile(
+            depth=1,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            history=HistoryPolicy.KEEP_LAST,
+        )
+        n.create_subscription(OccupancyGrid, "map", self.on_map, latched)
         self.save_map = n.create_client(Trigger, "/slamesh/save_map")
 
     def on_odom(self, m):
@@ -145,6 +155,23 @@ class Peer:
                 "covariance": list(m.pose.covariance),
             }
         )
+
+    def on_map(self, m):
+        self.grids += 1
+        data = np.array(m.data, dtype=np.int8)
+        o = m.info.origin
+        self.last_grid = {
+            "frame": m.header.frame_id,
+            "resolution": m.info.resolution,
+            "width": m.info.width,
+            "height": m.info.height,
+            "origin": [o.position.x, o.position.y, o.position.z,
+                       o.orientation.x, o.orientation.y, o.orientation.z, o.orientation.w],
+            "cells": int(data.size),
+            "values": sorted(int(v) for v in np.unique(data)),
+            "free": int(np.count_nonzero(data == 0)),
+            "occupied": int(np.count_nonzero(data == 100)),
+        }
 
     def on_path(self, m):
         self.paths.append(len(m.poses))
@@ -225,7 +252,7 @@ class Peer:
         return {
             name: types
             for name, types in self.node.get_topic_names_and_types()
-            if name in ("/tf", "/odom", "/path", "/mesh", "/diagnostics", "/points")
+            if name in ("/tf", "/odom", "/path", "/mesh", "/map", "/diagnostics", "/points")
         }
 
     def call_save_map(self):
@@ -283,6 +310,8 @@ def scenario_scans(peer, args):
         "marker_frames": sorted(peer.marker_frames),
         "marker_types": sorted(peer.marker_types),
         "marker_box": peer.marker_box,
+        "grids": peer.grids,
+        "last_grid": peer.last_grid,
         "last_path": peer.last_path,
         "diagnostics": peer.diagnostics,
         "advertised": peer.advertised(),

@@ -277,6 +277,33 @@ pub struct PathMsg {
 }
 typed!(PathMsg, "nav_msgs", "Path");
 
+/// `nav_msgs/MapMetaData`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MapMetaData {
+    /// When the map was made.
+    pub map_load_time: Time,
+    /// Cell size (m).
+    pub resolution: f32,
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// The pose of cell (0, 0)'s lower-left corner.
+    pub origin: PoseMsg,
+}
+
+/// `nav_msgs/OccupancyGrid`: cells row by row from the origin, -1 unknown, 0 to 100.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct OccupancyGrid {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Size and place.
+    pub info: MapMetaData,
+    /// The cells.
+    pub data: Vec<i8>,
+}
+typed!(OccupancyGrid, "nav_msgs", "OccupancyGrid");
+
 /// `geometry_msgs/PoseWithCovarianceStamped` (RViz's "2D Pose Estimate" on `initialpose`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PoseWithCovarianceStamped {

@@ -186,6 +186,32 @@ impl MeshTiles {
         }
     }
 
+    /// Calls `each` with the triangles of the tiles within `half` metres of `centre` along x
+    /// and y (the engine's world).
+    pub fn each_triangle_near(
+        &self,
+        centre: [f64; 2],
+        half: f64,
+        each: &mut dyn FnMut([slamesh_core::Point; 3]),
+    ) {
+        let side = f64::from(TILE_CELLS) * self.lattice.cell_size;
+        let near = |t: i32, c: f64| {
+            let lo = f64::from(t) * side;
+            lo <= c + half && lo + side >= c - half
+        };
+        let tiles =
+            (self.tiles.iter()).filter(|(t, _)| near(t.0, centre[0]) && near(t.1, centre[1]));
+        for (_, layers) in tiles {
+            for points in layers.values() {
+                for t in points.chunks_exact(3) {
+                    each(std::array::from_fn(|k| {
+                        [t[k].x as f32, t[k].y as f32, t[k].z as f32]
+                    }));
+                }
+            }
+        }
+    }
+
     /// Triangles held, over all tiles.
     pub fn triangles(&self) -> usize {
         self.tiles

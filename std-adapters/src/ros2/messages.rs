@@ -16,6 +16,7 @@ message!(
     PoseWithCovarianceStamped,
     DiagnosticArray,
     MarkerArray,
+    OccupancyGrid,
     Imu,
     Clock,
     TriggerRequest,

@@ -14,6 +14,7 @@
 //! | the way in: subscriptions and the service on a thread, scans through a bounded queue | [`listen`] |
 //! | the way out: odometry, transforms, path, diagnostics | [`publish`] |
 //! | the mesh as RViz markers, a tile at a time | [`mesh_tiles`] |
+//! | the occupancy grid for Nav2, kept current window by window | [`occupancy`] |
 //! | the DDS participant, the node and its endpoints | [`node`] |
 
 pub mod clouds;
@@ -21,6 +22,7 @@ pub mod listen;
 pub mod mesh_tiles;
 pub mod messages;
 pub mod node;
+pub mod occupancy;
 pub mod publish;
 pub mod settings;
 

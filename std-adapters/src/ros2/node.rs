@@ -7,7 +7,8 @@
 //!   publishers and reliable ones alike (a reliable reader would not match a best-effort
 //!   writer);
 //! - `odom`, `path`, `/diagnostics`: reliable, volatile, the last 10; `mesh` the last 64
-//!   (a frame's tiles go out in several messages);
+//!   (a frame's tiles go out in several messages); `map`: reliable, transient local, the
+//!   last 1 (as Nav2's `map_server`: a planner that starts late gets the map);
 //! - `/tf`: reliable, the last 100; `initialpose`, `/clock`: reliable and best effort, the
 //!   last 10 and 1; `imu`: best effort, the last 400 (a second at 400 Hz); `~/save_map`: the
 //!   services' default.
@@ -16,9 +17,10 @@ use crate::ros2::clouds::{RawAdapter, RawMessage};
 use crate::ros2::listen::{Endpoints, Names, Ros2Source};
 use crate::ros2::mesh_tiles::MeshTiles;
 use crate::ros2::messages::{
-    Clock, DiagnosticArray, Imu, MarkerArray, Odometry, PathMsg, PoseWithCovarianceStamped,
-    TfMessage, TriggerRequest, TriggerResponse, Typed,
+    Clock, DiagnosticArray, Imu, MarkerArray, OccupancyGrid, Odometry, PathMsg,
+    PoseWithCovarianceStamped, TfMessage, TriggerRequest, TriggerResponse, Typed,
 };
+use crate::ros2::occupancy::LiveMap;
 use crate::ros2::publish::{Publishers, Ros2Sink};
 use crate::ros2::settings::NodeSettings;
 use ros2_client::qos::{Durability, History, WhenFull};
@@ -48,6 +50,14 @@ pub struct RosNode {
 /// several messages (a first frame's in dozens), and a reliable writer repairs only what its
 /// history still holds.
 const MESH_HISTORY: usize = 64;
+
+/// As Nav2's `map_server` offers `map`: reliable, the last one kept for late subscribers.
+fn latched() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 })
+}
 
 fn reliable(depth: usize) -> QosProfile {
     QosProfile::publisher_default()
@@ -207,16 +217,23 @@ impl RosNode {
                 true => Some(self.publisher::<MarkerArray>(&t.mesh, reliable(MESH_HISTORY))?),
                 false => None,
             },
+            map: match s.map_every {
+                Some(_) => Some(self.publisher::<OccupancyGrid>(&t.map, latched())?),
+                None => None,
+            },
             diagnostics: self.publisher::<DiagnosticArray>(&t.diagnostics, reliable(10))?,
         };
-        let tiles = s
-            .publish_mesh
+        // The grid is made from the mesh's tiles, kept also when the mesh is not published.
+        let tiles = (s.publish_mesh || s.map_every.is_some())
             .then(|| MeshTiles::new(config.lattice().table(), Shown::new(&config.mesh)));
+        let map = s
+            .map_every
+            .map(|every| LiveMap::new(every, s.lidar_in_base));
         Ok(Ros2Sink::new(
             publishers,
             s.frames.clone(),
             s.lidar_in_base,
-            tiles,
+            (tiles, map),
             source.counts(),
             s.fqn(),
         ))

@@ -6,6 +6,7 @@
 //! | `/tf` | `tf2_msgs/TFMessage` | `odom -> base_link` and `map -> odom` with every pose |
 //! | `path` | `nav_msgs/Path` | the trajectory in `map` (corrected after a loop closure) |
 //! | `mesh` | `visualization_msgs/MarkerArray` | the tiles a frame changed ([`crate::ros2::mesh_tiles`]) |
+//! | `map` | `nav_msgs/OccupancyGrid` | every `map_every` scans and at the end: the grid around the robot made again ([`crate::ros2::occupancy`]) |
 //! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | at most once a second: frames used and not, scans dropped and refused, latency |
 //!
 //! Frames: the engine estimates the LiDAR's pose in its world (the first scan's LiDAR frame,
@@ -19,10 +20,11 @@ use crate::loop_closure::graph::local_covariance;
 use crate::ros2::listen::Counts;
 use crate::ros2::mesh_tiles::{MeshTiles, FRAME_POINTS};
 use crate::ros2::messages::{
-    Covariance, DiagnosticArray, DiagnosticStatus, Header, KeyValue, MarkerArray, Odometry,
-    PathMsg, PoseMsg, PoseStamped, PoseWithCovariance, TfMessage, Time, TransformStamped, Twist,
-    TwistWithCovariance, Vector3,
+    Covariance, DiagnosticArray, DiagnosticStatus, Header, KeyValue, MarkerArray, OccupancyGrid,
+    Odometry, PathMsg, PoseMsg, PoseStamped, PoseWithCovariance, TfMessage, Time, TransformStamped,
+    Twist, TwistWithCovariance, Vector3,
 };
+use crate::ros2::occupancy::LiveMap;
 use crate::ros2::settings::Frames;
 use crate::run::sink::{FrameEvent, MapUpdate, Sink};
 use crate::run::Summary;
@@ -42,6 +44,8 @@ pub struct Publishers {
     pub path: Publisher<PathMsg>,
     /// `mesh`.
     pub mesh: Option<Publisher<MarkerArray>>,
+    /// `map`.
+    pub map: Option<Publisher<OccupancyGrid>>,
     /// `/diagnostics`.
     pub diagnostics: Publisher<DiagnosticArray>,
 }
@@ -98,6 +102,10 @@ pub struct Ros2Sink {
     last: Option<(f64, Pose)>,
     path: PathMsg,
     tiles: Option<MeshTiles>,
+    /// The grid on `map`.
+    map: Option<LiveMap>,
+    /// Grids published.
+    grids: u64,
     latencies: Vec<f64>,
     used: u64,
     not_used: u64,
@@ -109,13 +117,13 @@ pub struct Ros2Sink {
 
 impl Ros2Sink {
     /// Publishes on `publishers` in `frames`, the LiDAR at `lidar_in_base` on the robot;
-    /// `tiles` for `mesh`; `counts` are the inputs' (for `diagnostics`), `node` the node's
-    /// name.
+    /// `tiles` for `mesh` and `map`, `map`'s grid; `counts` are the inputs' (for
+    /// `diagnostics`), `node` the node's name.
     pub fn new(
         publishers: Publishers,
         frames: Frames,
         lidar_in_base: Pose,
-        tiles: Option<MeshTiles>,
+        (tiles, map): (Option<MeshTiles>, Option<LiveMap>),
         counts: Arc<Mutex<Counts>>,
         node: String,
     ) -> Self {
@@ -136,6 +144,8 @@ impl Ros2Sink {
             last: None,
             path,
             tiles,
+            map,
+            grids: 0,
             latencies: Vec::new(),
             used: 0,
             not_used: 0,
@@ -251,6 +261,9 @@ impl Ros2Sink {
 
     /// The path after a loop closure: `corrected` holds every used frame's LiDAR pose.
     fn correct_path(&mut self, corrected: &[Pose]) {
+        if let Some(m) = &mut self.map {
+            m.correct(corrected);
+        }
         if corrected.len() != self.path.poses.len() {
             return;
         }
@@ -262,7 +275,7 @@ impl Ros2Sink {
     /// The tiles the frame changed wait their turn; the next ones within a frame's budget go
     /// out (all of them when `all`, at the end).
     fn publish_mesh(&mut self, update: Option<&MapUpdate>, all: bool) -> Result<(), String> {
-        let (Some(tiles), Some(publisher)) = (&mut self.tiles, &self.publishers.mesh) else {
+        let Some(tiles) = &mut self.tiles else {
             return Ok(());
         };
         if let Some(u) = update {
@@ -271,6 +284,9 @@ impl Ros2Sink {
             }
             tiles.update(&u.layers);
         }
+        let Some(publisher) = &self.publishers.mesh else {
+            return Ok(());
+        };
         // The mesh is in the engine's world; `map` is that world seen from the robot.
         let header = Header {
             stamp: update.map_or(self.path.header.stamp, |u| Time::from_seconds(u.stamp_s)),
@@ -288,6 +304,29 @@ impl Ros2Sink {
             publisher
                 .publish(message)
                 .map_err(|e| format!("mesh: {e:?}"))?;
+        }
+        Ok(())
+    }
+
+    /// After a scan (at `lidar`, when it was used; `now`: at the end): the grid made again
+    /// around the robot and published, when due.
+    fn publish_map(&mut self, lidar: Option<&Pose>, now: bool) -> Result<(), String> {
+        let (Some(map), Some(tiles), Some(publisher)) =
+            (&mut self.map, &self.tiles, &self.publishers.map)
+        else {
+            return Ok(());
+        };
+        let at = lidar.map(|p| p.translation.vector);
+        if !map.scan(tiles, at, now).map_err(|e| format!("map: {e}"))? {
+            return Ok(());
+        }
+        let header = Header {
+            stamp: self.path.header.stamp,
+            frame_id: self.frames.map.clone(),
+        };
+        if let Some(grid) = map.message(header) {
+            publisher.publish(grid).map_err(|e| format!("map: {e:?}"))?;
+            self.grids += 1;
         }
         Ok(())
     }
@@ -386,6 +425,7 @@ impl Sink for Ros2Sink {
             self.used += 1;
             self.publish_pose(e, &lidar)?;
             self.publish_mesh(e.map.as_ref(), false)?;
+            self.publish_map(Some(&lidar), false)?;
             self.published += 1;
         } else {
             self.not_used += 1;
@@ -402,11 +442,21 @@ impl Sink for Ros2Sink {
     fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
         let stamp = self.path.header.stamp.seconds();
         self.publish_mesh(None, true)?;
+        self.publish_map(None, true)?;
         self.publish_diagnostics(stamp, true)?;
         let _ = summary;
+        let grids = self.map.as_ref().map_or(String::new(), |m| {
+            let (n, median, p95, bytes) = m.costs();
+            format!(
+                ", the occupancy grid {} times ({n} updates, median {median:.1} ms, 95th \
+                 percentile {p95:.1} ms; {:.1} MB of cells)",
+                self.grids,
+                bytes as f64 / 1e6
+            )
+        });
         Ok(Some(format!(
             "published {} poses ({} frames not used), the mesh in {} messages ({} markers, {} \
-             triangles)",
+             triangles){grids}",
             self.published, self.not_used, self.markers.0, self.markers.1, self.markers.2
         )))
     }

@@ -8,7 +8,8 @@
 //! | `lidar_in_base` | 6 or 7 doubles | identity | the LiDAR's pose on the robot: `[x, y, z, roll, pitch, yaw]` or `[x, y, z, qx, qy, qz, qw]` |
 //! | `lidar_frame` | text | the first scan's | scans in another frame are refused |
 //! | `queue` | integer | 2 | scans waiting for the pipeline, at most; a scan that finds it full is dropped |
-//! | `publish_tf`, `publish_mesh` | bool | true | whether `/tf` and `mesh` are published |
+//! | `publish_tf`, `publish_mesh`, `publish_map` | bool | true | whether `/tf`, `mesh` and `map` are published |
+//! | `map_every` | integer | 10 | scans between two updates of `map` (1 to 1000) |
 //! | `use_sim_time` | bool | false | stamp `diagnostics` with `/clock` |
 //! | `use_imu` | bool | true | use the readings on `imu` (docs/design.md §1.19; its place on the LiDAR is the configuration's `[imu]`) |
 //! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize` | | | as the command's flags of the same names |
@@ -43,6 +44,8 @@ pub struct Topics {
     pub path: String,
     /// The mesh out (`mesh`).
     pub mesh: String,
+    /// The occupancy grid out (`map`).
+    pub map: String,
     /// The node's health out (`/diagnostics`).
     pub diagnostics: String,
     /// Transforms out (`/tf`).
@@ -87,6 +90,8 @@ pub struct NodeSettings {
     pub publish_tf: bool,
     /// Publish `mesh`.
     pub publish_mesh: bool,
+    /// Publish `map`, every this many scans (`None`: not at all).
+    pub map_every: Option<usize>,
     /// Follow `/clock`.
     pub use_sim_time: bool,
     /// Use the readings on `imu`.
@@ -130,16 +135,8 @@ impl NodeSettings {
             None => Pose::identity(),
             Some(v) => pose_of(&v).map_err(|e| format!("parameter lidar_in_base: {e}"))?,
         };
-        let queue = match take("queue") {
-            None => 2,
-            Some(ParamValue::Int(n)) if (1..=1000).contains(&n) => n as usize,
-            Some(other) => {
-                return Err(format!(
-                    "parameter queue: {} is not 1 to 1000",
-                    other.as_text()
-                ))
-            }
-        };
+        let queue = count("queue", take("queue"), 2)?;
+        let map_every = count("map_every", take("map_every"), 10)?;
         let resolve = |n: &str| resolve(args, &namespace, &name, n);
         let topics = Topics {
             points: resolve("points"),
@@ -149,6 +146,7 @@ impl NodeSettings {
             odom: resolve("odom"),
             path: resolve("path"),
             mesh: resolve("mesh"),
+            map: resolve("map"),
             diagnostics: resolve("/diagnostics"),
             tf: resolve("/tf"),
             save_map: resolve("~/save_map"),
@@ -157,6 +155,7 @@ impl NodeSettings {
             lidar_frame: take("lidar_frame").map(|v| v.as_text()),
             publish_tf: flag("publish_tf", take("publish_tf"), true)?,
             publish_mesh: flag("publish_mesh", take("publish_mesh"), true)?,
+            map_every: flag("publish_map", take("publish_map"), true)?.then_some(map_every),
             use_sim_time: flag("use_sim_time", take("use_sim_time"), false)?,
             use_imu: flag("use_imu", take("use_imu"), true)?,
             domain_id: domain_id(env)?,
@@ -179,6 +178,18 @@ impl NodeSettings {
     /// The node's fully qualified name (`/ns/name`).
     pub fn fqn(&self) -> String {
         join(&self.namespace, &self.name)
+    }
+}
+
+/// An integer parameter from 1 to 1000, `default` when not given.
+fn count(name: &str, v: Option<ParamValue>, default: usize) -> Result<usize, String> {
+    match v {
+        None => Ok(default),
+        Some(ParamValue::Int(n)) if (1..=1000).contains(&n) => Ok(n as usize),
+        Some(other) => Err(format!(
+            "parameter {name}: {} is not 1 to 1000",
+            other.as_text()
+        )),
     }
 }
 
