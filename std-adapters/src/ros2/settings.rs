@@ -312,6 +312,11 @@ mod tests {
         assert_eq!((s.domain_id, s.localhost_only, s.queue), (0, false, 2));
         assert_eq!(s.frames.base, "base_link");
         assert!(s.publish_tf && s.publish_mesh && !s.use_sim_time);
+        assert_eq!((s.topics.map.as_str(), s.map_every), ("/map", Some(10)));
+        let off = settings("--ros-args -p publish_map:=false -p map_every:=3", &[]).unwrap();
+        assert_eq!(off.map_every, None);
+        let every = settings("--ros-args -p map_every:=3", &[]).unwrap();
+        assert_eq!(every.map_every, Some(3));
     }
 
     #[test]
@@ -343,6 +348,7 @@ mod tests {
             (s.queue, s.publish_tf, s.use_sim_time, s.use_imu),
             (2, true, false, true)
         );
+        assert_eq!(s.map_every, Some(10));
         assert_eq!(s.lidar_in_base, Pose::identity());
         assert_eq!(s.frames.map, "map");
         // What is left is the command's (cli/ros2.rs), as the module docs list.
@@ -356,6 +362,7 @@ mod tests {
             ("", [("ROS_DOMAIN_ID", "300")], "ROS_DOMAIN_ID"),
             ("--ros-args -p queue:=0", [("X", "")], "queue"),
             ("--ros-args -p publish_tf:=3", [("X", "")], "publish_tf"),
+            ("--ros-args -p map_every:=0", [("X", "")], "map_every"),
             (
                 "--ros-args -p lidar_in_base:=[1,2]",
                 [("X", "")],
