@@ -217,18 +217,25 @@ impl RosNode {
                 true => Some(self.publisher::<MarkerArray>(&t.mesh, reliable(MESH_HISTORY))?),
                 false => None,
             },
-            map: match s.map_every {
-                Some(_) => Some(self.publisher::<OccupancyGrid>(&t.map, latched())?),
-                None => None,
-            },
             diagnostics: self.publisher::<DiagnosticArray>(&t.diagnostics, reliable(10))?,
         };
         // The grid is made from the mesh's tiles, kept also when the mesh is not published.
         let tiles = (s.publish_mesh || s.map_every.is_some())
             .then(|| MeshTiles::new(config.lattice().table(), Shown::new(&config.mesh)));
-        let map = s
-            .map_every
-            .map(|every| LiveMap::new(every, s.lidar_in_base));
+        let map = match s.map_every {
+            Some(every) => {
+                let publisher = self.publisher::<OccupancyGrid>(&t.map, latched())?;
+                let out = Box::new(move |grid| match publisher.publish(grid) {
+                    Ok(()) => true,
+                    Err(e) => {
+                        log::warn!("map: {e:?}");
+                        false
+                    }
+                });
+                Some(LiveMap::new(every, s.lidar_in_base, out))
+            }
+            None => None,
+        };
         Ok(Ros2Sink::new(
             publishers,
             s.frames.clone(),

@@ -20,9 +20,9 @@ use crate::loop_closure::graph::local_covariance;
 use crate::ros2::listen::Counts;
 use crate::ros2::mesh_tiles::{MeshTiles, FRAME_POINTS};
 use crate::ros2::messages::{
-    Covariance, DiagnosticArray, DiagnosticStatus, Header, KeyValue, MarkerArray, OccupancyGrid,
-    Odometry, PathMsg, PoseMsg, PoseStamped, PoseWithCovariance, TfMessage, Time, TransformStamped,
-    Twist, TwistWithCovariance, Vector3,
+    Covariance, DiagnosticArray, DiagnosticStatus, Header, KeyValue, MarkerArray, Odometry,
+    PathMsg, PoseMsg, PoseStamped, PoseWithCovariance, TfMessage, Time, TransformStamped, Twist,
+    TwistWithCovariance, Vector3,
 };
 use crate::ros2::occupancy::LiveMap;
 use crate::ros2::settings::Frames;
@@ -44,8 +44,6 @@ pub struct Publishers {
     pub path: Publisher<PathMsg>,
     /// `mesh`.
     pub mesh: Option<Publisher<MarkerArray>>,
-    /// `map`.
-    pub map: Option<Publisher<OccupancyGrid>>,
     /// `/diagnostics`.
     pub diagnostics: Publisher<DiagnosticArray>,
 }
@@ -102,10 +100,8 @@ pub struct Ros2Sink {
     last: Option<(f64, Pose)>,
     path: PathMsg,
     tiles: Option<MeshTiles>,
-    /// The grid on `map`.
+    /// The grid on `map` (it holds `map`'s publisher).
     map: Option<LiveMap>,
-    /// Grids published.
-    grids: u64,
     latencies: Vec<f64>,
     used: u64,
     not_used: u64,
@@ -145,7 +141,6 @@ impl Ros2Sink {
             path,
             tiles,
             map,
-            grids: 0,
             latencies: Vec::new(),
             used: 0,
             not_used: 0,
@@ -309,26 +304,20 @@ impl Ros2Sink {
     }
 
     /// After a scan (at `lidar`, when it was used; `now`: at the end): the grid made again
-    /// around the robot and published, when due.
-    fn publish_map(&mut self, lidar: Option<&Pose>, now: bool) -> Result<(), String> {
-        let (Some(map), Some(tiles), Some(publisher)) =
-            (&mut self.map, &self.tiles, &self.publishers.map)
-        else {
-            return Ok(());
+    /// around the robot when due (it goes out from the map's own thread).
+    fn publish_map(&mut self, lidar: Option<&Pose>, now: bool) {
+        let (Some(map), Some(tiles)) = (&mut self.map, &self.tiles) else {
+            return;
         };
-        let at = lidar.map(|p| p.translation.vector);
-        if !map.scan(tiles, at, now).map_err(|e| format!("map: {e}"))? {
-            return Ok(());
-        }
         let header = Header {
             stamp: self.path.header.stamp,
             frame_id: self.frames.map.clone(),
         };
-        if let Some(grid) = map.message(header) {
-            publisher.publish(grid).map_err(|e| format!("map: {e:?}"))?;
-            self.grids += 1;
+        if now {
+            map.finish(tiles, header);
+        } else {
+            map.scan(tiles, lidar.map(|p| p.translation.vector), header);
         }
-        Ok(())
     }
 
     fn publish_diagnostics(&mut self, stamp: f64, force: bool) -> Result<(), String> {
@@ -425,7 +414,7 @@ impl Sink for Ros2Sink {
             self.used += 1;
             self.publish_pose(e, &lidar)?;
             self.publish_mesh(e.map.as_ref(), false)?;
-            self.publish_map(Some(&lidar), false)?;
+            self.publish_map(Some(&lidar), false);
             self.published += 1;
         } else {
             self.not_used += 1;
@@ -442,15 +431,15 @@ impl Sink for Ros2Sink {
     fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
         let stamp = self.path.header.stamp.seconds();
         self.publish_mesh(None, true)?;
-        self.publish_map(None, true)?;
+        self.publish_map(None, true);
         self.publish_diagnostics(stamp, true)?;
         let _ = summary;
         let grids = self.map.as_ref().map_or(String::new(), |m| {
-            let (n, median, p95, bytes) = m.costs();
+            let (n, median, p95, skipped, bytes) = m.costs();
             format!(
                 ", the occupancy grid {} times ({n} updates, median {median:.1} ms, 95th \
-                 percentile {p95:.1} ms; {:.1} MB of cells)",
-                self.grids,
+                 percentile {p95:.1} ms, {skipped} skipped; {:.1} MB of cells)",
+                m.sent(),
                 bytes as f64 / 1e6
             )
         });
