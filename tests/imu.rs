@@ -329,6 +329,30 @@ fn up_off_deg(estimate: &Pose, truth: &Pose) -> f64 {
     seen(estimate).angle(&seen(truth)).to_degrees()
 }
 
+/// A run of `d` with its IMU used or not (mounted as [`mount`]) and a navigation map: its
+/// summary, its trajectory and its `navmap.json`.
+fn navmap_run<C: Capacity>(d: &Drive, use_imu: bool, name: &str) -> (Summary, Vec<Pose>, String) {
+    let out = scratch(&format!("imu-{name}-{use_imu}"));
+    let mut imu = ImuOptions {
+        enabled: use_imu,
+        ..ImuOptions::default()
+    };
+    imu.calibration.lidar_from_imu = mount();
+    let opts = RunOptions {
+        out: out.clone(),
+        config: slamesh::run::config_file::preset("default").unwrap(),
+        threads: 2,
+        imu,
+        navmap: Some(slamesh::navmap::NavMapOptions::default()),
+        ..RunOptions::default()
+    };
+    let s = run::<C>(&mut d.clone(), &opts, |_| {}).unwrap();
+    let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
+    let navmap = std::fs::read_to_string(out.join("navmap.json")).unwrap();
+    std::fs::remove_dir_all(&out).unwrap();
+    (s, estimate, navmap)
+}
+
 #[test]
 fn a_tilted_lidar_maps_level_with_its_imu() {
     // The LiDAR sits pitched 4 degrees and rolled 2 on the car: its first scan is not level.
@@ -341,28 +365,11 @@ fn a_tilted_lidar_maps_level_with_its_imu() {
     let d = d.with_imu(imu(200.0));
     let mut ups = Vec::new();
     for use_imu in [true, false] {
-        let out = scratch(&format!("imu-level-{use_imu}"));
-        let mut imu = ImuOptions {
-            enabled: use_imu,
-            ..ImuOptions::default()
-        };
-        imu.calibration.lidar_from_imu = mount();
-        let opts = RunOptions {
-            out: out.clone(),
-            config: slamesh::run::config_file::preset("default").unwrap(),
-            threads: 2,
-            imu,
-            navmap: Some(slamesh::navmap::NavMapOptions::default()),
-            ..RunOptions::default()
-        };
-        let s = run::<KittiCapacity>(&mut d.clone(), &opts, |_| {}).unwrap();
-        let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
+        let (s, estimate, navmap) = navmap_run::<KittiCapacity>(&d, use_imu, "level");
         let worst = (estimate.iter().zip(&d.poses))
             .map(|(e, t)| up_off_deg(e, t))
             .fold(0.0, f64::max);
-        let navmap = std::fs::read_to_string(out.join("navmap.json")).unwrap();
         ups.push((worst, s.imu.and_then(|i| i.gravity), navmap));
-        std::fs::remove_dir_all(&out).unwrap();
     }
     let [(with, Some(g), navmap), (without, None, plain)] = &ups[..] else {
         panic!("{ups:?}");
@@ -388,18 +395,7 @@ fn a_moving_start_finds_up_over_its_first_seconds() {
     // up is read over the first seconds of motion instead, in the map's (the first scan's)
     // frame, and handed to the navigation map.
     let d = hand_held(16);
-    let out = scratch("imu-moving-up");
-    let mut imu = ImuOptions::default();
-    imu.calibration.lidar_from_imu = mount();
-    let opts = RunOptions {
-        out: out.clone(),
-        config: slamesh::run::config_file::preset("default").unwrap(),
-        threads: 2,
-        imu,
-        navmap: Some(slamesh::navmap::NavMapOptions::default()),
-        ..RunOptions::default()
-    };
-    let s = run::<Lidar32Capacity>(&mut d.clone(), &opts, |_| {}).unwrap();
+    let (s, _, navmap) = navmap_run::<Lidar32Capacity>(&d, true, "moving-up");
     let g = s.imu.and_then(|i| i.gravity).expect("up was looked for");
     println!("{g:?}");
     assert!(!g.levelled, "{g:?}");
@@ -410,7 +406,5 @@ fn a_moving_start_finds_up_over_its_first_seconds() {
     let off = up.angle(&truth).to_degrees();
     println!("up from motion {off:.3} degrees from the truth's");
     assert!(off < 1.0, "{off}");
-    let navmap = std::fs::read_to_string(out.join("navmap.json")).unwrap();
     assert!(navmap.contains("of motion"), "{navmap}");
-    std::fs::remove_dir_all(&out).unwrap();
 }

@@ -8,7 +8,7 @@
 //! run goes on without the IMU; at most [`KEPT`] readings wait (the oldest dropped, counted);
 //! the thread ends with the stream's stop flag.
 
-use super::{ImuPortStats, LiveStats};
+use super::{receive, ImuPortStats, LiveStats};
 use crate::sources::ouster::imu_packet::ImuPacket;
 use crate::sources::ouster::{self, metadata::IMU_PORT};
 use slamesh_core::imu::ImuSample;
@@ -97,16 +97,9 @@ impl Job {
     fn run(self) {
         let mut buf = [0u8; 2048];
         while !self.stop.load(Ordering::Relaxed) {
-            let n = match self.socket.recv_from(&mut buf) {
-                Ok((n, _)) => n,
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                    ) =>
-                {
-                    continue;
-                }
+            let n = match receive(&self.socket, &mut buf) {
+                Ok(Some(n)) => n,
+                Ok(None) => continue,
                 Err(e) => {
                     log::warn!("the Ouster's IMU port: cannot receive: {e}; no more IMU readings");
                     break;

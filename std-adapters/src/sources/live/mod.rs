@@ -245,16 +245,9 @@ impl Listener {
             if self.idle.is_some_and(|idle| last_packet.elapsed() > idle) {
                 break None;
             }
-            let (n, _) = match self.socket.recv_from(&mut buf) {
-                Ok(got) => got,
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                    ) =>
-                {
-                    continue;
-                }
+            let n = match receive(&self.socket, &mut buf) {
+                Ok(Some(n)) => n,
+                Ok(None) => continue,
                 Err(e) => break Some(format!("cannot receive: {e}")),
             };
             last_packet = Instant::now();
@@ -329,6 +322,22 @@ impl Listener {
         if let Ok(mut s) = self.stats.lock() {
             s.stream = counts;
         }
+    }
+}
+
+/// A datagram's length, read into `buf`; `None` when the socket's read timeout passed first.
+fn receive(socket: &UdpSocket, buf: &mut [u8]) -> std::io::Result<Option<usize>> {
+    match socket.recv_from(buf) {
+        Ok((n, _)) => Ok(Some(n)),
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+            ) =>
+        {
+            Ok(None)
+        }
+        Err(e) => Err(e),
     }
 }
 
