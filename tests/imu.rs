@@ -35,6 +35,24 @@ fn imu(hz: f64) -> ImuModel {
     m
 }
 
+/// A run into `out` on two threads with the default preset, the IMU used or not, mounted as
+/// [`mount`] says.
+fn options(out: &std::path::Path, use_imu: bool) -> RunOptions {
+    let mut imu = ImuOptions {
+        enabled: use_imu,
+        ..ImuOptions::default()
+    };
+    imu.calibration.lidar_from_imu = mount();
+    RunOptions {
+        out: out.to_path_buf(),
+        config: slamesh::run::config_file::preset("default").unwrap(),
+        preset: "default".into(),
+        threads: 2,
+        imu,
+        ..RunOptions::default()
+    }
+}
+
 /// A run's summary, its statuses and its mean frame-to-frame translation error (m).
 fn run_drive<C: Capacity>(
     source: &mut impl FrameSource,
@@ -43,20 +61,7 @@ fn run_drive<C: Capacity>(
     name: &str,
 ) -> (Summary, Vec<String>, f64) {
     let out = scratch(&format!("imu-{name}"));
-    let mut imu = ImuOptions {
-        enabled: use_imu,
-        ..ImuOptions::default()
-    };
-    imu.calibration.lidar_from_imu = mount();
-    let opts = RunOptions {
-        out: out.clone(),
-        config: slamesh::run::config_file::preset("default").unwrap(),
-        preset: "default".into(),
-        threads: 2,
-        input: name.into(),
-        imu,
-        ..RunOptions::default()
-    };
+    let opts = options(&out, use_imu);
     let mut statuses = Vec::new();
     let summary = run::<C>(source, &opts, |r| statuses.push(r.status.clone())).unwrap();
     let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
@@ -333,18 +338,9 @@ fn up_off_deg(estimate: &Pose, truth: &Pose) -> f64 {
 /// summary, its trajectory and its `navmap.json`.
 fn navmap_run<C: Capacity>(d: &Drive, use_imu: bool, name: &str) -> (Summary, Vec<Pose>, String) {
     let out = scratch(&format!("imu-{name}-{use_imu}"));
-    let mut imu = ImuOptions {
-        enabled: use_imu,
-        ..ImuOptions::default()
-    };
-    imu.calibration.lidar_from_imu = mount();
     let opts = RunOptions {
-        out: out.clone(),
-        config: slamesh::run::config_file::preset("default").unwrap(),
-        threads: 2,
-        imu,
         navmap: Some(slamesh::navmap::NavMapOptions::default()),
-        ..RunOptions::default()
+        ..options(&out, use_imu)
     };
     let s = run::<C>(&mut d.clone(), &opts, |_| {}).unwrap();
     let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
