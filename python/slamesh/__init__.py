@@ -102,6 +102,11 @@ class Frame:
     """Seconds."""
     label: str
     """What the command calls it in messages (its file)."""
+    imu: Optional[np.ndarray] = None
+    """(M, 7) float64 IMU readings that came with it (``time, gyro x, y, z, accelerometer x,
+    y, z``, as :meth:`Pipeline.register` takes them), ``None`` when none did: a recording's
+    ``sensor_msgs/Imu`` topic, a folder's ``imu0/data.csv``, an Ouster's IMU packets. Frames
+    read in order hand each reading once."""
 
 
 def _points(points: Any) -> np.ndarray:
@@ -207,8 +212,9 @@ class Pipeline:
         ``stamp``, for deskewing. ``stamp``: the frame's time in seconds (default: 0.1 s after
         the previous frame's, a 10 Hz sensor). ``imu``: optional IMU readings since the last
         frame, an (M, 7) array of rows ``time, gyro x, y, z (rad/s), accelerometer x, y, z
-        (m/s^2)``; they travel with the frame (``record["samples"]`` counts them) to the run's
-        sinks; the pose does not use them yet.
+        (m/s^2)``, as :attr:`Frame.imu` holds them; they deskew the scan and start its
+        registration as the command's IMU does (docs/design.md §1.19; the IMU's place on the
+        LiDAR is the configuration's ``[imu]``), and ``record["imu"]`` says what they did.
 
         Raises ``ValueError`` for a bad array (the frame is not counted) and ``FrameError``
         when the pipeline skipped the frame (counted, as the command counts it); either way the
@@ -289,8 +295,8 @@ class Reader:
     def __getitem__(self, i: int) -> Frame:
         if i < 0:
             i += len(self)
-        points, times, stamp, label = self._source.read(i)
-        return Frame(i, points, times, stamp, label)
+        points, times, stamp, label, imu = self._source.read(i)
+        return Frame(i, points, times, stamp, label, imu)
 
     def __iter__(self) -> Iterator[Frame]:
         return self
@@ -320,11 +326,14 @@ def read(
     calibration: Optional[PathLike] = None,
     cut_azimuth: Optional[float] = None,
     idle_timeout: Optional[float] = None,
+    imu: Optional[PathLike] = None,
+    imu_topic: Optional[str] = None,
 ) -> Reader:
     """Opens what ``slamesh run`` reads: a folder of scans (.bin, .pcd, .ply) or a KITTI
     sequence, one scan file, a recording (ROS 1 bag, MCAP, ROS 2 bag folder), a Velodyne or
     Ouster packet capture (.pcap, .pcapng) or ``udp://HOST:PORT`` for live packets. The
-    arguments are the command's flags of the same names (``slamesh run --help``)."""
+    arguments are the command's flags of the same names (``slamesh run --help``); each
+    :class:`Frame` brings the IMU's readings that come with it (``imu="off"`` ignores them)."""
     return Reader(
         path,
         topic=topic,
@@ -334,6 +343,8 @@ def read(
         calibration=calibration,
         cut_azimuth=cut_azimuth,
         idle_timeout=idle_timeout,
+        imu=imu,
+        imu_topic=imu_topic,
     )
 
 

@@ -42,6 +42,26 @@ pub(crate) fn times(t: &PyReadonlyArray1<'_, f32>, n: usize) -> PyResult<Vec<f32
     Ok(t.iter().copied().collect())
 }
 
+/// The IMU readings among `samples` as an (M, 7) float64 array (the layout [`imu`] takes);
+/// `None` when there are none.
+pub(crate) fn imu_array<'py>(
+    py: Python<'py>,
+    samples: &[Sample],
+) -> Option<Bound<'py, PyArray2<f64>>> {
+    let rows: Vec<[f64; 7]> = samples
+        .iter()
+        .map(|Sample::Imu(r)| {
+            let ([gx, gy, gz], [ax, ay, az]) = (r.gyro, r.accel);
+            [r.stamp, gx, gy, gz, ax, ay, az]
+        })
+        .collect();
+    if rows.is_empty() {
+        return None;
+    }
+    let a = Array2::from_shape_fn((rows.len(), 7), |(i, j)| rows[i][j]);
+    Some(a.into_pyarray(py))
+}
+
 /// IMU readings from an (M, 7) float64 array: time (s), gyro x y z (rad/s), accelerometer
 /// x y z (m/s²) a row, every value finite.
 pub(crate) fn imu(a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Sample>> {

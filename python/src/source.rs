@@ -15,12 +15,14 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-/// One frame: points (N, 3), their times (N,) or `None`, its stamp (seconds) and its label.
+/// One frame: points (N, 3), their times (N,) or `None`, its stamp (seconds), its label and
+/// the IMU's readings that came with it ((M, 7) or `None`).
 type FrameTuple<'py> = (
     Bound<'py, PyArray2<f32>>,
     Option<Bound<'py, PyArray1<f32>>>,
     f64,
     String,
+    Option<Bound<'py, PyArray2<f64>>>,
 );
 
 /// An input opened for reading (see the package's `slamesh.read`).
@@ -36,7 +38,8 @@ impl Source {
     /// Opens `path` as `slamesh run` would, with its flags as arguments.
     #[new]
     #[pyo3(signature = (path, topic=None, bin_fields="x,y,z,i", sensor=None, metadata=None,
-                        calibration=None, cut_azimuth=None, idle_timeout=None))]
+                        calibration=None, cut_azimuth=None, idle_timeout=None, imu=None,
+                        imu_topic=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -48,6 +51,8 @@ impl Source {
         calibration: Option<PathBuf>,
         cut_azimuth: Option<f64>,
         idle_timeout: Option<f64>,
+        imu: Option<String>,
+        imu_topic: Option<String>,
     ) -> PyResult<Self> {
         let fields = BinFields::parse(bin_fields)
             .map_err(|e| PyValueError::new_err(format!("bin_fields: {e}")))?;
@@ -63,7 +68,11 @@ impl Source {
             stop: stop.clone(),
         };
         let input = py
-            .detach(|| Input::open_with(&path, topic.as_deref(), fields, &packets))
+            .detach(|| {
+                let mut input = Input::open_with(&path, topic.as_deref(), fields, &packets)?;
+                input.attach_imu(&path, imu.as_deref(), imu_topic.as_deref())?;
+                Ok::<_, slamesh::io::FileError>(input)
+            })
             .map_err(error)?;
         Ok(Source {
             input: Mutex::new(input),
@@ -81,15 +90,18 @@ impl Source {
         py.detach(|| self.lock().has(i))
     }
 
-    /// Frame `i`; raises `FrameError` (naming it) when it cannot be read.
+    /// Frame `i`, with the IMU's readings that come with it (the command's rule: those up to a
+    /// frame period past its stamp not handed before); raises `FrameError` (naming it) when it
+    /// cannot be read.
     fn read<'py>(&self, py: Python<'py>, i: usize) -> PyResult<FrameTuple<'py>> {
-        let (read, stamp, label) = py.detach(|| {
+        let (read, stamp, label, samples) = py.detach(|| {
             let mut input = self.lock();
             if !input.has(i) {
-                return (None, 0.0, String::new());
+                return (None, 0.0, String::new(), Vec::new());
             }
             let read = input.read_timed(i);
-            (Some(read), input.stamp(i), input.label(i))
+            let samples = input.samples(i);
+            (Some(read), input.stamp(i), input.label(i), samples)
         });
         let Some(read) = read else {
             return Err(pyo3::exceptions::PyIndexError::new_err(format!(
@@ -102,6 +114,7 @@ impl Source {
             times.map(|t| arrays::vector(py, t)),
             stamp,
             label,
+            arrays::imu_array(py, &samples),
         ))
     }
 

@@ -33,7 +33,8 @@ def register_all(source, **pipeline):
     statuses = []
     for frame in source:
         try:
-            statuses.append(p.register(frame.points, frame.times, stamp=frame.stamp).status)
+            r = p.register(frame.points, frame.times, stamp=frame.stamp, imu=frame.imu)
+            statuses.append(r.status)
         except slamesh.FrameError:
             statuses.append("skipped")
     return p, statuses
@@ -47,9 +48,9 @@ def same_files(a, b, names):
 def test_every_input_gives_the_commands_poses_and_mesh_byte_for_byte(
     name, path, flags, tmp_path, command
 ):
-    # `slamesh.read` hands no IMU readings (the recordings' /imu topic): nor does the command here.
-    command(["run", path, "--out", tmp_path / "cmd", "--threads", "2", "--no-picture", "--imu", "off"],
-            tmp_path)
+    # The IMU's readings (the recordings' /imu topic, the Ouster's IMU packets) go with their
+    # frames from `slamesh.read` to `register` as the command's run hands them on.
+    command(["run", path, "--out", tmp_path / "cmd", "--threads", "2", "--no-picture"], tmp_path)
     p, statuses = register_all(slamesh.read(path, **flags), threads=2)
     assert len(statuses) >= 2, statuses
     p.save_trajectories(tmp_path / "py")
@@ -165,6 +166,20 @@ def test_imu_readings_travel_with_their_frame_and_a_bad_array_is_refused():
     with pytest.raises(ValueError, match="imu: some values are not finite"):
         p.register(scans[2], stamp=0.3, imu=np.full((2, 7), np.nan))
     assert p.register(scans[2], stamp=0.3).frame == 3
+
+
+def test_read_hands_each_frames_imu_readings():
+    # The bag's /imu topic (make.py): a reading a microsecond before each of its 3 clouds,
+    # both rates (0, 0, 9.81). A frame brings those up to a frame period past its stamp (the
+    # command's rule), each once; a folder of scans without a CSV brings none.
+    frames = list(slamesh.read(FIXTURES / "recordings" / "bag" / "lz4.bag"))
+    imu = np.concatenate([f.imu for f in frames if f.imu is not None])
+    assert imu.shape == (3, 7) and imu.dtype == np.float64
+    assert np.abs(imu[:, 0] - [f.stamp for f in frames]).max() < 1e-5
+    assert (imu[:, 1:] == [0.0, 0.0, 9.81, 0.0, 0.0, 9.81]).all()
+    assert frames[0].imu.shape == (1, 7)
+    assert all(f.imu is None for f in slamesh.read(SCANS))
+    assert all(f.imu is None for f in slamesh.read(FIXTURES / "recordings" / "bag" / "lz4.bag", imu="off"))
 
 
 def test_mesh_arrays_round_trip_through_save_mesh(tmp_path):

@@ -1,11 +1,9 @@
 //! Where a command's frames come from (`run`, `mesh`, `localize`, `bench`): the input and how
 //! to read it.
 
-use crate::formats::imu_csv;
 use crate::formats::kitti::BinFields;
 use crate::io::FileError;
 use crate::run::Input;
-use crate::sources::imu_readings::ImuReadings;
 use crate::sources::packets::PacketOptions;
 use clap::Args;
 use std::path::PathBuf;
@@ -94,49 +92,8 @@ impl InputArgs {
         Ok(input)
     }
 
-    /// Gives a folder of scans its IMU's readings: `--imu FILE`, or a file beside it
-    /// ([`imu_csv::beside`]) unless `--imu off`; says when their times miss the scans'.
+    /// The IMU's readings as `--imu` and `--imu-topic` say ([`Input::attach_imu`]).
     fn attach_imu(&self, input: &mut Input) -> Result<(), FileError> {
-        let asked = self.imu.as_deref().filter(|v| *v != "off");
-        let off = self.imu.as_deref() == Some("off");
-        #[cfg(feature = "recordings")]
-        if let (Input::Recording(r), None) = (&mut *input, asked) {
-            if !off {
-                r.read_imu(self.imu_topic.as_deref())?;
-            }
-            return Ok(());
-        }
-        if self.imu_topic.is_some() {
-            return Err(FileError::at(&self.input, "--imu-topic is for recordings"));
-        }
-        let Input::Folder(folder) = input else {
-            return match asked {
-                Some(_) => Err(FileError::at(
-                    &self.input,
-                    "--imu FILE is for a folder of scans; a recording's or a live input's IMU                      readings come with it",
-                )),
-                None => Ok(()),
-            };
-        };
-        let path = match asked {
-            _ if off => return Ok(()),
-            Some(file) => Some(PathBuf::from(file)),
-            None => imu_csv::beside(&self.input),
-        };
-        let Some(path) = path else { return Ok(()) };
-        let imu = ImuReadings::open(&path)?;
-        if let (Some((a, b)), Some(first), Some(last)) =
-            (imu.span(), folder.stamps.first(), folder.stamps.last())
-        {
-            log::info!("IMU readings from {}, {a:.3} s to {b:.3} s", path.display());
-            if b < *first || a > *last {
-                log::warn!(
-                    "{}: its readings ({a:.3} to {b:.3} s) miss the scans' times ({first:.3} to                      {last:.3} s): set [imu] time_offset_s in the configuration",
-                    path.display()
-                );
-            }
-        }
-        folder.imu = Some(imu);
-        Ok(())
+        input.attach_imu(&self.input, self.imu.as_deref(), self.imu_topic.as_deref())
     }
 }

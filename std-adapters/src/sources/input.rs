@@ -2,13 +2,16 @@
 //! (and, with the `sim` feature, for a simulated drive), and [`Input`], the command's input:
 //! a folder of scans or a robot recording, told apart by content.
 
+use crate::formats::imu_csv;
 use crate::formats::kitti::BinFields;
 use crate::io::error::FileError;
+use crate::sources::imu_readings::ImuReadings;
 use crate::sources::live::{Live, LiveOptions};
 use crate::sources::packets::PacketOptions;
 use crate::sources::replay::Replay;
 use crate::sources::scans::{read_scan_as, ScanFolder};
 use slamesh_core::Point;
+use std::path::{Path, PathBuf};
 
 /// A timed measurement a source carries beside its scans, on the scans' clock: the one way
 /// in for what is not a scan (an IMU's readings; the run hands them to its sinks with their
@@ -332,6 +335,64 @@ impl FrameSource for ScanFolder {
             Some("ply") => crate::formats::ply::read_ply_timed(path, self.stamps[i]),
             _ => Ok((self.read(i)?, None)),
         }
+    }
+}
+
+impl Input {
+    /// Attaches the IMU's readings as the command's `--imu` (`imu`: `off`, a file, or `None`
+    /// for what comes with the input) and `--imu-topic` say: a recording's `sensor_msgs/Imu`
+    /// topic (the only one, or `imu_topic`); a folder of scans' CSV (`imu`, or one beside it,
+    /// [`imu_csv::beside`]), saying when its times miss the scans'. A capture's or a live
+    /// input's come with it. `input` is the path the input was opened from.
+    pub fn attach_imu(
+        &mut self,
+        input: &Path,
+        imu: Option<&str>,
+        imu_topic: Option<&str>,
+    ) -> Result<(), FileError> {
+        let asked = imu.filter(|v| *v != "off");
+        let off = imu == Some("off");
+        #[cfg(feature = "recordings")]
+        if let (Input::Recording(r), None) = (&mut *self, asked) {
+            if !off {
+                r.read_imu(imu_topic)?;
+            }
+            return Ok(());
+        }
+        if imu_topic.is_some() {
+            return Err(FileError::at(input, "--imu-topic is for recordings"));
+        }
+        let Input::Folder(folder) = self else {
+            return match asked {
+                Some(_) => Err(FileError::at(
+                    input,
+                    "--imu FILE is for a folder of scans; a recording's or a live input's IMU \
+                     readings come with it",
+                )),
+                None => Ok(()),
+            };
+        };
+        let path = match asked {
+            _ if off => return Ok(()),
+            Some(file) => Some(PathBuf::from(file)),
+            None => imu_csv::beside(input),
+        };
+        let Some(path) = path else { return Ok(()) };
+        let imu = ImuReadings::open(&path)?;
+        if let (Some((a, b)), Some(first), Some(last)) =
+            (imu.span(), folder.stamps.first(), folder.stamps.last())
+        {
+            log::info!("IMU readings from {}, {a:.3} s to {b:.3} s", path.display());
+            if b < *first || a > *last {
+                log::warn!(
+                    "{}: its readings ({a:.3} to {b:.3} s) miss the scans' times ({first:.3} to \
+                     {last:.3} s): set [imu] time_offset_s in the configuration",
+                    path.display()
+                );
+            }
+        }
+        folder.imu = Some(imu);
+        Ok(())
     }
 }
 
