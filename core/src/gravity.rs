@@ -17,7 +17,7 @@
 //! the map keeps its frame, and up is handed to what needs it.
 
 use crate::imu::{ForceMean, GRAVITY_M_S2};
-use crate::math::Vec3;
+use crate::math::{level_rotation, Vec3};
 use nalgebra::UnitQuaternion;
 
 /// The least time the readings must span (seconds).
@@ -83,9 +83,7 @@ impl Gravity {
     /// The smallest rotation that turns up onto the z axis: the attitude of a level frame
     /// whose heading is the LiDAR's (an upside-down LiDAR is turned about its x axis).
     pub fn level(&self) -> UnitQuaternion<f64> {
-        UnitQuaternion::rotation_between(&self.up, &Vec3::z()).unwrap_or_else(|| {
-            UnitQuaternion::from_axis_angle(&Vec3::x_axis(), core::f64::consts::PI)
-        })
+        level_rotation(&self.up)
     }
 
     /// The angle between the LiDAR's z axis and up (radians).

@@ -385,18 +385,14 @@ impl ImuTrack {
         }
         let arm = self.calibration.lidar_from_imu.translation.vector;
         let rate = |k: usize| r[k].gyro - self.bias;
-        // The frame at `t_ref` from the frame at the first reading, then piece by piece on.
+        // The frame at `t_ref` from the frame at the first reading (which also checks that no
+        // gap breaks the readings from there to `t_ref`), then piece by piece on, as
+        // `rotation` integrates them.
         let mut q = self.rotation(t_ref, first.t)?;
         let (mut sum, mut sum_sq) = (Vec3::zeros(), 0.0);
         for k in 0..r.len() {
             if k > 0 {
                 let dt = r[k].t - r[k - 1].t;
-                if dt > self.gap_limit() {
-                    return Err(ImuGap::Between {
-                        from: r[k - 1].t,
-                        to: r[k].t,
-                    });
-                }
                 q *= UnitQuaternion::from_scaled_axis((rate(k - 1) + rate(k)) * (dt / 2.0));
             }
             let (a, b) = (k.saturating_sub(1), (k + 1).min(r.len() - 1));
@@ -417,26 +413,25 @@ impl ImuTrack {
         })
     }
 
-    /// Corrects the bias by `gain` of what the registered rotation from `a` to `b` says it is
-    /// off by: the gyro's rotation with the current bias, against the registration's,
-    /// `log(registeredᵀ · gyro) / (b - a)`. A disagreement above `max_rad` (a registration
-    /// that went wrong, or a wrong calibration) is not taken; returns the disagreement.
+    /// Corrects the bias by `gain` of what the registered rotation over `dt` seconds says it
+    /// is off by: `gyro`, the track's [`rotation`](Self::rotation) over the same time with the
+    /// current bias, against the registration's, `log(registeredᵀ · gyro) / dt`. A
+    /// disagreement above `max_rad` (a registration that went wrong, or a wrong calibration)
+    /// is not taken; returns the disagreement.
     pub fn correct_bias(
         &mut self,
-        a: f64,
-        b: f64,
+        gyro: &UnitQuaternion<f64>,
+        dt: f64,
         registered: &UnitQuaternion<f64>,
         gain: f64,
         max_rad: f64,
-    ) -> Result<f64, ImuGap> {
-        let dt = b - a;
-        let gyro = self.rotation(a, b)?;
+    ) -> f64 {
         let off = (registered.inverse() * gyro).scaled_axis();
         let angle = off.norm();
         if dt > 0.0 && angle <= max_rad {
             self.bias += off * (gain / dt);
         }
-        Ok(angle)
+        angle
     }
 }
 
@@ -640,8 +635,8 @@ mod tests {
         let mut t = steady(200.0, 30.0, [0.0, 0.0, 0.01], ImuCalibration::default());
         for k in 0..200 {
             let a = k as f64 * 0.1;
-            t.correct_bias(a, a + 0.1, &UnitQuaternion::identity(), 0.1, 0.05)
-                .unwrap();
+            let gyro = t.rotation(a, a + 0.1).unwrap();
+            t.correct_bias(&gyro, 0.1, &UnitQuaternion::identity(), 0.1, 0.05);
         }
         assert!(
             (t.bias() - Vec3::new(0.0, 0.0, 0.01)).norm() < 1e-6,
@@ -653,7 +648,8 @@ mod tests {
         // A registration far off is not taken.
         let wrong = UnitQuaternion::from_scaled_axis(Vec3::x() * 0.2);
         let before = t.bias();
-        assert!(t.correct_bias(1.0, 1.1, &wrong, 0.1, 0.05).unwrap() > 0.19);
+        let gyro = t.rotation(1.0, 1.1).unwrap();
+        assert!(t.correct_bias(&gyro, 0.1, &wrong, 0.1, 0.05) > 0.19);
         assert_eq!(t.bias(), before);
     }
 }

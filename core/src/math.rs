@@ -78,6 +78,13 @@ pub fn se3_log(pose: &Pose) -> Twist {
     Twist::new(omega.x, omega.y, omega.z, rho.x, rho.y, rho.z)
 }
 
+/// The smallest rotation that turns `up` onto the z axis: what makes a frame whose up is `up`
+/// level, its heading kept (up side down, a half turn about x).
+pub fn level_rotation(up: &Vec3) -> UnitQuaternion<f64> {
+    UnitQuaternion::rotation_between(up, &Vec3::z())
+        .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vec3::x_axis(), core::f64::consts::PI))
+}
+
 /// The rotation `R` that best maps vectors `aₖ` onto `bₖ` in the least-squares sense (Kabsch),
 /// from their cross-covariance `h = Σ aₖ bₖᵀ`; always proper (no reflection). The identity
 /// when `h` is not finite or its decomposition fails.

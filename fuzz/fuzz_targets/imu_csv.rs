@@ -18,7 +18,9 @@ fuzz_target!(|data: &[u8]| {
     let stamps: Vec<f64> = csv.readings.iter().map(|r| r.stamp).collect();
     for w in stamps.windows(2) {
         let _ = track.rotation(w[0], w[1]);
-        let _ = track.correct_bias(w[0], w[1], &Pose::identity().rotation, 0.2, 0.1);
+        if let Ok(gyro) = track.rotation(w[0], w[1]) {
+            track.correct_bias(&gyro, w[1] - w[0], &Pose::identity().rotation, 0.2, 0.1);
+        }
     }
     if let Some(&t) = stamps.last() {
         if let Ok(f) = track.mean_force(f64::NEG_INFINITY, t) {

@@ -19,6 +19,16 @@ pub const MIN_SCALE_TURN_DEG: f64 = 2.0;
 /// The least turn of the IMU's axes called a disagreement (degrees).
 pub const MIN_OFF_DEG: f64 = 3.0;
 
+/// What the check found: its words, and whether they say `[imu]` (or the gyro's units or
+/// clock) is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verdict {
+    /// The words, for the log and the report.
+    pub text: String,
+    /// The gyro disagrees in a way a wrong `[imu]`, unit or clock explains.
+    pub wrong: bool,
+}
+
 /// Sums over pairs of rotations (gyro, registered) as rotation vectors `g` and `r`.
 #[derive(Debug, Default)]
 pub struct CalibrationCheck {
@@ -53,7 +63,7 @@ impl CalibrationCheck {
         t: f64,
         gyro: &UnitQuaternion<f64>,
         registered: &UnitQuaternion<f64>,
-    ) -> Option<String> {
+    ) -> Option<Verdict> {
         if self.done {
             return None;
         }
@@ -70,39 +80,46 @@ impl CalibrationCheck {
 
     /// The verdict on the pairs so far (once a run: `None` after it was given, or before any
     /// pair).
-    pub fn take(&mut self) -> Option<String> {
+    pub fn take(&mut self) -> Option<Verdict> {
         (!self.done && self.pairs > 0).then(|| self.verdict())
     }
 
     /// The verdict the pairs so far would give, without giving it (`None` once given, or
     /// before any pair): what a run that ends within the window reports.
-    pub fn pending(&self) -> Option<String> {
+    pub fn pending(&self) -> Option<Verdict> {
         (!self.done && self.pairs > 0).then(|| self.judge())
     }
 
-    fn verdict(&mut self) -> String {
+    /// Whether it still takes pairs (no verdict given yet).
+    pub fn open(&self) -> bool {
+        !self.done
+    }
+
+    fn verdict(&mut self) -> Verdict {
         self.done = true;
         self.judge()
     }
 
     /// The verdict the pairs so far give.
-    fn judge(&self) -> String {
+    fn judge(&self) -> Verdict {
+        let wrong = |text: String| Verdict { text, wrong: true };
+        let fine = |text: String| Verdict { text, wrong: false };
         let (g, r) = self.angles;
         let turned = r.to_degrees();
         let ratio = g / r.max(1e-12);
         if turned >= MIN_SCALE_TURN_DEG && !(0.8..=1.25).contains(&ratio) {
-            return format!(
+            return wrong(format!(
                 "the gyro's angles are {ratio:.2} times the registered ones over {} frames: \
                  its readings are not in rad/s (57.3 times: degrees per second), or its clock \
                  is not the LiDAR's",
                 self.pairs
-            );
+            ));
         }
         if turned < MIN_TURN_DEG {
-            return format!(
+            return fine(format!(
                 "not checked: the first frames turned {turned:.1} degrees, too little to tell \
                  the IMU's axes (at least {MIN_TURN_DEG})"
-            );
+            ));
         }
         let fit = best_rotation(&self.h);
         let off = fit.angle().to_degrees();
@@ -112,29 +129,29 @@ impl CalibrationCheck {
         let after = (gg + rr - 2.0 * (fit.matrix() * self.h).trace()).max(0.0);
         let per_frame = |sum: f64| (sum / self.pairs as f64).sqrt().to_degrees();
         if off < MIN_OFF_DEG || after > 0.25 * before {
-            return format!(
+            return fine(format!(
                 "consistent: over {} frames ({turned:.0} degrees of turning) the gyro's \
                  rotations match the registered ones to {:.2} degrees a frame",
                 self.pairs,
                 per_frame(before)
-            );
+            ));
         }
         let s = self.h.svd(false, false).singular_values;
         let mut s = [s[0], s[1], s[2]];
         s.sort_by(|a, b| b.total_cmp(a));
         if s[1] < 0.1 * s[0] {
-            return format!(
+            return wrong(format!(
                 "the gyro turns about an axis {off:.1} degrees from the registered one's (the \
                  first frames turned about one axis only, so the whole turn is not known): \
                  [imu] rotation_rpy_deg is likely wrong"
-            );
+            ));
         }
         // The gyro's axes, turned by the fit after the configured rotation.
         let (roll, pitch, yaw) = (fit * self.configured.to_rotation_matrix()).euler_angles();
         // To a tenth, without a sign on zero.
         let deg =
             Vector3::new(roll, pitch, yaw).map(|a| (a.to_degrees() * 10.0).round() / 10.0 + 0.0);
-        format!(
+        wrong(format!(
             "the gyro's rotations match the registered ones once its axes are turned {off:.1} \
              degrees more ({:.2} degrees a frame off instead of {:.2}): [imu] rotation_rpy_deg \
              = [{:.1}, {:.1}, {:.1}] fits them",
@@ -143,7 +160,7 @@ impl CalibrationCheck {
             deg.x,
             deg.y,
             deg.z,
-        )
+        ))
     }
 }
 
@@ -153,7 +170,7 @@ mod tests {
 
     /// Frames a tenth of a second apart turning about changing axes; the gyro sees each turn
     /// through `mount` (its axes' error) and `scale`.
-    fn check(mount: UnitQuaternion<f64>, scale: f64) -> String {
+    fn check(mount: UnitQuaternion<f64>, scale: f64) -> Verdict {
         // Configured as turned 90 degrees about z.
         let configured = UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2);
         let mut c = CalibrationCheck::new(configured);
@@ -179,12 +196,20 @@ mod tests {
         let v = check(UnitQuaternion::from_euler_angles(0.0, 0.0, 0.2), 1.0);
         // The gyro's axes turned by +0.2 rad in yaw: turning them back takes -11.5 degrees,
         // from the 90 configured.
-        assert!(v.contains("turned 11.5 degrees"), "{v}");
-        assert!(v.contains("= [0.0, 0.0, 78.5]"), "{v}");
-        assert!(check(UnitQuaternion::identity(), 1.0).starts_with("consistent"));
+        assert!(v.wrong, "{v:?}");
+        assert!(v.text.contains("turned 11.5 degrees"), "{v:?}");
+        assert!(v.text.contains("= [0.0, 0.0, 78.5]"), "{v:?}");
+        let right = check(UnitQuaternion::identity(), 1.0);
+        assert!(
+            !right.wrong && right.text.starts_with("consistent"),
+            "{right:?}"
+        );
         // Large turns wrap past half a turn: the ratio is near 57.3, not at it.
         let degrees = check(UnitQuaternion::identity(), 180.0 / std::f64::consts::PI);
-        assert!(degrees.contains("degrees per second"), "{degrees}");
+        assert!(
+            degrees.wrong && degrees.text.contains("degrees per second"),
+            "{degrees:?}"
+        );
     }
 
     #[test]
@@ -192,8 +217,10 @@ mod tests {
         let mut c = CalibrationCheck::default();
         let q = UnitQuaternion::from_scaled_axis(Vector3::new(0.0, 0.0, 0.001));
         assert_eq!(c.add(0.0, &q, &q), None);
+        assert!(c.open());
         let v = c.take().unwrap();
-        assert!(v.starts_with("not checked"), "{v}");
+        assert!(!v.wrong && v.text.starts_with("not checked"), "{v:?}");
+        assert!(!c.open());
         assert_eq!(c.take(), None);
         assert_eq!(c.add(20.0, &q, &q), None);
     }

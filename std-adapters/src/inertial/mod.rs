@@ -14,7 +14,7 @@ pub mod calibration;
 pub mod moving_up;
 
 use crate::sources::Sample;
-use calibration::CalibrationCheck;
+use calibration::{CalibrationCheck, Verdict};
 use moving_up::{FirstSeconds, MovingUp};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -63,12 +63,15 @@ pub struct ImuFrame {
 impl ImuFrame {
     /// Notes that the readings did not cover the frame.
     pub fn missed(&mut self, gap: ImuGap) {
-        self.gap = Some(match gap {
-            ImuGap::NoReadings => "ImuGap: no IMU reading yet".into(),
-            ImuGap::Between { from, to } => {
-                format!("ImuGap: no IMU reading from {from:.4} s to {to:.4} s")
-            }
-        });
+        self.gap = Some(format!("ImuGap: {}", gap_words(gap)));
+    }
+}
+
+/// Why the readings do not cover a time, in words.
+fn gap_words(gap: ImuGap) -> String {
+    match gap {
+        ImuGap::NoReadings => "no IMU reading yet".into(),
+        ImuGap::Between { from, to } => format!("no IMU reading from {from:.4} s to {to:.4} s"),
     }
 }
 
@@ -185,11 +188,11 @@ impl GravityReport {
     }
 }
 
-/// Why readings did not level the map, in words.
+/// Why readings did not say which way is up, in words.
 fn not_level(why: NotLevel) -> String {
     match why {
         NotLevel::TooShort { seconds } => format!(
-            "the readings before it span {seconds:.2} s, less than {} s",
+            "the readings span {seconds:.2} s, less than {} s",
             slamesh_core::gravity::MIN_SECONDS
         ),
         NotLevel::Unsteady { spread } => format!(
@@ -258,10 +261,11 @@ pub struct Inertial {
     gravity: Option<GravityReport>,
     /// The gyro's rotations against the registered ones over the first seconds.
     check: CalibrationCheck,
-    /// Up over the first seconds of motion (a map not levelled).
+    /// Up over the first seconds of motion (a map not levelled); its answer goes into
+    /// `gravity`.
     moving: FirstSeconds,
-    /// Its verdict, once given.
-    checked: Option<String>,
+    /// The calibration check's verdict, once given.
+    checked: Option<Verdict>,
 }
 
 impl Inertial {
@@ -306,11 +310,10 @@ impl Inertial {
             gap_frames: self.frames.2,
             gyro_bias: self.track.bias().into(),
             set_aside: self.set_aside.clone(),
-            gravity: self.gravity.clone().map(|mut g| {
-                g.moving = self.moving.answer_given().cloned();
-                g
-            }),
-            calibration_check: self.checked.clone().or_else(|| self.check.pending()),
+            gravity: self.gravity.clone(),
+            calibration_check: (self.checked.clone())
+                .or_else(|| self.check.pending())
+                .map(|v| v.text),
         })
     }
 
@@ -406,11 +409,7 @@ impl Inertial {
     pub fn level(&mut self, t: f64, file: &str, frame: usize) -> Option<Pose> {
         let judged = match self.track.mean_force(f64::NEG_INFINITY, t) {
             Ok(f) => Gravity::judge(&f).map_err(|e| (Some(f), not_level(e))),
-            Err(ImuGap::NoReadings) => Err((None, "fewer than three IMU readings came".into())),
-            Err(ImuGap::Between { from, to }) => Err((
-                None,
-                format!("no IMU reading from {from:.4} s to {to:.4} s"),
-            )),
+            Err(gap) => Err((None, gap_words(gap))),
         };
         let level = judged.as_ref().ok().map(Gravity::level);
         let report = GravityReport::of(judged);
@@ -435,9 +434,7 @@ impl Inertial {
     /// Up for a navigation map and what gave it, when the IMU gave it
     /// ([`GravityReport::navmap_up`]).
     pub fn navmap_up(&self) -> Option<(Vector3<f64>, String)> {
-        let mut report = self.gravity.clone()?;
-        report.moving = self.moving.answer_given().cloned();
-        report.navmap_up()
+        self.gravity.as_ref()?.navmap_up()
     }
 
     /// Where the sensor is at `t` (its clock): the last pose turned by the gyro's rotation
@@ -474,24 +471,21 @@ impl Inertial {
             let registered = (before.inverse() * last).rotation;
             let converged = matches!(status, Converged | Recovered);
             self.read_up((&before, t_before), (&last, t), converged);
-            // Checked also once the IMU is set aside: the motion model's frames tell why.
-            if let (true, true, Ok(gyro)) = (converged, self.seen, self.track.rotation(t_before, t))
-            {
+            // The gyro's rotation since the last frame, once, for the check (also once the IMU
+            // is set aside: the motion model's frames tell why) and the bias (a frame the
+            // readings do not cover teaches neither).
+            let gyro = (converged && self.seen)
+                .then(|| self.track.rotation(t_before, t).ok())
+                .flatten();
+            if let Some(gyro) = gyro.filter(|_| self.check.open()) {
                 let verdict = self.check.add(t, &gyro, &registered);
                 self.note_check(verdict);
             }
-            if converged && self.active() {
+            if let Some(gyro) = gyro.filter(|_| self.active()) {
                 let o = &self.options;
-                // A frame the readings do not cover teaches nothing.
-                if let Ok(off) = self.track.correct_bias(
-                    t_before,
-                    t,
-                    &registered,
-                    o.bias_gain,
-                    o.bias_max_deg.to_radians(),
-                ) {
-                    self.judge(off.to_degrees(), t - t_before);
-                }
+                let (gain, max) = (o.bias_gain, o.bias_max_deg.to_radians());
+                let off = (self.track).correct_bias(&gyro, t - t_before, &registered, gain, max);
+                self.judge(off.to_degrees(), t - t_before);
             } else if status == NotConverged && from_prior {
                 // Lost from the gyro's start: as telling as a miss.
                 self.judge(f64::INFINITY, t - t_before);
@@ -504,36 +498,38 @@ impl Inertial {
     /// Takes the interval between two registered frames into the moving body's up, when the
     /// map was not levelled; logs the answer when it comes.
     fn read_up(&mut self, from: (&Pose, f64), to: (&Pose, f64), registered: bool) {
-        if !self.active() || self.gravity.as_ref().is_none_or(|g| g.levelled) {
+        let not_levelled = self.gravity.as_ref().is_some_and(|g| !g.levelled);
+        if !(self.active() && not_levelled && self.moving.open()) {
             return;
         }
-        let force = (self.track.mean_force(from.1, to.1)).map_err(|gap| match gap {
-            ImuGap::NoReadings => "fewer than three IMU readings between two frames".to_string(),
-            ImuGap::Between { from, to } => format!("no IMU reading from {from:.4} s to {to:.4} s"),
-        });
-        if let Some(m) = self.moving.add(from, to, registered, force) {
-            match (&m.up, &m.why_not) {
-                (Some(_), _) => log::info!(
-                    "IMU: up from the first {:.1} s of motion: the map's z axis is {:.2} degrees \
-                     from it",
-                    m.seconds,
-                    m.z_off_deg.unwrap_or(0.0)
-                ),
-                (None, why) => log::warn!(
-                    "IMU: no up from the first seconds of motion either ({}); up is the map's z",
-                    why.as_deref().unwrap_or("")
-                ),
-            }
+        let force = (self.track.mean_force(from.1, to.1)).map_err(gap_words);
+        let Some(m) = self.moving.add(from, to, registered, force) else {
+            return;
+        };
+        match (&m.up, &m.why_not) {
+            (Some(_), _) => log::info!(
+                "IMU: up from the first {:.1} s of motion: the map's z axis is {:.2} degrees \
+                 from it",
+                m.seconds,
+                m.z_off_deg.unwrap_or(0.0)
+            ),
+            (None, why) => log::warn!(
+                "IMU: no up from the first seconds of motion either ({}); up is the map's z",
+                why.as_deref().unwrap_or("")
+            ),
+        }
+        if let Some(g) = &mut self.gravity {
+            g.moving = Some(m);
         }
     }
 
     /// Keeps and logs the calibration check's verdict, when one came.
-    fn note_check(&mut self, verdict: Option<String>) {
+    fn note_check(&mut self, verdict: Option<Verdict>) {
         let Some(v) = verdict else { return };
-        if v.starts_with("consistent") || v.starts_with("not checked") {
-            log::info!("IMU calibration: {v}");
+        if v.wrong {
+            log::warn!("IMU calibration: {}", v.text);
         } else {
-            log::warn!("IMU calibration: {v}");
+            log::info!("IMU calibration: {}", v.text);
         }
         self.checked = Some(v);
     }
@@ -559,7 +555,7 @@ impl Inertial {
                 self.options.bias_max_deg, DISTRUST_AFTER
             );
             let why = match &self.checked {
-                Some(v) if !v.starts_with("consistent") => format!("{why} ({v})"),
+                Some(v) if v.wrong => format!("{why} ({})", v.text),
                 _ => why,
             };
             log::warn!("IMU: {why}");

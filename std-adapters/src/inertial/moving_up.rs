@@ -41,8 +41,8 @@ pub struct FirstSeconds {
     readings: usize,
     /// The first interval's velocity and its middle's time.
     first: Option<(Vector3<f64>, f64)>,
-    /// The answer, once given.
-    answer: Option<MovingUp>,
+    /// The answer was given.
+    done: bool,
 }
 
 impl FirstSeconds {
@@ -56,8 +56,8 @@ impl FirstSeconds {
         (last, t): (&Pose, f64),
         registered: bool,
         force: Result<ForceMean, String>,
-    ) -> Option<&MovingUp> {
-        if self.answer.is_some() || t.partial_cmp(&t_before) != Some(std::cmp::Ordering::Greater) {
+    ) -> Option<MovingUp> {
+        if self.done || t.partial_cmp(&t_before) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
         let middle = (t_before + t) / 2.0;
@@ -81,7 +81,7 @@ impl FirstSeconds {
         let mean = self.force / self.readings.max(1) as f64;
         match up_from_motion(&mean, &(velocity - v0), seconds) {
             Ok(up) => self.answer(Some(up), seconds, None),
-            Err(e) => self.answer(None, seconds, Some(format!("{e:?}"))),
+            Err(e) => self.answer(None, seconds, Some(super::not_level(e))),
         }
     }
 
@@ -90,18 +90,18 @@ impl FirstSeconds {
         up: Option<Vector3<f64>>,
         seconds: f64,
         why_not: Option<String>,
-    ) -> Option<&MovingUp> {
-        self.answer = Some(MovingUp {
+    ) -> Option<MovingUp> {
+        self.done = true;
+        Some(MovingUp {
             up: up.map(Into::into),
             z_off_deg: up.map(|u| u.angle(&Vector3::z()).to_degrees()),
             seconds,
             why_not,
-        });
-        self.answer.as_ref()
+        })
     }
 
-    /// The answer, once given.
-    pub fn answer_given(&self) -> Option<&MovingUp> {
-        self.answer.as_ref()
+    /// Whether it still takes intervals (no answer given yet).
+    pub fn open(&self) -> bool {
+        !self.done
     }
 }

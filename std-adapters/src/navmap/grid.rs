@@ -43,11 +43,10 @@ pub enum Occupancy {
     Occupied,
 }
 
-/// The rotation from the map frame to the level frame whose z is `up` (the smallest; up side
-/// down, a half turn about x).
+/// The rotation from the map frame to the level frame whose z is `up`
+/// ([`slamesh_core::math::level_rotation`]).
 pub fn level_of(up: &Vector3<f64>) -> Rotation3<f64> {
-    Rotation3::rotation_between(up, &Vector3::z())
-        .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI))
+    slamesh_core::math::level_rotation(up).to_rotation_matrix()
 }
 
 /// Anything that hands over a mesh's triangles (map frame), as many times as asked.

@@ -269,6 +269,7 @@ mod tests {
         }
         // The windows saw the street the path drove down, its box and its wall.
         assert!(occupied > 20, "{occupied}");
+        println!("{same} of {judged} cells either judges agree");
         assert!(same as f64 >= 0.98 * judged as f64, "{same} of {judged}");
         // Cells past the last window's kept square were never judged.
         assert_eq!(live.get((900, 50)), UNKNOWN);

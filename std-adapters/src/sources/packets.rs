@@ -265,8 +265,9 @@ pub struct SensorStream {
     port: u16,
     sweeps: Sweeps,
     stats: StreamStats,
-    /// An Ouster's IMU readings not taken yet ([`SensorStream::take_imu`]).
-    imu: Vec<ImuSample>,
+    /// An Ouster's IMU readings not taken yet ([`SensorStream::take_imu`]); `None`: its IMU
+    /// packets are passed over ([`SensorStream::without_imu`]).
+    imu: Option<Vec<ImuSample>>,
 }
 
 #[derive(Debug)]
@@ -338,22 +339,30 @@ impl SensorStream {
             port,
             sweeps,
             stats: StreamStats::default(),
-            imu: Vec::new(),
+            imu: Some(Vec::new()),
         }
+    }
+
+    /// The stream passing an Ouster's IMU packets over, uncounted (a second reading of a
+    /// capture whose readings were kept the first time).
+    pub fn without_imu(mut self) -> Self {
+        self.imu = None;
+        self
     }
 
     /// The IMU readings decoded since the last call (an Ouster's IMU packets), in the sensor
     /// frame ([`ouster::imu_packet`]).
     pub fn take_imu(&mut self) -> Vec<ImuSample> {
-        std::mem::take(&mut self.imu)
+        self.imu.as_mut().map(std::mem::take).unwrap_or_default()
     }
 
     /// An Ouster's IMU datagram: decoded into the readings waiting, or counted as refused.
     fn ouster_imu(&mut self, o: &ouster::Sensor, payload: &[u8]) {
-        match ImuPacket::decode(payload) {
-            Ok(p) => {
+        let Some(imu) = &mut self.imu else { return };
+        match ImuPacket::read(payload, &o.metadata().imu_to_sensor) {
+            Ok(reading) => {
                 self.stats.imu_packets += 1;
-                self.imu.push(p.sample(&o.metadata().imu_to_sensor));
+                imu.push(reading);
             }
             Err(_) => self.stats.bad_imu_packets += 1,
         }

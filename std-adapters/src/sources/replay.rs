@@ -84,7 +84,7 @@ impl Replay {
             cursor: None,
         };
         // The index pass, which keeps the IMU's readings (a few bytes a millisecond).
-        let mut cursor = replay.start()?;
+        let mut cursor = replay.start(true)?;
         let mut imu = Vec::new();
         while let Some(s) = replay.advance(&mut cursor)? {
             replay.sweeps.push((s.stamp().unwrap_or(0.0), s.gaps));
@@ -127,10 +127,12 @@ impl Replay {
         self.sweeps.is_empty()
     }
 
-    fn start(&self) -> Result<Cursor, FileError> {
+    /// A cursor at the capture's start; `imu`: keeping the IMU's readings (the index pass).
+    fn start(&self, imu: bool) -> Result<Cursor, FileError> {
+        let stream = SensorStream::new(&self.sensor, self.port, self.options.cut_azimuth_deg);
         Ok(Cursor {
             capture: Capture::open(&self.path)?,
-            stream: SensorStream::new(&self.sensor, self.port, self.options.cut_azimuth_deg),
+            stream: if imu { stream } else { stream.without_imu() },
             next: 0,
             ended: false,
             stats: ReplayStats::default(),
@@ -165,14 +167,11 @@ impl Replay {
     fn sweep(&mut self, i: usize) -> Result<Sweep, FileError> {
         let mut cursor = match self.cursor.take() {
             Some(c) if c.next <= i => c,
-            _ => self.start()?,
+            _ => self.start(false)?,
         };
         loop {
             let at = cursor.next;
-            let done = self.advance(&mut cursor)?;
-            // The IMU's readings came with the index pass.
-            cursor.stream.take_imu();
-            match done {
+            match self.advance(&mut cursor)? {
                 Some(s) if at == i => {
                     self.cursor = Some(cursor);
                     return Ok(s);

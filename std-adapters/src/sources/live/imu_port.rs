@@ -105,15 +105,15 @@ impl Job {
                     break;
                 }
             };
-            let packet = ImuPacket::decode(&buf[..n]);
+            let packet = ImuPacket::read(&buf[..n], &self.imu_to_sensor);
             let mut dropped = 0;
-            if let Ok(p) = &packet {
+            if let Ok(reading) = packet {
                 if let Ok(mut r) = self.readings.lock() {
                     if r.len() == KEPT {
                         r.pop_front();
                         dropped = 1;
                     }
-                    r.push_back(p.sample(&self.imu_to_sensor));
+                    r.push_back(reading);
                 }
             }
             if let Ok(mut s) = self.stats.lock() {

@@ -78,6 +78,12 @@ impl ImuPacket {
         })
     }
 
+    /// A datagram's reading in the sensor frame ([`decode`](Self::decode), then
+    /// [`sample`](Self::sample)).
+    pub fn read(payload: &[u8], imu_to_sensor: &[f64; 16]) -> Result<ImuSample, ImuPacketError> {
+        Ok(Self::decode(payload)?.sample(imu_to_sensor))
+    }
+
     /// Acceleration (m/s²), the IMU's axes.
     pub fn accel_m_s2(&self) -> [f64; 3] {
         self.accel_g.map(|g| f64::from(g) * GRAVITY_M_S2)
