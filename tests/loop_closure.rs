@@ -1,11 +1,12 @@
 //! Loop closure (docs/design.md §1.14): a drive that comes back to where it began closes its
 //! loop, and the place it came back to is one surface in the map; a look-alike street it has
 //! never driven closes nothing; a run with no loop gives the same bytes with it on as off;
-//! the closure thread never holds a frame up.
+//! the closure thread never holds a frame up; the command closes loops by default wherever a
+//! run can, and says why where it cannot.
 
 use crate::common;
 
-use common::{kitti_mini, scratch};
+use common::{kitti_mini, scratch, slamesh, write_bin};
 use slamesh::eval::duplicates::duplicated_near;
 use slamesh::eval::odometry::ate_rmse;
 use slamesh::formats::map_file::MapFile;
@@ -184,5 +185,92 @@ fn a_run_without_a_loop_gives_the_same_bytes_with_loop_closure_on() {
         );
         let on = run_ok(&mut source, &options(&dir.join(format!("k{seq}-on")), true));
         assert_eq!(off.poses, on.poses, "kitti {seq}");
+    }
+}
+
+/// `summary.loop_closure` of a run's report.json (null when loop closure was off).
+fn loop_report(out: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(out.join("report.json")).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&text).unwrap();
+    report["summary"]["loop_closure"].clone()
+}
+
+/// `slamesh run` closes loops unless told not to: on by default, with the same bytes as off
+/// on a drive with no loop; off, saying why, where a run cannot close loops (a memory cap, a
+/// saved map to start from), and an error there when `--loop-closure on` asks for it.
+#[test]
+fn the_command_closes_loops_by_default_where_it_can() {
+    let dir = scratch("loop-command");
+    let input = dir.join("scans");
+    std::fs::create_dir_all(&input).unwrap();
+    let mut drive = Drive::town(6, 3);
+    for i in 0..6 {
+        write_bin(&input.join(format!("{i:06}.bin")), &drive.read(i).unwrap());
+    }
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "run",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(&["--no-picture", "--threads", "2"]);
+        args.extend_from_slice(extra);
+        (slamesh(&args), out)
+    };
+    let (o, on) = run(
+        "default",
+        &["--save-map", dir.join("map.slamesh").to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = loop_report(&on);
+    assert!(report["spool_bytes"].as_u64().unwrap() > 0, "{report}");
+    assert_eq!(report["closures"].as_array().map(Vec::len), Some(0));
+    assert!(
+        !on.join(".loop-closure.scans").exists(),
+        "the spool is removed"
+    );
+    let (o, off) = run("off", &["--loop-closure", "off"]);
+    assert!(o.status.success());
+    assert!(loop_report(&off).is_null());
+    for f in ["poses_kitti.txt", "mesh.ply"] {
+        let same = std::fs::read(on.join(f)).unwrap() == std::fs::read(off.join(f)).unwrap();
+        assert!(same, "{f} differs with loop closure on");
+    }
+    let map = dir.join("map.slamesh");
+    let map = map.to_str().unwrap();
+    for (name, flags, why) in [
+        (
+            "capped",
+            vec!["--memory-cap", "200"],
+            "with a memory cap or a window",
+        ),
+        (
+            "windowed",
+            vec!["--evict-after", "50"],
+            "with a memory cap or a window",
+        ),
+        (
+            "from-map",
+            vec!["--map", map],
+            "would drop the saved map's cells",
+        ),
+    ] {
+        let (o, out) = run(name, &flags);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{name}: {stderr}");
+        assert!(loop_report(&out).is_null(), "{name}");
+        assert!(stderr.contains("loop closure is off: "), "{name}: {stderr}");
+        assert!(stderr.contains(why), "{name}: {stderr}");
+        let mut asked = flags.clone();
+        asked.extend_from_slice(&["--loop-closure", "on"]);
+        let (o, _) = run(&format!("{name}-asked"), &asked);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{name}: --loop-closure on ran");
+        assert!(
+            stderr.contains("--loop-closure: ") && stderr.contains(why),
+            "{name}: {stderr}"
+        );
     }
 }

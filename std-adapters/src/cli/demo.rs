@@ -4,8 +4,9 @@
 use crate::cli::error::CliError;
 use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
-use crate::cli::run::{frame_messages, print_summary, CapacityFlag};
+use crate::cli::run::CapacityFlag;
 use crate::cli::settings::{Profile, WindowFlags};
+use crate::cli::terminal::{frame_messages, print_summary};
 use crate::demo::run_demo;
 use crate::outputs::mesh_spool::MeshFormat;
 use crate::run::capacity;

@@ -23,6 +23,7 @@ pub mod render;
 pub mod ros2;
 pub mod run;
 pub mod settings;
+pub mod terminal;
 
 use clap::{ArgAction, Parser, Subcommand};
 pub use error::CliError;

@@ -7,8 +7,9 @@
 
 use crate::cli::error::CliError;
 use crate::cli::notices::FrameNotices;
-use crate::cli::run::{frame_messages, print_summary, CapacityFlag};
+use crate::cli::run::CapacityFlag;
 use crate::cli::settings::{Profile, WindowFlags};
+use crate::cli::terminal::{frame_messages, print_summary};
 use crate::formats::ros_args::{ParamValue, RosArgs};
 use crate::outputs::mesh_spool::{MeshColour, MeshFormat};
 use crate::ros2::{NodeSettings, RosNode};

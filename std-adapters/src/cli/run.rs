@@ -5,6 +5,7 @@ use crate::cli::input::InputArgs;
 use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
 use crate::cli::settings::{Profile, WindowFlags};
+use crate::cli::terminal::{frame_messages, print_summary};
 use crate::formats::kitti;
 use crate::formats::trajectory;
 use crate::formats::trajectory::Trajectory;
@@ -14,12 +15,11 @@ use crate::loop_closure::settings::LoopSettings;
 use crate::outputs::mesh_spool::{MeshColour, MeshFormat};
 use crate::run::capacity::{self, ClassId};
 use crate::run::config_file::Settings;
+use crate::run::options::RESUMED_WITHOUT_LOOP_CLOSURE;
 use crate::run::session::{Deskew, InitialPose};
 use crate::run::sink::FnSink;
-use crate::run::{run_to, FrameEvent, FrameRecord, FrameSource, Input, RunOptions, Sinks, Summary};
-use crate::say;
+use crate::run::{run_to, FrameEvent, FrameSource, Input, RunOptions, Sinks, Summary};
 use clap::Args;
-use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
 
 /// `slamesh run`'s arguments (and most of `slamesh mesh`'s).
@@ -100,9 +100,10 @@ pub struct RunArgs {
     /// Close loops: when the sensor comes back to where it has been, correct the trajectory
     /// and rebuild the map so that the revisited place is one surface (a thread of its own;
     /// each scan is kept on disk in the output folder until the end, about 85 KB a frame).
-    /// Not with a memory cap or a window.
-    #[arg(long, value_enum, default_value_t = OnOff::Off)]
-    pub loop_closure: OnOff,
+    /// On by default, where a run can close loops: not with a memory cap or a window, from a
+    /// saved map (--map) or when resuming (then off, and the log says why).
+    #[arg(long, value_enum)]
+    pub loop_closure: Option<OnOff>,
     /// Serve a live view for the Foxglove app on ADDR (default 127.0.0.1:8765, this machine
     /// only; reach it from a laptop through an SSH tunnel). It only publishes. Needs a build
     /// with the feature `view` (`cargo install --path std-adapters --features view`).
@@ -224,7 +225,7 @@ pub struct LocalizeArgs {
 /// Localizes in a saved map (`--map`, required): registration against it without updating
 /// it (unless `--update`), the same outputs as `run`.
 pub fn localize(args: &LocalizeArgs, quiet: bool) -> Result<(), CliError> {
-    if args.run.loop_closure == OnOff::On {
+    if args.run.loop_closure == Some(OnOff::On) {
         return Err(not_for(
             "--loop-closure",
             "localize",
@@ -283,7 +284,7 @@ fn parse_pose(text: &str) -> Result<slamesh_core::Pose, String> {
 pub fn mesh(args: &MeshArgs, quiet: bool) -> Result<(), CliError> {
     let run = &args.run;
     for (flag, given) in [
-        ("--loop-closure", run.loop_closure == OnOff::On),
+        ("--loop-closure", run.loop_closure == Some(OnOff::On)),
         ("--initial-pose", run.initial_pose.is_some()),
         ("--map", run.map.is_some()),
     ] {
@@ -330,10 +331,10 @@ fn run_with(
     if let Some(p) = &given {
         say_given_poses(p, source.frames());
     }
-    if args.loop_closure == OnOff::On {
-        LoopSettings::default().configure(&mut s.config);
+    let mut opts = run_options(args, &s, given, localize_only);
+    if !localize_only {
+        choose_loop_closure(args.loop_closure, &mut opts)?;
     }
-    let opts = run_options(args, &s, given, localize_only);
     let bar = match source {
         Input::Live(_) => crate::cli::progress_open(quiet),
         _ => progress(source.frames(), quiet),
@@ -363,6 +364,35 @@ fn run_with(
     notices.finish();
     print_summary(&summary, &args.out);
     judge(&summary, args.strict)
+}
+
+/// Loop closure for a run that estimates its poses: on unless `--loop-closure off`, or the
+/// run cannot close loops ([`RunOptions::loop_closure_unavailable`]): then an error when
+/// `--loop-closure on` asked for it, otherwise off, saying why. When on, and when resuming a
+/// run that had it on, the configuration gets what loop closure needs of it
+/// ([`LoopSettings::configure`]).
+fn choose_loop_closure(flag: Option<OnOff>, opts: &mut RunOptions) -> Result<(), CliError> {
+    if flag == Some(OnOff::Off) {
+        return Ok(());
+    }
+    let s = LoopSettings::default();
+    let why = opts.loop_closure_unavailable();
+    if why == Some(RESUMED_WITHOUT_LOOP_CLOSURE) {
+        s.configure(&mut opts.config);
+    }
+    if let Some(why) = why {
+        if flag == Some(OnOff::On) {
+            return Err(CliError::BadFlag {
+                flag: "--loop-closure",
+                reason: why.to_string(),
+            });
+        }
+        log::info!("loop closure is off: {why}");
+        return Ok(());
+    }
+    s.configure(&mut opts.config);
+    opts.loop_closure = Some(s);
+    Ok(())
 }
 
 /// The run's end as an exit status: an error when no frame was used, or (`--strict`) when a
@@ -432,7 +462,7 @@ fn run_options(
         localize_only,
         initial_pose: args.initial_pose,
         save_map: args.save_map.clone(),
-        loop_closure: (args.loop_closure == OnOff::On).then(LoopSettings::default),
+        loop_closure: None,
         navmap: args.navmap.then(|| args.robot.options()),
         deskew: match args.deskew {
             DeskewFlag::Auto => Deskew::Auto,
@@ -488,90 +518,6 @@ fn view_sinks<'a>(args: &RunArgs, opts: &RunOptions) -> Result<Sinks<'a>, CliErr
         }
     }
     Ok(sinks)
-}
-
-/// What the terminal says about one frame: a rate-limited warning when it was skipped or not
-/// registered normally, and with `-v` its outcome.
-pub fn frame_messages(rec: &FrameRecord, bar: &ProgressBar, notices: &mut FrameNotices) {
-    if let Some(e) = &rec.error {
-        notices.warn(bar, &format!("skipped: {e}"));
-    } else if let Some(reason) = &rec.reason {
-        notices.warn(
-            bar,
-            &format!(
-                "frame {} ({}): {}: {reason}",
-                rec.frame, rec.file, rec.status
-            ),
-        );
-    }
-    if log::log_enabled!(log::Level::Debug) {
-        bar.suspend(|| {
-            log::debug!(
-                "frame {}: {}, {} of {} points kept, {} layers, {:.1} ms",
-                rec.frame,
-                rec.status,
-                rec.points_kept,
-                rec.points,
-                rec.scan_layers,
-                rec.ms.total
-            )
-        });
-    }
-}
-
-/// The closing lines of a run: frames, speed, mesh, memory, files.
-pub fn print_summary(s: &Summary, out: &Path) {
-    let median = |name: &str| {
-        s.stage_ms
-            .iter()
-            .find(|(n, _)| n == name)
-            .map_or(0.0, |(_, m)| m.median)
-    };
-    say!(
-        "slamesh: {} frames ({} used, {} skipped) in {:.1} s, {:.1} Hz, median {:.1} ms a frame on {} thread(s)",
-        s.frames,
-        s.used,
-        s.skipped.len(),
-        s.seconds,
-        s.hz,
-        median("total"),
-        s.threads
-    );
-    say!(
-        "slamesh: capacity {}; mesh {} triangles, {} vertices; map {} cells, {} evicted; peak memory {}",
-        s.capacity,
-        s.mesh_triangles,
-        s.mesh_vertices,
-        s.map_cells,
-        s.evicted_cells,
-        s.peak_rss_mb
-            .map_or("unknown".into(), |m| format!("{m:.0} MB"))
-    );
-    say!("slamesh: frames by status: {}", s.health.counts_line());
-    let bad = s.health.not_registered.len();
-    if bad > 0 {
-        say!(
-            "slamesh: {bad} frame(s) not registered normally: listed in report.json (summary.health); \
-             --strict makes this an error"
-        );
-    }
-    if s.used == 0 {
-        say!(
-            "slamesh: wrote {}/report.json only (every frame's reason): no frame was used, so \
-             there is no trajectory or mesh",
-            out.display()
-        );
-        return;
-    }
-    say!(
-        "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json{1}",
-        out.display(),
-        if out.join("topview.png").is_file() {
-            format!(", {}/topview.png", out.display())
-        } else {
-            String::new()
-        }
-    );
 }
 
 /// LiDAR poses from a trajectory file (with its stamps, if TUM); with `calib`, KITTI camera

@@ -155,7 +155,7 @@ pub struct LoopClosure<C: Capacity> {
 impl<C: Capacity> LoopClosure<C> {
     /// Starts the loop-closure thread, spooling scans to `spool_path`.
     pub fn start(config: Config, s: LoopSettings, spool_path: &Path) -> Result<Self, FileError> {
-        let spool = ScanSpool::create(spool_path)?;
+        let spool = ScanSpool::create(spool_path, (s.spool_budget_mb * 1e6) as u64)?;
         let (to_worker, rx) = channel();
         let (tx, from_worker) = channel();
         let worker = worker::Worker::<C>::new(config, s, spool, tx)?;

@@ -54,9 +54,9 @@ pub struct RunOptions {
     /// Write the map to this file at the end (`--save-map`): every cell, those a window
     /// evicted included.
     pub save_map: Option<PathBuf>,
-    /// Close loops with these settings (`--loop-closure on`, [`crate::loop_closure`]; `None`,
-    /// the default: off). Pair it with `config.map.stale_after_frames` (the command sets
-    /// [`LoopSettings::stale_after_frames`]).
+    /// Close loops with these settings ([`crate::loop_closure`]; `None`: off, this struct's
+    /// default; the command's default is on where [`RunOptions::loop_closure_unavailable`]
+    /// allows). Pair it with `config.map.stale_after_frames` ([`LoopSettings::configure`]).
     pub loop_closure: Option<LoopSettings>,
     /// Also write a navigation map (`--navmap`: Nav2's `map.yaml` + `map.pgm`, the elevation
     /// grids, [`crate::navmap`]) from the mesh at the end.
@@ -65,6 +65,34 @@ pub struct RunOptions {
     /// [`crate::inertial`]): by default, use them.
     pub imu: crate::inertial::ImuOptions,
 }
+
+impl RunOptions {
+    /// Why this run cannot close loops, if it cannot. Each rebuild of the map fuses every
+    /// scan of the run again into an empty map, so it needs the whole map in memory (no
+    /// memory cap, no window), no saved map to start from (its cells would be dropped) and
+    /// every scan of the run: not a resumed run's ([`RESUMED_WITHOUT_LOOP_CLOSURE`]).
+    pub fn loop_closure_unavailable(&self) -> Option<&'static str> {
+        if self.given_poses.is_some() {
+            Some("the poses are given")
+        } else if self.window.memory_cap_mb.is_some() || !self.window.rules().is_off() {
+            Some("it rebuilds the whole map, so it does not run with a memory cap or a window yet")
+        } else if self.map.is_some() {
+            Some(
+                "closing loops against a saved map is not built yet: a rebuild would drop the \
+                 saved map's cells",
+            )
+        } else if self.resume {
+            Some(RESUMED_WITHOUT_LOOP_CLOSURE)
+        } else {
+            None
+        }
+    }
+}
+
+/// Why a resumed run does not close loops. Its configuration is still the one the run had
+/// when it was checkpointed ([`LoopSettings::configure`] included), so that it resumes.
+pub const RESUMED_WITHOUT_LOOP_CLOSURE: &str =
+    "a resumed run has not kept the scans before its checkpoint, which a rebuild needs";
 
 /// `--initial-pose`: where a run from a saved map starts.
 #[derive(Debug, Clone, Copy, PartialEq)]

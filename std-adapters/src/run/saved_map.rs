@@ -50,12 +50,26 @@ pub fn load(path: &Path, map: &mut MeshMap) -> Result<MapStart, FileError> {
 /// The configuration a map file was made with, for a run that names none.
 pub fn config_of(path: &Path) -> Result<config_file::Settings, FileError> {
     let file = MapFile::open(path)?;
-    config_file::parse(&file.info.config_toml).map_err(|e| {
+    let mut settings = config_file::parse(&file.info.config_toml).map_err(|e| {
         FileError::at(
             path,
             format!("not a usable map file: its configuration does not read: {e}"),
         )
-    })
+    })?;
+    // A map written before [`info`] left the rule out may carry it.
+    settings.config = without_stale_rule(&settings.config);
+    Ok(settings)
+}
+
+/// `config` without the rule that leaves cells unseen for a while out of registration
+/// (`map.stale_after_frames` 0), for a saved map's configuration: loop closure sets the rule
+/// for the run that made the map ([`crate::loop_closure::settings::LoopSettings::configure`]),
+/// but a run that loads the map starts with every cell unseen since that run, and with the
+/// rule it would register against none of the older ones.
+fn without_stale_rule(config: &Config) -> Config {
+    let mut config = *config;
+    config.map.stale_after_frames = 0;
+    config
 }
 
 /// Candidate poses for the search along a saved map's path
@@ -129,7 +143,7 @@ pub fn info(config: &Config, preset: &str, frames: u32) -> MapInfo {
         lattice: config.lattice(),
         frames,
         frame_id: "map".to_string(),
-        config_toml: config_file::documented_toml(config, preset),
+        config_toml: config_file::documented_toml(&without_stale_rule(config), preset),
     }
 }
 

@@ -67,7 +67,7 @@ impl<C: Capacity> Setup<C> {
             pipeline.restore_progress(start.frames, motion);
             map_start = Some(start);
         }
-        let closer = loop_closer(opts, max_layers.is_some() || !window.is_off())?;
+        let closer = loop_closer(opts)?;
         Ok(Setup {
             closer,
             pipeline,
@@ -173,22 +173,19 @@ fn start_motion(
     Ok(ConstantVelocity::from_history(Some(before.1), Some(last.1)))
 }
 
-/// Loop closure's thread when asked for; refused beside a memory cap or a window (`bounded`).
-fn loop_closer<C: Capacity>(
-    opts: &RunOptions,
-    bounded: bool,
-) -> Result<Option<LoopClosure<C>>, RunError> {
-    match opts.loop_closure {
-        Some(_) if bounded => Err(RunError::Config(slamesh_core::ConfigError {
+/// Loop closure's thread when asked for; refused, naming why, where the run cannot close
+/// loops ([`RunOptions::loop_closure_unavailable`]).
+fn loop_closer<C: Capacity>(opts: &RunOptions) -> Result<Option<LoopClosure<C>>, RunError> {
+    match (opts.loop_closure, opts.loop_closure_unavailable()) {
+        (Some(_), Some(reason)) => Err(RunError::Config(slamesh_core::ConfigError {
             field: "loop closure",
-            reason: "it rebuilds the whole map, so it does not run with a memory cap or \
-                     a sliding window yet: leave out one of the two",
+            reason,
         })),
-        Some(s) => Ok(Some(LoopClosure::start(
+        (Some(s), None) => Ok(Some(LoopClosure::start(
             opts.config,
             s,
             &opts.out.join(".loop-closure.scans"),
         )?)),
-        None => Ok(None),
+        (None, _) => Ok(None),
     }
 }
