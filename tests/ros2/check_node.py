@@ -188,6 +188,10 @@ def check_scans(args, reference, run_mesh):
     if taken != r["imu_sent"] or with_frames < r["imu_sent"] - 10:
         fail(f"imu: {r['imu_sent']} readings sent, {taken} taken, {with_frames} with frames")
     ok(f"imu: {taken} readings taken, {with_frames} went with their frames")
+    closing = report["summary"].get("loop_closure")
+    if not closing or closing["spool_bytes"] <= 0 or closing["closures"]:
+        fail(f"loop closure: on by default, keeping scans and closing nothing here: {closing}")
+    ok(f"loop closure: on by default, {closing['spool_bytes']} bytes of scans kept, no loop closed")
     if "skipped:" in log or "dropped:" in log:
         fail("the node skipped a message of a well-formed run")
 

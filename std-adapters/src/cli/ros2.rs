@@ -3,11 +3,11 @@
 //!
 //! The run's settings come from the flags, or from ROS parameters of the same names
 //! (`-p preset:=kitti`, `-p threads:=4`, `-p out:=DIR`, `-p map:=FILE`, `-p save_map:=FILE`,
-//! `-p localize:=true`), which win when both are given.
+//! `-p localize:=true`, `-p loop_closure:=false`), which win when both are given.
 
 use crate::cli::error::CliError;
 use crate::cli::notices::FrameNotices;
-use crate::cli::run::CapacityFlag;
+use crate::cli::run::{choose_loop_closure, CapacityFlag, OnOff};
 use crate::cli::settings::{Profile, WindowFlags};
 use crate::cli::terminal::{frame_messages, print_summary};
 use crate::formats::ros_args::{ParamValue, RosArgs};
@@ -51,6 +51,11 @@ pub struct Ros2Args {
     /// `save_map`; default for the service: map.slamesh in the output folder).
     #[arg(long, value_name = "FILE")]
     pub save_map: Option<PathBuf>,
+    /// Close loops (as `run --loop-closure`; ROS parameter `loop_closure`, true or false): on
+    /// by default where the run can; a correction moves `map -> odom` and the path, and the
+    /// rebuilt map goes out on `mesh` and `map`.
+    #[arg(long, value_enum)]
+    pub loop_closure: Option<OnOff>,
     /// Do not draw topview.png at the end.
     #[arg(long)]
     pub no_picture: bool,
@@ -106,6 +111,17 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
             )))
         }
     };
+    let loop_closure = match p.remove("loop_closure") {
+        None => args.loop_closure,
+        Some(ParamValue::Bool(true)) => Some(OnOff::On),
+        Some(ParamValue::Bool(false)) => Some(OnOff::Off),
+        Some(v) => {
+            return Err(node_error(format!(
+                "parameter loop_closure: {} is not true or false",
+                v.as_text()
+            )))
+        }
+    };
     if localize && map.is_none() {
         return Err(node_error(
             "localize needs a map (--map or -p map:=FILE)".into(),
@@ -123,6 +139,7 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
         map,
         localize,
         save_map,
+        loop_closure,
         no_picture: args.no_picture,
         ros_args: Vec::new(),
     })
@@ -164,7 +181,10 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     if args.map.is_none() {
         crate::run::scale::fit_to_scene(&mut s, &mut source);
     }
-    let opts = run_options(&args, &s, node.settings.use_imu);
+    let mut opts = run_options(&args, &s, node.settings.use_imu);
+    if !args.localize {
+        choose_loop_closure(args.loop_closure, &mut opts)?;
+    }
     let sink = node.publish(&opts.config, &source).map_err(node_error)?;
     let sink = Queued::new(sink, 8, WhenFull::Wait)
         .map_err(|e| node_error(format!("cannot start the publishing thread: {e}")))?;
@@ -202,5 +222,46 @@ fn run_options(args: &Ros2Args, s: &Settings, use_imu: bool) -> RunOptions {
             ..s.imu
         },
         ..RunOptions::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Command {
+        #[command(flatten)]
+        args: Ros2Args,
+    }
+
+    /// The node's flags `flags` with the ROS parameters of `ros_args` put over them.
+    fn resolved(flags: &[&str], ros_args: &str) -> Result<Ros2Args, CliError> {
+        let command =
+            Command::try_parse_from(std::iter::once("ros2").chain(flags.iter().copied())).unwrap();
+        let words: Vec<String> = ros_args.split_whitespace().map(String::from).collect();
+        let mut node = NodeSettings::new(&RosArgs::parse(&words).unwrap(), &|_| None).unwrap();
+        with_parameters(&command.args, &mut node)
+    }
+
+    #[test]
+    fn loop_closure_comes_from_the_flag_or_the_parameter_which_wins() {
+        assert_eq!(resolved(&[], "").unwrap().loop_closure, None);
+        let flag = resolved(&["--loop-closure", "off"], "").unwrap();
+        assert_eq!(flag.loop_closure, Some(OnOff::Off));
+        let param = resolved(
+            &["--loop-closure", "off"],
+            "--ros-args -p loop_closure:=true",
+        );
+        assert_eq!(param.unwrap().loop_closure, Some(OnOff::On));
+        let off = resolved(&[], "--ros-args -p loop_closure:=false").unwrap();
+        assert_eq!(off.loop_closure, Some(OnOff::Off));
+        let bad = resolved(&[], "--ros-args -p loop_closure:=3")
+            .err()
+            .unwrap();
+        assert!(bad
+            .to_string()
+            .contains("loop_closure: 3 is not true or false"));
     }
 }

@@ -371,7 +371,10 @@ fn run_with(
 /// `--loop-closure on` asked for it, otherwise off, saying why. When on, and when resuming a
 /// run that had it on, the configuration gets what loop closure needs of it
 /// ([`LoopSettings::configure`]).
-fn choose_loop_closure(flag: Option<OnOff>, opts: &mut RunOptions) -> Result<(), CliError> {
+pub(crate) fn choose_loop_closure(
+    flag: Option<OnOff>,
+    opts: &mut RunOptions,
+) -> Result<(), CliError> {
     if flag == Some(OnOff::Off) {
         return Ok(());
     }
