@@ -23,6 +23,7 @@ mod imu;
 mod kitti_odometry;
 mod loop_closure;
 mod map_persistence;
+mod merge;
 mod navmap;
 mod ouster;
 mod packets;

@@ -14,6 +14,7 @@
 //! | a run: its stages, sinks, configuration, report, window, checkpoint | [`run`] |
 //! | odometry and mesh accuracy | [`eval`] |
 //! | loop closure: revisits found, the pose graph, the map rebuilt | [`loop_closure`] |
+//! | two saved maps made one (`slamesh merge`) | [`merge`] |
 //! | the IMU in a run: its readings, the prior and the deskew they give | [`inertial`] |
 //! | the simulated demo (feature `sim`) | `demo` |
 //! | the `slamesh` command, one file per subcommand (feature `cli`) | `cli` |
@@ -34,6 +35,7 @@ pub mod formats;
 pub mod inertial;
 pub mod io;
 pub mod loop_closure;
+pub mod merge;
 pub mod navmap;
 pub mod outputs;
 pub mod parallel;

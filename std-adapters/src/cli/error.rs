@@ -1,6 +1,7 @@
 //! [`CliError`]: why a subcommand failed, with the error of the layer that failed kept whole.
 
 use crate::io::FileError;
+use crate::merge::MergeError;
 use crate::run::RunError;
 use std::fmt;
 
@@ -11,6 +12,8 @@ pub enum CliError {
     File(FileError),
     /// A run could not start or finish.
     Run(RunError),
+    /// Two maps were not merged.
+    Merge(MergeError),
     /// A flag's value is out of its range.
     BadFlag {
         /// The flag, e.g. `--memory-cap`.
@@ -43,6 +46,7 @@ impl fmt::Display for CliError {
         match self {
             CliError::File(e) => write!(f, "{e}"),
             CliError::Run(e) => write!(f, "{e}"),
+            CliError::Merge(e) => write!(f, "{e}"),
             CliError::BadFlag { flag, reason } => write!(f, "{flag}: {reason}"),
             CliError::NoEvalMode => write!(
                 f,
@@ -67,6 +71,7 @@ impl std::error::Error for CliError {
         match self {
             CliError::File(e) => Some(e),
             CliError::Run(e) => Some(e),
+            CliError::Merge(e) => Some(e),
             _ => None,
         }
     }
@@ -81,5 +86,11 @@ impl From<FileError> for CliError {
 impl From<RunError> for CliError {
     fn from(e: RunError) -> Self {
         CliError::Run(e)
+    }
+}
+
+impl From<MergeError> for CliError {
+    fn from(e: MergeError) -> Self {
+        CliError::Merge(e)
     }
 }

@@ -16,6 +16,7 @@ pub mod demo;
 pub mod error;
 pub mod eval;
 pub mod input;
+pub mod merge;
 pub mod navmap;
 pub mod notices;
 pub mod render;
@@ -137,6 +138,10 @@ enum Command {
     Config(config::ConfigArgs),
     /// Draw a picture of a PLY mesh: from above (hill-shaded, with a scale bar) or obliquely.
     Render(render::RenderArgs),
+    /// Merge two saved maps of one site (two robots, or sessions that started apart): B is
+    /// found in A by searching A for places along B's path, fused into A, and written with
+    /// both paths in A's frame; refused, saying why, when B is not found.
+    Merge(merge::MergeArgs),
     /// Make a navigation map from a saved map or a PLY mesh: Nav2's map.yaml + map.pgm (an
     /// occupancy grid for --robot) and the ground's elevation grids.
     Navmap(navmap::NavMapArgs),
@@ -195,6 +200,7 @@ impl Cli {
             Command::Bench(a) => bench::bench(a),
             Command::Render(a) => render::render(a),
             Command::Navmap(a) => navmap::navmap(a),
+            Command::Merge(a) => merge::merge(a),
             #[cfg(feature = "ros2")]
             Command::Ros2(a) => ros2::ros2(a, quiet),
             #[cfg(feature = "sim")]
