@@ -196,8 +196,9 @@ fn loop_report(out: &Path) -> serde_json::Value {
 }
 
 /// `slamesh run` closes loops unless told not to: on by default, with the same bytes as off
-/// on a drive with no loop; off, saying why, where a run cannot close loops (a memory cap, a
-/// saved map to start from), and an error there when `--loop-closure on` asks for it.
+/// on a drive with no loop, from a saved map too; off, saying why, where a run cannot close
+/// loops (a memory cap, a window, a fixed map), and an error there when `--loop-closure on`
+/// asks for it.
 #[test]
 fn the_command_closes_loops_by_default_where_it_can() {
     let dir = scratch("loop-command");
@@ -251,11 +252,6 @@ fn the_command_closes_loops_by_default_where_it_can() {
             vec!["--evict-after", "50"],
             "with a memory cap or a window",
         ),
-        (
-            "from-map",
-            vec!["--map", map],
-            "would drop the saved map's cells",
-        ),
     ] {
         let (o, out) = run(name, &flags);
         let stderr = String::from_utf8_lossy(&o.stderr);
@@ -273,4 +269,100 @@ fn the_command_closes_loops_by_default_where_it_can() {
             "{name}: {stderr}"
         );
     }
+    // From a saved map it closes loops (against the map's path too); localizing in a fixed
+    // map it does not, and refuses to be asked.
+    let (o, from_map) = run("from-map", &["--map", map]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!loop_report(&from_map).is_null(), "from a saved map: on");
+    let localize = |extra: &[&str]| {
+        let out = dir.join("localized");
+        let mut args = vec!["localize", input.to_str().unwrap(), "--map", map];
+        args.extend_from_slice(&["--out", out.to_str().unwrap(), "--no-picture"]);
+        args.extend_from_slice(extra);
+        (slamesh(&args), out)
+    };
+    let (o, out) = localize(&[]);
+    assert!(o.status.success() && loop_report(&out).is_null());
+    let (o, _) = localize(&["--loop-closure", "on"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && stderr.contains("the map is fixed"),
+        "{stderr}"
+    );
+    let (o, out) = localize(&["--update"]);
+    assert!(
+        o.status.success() && !loop_report(&out).is_null(),
+        "localize --update: on"
+    );
+}
+
+/// Two sessions round one block: the first maps the start of it and saves its map; the
+/// second starts inside that map (other noise, half a lane over), drives on round the block
+/// and back into the first session's streets. With loop closure it closes its loop against
+/// the saved map: its poses, in the first session's frame, come nearer the truth than
+/// without, and where it came back the map holds no more surfaces twice.
+#[test]
+fn a_second_session_closes_its_loop_against_the_saved_map() {
+    let dir = scratch("loop-sessions");
+    let block = Drive::town_along(slamesh_sim::town::block_path(), 530, 3);
+    let mut first = block.clone();
+    first.poses.truncate(230);
+    // The town preset's fixed cells, as the command maps a town.
+    let town = slamesh::run::config_file::preset("town").unwrap();
+    let mapped = RunOptions {
+        config: town,
+        ..options(&dir.join("first"), false)
+    };
+    run_ok(&mut first, &mapped);
+    let mut second = block.clone();
+    second.seed = 1_000;
+    let over = nalgebra::Translation3::new(0.0, 0.5, 0.0);
+    second.poses = block.poses[180..].iter().map(|p| p * over).collect();
+    let to_first = block.poses[0].inverse();
+    let truth: Vec<Pose> = second.poses.iter().map(|p| to_first * p).collect();
+    let mut session = |name: &str, on: bool| {
+        let mut config = town;
+        let s = LoopSettings::default();
+        if on {
+            s.configure(&mut config);
+        }
+        let opts = RunOptions {
+            map: mapped.save_map.clone(),
+            config,
+            loop_closure: on.then_some(s),
+            ..options(&dir.join(name), false)
+        };
+        let summary = run_ok(&mut second, &opts);
+        let off_truth: Vec<f64> = (summary.poses.iter().zip(&truth))
+            .map(|((_, p), t)| (p.translation.vector - t.translation.vector).norm())
+            .collect();
+        let rms = (off_truth.iter().map(|d| d * d).sum::<f64>() / off_truth.len() as f64).sqrt();
+        (summary, rms)
+    };
+    let (off, ate_off) = session("off", false);
+    let (on, ate_on) = session("on", true);
+    let closures = &on.loop_closure.as_ref().unwrap().closures;
+    let with_saved = closures.iter().filter(|c| c.in_saved_map).count();
+    // Where the second session came back into the first one's streets.
+    let back = truth.len() - 60;
+    let twice = |s: &str| {
+        duplicated_near(
+            &loaded(&dir.join(s).join("map.slamesh")),
+            0.3,
+            0.3,
+            &truth[back],
+            60.0,
+        )
+    };
+    let (dup_off, dup_on) = (twice("off"), twice("on"));
+    println!(
+        "second session, in the first's frame: ATE {ate_off:.3} m without loop closure, \
+         {ate_on:.3} m with ({} closures, {with_saved} against the saved map); surfaces mapped \
+         twice near the return {dup_off} and {dup_on}",
+        closures.len()
+    );
+    assert!(off.loop_closure.is_none());
+    assert!(with_saved >= 2, "{closures:?}");
+    assert!(ate_on < 0.7 * ate_off, "{ate_on} against {ate_off}");
+    assert!(dup_on <= dup_off, "{dup_on} against {dup_off}");
 }

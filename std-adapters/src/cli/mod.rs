@@ -119,10 +119,7 @@ enum Command {
     /// Localize in a saved map (--map, written by `run --save-map`): from --initial-pose or,
     /// without it, by searching the map; the map stays as it is unless --update. Writes what
     /// `run` writes.
-    #[command(
-        mut_arg("map", |a| a.required(true)),
-        mut_arg("loop_closure", |a| a.hide(true))
-    )]
+    #[command(mut_arg("map", |a| a.required(true)))]
     Localize(run::LocalizeArgs),
     /// Compare a trajectory with reference poses (consecutive-frame errors, end-point drift,
     /// ATE, segment errors), score a mesh against a point cloud, or build such a cloud.

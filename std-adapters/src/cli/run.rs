@@ -225,11 +225,11 @@ pub struct LocalizeArgs {
 /// Localizes in a saved map (`--map`, required): registration against it without updating
 /// it (unless `--update`), the same outputs as `run`.
 pub fn localize(args: &LocalizeArgs, quiet: bool) -> Result<(), CliError> {
-    if args.run.loop_closure == Some(OnOff::On) {
+    if args.run.loop_closure == Some(OnOff::On) && !args.update {
         return Err(not_for(
             "--loop-closure",
-            "localize",
-            "the map is fixed (run --map FILE maps on from it, and closes loops)",
+            "localize without --update",
+            "the map is fixed (with --update, or run --map FILE, it maps on and closes loops)",
         ));
     }
     // `--map` is required by the parser (`cli::Command::Localize`).

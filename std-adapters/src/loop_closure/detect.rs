@@ -99,6 +99,19 @@ pub fn verify<C: Capacity, E>(
         // A frame that will not integrate (empty after filtering) leaves a gap only.
         let _ = pipeline.integrate_scan(&scan(p.index)?, &p.pose);
     }
+    Ok(search(s, pipeline, points, pose, travelled_m, revisit))
+}
+
+/// Searches the local map `pipeline` holds (made by [`verify`] from the earlier frames' scans,
+/// or loaded from a saved map) for `points` along `revisit.near`, judged as [`verify`] says.
+pub fn search<C: Capacity>(
+    s: &LoopSettings,
+    pipeline: &mut Pipeline<C>,
+    points: &[Point],
+    pose: &Pose,
+    travelled_m: f64,
+    revisit: &Revisit,
+) -> Option<Verified> {
     pipeline.set_map_updates(false);
     let spacing = pipeline.config().grid.cell_size_m;
     let mut candidates = vec![*pose];
@@ -113,10 +126,10 @@ pub fn verify<C: Capacity, E>(
     let Ok(Stepped::Searched(found)) =
         pipeline.step(Scan::Raw(points), known, &Serial, &mut NoProbe)
     else {
-        return Ok(None);
+        return None;
     };
     if found.outcome.status != RegistrationStatus::Relocalized {
-        return Ok(None);
+        return None;
     }
     let at = found.outcome.t_world_sensor;
     let oldest = revisit
@@ -127,5 +140,5 @@ pub fn verify<C: Capacity, E>(
     let moved = (at.translation.vector - pose.translation.vector).norm();
     let turned = rotation_angle(&(pose.inverse() * at)).to_degrees();
     let within = moved <= reach_m(s, oldest) && turned <= s.turn_deg + s.turn_per_m * oldest;
-    Ok(within.then_some(Verified { pose: at, found }))
+    within.then_some(Verified { pose: at, found })
 }

@@ -7,6 +7,7 @@
 //! | the settings | [`settings`] |
 //! | the scans kept for later, on disk | [`spool`] |
 //! | which earlier frames a keyframe may revisit, and the check | [`detect`] |
+//! | the saved map a run started from: its path, its cells near a revisit | [`saved`] |
 //! | the pose graph and its solver | [`graph`] |
 //! | the thread that does all of it | `worker` |
 //!
@@ -24,11 +25,13 @@
 
 pub mod detect;
 pub mod graph;
+pub mod saved;
 pub mod settings;
 pub mod spool;
 mod worker;
 
 use crate::io::error::FileError;
+use saved::SavedMap;
 use serde::{Deserialize, Serialize};
 use settings::LoopSettings;
 use slamesh_core::lm::PoseInformation;
@@ -44,8 +47,12 @@ use std::thread::JoinHandle;
 pub struct Closure {
     /// The frame that came back.
     pub frame: usize,
-    /// The earlier frame (a keyframe) it was found near.
+    /// The earlier frame (a keyframe) it was found near, or with `in_saved_map` the pose of
+    /// the saved map's path (its index).
     pub with_frame: usize,
+    /// Found in the saved map the run started from (the earlier session), not in this run.
+    #[serde(default)]
+    pub in_saved_map: bool,
     /// Share of the scan's points on the earlier map's surfaces at the pose found.
     pub hit_share: f64,
     /// The same on its walls.
@@ -66,8 +73,13 @@ impl Closure {
     /// One line for the log.
     pub fn describe(&self) -> String {
         format!(
-            "loop closed with frame {} (found at frame {}): {:.0} % of the scan on the earlier \
+            "loop closed with {} {} (found at frame {}): {:.0} % of the scan on the earlier \
              map ({:.0} % on walls, the best elsewhere {:.0} %), correction {:.2} m, {:.2} deg",
+            if self.in_saved_map {
+                "the saved map's path at pose"
+            } else {
+                "frame"
+            },
             self.with_frame,
             self.frame,
             100.0 * self.hit_share,
@@ -153,12 +165,20 @@ pub struct LoopClosure<C: Capacity> {
 }
 
 impl<C: Capacity> LoopClosure<C> {
-    /// Starts the loop-closure thread, spooling scans to `spool_path`.
-    pub fn start(config: Config, s: LoopSettings, spool_path: &Path) -> Result<Self, FileError> {
+    /// Starts the loop-closure thread, spooling scans to `spool_path`; `saved_map`: the map
+    /// file the run started from (its path is searched for revisits too, and a rebuild keeps
+    /// its cells).
+    pub fn start(
+        config: Config,
+        s: LoopSettings,
+        spool_path: &Path,
+        saved_map: Option<&Path>,
+    ) -> Result<Self, FileError> {
         let spool = ScanSpool::create(spool_path, (s.spool_budget_mb * 1e6) as u64)?;
+        let saved = saved_map.map(SavedMap::open).transpose()?;
         let (to_worker, rx) = channel();
         let (tx, from_worker) = channel();
-        let worker = worker::Worker::<C>::new(config, s, spool, tx)?;
+        let worker = worker::Worker::<C>::new(config, s, spool, tx, saved)?;
         let thread = std::thread::Builder::new()
             .name("slamesh-loop-closure".into())
             .spawn(move || worker.run(rx))

@@ -7,8 +7,9 @@
 //! reports.
 
 use crate::io::error::FileError;
-use crate::loop_closure::detect::{self, Past};
+use crate::loop_closure::detect::{self, Past, Verified};
 use crate::loop_closure::graph::{local_covariance, Edge, PoseGraph};
+use crate::loop_closure::saved::SavedMap;
 use crate::loop_closure::settings::LoopSettings;
 use crate::loop_closure::spool::ScanSpool;
 use crate::loop_closure::{Closure, Corrected, ToWorker};
@@ -74,6 +75,9 @@ pub(crate) struct Worker<C: Capacity> {
     rebuild: Option<Box<Pipeline<C>>>,
     rebuilding: Option<Rebuild<C>>,
     to_run: Sender<Corrected<C>>,
+    /// The saved map the run started from, if it did: revisits of its path are looked for
+    /// too, and a rebuild starts from its cells.
+    saved: Option<SavedMap>,
 }
 
 impl<C: Capacity> Worker<C> {
@@ -82,6 +86,7 @@ impl<C: Capacity> Worker<C> {
         s: LoopSettings,
         spool: ScanSpool,
         to_run: Sender<Corrected<C>>,
+        saved: Option<SavedMap>,
     ) -> Result<Self, FileError> {
         let submap = Pipeline::<C>::with_map_layers(config, SUBMAP_LAYERS)
             .map_err(|e| FileError::at(std::path::Path::new("loop closure"), e.to_string()))?;
@@ -107,6 +112,7 @@ impl<C: Capacity> Worker<C> {
             rebuild: None,
             rebuilding: None,
             to_run,
+            saved,
         })
     }
 
@@ -220,6 +226,11 @@ impl<C: Capacity> Worker<C> {
         Ok(())
     }
 
+    /// The run pipeline's frame count before its first frame: the saved map's.
+    fn first_counter(&self) -> u32 {
+        self.saved.as_ref().map_or(0, |m| m.frames)
+    }
+
     /// `corrected · raw⁻¹` of the newest node (identity before any).
     fn correction_of_last_node(&self) -> Pose {
         match (self.graph.nodes.last(), self.node_frame.last()) {
@@ -252,8 +263,8 @@ impl<C: Capacity> Worker<C> {
     }
 
     /// Checks the newest keyframe for a revisit (once per `check_every_m` of travel, five
-    /// times that while a rebuild runs); a
-    /// verified one that agrees with the one before closes the loop.
+    /// times that while a rebuild runs): of this run's path first, else of the saved map's
+    /// the run started from. A verified one that agrees with the one before closes the loop.
     fn check(&mut self) -> Result<(), FileError> {
         let Some(&kf) = self.node_frame.last() else {
             return Ok(());
@@ -269,21 +280,37 @@ impl<C: Capacity> Worker<C> {
             return Ok(());
         }
         self.checked_at_m = here.travelled_m;
-        let corrections = &self.correction;
-        let pose = corrections[kf] * here.raw;
-        let travelled = here.travelled_m;
+        let (pose, travelled) = (self.correction[kf] * here.raw, here.travelled_m);
+        let found = match self.revisit_in_run(kf, &pose, travelled)? {
+            Some(f) => Some(f),
+            None => self.revisit_in_saved(kf, &pose, travelled)?,
+        };
+        if let Some(found) = found {
+            self.take_closure(kf, &pose, found);
+        }
+        Ok(())
+    }
+
+    /// A revisit of this run's own path by keyframe `kf` (at `pose`, `travelled` metres
+    /// along), checked in the local map of the earlier frames' scans.
+    fn revisit_in_run(
+        &mut self,
+        kf: usize,
+        pose: &Pose,
+        travelled: f64,
+    ) -> Result<Option<Found>, FileError> {
         let past = self
             .frames
             .iter()
-            .zip(corrections)
+            .zip(&self.correction)
             .enumerate()
             .map(|(i, (f, c))| Past {
                 index: i,
                 pose: c * f.raw,
                 travelled_m: f.travelled_m,
             });
-        let Some(revisit) = detect::revisit(&self.s, &pose, travelled, past) else {
-            return Ok(());
+        let Some(revisit) = detect::revisit(&self.s, pose, travelled, past) else {
+            return Ok(None);
         };
         let points = self.spool.read(kf)?;
         let t = std::time::Instant::now();
@@ -292,48 +319,125 @@ impl<C: Capacity> Worker<C> {
             &self.s,
             &mut self.submap,
             &points,
-            &pose,
+            pose,
             travelled,
             &revisit,
             |i| spool.read(i),
         )?;
         log::debug!(
             "loop closure: frame {} checked against {} earlier frames ({} in the local map) in {:.0} ms: {}",
-            here.frame,
+            self.frames[kf].frame,
             revisit.near.len(),
             revisit.submap.len(),
             t.elapsed().as_secs_f64() * 1e3,
             if verified.is_some() { "found" } else { "not found" }
         );
         let Some(v) = verified else {
-            return Ok(());
+            return Ok(None);
         };
         // The earlier node nearest to the pose found anchors the loop edge.
-        let node = self.graph.nodes.len() - 1;
-        let (old, _) = revisit
-            .near
-            .iter()
-            .map(|p| {
+        let nearest = revisit.near.iter().min_by(|x, y| {
+            let d = |p: &Past| {
                 let n = self.frames[p.index].node;
-                (
-                    n,
-                    (self.graph.nodes[n].translation.vector - v.pose.translation.vector).norm(),
-                )
-            })
-            .fold((usize::MAX, f64::INFINITY), |best, c| {
-                if c.1 < best.1 {
-                    c
-                } else {
-                    best
-                }
-            });
-        if old == usize::MAX {
-            return Ok(());
+                (self.graph.nodes[n].translation.vector - v.pose.translation.vector).norm()
+            };
+            d(x).total_cmp(&d(y))
+        });
+        Ok(nearest.map(|p| {
+            let node = self.frames[p.index].node;
+            Found {
+                v,
+                node,
+                with_frame: self.frames[self.node_frame[node]].frame,
+                in_saved_map: false,
+            }
+        }))
+    }
+
+    /// A revisit of the saved map's path (the earlier session's) by keyframe `kf`, checked in
+    /// the saved map's cells near it ([`SavedMap::load_near`]). Its edge is to the run's first
+    /// keyframe, which the run placed in the saved map when it started and the graph holds.
+    fn revisit_in_saved(
+        &mut self,
+        kf: usize,
+        pose: &Pose,
+        travelled: f64,
+    ) -> Result<Option<Found>, FileError> {
+        let Some(saved) = &mut self.saved else {
+            return Ok(None);
+        };
+        // The earlier session's poses count as where this run started: the drift allowed is
+        // this run's whole travel's.
+        let past = (saved.path.iter().enumerate()).map(|(i, p)| Past {
+            index: i,
+            pose: *p,
+            travelled_m: 0.0,
+        });
+        let Some(revisit) = detect::revisit(&self.s, pose, travelled, past) else {
+            return Ok(None);
+        };
+        let points = self.spool.read(kf)?;
+        self.submap.map_mut().evict_where(|_, _| true, |_| {});
+        let near: Vec<Pose> = revisit.near.iter().map(|p| p.pose).collect();
+        if let Err(e) = saved.load_near(&near, self.s.submap_margin_m, self.submap.map_mut()) {
+            // The file was read whole when the run started: what fails here is room.
+            log::debug!(
+                "loop closure: the saved map near frame {}: {e}",
+                self.frames[kf].frame
+            );
+            return Ok(None);
         }
+        let verified = detect::search(
+            &self.s,
+            &mut self.submap,
+            &points,
+            pose,
+            travelled,
+            &revisit,
+        );
+        log::debug!(
+            "loop closure: frame {} checked against the saved map ({} poses of its path near): {}",
+            self.frames[kf].frame,
+            revisit.near.len(),
+            if verified.is_some() {
+                "found"
+            } else {
+                "not found"
+            }
+        );
+        let Some(v) = verified else {
+            return Ok(None);
+        };
+        let at = v.pose.translation.vector;
+        let nearest = (revisit.near.iter())
+            .min_by(|x, y| {
+                let d = |p: &Past| (p.pose.translation.vector - at).norm();
+                d(x).total_cmp(&d(y))
+            })
+            .map_or(0, |p| p.index);
+        Ok(Some(Found {
+            v,
+            node: 0,
+            with_frame: nearest,
+            in_saved_map: true,
+        }))
+    }
+
+    /// Takes a verified revisit by keyframe `kf` (at `pose`): its edge waits, weightless, for
+    /// the next to agree with it; two that agree go into the graph, which is optimised.
+    fn take_closure(&mut self, kf: usize, pose: &Pose, f: Found) {
+        let Found {
+            v,
+            node: old,
+            with_frame,
+            in_saved_map,
+        } = f;
+        let node = self.graph.nodes.len() - 1;
         let delta = v.pose * pose.inverse();
         let closure = Closure {
-            frame: here.frame,
-            with_frame: self.frames[self.node_frame[old]].frame,
+            frame: self.frames[kf].frame,
+            with_frame,
+            in_saved_map,
             hit_share: v.found.hit_share,
             wall_share: v.found.wall_share,
             runner_up_share: v.found.runner_up_share,
@@ -362,7 +466,7 @@ impl<C: Capacity> Worker<C> {
                 info: Matrix6::zeros(),
                 ..edge
             });
-            return Ok(());
+            return;
         }
         // The earlier one's edge was kept weightless until now.
         if let Some((e, _, c)) = self.pending.take() {
@@ -371,11 +475,9 @@ impl<C: Capacity> Worker<C> {
         }
         self.graph.edges.push(edge);
         self.new_closures.push(closure);
-        self.pending = None;
         self.graph.optimize(10);
         self.correction = self.corrections();
         self.dirty = true;
-        Ok(())
     }
 
     /// Starts a correction: a rebuild of the map when some frame moved more than
@@ -408,8 +510,12 @@ impl<C: Capacity> Worker<C> {
                     FileError::at(std::path::Path::new("loop closure"), e.to_string())
                 })?),
             };
-        // Its frame count is the count of frames rebuilt.
-        pipeline.restore_progress(0, ConstantVelocity::new());
+        // From the saved map's cells, when the run started from one; its frame count is the
+        // saved map's and the count of frames rebuilt.
+        if let Some(saved) = &mut self.saved {
+            saved.load_all(pipeline.map_mut())?;
+        }
+        pipeline.restore_progress(self.first_counter(), ConstantVelocity::new());
         self.rebuilding = Some(Rebuild {
             pipeline,
             corrections,
@@ -426,7 +532,7 @@ impl<C: Capacity> Worker<C> {
             return Ok(());
         };
         let next = r.corrections.len().min(self.frames.len());
-        let done = r.pipeline.frames() as usize;
+        let done = (r.pipeline.frames() - self.first_counter()) as usize;
         if done >= self.frames.len() {
             // Every rebuilt cell counts as seen now: the corrected map is the one to register
             // against and fuse into, none of it stale.
@@ -491,6 +597,16 @@ impl<C: Capacity> Worker<C> {
             spool_bytes: self.spool.bytes(),
         });
     }
+}
+
+/// A verified revisit and what its loop edge joins.
+struct Found {
+    v: Verified,
+    /// The graph node the edge starts from.
+    node: usize,
+    /// The earlier frame (this run's) or the saved path's pose it was found near.
+    with_frame: usize,
+    in_saved_map: bool,
 }
 
 /// A map being rebuilt a slice at a time between checks.

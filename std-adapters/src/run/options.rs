@@ -68,19 +68,17 @@ pub struct RunOptions {
 
 impl RunOptions {
     /// Why this run cannot close loops, if it cannot. Each rebuild of the map fuses every
-    /// scan of the run again into an empty map, so it needs the whole map in memory (no
-    /// memory cap, no window), no saved map to start from (its cells would be dropped) and
-    /// every scan of the run: not a resumed run's ([`RESUMED_WITHOUT_LOOP_CLOSURE`]).
+    /// scan of the run again into an empty map (or the saved map it started from), so it
+    /// needs the whole map in memory (no memory cap, no window), a map it may change (not
+    /// `localize` without `--update`) and every scan of the run: not a resumed run's
+    /// ([`RESUMED_WITHOUT_LOOP_CLOSURE`]).
     pub fn loop_closure_unavailable(&self) -> Option<&'static str> {
         if self.given_poses.is_some() {
             Some("the poses are given")
         } else if self.window.memory_cap_mb.is_some() || !self.window.rules().is_off() {
             Some("it rebuilds the whole map, so it does not run with a memory cap or a window yet")
-        } else if self.map.is_some() {
-            Some(
-                "closing loops against a saved map is not built yet: a rebuild would drop the \
-                 saved map's cells",
-            )
+        } else if self.localize_only {
+            Some("the map is fixed (localize without --update)")
         } else if self.resume {
             Some(RESUMED_WITHOUT_LOOP_CLOSURE)
         } else {

@@ -185,6 +185,7 @@ fn loop_closer<C: Capacity>(opts: &RunOptions) -> Result<Option<LoopClosure<C>>,
             opts.config,
             s,
             &opts.out.join(".loop-closure.scans"),
+            opts.map.as_deref(),
         )?)),
         (None, _) => Ok(None),
     }
