@@ -269,9 +269,25 @@ fn the_command_closes_loops_by_default_where_it_can() {
             "{name}: {stderr}"
         );
     }
-    // From a saved map it closes loops (against the map's path too); localizing in a fixed
-    // map it does not, and refuses to be asked.
-    let (o, from_map) = run("from-map", &["--map", map]);
+    from_a_saved_map(&dir, &input, map);
+}
+
+/// From a saved map `map` (of the scans in `input`) `run` closes loops, against the map's
+/// path too; `localize` in it does not, and refuses to be asked, unless `--update`.
+fn from_a_saved_map(dir: &Path, input: &Path, map: &str) {
+    let (o, from_map) = {
+        let out = dir.join("from-map");
+        let args = [
+            "run",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--map",
+            map,
+            "--no-picture",
+        ];
+        (slamesh(&args), out)
+    };
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!loop_report(&from_map).is_null(), "from a saved map: on");
     let localize = |extra: &[&str]| {

@@ -145,10 +145,16 @@ fn two_halves_of_a_drive_merge_into_one_map_and_another_town_is_refused() {
         "{dup_merged} against {dup_whole}"
     );
 
+    refusals(&dir, &a, &town);
+}
+
+/// Merging into `a` a map of another town is refused, saying what was tried, and writes
+/// nothing; a map made with other cells is refused before any search, by the command too.
+fn refusals(dir: &Path, a: &Path, town: &Drive) {
     // Another town: refused, saying what was tried; nothing written.
-    let (_, other) = mapped(&mut Drive::town(40, 7), &dir, "other");
+    let (_, other) = mapped(&mut Drive::town(40, 7), dir, "other");
     let not = dir.join("not.slamesh");
-    match merge(&a, &other, &not, &MergeSettings::default()) {
+    match merge(a, &other, &not, &MergeSettings::default()) {
         Err(MergeError::Refused(why)) => {
             assert!(why.contains("places along B's path searched"), "{why}")
         }
@@ -168,7 +174,7 @@ fn two_halves_of_a_drive_merge_into_one_map_and_another_town_is_refused() {
         save_map: Some(coarse_map.clone()),
         ..options(&dir.join("coarse"), coarse)
     };
-    run_ok(&mut part(&town, 0..10, 5, 0.0), &opts);
+    run_ok(&mut part(town, 0..10, 5, 0.0), &opts);
     let o = slamesh(&[
         "merge",
         a.to_str().unwrap(),

@@ -7,7 +7,6 @@
 //! reports.
 
 use crate::io::error::FileError;
-use crate::loop_closure::detect::{self, Past, Verified};
 use crate::loop_closure::graph::{local_covariance, Edge, PoseGraph};
 use crate::loop_closure::saved::SavedMap;
 use crate::loop_closure::settings::LoopSettings;
@@ -18,6 +17,9 @@ use slamesh_core::math::{rotation_angle, se3_exp, se3_log};
 use slamesh_core::motion::ConstantVelocity;
 use slamesh_core::{Capacity, Config, Pipeline, Pose};
 use std::sync::mpsc::{Receiver, Sender};
+
+mod revisits;
+use revisits::Found;
 
 /// Layers the local map of a check may hold (a few dozen scans' worth).
 const SUBMAP_LAYERS: usize = 60_000;
@@ -291,138 +293,6 @@ impl<C: Capacity> Worker<C> {
         Ok(())
     }
 
-    /// A revisit of this run's own path by keyframe `kf` (at `pose`, `travelled` metres
-    /// along), checked in the local map of the earlier frames' scans.
-    fn revisit_in_run(
-        &mut self,
-        kf: usize,
-        pose: &Pose,
-        travelled: f64,
-    ) -> Result<Option<Found>, FileError> {
-        let past = self
-            .frames
-            .iter()
-            .zip(&self.correction)
-            .enumerate()
-            .map(|(i, (f, c))| Past {
-                index: i,
-                pose: c * f.raw,
-                travelled_m: f.travelled_m,
-            });
-        let Some(revisit) = detect::revisit(&self.s, pose, travelled, past) else {
-            return Ok(None);
-        };
-        let points = self.spool.read(kf)?;
-        let t = std::time::Instant::now();
-        let spool = &mut self.spool;
-        let verified = detect::verify(
-            &self.s,
-            &mut self.submap,
-            &points,
-            pose,
-            travelled,
-            &revisit,
-            |i| spool.read(i),
-        )?;
-        log::debug!(
-            "loop closure: frame {} checked against {} earlier frames ({} in the local map) in {:.0} ms: {}",
-            self.frames[kf].frame,
-            revisit.near.len(),
-            revisit.submap.len(),
-            t.elapsed().as_secs_f64() * 1e3,
-            if verified.is_some() { "found" } else { "not found" }
-        );
-        let Some(v) = verified else {
-            return Ok(None);
-        };
-        // The earlier node nearest to the pose found anchors the loop edge.
-        let nearest = revisit.near.iter().min_by(|x, y| {
-            let d = |p: &Past| {
-                let n = self.frames[p.index].node;
-                (self.graph.nodes[n].translation.vector - v.pose.translation.vector).norm()
-            };
-            d(x).total_cmp(&d(y))
-        });
-        Ok(nearest.map(|p| {
-            let node = self.frames[p.index].node;
-            Found {
-                v,
-                node,
-                with_frame: self.frames[self.node_frame[node]].frame,
-                in_saved_map: false,
-            }
-        }))
-    }
-
-    /// A revisit of the saved map's path (the earlier session's) by keyframe `kf`, checked in
-    /// the saved map's cells near it ([`SavedMap::load_near`]). Its edge is to the run's first
-    /// keyframe, which the run placed in the saved map when it started and the graph holds.
-    fn revisit_in_saved(
-        &mut self,
-        kf: usize,
-        pose: &Pose,
-        travelled: f64,
-    ) -> Result<Option<Found>, FileError> {
-        let Some(saved) = &mut self.saved else {
-            return Ok(None);
-        };
-        // The earlier session's poses count as where this run started: the drift allowed is
-        // this run's whole travel's.
-        let past = (saved.path.iter().enumerate()).map(|(i, p)| Past {
-            index: i,
-            pose: *p,
-            travelled_m: 0.0,
-        });
-        let Some(revisit) = detect::revisit(&self.s, pose, travelled, past) else {
-            return Ok(None);
-        };
-        let points = self.spool.read(kf)?;
-        self.submap.map_mut().evict_where(|_, _| true, |_| {});
-        let near: Vec<Pose> = revisit.near.iter().map(|p| p.pose).collect();
-        if let Err(e) = saved.load_near(&near, self.s.submap_margin_m, self.submap.map_mut()) {
-            // The file was read whole when the run started: what fails here is room.
-            log::debug!(
-                "loop closure: the saved map near frame {}: {e}",
-                self.frames[kf].frame
-            );
-            return Ok(None);
-        }
-        let verified = detect::search(
-            &self.s,
-            &mut self.submap,
-            &points,
-            pose,
-            travelled,
-            &revisit,
-        );
-        log::debug!(
-            "loop closure: frame {} checked against the saved map ({} poses of its path near): {}",
-            self.frames[kf].frame,
-            revisit.near.len(),
-            if verified.is_some() {
-                "found"
-            } else {
-                "not found"
-            }
-        );
-        let Some(v) = verified else {
-            return Ok(None);
-        };
-        let at = v.pose.translation.vector;
-        let nearest = (revisit.near.iter())
-            .min_by(|x, y| {
-                let d = |p: &Past| (p.pose.translation.vector - at).norm();
-                d(x).total_cmp(&d(y))
-            })
-            .map_or(0, |p| p.index);
-        Ok(Some(Found {
-            v,
-            node: 0,
-            with_frame: nearest,
-            in_saved_map: true,
-        }))
-    }
-
     /// Takes a verified revisit by keyframe `kf` (at `pose`): its edge waits, weightless, for
     /// the next to agree with it; two that agree go into the graph, which is optimised.
     fn take_closure(&mut self, kf: usize, pose: &Pose, f: Found) {
@@ -597,16 +467,6 @@ impl<C: Capacity> Worker<C> {
             spool_bytes: self.spool.bytes(),
         });
     }
-}
-
-/// A verified revisit and what its loop edge joins.
-struct Found {
-    v: Verified,
-    /// The graph node the edge starts from.
-    node: usize,
-    /// The earlier frame (this run's) or the saved path's pose it was found near.
-    with_frame: usize,
-    in_saved_map: bool,
 }
 
 /// A map being rebuilt a slice at a time between checks.
