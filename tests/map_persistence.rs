@@ -8,7 +8,6 @@ use common::{kitti_mini, scratch};
 use nalgebra::{Translation3, UnitQuaternion};
 use slamesh::formats::map_file::{MapFile, MapWriter};
 use slamesh::formats::trajectory;
-use slamesh::outputs::mesh_spool::MeshFormat;
 use slamesh::run::session::InitialPose;
 use slamesh::run::{run, FrameSource, Input, RunOptions, Summary};
 use slamesh_core::map::MeshMap;
@@ -18,15 +17,7 @@ use slamesh_sim::Drive;
 use std::path::{Path, PathBuf};
 
 fn options(out: &Path, config: Config) -> RunOptions {
-    RunOptions {
-        out: out.to_path_buf(),
-        config,
-        preset: "default".into(),
-        threads: 2,
-        input: "test".into(),
-        mesh_formats: vec![MeshFormat::Ply],
-        ..RunOptions::default()
-    }
+    common::test_run_options(out, config)
 }
 
 fn run_ok(source: &mut impl FrameSource, opts: &RunOptions) -> Summary {

@@ -6,12 +6,11 @@
 
 use crate::common;
 
-use common::{scratch, slamesh};
+use common::{scratch, slamesh, test_run_options};
 use nalgebra::Translation3;
 use slamesh::eval::duplicates::duplicated_near;
 use slamesh::formats::map_file::MapFile;
 use slamesh::merge::{merge, MergeError, MergeSettings};
-use slamesh::outputs::mesh_spool::MeshFormat;
 use slamesh::run::{run, RunOptions, Summary};
 use slamesh_core::math::rotation_angle;
 use slamesh_core::{Config, KittiCapacity, Pose};
@@ -20,14 +19,8 @@ use std::path::{Path, PathBuf};
 
 fn options(out: &Path, config: Config) -> RunOptions {
     RunOptions {
-        out: out.to_path_buf(),
-        config,
-        preset: "default".into(),
-        threads: 2,
-        input: "test".into(),
-        mesh_formats: vec![MeshFormat::Ply],
         picture: false,
-        ..RunOptions::default()
+        ..test_run_options(out, config)
     }
 }
 

@@ -131,6 +131,20 @@ pub fn street_drive(frames: usize) -> (Vec<Pose>, Vec<Vec<Point>>) {
     (poses, scans)
 }
 
+/// A run into `out` with `config` as the tests run it: two threads, a PLY mesh, the preset
+/// named `default`.
+pub fn test_run_options(out: &Path, config: slamesh_core::Config) -> slamesh::run::RunOptions {
+    slamesh::run::RunOptions {
+        out: out.to_path_buf(),
+        config,
+        preset: "default".into(),
+        threads: 2,
+        input: "test".into(),
+        mesh_formats: vec![slamesh::outputs::mesh_spool::MeshFormat::Ply],
+        ..slamesh::run::RunOptions::default()
+    }
+}
+
 /// Runs the pipeline of capacity `C` over `drive` in-process with the default configuration,
 /// two threads and `window`, into a scratch folder removed afterwards (`name` tells runs
 /// apart); returns each frame's record and the summary. Every frame must be used.
