@@ -269,6 +269,8 @@ class Peer:
         sent = []
         period = 1.0 / rate
         messages = [cloud(stamp, pts) for stamp, pts in scans]
+        # Odometry of scans sent before this call (a scenario may send in parts).
+        before = len(self.odom)
         start = time.monotonic()
         for k, m in enumerate(messages):
             due = start + (k + 1) * period
@@ -276,7 +278,7 @@ class Peer:
                 self.publish_imu(scans[k - 1][0], scans[k][0])
             self.points.publish(m)
             sent.append(time.monotonic())
-            want = len(sent)
+            want = before + len(sent)
             if not free:
                 self.spin_until(lambda: len(self.odom) >= want, 5)
             self.spin_until(lambda: time.monotonic() >= due, period)
