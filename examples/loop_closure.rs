@@ -98,7 +98,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let all = duplicated_surfaces(&map, max_var, 0.3, |_| true);
         let near = duplicated_near(&map, max_var, 0.3, &truth[back], 60.0);
         println!(
-            "{} | {end_m:.3} | {ate:.3} | {:.3} / {:.3} / {:.3} | {all}, {near}",
+            "{} | {end_m:.3} | {ate:.4} | {:.3} / {:.3} / {:.3} | {all}, {near}",
             run.display(),
             s[0].precision,
             s[0].recall,
@@ -126,7 +126,7 @@ fn oracle(run: &std::path::Path, truth: &[Pose]) -> Result<(), Box<dyn std::erro
     let (estimate, truth) = (&estimate[..n], &truth[..n]);
     let travelled = distances_along(truth);
     println!(
-        "{}: {n} frames; ATE {:.3} m, end point {:.3} m before",
+        "{}: {n} frames; ATE {:.4} m, end point {:.3} m before",
         run.display(),
         ate_rmse(estimate, truth),
         end_drift(estimate, truth).0
@@ -142,7 +142,7 @@ fn oracle(run: &std::path::Path, truth: &[Pose]) -> Result<(), Box<dyn std::erro
         };
         let (graph, loops) = exact_loops(&s, estimate, truth, &travelled)?;
         println!(
-            "  odometry sigmas x{rotation} rotation, x{translation} translation: {loops} exact loop edges; ATE {:.3} m, end point {:.3} m after",
+            "  odometry sigmas x{rotation} rotation, x{translation} translation: {loops} exact loop edges; ATE {:.4} m, end point {:.3} m after",
             ate_rmse(&graph.nodes, truth),
             end_drift(&graph.nodes, truth).0
         );
