@@ -8,7 +8,7 @@
 //! | `/tf` | `foxglove.FrameTransform` | `world` → `sensor`: the estimated pose |
 //! | `/trajectory` | `foxglove.PosesInFrame` | every pose so far (at most [`MAX_POSES`], thinned evenly), every [`TRAJECTORY_EVERY`] frames and at the end |
 //! | `/mesh` | `foxglove.SceneUpdate` | one entity per map layer the frame changed (id `x,y,z,axis`), its shown triangles; an entity replaces the one of the same id |
-//! | `/loop_closures` | `foxglove.Log` | each loop closed (`--loop-closure on`): the frames, the score and the correction; the whole corrected trajectory and map are sent with it |
+//! | `/loop_closures` | `foxglove.Log` | each loop closed (loop closure is on by default): the frames, the score and the correction; the whole corrected trajectory and map are sent with it |
 //!
 //! The view is one of a run's sinks ([`crate::run::sink`]): the SLAM loop only copies the
 //! frame's points, pose and changed layers into a [`MapUpdate`] and offers it to a bounded
