@@ -245,9 +245,10 @@ impl Clouds<'_> {
         points.into_iter().step_by(every).collect()
     }
 
-    /// Where a layer's cell is (world): its lattice's middle vertex at the cell's middle.
+    /// Where a layer's cell is (world): its centre.
     fn centre(&self, l: &LayerRef) -> Vec3 {
-        self.table.vertex_world(&l.key, l.axis, 14, 0.0)
+        let cell = self.map.lattice().cell_size;
+        l.key.min_corner(cell) + Vec3::repeat(0.5 * cell)
     }
 }
 

@@ -15,7 +15,6 @@ use crate::loop_closure::settings::LoopSettings;
 use crate::outputs::mesh_spool::{MeshColour, MeshFormat};
 use crate::run::capacity::{self, ClassId};
 use crate::run::config_file::Settings;
-use crate::run::options::RESUMED_WITHOUT_LOOP_CLOSURE;
 use crate::run::session::{Deskew, InitialPose};
 use crate::run::sink::FnSink;
 use crate::run::{run_to, FrameEvent, FrameSource, Input, RunOptions, Sinks, Summary};
@@ -380,11 +379,10 @@ pub(crate) fn choose_loop_closure(
         return Ok(());
     }
     let s = LoopSettings::default();
-    let why = opts.loop_closure_unavailable();
-    if why == Some(RESUMED_WITHOUT_LOOP_CLOSURE) {
+    if opts.loop_closure_unavailable_from_start().is_none() {
         s.configure(&mut opts.config);
     }
-    if let Some(why) = why {
+    if let Some(why) = opts.loop_closure_unavailable() {
         if flag == Some(OnOff::On) {
             return Err(CliError::BadFlag {
                 flag: "--loop-closure",
@@ -394,7 +392,6 @@ pub(crate) fn choose_loop_closure(
         log::info!("loop closure is off: {why}");
         return Ok(());
     }
-    s.configure(&mut opts.config);
     opts.loop_closure = Some(s);
     Ok(())
 }

@@ -230,6 +230,13 @@ impl MapWriter {
     }
 }
 
+/// Distance from `p` to the box of tile `t` (tiles `tile_m` on a side; 0 inside): how near a
+/// place a tile comes, for a reader that pages tiles in around it.
+pub fn tile_distance(t: &CellKey, tile_m: f64, p: &nalgebra::Vector3<f64>) -> f64 {
+    let lo = nalgebra::Vector3::new(f64::from(t.x), f64::from(t.y), f64::from(t.z)) * tile_m;
+    nalgebra::Vector3::from_fn(|i, _| (lo[i] - p[i]).max(p[i] - lo[i] - tile_m).max(0.0)).norm()
+}
+
 /// An open map file: its header, index and path read and checked; tiles load on demand.
 /// `R` is the file (or, for tests and fuzzing, any seekable bytes).
 #[derive(Debug)]

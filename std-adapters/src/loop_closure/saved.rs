@@ -6,9 +6,8 @@
 //!
 //! The file is read, never written; tiles are loaded on demand (a check needs a few).
 
-use crate::formats::map_file::MapFile;
+use crate::formats::map_file::{tile_distance, MapFile};
 use crate::io::error::FileError;
-use nalgebra::Vector3;
 use slamesh_core::cell::CellKey;
 use slamesh_core::map::MeshMap;
 use slamesh_core::map_file::{tile_of, TILE_CELLS};
@@ -63,7 +62,7 @@ impl SavedMap {
                 for dy in -reach..=reach {
                     for dz in -reach..=reach {
                         let t = CellKey::new(home.x + dx, home.y + dy, home.z + dz);
-                        if box_distance(&t, tile_m, &at) <= margin_m {
+                        if tile_distance(&t, tile_m, &at) <= margin_m {
                             tiles.insert(t);
                         }
                     }
@@ -76,10 +75,4 @@ impl SavedMap {
         }
         Ok(layers)
     }
-}
-
-/// Distance from `p` to tile `t`'s box (tiles `tile_m` on a side; 0 inside).
-fn box_distance(t: &CellKey, tile_m: f64, p: &Vector3<f64>) -> f64 {
-    let lo = Vector3::new(f64::from(t.x), f64::from(t.y), f64::from(t.z)) * tile_m;
-    Vector3::from_fn(|i, _| (lo[i] - p[i]).max(p[i] - lo[i] - tile_m).max(0.0)).norm()
 }

@@ -10,7 +10,7 @@
 //! tiles are the only memory besides the map. Only a map that takes no updates is paged: what
 //! leaves is what the file holds.
 
-use crate::formats::map_file::MapFile;
+use crate::formats::map_file::{tile_distance, MapFile};
 use crate::io::error::FileError;
 use slamesh_core::cell::CellKey;
 use slamesh_core::lattice::VERTICES;
@@ -87,17 +87,6 @@ impl MapPager {
         self.error.take()
     }
 
-    /// Distance from `p` to tile `t`'s box (0 inside).
-    fn distance(&self, t: &CellKey, p: &nalgebra::Vector3<f64>) -> f64 {
-        let lo =
-            nalgebra::Vector3::new(f64::from(t.x), f64::from(t.y), f64::from(t.z)) * self.tile_m;
-        let d = nalgebra::Vector3::from_fn(|i, _| {
-            let hi = lo[i] + self.tile_m;
-            (lo[i] - p[i]).max(p[i] - hi).max(0.0)
-        });
-        d.norm()
-    }
-
     /// Makes `map` hold the tiles around `at` (see the module docs).
     fn page(&mut self, map: &mut MeshMap, at: &nalgebra::Vector3<f64>) -> Result<(), FileError> {
         // Choosing again costs a sort of the tiles: only after a move of an eighth of a tile.
@@ -111,7 +100,7 @@ impl MapPager {
         let mut near: Vec<(f64, CellKey)> = self
             .bounds
             .keys()
-            .map(|t| (self.distance(t, at), *t))
+            .map(|t| (tile_distance(t, self.tile_m, at), *t))
             .filter(|(d, _)| *d <= self.reach_m)
             .collect();
         near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));

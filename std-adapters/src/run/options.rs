@@ -73,14 +73,20 @@ impl RunOptions {
     /// `localize` without `--update`) and every scan of the run: not a resumed run's
     /// ([`RESUMED_WITHOUT_LOOP_CLOSURE`]).
     pub fn loop_closure_unavailable(&self) -> Option<&'static str> {
+        self.loop_closure_unavailable_from_start()
+            .or(self.resume.then_some(RESUMED_WITHOUT_LOOP_CLOSURE))
+    }
+
+    /// [`RunOptions::loop_closure_unavailable`] for the run as it was started: the same
+    /// reasons but resuming. A resumed run whose start could close loops was configured for
+    /// them ([`LoopSettings::configure`]), and keeps that configuration to resume.
+    pub fn loop_closure_unavailable_from_start(&self) -> Option<&'static str> {
         if self.given_poses.is_some() {
             Some("the poses are given")
         } else if self.window.memory_cap_mb.is_some() || !self.window.rules().is_off() {
             Some("it rebuilds the whole map, so it does not run with a memory cap or a window yet")
         } else if self.localize_only {
             Some("the map is fixed (localize without --update)")
-        } else if self.resume {
-            Some(RESUMED_WITHOUT_LOOP_CLOSURE)
         } else {
             None
         }
