@@ -168,6 +168,11 @@ impl core::hash::Hasher for CellHasher {
     }
 
     #[inline]
+    fn write_i64(&mut self, i: i64) {
+        self.write_u64(i as u64);
+    }
+
+    #[inline]
     fn write_u64(&mut self, i: u64) {
         self.hash = (self.hash.rotate_left(5) ^ i).wrapping_mul(0x517c_c1b7_2722_0a95);
     }

@@ -4,27 +4,32 @@
 //! densely (points at most half a cell apart, on every triangle whatever its slope), in two
 //! passes over them:
 //! 1. **floor**: each cell keeps its lowest sample of a triangle no steeper than the robot's
-//!    slope limit. **Ground** is the floor the robot can reach from its path
+//!    slope limit (give or take [`FLOOR_NOISE_M`] across the triangle: small triangles of a
+//!    noisy floor). **Ground** is the floor the robot can reach from its path
 //!    ([`crate::navmap::ground`]): a car's roof or a pavement behind a kerb higher than a step
 //!    is floor, not ground.
 //! 2. **classify**: a cell is judged against its own ground, or where it has none against the
-//!    lowest ground within about two metres: a sample standing above that by more than a step
-//!    and no more than the robot's height makes the cell an obstacle; a ground sample gives
-//!    the cell's height and spread for the elevation grid.
+//!    nearest ground within about two metres: a sample standing above that by more than a
+//!    step and no more than the robot's height makes the cell an obstacle (but a floor
+//!    sample within [`DOUBLE_FLOOR_M`] of a ground cell's floor is that floor seen twice); a
+//!    ground sample gives the cell's height and spread for the elevation grid.
 //!
 //! Then lines of sight from the path mark what it saw ([`crate::navmap::sight`]). A cell is
-//! occupied (an obstacle stands in it), free (ground in sight, nothing standing on it) or
-//! unknown (everything else: nothing seen, only what the robot passes under, a surface with no
-//! ground near enough to judge it, ground out of sight behind a wall). The mesh holds only
+//! occupied (an obstacle stands in it, or a surface between the robot's height and the
+//! sensor's, seen from above, stands over it with no ground seen beneath: a car's roof), free
+//! (ground in sight, nothing standing on it) or unknown (everything else: nothing seen, only
+//! what the robot passes under, a surface with no ground near enough to judge it, ground out
+//! of sight behind a wall or in an obstacle's shadow). The mesh holds only
 //! triangles whose corners' mean Gaussian-process variance is below `mesh.variance_show`, so
 //! a surface the map is unsure of is no surface here: unknown, never free.
 //!
-//! Memory: cells are kept in tiles of 64 x 64, made where a triangle falls (40 bytes a cell),
+//! Memory: cells are kept in tiles of 64 x 64, made where a triangle falls (32 bytes a cell),
 //! none for the space between streets.
 
 use crate::io::error::FileError;
 use crate::navmap::robot::Robot;
 use nalgebra::{Rotation3, Vector3};
+use slamesh_core::cell::BuildCellHasher;
 use slamesh_core::Point;
 use std::collections::HashMap;
 
@@ -74,12 +79,12 @@ pub(super) struct Cell {
     pub(super) floor: f32,
     /// Whether that floor is ground: reachable from the path.
     pub(super) ground: bool,
-    /// The height the cell is judged against: its ground, or the lowest ground near it
+    /// The height the cell is judged against: its ground, or the nearest ground
     /// (infinite for none).
     pub(super) reference: f32,
     /// Ground samples within a step of `reference`, the sum of their heights above it and of
     /// its squares.
-    pub(super) n: u32,
+    pub(super) n: u16,
     pub(super) sum: f32,
     pub(super) sum_sq: f32,
     /// The heights above `reference` samples stand at: bit `b` for `b` to `b + 1` tenths of a
@@ -88,6 +93,10 @@ pub(super) struct Cell {
     pub(super) obstacle: bool,
     /// Seen from the path: a line of sight reaches it ([`Grid::carve`]).
     pub(super) visible: bool,
+    /// The highest obstacle top (level frame z, decimetres, rounded up) in the cell or a
+    /// neighbour, the height a line of sight over it must clear; `i16::MIN` for none
+    /// ([`Grid::carve`]). Small, so that a cell keeps to 32 bytes.
+    pub(super) shadow: i16,
 }
 
 impl Default for Cell {
@@ -102,9 +111,18 @@ impl Default for Cell {
             heights: 0,
             obstacle: false,
             visible: false,
+            shadow: i16::MIN,
         }
     }
 }
+
+/// The height (m) a floor's mesh may rise across a triangle through its noise alone, over the
+/// robot's slope limit ([`Grid::build`]'s floor).
+pub const FLOOR_NOISE_M: f64 = 0.02;
+
+/// How much higher (m) than a ground cell's floor a floor sample in it may lie and still be
+/// that floor seen twice ([`Grid::build`]'s obstacles: a step up is told by its steep face).
+pub const DOUBLE_FLOOR_M: f64 = 0.2;
 
 /// How far (m) from an obstacle's cell ground is taken as the obstacle's edge: the surface
 /// reconstruction carries ground up to about two tenths under a car's or a wall's foot.
@@ -118,9 +136,14 @@ pub struct Grid {
     pub(super) robot: Robot,
     /// Map frame to level frame.
     pub(super) level: Rotation3<f64>,
-    pub(super) tiles: HashMap<(i64, i64), Tile>,
-    /// Whether lines of sight were cast (a path was given): free cells must then be seen.
-    pub(super) carved: bool,
+    pub(super) tiles: HashMap<(i64, i64), Tile, BuildCellHasher>,
+    /// Where lines of sight were cast (a path was given), the sensor's median height above
+    /// the ground they were cast from: free cells must then be seen, and surfaces between the
+    /// robot's height and the sensor's were seen from above.
+    pub(super) carved: Option<f32>,
+    /// The heights above a cell's reference (bits of [`Cell::heights`]) between the robot's
+    /// and the sensor's: a surface there was seen from above. None where nothing was cast.
+    pub(super) from_above: u64,
 }
 
 /// A cell's index: column and row (level frame x and y over the resolution, floored).
@@ -142,12 +165,13 @@ impl Grid {
             resolution,
             robot,
             level,
-            tiles: HashMap::new(),
-            carved: false,
+            tiles: HashMap::default(),
+            from_above: 0,
+            carved: None,
         };
-        let floor_cos = robot.max_slope_deg.to_radians().cos();
+        let max_slope_tan = robot.max_slope_deg.to_radians().tan();
         mesh.each_triangle(&mut |t| {
-            let (corners, is_floor) = grid.levelled(t, floor_cos);
+            let (corners, is_floor) = grid.levelled(t, max_slope_tan);
             grid.samples(&corners, |g, ix, iy, z| {
                 let c = g.cell_mut(ix, iy);
                 if is_floor {
@@ -159,7 +183,7 @@ impl Grid {
         grid.grow_ground(seeds);
         grid.set_references();
         mesh.each_triangle(&mut |t| {
-            let (corners, is_floor) = grid.levelled(t, floor_cos);
+            let (corners, is_floor) = grid.levelled(t, max_slope_tan);
             grid.samples(&corners, |g, ix, iy, z| g.classify(ix, iy, z, is_floor));
         })?;
         grid.carve(path);
@@ -177,9 +201,15 @@ impl Grid {
         if (0.0..6.4).contains(&above) {
             c.heights |= 1 << (above * 10.0) as u32;
         }
-        if above > step && above <= height {
+        // A ground cell's floor seen again a little higher (two passes of a drifting map,
+        // fused as two layers) is the same floor, not a step: a step's face is steep.
+        let same_floor = c.ground && is_floor && above <= DOUBLE_FLOOR_M as f32;
+        if above > step && above <= height && !same_floor {
             c.obstacle = true;
         } else if is_floor && c.ground && above <= step {
+            if c.n == u16::MAX {
+                return;
+            }
             c.n += 1;
             c.sum += above;
             c.sum_sq += above * above;
@@ -210,21 +240,30 @@ impl Grid {
     /// cell is unknown, not free, since the obstacle's edge (a wall's foot, which the surface
     /// reconstruction rounds and carries ground under) may lie in it (unknown rather than
     /// occupied: a planner's inflation around the obstacle covers it, and a doorway keeps its
-    /// width); and a cell where nothing was seen between two free cells (a seam of the mesh
-    /// between its voxel cells, one or two cells wide) is free.
+    /// width); and a cell where nothing was seen between two occupied cells, or else between
+    /// two free ones (a seam of the mesh between its voxel cells, one or two cells wide, on a
+    /// car's roof or on a street), is occupied, or free.
     pub fn occupancy(&self, ix: i64, iy: i64) -> Occupancy {
         match self.own(ix, iy) {
             Occupancy::Free if self.touches_obstacle(ix, iy) => Occupancy::Unknown,
-            Occupancy::Unknown if self.in_seam(ix, iy) => Occupancy::Free,
+            Occupancy::Unknown if self.in_seam(ix, iy, Occupancy::Occupied) => Occupancy::Occupied,
+            Occupancy::Unknown if self.in_seam(ix, iy, Occupancy::Free) => Occupancy::Free,
             own => own,
         }
     }
 
-    /// What the cell's own samples say.
+    /// What the cell's own samples say. A surface higher than the robot but lower than the
+    /// sensor, over a cell whose ground was never seen, was seen from above: the top or the
+    /// upper face of something standing there (a car's roof, a wall above a plinth). The
+    /// robot passes under what it saw the ground beneath (or saw from below, a ceiling),
+    /// nothing else.
     fn own(&self, ix: i64, iy: i64) -> Occupancy {
         match self.cell(ix, iy) {
             Some(c) if c.obstacle => Occupancy::Occupied,
-            Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => Occupancy::Free,
+            Some(c) if c.ground && c.n > 0 && (c.visible || self.carved.is_none()) => {
+                Occupancy::Free
+            }
+            Some(c) if c.heights & self.from_above != 0 => Occupancy::Occupied,
             _ => Occupancy::Unknown,
         }
     }
@@ -240,23 +279,26 @@ impl Grid {
         })
     }
 
-    /// Whether nothing was seen in the cell and it lies between two cells free of their own,
-    /// in a row or a column, at most two cells apart.
-    fn in_seam(&self, ix: i64, iy: i64) -> bool {
+    /// Whether nothing was seen in the cell and it lies between two cells that are `what`
+    /// of their own (free ones not at an obstacle's edge), in a row or a column, at most two
+    /// cells apart: a seam of the mesh between its voxel cells, on a street or on a car's roof.
+    fn in_seam(&self, ix: i64, iy: i64, what: Occupancy) -> bool {
         let empty = |x, y| {
             self.cell(x, y)
-                .is_none_or(|c| !c.floor.is_finite() && !c.obstacle)
+                .is_none_or(|c| !c.floor.is_finite() && c.heights == 0)
         };
-        let free = |x, y| self.own(x, y) == Occupancy::Free && !self.touches_obstacle(x, y);
+        let is = |x, y| {
+            self.own(x, y) == what && (what != Occupancy::Free || !self.touches_obstacle(x, y))
+        };
         empty(ix, iy)
             && [(1, 0), (0, 1)].iter().any(|&(dx, dy)| {
-                (free(ix - dx, iy - dy) && free(ix + dx, iy + dy))
-                    || (free(ix - dx, iy - dy)
+                (is(ix - dx, iy - dy) && is(ix + dx, iy + dy))
+                    || (is(ix - dx, iy - dy)
                         && empty(ix + dx, iy + dy)
-                        && free(ix + 2 * dx, iy + 2 * dy))
-                    || (free(ix + dx, iy + dy)
+                        && is(ix + 2 * dx, iy + 2 * dy))
+                    || (is(ix + dx, iy + dy)
                         && empty(ix - dx, iy - dy)
-                        && free(ix - 2 * dx, iy - 2 * dy))
+                        && is(ix - 2 * dx, iy - 2 * dy))
             })
     }
 
@@ -265,7 +307,7 @@ impl Grid {
     pub fn elevation(&self, ix: i64, iy: i64) -> Option<(f64, f64)> {
         let c = self
             .cell(ix, iy)
-            .filter(|c| c.ground && c.n > 0 && (c.visible || !self.carved))?;
+            .filter(|c| c.ground && c.n > 0 && (c.visible || self.carved.is_none()))?;
         let n = c.n as f64;
         let mean = c.sum as f64 / n;
         let var = (c.sum_sq as f64 / n - mean * mean).max(0.0);
@@ -307,13 +349,22 @@ impl Grid {
         b
     }
 
-    /// The triangle `t` in the level frame, and whether it is floor (its normal within the
-    /// slope limit of up, either way round).
-    fn levelled(&self, t: [Point; 3], floor_cos: f64) -> ([Vector3<f64>; 3], bool) {
+    /// The triangle `t` in the level frame, and whether it is floor: its slope within the
+    /// robot's limit, or within what [`FLOOR_NOISE_M`] of height across it gives (a small
+    /// triangle of a noisy floor: with 0.5 m cells the mesh's vertices are 9 cm apart, and a
+    /// centimetre or two of noise tilts a triangle by more than a robot's limit). A wall's
+    /// triangle, nearly vertical, is never floor.
+    fn levelled(&self, t: [Point; 3], max_slope_tan: f64) -> ([Vector3<f64>; 3], bool) {
         let p = t.map(|c| self.level * Vector3::new(c[0] as f64, c[1] as f64, c[2] as f64));
         let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
-        let norm = n.norm();
-        let is_floor = norm > 0.0 && (n.z / norm).abs() >= floor_cos;
+        // |n.z| is twice the area seen from above, so |n.z| / longest is the triangle's
+        // least width seen from above: the slope a rise of FLOOR_NOISE_M across it gives.
+        let longest = [(p[1] - p[0]), (p[2] - p[1]), (p[0] - p[2])]
+            .iter()
+            .map(|e| e.xy().norm())
+            .fold(0.0f64, f64::max);
+        let (level, steep) = (n.z.abs(), n.xy().norm());
+        let is_floor = level > 0.0 && steep <= max_slope_tan * level + FLOOR_NOISE_M * longest;
         (p, is_floor)
     }
 
@@ -438,8 +489,8 @@ mod tests {
         assert_eq!(at(7.55, 10.45), Occupancy::Occupied, "the steep ramp");
         assert_eq!(
             at(7.55, 11.85),
-            Occupancy::Unknown,
-            "the steep ramp above the robot"
+            Occupancy::Occupied,
+            "the steep ramp above the robot and below the sensor, no ground seen under it"
         );
         assert_eq!(at(20.0, 20.0), Occupancy::Unknown, "nothing seen");
         let (ix, iy) = g.index_of(5.05, 5.05);
@@ -468,6 +519,11 @@ mod tests {
         let foot = at_vertex(9.85, 5.05);
         assert_eq!(mesh.cost[foot], 1.0);
         assert!(mesh.triangles.len() > mesh.vertices.len());
+    }
+
+    #[test]
+    fn a_cell_keeps_to_32_bytes() {
+        assert_eq!(std::mem::size_of::<Cell>(), 32);
     }
 
     #[test]

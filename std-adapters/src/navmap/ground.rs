@@ -5,14 +5,17 @@
 //! floor) to floor cells within [`BRIDGE_CELLS`] (a gap between scan rings is bridged) whose
 //! floor differs by no more than a step and a cell's rise at the slope limit; a kerb higher
 //! than a step, a car's roof or a table are floor, not ground. A cell with no ground of its own
-//! is judged against the lowest ground within about [`REFERENCE_M`].
+//! is judged against the nearest ground within about [`REFERENCE_M`].
 
 use crate::navmap::grid::{disc, CellIndex, Grid, TILE};
 use nalgebra::Vector3;
+use slamesh_core::cell::BuildCellHasher;
 use std::collections::HashMap;
 
 /// How far (m) a cell with no ground of its own looks for ground to be judged against.
 pub const REFERENCE_M: f64 = 2.0;
+/// The side (m) of the blocks the ground a cell is judged against is looked up in.
+pub const BLOCK_M: f64 = 0.5;
 /// How far (cells) the ground grows across a gap in the floor.
 pub const BRIDGE_CELLS: i64 = 3;
 /// How far (m) from a point of the path its ground is looked for.
@@ -126,12 +129,14 @@ impl Grid {
         }
     }
 
-    /// Each cell's reference: its ground, or the lowest ground within about [`REFERENCE_M`]
-    /// (the lowest of the blocks of a metre around it).
+    /// Each cell's reference: its ground, or the ground nearest it within about
+    /// [`REFERENCE_M`]: the lowest ground cell of the nearest block of [`BLOCK_M`] that holds
+    /// any (nearest, not lowest over the whole reach: on a slope of a few degrees the lowest
+    /// ground two metres away lies more than a step below a cell's own floor).
     pub(super) fn set_references(&mut self) {
-        let block = (1.0 / self.resolution).round().max(1.0) as i64;
+        let block = (BLOCK_M / self.resolution).round().max(1.0) as i64;
         let reach = (REFERENCE_M / (block as f64 * self.resolution)).ceil() as i64;
-        let mut lowest: HashMap<(i64, i64), f32> = HashMap::new();
+        let mut lowest: HashMap<(i64, i64), f32, BuildCellHasher> = HashMap::default();
         for (&(tx, ty), tile) in &self.tiles {
             for (k, c) in tile.iter().enumerate().filter(|(_, c)| c.ground) {
                 let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
@@ -141,6 +146,12 @@ impl Grid {
                 *b = b.min(c.floor);
             }
         }
+        // Block offsets nearest first: the first block with ground gives the reference.
+        let mut near: Vec<(i64, i64)> = (-reach..=reach)
+            .flat_map(|dy| (-reach..=reach).map(move |dx| (dx, dy)))
+            .filter(|(dx, dy)| dx * dx + dy * dy <= reach * reach)
+            .collect();
+        near.sort_by_key(|&(dx, dy)| (dx * dx + dy * dy, dy, dx));
         for (&(tx, ty), tile) in self.tiles.iter_mut() {
             for (k, c) in tile.iter_mut().enumerate() {
                 if c.ground {
@@ -149,10 +160,11 @@ impl Grid {
                 }
                 let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
                 let (bx, by) = (ix.div_euclid(block), iy.div_euclid(block));
-                c.reference = (-reach..=reach)
-                    .flat_map(|dy| (-reach..=reach).map(move |dx| (bx + dx, by + dy)))
-                    .filter_map(|b| lowest.get(&b))
-                    .fold(f32::INFINITY, |m, &v| m.min(v));
+                c.reference = near
+                    .iter()
+                    .find_map(|(dx, dy)| lowest.get(&(bx + dx, by + dy)))
+                    .copied()
+                    .unwrap_or(f32::INFINITY);
             }
         }
     }
