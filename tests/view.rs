@@ -1,9 +1,10 @@
 //! The live view and its recording (feature `view`): a recorded run read back (channels,
-//! schemas, counts, one mesh update's content); a WebSocket client that subscribes and receives
+//! schemas, counts, one mesh update's content, the occupancy grid); a WebSocket client that subscribes and receives
 //! a scan and a mesh update; and clients that must not stall the run (garbage, never reading).
 
-use foxglove::messages::{PointCloud, SceneUpdate};
+use foxglove::messages::{Grid, PointCloud, SceneUpdate};
 use foxglove::Decode;
+use slamesh::navmap::NavMapOptions;
 use slamesh::run::sink::FnSink;
 use slamesh::run::{run_to, FrameEvent, FrameRecord, RunOptions, Sinks};
 use slamesh::sources::recording::mcap::messages_of;
@@ -35,6 +36,7 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
     let view = ViewOptions {
         serve: None,
         record: true,
+        grid: Some(NavMapOptions::default()),
     };
     let mut records: Vec<FrameRecord> = Vec::new();
     // The view is one of the run's sinks, beside one that keeps the records.
@@ -50,6 +52,7 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
     let mut counts: BTreeMap<String, (String, String, usize)> = BTreeMap::new();
     let mut meshes = Vec::new();
     let mut scans = Vec::new();
+    let mut grids = Vec::new();
     for m in messages_of(&bytes).unwrap() {
         let m = m.unwrap();
         let e = counts
@@ -59,6 +62,7 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
         match m.topic.as_str() {
             "/mesh" => meshes.push(SceneUpdate::decode(&m.data[m.start..]).unwrap()),
             "/scan" => scans.push(PointCloud::decode(&m.data[m.start..]).unwrap()),
+            "/map" => grids.push(Grid::decode(&m.data[m.start..]).unwrap()),
             _ => {}
         }
     }
@@ -77,6 +81,10 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
         schema("/trajectory"),
         ("foxglove.PosesInFrame", "protobuf", 3)
     );
+
+    // The grid: after the 10th scan and at the end.
+    assert_eq!(schema("/map"), ("foxglove.Grid", "protobuf", 2));
+    check_grid(grids.last().unwrap(), &scans);
 
     // One mesh update: an entity per layer the frame fused, 36 vertices each, whole triangles.
     let (i, update) = (5, &meshes[5]);
@@ -100,6 +108,59 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
 }
 
 /// A WebSocket client of the view at `address`, with the Foxglove SDK's subprotocol.
+/// A grid on `/map`: five bytes a cell (RGBA and Nav2's value, agreeing), free and occupied
+/// cells both, and every free cell within the square the scans reached (world frame).
+fn check_grid(g: &Grid, scans: &[PointCloud]) {
+    let names: Vec<&str> = g.fields.iter().map(|f| f.name.as_str()).collect();
+    assert_eq!(names, ["red", "green", "blue", "alpha", "occupancy"]);
+    assert_eq!((g.cell_stride, g.row_stride), (5, 5 * g.column_count));
+    assert_eq!(g.data.len() % g.row_stride as usize, 0);
+    let (mut free, mut occupied) = (Vec::new(), 0);
+    let res = g.cell_size.as_ref().unwrap().x;
+    let pose = g.pose.as_ref().unwrap();
+    let (p, q) = (
+        pose.position.as_ref().unwrap(),
+        pose.orientation.as_ref().unwrap(),
+    );
+    let corner = nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(p.x, p.y, p.z),
+        nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z)),
+    );
+    for (k, cell) in g.data.chunks_exact(5).enumerate() {
+        let (value, alpha) = (cell[4] as i8, cell[3]);
+        assert!([-1, 0, 100].contains(&value), "{value}");
+        assert_eq!(
+            alpha == 0,
+            value == -1,
+            "unknown cells, and only they, are clear"
+        );
+        let (col, row) = (k % g.column_count as usize, k / g.column_count as usize);
+        let centre = nalgebra::Point3::new((col as f64 + 0.5) * res, (row as f64 + 0.5) * res, 0.0);
+        match value {
+            0 => free.push(corner * centre),
+            100 => occupied += 1,
+            _ => {}
+        }
+    }
+    assert!(
+        free.len() > 1000 && occupied > 100,
+        "{} {occupied}",
+        free.len()
+    );
+    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for s in scans {
+        for xyz in s.data.chunks_exact(12) {
+            for a in 0..2 {
+                let c = f32::from_le_bytes(xyz[4 * a..4 * a + 4].try_into().unwrap()) as f64;
+                (lo[a], hi[a]) = (lo[a].min(c), hi[a].max(c));
+            }
+        }
+    }
+    assert!(free
+        .iter()
+        .all(|c| (lo[0]..=hi[0]).contains(&c.x) && (lo[1]..=hi[1]).contains(&c.y)));
+}
+
 fn connect(address: &str) -> Client {
     let client = Client::connect(address, "foxglove.sdk.v1").unwrap();
     client.set_read_timeout(Duration::from_secs(20)).unwrap();
@@ -143,6 +204,7 @@ fn serving(out: &std::path::Path) -> (View, String) {
     let opts = ViewOptions {
         serve: Some("127.0.0.1:0".into()),
         record: false,
+        grid: None,
     };
     let view = View::start(&opts, out, &Config::default())
         .unwrap()

@@ -1,4 +1,4 @@
-//! Scratch files for unit tests.
+//! Scratch files and small map pieces for unit tests.
 
 use std::path::PathBuf;
 
@@ -14,4 +14,12 @@ pub fn scratch_file(tag: &str, name: &str, bytes: &[u8]) -> PathBuf {
     let p = scratch_dir(tag).join(name);
     std::fs::write(&p, bytes).unwrap();
     p
+}
+
+/// A flat, certain layer: every triangle shown.
+pub fn flat_layer() -> slamesh_core::layer::Layer {
+    slamesh_core::layer::Layer {
+        pred: [0.5; slamesh_core::lattice::VERTICES],
+        var: [0.01; slamesh_core::lattice::VERTICES],
+    }
 }

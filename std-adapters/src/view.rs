@@ -9,6 +9,7 @@
 //! | `/trajectory` | `foxglove.PosesInFrame` | every pose so far (at most [`MAX_POSES`], thinned evenly), every [`TRAJECTORY_EVERY`] frames and at the end |
 //! | `/mesh` | `foxglove.SceneUpdate` | one entity per map layer the frame changed (id `x,y,z,axis`), its shown triangles; an entity replaces the one of the same id |
 //! | `/loop_closures` | `foxglove.Log` | each loop closed (loop closure is on by default): the frames, the score and the correction; the whole corrected trajectory and map are sent with it |
+//! | `/map` | `foxglove.Grid` | with [`ViewOptions::grid`] (`run --navmap`): the occupancy grid a planner reads (docs/design.md §1.18), every [`GRID_EVERY`] frames and at the end: the window around the sensor made again on a thread of its own ([`crate::navmap::background`]), up the map's z; fields `red`, `green`, `blue`, `alpha` (unknown clear, free pale, occupied dark) and `occupancy` (`int8`: Nav2's -1, 0, 100) |
 //!
 //! The view is one of a run's sinks ([`crate::run::sink`]): the SLAM loop only copies the
 //! frame's points, pose and changed layers into a [`MapUpdate`] and offers it to a bounded
@@ -21,11 +22,17 @@
 //! messages cannot change or stop the run.
 
 use crate::io::error::FileError;
+use crate::navmap::background::Background;
+use crate::navmap::live::{LiveGrid, FREE, OCCUPIED};
+use crate::navmap::tiled_mesh::TiledMesh;
+use crate::navmap::NavMapOptions;
 use crate::run::sink::{FrameEvent, MapUpdate, Queued, Sink, WhenFull};
 use crate::run::Summary;
+use foxglove::messages::packed_element_field::NumericType;
 use foxglove::messages::{
-    Color, FrameTransform, Log, PackedElementField, Point3, PointCloud, Pose as FgPose,
-    PosesInFrame, Quaternion, SceneEntity, SceneUpdate, Timestamp, TriangleListPrimitive, Vector3,
+    Color, FrameTransform, Grid, Log, PackedElementField, Point3, PointCloud, Pose as FgPose,
+    PosesInFrame, Quaternion, SceneEntity, SceneUpdate, Timestamp, TriangleListPrimitive, Vector2,
+    Vector3,
 };
 use foxglove::{Channel, Context, McapWriterHandle, WebSocketServer, WebSocketServerHandle};
 use slamesh_core::cell::{Axis, CellKey};
@@ -43,16 +50,23 @@ pub const TRAJECTORY_EVERY: usize = 10;
 pub const MAX_POSES: usize = 4096;
 /// Messages a WebSocket client's backlog holds before its oldest are dropped.
 pub const CLIENT_BACKLOG: usize = 256;
+/// Frames between two grids on `/map`.
+pub const GRID_EVERY: usize = 10;
+/// The window the grid is made again in around the sensor (m), and the inner square kept (m).
+pub const GRID_WINDOW_M: (f64, f64) = (30.0, 20.0);
 /// The address `--view` serves on when none is given: this machine only.
 pub const DEFAULT_ADDRESS: &str = "127.0.0.1:8765";
 
 /// What to show and record.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct ViewOptions {
     /// Serve the live view on this `host:port`.
     pub serve: Option<String>,
     /// Write `slam.mcap` into the output folder.
     pub record: bool,
+    /// Show the occupancy grid on `/map`, made as these say (the run's `--navmap`; up the
+    /// map's z); `None`: no grid, which costs nothing.
+    pub grid: Option<NavMapOptions>,
 }
 
 impl ViewOptions {
@@ -125,7 +139,7 @@ impl View {
             }
             None => None,
         };
-        let publisher = Publisher::new(ctx, config, writer, server);
+        let publisher = Publisher::new(ctx, config, opts.grid.clone(), writer, server);
         let queue = Queued::new(publisher, QUEUE, WhenFull::DropNewest)
             .map_err(|e| FileError::at(out, format!("cannot start the view: {e}")))?;
         Ok(Some(View {
@@ -247,6 +261,8 @@ struct Publisher {
     trajectory: Channel<PosesInFrame>,
     mesh: Channel<SceneUpdate>,
     closures: Channel<Log>,
+    /// The mesh by tile, and the grid made from it (it holds `/map`'s channel), when asked.
+    grid: Option<(TiledMesh, Background<(Timestamp, u64)>)>,
     lattice: slamesh_core::lattice::LatticeTable,
     shown: Shown,
     poses: Vec<FgPose>,
@@ -260,10 +276,30 @@ impl Publisher {
     fn new(
         ctx: Arc<Context>,
         config: &Config,
+        grid: Option<NavMapOptions>,
         writer: Option<McapWriterHandle<std::io::BufWriter<std::fs::File>>>,
         server: Option<WebSocketServerHandle>,
     ) -> Self {
+        let grid = grid.map(|how| {
+            let map = ctx.channel_builder("/map").build::<Grid>();
+            let out = move |g: &LiveGrid, (time, nanos): (Timestamp, u64)| {
+                grid_message(g, time)
+                    .map(|m| map.log_with_time(&m, nanos))
+                    .is_some()
+            };
+            let how = NavMapOptions { up: None, ..how };
+            let tiles = TiledMesh::new(config.lattice().table(), Shown::new(&config.mesh));
+            let every = Background::new(
+                "slamesh-view-map",
+                GRID_EVERY,
+                how,
+                GRID_WINDOW_M,
+                Box::new(out),
+            );
+            (tiles, every)
+        });
         Publisher {
+            grid,
             scan: ctx.channel_builder("/scan").build::<PointCloud>(),
             tf: ctx.channel_builder("/tf").build::<FrameTransform>(),
             trajectory: ctx.channel_builder("/trajectory").build::<PosesInFrame>(),
@@ -324,6 +360,15 @@ impl Publisher {
             },
             nanos,
         );
+        if let Some((tiles, grid)) = &mut self.grid {
+            if let Some((path, _)) = &u.closed {
+                // The update holds every layer: the mesh anew, the ground's path corrected.
+                tiles.clear();
+                grid.correct(path.iter().map(|p| p.translation.vector));
+            }
+            tiles.update(&u.layers);
+            grid.scan(tiles, Some(u.pose.translation.vector), (time, nanos));
+        }
         self.last = Some((time, nanos));
         self.sent += 1;
     }
@@ -346,6 +391,9 @@ impl Sink for Publisher {
         if let Some((time, nanos)) = self.last {
             let poses = poses_in_frame(&self.poses, time);
             self.trajectory.log_with_time(&poses, nanos);
+            if let Some((tiles, grid)) = &mut self.grid {
+                grid.finish(tiles, (time, nanos));
+            }
         }
         if let Some(w) = self.writer.take() {
             w.close().map_err(|e| e.to_string())?;
@@ -416,12 +464,10 @@ fn point_cloud(u: &MapUpdate, time: Timestamp) -> PointCloud {
             data.extend_from_slice(&(c as f32).to_le_bytes());
         }
     }
-    // foxglove.PackedElementField's FLOAT32.
-    const FLOAT32: i32 = 7;
     let field = |name: &str, offset: u32| PackedElementField {
         name: name.into(),
         offset,
-        r#type: FLOAT32,
+        r#type: NumericType::Float32 as i32,
     };
     PointCloud {
         timestamp: Some(time),
@@ -431,6 +477,47 @@ fn point_cloud(u: &MapUpdate, time: Timestamp) -> PointCloud {
         fields: vec![field("x", 0), field("y", 4), field("z", 8)],
         data: data.into(),
     }
+}
+
+/// `grid` as a `foxglove.Grid` in `world` at `time`: five bytes a cell, colours for the 3D
+/// panel's RGBA mode and the Nav2 value; `None` before any update.
+fn grid_message(grid: &LiveGrid, time: Timestamp) -> Option<Grid> {
+    let cells = grid.cells()?;
+    let field = |name: &str, offset: u32, kind: NumericType| PackedElementField {
+        name: name.into(),
+        offset,
+        r#type: kind as i32,
+    };
+    let fields = ["red", "green", "blue", "alpha"]
+        .iter()
+        .zip(0..)
+        .map(|(name, k)| field(name, k, NumericType::Uint8))
+        .chain([field("occupancy", 4, NumericType::Int8)])
+        .collect();
+    let data: Vec<u8> = cells
+        .data
+        .iter()
+        .flat_map(|&v| {
+            let [r, g, b, a] = match v {
+                FREE => [210, 225, 210, 110],
+                OCCUPIED => [25, 25, 25, 255],
+                _ => [0, 0, 0, 0],
+            };
+            [r, g, b, a, v as u8]
+        })
+        .collect();
+    let res = grid.resolution();
+    Some(Grid {
+        timestamp: Some(time),
+        frame_id: "world".into(),
+        pose: Some(fg_pose(&grid.corner_pose(&cells))),
+        column_count: cells.width as u32,
+        cell_size: Some(Vector2 { x: res, y: res }),
+        row_stride: 5 * cells.width as u32,
+        cell_stride: 5,
+        fields,
+        data: data.into(),
+    })
 }
 
 /// One map layer as a scene entity: its 36 vertices and its shown triangles.

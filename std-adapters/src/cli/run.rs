@@ -489,6 +489,7 @@ fn view_sinks<'a>(args: &RunArgs, opts: &RunOptions) -> Result<Sinks<'a>, CliErr
         let view = crate::view::ViewOptions {
             serve: args.view.clone(),
             record: args.record,
+            grid: opts.navmap.clone(),
         };
         if view.is_on() {
             // The recording goes into the output folder, made before the run makes it.

@@ -13,8 +13,8 @@
 use crate::io::error::FileError;
 use crate::navmap::grid::{level_of, CellIndex, Grid, Occupancy, Triangles};
 use crate::navmap::NavMapOptions;
-use nalgebra::{Rotation3, Vector3};
-use slamesh_core::Point;
+use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
+use slamesh_core::{Point, Pose};
 use std::collections::BTreeMap;
 
 /// Cells along a tile's side.
@@ -155,6 +155,22 @@ impl LiveGrid {
             height,
             data,
         })
+    }
+
+    /// Where `cells` lie in the map frame: the pose of their lower-left cell's lower-left
+    /// corner, its x and y along the grid's rows and columns (the level frame turned back).
+    pub fn corner_pose(&self, cells: &Cells) -> Pose {
+        let res = self.resolution();
+        let corner = Vector3::new(
+            cells.origin.0 as f64 * res,
+            cells.origin.1 as f64 * res,
+            0.0,
+        );
+        let level_inv = self.level.inverse();
+        Pose::from_parts(
+            Translation3::from(level_inv * corner),
+            UnitQuaternion::from_rotation_matrix(&level_inv),
+        )
     }
 
     /// Bytes the cells take.

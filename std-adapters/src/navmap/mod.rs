@@ -11,11 +11,14 @@
 //! | traversability on a mesh of the ground: slope, step, roughness, border, cost | [`layers`] |
 //! | the files: Nav2's YAML and PGM, the elevation grids, `navmesh.ply`, `navmap.json` | [`files`] |
 //! | the grid kept current during a run, window by window | [`live`] |
+//! | the map's shown triangles by tile, kept current from each frame's layers | [`tiled_mesh`] |
+//! | the live grid updated on a thread of its own from those triangles | [`background`] |
 //!
 //! Up is the map's z axis (the first scan taken as level) unless the caller gives another
 //! direction; a run whose IMU levelled the map (docs/design.md §1.19) says gravity gave it.
 //! The files say which.
 
+pub mod background;
 pub mod files;
 pub mod grid;
 pub mod ground;
@@ -23,6 +26,7 @@ pub mod layers;
 pub mod live;
 pub mod robot;
 pub mod sight;
+pub mod tiled_mesh;
 
 pub use grid::{Grid, Occupancy, Triangles};
 pub use robot::Robot;

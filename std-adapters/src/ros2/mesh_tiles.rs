@@ -9,17 +9,17 @@
 //! a few frames where the sensor looks, and the bursts stay small enough for a DDS reader's
 //! socket (large bursts were lost, and the DDS writer's repair of large samples is slow).
 //!
-//! Memory: the shown triangles of every tile seen, three points each (72 bytes a triangle),
-//! and the queue of tiles to send (one entry a tile at most).
+//! The triangles are [`TiledMesh`]'s (which the node's `map` reads too); this module owns the
+//! queue of tiles to send (one entry a tile at most) and the markers.
 
+use crate::navmap::tiled_mesh::{tile_of, TileKey, TiledMesh};
 use crate::ros2::messages::{Colour, Header, Marker, MarkerArray, PoseMsg, Vector3};
 use slamesh_core::cell::{Axis, CellKey};
-use slamesh_core::lattice::{LatticeTable, VERTICES};
+use slamesh_core::lattice::LatticeTable;
 use slamesh_core::layer::{Layer, Shown};
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::collections::{BTreeSet, VecDeque};
 
-/// Cells along a tile's edge.
-pub const TILE_CELLS: i32 = 8;
+pub use crate::navmap::tiled_mesh::TILE_CELLS;
 
 /// Points in one message, at most, unless one tile has more (a tile's marker goes whole): about
 /// 60 KB, one UDP datagram on loopback.
@@ -28,25 +28,12 @@ pub const MESSAGE_POINTS: usize = 2_500;
 /// Points a frame sends, at most (about 720 KB): more when one tile alone has more.
 pub const FRAME_POINTS: usize = 30_000;
 
-type TileKey = (i32, i32, i32);
-
-/// The map's triangles by tile, as last sent.
+/// The map's triangles by tile, and the tiles waiting to be sent.
 pub struct MeshTiles {
-    lattice: LatticeTable,
-    shown: Shown,
-    /// Each tile's layers, each layer's triangles (three points each).
-    tiles: BTreeMap<TileKey, BTreeMap<(CellKey, u8), Vec<Vector3>>>,
+    mesh: TiledMesh,
     /// Tiles to send, oldest change first, and the same as a set.
     waiting: VecDeque<TileKey>,
     queued: BTreeSet<TileKey>,
-}
-
-fn tile_of(key: &CellKey) -> (i32, i32, i32) {
-    (
-        key.x.div_euclid(TILE_CELLS),
-        key.y.div_euclid(TILE_CELLS),
-        key.z.div_euclid(TILE_CELLS),
-    )
 }
 
 /// A marker id for a tile: its key's three coordinates folded into 31 bits (two tiles 1 024
@@ -60,9 +47,7 @@ impl MeshTiles {
     /// For the map's `lattice`, showing triangles as `shown` says.
     pub fn new(lattice: LatticeTable, shown: Shown) -> Self {
         MeshTiles {
-            lattice,
-            shown,
-            tiles: BTreeMap::new(),
+            mesh: TiledMesh::new(lattice, shown),
             waiting: VecDeque::new(),
             queued: BTreeSet::new(),
         }
@@ -76,41 +61,24 @@ impl MeshTiles {
 
     /// Takes the layers a frame changed; their tiles wait to be sent.
     pub fn update<'a>(&mut self, layers: impl IntoIterator<Item = &'a (CellKey, Axis, Layer)>) {
-        for (key, axis, layer) in layers {
-            let tile = tile_of(key);
-            self.queue(tile);
-            let vertices: Vec<Vector3> = (0..VERTICES)
-                .map(|j| {
-                    let v = layer.vertex(&self.lattice, key, *axis, j);
-                    Vector3 {
-                        x: v.x,
-                        y: v.y,
-                        z: v.z,
-                    }
-                })
-                .collect();
-            let triangles: Vec<Vector3> = layer
-                .triangles(&self.lattice, self.shown)
-                .flat_map(|t| t.map(|j| vertices[j]))
-                .collect();
-            let entry = self.tiles.entry(tile).or_default();
-            let id = (*key, *axis as u8);
-            if triangles.is_empty() {
-                entry.remove(&id);
-            } else {
-                entry.insert(id, triangles);
-            }
+        let layers: Vec<&(CellKey, Axis, Layer)> = layers.into_iter().collect();
+        for (key, _, _) in &layers {
+            self.queue(tile_of(key));
         }
+        self.mesh.update(layers);
     }
 
     /// Forgets every tile's triangles (after a loop closure, whose update holds every layer):
     /// every tile is sent again, deleted if the update leaves it empty.
     pub fn clear(&mut self) {
-        let all: Vec<TileKey> = self.tiles.keys().copied().collect();
-        for t in all {
+        for t in self.mesh.clear() {
             self.queue(t);
         }
-        self.tiles.clear();
+    }
+
+    /// The triangles by tile.
+    pub fn mesh(&self) -> &TiledMesh {
+        &self.mesh
     }
 
     /// Tiles waiting to be sent.
@@ -144,19 +112,17 @@ impl MeshTiles {
     }
 
     fn points_of(&self, t: TileKey) -> usize {
-        self.tiles
-            .get(&t)
-            .map_or(0, |layers| layers.values().map(Vec::len).sum())
+        self.mesh.points_of(t).count()
     }
 
     fn marker(&self, t: TileKey, header: &Header) -> Marker {
         {
             {
                 let points: Vec<Vector3> = self
-                    .tiles
-                    .get(&t)
-                    .map(|layers| layers.values().flatten().copied().collect())
-                    .unwrap_or_default();
+                    .mesh
+                    .points_of(t)
+                    .map(|&[x, y, z]| Vector3 { x, y, z })
+                    .collect();
                 Marker {
                     header: header.clone(),
                     ns: "mesh".into(),
@@ -185,54 +151,12 @@ impl MeshTiles {
             }
         }
     }
-
-    /// Calls `each` with the triangles of the tiles within `half` metres of `centre` along x
-    /// and y (the engine's world).
-    pub fn each_triangle_near(
-        &self,
-        centre: [f64; 2],
-        half: f64,
-        each: &mut dyn FnMut([slamesh_core::Point; 3]),
-    ) {
-        let side = f64::from(TILE_CELLS) * self.lattice.cell_size;
-        let near = |t: i32, c: f64| {
-            let lo = f64::from(t) * side;
-            lo <= c + half && lo + side >= c - half
-        };
-        let tiles =
-            (self.tiles.iter()).filter(|(t, _)| near(t.0, centre[0]) && near(t.1, centre[1]));
-        for (_, layers) in tiles {
-            for points in layers.values() {
-                for t in points.chunks_exact(3) {
-                    each(std::array::from_fn(|k| {
-                        [t[k].x as f32, t[k].y as f32, t[k].z as f32]
-                    }));
-                }
-            }
-        }
-    }
-
-    /// Triangles held, over all tiles.
-    pub fn triangles(&self) -> usize {
-        self.tiles
-            .values()
-            .flat_map(|l| l.values())
-            .map(|t| t.len() / 3)
-            .sum()
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A flat, certain layer: every triangle shown.
-    fn flat() -> Layer {
-        Layer {
-            pred: [0.5; VERTICES],
-            var: [0.01; VERTICES],
-        }
-    }
+    use crate::test_support::flat_layer;
 
     fn tiles() -> MeshTiles {
         let config = slamesh_core::Config::default();
@@ -252,11 +176,11 @@ mod tests {
         // Three tiles: two cells in tile (0, 0, 0), one in (1, 0, 0), one in (0, 2, 0).
         let layers: Vec<(CellKey, Axis, Layer)> = [(0, 0), (1, 0), (8, 0), (0, 16)]
             .iter()
-            .map(|&(x, y)| (CellKey { x, y, z: 0 }, Axis::Z, flat()))
+            .map(|&(x, y)| (CellKey { x, y, z: 0 }, Axis::Z, flat_layer()))
             .collect();
         t.update(&layers);
         assert_eq!(t.waiting(), 3);
-        let per_layer = t.triangles() / 4 * 3;
+        let per_layer = t.mesh().triangles() / 4 * 3;
         assert!(per_layer > 0);
         // A budget of one layer's points: one tile a frame (the first whole, even if larger).
         let first = t.next_messages(per_layer, &header());
@@ -282,8 +206,7 @@ mod tests {
     }
 
     #[test]
-    fn tiles_and_ids() {
-        assert_eq!(tile_of(&CellKey { x: 7, y: -1, z: 8 }), (0, -1, 1));
+    fn tile_ids() {
         assert_ne!(tile_id((0, 0, 1)), tile_id((0, 1, 0)));
         assert!(tile_id((-1, -1, -1)) >= 0);
     }

@@ -1,0 +1,217 @@
+//! A [`LiveGrid`] kept current on a thread of its own while a run goes on (the ROS 2 node's
+//! `map`, the live view's `/map`): every `every` scans the window around the sensor is rebuilt
+//! from the triangles of a [`TiledMesh`] near it (copied, so the run never waits for the
+//! grid), and the grid is handed to the caller's `out` from that thread as soon as it is made;
+//! an update due while the last is still being made is skipped (counted); at the end, once
+//! more.
+//!
+//! It owns the grid, the path the ground is grown from (the sensor's positions, corrected
+//! after a loop closure) and the update times (the last [`TIMES`], for a median and a 95th
+//! percentile). Each update carries a tag of the caller's (a message header, a time stamp)
+//! to `out` with the grid.
+
+use crate::io::error::FileError;
+use crate::navmap::grid::Triangles;
+use crate::navmap::live::LiveGrid;
+use crate::navmap::tiled_mesh::TiledMesh;
+use crate::navmap::NavMapOptions;
+use nalgebra::Vector3;
+use slamesh_core::Point;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+/// Update times kept.
+pub const TIMES: usize = 1000;
+
+/// What takes a grid once it is made, with its update's tag: true when it went out.
+pub type Out<T> = Box<dyn FnMut(&LiveGrid, T) -> bool + Send>;
+
+/// The grid, its thread, and what its updates cost.
+pub struct Background<T: Send + 'static> {
+    grid: Arc<Mutex<LiveGrid>>,
+    /// The rebuilt window's side (m).
+    window_m: f64,
+    /// Scans between updates, and scans since the last.
+    every: usize,
+    since: usize,
+    /// The sensor's positions so far (the engine's world), the ground's seeds.
+    path: Vec<Vector3<f64>>,
+    /// Update times (ms).
+    times: Arc<Mutex<Vec<f64>>>,
+    /// Where a grid goes once made, and how many went.
+    out: Arc<Mutex<Out<T>>>,
+    sent: Arc<AtomicU64>,
+    /// The worker's queue (one update at most) and thread.
+    jobs: Option<SyncSender<Job<T>>>,
+    worker: Option<JoinHandle<()>>,
+    /// Updates not made because the last one was still being made.
+    skipped: u64,
+}
+
+/// An update for the worker: the window's triangles (copied), the path near it, where, and
+/// the caller's tag.
+struct Job<T> {
+    triangles: Vec<[Point; 3]>,
+    path: Vec<Vector3<f64>>,
+    at: Vector3<f64>,
+    tag: T,
+}
+
+impl<T: Send + 'static> Background<T> {
+    /// A grid made as `how` says from windows of `window_m` metres keeping their inner
+    /// `keep_m`, updated every `every` scans on a thread named `name`, each grid handed to
+    /// `out`. With no thread to be had, the grid is made at the end only (said in the log).
+    pub fn new(
+        name: &str,
+        every: usize,
+        how: NavMapOptions,
+        (window_m, keep_m): (f64, f64),
+        out: Out<T>,
+    ) -> Self {
+        let mut b = Background {
+            grid: Arc::new(Mutex::new(LiveGrid::new(how, window_m, keep_m))),
+            window_m,
+            every: every.max(1),
+            since: 0,
+            path: Vec::new(),
+            times: Arc::default(),
+            out: Arc::new(Mutex::new(out)),
+            sent: Arc::default(),
+            jobs: None,
+            worker: None,
+            skipped: 0,
+        };
+        let (tx, rx) = sync_channel::<Job<T>>(1);
+        let work = b.work();
+        let spawned = std::thread::Builder::new()
+            .name(name.into())
+            .spawn(move || {
+                for job in rx {
+                    work(job);
+                }
+            });
+        match spawned {
+            Ok(worker) => (b.jobs, b.worker) = (Some(tx), Some(worker)),
+            Err(e) => {
+                log::warn!("{name}: no thread for the grid ({e}): it is made at the end only")
+            }
+        }
+        b
+    }
+
+    /// What the worker does with a job: the update, timed, and the grid handed out.
+    fn work(&self) -> impl Fn(Job<T>) + Send + 'static {
+        let (grid, times) = (self.grid.clone(), self.times.clone());
+        let (out, sent) = (self.out.clone(), self.sent.clone());
+        move |job: Job<T>| {
+            let t = Instant::now();
+            let Ok(mut g) = grid.lock() else { return };
+            let mut soup = Soup(job.triangles);
+            if let Err(e) = g.update(&mut soup, &job.path, &job.at) {
+                log::warn!("grid: {e}");
+                return;
+            }
+            if let Ok(mut times) = times.lock() {
+                if times.len() == TIMES {
+                    times.remove(0);
+                }
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            if let Ok(mut out) = out.lock() {
+                if out(&g, job.tag) {
+                    sent.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+    }
+
+    /// The path corrected (after a loop closure): the sensor's positions, oldest first.
+    pub fn correct(&mut self, corrected: impl IntoIterator<Item = Vector3<f64>>) {
+        self.path = corrected.into_iter().collect();
+    }
+
+    /// After a scan at `at` (the sensor's position, the engine's world; `None`: a scan not
+    /// used): when due, the window around the last position goes to the worker with the
+    /// triangles of `mesh` near it (an update still being made skips this one, counted).
+    pub fn scan(&mut self, mesh: &TiledMesh, at: Option<Vector3<f64>>, tag: T) {
+        self.path.extend(at);
+        let Some(at) = self.path.last().copied() else {
+            return;
+        };
+        self.since += 1;
+        if self.since < self.every {
+            return;
+        }
+        self.since = 0;
+        let Some(jobs) = &self.jobs else { return };
+        match jobs.try_send(self.job(mesh, at, tag)) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_)) => self.skipped += 1,
+            Err(TrySendError::Disconnected(_)) => self.jobs = None,
+        }
+    }
+
+    fn job(&self, mesh: &TiledMesh, at: Vector3<f64>, tag: T) -> Job<T> {
+        let mut triangles = Vec::new();
+        // Wide enough for the window turned by a tilted up.
+        let half = self.window_m / 2.0 + 5.0;
+        mesh.each_triangle_near([at.x, at.y], half, &mut |t| triangles.push(t));
+        let near = |p: &Vector3<f64>| (p.x - at.x).abs() <= half && (p.y - at.y).abs() <= half;
+        let path = self.path.iter().filter(|p| near(p)).copied().collect();
+        Job {
+            triangles,
+            path,
+            at,
+            tag,
+        }
+    }
+
+    /// The end: the worker finishes, and the window around the last position is made once
+    /// more and handed out (nothing when no scan was used).
+    pub fn finish(&mut self, mesh: &TiledMesh, tag: T) {
+        self.jobs = None;
+        if let Some(w) = self.worker.take() {
+            let _ = w.join();
+        }
+        if let Some(at) = self.path.last().copied() {
+            (self.work())(self.job(mesh, at, tag));
+        }
+    }
+
+    /// Grids handed out.
+    pub fn sent(&self) -> u64 {
+        self.sent.load(Ordering::Relaxed)
+    }
+
+    /// Updates made (of the last [`TIMES`]), their median and 95th percentile (ms), updates
+    /// skipped (the last still being made), and the cells' bytes.
+    pub fn costs(&self) -> (usize, f64, f64, u64, usize) {
+        let mut t = self.times.lock().map(|t| t.clone()).unwrap_or_default();
+        t.sort_by(f64::total_cmp);
+        let at = |q: f64| {
+            t.get(((t.len() as f64 - 1.0) * q).round() as usize)
+                .copied()
+        };
+        let bytes = self.grid.lock().map_or(0, |g| g.bytes());
+        (
+            t.len(),
+            at(0.5).unwrap_or(0.0),
+            at(0.95).unwrap_or(0.0),
+            self.skipped,
+            bytes,
+        )
+    }
+}
+
+/// Triangles copied out of the tiles.
+struct Soup(Vec<[Point; 3]>);
+
+impl Triangles for Soup {
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
+        self.0.iter().for_each(|t| each(*t));
+        Ok(())
+    }
+}

@@ -1,0 +1,151 @@
+//! The map's shown triangles by tile of [`TILE_CELLS`]³ cells, kept current from the layers
+//! each frame changes: what a grid made while a run goes on reads near the sensor
+//! ([`crate::navmap::background`]: the ROS 2 node's `map`, the live view's `/map`), and what
+//! the node's mesh markers are made of (`ros2::mesh_tiles`).
+//!
+//! Memory: the shown triangles of every tile seen, three points each (72 bytes a triangle).
+
+use slamesh_core::cell::{Axis, CellKey};
+use slamesh_core::lattice::{LatticeTable, VERTICES};
+use slamesh_core::layer::{Layer, Shown};
+use std::collections::BTreeMap;
+
+/// Cells along a tile's edge.
+pub const TILE_CELLS: i32 = 8;
+
+/// A tile's key: its cells' keys divided by [`TILE_CELLS`].
+pub type TileKey = (i32, i32, i32);
+
+/// The tile holding cell `key`.
+pub fn tile_of(key: &CellKey) -> TileKey {
+    (
+        key.x.div_euclid(TILE_CELLS),
+        key.y.div_euclid(TILE_CELLS),
+        key.z.div_euclid(TILE_CELLS),
+    )
+}
+
+/// The map's shown triangles (the engine's world) by tile.
+pub struct TiledMesh {
+    lattice: LatticeTable,
+    shown: Shown,
+    tiles: BTreeMap<TileKey, Layers>,
+}
+
+/// A tile's layers (by cell and axis), each layer's triangles (three points each).
+type Layers = BTreeMap<(CellKey, u8), Vec<[f64; 3]>>;
+
+impl TiledMesh {
+    /// For the map's `lattice`, showing triangles as `shown` says.
+    pub fn new(lattice: LatticeTable, shown: Shown) -> Self {
+        TiledMesh {
+            lattice,
+            shown,
+            tiles: BTreeMap::new(),
+        }
+    }
+
+    /// Takes the layers a frame changed, as they are after it: a layer that shows nothing
+    /// leaves its tile.
+    pub fn update<'a>(&mut self, layers: impl IntoIterator<Item = &'a (CellKey, Axis, Layer)>) {
+        for (key, axis, layer) in layers {
+            let vertices: Vec<[f64; 3]> = (0..VERTICES)
+                .map(|j| {
+                    let v = layer.vertex(&self.lattice, key, *axis, j);
+                    [v.x, v.y, v.z]
+                })
+                .collect();
+            let triangles: Vec<[f64; 3]> = layer
+                .triangles(&self.lattice, self.shown)
+                .flat_map(|t| t.map(|j| vertices[j]))
+                .collect();
+            let entry = self.tiles.entry(tile_of(key)).or_default();
+            let id = (*key, *axis as u8);
+            if triangles.is_empty() {
+                entry.remove(&id);
+            } else {
+                entry.insert(id, triangles);
+            }
+        }
+    }
+
+    /// Forgets every tile's triangles (after a loop closure, whose update holds every layer)
+    /// and says which tiles there were.
+    pub fn clear(&mut self) -> Vec<TileKey> {
+        let all = self.tiles.keys().copied().collect();
+        self.tiles.clear();
+        all
+    }
+
+    /// Tile `t`'s triangles' points, three a triangle, layer by layer.
+    pub fn points_of(&self, t: TileKey) -> impl Iterator<Item = &[f64; 3]> {
+        self.tiles
+            .get(&t)
+            .into_iter()
+            .flat_map(|l| l.values().flatten())
+    }
+
+    /// Calls `each` with the triangles of the tiles within `half` metres of `centre` along x
+    /// and y (the engine's world).
+    pub fn each_triangle_near(
+        &self,
+        centre: [f64; 2],
+        half: f64,
+        each: &mut dyn FnMut([slamesh_core::Point; 3]),
+    ) {
+        let side = f64::from(TILE_CELLS) * self.lattice.cell_size;
+        let near = |t: i32, c: f64| {
+            let lo = f64::from(t) * side;
+            lo <= c + half && lo + side >= c - half
+        };
+        let tiles =
+            (self.tiles.iter()).filter(|(t, _)| near(t.0, centre[0]) && near(t.1, centre[1]));
+        for (_, layers) in tiles {
+            for points in layers.values() {
+                for t in points.chunks_exact(3) {
+                    each(std::array::from_fn(|k| t[k].map(|c| c as f32)));
+                }
+            }
+        }
+    }
+
+    /// Triangles held, over all tiles.
+    pub fn triangles(&self) -> usize {
+        self.tiles
+            .values()
+            .flat_map(|l| l.values())
+            .map(|t| t.len() / 3)
+            .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::flat_layer;
+
+    #[test]
+    fn layers_fill_their_tiles_and_the_near_ones_are_handed_over() {
+        let config = slamesh_core::Config::default();
+        let mut m = TiledMesh::new(config.lattice().table(), Shown::new(&config.mesh));
+        // Cells in tile (0, 0, 0), (1, 0, 0) and (0, 2, 0): 8 cells of 1.6 m to a tile.
+        let layers: Vec<(CellKey, Axis, Layer)> = [(0, 0), (8, 0), (0, 16)]
+            .iter()
+            .map(|&(x, y)| (CellKey { x, y, z: 0 }, Axis::Z, flat_layer()))
+            .collect();
+        m.update(&layers);
+        let per_layer = m.triangles() / 3;
+        assert!(per_layer > 0);
+        assert_eq!(m.points_of((1, 0, 0)).count(), 3 * per_layer);
+        // Within 5 m of the origin: tile (0, 0, 0) and, its edge at 12.8 m, not the others.
+        let mut near = 0;
+        m.each_triangle_near([0.0, 0.0], 5.0, &mut |_| near += 1);
+        assert_eq!(near, per_layer);
+        // A layer that shows nothing leaves its tile; clearing says which tiles there were.
+        m.update(&[(CellKey { x: 8, y: 0, z: 0 }, Axis::Z, Layer::UNKNOWN)]);
+        assert_eq!(m.points_of((1, 0, 0)).count(), 0);
+        assert_eq!(m.clear().len(), 3);
+        assert_eq!(m.triangles(), 0);
+        assert_eq!(tile_of(&CellKey { x: 7, y: -1, z: 8 }), (0, -1, 1));
+    }
+}
