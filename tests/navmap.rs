@@ -408,6 +408,71 @@ fn the_office_s_navigation_map_against_the_truth() {
     );
 }
 
+/// A mesh PLY's vertices with `ground` and `cost` among their properties: ground vertices
+/// that are not lethal lie in free cells of `grid` (the map's z up: the grid's frame is the
+/// map's), vertices off the ground are lethal, and both kinds are there.
+fn check_mesh_layers(path: &Path, grid: &Nav2Map) {
+    let bytes = std::fs::read(path).unwrap();
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    let mut count = 0;
+    // Each vertex property's name and size in bytes.
+    let mut props: Vec<(String, usize)> = Vec::new();
+    for line in header.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        match w.as_slice() {
+            ["element", "vertex", n] => count = n.parse().unwrap(),
+            ["element", ..] if count > 0 => break,
+            ["property", kind, name] => {
+                props.push((name.to_string(), if *kind == "uchar" { 1 } else { 4 }))
+            }
+            _ => {}
+        }
+    }
+    let at = |name: &str| {
+        let k = props.iter().position(|(n, _)| n == name).unwrap();
+        props[..k].iter().map(|p| p.1).sum::<usize>()
+    };
+    let stride: usize = props.iter().map(|p| p.1).sum();
+    let (x, y, ground, cost) = (at("x"), at("y"), at("ground"), at("cost"));
+    for layer in ["slope_deg", "step_m", "roughness_m", "border"] {
+        at(layer);
+    }
+    let float = |v: usize, off: usize| {
+        let i = end + v * stride + off;
+        f32::from_le_bytes(bytes[i..i + 4].try_into().unwrap())
+    };
+    let (mut on_ground, mut off_ground) = (0, 0);
+    for v in 0..count {
+        let (g, c) = (float(v, ground), float(v, cost));
+        if g == 0.0 {
+            assert_eq!(c, 1.0, "a vertex off the ground is lethal");
+            off_ground += 1;
+        } else if c < 1.0 {
+            // The cell as the grid finds it (x over the resolution, floored), less the corner's.
+            let cell = |at: usize, origin: f64| {
+                let c = (float(v, at) as f64 / grid.resolution).floor();
+                (c - (origin / grid.resolution).round()) as usize
+            };
+            let (col, row) = (cell(x, grid.origin[0]), cell(y, grid.origin[1]));
+            assert_eq!(
+                grid.value(col, grid.height - 1 - row),
+                0,
+                "vertex {v} of {path:?}"
+            );
+            on_ground += 1;
+        }
+    }
+    assert!(
+        on_ground > 100 && off_ground > 100,
+        "{on_ground} {off_ground}"
+    );
+}
+
 /// `run --navmap` and `navmap` of the map it saved write the same occupancy grid (the same
 /// mesh, the same path); `navmap` of its PLY mesh grows the ground from the largest floor;
 /// a bad robot file is refused, naming it.
@@ -449,6 +514,11 @@ fn the_command_s_navigation_maps() {
             header.contains(&format!("property float {layer}\n")),
             "{layer}"
         );
+    }
+    // The layers on the SLAM mesh's own vertices, in the run's mesh and in the command's.
+    let run_grid = Nav2Map::read(&run_out);
+    for mesh in [run_out.join("mesh.ply"), from_map.join("mesh.ply")] {
+        check_mesh_layers(&mesh, &run_grid);
     }
     let report = std::fs::read_to_string(run_out.join("report.json")).unwrap();
     assert!(report.contains("\"navmap\"") && report.contains("first scan taken as level"));

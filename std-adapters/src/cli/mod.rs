@@ -140,7 +140,8 @@ enum Command {
     /// both paths in A's frame; refused, saying why, when B is not found.
     Merge(merge::MergeArgs),
     /// Make a navigation map from a saved map or a PLY mesh: Nav2's map.yaml + map.pgm (an
-    /// occupancy grid for --robot) and the ground's elevation grids.
+    /// occupancy grid for --robot), the ground's elevation grids and traversability
+    /// (navmesh.ply; from a saved map, its mesh.ply with the layers on its vertices).
     Navmap(navmap::NavMapArgs),
     /// Run as a ROS 2 node (no ROS installation needed): scans on `points`
     /// (sensor_msgs/PointCloud2), poses on `odom` and `/tf`, the path, the mesh as markers

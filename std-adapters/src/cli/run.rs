@@ -68,7 +68,8 @@ pub struct RunArgs {
     pub no_picture: bool,
     /// Also write a navigation map for --robot: Nav2's map.yaml + map.pgm, the elevation
     /// grids (elevation.asc, elevation_variance.asc), the ground's traversability
-    /// (navmesh.ply) and navmap.json.
+    /// (navmesh.ply, and on mesh.ply's vertices) and navmap.json; with --view or --record,
+    /// the grid near the sensor on /map as the run goes.
     #[arg(long)]
     pub navmap: bool,
     /// The robot and cell size of --navmap.

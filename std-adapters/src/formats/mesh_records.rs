@@ -1,6 +1,6 @@
 //! The records a mesh is spooled as and written from: a vertex record (position, normal,
-//! variance as `f32`), a face record, the colour ramp over a vertex's float, and the counts of
-//! a finished file. Shared by the spool ([`crate::outputs::mesh_spool`]) and the writers that read
+//! variance as `f32`), a face record, the colour ramp over a vertex's float, properties
+//! computed per vertex, and the counts of a finished file. Shared by the spool ([`crate::outputs::mesh_spool`]) and the writers that read
 //! its records ([`crate::formats::ply`], [`crate::formats::obj`]), so that neither depends on the other.
 
 /// Bytes of a spooled vertex: x, y, z, nx, ny, nz, variance as little-endian `f32` (a PLY
@@ -26,6 +26,15 @@ impl VertexColour {
         let f = (v - self.low) / (self.high - self.low).max(1e-6);
         ramp(f).map(|c| (c * 255.0).clamp(0.0, 255.0) as u8)
     }
+}
+
+/// Named `float` properties computed for each vertex from its position, appended to a PLY
+/// mesh's vertex records (the navigation layers on the SLAM mesh, [`crate::navmap::layers`]).
+pub trait VertexProperties {
+    /// The properties' names, in order.
+    fn names(&self) -> &[&'static str];
+    /// The values at `position` (x, y, z), one for each name, into `out`.
+    fn values(&mut self, position: [f32; 3], out: &mut [f32]);
 }
 
 /// Float `k` of a little-endian record.

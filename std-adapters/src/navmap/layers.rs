@@ -10,14 +10,19 @@
 //!   robot's; otherwise the largest of slope over its limit, step over its limit, roughness
 //!   over the step limit, and 0.5 at a border; below 1.
 //!
+//! The same layers go on the SLAM mesh's own vertices ([`OnMesh`]: `mesh.ply` with
+//! `--navmap`), with `ground` saying which vertices are ground.
+//!
 //! Vertices are in the grid's frame (the map's when up is its z). PLY readers that keep extra
 //! vertex properties (plyfile, Open3D's tensor API, trimesh's `metadata`) read the layers by
 //! name; mesh_navigation's `mesh_map` takes its own layers from a mesh, and these give it
 //! (or a planner of one's own) the same quantities precomputed for the robot.
 
+use crate::formats::mesh_records::VertexProperties;
 use crate::navmap::grid::{CellIndex, Grid, Occupancy};
 use crate::navmap::robot::Robot;
 use nalgebra::{Matrix3, Vector3};
+use slamesh_core::cell::BuildCellHasher;
 use slamesh_core::Point;
 use std::collections::HashMap;
 
@@ -81,6 +86,67 @@ impl NavMesh {
             ("border", &self.border),
             ("cost", &self.cost),
         ]
+    }
+}
+
+/// The layers on the SLAM mesh's own vertices (`mesh.ply` with `--navmap`): a vertex on the
+/// ground (within a step of its cell's ground height) carries its cell's layers, as
+/// `navmesh.ply`'s vertices do, and `ground` 1; any other (a wall, a car's roof, a ceiling)
+/// `ground` 0, `cost` 1 (lethal: nothing to drive on) and no slope, step or roughness (NaN).
+/// Each cell's layers are worked out once.
+pub struct OnMesh<'a> {
+    grid: &'a Grid,
+    robot: Robot,
+    footprint: Vec<(i64, i64)>,
+    done: HashMap<CellIndex, [f32; 5], BuildCellHasher>,
+}
+
+impl<'a> OnMesh<'a> {
+    /// The layers of `grid` for `robot`.
+    pub fn new(grid: &'a Grid, robot: Robot) -> Self {
+        let r = (robot.radius_m / grid.resolution()).ceil().max(1.0) as i64;
+        OnMesh {
+            grid,
+            robot,
+            footprint: footprint(r),
+            done: HashMap::default(),
+        }
+    }
+}
+
+impl VertexProperties for OnMesh<'_> {
+    fn names(&self) -> &[&'static str] {
+        &[
+            "ground",
+            "slope_deg",
+            "step_m",
+            "roughness_m",
+            "border",
+            "cost",
+        ]
+    }
+
+    fn values(&mut self, position: [f32; 3], out: &mut [f32]) {
+        let q = self.grid.level() * Vector3::from(position.map(f64::from));
+        let c = self.grid.index_of(q.x, q.y);
+        let on_ground = self
+            .grid
+            .elevation(c.0, c.1)
+            .is_some_and(|(h, _)| (q.z - h).abs() <= self.robot.max_step_m);
+        let values = if on_ground {
+            let (grid, footprint, robot) = (self.grid, &self.footprint, &self.robot);
+            let l = *self.done.entry(c).or_insert_with(|| {
+                let l = Layers::at(grid, c, footprint, robot);
+                let border = if l.border { 1.0 } else { 0.0 };
+                [l.slope_deg, l.step_m, l.roughness_m, border, l.cost].map(|v| v as f32)
+            });
+            [1.0, l[0], l[1], l[2], l[3], l[4]]
+        } else {
+            [0.0, f32::NAN, f32::NAN, f32::NAN, 0.0, 1.0]
+        };
+        for (o, v) in out.iter_mut().zip(values) {
+            *o = v;
+        }
     }
 }
 

@@ -37,13 +37,14 @@ use std::path::Path;
 
 /// Builds the navigation map of the triangles `mesh` hands over (the ground grown from
 /// `path`, sensor positions in the map frame) and writes its files into `dir`
-/// ([`files::write`]); `None` when the mesh held nothing to map.
+/// ([`files::write`]); the summary is `None` when the mesh held nothing to map. The grid comes
+/// back for the layers on the mesh's own vertices ([`layers::OnMesh`]).
 pub fn make(
     mesh: &mut dyn Triangles,
     path: &[Vector3<f64>],
     how: &NavMapOptions,
     dir: &Path,
-) -> Result<Option<files::NavMapSummary>, FileError> {
+) -> Result<(Option<files::NavMapSummary>, Grid), FileError> {
     let t = std::time::Instant::now();
     let grid = Grid::build(mesh, how.robot, how.resolution_m, how.up().0, path)?;
     let summary = files::write(dir, &grid, how)?;
@@ -55,7 +56,7 @@ pub fn make(
         ),
         None => log::warn!("navigation map: the mesh holds no ground or obstacle; none written"),
     }
-    Ok(summary)
+    Ok((summary, grid))
 }
 
 /// How a navigation map is made.

@@ -11,7 +11,7 @@
 //! A face may use a vertex of an earlier set; the spool keeps that vertex's position once
 //! more, in face order, so that [`MeshSpool::for_each_triangle`] reads one set at a time.
 
-use crate::formats::mesh_records::float;
+use crate::formats::mesh_records::{float, VertexProperties};
 pub use crate::formats::mesh_records::{MeshCounts, VertexColour, FACE_BYTES, VERTEX_BYTES};
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
@@ -410,7 +410,16 @@ impl MeshSpool {
     }
 
     /// Writes everything added to each `(path, format)` (atomically) and removes the spool.
-    pub fn finish(mut self, outputs: &[(PathBuf, MeshFormat)]) -> Result<MeshCounts, FileError> {
+    pub fn finish(self, outputs: &[(PathBuf, MeshFormat)]) -> Result<MeshCounts, FileError> {
+        self.finish_with(outputs, None)
+    }
+
+    /// [`finish`](Self::finish), with `extra`'s properties on every vertex of the PLY files.
+    pub fn finish_with(
+        mut self,
+        outputs: &[(PathBuf, MeshFormat)],
+        mut extra: Option<&mut dyn VertexProperties>,
+    ) -> Result<MeshCounts, FileError> {
         self.flush()?;
         let colour = match self.colour {
             MeshColour::None => None,
@@ -429,7 +438,10 @@ impl MeshSpool {
             }),
         };
         for (target, format) in outputs {
-            self.write(target, *format, colour)?;
+            let extra = extra
+                .as_mut()
+                .map(|e| &mut **e as &mut dyn VertexProperties);
+            self.write(target, *format, colour, extra)?;
         }
         Ok(self.counts)
     }
@@ -439,6 +451,7 @@ impl MeshSpool {
         target: &Path,
         format: MeshFormat,
         colour: Option<VertexColour>,
+        mut extra: Option<&mut dyn VertexProperties>,
     ) -> Result<(), FileError> {
         let counts = self.counts;
         let paths = &self.paths;
@@ -452,6 +465,9 @@ impl MeshSpool {
                     &mut faces,
                     counts,
                     colour,
+                    extra
+                        .as_mut()
+                        .map(|e| &mut **e as &mut dyn VertexProperties),
                 ),
                 MeshFormat::Obj => {
                     crate::formats::obj::write_mesh_records(w, &mut vertices, &mut faces, counts)

@@ -13,10 +13,12 @@
 //! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
 
 use crate::formats::map_file::MapWriter;
+use crate::formats::mesh_records::VertexProperties;
 use crate::inertial::Inertial;
 use crate::io::error::FileError;
 use crate::loop_closure::LoopClosure;
 use crate::navmap::files::NavMapSummary;
+use crate::navmap::layers::OnMesh;
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::checkpoint::{self, Progress};
@@ -425,7 +427,8 @@ fn write_mesh(
             if how.up.is_none() {
                 how.up = up;
             }
-            crate::navmap::make(&mut spool, &path, &how, out)?
+            let (summary, grid) = crate::navmap::make(&mut spool, &path, &how, out)?;
+            summary.map(|s| (s, grid, how.robot))
         }
         _ => None,
     };
@@ -435,7 +438,12 @@ fn write_mesh(
         .filter(|_| used)
         .map(|&f| (out.join(f.file_name()), f))
         .collect();
-    Ok((spool.finish(&outputs)?, navmap))
+    // With a navigation map, its layers on the mesh's vertices.
+    let mut layers = (navmap.as_ref()).map(|(_, g, robot)| OnMesh::new(g, *robot));
+    let extra = layers.as_mut().map(|l| l as &mut dyn VertexProperties);
+    let counts = spool.finish_with(&outputs, extra)?;
+    drop(layers);
+    Ok((counts, navmap.map(|(s, _, _)| s)))
 }
 
 /// Finishes the map file being written (`saved`, from `--save-map`, shown as `shown_as`):

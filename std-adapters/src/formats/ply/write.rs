@@ -1,6 +1,8 @@
 //! PLY written: point clouds and the run's mesh (binary little-endian).
 
-use crate::formats::mesh_records::{MeshCounts, VertexColour, VERTEX_BYTES};
+use crate::formats::mesh_records::{
+    float, MeshCounts, VertexColour, VertexProperties, VERTEX_BYTES,
+};
 use crate::io::error::FileError;
 use slamesh_core::Point;
 use std::io::{Read, Write};
@@ -26,39 +28,49 @@ pub fn write_points(path: &Path, points: &[Point]) -> Result<(), FileError> {
 /// Writes a binary little-endian PLY mesh from spooled records ([`crate::outputs::mesh_spool`]):
 /// `counts.vertices` vertex records (x, y, z, nx, ny, nz, variance as little-endian `f32`,
 /// PLY's own binary records, copied after the header, with `red green blue` appended when
-/// `colour` is given) and `counts.triangles` face records (a `u8` 3 and three little-endian
-/// `u32`).
+/// `colour` is given, then each of `extra`'s properties as a `float`) and `counts.triangles`
+/// face records (a `u8` 3 and three little-endian `u32`).
 pub fn write_mesh_records(
     w: &mut impl Write,
     vertices: &mut impl Read,
     faces: &mut impl Read,
     counts: MeshCounts,
     colour: Option<VertexColour>,
+    mut extra: Option<&mut dyn VertexProperties>,
 ) -> std::io::Result<()> {
-    let colour_properties = if colour.is_some() {
-        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-    } else {
-        ""
-    };
+    let mut properties = String::new();
+    if colour.is_some() {
+        properties.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
+    let names: Vec<&str> = extra.as_ref().map_or(Vec::new(), |e| e.names().to_vec());
+    for name in &names {
+        properties.push_str(&format!("property float {name}\n"));
+    }
     write!(
         w,
         "ply\nformat binary_little_endian 1.0\ncomment slamesh mesh\n\
          element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
          property float nx\nproperty float ny\nproperty float nz\n\
-         property float variance\n{colour_properties}element face {}\n\
+         property float variance\n{properties}element face {}\n\
          property list uchar uint vertex_indices\nend_header\n",
         counts.vertices, counts.triangles
     )?;
-    match colour {
-        None => {
-            std::io::copy(&mut vertices.take(counts.vertices * VERTEX_BYTES as u64), w)?;
-        }
-        Some(c) => {
-            let mut rec = [0u8; VERTEX_BYTES];
-            for _ in 0..counts.vertices {
-                vertices.read_exact(&mut rec)?;
-                w.write_all(&rec)?;
+    if colour.is_none() && extra.is_none() {
+        std::io::copy(&mut vertices.take(counts.vertices * VERTEX_BYTES as u64), w)?;
+    } else {
+        let mut rec = [0u8; VERTEX_BYTES];
+        let mut values = vec![0f32; names.len()];
+        for _ in 0..counts.vertices {
+            vertices.read_exact(&mut rec)?;
+            w.write_all(&rec)?;
+            if let Some(c) = colour {
                 w.write_all(&c.of(&rec))?;
+            }
+            if let Some(e) = extra.as_mut() {
+                e.values([0, 1, 2].map(|k| float(&rec, k)), &mut values);
+                for v in &values {
+                    w.write_all(&v.to_le_bytes())?;
+                }
             }
         }
     }
