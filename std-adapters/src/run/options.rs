@@ -17,7 +17,10 @@ use std::path::PathBuf;
 pub struct RunOptions {
     /// Output folder (created if missing).
     pub out: PathBuf,
-    /// Pipeline configuration.
+    /// Pipeline configuration, used as it is: the command fits its default preset's cells to
+    /// the first scan's scale ([`crate::run::scale::fit`]: 0.5 m cells indoors), and a caller
+    /// running an indoor or hand-held source with [`Config::default`]'s 1.6 m cells should
+    /// do the same.
     pub config: Config,
     /// Name of the preset it came from (for the report).
     pub preset: String,
