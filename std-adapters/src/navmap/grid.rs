@@ -124,6 +124,34 @@ pub const FLOOR_NOISE_M: f64 = 0.02;
 /// that floor seen twice ([`Grid::build`]'s obstacles: a step up is told by its steep face).
 pub const DOUBLE_FLOOR_M: f64 = 0.2;
 
+impl Cell {
+    /// Pass 2 for one sample of height `z` in the cell, of a floor triangle or not, for a
+    /// robot that climbs `step` and is `height` tall.
+    fn classify(&mut self, z: f64, is_floor: bool, step: f32, height: f32) {
+        let c = self;
+        let above = z as f32 - c.reference;
+        if !above.is_finite() {
+            return;
+        }
+        if (0.0..6.4).contains(&above) {
+            c.heights |= 1 << (above * 10.0) as u32;
+        }
+        // A ground cell's floor seen again a little higher (two passes of a drifting map,
+        // fused as two layers) is the same floor, not a step: a step's face is steep.
+        let same_floor = c.ground && is_floor && above <= DOUBLE_FLOOR_M as f32;
+        if above > step && above <= height && !same_floor {
+            c.obstacle = true;
+        } else if is_floor && c.ground && above <= step {
+            if c.n == u16::MAX {
+                return;
+            }
+            c.n += 1;
+            c.sum += above;
+            c.sum_sq += above * above;
+        }
+    }
+}
+
 /// How far (m) from an obstacle's cell ground is taken as the obstacle's edge: the surface
 /// reconstruction carries ground up to about two tenths under a car's or a wall's foot.
 pub const EDGE_M: f64 = 0.2;
@@ -172,8 +200,7 @@ impl Grid {
         let max_slope_tan = robot.max_slope_deg.to_radians().tan();
         mesh.each_triangle(&mut |t| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
-            grid.samples(&corners, |g, ix, iy, z| {
-                let c = g.cell_mut(ix, iy);
+            grid.samples(&corners, |c, z| {
                 if is_floor {
                     c.floor = c.floor.min(z as f32);
                 }
@@ -182,38 +209,13 @@ impl Grid {
         let seeds = grid.seeds(path);
         grid.grow_ground(seeds);
         grid.set_references();
+        let (step, height) = (robot.max_step_m as f32, robot.height_m as f32);
         mesh.each_triangle(&mut |t| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
-            grid.samples(&corners, |g, ix, iy, z| g.classify(ix, iy, z, is_floor));
+            grid.samples(&corners, |c, z| c.classify(z, is_floor, step, height));
         })?;
         grid.carve(path);
         Ok(grid)
-    }
-
-    /// Pass 2 for one sample of height `z` in cell `(ix, iy)`, of a floor triangle or not.
-    fn classify(&mut self, ix: i64, iy: i64, z: f64, is_floor: bool) {
-        let (step, height) = (self.robot.max_step_m as f32, self.robot.height_m as f32);
-        let c = self.cell_mut(ix, iy);
-        let above = z as f32 - c.reference;
-        if !above.is_finite() {
-            return;
-        }
-        if (0.0..6.4).contains(&above) {
-            c.heights |= 1 << (above * 10.0) as u32;
-        }
-        // A ground cell's floor seen again a little higher (two passes of a drifting map,
-        // fused as two layers) is the same floor, not a step: a step's face is steep.
-        let same_floor = c.ground && is_floor && above <= DOUBLE_FLOOR_M as f32;
-        if above > step && above <= height && !same_floor {
-            c.obstacle = true;
-        } else if is_floor && c.ground && above <= step {
-            if c.n == u16::MAX {
-                return;
-            }
-            c.n += 1;
-            c.sum += above;
-            c.sum_sq += above * above;
-        }
     }
 
     /// The cell size (m).
@@ -228,10 +230,7 @@ impl Grid {
 
     /// The cell holding level-frame `(x, y)`.
     pub fn index_of(&self, x: f64, y: f64) -> CellIndex {
-        (
-            (x / self.resolution).floor() as i64,
-            (y / self.resolution).floor() as i64,
-        )
+        index_in(self.resolution, x, y)
     }
 
     /// What the map says of cell `(ix, iy)`.
@@ -368,9 +367,9 @@ impl Grid {
         (p, is_floor)
     }
 
-    /// Calls `each` with the grid, the cell and the height of every sample of the triangle:
-    /// a barycentric lattice with points at most half a cell apart.
-    fn samples(&mut self, p: &[Vector3<f64>; 3], mut each: impl FnMut(&mut Self, i64, i64, f64)) {
+    /// Calls `each` with the cell and the height of every sample of the triangle (the cell
+    /// made if new): a barycentric lattice with points at most half a cell apart.
+    fn samples(&mut self, p: &[Vector3<f64>; 3], mut each: impl FnMut(&mut Cell, f64)) {
         let longest = [(p[1] - p[0]), (p[2] - p[1]), (p[0] - p[2])]
             .iter()
             .map(|e| e.norm())
@@ -381,11 +380,23 @@ impl Grid {
         // At most 4 096 steps along an edge: a triangle longer than that is cut coarser.
         let steps = ((longest / (0.5 * self.resolution)).ceil() as usize).clamp(1, 4096);
         let (u, v) = ((p[1] - p[0]) / steps as f64, (p[2] - p[0]) / steps as f64);
+        // The last sample's tile: a triangle's samples mostly share one, looked up once.
+        let mut current: Option<((i64, i64), &mut Tile)> = None;
         for i in 0..=steps {
             for j in 0..=steps - i {
                 let q = p[0] + u * i as f64 + v * j as f64;
-                let (ix, iy) = self.index_of(q.x, q.y);
-                each(self, ix, iy, q.z);
+                let (ix, iy) = index_in(self.resolution, q.x, q.y);
+                let (key, k) = tile_of(ix, iy);
+                if current.as_ref().map(|c| c.0) != Some(key) {
+                    let tile = self
+                        .tiles
+                        .entry(key)
+                        .or_insert_with(|| Box::new([Cell::default(); TILE_CELLS]));
+                    current = Some((key, tile));
+                }
+                if let Some((_, tile)) = current.as_mut() {
+                    each(&mut tile[k], q.z);
+                }
             }
         }
     }
@@ -402,6 +413,14 @@ impl Grid {
             .entry(key)
             .or_insert_with(|| Box::new([Cell::default(); TILE_CELLS]))[k]
     }
+}
+
+/// The cell of `resolution` metres holding level-frame `(x, y)`.
+fn index_in(resolution: f64, x: f64, y: f64) -> CellIndex {
+    (
+        (x / resolution).floor() as i64,
+        (y / resolution).floor() as i64,
+    )
 }
 
 /// The offsets of the cells within `r` cells of a cell (a disc), nearest rows first.
