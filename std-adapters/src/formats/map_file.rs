@@ -263,96 +263,32 @@ impl MapFile<File> {
 }
 
 impl<R: Read + Seek> MapFile<R> {
-    /// [`MapFile::open`] on the bytes of `file`, named `path` in errors.
+    /// [`MapFile::open`] on the bytes of `file`, named `path` in errors: the header, then
+    /// the trailer, then the path and the index it points to, each checked.
     pub fn from_reader(path: &Path, mut file: R) -> Result<Self, FileError> {
         let len = file
             .seek(SeekFrom::End(0))
             .map_err(|e| FileError::at(path, format!("cannot read: {e}")))?;
-        let bad = |what: &str, at: u64, e: MapFileError| {
-            FileError::at(
-                path,
-                format!("not a usable map file: {what} at byte {at}: {e}"),
-            )
-        };
         if len == 0 {
             return Err(FileError::at(
                 path,
                 "not a usable map file: the file is empty",
             ));
         }
-        let prefix = read_at(&mut file, path, 0, HEADER_PREFIX_BYTES.min(len as usize))?;
-        let header_len = format::header_len(&prefix).map_err(|e| bad("the header", 0, e))?;
-        let header_bytes = read_at(&mut file, path, 0, header_len.min(len as usize))?;
-        let header = format::read_header(&header_bytes).map_err(|e| bad("the header", 0, e))?;
-        let config_toml = String::from_utf8(header.config.to_vec()).map_err(|_| {
-            FileError::at(
-                path,
-                "not a usable map file: its configuration is not UTF-8",
-            )
-        })?;
-        let info = MapInfo {
-            lattice: header.lattice,
-            frames: header.frames,
-            frame_id: header.frame_id.to_string(),
-            config_toml,
-        };
-        let body_start = header_len as u64;
-        if len < body_start + TRAILER_BYTES as u64 {
-            return Err(FileError::at(
-                path,
-                format!(
-                    "not a usable map file: truncated: {len} bytes end before the trailer \
-                     (a map file ends with its index and a {TRAILER_BYTES}-byte trailer)"
-                ),
-            ));
-        }
-        let trailer_at = len - TRAILER_BYTES as u64;
-        let t = read_at(&mut file, path, trailer_at, TRAILER_BYTES)?;
-        let trailer = format::read_trailer(&t).map_err(|e| bad("the trailer", trailer_at, e))?;
-        let within = |at: u64| at >= body_start && at < trailer_at;
-        if !within(trailer.path_offset) || !within(trailer.index_offset) {
-            return Err(FileError::at(
-                path,
-                "not a usable map file: its trailer points outside the file",
-            ));
-        }
+        let (info, body_start) = read_info(&mut file, path, len)?;
+        let (trailer, trailer_at) = read_trailer_within(&mut file, path, len, body_start)?;
         // The path, then the index: each sized by its prefix, checked whole.
-        let block = |file: &mut R, at: u64, size: fn(&[u8]) -> Result<usize, MapFileError>| {
-            let what = "a block";
-            let p = read_at(file, path, at, 8.min((trailer_at - at) as usize))?;
-            let n = size(&p).map_err(|e| bad(what, at, e))?;
-            if at + n as u64 > trailer_at {
-                return Err(bad(
-                    what,
-                    at,
-                    MapFileError::Truncated {
-                        needed: n as u64,
-                        available: trailer_at - at,
-                    },
-                ));
-            }
-            read_at(file, path, at, n)
-        };
-        let p = block(&mut file, trailer.path_offset, format::path_block_len)?;
+        let at = trailer.path_offset;
+        let p = read_block(&mut file, path, at, trailer_at, format::path_block_len)?;
         let poses = format::read_path(&p)
-            .map_err(|e| bad("the path", trailer.path_offset, e))?
+            .map_err(|e| unusable(path, "the path", at, e))?
             .collect();
-        let i = block(&mut file, trailer.index_offset, format::index_block_len)?;
+        let at = trailer.index_offset;
+        let i = read_block(&mut file, path, at, trailer_at, format::index_block_len)?;
         let index: Vec<IndexEntry> = format::read_index(&i)
-            .map_err(|e| bad("the index", trailer.index_offset, e))?
+            .map_err(|e| unusable(path, "the index", at, e))?
             .collect();
-        for e in &index {
-            if e.offset < body_start || e.offset + u64::from(e.len) > trailer.path_offset {
-                return Err(FileError::at(
-                    path,
-                    format!(
-                        "not a usable map file: the index places a tile block at byte {} \
-                         ({} bytes), outside the tiles",
-                        e.offset, e.len
-                    ),
-                ));
-            }
-        }
+        check_index(path, &index, body_start, trailer.path_offset)?;
         Ok(MapFile {
             path: path.to_path_buf(),
             file,
@@ -447,6 +383,117 @@ impl<R: Read + Seek> MapFile<R> {
             ));
         }
         Ok(())
+    }
+}
+
+/// A map file's damage, named: `what` at byte `at` and why.
+fn unusable(path: &Path, what: &str, at: u64, e: MapFileError) -> FileError {
+    FileError::at(
+        path,
+        format!("not a usable map file: {what} at byte {at}: {e}"),
+    )
+}
+
+/// The header of `file` (`len` bytes): what it says of the map, and where the body starts.
+fn read_info(
+    file: &mut (impl Read + Seek),
+    path: &Path,
+    len: u64,
+) -> Result<(MapInfo, u64), FileError> {
+    let prefix = read_at(file, path, 0, HEADER_PREFIX_BYTES.min(len as usize))?;
+    let header_len = format::header_len(&prefix).map_err(|e| unusable(path, "the header", 0, e))?;
+    let header_bytes = read_at(file, path, 0, header_len.min(len as usize))?;
+    let header =
+        format::read_header(&header_bytes).map_err(|e| unusable(path, "the header", 0, e))?;
+    let config_toml = String::from_utf8(header.config.to_vec()).map_err(|_| {
+        FileError::at(
+            path,
+            "not a usable map file: its configuration is not UTF-8",
+        )
+    })?;
+    let info = MapInfo {
+        lattice: header.lattice,
+        frames: header.frames,
+        frame_id: header.frame_id.to_string(),
+        config_toml,
+    };
+    Ok((info, header_len as u64))
+}
+
+/// The trailer of `file` (`len` bytes, its body from `body_start`) and where it starts,
+/// checked to point at blocks within the body.
+fn read_trailer_within(
+    file: &mut (impl Read + Seek),
+    path: &Path,
+    len: u64,
+    body_start: u64,
+) -> Result<(Trailer, u64), FileError> {
+    if len < body_start + TRAILER_BYTES as u64 {
+        return Err(FileError::at(
+            path,
+            format!(
+                "not a usable map file: truncated: {len} bytes end before the trailer \
+                 (a map file ends with its index and a {TRAILER_BYTES}-byte trailer)"
+            ),
+        ));
+    }
+    let trailer_at = len - TRAILER_BYTES as u64;
+    let t = read_at(file, path, trailer_at, TRAILER_BYTES)?;
+    let trailer =
+        format::read_trailer(&t).map_err(|e| unusable(path, "the trailer", trailer_at, e))?;
+    let within = |at: u64| at >= body_start && at < trailer_at;
+    if !within(trailer.path_offset) || !within(trailer.index_offset) {
+        return Err(FileError::at(
+            path,
+            "not a usable map file: its trailer points outside the file",
+        ));
+    }
+    Ok((trailer, trailer_at))
+}
+
+/// The block of `file` at `at`, sized by its prefix (`size`), whole before `end`.
+fn read_block(
+    file: &mut (impl Read + Seek),
+    path: &Path,
+    at: u64,
+    end: u64,
+    size: fn(&[u8]) -> Result<usize, MapFileError>,
+) -> Result<Vec<u8>, FileError> {
+    let what = "a block";
+    let p = read_at(file, path, at, 8.min((end - at) as usize))?;
+    let n = size(&p).map_err(|e| unusable(path, what, at, e))?;
+    if at + n as u64 > end {
+        let available = end - at;
+        let e = MapFileError::Truncated {
+            needed: n as u64,
+            available,
+        };
+        return Err(unusable(path, what, at, e));
+    }
+    read_at(file, path, at, n)
+}
+
+/// Checks that every tile block of `index` lies among the tiles, from `body_start` to
+/// `tiles_end`.
+fn check_index(
+    path: &Path,
+    index: &[IndexEntry],
+    body_start: u64,
+    tiles_end: u64,
+) -> Result<(), FileError> {
+    match index
+        .iter()
+        .find(|e| e.offset < body_start || e.offset + u64::from(e.len) > tiles_end)
+    {
+        Some(e) => Err(FileError::at(
+            path,
+            format!(
+                "not a usable map file: the index places a tile block at byte {} \
+                 ({} bytes), outside the tiles",
+                e.offset, e.len
+            ),
+        )),
+        None => Ok(()),
     }
 }
 
