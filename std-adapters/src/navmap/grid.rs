@@ -128,26 +128,25 @@ impl Cell {
     /// Pass 2 for one sample of height `z` in the cell, of a floor triangle or not, for a
     /// robot that climbs `step` and is `height` tall.
     fn classify(&mut self, z: f64, is_floor: bool, step: f32, height: f32) {
-        let c = self;
-        let above = z as f32 - c.reference;
+        let above = z as f32 - self.reference;
         if !above.is_finite() {
             return;
         }
         if (0.0..6.4).contains(&above) {
-            c.heights |= 1 << (above * 10.0) as u32;
+            self.heights |= 1 << (above * 10.0) as u32;
         }
         // A ground cell's floor seen again a little higher (two passes of a drifting map,
         // fused as two layers) is the same floor, not a step: a step's face is steep.
-        let same_floor = c.ground && is_floor && above <= DOUBLE_FLOOR_M as f32;
+        let same_floor = self.ground && is_floor && above <= DOUBLE_FLOOR_M as f32;
         if above > step && above <= height && !same_floor {
-            c.obstacle = true;
-        } else if is_floor && c.ground && above <= step {
-            if c.n == u16::MAX {
+            self.obstacle = true;
+        } else if is_floor && self.ground && above <= step {
+            if self.n == u16::MAX {
                 return;
             }
-            c.n += 1;
-            c.sum += above;
-            c.sum_sq += above * above;
+            self.n += 1;
+            self.sum += above;
+            self.sum_sq += above * above;
         }
     }
 }
@@ -165,12 +164,11 @@ pub struct Grid {
     /// Map frame to level frame.
     pub(super) level: Rotation3<f64>,
     pub(super) tiles: HashMap<(i64, i64), Tile, BuildCellHasher>,
-    /// Where lines of sight were cast (a path was given), the sensor's median height above
-    /// the ground they were cast from: free cells must then be seen, and surfaces between the
-    /// robot's height and the sensor's were seen from above.
-    pub(super) carved: Option<f32>,
+    /// Whether lines of sight were cast (a path was given): free cells must then be seen.
+    pub(super) carved: bool,
     /// The heights above a cell's reference (bits of [`Cell::heights`]) between the robot's
-    /// and the sensor's: a surface there was seen from above. None where nothing was cast.
+    /// and the sensor's median height where lines of sight were cast from: a surface there was
+    /// seen from above. None where nothing was cast.
     pub(super) from_above: u64,
 }
 
@@ -195,7 +193,7 @@ impl Grid {
             level,
             tiles: HashMap::default(),
             from_above: 0,
-            carved: None,
+            carved: false,
         };
         let max_slope_tan = robot.max_slope_deg.to_radians().tan();
         mesh.each_triangle(&mut |t| {
@@ -259,9 +257,7 @@ impl Grid {
     fn own(&self, ix: i64, iy: i64) -> Occupancy {
         match self.cell(ix, iy) {
             Some(c) if c.obstacle => Occupancy::Occupied,
-            Some(c) if c.ground && c.n > 0 && (c.visible || self.carved.is_none()) => {
-                Occupancy::Free
-            }
+            Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => Occupancy::Free,
             Some(c) if c.heights & self.from_above != 0 => Occupancy::Occupied,
             _ => Occupancy::Unknown,
         }
@@ -306,7 +302,7 @@ impl Grid {
     pub fn elevation(&self, ix: i64, iy: i64) -> Option<(f64, f64)> {
         let c = self
             .cell(ix, iy)
-            .filter(|c| c.ground && c.n > 0 && (c.visible || self.carved.is_none()))?;
+            .filter(|c| c.ground && c.n > 0 && (c.visible || !self.carved))?;
         let n = c.n as f64;
         let mean = c.sum as f64 / n;
         let var = (c.sum_sq as f64 / n - mean * mean).max(0.0);
@@ -319,7 +315,7 @@ impl Grid {
         let mut out = Vec::new();
         for (&(tx, ty), tile) in &self.tiles {
             for k in 0..TILE_CELLS {
-                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                let (ix, iy) = cell_at((tx, ty), k);
                 if tile[k].n > 0 && self.elevation(ix, iy).is_some() {
                     out.push((ix, iy));
                 }
@@ -338,7 +334,7 @@ impl Grid {
                 if !(c.obstacle || (c.ground && c.n > 0)) {
                     continue;
                 }
-                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                let (ix, iy) = cell_at((tx, ty), k);
                 b = Some(match b {
                     None => ((ix, iy), (ix, iy)),
                     Some((lo, hi)) => ((lo.0.min(ix), lo.1.min(iy)), (hi.0.max(ix), hi.1.max(iy))),
@@ -429,6 +425,11 @@ pub(super) fn disc(r: i64) -> Vec<(i64, i64)> {
         .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
         .filter(|(dx, dy)| dx * dx + dy * dy <= r * r)
         .collect()
+}
+
+/// The cell at place `k` of tile `(tx, ty)`: [`tile_of`] turned back.
+pub(super) fn cell_at((tx, ty): (i64, i64), k: usize) -> CellIndex {
+    (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE)
 }
 
 /// The tile holding cell `(ix, iy)` and the cell's place in it.

@@ -7,7 +7,7 @@
 //! than a step, a car's roof or a table are floor, not ground. A cell with no ground of its own
 //! is judged against the nearest ground within about [`REFERENCE_M`].
 
-use crate::navmap::grid::{disc, CellIndex, Grid, TILE};
+use crate::navmap::grid::{cell_at, disc, CellIndex, Grid};
 use nalgebra::Vector3;
 use slamesh_core::cell::BuildCellHasher;
 use std::collections::HashMap;
@@ -75,7 +75,7 @@ impl Grid {
         for &(tx, ty) in keys {
             for (k, c) in self.tiles[&(tx, ty)].iter().enumerate() {
                 if c.floor.is_finite() {
-                    out.push((tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE));
+                    out.push(cell_at((tx, ty), k));
                 }
             }
         }
@@ -139,7 +139,7 @@ impl Grid {
         let mut lowest: HashMap<(i64, i64), f32, BuildCellHasher> = HashMap::default();
         for (&(tx, ty), tile) in &self.tiles {
             for (k, c) in tile.iter().enumerate().filter(|(_, c)| c.ground) {
-                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                let (ix, iy) = cell_at((tx, ty), k);
                 let b = lowest
                     .entry((ix.div_euclid(block), iy.div_euclid(block)))
                     .or_insert(f32::INFINITY);
@@ -158,7 +158,7 @@ impl Grid {
                     c.reference = c.floor;
                     continue;
                 }
-                let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                let (ix, iy) = cell_at((tx, ty), k);
                 let (bx, by) = (ix.div_euclid(block), iy.div_euclid(block));
                 c.reference = near
                     .iter()

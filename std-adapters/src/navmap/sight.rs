@@ -1,7 +1,7 @@
 //! What the path saw of a navigation grid: lines of sight cast over it from the path, so that
 //! ground the surface reconstruction carried behind a wall is never free (docs/design.md §1.18).
 
-use crate::navmap::grid::{disc, tile_of, Cell, Grid, TILE};
+use crate::navmap::grid::{cell_at, disc, tile_of, Cell, Grid};
 use crate::navmap::ground::SEED_M;
 use nalgebra::Vector3;
 
@@ -48,7 +48,7 @@ impl Grid {
         if !heights.is_empty() {
             let mid = heights.len() / 2;
             let sensor = *heights.select_nth_unstable_by(mid, f32::total_cmp).1;
-            self.carved = Some(sensor);
+            self.carved = true;
             let tenths = |m: f64| ((m * 10.0).ceil() as u32).min(64);
             let (lo, hi) = (tenths(self.robot.height_m), tenths(sensor as f64));
             self.from_above = (lo..hi).fold(0u64, |m, b| m | 1 << b);
@@ -104,7 +104,7 @@ impl Grid {
         for (&(tx, ty), tile) in &self.tiles {
             for (k, c) in tile.iter().enumerate() {
                 if let Some(top) = obstacle_top(c, step) {
-                    let (ix, iy) = (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE);
+                    let (ix, iy) = cell_at((tx, ty), k);
                     // Decimetres, rounded up: `as` saturates an infinite top (a wall).
                     let z = ((c.reference + top) * 10.0)
                         .ceil()
