@@ -50,7 +50,7 @@ fn the_window_keeps_memory_flat_and_the_cap_holds() {
         "warm-up",
     );
     let other = memory::other_bytes();
-    let needed = Window::max_layers::<Test>(0, other, true)
+    let needed = Window::max_layers::<Test>(0, other, true, false)
         .unwrap_err()
         .needed_bytes;
     // A budget of one scan's layers and about 2 000 more, as we measure the process now.

@@ -49,17 +49,14 @@ pub trait Capacity: 'static {
     /// allocated in full by [`Pipeline::new`](crate::Pipeline::new) and touched, page by page,
     /// up to the largest scan seen.
     fn scan_bytes() -> usize {
-        Self::filter_bytes()
-            + Self::SCAN_CELLS * size_of::<CellSpan>()
-            + Self::SCAN_LAYERS * (size_of::<ScanLayer>() + size_of::<Residual>())
+        ScanLimits::of::<Self>().bytes::<Self>()
     }
 
     /// Bytes of the filter's buffers (points, the work buffer, the sort's buffer): part of
     /// [`scan_bytes`](Self::scan_bytes), and all of a
     /// [`ScanFilter`](crate::filter::ScanFilter)'s.
     fn filter_bytes() -> usize {
-        Self::POINTS * (size_of::<Point>() + size_of::<(CellKey, Point)>())
-            + Self::SORT_ENTRIES * size_of::<(CellKey, Point)>()
+        ScanLimits::of::<Self>().filter_bytes::<Self>()
     }
 
     /// Upper bound on the heap bytes of one pipeline with these capacities: the scan buffers
@@ -73,6 +70,73 @@ pub trait Capacity: 'static {
     /// buffers and a map sized for that many layers and cells (each clamped to this capacity).
     fn memory_bytes_with_map_layers(layers: usize) -> usize {
         Self::scan_bytes() + map_bytes(layers.min(Self::MAP_CELLS), layers.min(Self::MAP_LAYERS))
+    }
+}
+
+/// The sizes of one pipeline's scan buffers: its capacity's
+/// ([`ScanLimits::of`]), or a share of them for a pipeline that only fuses and searches
+/// scans already filtered, far smaller than raw ones
+/// ([`Pipeline::with_limits`](crate::Pipeline::with_limits)). A scan past a limit is cut by
+/// the rule of the capacity's constant it stands for, and counted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ScanLimits {
+    /// Points kept after the range filter ([`Capacity::POINTS`]).
+    pub points: usize,
+    /// Cells reconstructed ([`Capacity::SCAN_CELLS`]).
+    pub cells: usize,
+    /// Layers ([`Capacity::SCAN_LAYERS`]).
+    pub layers: usize,
+}
+
+impl ScanLimits {
+    /// Capacity `C`'s own.
+    pub const fn of<C: Capacity + ?Sized>() -> Self {
+        Self {
+            points: C::POINTS,
+            cells: C::SCAN_CELLS,
+            layers: C::SCAN_LAYERS,
+        }
+    }
+
+    /// Each limit divided by `d` (at least one).
+    pub const fn divided_by(self, d: usize) -> Self {
+        let d = if d == 0 { 1 } else { d };
+        Self {
+            points: self.points.div_ceil(d),
+            cells: self.cells.div_ceil(d),
+            layers: self.layers.div_ceil(d),
+        }
+    }
+
+    /// Each limit at most capacity `C`'s.
+    pub fn within<C: Capacity + ?Sized>(self) -> Self {
+        Self {
+            points: self.points.min(C::POINTS),
+            cells: self.cells.min(C::SCAN_CELLS),
+            layers: self.layers.min(C::SCAN_LAYERS),
+        }
+    }
+
+    /// Bytes of the scan buffers at these limits with capacity `C`'s sort: the filter's
+    /// ([`Capacity::filter_bytes`] at these points), cells, layers and residuals.
+    pub fn bytes<C: Capacity + ?Sized>(&self) -> usize {
+        self.filter_bytes::<C>()
+            + self.cells * size_of::<CellSpan>()
+            + self.layers * (size_of::<ScanLayer>() + size_of::<Residual>())
+    }
+
+    /// Entries of the radix sort's buffer: as many as points, or none ([`Capacity::RADIX_SORT`]).
+    pub const fn sort_entries<C: Capacity + ?Sized>(&self) -> usize {
+        if C::RADIX_SORT {
+            self.points
+        } else {
+            0
+        }
+    }
+
+    fn filter_bytes<C: Capacity + ?Sized>(&self) -> usize {
+        self.points * (size_of::<Point>() + size_of::<(CellKey, Point)>())
+            + self.sort_entries::<C>() * size_of::<(CellKey, Point)>()
     }
 }
 

@@ -86,7 +86,9 @@ pub mod sort;
 pub mod stage;
 pub mod storage;
 
-pub use capacity::{Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, SmallCapacity};
+pub use capacity::{
+    Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, ScanLimits, SmallCapacity,
+};
 pub use config::{Config, ConfigError};
 pub use executor::{Executor, Serial};
 pub use math::{Point, Pose};

@@ -80,19 +80,33 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
     /// cell past the limit is refused and counted, as past the capacity.
     #[cfg(any(feature = "alloc", test))]
     pub fn with_map_layers(config: Config, layers: usize) -> Result<Self, ConfigError> {
+        Self::with_limits(config, crate::ScanLimits::of::<C>(), layers)
+    }
+
+    /// [`with_map_layers`](Self::with_map_layers) with scan buffers of `limits` (each at
+    /// most the capacity's): for a pipeline that only fuses and searches scans already
+    /// filtered (a loop-closure thread under a memory cap), whose buffers cost
+    /// [`ScanLimits::bytes`](crate::ScanLimits::bytes) instead of [`Capacity::scan_bytes`].
+    #[cfg(any(feature = "alloc", test))]
+    pub fn with_limits(
+        config: Config,
+        limits: crate::ScanLimits,
+        layers: usize,
+    ) -> Result<Self, ConfigError> {
         config.validate()?;
+        let limits = limits.within::<C>();
         let (cells, layers) = (layers.min(C::MAP_CELLS), layers.min(C::MAP_LAYERS));
         Ok(Self::assemble(
             config,
             MeshMap::with_capacity(cells, layers, config.lattice()),
             (
-                BoundedVec::with_capacity(C::POINTS),
-                BoundedVec::with_capacity(C::POINTS),
+                BoundedVec::with_capacity(limits.points),
+                BoundedVec::with_capacity(limits.points),
             ),
-            KeySorter::with_capacity(C::SORT_ENTRIES),
-            BoundedVec::with_capacity(C::SCAN_CELLS),
-            BoundedVec::with_capacity(C::SCAN_LAYERS),
-            BoundedVec::with_capacity(C::SCAN_LAYERS),
+            KeySorter::with_capacity(limits.sort_entries::<C>()),
+            BoundedVec::with_capacity(limits.cells),
+            BoundedVec::with_capacity(limits.layers),
+            BoundedVec::with_capacity(limits.layers),
         ))
     }
 

@@ -383,6 +383,13 @@ pub(crate) fn choose_loop_closure(
     if opts.loop_closure_unavailable_from_start().is_none() {
         s.configure(&mut opts.config);
     }
+    if flag.is_none() && opts.window.is_windowed() {
+        log::info!(
+            "loop closure is off: under a memory cap or window it takes a share of the cap \
+             (--loop-closure on to close loops all the same)"
+        );
+        return Ok(());
+    }
     if let Some(why) = opts.loop_closure_unavailable() {
         if flag == Some(OnOff::On) {
             return Err(CliError::BadFlag {

@@ -82,7 +82,28 @@ pub struct MapWriter {
 impl MapWriter {
     /// Starts `path` (written as a temporary file until [`finish`](Self::finish)).
     pub fn create(path: &Path, info: &MapInfo) -> Result<Self, FileError> {
+        Self::create_at(path, temporary_path(path), info)
+    }
+
+    /// [`create`](Self::create) with a temporary file of its own, named with `tag`: a second
+    /// writer for the same target (a loop closure's rebuild, [`crate::loop_closure`]) while
+    /// the first writes; the one finished is the one renamed over the target.
+    pub fn create_staged(path: &Path, info: &MapInfo, tag: &str) -> Result<Self, FileError> {
         let tmp = temporary_path(path);
+        let tagged = tmp.with_file_name(format!(
+            "{}-{tag}",
+            tmp.file_name().unwrap_or_default().to_string_lossy()
+        ));
+        Self::create_at(path, tagged, info)
+    }
+
+    /// Gives up the map file: its temporary file is removed, the target left as it was.
+    pub fn discard(self) {
+        drop(self.w);
+        let _ = std::fs::remove_file(&self.tmp);
+    }
+
+    fn create_at(path: &Path, tmp: PathBuf, info: &MapInfo) -> Result<Self, FileError> {
         let file = File::create(&tmp)
             .map_err(|e| FileError::at(path, format!("cannot create the map file: {e}")))?;
         let mut w = Self {

@@ -9,6 +9,7 @@
 //! | which earlier frames a keyframe may revisit, and the check | [`detect`] |
 //! | the saved map a run started from: its path, its cells near a revisit | [`saved`] |
 //! | the pose graph and its solver | [`graph`] |
+//! | a windowed run's rebuild: its window and outputs | [`streaming`] |
 //! | the thread that does all of it | `worker` |
 //!
 //! A run hands each frame it used to a [`LoopClosure`] ([`LoopClosure::observe`]: the pose and
@@ -21,13 +22,16 @@
 //!
 //! What is kept: each frame's filtered scan on disk (6 bytes a point, removed at the end),
 //! and in memory 3 poses a frame, the keyframe graph, the local map of a check (at most
-//! 60 000 layers) and, while the map is rebuilt, a second map.
+//! 60 000 layers) and, while the map is rebuilt, a second map. In a run whose map is a window
+//! (a memory cap) the local map and the map being rebuilt are one map the size of the run's,
+//! with half a pipeline's scan buffers ([`streaming`]).
 
 pub mod detect;
 pub mod graph;
 pub mod saved;
 pub mod settings;
 pub mod spool;
+pub mod streaming;
 mod worker;
 
 use crate::io::error::FileError;
@@ -35,12 +39,14 @@ use saved::SavedMap;
 use serde::{Deserialize, Serialize};
 use settings::LoopSettings;
 use slamesh_core::lm::PoseInformation;
+use slamesh_core::map::MeshMap;
 use slamesh_core::motion::ConstantVelocity;
 use slamesh_core::{Capacity, Config, Pipeline, Point, Pose, ScanOutcome};
 use spool::ScanSpool;
 use std::path::Path;
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::thread::JoinHandle;
+use streaming::{RebuiltOutputs, RunOutputs, Streaming};
 
 /// One loop closed: which frames, how sure, how large the correction.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -92,7 +98,7 @@ impl Closure {
 }
 
 /// To the loop-closure thread.
-enum ToWorker<C: Capacity> {
+enum ToWorker {
     /// A frame the run used: its index, pose and filtered scan (sensor frame).
     Frame {
         frame: usize,
@@ -101,20 +107,22 @@ enum ToWorker<C: Capacity> {
         information: Box<PoseInformation>,
         points: Vec<Point>,
     },
-    /// The run applied a correction whose `last` was `correction`; the rebuilt pipeline
-    /// comes back holding the map it replaced.
+    /// The run applied a correction whose `last` was `correction`; the map the rebuilt one
+    /// replaced comes back.
     Applied {
         correction: Pose,
-        returned: Option<Box<Pipeline<C>>>,
+        returned: Option<Box<MeshMap>>,
     },
     /// No more frames: finish what is pending.
     Finish,
 }
 
 /// From the loop-closure thread: a correction, or the end.
-struct Corrected<C: Capacity> {
-    /// A pipeline whose map was rebuilt at the corrected poses (when any moved enough).
-    rebuilt: Option<Box<Pipeline<C>>>,
+struct Corrected {
+    /// The map rebuilt at the corrected poses (when any moved enough).
+    rebuilt: Option<Box<MeshMap>>,
+    /// A windowed run's: the outputs of what left the rebuilt map's window.
+    outputs: Option<RebuiltOutputs>,
     /// For each frame the thread knows (in order), what to multiply its pose by on the left.
     per_frame: Vec<(usize, Pose)>,
     /// The same for every later frame.
@@ -127,10 +135,11 @@ struct Corrected<C: Capacity> {
     spool_bytes: u64,
 }
 
-impl<C: Capacity> Corrected<C> {
+impl Corrected {
     fn done(spool_bytes: u64) -> Self {
         Self {
             rebuilt: None,
+            outputs: None,
             per_frame: Vec::new(),
             last: Pose::identity(),
             closures: Vec::new(),
@@ -158,27 +167,30 @@ pub struct LoopReport {
 
 /// The run's end of loop closure.
 pub struct LoopClosure<C: Capacity> {
-    to_worker: Sender<ToWorker<C>>,
-    from_worker: Receiver<Corrected<C>>,
+    to_worker: Sender<ToWorker>,
+    from_worker: Receiver<Corrected>,
     thread: Option<JoinHandle<Result<(), FileError>>>,
     report: LoopReport,
+    /// The pipelines it corrects hold capacity `C`'s buffers.
+    _capacity: std::marker::PhantomData<fn() -> C>,
 }
 
 impl<C: Capacity> LoopClosure<C> {
     /// Starts the loop-closure thread, spooling scans to `spool_path`; `saved_map`: the map
     /// file the run started from (its path is searched for revisits too, and a rebuild keeps
-    /// its cells).
+    /// its cells); `streaming`: the run's window and outputs, when its map is a window.
     pub fn start(
         config: Config,
         s: LoopSettings,
         spool_path: &Path,
         saved_map: Option<&Path>,
+        streaming: Option<Streaming>,
     ) -> Result<Self, FileError> {
         let spool = ScanSpool::create(spool_path, (s.spool_budget_mb * 1e6) as u64)?;
         let saved = saved_map.map(SavedMap::open).transpose()?;
         let (to_worker, rx) = channel();
         let (tx, from_worker) = channel();
-        let worker = worker::Worker::<C>::new(config, s, spool, tx, saved)?;
+        let worker = worker::Worker::<C>::new(config, s, spool, tx, saved, streaming)?;
         let thread = std::thread::Builder::new()
             .name("slamesh-loop-closure".into())
             .spawn(move || worker.run(rx))
@@ -188,6 +200,7 @@ impl<C: Capacity> LoopClosure<C> {
             from_worker,
             thread: Some(thread),
             report: LoopReport::default(),
+            _capacity: std::marker::PhantomData,
         })
     }
 
@@ -206,25 +219,28 @@ impl<C: Capacity> LoopClosure<C> {
 
     /// Applies a correction if one is ready (never waits): the trajectory `poses` (by frame,
     /// in order) and the pipeline's motion history move, and a rebuilt map replaces the
-    /// pipeline's. `next_frame` is the frame about to run. Returns the closures it brought.
+    /// pipeline's (in a windowed run with its outputs: `outputs`). `next_frame` is the frame
+    /// about to run. Returns the closures it brought.
     pub fn apply(
         &mut self,
         pipeline: &mut Pipeline<C>,
         poses: &mut [(usize, Pose)],
         next_frame: usize,
+        outputs: RunOutputs<'_>,
     ) -> Vec<Closure> {
         match self.from_worker.try_recv() {
-            Ok(c) if !c.done => self.take(c, pipeline, poses, next_frame),
+            Ok(c) if !c.done => self.take(c, pipeline, poses, next_frame, outputs),
             _ => Vec::new(),
         }
     }
 
     fn take(
         &mut self,
-        c: Corrected<C>,
+        c: Corrected,
         pipeline: &mut Pipeline<C>,
         poses: &mut [(usize, Pose)],
         next_frame: usize,
+        mut outputs: RunOutputs<'_>,
     ) -> Vec<Closure> {
         let mut known = c.per_frame.iter().peekable();
         for (frame, pose) in poses.iter_mut() {
@@ -242,9 +258,14 @@ impl<C: Capacity> LoopClosure<C> {
             ConstantVelocity::from_history(before.map(|p| c.last * p), last.map(|p| c.last * p));
         pipeline.restore_progress(pipeline.frames(), moved);
         let mut returned = c.rebuilt;
-        if let Some(p) = &mut returned {
-            std::mem::swap(pipeline.map_mut(), p.map_mut());
+        if let Some(map) = &mut returned {
+            std::mem::swap(pipeline.map_mut(), map);
             self.report.rebuilds += 1;
+        }
+        if let Some(o) = c.outputs {
+            if let Err(e) = outputs.replace(o) {
+                log::warn!("loop closure: the rebuilt outputs: {e}");
+            }
         }
         self.report.corrections += 1;
         self.report.spool_bytes = c.spool_bytes;
@@ -268,6 +289,7 @@ impl<C: Capacity> LoopClosure<C> {
         pipeline: &mut Pipeline<C>,
         poses: &mut [(usize, Pose)],
         next_frame: usize,
+        outputs: RunOutputs<'_>,
     ) -> LoopReport {
         let _ = self.to_worker.send(ToWorker::Finish);
         while let Ok(c) = self.from_worker.recv() {
@@ -275,7 +297,11 @@ impl<C: Capacity> LoopClosure<C> {
                 self.report.spool_bytes = c.spool_bytes;
                 break;
             }
-            self.take(c, pipeline, poses, next_frame);
+            let outputs = RunOutputs {
+                spool: outputs.spool,
+                saved_map: outputs.saved_map,
+            };
+            self.take(c, pipeline, poses, next_frame, outputs);
         }
         // A thread that stopped (its spool could not be written, say) costs the closures it
         // would have found, not the run: the outputs are written all the same.

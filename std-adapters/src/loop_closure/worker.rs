@@ -11,8 +11,10 @@ use crate::loop_closure::graph::{local_covariance, Edge, PoseGraph};
 use crate::loop_closure::saved::SavedMap;
 use crate::loop_closure::settings::LoopSettings;
 use crate::loop_closure::spool::ScanSpool;
+use crate::loop_closure::streaming::{self, RebuiltOutputs, Streaming};
 use crate::loop_closure::{Closure, Corrected, ToWorker};
 use nalgebra::Matrix6;
+use slamesh_core::map::MeshMap;
 use slamesh_core::math::{rotation_angle, se3_exp, se3_log};
 use slamesh_core::motion::ConstantVelocity;
 use slamesh_core::{Capacity, Config, Pipeline, Pose};
@@ -72,11 +74,19 @@ pub(crate) struct Worker<C: Capacity> {
     /// The registrations' covariances (each in its frame) summed since the last keyframe.
     since_key: Matrix6<f64>,
     new_closures: Vec<Closure>,
-    submap: Pipeline<C>,
-    /// A pipeline for the next rebuild (the one the run handed back).
+    /// The pipeline that builds a check's local map and searches it; in a windowed run also
+    /// the one that rebuilds (`None` meanwhile: no check runs then).
+    submap: Option<Box<Pipeline<C>>>,
+    /// A pipeline for the next rebuild (its map the one the run handed back).
     rebuild: Option<Box<Pipeline<C>>>,
     rebuilding: Option<Rebuild<C>>,
-    to_run: Sender<Corrected<C>>,
+    /// The pipeline whose rebuilt map is with the run, until the run hands back its old one.
+    awaiting: Option<Box<Pipeline<C>>>,
+    /// A windowed run's rules and outputs ([`streaming`]); `None`: the run keeps its map whole.
+    streaming: Option<Streaming>,
+    /// Rebuilds started (each windowed one has outputs of its own).
+    rebuilds: usize,
+    to_run: Sender<Corrected>,
     /// The saved map the run started from, if it did: revisits of its path are looked for
     /// too, and a rebuild starts from its cells.
     saved: Option<SavedMap>,
@@ -87,11 +97,17 @@ impl<C: Capacity> Worker<C> {
         config: Config,
         s: LoopSettings,
         spool: ScanSpool,
-        to_run: Sender<Corrected<C>>,
+        to_run: Sender<Corrected>,
         saved: Option<SavedMap>,
+        streaming: Option<Streaming>,
     ) -> Result<Self, FileError> {
-        let submap = Pipeline::<C>::with_map_layers(config, SUBMAP_LAYERS)
-            .map_err(|e| FileError::at(std::path::Path::new("loop closure"), e.to_string()))?;
+        let submap = match &streaming {
+            None => Pipeline::<C>::with_map_layers(config, SUBMAP_LAYERS),
+            Some(w) => {
+                Pipeline::<C>::with_limits(config, streaming::engine_limits::<C>(), w.map_layers)
+            }
+        }
+        .map_err(config_error)?;
         Ok(Self {
             config,
             s,
@@ -110,16 +126,19 @@ impl<C: Capacity> Worker<C> {
             counter: 0,
             since_key: Matrix6::zeros(),
             new_closures: Vec::new(),
-            submap,
+            submap: Some(Box::new(submap)),
             rebuild: None,
             rebuilding: None,
+            awaiting: None,
+            streaming,
+            rebuilds: 0,
             to_run,
             saved,
         })
     }
 
     /// Runs until the run says it is finishing and nothing is left to do.
-    pub(crate) fn run(mut self, rx: Receiver<ToWorker<C>>) -> Result<(), FileError> {
+    pub(crate) fn run(mut self, rx: Receiver<ToWorker>) -> Result<(), FileError> {
         loop {
             // Idle: wait for the run. Rebuilding: only look.
             if self.rebuilding.is_none() {
@@ -142,7 +161,7 @@ impl<C: Capacity> Worker<C> {
         }
     }
 
-    fn take(&mut self, m: ToWorker<C>) -> Result<(), FileError> {
+    fn take(&mut self, m: ToWorker) -> Result<(), FileError> {
         match m {
             ToWorker::Frame {
                 frame,
@@ -165,9 +184,15 @@ impl<C: Capacity> Worker<C> {
                 }
                 self.applied = correction * self.applied;
                 self.in_flight = false;
-                if let Some(mut p) = returned {
+                if let Some(mut p) = self.awaiting.take() {
+                    if let Some(old) = returned {
+                        *p.map_mut() = *old;
+                    }
                     p.map_mut().evict_where(|_, _| true, |_| {});
-                    self.rebuild = Some(p);
+                    match self.streaming {
+                        Some(_) => self.submap = Some(p),
+                        None => self.rebuild = Some(p),
+                    }
                 }
             }
             ToWorker::Finish => self.finishing = true,
@@ -271,6 +296,10 @@ impl<C: Capacity> Worker<C> {
         let Some(&kf) = self.node_frame.last() else {
             return Ok(());
         };
+        if self.submap.is_none() {
+            // A windowed run's rebuild has the pipeline.
+            return Ok(());
+        }
         let here = &self.frames[kf];
         // While a rebuild runs, checks come five times less often: the map reaches the run
         // sooner, and the closure being applied already holds the place.
@@ -373,13 +402,25 @@ impl<C: Capacity> Worker<C> {
             self.send(None, corrections, closures);
             return Ok(());
         }
-        let mut pipeline =
-            match self.rebuild.take() {
-                Some(p) => p,
-                None => Box::new(Pipeline::<C>::new(self.config).map_err(|e| {
-                    FileError::at(std::path::Path::new("loop closure"), e.to_string())
-                })?),
-            };
+        let (mut pipeline, outputs) = match &self.streaming {
+            Some(w) => {
+                let Some(mut p) = self.submap.take() else {
+                    self.dirty = true;
+                    return Ok(());
+                };
+                p.map_mut().evict_where(|_, _| true, |_| {});
+                p.set_map_updates(true);
+                (p, Some(RebuiltOutputs::create(w, self.rebuilds)?))
+            }
+            None => match self.rebuild.take() {
+                Some(p) => (p, None),
+                None => (
+                    Box::new(Pipeline::<C>::new(self.config).map_err(config_error)?),
+                    None,
+                ),
+            },
+        };
+        self.rebuilds += 1;
         // From the saved map's cells, when the run started from one; its frame count is the
         // saved map's and the count of frames rebuilt.
         if let Some(saved) = &mut self.saved {
@@ -388,6 +429,7 @@ impl<C: Capacity> Worker<C> {
         pipeline.restore_progress(self.first_counter(), ConstantVelocity::new());
         self.rebuilding = Some(Rebuild {
             pipeline,
+            outputs,
             corrections,
             closures,
             started: std::time::Instant::now(),
@@ -418,7 +460,7 @@ impl<C: Capacity> Worker<C> {
             for (f, c) in self.frames.iter_mut().zip(&r.corrections) {
                 f.in_map = *c;
             }
-            self.send(Some(r.pipeline), r.corrections, r.closures);
+            self.send(Some((r.pipeline, r.outputs)), r.corrections, r.closures);
             return Ok(());
         }
         if next < self.frames.len() {
@@ -427,9 +469,20 @@ impl<C: Capacity> Worker<C> {
         for i in done..(done + REBUILD_SLICE).min(self.frames.len()) {
             let pose = r.corrections[i] * self.frames[i].raw;
             let points = self.spool.read(i)?;
-            if r.pipeline.integrate_scan(&points, &pose).is_err() {
-                // Counted all the same, so that frame `i` is the pipeline's `i`-th.
+            // A frame that fails is counted all the same, so that frame `i` is the
+            // pipeline's `i`-th.
+            let Ok(o) = r.pipeline.integrate_scan(&points, &pose) else {
                 continue;
+            };
+            if let (Some(w), Some(out)) = (&mut self.streaming, &mut r.outputs) {
+                let map = r.pipeline.map_mut();
+                (w.evict)(
+                    map,
+                    o.stats.frame,
+                    &pose,
+                    out.spool.as_mut(),
+                    out.saved_map.as_mut(),
+                )?;
             }
         }
         self.rebuilding = Some(r);
@@ -440,10 +493,20 @@ impl<C: Capacity> Worker<C> {
     /// the closures the correction holds.
     fn send(
         &mut self,
-        rebuilt: Option<Box<Pipeline<C>>>,
+        rebuilt: Option<(Box<Pipeline<C>>, Option<RebuiltOutputs>)>,
         corrections: Vec<Pose>,
         closures: Vec<Closure>,
     ) {
+        // The rebuilt map goes; its pipeline waits for the run's old one.
+        let (rebuilt, outputs) = match rebuilt {
+            Some((mut p, outputs)) => {
+                let lattice = *p.map().lattice();
+                let map = std::mem::replace(p.map_mut(), MeshMap::with_capacity(0, 0, lattice));
+                self.awaiting = Some(p);
+                (Some(Box::new(map)), outputs)
+            }
+            None => (None, None),
+        };
         let per_frame: Vec<(usize, Pose)> = self
             .frames
             .iter()
@@ -460,6 +523,7 @@ impl<C: Capacity> Worker<C> {
         self.in_flight = true;
         let _ = self.to_run.send(Corrected {
             rebuilt,
+            outputs,
             per_frame,
             last,
             closures,
@@ -472,9 +536,16 @@ impl<C: Capacity> Worker<C> {
 /// A map being rebuilt a slice at a time between checks.
 struct Rebuild<C: Capacity> {
     pipeline: Box<Pipeline<C>>,
+    /// A windowed run's: what leaves the rebuilt map's window.
+    outputs: Option<RebuiltOutputs>,
     /// Each frame's correction it is built with (frames that came later appended).
     corrections: Vec<Pose>,
     /// The closures in the graph it was started from, not yet sent.
     closures: Vec<Closure>,
     started: std::time::Instant,
+}
+
+/// A pipeline that cannot be made for the run's configuration (checked when the run started).
+fn config_error(e: slamesh_core::ConfigError) -> FileError {
+    FileError::at(std::path::Path::new("loop closure"), e.to_string())
 }

@@ -16,6 +16,7 @@ pub use crate::formats::mesh_records::{MeshCounts, VertexColour, FACE_BYTES, VER
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
 use crate::outputs::mesh_weld::{weld_set, Neighbour, SeamLinks, WeldedMesh};
+use files::{imports_within, read_sets, sets_within, spool_paths};
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::config::MeshConfig;
 use slamesh_core::lattice::Lattice;
@@ -25,6 +26,8 @@ use slamesh_core::Point;
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
+
+mod files;
 
 /// Bytes of an imported position: x, y, z as little-endian `f32`.
 const IMPORT_BYTES: usize = 12;
@@ -143,12 +146,7 @@ impl MeshSpool {
         shown: &MeshConfig,
         kept: Option<MeshCounts>,
     ) -> Result<Self, FileError> {
-        let name = target
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let paths = ["vertices", "faces", "sets", "imports"]
-            .map(|what| target.with_file_name(format!(".{name}.{what}.spool")));
+        let paths = spool_paths(target);
         let open = |p: &Path, keep_bytes: Option<u64>| {
             let file = match keep_bytes {
                 None => File::create(p)
@@ -192,6 +190,21 @@ impl MeshSpool {
             }
         }
         Ok(spool)
+    }
+
+    /// Gives the spool files the names a spool for `target` has (those of another spool
+    /// for it are replaced): a spool made elsewhere takes the place of `target`'s, as a
+    /// rebuild's does when loop closure corrects a windowed run
+    /// ([`crate::loop_closure::streaming`]), and resumes as it would.
+    pub fn move_to(&mut self, target: &Path) -> Result<(), FileError> {
+        self.flush()?;
+        let to = spool_paths(target);
+        for (from, to) in self.paths.iter_mut().zip(to) {
+            std::fs::rename(&*from, &to)
+                .map_err(|e| FileError::at(&to, format!("cannot move the spool file: {e}")))?;
+            *from = to;
+        }
+        Ok(())
     }
 
     /// Colours the PLY output's vertices (none unless asked).
@@ -477,38 +490,6 @@ impl MeshSpool {
     }
 }
 
-/// The set ends of `sets` up to `kept` (how many, and the last end).
-fn sets_within(sets: &[MeshCounts], kept: MeshCounts) -> (u64, MeshCounts) {
-    let within = sets
-        .iter()
-        .take_while(|s| s.vertices <= kept.vertices && s.triangles <= kept.triangles)
-        .count();
-    let last = within
-        .checked_sub(1)
-        .and_then(|i| sets.get(i))
-        .copied()
-        .unwrap_or_default();
-    (within as u64, last)
-}
-
-/// How many imported positions the first `kept` faces in `faces` use (their corners below
-/// the first vertex of their set, with `sets` the set ends).
-fn imports_within(faces: &Path, sets: &[MeshCounts], kept: MeshCounts) -> Result<u64, FileError> {
-    let io = |e: std::io::Error| FileError::at(faces, format!("cannot read: {e}"));
-    let mut r = BufReader::new(File::open(faces).map_err(io)?);
-    let (mut count, mut set, mut start) = (0, 0, 0);
-    for f in 0..kept.triangles {
-        while sets.get(set).is_some_and(|s| f >= s.triangles) {
-            start = sets[set].vertices;
-            set += 1;
-        }
-        let mut rec = [0u8; FACE_BYTES];
-        r.read_exact(&mut rec).map_err(io)?;
-        count += face_indices(&rec).iter().filter(|&&i| i < start).count() as u64;
-    }
-    Ok(count)
-}
-
 /// The three vertex indices of a spooled face.
 fn face_indices(rec: &[u8; FACE_BYTES]) -> [u64; 3] {
     [0, 1, 2].map(|k| {
@@ -559,26 +540,6 @@ fn neighbours<'a>(
             later: i >= set.end,
         })
         .collect()
-}
-
-/// Every set end spooled in `path`.
-fn read_sets(path: &Path) -> Result<Vec<MeshCounts>, FileError> {
-    let bytes =
-        std::fs::read(path).map_err(|e| FileError::at(path, format!("cannot read: {e}")))?;
-    Ok(bytes
-        .chunks_exact(SET_BYTES)
-        .map(|rec| {
-            let u = |i: usize| {
-                let mut b = [0u8; 8];
-                b.copy_from_slice(&rec[i..i + 8]);
-                u64::from_le_bytes(b)
-            };
-            MeshCounts {
-                vertices: u(0),
-                triangles: u(8),
-            }
-        })
-        .collect())
 }
 
 impl Drop for MeshSpool {

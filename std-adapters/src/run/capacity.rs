@@ -103,6 +103,8 @@ pub struct Class {
     /// What it needs under a memory cap, before the rest of the process, with the next frame
     /// read ahead but filtered in line ([`Window::least_cap_bytes`]).
     pub least_cap_bytes: usize,
+    /// The same with loop closure's thread ([`Window::least_cap_bytes_closing`]).
+    pub least_cap_closing_bytes: usize,
 }
 
 impl Class {
@@ -114,6 +116,7 @@ impl Class {
             points: C::POINTS,
             bytes: C::memory_bytes(),
             least_cap_bytes: Window::least_cap_bytes::<C>(0, false),
+            least_cap_closing_bytes: Window::least_cap_bytes_closing::<C>(0),
         }
     }
 }
@@ -139,14 +142,32 @@ pub fn class_for(points: usize) -> Class {
 /// [`class_for`] under a memory cap of `cap_bytes` with `other_bytes` for the rest of the
 /// process: when that class needs more than the cap and a smaller one holds `points` (with no
 /// headroom) and fits, the smaller one. Later scans with more points than it holds are then
-/// refused, each with the class to use: a tight cap is worth more than the spare room.
-pub fn class_under_cap(points: usize, cap_bytes: usize, other_bytes: usize) -> Class {
-    let fits = |c: &Class| c.least_cap_bytes + other_bytes <= cap_bytes;
+/// refused, each with the class to use: a tight cap is worth more than the spare room. With
+/// loop closure asked for (`closing`), a class that fits with it first, then one without.
+pub fn class_under_cap(
+    points: usize,
+    cap_bytes: usize,
+    other_bytes: usize,
+    closing: bool,
+) -> Class {
+    let fits = |c: &Class, closing: bool| {
+        let least = match closing {
+            true => c.least_cap_closing_bytes,
+            false => c.least_cap_bytes,
+        };
+        least + other_bytes <= cap_bytes
+    };
     let preferred = class_for(points);
-    match class_holding(points) {
-        Some(c) if !fits(&preferred) && fits(&c) => c,
-        _ => preferred,
+    let holding = class_holding(points);
+    for closing in [closing, false] {
+        if fits(&preferred, closing) {
+            return preferred;
+        }
+        if let Some(c) = holding.filter(|c| fits(c, closing)) {
+            return c;
+        }
     }
+    preferred
 }
 
 /// The class that holds a scan of `points` within range (no headroom), if any does.
@@ -204,7 +225,8 @@ pub fn choose(source: &mut impl FrameSource, opts: &RunOptions) -> Class {
     let class = match opts.window.memory_cap_mb {
         Some(cap) => {
             let other = memory::other_bytes();
-            let class = class_under_cap(n, (cap * 1e6) as usize, other);
+            let closing = opts.loop_closure.is_some();
+            let class = class_under_cap(n, (cap * 1e6) as usize, other, closing);
             let least = |c: &Class| (c.least_cap_bytes + other) as f64 / 1e6;
             match class_holding(n) {
                 Some(h) if least(&class) > cap => log::warn!(
@@ -269,12 +291,24 @@ mod tests {
         assert_eq!(class_for(60_000), l64);
         let other = 10_000_000;
         let roomy = l64.least_cap_bytes + other;
-        assert_eq!(class_under_cap(60_000, roomy, other), l64);
-        assert_eq!(class_under_cap(60_000, roomy - 1, other), l32);
+        assert_eq!(class_under_cap(60_000, roomy, other, false), l64);
+        assert_eq!(class_under_cap(60_000, roomy - 1, other, false), l32);
+        // With loop closure asked for: the class that keeps it within the cap before the one
+        // with room to spare, and without it only when none keeps it.
+        let closing = l32.least_cap_closing_bytes + other;
+        assert!(l32.least_cap_closing_bytes < l64.least_cap_closing_bytes);
+        assert!(l64.least_cap_closing_bytes > l64.least_cap_bytes);
+        assert_eq!(class_under_cap(60_000, closing, other, true), l32);
+        let big = l64.least_cap_closing_bytes + other;
+        assert_eq!(class_under_cap(60_000, big, other, true), l64);
+        assert_eq!(
+            class_under_cap(60_000, closing - 1, other, true),
+            class_under_cap(60_000, closing - 1, other, false)
+        );
         assert!(l32.least_cap_bytes < l64.least_cap_bytes);
         // Too tight for any class that holds the scan: the preferred one (refused later).
         assert_eq!(
-            class_under_cap(60_000, l16.least_cap_bytes + other, other),
+            class_under_cap(60_000, l16.least_cap_bytes + other, other, false),
             l64
         );
     }

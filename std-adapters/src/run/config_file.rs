@@ -232,6 +232,11 @@ impl WindowSettings {
             max_layers: None,
         }
     }
+
+    /// Whether the map is a window: a memory cap or a rule evicts cells.
+    pub fn is_windowed(&self) -> bool {
+        self.memory_cap_mb.is_some() || !self.rules().is_off()
+    }
 }
 
 const WINDOW_DOCS: [(&str, &str); 4] = [

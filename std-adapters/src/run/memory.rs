@@ -32,6 +32,11 @@ pub const WELD_BYTES_PER_LAYER: usize = 14 * 1024;
 /// [`SET_LAYERS`]: crate::outputs::mesh_spool::SET_LAYERS
 pub const CAPPED_SET_LAYERS: usize = 256;
 
+/// Layers welded together by loop closure's rebuild under a memory cap
+/// ([`crate::loop_closure::streaming`]): half of [`CAPPED_SET_LAYERS`], so that its weld and
+/// the run's together hold about 5 MB at most.
+pub const CLOSING_SET_LAYERS: usize = CAPPED_SET_LAYERS / 2;
+
 /// The rest of the process's growth under a memory cap, beside the pipeline and welding: IO
 /// buffers, thread stacks, the allocator's slack.
 pub const OTHER_GROWTH_BYTES: usize = 4 << 20;

@@ -71,10 +71,12 @@ pub struct RunOptions {
 
 impl RunOptions {
     /// Why this run cannot close loops, if it cannot. Each rebuild of the map fuses every
-    /// scan of the run again into an empty map (or the saved map it started from), so it
-    /// needs the whole map in memory (no memory cap, no window), a map it may change (not
-    /// `localize` without `--update`) and every scan of the run: not a resumed run's
-    /// ([`RESUMED_WITHOUT_LOOP_CLOSURE`]).
+    /// scan of the run again into an empty map (or the saved map it started from, loaded
+    /// whole: so not both a saved map and a window or memory cap), so it needs a map it may
+    /// change (not `localize` without `--update`) and every scan of the run: not a resumed
+    /// run's ([`RESUMED_WITHOUT_LOOP_CLOSURE`]). Under a memory cap it also needs room
+    /// (`run::window::loop_closure_bytes`): where the cap has none, the run goes on without
+    /// it, saying so.
     pub fn loop_closure_unavailable(&self) -> Option<&'static str> {
         self.loop_closure_unavailable_from_start()
             .or(self.resume.then_some(RESUMED_WITHOUT_LOOP_CLOSURE))
@@ -86,8 +88,8 @@ impl RunOptions {
     pub fn loop_closure_unavailable_from_start(&self) -> Option<&'static str> {
         if self.given_poses.is_some() {
             Some("the poses are given")
-        } else if self.window.memory_cap_mb.is_some() || !self.window.rules().is_off() {
-            Some("it rebuilds the whole map, so it does not run with a memory cap or a window yet")
+        } else if self.map.is_some() && self.window.is_windowed() {
+            Some("a rebuild loads the saved map whole, so not under a memory cap or window")
         } else if self.localize_only {
             Some("the map is fixed (localize without --update)")
         } else {

@@ -16,6 +16,7 @@ use crate::formats::map_file::MapWriter;
 use crate::formats::mesh_records::VertexProperties;
 use crate::inertial::Inertial;
 use crate::io::error::FileError;
+use crate::loop_closure::streaming::RunOutputs;
 use crate::loop_closure::LoopClosure;
 use crate::navmap::files::NavMapSummary;
 use crate::navmap::layers::OnMesh;
@@ -335,7 +336,12 @@ impl<'a, C: Capacity> Run<'a, C> {
     /// checkpoint, and sums the run up.
     pub fn finish(mut self, source: &impl FrameSource) -> Result<Summary, RunError> {
         let (pipeline, poses) = (&mut self.pipeline, &mut self.progress.poses);
-        let loop_closure = (self.closer.take()).map(|c| c.finish(pipeline, poses, source.frames()));
+        let outputs = RunOutputs {
+            spool: &mut self.spool,
+            saved_map: &mut self.saved_map,
+        };
+        let loop_closure =
+            (self.closer.take()).map(|c| c.finish(pipeline, poses, source.frames(), outputs));
         self.progress.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
         let Progress {
             poses,

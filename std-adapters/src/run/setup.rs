@@ -4,7 +4,9 @@
 //! a memory cap, opened for paging ([`crate::run::map_pager`]); and loop closure's thread.
 
 use crate::io::error::FileError;
+use crate::loop_closure::streaming::{Evict, Streaming};
 use crate::loop_closure::LoopClosure;
+use crate::outputs::mesh_spool::SET_LAYERS;
 use crate::parallel::Workers;
 use crate::run::lookahead::LookAhead;
 use crate::run::map_pager::MapPager;
@@ -41,7 +43,12 @@ impl<C: Capacity> Setup<C> {
         // With two threads or more, the next frame is read and filtered ahead on the pool;
         // under a cap too tight for the filter's buffers twice, read ahead only.
         let threads = workers.threads() > 1;
-        let (max_layers, filter_ahead) = layer_budget::<C>(opts, threads)?;
+        let closing = opts.loop_closure.is_some() && opts.loop_closure_unavailable().is_none();
+        let Budget {
+            max_layers,
+            filter_ahead,
+            closing,
+        } = layer_budget::<C>(opts, threads, closing)?;
         window.max_layers = max_layers;
         let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
         let mut pipeline =
@@ -67,7 +74,10 @@ impl<C: Capacity> Setup<C> {
             pipeline.restore_progress(start.frames, motion);
             map_start = Some(start);
         }
-        let closer = loop_closer(opts)?;
+        let closer = match closing {
+            true => loop_closer(opts, streaming(opts, window, map_layers))?,
+            false => None,
+        };
         Ok(Setup {
             closer,
             pipeline,
@@ -85,14 +95,31 @@ impl<C: Capacity> Setup<C> {
     }
 }
 
-/// The layer budget a memory cap allows (none without a cap), and whether the next frame can
-/// still be filtered ahead (`threads`: there is a pool to filter on) within it.
+/// What a memory cap allows a run.
+struct Budget {
+    /// The map's layer budget (none without a cap).
+    max_layers: Option<usize>,
+    /// The next frame is filtered ahead.
+    filter_ahead: bool,
+    /// Loop closure runs.
+    closing: bool,
+}
+
+/// The layer budget a memory cap allows (none without a cap), whether the next frame can
+/// still be filtered ahead (`threads`: there is a pool to filter on) within it, and whether
+/// loop closure (asked for: `closing`) fits too. What gives way first, as the cap tightens:
+/// filtering ahead, then loop closure (the run goes on without it, saying what it needs).
 fn layer_budget<C: Capacity>(
     opts: &RunOptions,
     threads: bool,
-) -> Result<(Option<usize>, bool), RunError> {
+    closing: bool,
+) -> Result<Budget, RunError> {
     let Some(cap) = opts.window.memory_cap_mb else {
-        return Ok((None, threads));
+        return Ok(Budget {
+            max_layers: None,
+            filter_ahead: threads,
+            closing,
+        });
     };
     let (cap_bytes, other) = ((cap * 1e6) as usize, memory::other_bytes());
     let too_small = |e: CapTooSmall| RunError::MemoryCapTooSmall {
@@ -100,19 +127,51 @@ fn layer_budget<C: Capacity>(
         class: C::NAME,
         needed_bytes: e.needed_bytes,
     };
-    match Window::max_layers::<C>(cap_bytes, other, threads) {
-        Ok(budget) => Ok((Some(budget), threads)),
-        Err(e) if threads => {
-            let budget = Window::max_layers::<C>(cap_bytes, other, false).map_err(too_small)?;
-            log::info!(
-                "memory cap {cap} MB: each frame is read ahead but filtered in line \
-                 (filtering ahead needs a cap of {:.0} MB)",
-                e.needed_bytes as f64 / 1e6
-            );
-            Ok((Some(budget), false))
+    // Filtering ahead gives way first, then loop closure.
+    let tries = [
+        (threads, closing),
+        (false, closing),
+        (threads, false),
+        (false, false),
+    ];
+    let mut refused: Vec<((bool, bool), CapTooSmall)> = Vec::new();
+    let mut fitted = None;
+    for (ahead, loops) in tries {
+        match Window::max_layers::<C>(cap_bytes, other, ahead, loops) {
+            Ok(budget) => {
+                fitted = Some((budget, ahead, loops));
+                break;
+            }
+            Err(e) => refused.push(((ahead, loops), e)),
         }
-        Err(e) => Err(too_small(e)),
     }
+    let Some((max_layers, filter_ahead, fits)) = fitted else {
+        return Err(too_small(refused[refused.len() - 1].1));
+    };
+    // What the cap needed for what gave way: loop closure (filtered in line), or filtering
+    // ahead.
+    let need = |what: (bool, bool)| {
+        let e = refused.iter().find(|r| r.0 == what).map(|r| r.1);
+        e.map_or(0.0, |e| e.needed_bytes as f64 / 1e6)
+    };
+    if closing && !fits {
+        log::warn!(
+            "memory cap {cap} MB: loop closure is off (with it the {} class needs {:.0} MB)",
+            C::NAME,
+            need((false, true))
+        );
+    } else if threads && !filter_ahead {
+        log::info!(
+            "memory cap {cap} MB: each frame is read ahead but filtered in line \
+             (filtering ahead needs a cap of {:.0} MB)",
+            need((true, closing))
+        );
+    }
+    Ok(Budget {
+        max_layers: Some(max_layers),
+        filter_ahead,
+        closing: fits,
+    })
 }
 
 /// A saved map opened for paging within `budget` layers: where it starts (nothing resident).
@@ -173,9 +232,39 @@ fn start_motion(
     Ok(ConstantVelocity::from_history(Some(before.1), Some(last.1)))
 }
 
+/// What loop closure's thread needs of a run whose map is a window ([`streaming`]'s module):
+/// the window (`window`, over a map of `map_layers` layers), and the outputs it writes
+/// what leaves the window to. `None` for a run that keeps its whole map.
+fn streaming(opts: &RunOptions, window: Window, map_layers: usize) -> Option<Streaming> {
+    if window.is_off() {
+        return None;
+    }
+    let set_layers = match window.max_layers {
+        Some(_) => memory::CLOSING_SET_LAYERS,
+        None => SET_LAYERS,
+    };
+    let evict: Evict = Box::new(move |map, frame, sensor, spool, saved| {
+        window.evict_to(map, frame, sensor, spool, saved)
+    });
+    Some(Streaming {
+        evict,
+        map_layers,
+        mesh: (opts.window.save_evicted).then(|| {
+            let c = &opts.config;
+            (opts.out.join("mesh.ply"), c.lattice(), c.mesh, set_layers)
+        }),
+        save_map: (opts.save_map.as_ref())
+            .map(|p| (p.clone(), saved_map::info(&opts.config, &opts.preset, 0))),
+        dir: opts.out.clone(),
+    })
+}
+
 /// Loop closure's thread when asked for; refused, naming why, where the run cannot close
 /// loops ([`RunOptions::loop_closure_unavailable`]).
-fn loop_closer<C: Capacity>(opts: &RunOptions) -> Result<Option<LoopClosure<C>>, RunError> {
+fn loop_closer<C: Capacity>(
+    opts: &RunOptions,
+    streaming: Option<Streaming>,
+) -> Result<Option<LoopClosure<C>>, RunError> {
     match (opts.loop_closure, opts.loop_closure_unavailable()) {
         (Some(_), Some(reason)) => Err(RunError::Config(slamesh_core::ConfigError {
             field: "loop closure",
@@ -186,6 +275,7 @@ fn loop_closer<C: Capacity>(opts: &RunOptions) -> Result<Option<LoopClosure<C>>,
             s,
             &opts.out.join(".loop-closure.scans"),
             opts.map.as_deref(),
+            streaming,
         )?)),
         (None, _) => Ok(None),
     }

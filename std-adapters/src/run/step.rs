@@ -6,6 +6,7 @@
 
 use crate::inertial::ImuFrame;
 use crate::io::error::FileError;
+use crate::loop_closure::streaming::RunOutputs;
 use crate::run::capacity::{self, SMALL_SCAN_RATIO};
 use crate::run::frame_error::{FrameError, FrameFault};
 use crate::run::lookahead::{Ahead, Scan as ReadScan};
@@ -124,7 +125,11 @@ impl<C: Capacity> Run<'_, C> {
     /// Applies the loops the closer found since the last frame.
     fn close_loops(&mut self, i: usize, rec: &mut FrameRecord) {
         if let Some(c) = &mut self.closer {
-            for closed in c.apply(&mut self.pipeline, &mut self.progress.poses, i) {
+            let outputs = RunOutputs {
+                spool: &mut self.spool,
+                saved_map: &mut self.saved_map,
+            };
+            for closed in c.apply(&mut self.pipeline, &mut self.progress.poses, i, outputs) {
                 log::info!("frame {i}: {}", closed.describe());
                 rec.loop_closures.push(closed);
             }

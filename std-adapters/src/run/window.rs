@@ -19,8 +19,10 @@
 
 use crate::formats::map_file::MapWriter;
 use crate::io::error::FileError;
+use crate::loop_closure::streaming;
 use crate::outputs::mesh_spool::MeshSpool;
 use crate::run::lookahead::LookAhead;
+use crate::run::memory;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::layer::Layer;
 use slamesh_core::map::{LayerRef, MeshMap};
@@ -49,13 +51,16 @@ impl Window {
     /// rest of the process (code, IO buffers, threads): the most layers the map may keep
     /// between scans with a pipeline of [`map_layers`](Self::map_layers) within the cap. At
     /// least one scan's worth (a smaller cap is refused with the bytes it needs), at most the
-    /// capacity's. `filter_ahead`: the look-ahead's filter buffers count too.
+    /// capacity's. `filter_ahead`: the look-ahead's filter buffers count too;
+    /// `loop_closure`: so does what loop closure's thread holds ([`loop_closure_bytes`]).
     pub fn max_layers<C: Capacity>(
         cap_bytes: usize,
         other_bytes: usize,
         filter_ahead: bool,
+        loop_closure: bool,
     ) -> Result<usize, CapTooSmall> {
-        let needed = |budget: usize| Self::run_bytes::<C>(budget, filter_ahead) + other_bytes;
+        let needed =
+            |budget: usize| Self::run_bytes::<C>(budget, filter_ahead, loop_closure) + other_bytes;
         let (mut lo, mut hi) = (Self::least_budget::<C>(), C::MAP_LAYERS);
         if cap_bytes < needed(lo) {
             return Err(CapTooSmall {
@@ -77,18 +82,31 @@ impl Window {
     /// The least memory cap for capacity `C` when `other_bytes` go to the rest of the
     /// process: the budget of one scan's layers (`filter_ahead`: with the look-ahead's filter).
     pub fn least_cap_bytes<C: Capacity>(other_bytes: usize, filter_ahead: bool) -> usize {
-        Self::run_bytes::<C>(Self::least_budget::<C>(), filter_ahead) + other_bytes
+        Self::run_bytes::<C>(Self::least_budget::<C>(), filter_ahead, false) + other_bytes
+    }
+
+    /// [`least_cap_bytes`](Self::least_cap_bytes) with loop closure's thread
+    /// ([`loop_closure_bytes`]), the next frame filtered in line.
+    pub fn least_cap_bytes_closing<C: Capacity>(other_bytes: usize) -> usize {
+        Self::run_bytes::<C>(Self::least_budget::<C>(), false, true) + other_bytes
     }
 
     /// The run's own bytes for a layer budget of `budget`: the pipeline's for a map of
-    /// [`map_layers`](Self::map_layers), and the look-ahead's filter when `filter_ahead`.
-    fn run_bytes<C: Capacity>(budget: usize, filter_ahead: bool) -> usize {
+    /// [`map_layers`](Self::map_layers), the look-ahead's filter when `filter_ahead`, and
+    /// loop closure's thread when `loop_closure`.
+    fn run_bytes<C: Capacity>(budget: usize, filter_ahead: bool, loop_closure: bool) -> usize {
         let ahead = if filter_ahead {
             LookAhead::bytes::<C>()
         } else {
             0
         };
-        C::memory_bytes_with_map_layers(Self::map_layers::<C>(budget)) + ahead
+        let map_layers = Self::map_layers::<C>(budget);
+        let closing = if loop_closure {
+            loop_closure_bytes::<C>(map_layers)
+        } else {
+            0
+        };
+        C::memory_bytes_with_map_layers(map_layers) + ahead + closing
     }
 
     /// The least layer budget: one scan's worth (a map that cannot hold what one scan sees
@@ -177,6 +195,16 @@ impl Window {
         }
         evicted
     }
+}
+
+/// What loop closure's thread holds under a memory cap beside its spool on disk, for a run
+/// whose map holds `map_layers` layers: its pipeline with half the scan buffers and a map the
+/// size of the run's (`streaming::engine_bytes`), and the weld of a set of what leaves the
+/// rebuilt map's window ([`memory::CLOSING_SET_LAYERS`]), which may run while the run welds
+/// its own. Its poses (about 200 bytes a frame) come out of the process's headroom.
+pub fn loop_closure_bytes<C: Capacity>(map_layers: usize) -> usize {
+    streaming::engine_bytes::<C>(map_layers)
+        + memory::CLOSING_SET_LAYERS * memory::WELD_BYTES_PER_LAYER
 }
 
 /// The largest `last_seen` such that evicting every cell seen at or before it leaves at most
@@ -269,22 +297,22 @@ mod tests {
         let bytes = |budget: usize| {
             K::memory_bytes_with_map_layers(budget + scan) + LookAhead::bytes::<K>()
         };
-        let e = Window::max_layers::<K>(K::scan_bytes(), 0, true).unwrap_err();
+        let e = Window::max_layers::<K>(K::scan_bytes(), 0, true, false).unwrap_err();
         assert_eq!(e.needed_bytes, bytes(scan), "one scan's worth is the least");
         // The map is sized for the budget: under a third of the capacity's bound.
         assert!(e.needed_bytes < K::memory_bytes() / 3);
         let cap = bytes(scan + 10_000) + 7;
-        let n = Window::max_layers::<K>(cap, 7, true).unwrap();
+        let n = Window::max_layers::<K>(cap, 7, true, false).unwrap();
         assert_eq!(
             n,
             scan + 10_000,
             "7 bytes for the rest, and the budget fits exactly"
         );
-        let n = Window::max_layers::<K>(cap, 8, true).unwrap();
+        let n = Window::max_layers::<K>(cap, 8, true, false).unwrap();
         assert!(bytes(n) + 8 <= cap && bytes(n + 1) + 8 > cap, "{n}");
         // Reading ahead only: the look-ahead's filter is room for more layers (each with its
         // share of the hash table too: its packed cell and slots).
-        let more = Window::max_layers::<K>(cap, 8, false).unwrap();
+        let more = Window::max_layers::<K>(cap, 8, false, false).unwrap();
         let freed = LookAhead::bytes::<K>() / slamesh_core::capacity::MAP_LAYER_BYTES;
         assert!(
             more > n + freed * 8 / 10 && more <= n + freed,
@@ -294,7 +322,7 @@ mod tests {
             Window::least_cap_bytes::<K>(0, false),
             Window::least_cap_bytes::<K>(0, true) - LookAhead::bytes::<K>()
         );
-        let all = Window::max_layers::<SmallCapacity>(usize::MAX / 2, 0, true).unwrap();
+        let all = Window::max_layers::<SmallCapacity>(usize::MAX / 2, 0, true, false).unwrap();
         assert_eq!(all, SmallCapacity::MAP_LAYERS);
         assert_eq!(Window::map_layers::<SmallCapacity>(all), all);
     }

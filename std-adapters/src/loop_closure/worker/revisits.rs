@@ -36,21 +36,24 @@ impl<C: Capacity> Worker<C> {
                 pose: c * f.raw,
                 travelled_m: f.travelled_m,
             });
-        let Some(revisit) = detect::revisit(&self.s, pose, travelled, past) else {
+        let Some(mut revisit) = detect::revisit(&self.s, pose, travelled, past) else {
             return Ok(None);
         };
+        let Some(submap) = self.submap.as_deref_mut() else {
+            return Ok(None);
+        };
+        if self.streaming.is_some() {
+            // The local map may be smaller than its frames make (a windowed run's): the
+            // nearest are fused first, the farthest lose what does not fit.
+            let d = |p: &Past| (p.pose.translation.vector - pose.translation.vector).norm();
+            revisit.submap.sort_by(|a, b| d(a).total_cmp(&d(b)));
+        }
         let points = self.spool.read(kf)?;
         let t = std::time::Instant::now();
         let spool = &mut self.spool;
-        let verified = detect::verify(
-            &self.s,
-            &mut self.submap,
-            &points,
-            pose,
-            travelled,
-            &revisit,
-            |i| spool.read(i),
-        )?;
+        let verified = detect::verify(&self.s, submap, &points, pose, travelled, &revisit, |i| {
+            spool.read(i)
+        })?;
         log::debug!(
             "loop closure: frame {} checked against {} earlier frames ({} in the local map) in {:.0} ms: {}",
             self.frames[kf].frame,
@@ -90,7 +93,7 @@ impl<C: Capacity> Worker<C> {
         pose: &Pose,
         travelled: f64,
     ) -> Result<Option<Found>, FileError> {
-        let Some(saved) = &mut self.saved else {
+        let (Some(saved), Some(submap)) = (&mut self.saved, self.submap.as_deref_mut()) else {
             return Ok(None);
         };
         // The earlier session's poses count as where this run started: the drift allowed is
@@ -104,9 +107,9 @@ impl<C: Capacity> Worker<C> {
             return Ok(None);
         };
         let points = self.spool.read(kf)?;
-        self.submap.map_mut().evict_where(|_, _| true, |_| {});
+        submap.map_mut().evict_where(|_, _| true, |_| {});
         let near: Vec<Pose> = revisit.near.iter().map(|p| p.pose).collect();
-        if let Err(e) = saved.load_near(&near, self.s.submap_margin_m, self.submap.map_mut()) {
+        if let Err(e) = saved.load_near(&near, self.s.submap_margin_m, submap.map_mut()) {
             // The file was read whole when the run started: what fails here is room.
             log::debug!(
                 "loop closure: the saved map near frame {}: {e}",
@@ -114,14 +117,7 @@ impl<C: Capacity> Worker<C> {
             );
             return Ok(None);
         }
-        let verified = detect::search(
-            &self.s,
-            &mut self.submap,
-            &points,
-            pose,
-            travelled,
-            &revisit,
-        );
+        let verified = detect::search(&self.s, submap, &points, pose, travelled, &revisit);
         log::debug!(
             "loop closure: frame {} checked against the saved map ({} poses of its path near): {}",
             self.frames[kf].frame,
