@@ -13,30 +13,36 @@
 //!   [`MergeSettings::agree_deg`]) are the answer (the better placed of the two). None
 //!   agreeing is a refusal that says what was tried and the best found: a map is never
 //!   merged at a guess.
-//! - **Fusing B.** B's cells go to the nearest of its path's poses a few metres apart; each
-//!   group's vertices are fused into A as a scan from that pose moved into A (the GP
-//!   reconstruction and fusion of any scan, §1.3 and §1.5), so a surface both mapped becomes
-//!   one surface and what only B saw is added. The filter's nearest range is lifted for it
-//!   (a vertex under the pose is no LiDAR echo off the robot).
+//! - **Fusing B** (`tiles`). A tile of the merged map at a time: A's blocks of the tile, and
+//!   B's confident vertices that land in it at the transform found, fused as a scan from the
+//!   nearest of B's path's poses a few metres apart, moved into A (the GP reconstruction and
+//!   fusion of any scan, §1.3 and §1.5); the tile is written and let go. So a surface both
+//!   mapped becomes one surface and what only B saw is added. The filter's range limits are
+//!   lifted for it (a vertex under the pose is no LiDAR echo off the robot).
 //! - **What C holds.** A's configuration and frame; every cell of both; A's path, then B's
 //!   moved into A; the scans of both counted. Written to a temporary file and renamed.
 //!
-//! Memory: both maps whole (A in the pipeline that fuses B, B in a map of its own), about
-//! 300 bytes a layer each; not yet tile by tile.
+//! Memory: bounded whatever the maps' sizes ([`MergeSettings::resident_layers`]): the search
+//! pages A's tiles in around the places it tries, as `localize` under a memory cap does; a
+//! place's cloud is read from B's tiles within its radius; the fusion holds one tile of the
+//! merged map, one of B's tiles at a time, and for each tile of the merged map the list of
+//! B's tiles that land in it.
 
 use crate::formats::map_file::{MapFile, MapWriter};
 use crate::io::error::FileError;
+use crate::run::map_pager::MapPager;
 use crate::run::saved_map;
 use serde::Serialize;
-use slamesh_core::lattice::LatticeTable;
-use slamesh_core::map::{LayerRef, MeshMap};
-use slamesh_core::math::{rotation_angle, Vec3};
+use slamesh_core::math::rotation_angle;
 use slamesh_core::pipeline::{Known, Relocalized, Scan, Stepped};
-use slamesh_core::relocalize::{AllResident, Search};
-use slamesh_core::{KittiCapacity, NoProbe, Pipeline, Point, Pose, RegistrationStatus, Serial};
+use slamesh_core::relocalize::Search;
+use slamesh_core::{KittiCapacity, NoProbe, Pipeline, Pose, RegistrationStatus, Serial};
 use std::fmt;
 use std::path::Path;
 use std::time::Instant;
+use tiles::TiledB;
+
+mod tiles;
 
 /// How B is looked for in A and fused.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,8 +57,11 @@ pub struct MergeSettings {
     pub agree_m: f64,
     /// ... and this (degrees).
     pub agree_deg: f64,
-    /// B's cells are fused in groups around poses of its path this far apart (m).
+    /// B's cells are fused from the nearest of its path's poses this far apart (m).
     pub fuse_every_m: f64,
+    /// The most layers the merge holds at once: A's tiles paged in for the search take half,
+    /// and the fusion one tile of the merged map (bounded memory, whatever the maps' sizes).
+    pub resident_layers: usize,
 }
 
 impl Default for MergeSettings {
@@ -64,6 +73,7 @@ impl Default for MergeSettings {
             agree_m: 0.3,
             agree_deg: 0.5,
             fuse_every_m: 5.0,
+            resident_layers: 120_000,
         }
     }
 }
@@ -136,11 +146,14 @@ type Merging = Pipeline<KittiCapacity>;
 /// Most points a place's cloud or a fused group may hold (under the class's 140 000).
 const MAX_POINTS: usize = 120_000;
 
+/// The farthest a vertex of B may lie from the pose of B's path it is fused from (m).
+const FUSE_RANGE_M: f64 = 1_000.0;
+
 /// Merges the saved map `b` into the saved map `a` and writes the result to `out` (see the
 /// module docs).
 pub fn merge(a: &Path, b: &Path, out: &Path, s: &MergeSettings) -> Result<MergeReport, MergeError> {
     let start = Instant::now();
-    let (file_a, mut file_b) = (MapFile::open(a)?, MapFile::open(b)?);
+    let (mut file_a, mut file_b) = (MapFile::open(a)?, MapFile::open(b)?);
     if file_a.info.lattice != file_b.info.lattice {
         let (la, lb) = (file_a.info.lattice, file_b.info.lattice);
         return Err(MergeError::Refused(format!(
@@ -165,91 +178,70 @@ pub fn merge(a: &Path, b: &Path, out: &Path, s: &MergeSettings) -> Result<MergeR
     }
     let settings = saved_map::config_of(a)?;
     let mut config = settings.config;
+    // B's vertices are no LiDAR echoes: none is too near or too far from the pose they are
+    // fused from.
     config.filter.range_min_m = 0.0;
-    let b_map = file_b.load_new()?;
-    // Room for both maps: a layer takes at least 288 bytes of its file.
-    let layers = ((file_a.bytes + file_b.bytes) / 288) as usize;
-    let mut pipeline = Merging::with_map_layers(config, layers)
+    config.filter.range_max_m = FUSE_RANGE_M;
+    let mut pipeline = Merging::with_map_layers(config, s.resident_layers)
         .map_err(|e| MergeError::Refused(format!("the maps' configuration: {e}")))?;
-    let a_start = saved_map::load(a, pipeline.map_mut())?;
-    let (cells_a, layers_a) = (pipeline.map().cell_count(), pipeline.map().layer_count());
-    let table = b_map.lattice().table();
-    let max_var = config.mesh.variance_show as f32;
-    let clouds = Clouds {
-        map: &b_map,
-        table: &table,
-        max_var,
-    };
-    let candidates = saved_map::candidates(&a_start.path, config.grid.cell_size_m);
-    let (t_ab, probes) =
-        find(&mut pipeline, &clouds, &b_path, &candidates, s).map_err(MergeError::Refused)?;
+    let a_path = std::mem::take(&mut file_a.poses);
+    let mut pager = MapPager::open(a, s.resident_layers / 2, s.probe_radius_m)?;
+    let mut tiled_b = TiledB::new(file_b, config.mesh.variance_show as f32);
+    let candidates = saved_map::candidates(&a_path, config.grid.cell_size_m);
+    let found = find(
+        &mut pipeline,
+        &mut pager,
+        &mut tiled_b,
+        &b_path,
+        &candidates,
+        s,
+    );
+    if let Some(e) = pager.take_error() {
+        return Err(e.into());
+    }
+    let (t_ab, probes) = found?;
     let searched_s = start.elapsed().as_secs_f64();
-    let fused = fuse(&mut pipeline, &clouds, &b_path, &t_ab, s.fuse_every_m);
-    let map = pipeline.map();
-    let path: Vec<(f64, Pose)> = (a_start.path.iter().copied())
+    let path: Vec<(f64, Pose)> = (a_path.iter().copied())
         .chain(b_path.iter().map(|(t, p)| (*t, t_ab * p)))
         .collect();
-    let frames = a_start.frames.saturating_add(file_b.info.frames);
-    let info = saved_map::info(&settings.config, settings.preset, frames);
+    let (frames_a, frames_b) = (file_a.info.frames, tiled_b.frames());
+    let info = saved_map::info(
+        &settings.config,
+        settings.preset,
+        frames_a.saturating_add(frames_b),
+    );
     let mut writer = MapWriter::create(out, &info)?;
-    writer.add_map(map)?;
-    writer.finish(&path)?;
+    let fused = tiles::fuse_by_tile(
+        &mut pipeline,
+        &mut file_a,
+        &mut tiled_b,
+        &b_path,
+        &t_ab,
+        s.fuse_every_m,
+        &mut writer,
+    );
+    let fused = match fused {
+        Ok(f) => f,
+        Err(e) => {
+            writer.discard();
+            return Err(e.into());
+        }
+    };
+    let written = writer.finish(&path)?;
     let q = t_ab.rotation.coords;
     Ok(MergeReport {
         translation_m: t_ab.translation.vector.into(),
         rotation_xyzw: [q.x, q.y, q.z, q.w],
         probes,
-        cells: [cells_a, b_map.cell_count(), map.cell_count()],
-        layers: [layers_a, b_map.layer_count(), map.layer_count()],
-        vertices_fused: fused,
+        cells: [fused.a.0, fused.b.0, written.cells as usize],
+        layers: [fused.a.1, fused.b.1, written.layers as usize],
+        vertices_fused: fused.vertices,
         seconds: [
             searched_s,
             start.elapsed().as_secs_f64() - searched_s,
             start.elapsed().as_secs_f64(),
         ],
     })
-}
-
-/// Clouds of B's confident vertices.
-struct Clouds<'a> {
-    map: &'a MeshMap,
-    table: &'a LatticeTable,
-    /// Vertices with a variance below this are confident (the mesh's own threshold).
-    max_var: f32,
-}
-
-impl Clouds<'_> {
-    /// The confident vertices of `layers`, in the frame of `pose`.
-    fn of<'m>(&self, pose: &Pose, layers: impl Iterator<Item = LayerRef<'m>>) -> Vec<Point> {
-        let to_sensor = pose.inverse();
-        let mut points = Vec::new();
-        for l in layers {
-            for (j, var) in l.layer.var.iter().enumerate() {
-                if *var < self.max_var {
-                    let v = l.layer.vertex(self.table, &l.key, l.axis, j);
-                    let p = to_sensor * nalgebra::Point3::from(v);
-                    points.push([p.x as f32, p.y as f32, p.z as f32]);
-                }
-            }
-        }
-        points
-    }
-
-    /// A place's cloud: the confident vertices of the cells within `radius_m` of `pose`, in
-    /// its frame, evenly thinned to at most [`MAX_POINTS`].
-    fn around(&self, pose: &Pose, radius_m: f64) -> Vec<Point> {
-        let here = pose.translation.vector;
-        let near = (self.map.layers()).filter(|l| (self.centre(l) - here).norm() <= radius_m);
-        let points = self.of(pose, near);
-        let every = points.len().div_ceil(MAX_POINTS).max(1);
-        points.into_iter().step_by(every).collect()
-    }
-
-    /// Where a layer's cell is (world): its centre.
-    fn centre(&self, l: &LayerRef) -> Vec3 {
-        let cell = self.map.lattice().cell_size;
-        l.key.min_corner(cell) + Vec3::repeat(0.5 * cell)
-    }
 }
 
 /// Indices of `path` about `every_m` apart along it (its first included), at most `most`,
@@ -272,21 +264,22 @@ fn along(path: &[(f64, Pose)], every_m: f64, most: usize) -> Vec<usize> {
 /// B's frame to A's, with every place tried, or why none was found.
 fn find(
     pipeline: &mut Merging,
-    clouds: &Clouds,
+    pager: &mut MapPager,
+    b: &mut TiledB,
     b_path: &[(f64, Pose)],
     candidates: &[Pose],
     s: &MergeSettings,
-) -> Result<(Pose, Vec<Probe>), String> {
+) -> Result<(Pose, Vec<Probe>), MergeError> {
     pipeline.set_map_updates(false);
     let mut probes = Vec::new();
     let mut found: Vec<(Pose, f64)> = Vec::new();
     for i in along(b_path, s.probe_every_m, s.max_probes) {
         let pose = b_path[i].1;
-        let points = clouds.around(&pose, s.probe_radius_m);
+        let points = b.around(&pose, s.probe_radius_m)?;
         let known = Known::Somewhere {
             candidates,
             search: &Search::default(),
-            paging: &mut AllResident,
+            paging: &mut *pager,
         };
         let result = pipeline.step(Scan::Raw(&points), known, &Serial, &mut NoProbe);
         let Ok(Stepped::Searched(r)) = result else {
@@ -309,7 +302,7 @@ fn find(
         }
         found.push((t, r.hit_share));
     }
-    Err(not_found(&probes, found.len()))
+    Err(MergeError::Refused(not_found(&probes, found.len())))
 }
 
 fn probe(pose_index: usize, points: usize, r: Option<&Relocalized>) -> Probe {
@@ -345,40 +338,4 @@ fn not_found(probes: &[Probe], accepted: usize) -> String {
         100.0 * search.min_wall_share,
         100.0 * best.map_or(0.0, |b| b.runner_up_share),
     )
-}
-
-/// Fuses B's confident vertices into A: each cell's into the group of the nearest of B's
-/// path's poses `every_m` apart, each group as a scan from that pose moved by `t_ab`.
-/// Returns the vertices fused.
-fn fuse(
-    pipeline: &mut Merging,
-    clouds: &Clouds,
-    b_path: &[(f64, Pose)],
-    t_ab: &Pose,
-    every_m: f64,
-) -> usize {
-    pipeline.set_map_updates(true);
-    let anchors: Vec<Pose> = along(b_path, every_m, usize::MAX)
-        .into_iter()
-        .map(|i| b_path[i].1)
-        .collect();
-    // Each layer to its nearest anchor, once.
-    let mut groups: Vec<Vec<LayerRef>> = vec![Vec::new(); anchors.len()];
-    for l in clouds.map.layers() {
-        let c = clouds.centre(&l);
-        let d = |k: &usize| (anchors[*k].translation.vector - c).norm_squared();
-        if let Some(k) = (0..anchors.len()).min_by(|x, y| d(x).total_cmp(&d(y))) {
-            groups[k].push(l);
-        }
-    }
-    let mut fused = 0;
-    for (anchor, group) in anchors.iter().zip(groups) {
-        let points = clouds.of(anchor, group.into_iter());
-        for chunk in points.chunks(MAX_POINTS) {
-            if pipeline.integrate_scan(chunk, &(t_ab * anchor)).is_ok() {
-                fused += chunk.len();
-            }
-        }
-    }
-    fused
 }
