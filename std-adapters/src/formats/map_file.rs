@@ -15,11 +15,11 @@
 use crate::io::atomic::temporary_path;
 use crate::io::error::FileError;
 use slamesh_core::cell::CellKey;
-use slamesh_core::lattice::Lattice;
+use slamesh_core::lattice::{Lattice, VERTICES};
 use slamesh_core::map::{LayerRef, MeshMap};
 use slamesh_core::map_file::{
     self as format, ByteSink, CellRecord, Header, IndexEntry, MapFileError, StoredCell, Trailer,
-    WriteError, HEADER_PREFIX_BYTES, TRAILER_BYTES,
+    WriteError, HEADER_PREFIX_BYTES, TILE_PREFIX_BYTES, TRAILER_BYTES,
 };
 use slamesh_core::Pose;
 use std::collections::BTreeMap;
@@ -372,6 +372,17 @@ impl<R: Read + Seek> MapFile<R> {
         let mut map = MeshMap::with_capacity(most, most, self.info.lattice);
         self.load_all(&mut map)?;
         Ok(map)
+    }
+
+    /// Each tile and the most layers its blocks can hold (a layer takes at least the 288 bytes
+    /// of its predictions and variances): a bound known before a tile is read.
+    pub fn tile_bounds(&self) -> BTreeMap<CellKey, usize> {
+        let mut bounds: BTreeMap<CellKey, usize> = BTreeMap::new();
+        for e in &self.index {
+            let layers = (e.len as usize).saturating_sub(TILE_PREFIX_BYTES + 4) / (8 * VERTICES);
+            *bounds.entry(e.tile).or_default() += layers;
+        }
+        bounds
     }
 
     /// Loads the blocks of `tile` into `map`, in file order; returns the layers inserted.

@@ -13,7 +13,6 @@
 use super::{along, MAX_POINTS};
 use crate::formats::map_file::{tile_distance, MapFile, MapWriter};
 use crate::io::error::FileError;
-use crate::run::map_pager::tile_bounds;
 use slamesh_core::cell::CellKey;
 use slamesh_core::lattice::{Lattice, LatticeTable};
 use slamesh_core::map::{LayerRef, MeshMap};
@@ -38,7 +37,7 @@ impl TiledB {
     pub(super) fn new(file: MapFile, max_var: f32) -> Self {
         let lattice = file.info.lattice;
         Self {
-            bounds: tile_bounds(&file),
+            bounds: file.tile_bounds(),
             table: lattice.table(),
             tile_m: lattice.cell_size * f64::from(TILE_CELLS),
             lattice,

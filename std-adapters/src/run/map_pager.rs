@@ -13,9 +13,8 @@
 use crate::formats::map_file::{tile_distance, MapFile};
 use crate::io::error::FileError;
 use slamesh_core::cell::CellKey;
-use slamesh_core::lattice::VERTICES;
 use slamesh_core::map::MeshMap;
-use slamesh_core::map_file::{tile_of, TILE_CELLS, TILE_PREFIX_BYTES};
+use slamesh_core::map_file::{tile_of, TILE_CELLS};
 use slamesh_core::relocalize::Paging;
 use slamesh_core::Pose;
 use std::collections::{BTreeMap, BTreeSet};
@@ -53,7 +52,7 @@ impl MapPager {
     /// tile farther than `reach_m` from the sensor (the scan's range).
     pub fn open(path: &Path, budget_layers: usize, reach_m: f64) -> Result<Self, FileError> {
         let file = MapFile::open(path)?;
-        let bounds = tile_bounds(&file);
+        let bounds = file.tile_bounds();
         let tile_m = file.info.lattice.cell_size * f64::from(TILE_CELLS);
         Ok(Self {
             file,
@@ -126,17 +125,6 @@ impl MapPager {
         self.resident = wanted;
         Ok(())
     }
-}
-
-/// Each tile of `file` and the most layers its blocks can hold (a layer takes at least the
-/// 288 bytes of its predictions and variances): a bound known before a tile is read.
-pub fn tile_bounds(file: &MapFile) -> BTreeMap<CellKey, usize> {
-    let mut bounds: BTreeMap<CellKey, usize> = BTreeMap::new();
-    for e in &file.index {
-        let layers = (e.len as usize).saturating_sub(TILE_PREFIX_BYTES + 4) / (8 * VERTICES);
-        *bounds.entry(e.tile).or_default() += layers;
-    }
-    bounds
 }
 
 impl std::fmt::Display for PagingStats {
