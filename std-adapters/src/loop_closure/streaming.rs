@@ -40,8 +40,10 @@ pub struct Streaming {
     pub evict: Evict,
     /// Layers of the run's map (its budget and a scan's worth): the rebuilt map replaces it.
     pub map_layers: usize,
-    /// The run's mesh file (`mesh.ply`): the rebuild's spool takes its spool files' names
-    /// when it replaces the run's. `None`: the run does not spool what leaves its window.
+    /// The run's mesh file (`mesh.ply`), its lattice, what it shows and the layers welded
+    /// together (`MeshSpool::set_layers`): the rebuild's spool is made so, and takes the run's
+    /// spool files' names when it replaces the run's. `None`: the run does not spool what
+    /// leaves its window (`--save-evicted` not given).
     pub mesh: Option<(PathBuf, Lattice, MeshConfig, usize)>,
     /// The map file the run saves (`--save-map`) and what its header says.
     pub save_map: Option<(PathBuf, MapInfo)>,

@@ -12,7 +12,7 @@
 //! | `map_every` | integer | 10 | scans between two updates of `map` (1 to 1000) |
 //! | `use_sim_time` | bool | false | stamp `diagnostics` with `/clock` |
 //! | `use_imu` | bool | true | use the readings on `imu` (docs/design.md §1.19; its place on the LiDAR is the configuration's `[imu]`) |
-//! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize`, `loop_closure` | | | as the command's flags of the same names (`loop_closure`: true or false, on by default where the run can close loops) |
+//! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize`, `loop_closure` | | | as the command's flags of the same names (`loop_closure`: true or false, on by default where the run can close loops, under a memory cap or window only when true) |
 //!
 //! Environment: `ROS_DOMAIN_ID` (0 to 232), `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` or
 //! `OFF`: this machine only) and the older `ROS_LOCALHOST_ONLY=1`.
