@@ -405,6 +405,8 @@ impl<C: Capacity> Worker<C> {
         let (mut pipeline, outputs) = match &self.streaming {
             Some(w) => {
                 let Some(mut p) = self.submap.take() else {
+                    // Its pipeline is still out (not while nothing is in flight): next time.
+                    self.new_closures = closures;
                     self.dirty = true;
                     return Ok(());
                 };
