@@ -12,6 +12,8 @@
 //! translation error, the 100 m and 200 m segment errors, the ATE and the run's seconds.
 //!
 //! `cargo run --release --example imu_prior -- [--frames N] [--carried-frames N] [--seed S] [--only car|carried]`
+//! (`IMU_AXES=1`: where each run's error lies, by axis along the path; `IMU_DEBUG=1`: each
+//! step's error)
 
 #[path = "common/flags.rs"]
 mod flags;
@@ -71,6 +73,9 @@ fn measure<C: Capacity>(
         .map(|p| drive.poses[0].inverse() * p)
         .collect();
     let e = consecutive_errors(&estimate, &truth);
+    if std::env::var_os("IMU_AXES").is_some() {
+        print_axes(name, &estimate, &truth);
+    }
     if std::env::var_os("IMU_DEBUG").is_some() {
         for i in 1..estimate.len() {
             let d = (truth[i - 1].inverse() * truth[i]).inverse()
@@ -99,6 +104,35 @@ fn measure<C: Capacity>(
         seconds
     );
     Ok(())
+}
+
+/// Where a run's error lies (`IMU_AXES`): the position error along x, y and z at frames
+/// along the path (unaligned, in the first pose's frame), each axis's RMS, and the largest
+/// error of the estimated up.
+fn print_axes(name: &str, estimate: &[Pose], truth: &[Pose]) {
+    let n = estimate.len().min(truth.len());
+    let along = slamesh::eval::odometry::distances_along(truth);
+    let mut sq = [0.0f64; 3];
+    let mut tilt = 0.0f64;
+    for i in 0..n {
+        let d = estimate[i].translation.vector - truth[i].translation.vector;
+        for k in 0..3 {
+            sq[k] += d[k] * d[k];
+        }
+        let up = |p: &Pose| p.rotation * nalgebra::Vector3::z();
+        tilt = tilt.max(up(&estimate[i]).angle(&up(&truth[i])).to_degrees());
+        if i % 20 == 0 || i + 1 == n {
+            println!(
+                "  {name} frame {i}: {:.1} m along, error x {:.3} y {:.3} z {:.3} m",
+                along[i], d.x, d.y, d.z
+            );
+        }
+    }
+    let rms = sq.map(|s| (s / n.max(1) as f64).sqrt());
+    println!(
+        "  {name}: RMS x {:.3} y {:.3} z {:.3} m, up at most {tilt:.3} deg off",
+        rms[0], rms[1], rms[2]
+    );
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
