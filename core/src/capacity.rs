@@ -69,7 +69,7 @@ pub trait Capacity: 'static {
     /// [`Pipeline::with_map_layers`](crate::Pipeline::with_map_layers)`(_, layers)`: the scan
     /// buffers and a map sized for that many layers and cells (each clamped to this capacity).
     fn memory_bytes_with_map_layers(layers: usize) -> usize {
-        Self::scan_bytes() + map_bytes(layers.min(Self::MAP_CELLS), layers.min(Self::MAP_LAYERS))
+        ScanLimits::of::<Self>().pipeline_bytes::<Self>(layers)
     }
 }
 
@@ -123,6 +123,13 @@ impl ScanLimits {
         self.filter_bytes::<C>()
             + self.cells * size_of::<CellSpan>()
             + self.layers * (size_of::<ScanLayer>() + size_of::<Residual>())
+    }
+
+    /// Upper bound on the heap bytes of a pipeline built by
+    /// [`Pipeline::with_limits`](crate::Pipeline::with_limits)`(_, self, layers)`: these scan
+    /// buffers and a map sized for that many layers and cells (each clamped to `C`'s).
+    pub fn pipeline_bytes<C: Capacity + ?Sized>(&self, layers: usize) -> usize {
+        self.bytes::<C>() + map_bytes(layers.min(C::MAP_CELLS), layers.min(C::MAP_LAYERS))
     }
 
     /// Entries of the radix sort's buffer: as many as points, or none ([`Capacity::RADIX_SORT`]).

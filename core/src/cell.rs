@@ -120,6 +120,13 @@ impl CellKey {
         Some(k)
     }
 
+    /// The world coordinates of the cell's centre (for a key of tiles, `cell_size` the tile's
+    /// side: the tile's centre).
+    #[inline]
+    pub fn centre(&self, cell_size: f64) -> Vec3 {
+        self.min_corner(cell_size).add_scalar(0.5 * cell_size)
+    }
+
     /// The world coordinates of the cell's minimum corner.
     #[inline]
     pub fn min_corner(&self, cell_size: f64) -> Vec3 {

@@ -36,7 +36,7 @@ use serde::Serialize;
 use slamesh_core::math::rotation_angle;
 use slamesh_core::pipeline::{Known, Relocalized, Scan, Stepped};
 use slamesh_core::relocalize::Search;
-use slamesh_core::{KittiCapacity, NoProbe, Pipeline, Pose, RegistrationStatus, Serial};
+use slamesh_core::{Config, KittiCapacity, NoProbe, Pipeline, Pose, RegistrationStatus, Serial};
 use std::fmt;
 use std::path::Path;
 use std::time::Instant;
@@ -153,41 +153,14 @@ const FUSE_RANGE_M: f64 = 1_000.0;
 /// module docs).
 pub fn merge(a: &Path, b: &Path, out: &Path, s: &MergeSettings) -> Result<MergeReport, MergeError> {
     let start = Instant::now();
-    let (mut file_a, mut file_b) = (MapFile::open(a)?, MapFile::open(b)?);
-    if file_a.info.lattice != file_b.info.lattice {
-        let (la, lb) = (file_a.info.lattice, file_b.info.lattice);
-        return Err(MergeError::Refused(format!(
-            "{} and {} were made with different cells or lattices ({} m cells{} against {} m{}): \
-             a cell of one is not a cell of the other; map both with one fixed configuration \
-             (a preset that is not fitted to the scene, such as `--preset town`, or one \
-             `--config` file)",
-            a.display(),
-            b.display(),
-            la.cell_size,
-            if la.full_cover { " on the faces" } else { "" },
-            lb.cell_size,
-            if lb.full_cover { " on the faces" } else { "" },
-        )));
-    }
+    let (mut file_a, mut file_b) = open_both(a, b)?;
     let b_path = std::mem::take(&mut file_b.poses);
-    if b_path.is_empty() {
-        return Err(MergeError::Refused(format!(
-            "{} has no path to search from",
-            b.display()
-        )));
-    }
     let settings = saved_map::config_of(a)?;
-    let mut config = settings.config;
-    // B's vertices are no LiDAR echoes: none is too near or too far from the pose they are
-    // fused from.
-    config.filter.range_min_m = 0.0;
-    config.filter.range_max_m = FUSE_RANGE_M;
-    let mut pipeline = Merging::with_map_layers(config, s.resident_layers)
-        .map_err(|e| MergeError::Refused(format!("the maps' configuration: {e}")))?;
+    let mut pipeline = merging_pipeline(&settings.config, s)?;
     let a_path = std::mem::take(&mut file_a.poses);
     let mut pager = MapPager::open(a, s.resident_layers / 2, s.probe_radius_m)?;
-    let mut tiled_b = TiledB::new(file_b, config.mesh.variance_show as f32);
-    let candidates = saved_map::candidates(&a_path, config.grid.cell_size_m);
+    let mut tiled_b = TiledB::new(file_b, settings.config.mesh.variance_show as f32);
+    let candidates = saved_map::candidates(&a_path, settings.config.grid.cell_size_m);
     let found = find(
         &mut pipeline,
         &mut pager,
@@ -204,12 +177,8 @@ pub fn merge(a: &Path, b: &Path, out: &Path, s: &MergeSettings) -> Result<MergeR
     let path: Vec<(f64, Pose)> = (a_path.iter().copied())
         .chain(b_path.iter().map(|(t, p)| (*t, t_ab * p)))
         .collect();
-    let (frames_a, frames_b) = (file_a.info.frames, tiled_b.frames());
-    let info = saved_map::info(
-        &settings.config,
-        settings.preset,
-        frames_a.saturating_add(frames_b),
-    );
+    let frames = file_a.info.frames.saturating_add(tiled_b.frames());
+    let info = saved_map::info(&settings.config, settings.preset, frames);
     let mut writer = MapWriter::create(out, &info)?;
     let fused = tiles::fuse_by_tile(
         &mut pipeline,
@@ -242,6 +211,44 @@ pub fn merge(a: &Path, b: &Path, out: &Path, s: &MergeSettings) -> Result<MergeR
             start.elapsed().as_secs_f64(),
         ],
     })
+}
+
+/// Opens both map files, refusing maps of different cells or a B with no path.
+fn open_both(a: &Path, b: &Path) -> Result<(MapFile, MapFile), MergeError> {
+    let (file_a, file_b) = (MapFile::open(a)?, MapFile::open(b)?);
+    if file_a.info.lattice != file_b.info.lattice {
+        let (la, lb) = (file_a.info.lattice, file_b.info.lattice);
+        return Err(MergeError::Refused(format!(
+            "{} and {} were made with different cells or lattices ({} m cells{} against {} m{}): \
+             a cell of one is not a cell of the other; map both with one fixed configuration \
+             (a preset that is not fitted to the scene, such as `--preset town`, or one \
+             `--config` file)",
+            a.display(),
+            b.display(),
+            la.cell_size,
+            if la.full_cover { " on the faces" } else { "" },
+            lb.cell_size,
+            if lb.full_cover { " on the faces" } else { "" },
+        )));
+    }
+    if file_b.poses.is_empty() {
+        return Err(MergeError::Refused(format!(
+            "{} has no path to search from",
+            b.display()
+        )));
+    }
+    Ok((file_a, file_b))
+}
+
+/// The pipeline that searches A and fuses B into it: A's configuration with the filter's
+/// range limits lifted (B's vertices are no LiDAR echoes: none is too near or too far from
+/// the pose they are fused from), a map of `s.resident_layers`.
+fn merging_pipeline(config: &Config, s: &MergeSettings) -> Result<Merging, MergeError> {
+    let mut config = *config;
+    config.filter.range_min_m = 0.0;
+    config.filter.range_max_m = FUSE_RANGE_M;
+    Merging::with_map_layers(config, s.resident_layers)
+        .map_err(|e| MergeError::Refused(format!("the maps' configuration: {e}")))
 }
 
 /// Indices of `path` about `every_m` apart along it (its first included), at most `most`,

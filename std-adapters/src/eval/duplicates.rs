@@ -25,7 +25,7 @@ pub fn duplicated_surfaces(
     let size = lattice.cell_size;
     let mut count = 0;
     for l in map.layers() {
-        let centre = [l.key.x, l.key.y, l.key.z].map(|c| (c as f64 + 0.5) * size);
+        let centre: [f64; 3] = l.key.centre(size).into();
         if !keep(&centre) {
             continue;
         }

@@ -53,8 +53,9 @@ pub struct Streaming {
 
 /// The scan buffers of the loop-closure thread's pipeline in a windowed run: half the
 /// capacity's. Its scans are the run's filtered ones, about a third of a raw scan's points
-/// (19 419 at most of 60 629 on the 1 000-frame town) and a tenth of its class's cells and
-/// layers; a scan past them is cut as the capacity's rules say, and counted.
+/// (19 419 at most of 60 629 on the 1 000-frame town), and at most 1 247 cells and 1 354
+/// layers there of the 32-beam class's 8 192 and 12 288; a scan past them is cut as the
+/// capacity's rules say, and counted.
 pub fn engine_limits<C: Capacity>() -> ScanLimits {
     ScanLimits::of::<C>().divided_by(2)
 }
@@ -62,11 +63,7 @@ pub fn engine_limits<C: Capacity>() -> ScanLimits {
 /// Bytes the loop-closure thread's pipeline holds in a windowed run whose map holds
 /// `map_layers` layers: its scan buffers ([`engine_limits`]) and one map that size.
 pub fn engine_bytes<C: Capacity>(map_layers: usize) -> usize {
-    engine_limits::<C>().bytes::<C>()
-        + slamesh_core::capacity::map_bytes(
-            map_layers.min(C::MAP_CELLS),
-            map_layers.min(C::MAP_LAYERS),
-        )
+    engine_limits::<C>().pipeline_bytes::<C>(map_layers)
 }
 
 /// A rebuild's outputs: what left its window, at the corrected poses.

@@ -72,10 +72,24 @@ impl TiledB {
         }
     }
 
-    /// Where a layer's cell is (B's frame): its centre.
-    fn centre(&self, l: &LayerRef) -> Vec3 {
+    /// Reads B's tile `from` and calls `each` with every confident vertex moved into A's frame
+    /// by `t_ab` and the tile of the merged map it lands in. Returns the tile's cells and
+    /// layers.
+    fn landing(
+        &mut self,
+        from: CellKey,
+        t_ab: &Pose,
+        mut each: impl FnMut(Vec3, CellKey),
+    ) -> Result<(usize, usize), FileError> {
+        let map = self.load(&[from])?;
         let cell = self.lattice.cell_size;
-        l.key.min_corner(cell) + Vec3::repeat(0.5 * cell)
+        self.vertices(map.layers(), |v| {
+            let moved = (t_ab * nalgebra::Point3::from(v)).coords;
+            if let Some(key) = CellKey::containing(&moved, cell) {
+                each(moved, tile_of(&key));
+            }
+        });
+        Ok((map.cell_count(), map.layer_count()))
     }
 
     /// A place's cloud: the confident vertices of B's cells within `radius_m` of `pose`, in
@@ -87,7 +101,8 @@ impl TiledB {
             .copied()
             .collect();
         let map = self.load(&tiles)?;
-        let near = (map.layers()).filter(|l| (self.centre(l) - here).norm() <= radius_m);
+        let near = (map.layers())
+            .filter(|l| (l.key.centre(self.lattice.cell_size) - here).norm() <= radius_m);
         let to_sensor = pose.inverse();
         let mut points = Vec::new();
         self.vertices(near, |v| {
@@ -136,7 +151,7 @@ pub(super) fn fuse_by_tile<C: Capacity>(
         fused.a.1 += map.layer_count();
         if let Some(from) = lands.get(&tile) {
             let world = b_vertices_in(b, from, t_ab, tile)?;
-            let centre = tile.min_corner(b.tile_m) + Vec3::repeat(0.5 * b.tile_m);
+            let centre = tile.centre(b.tile_m);
             let d = |p: &&Pose| (p.translation.vector - centre).norm_squared();
             if let Some(anchor) = anchors.iter().min_by(|x, y| d(x).total_cmp(&d(y))) {
                 let to_sensor = anchor.inverse();
@@ -165,17 +180,12 @@ fn landing_tiles(
     fused: &mut Fused,
 ) -> Result<BTreeMap<CellKey, BTreeSet<CellKey>>, FileError> {
     let mut lands: BTreeMap<CellKey, BTreeSet<CellKey>> = BTreeMap::new();
-    let cell = b.lattice.cell_size;
     for from in b.bounds.keys().copied().collect::<Vec<_>>() {
-        let map = b.load(&[from])?;
-        fused.b.0 += map.cell_count();
-        fused.b.1 += map.layer_count();
-        b.vertices(map.layers(), |v| {
-            if let Some(key) = CellKey::containing(&(t_ab * nalgebra::Point3::from(v)).coords, cell)
-            {
-                lands.entry(tile_of(&key)).or_default().insert(from);
-            }
-        });
+        let (cells, layers) = b.landing(from, t_ab, |_, tile| {
+            lands.entry(tile).or_default().insert(from);
+        })?;
+        fused.b.0 += cells;
+        fused.b.1 += layers;
     }
     Ok(lands)
 }
@@ -188,16 +198,13 @@ fn b_vertices_in(
     t_ab: &Pose,
     tile: CellKey,
 ) -> Result<Vec<Vec3>, FileError> {
-    let cell = b.lattice.cell_size;
     let mut world = Vec::new();
     for t in from {
-        let map = b.load(&[*t])?;
-        b.vertices(map.layers(), |v| {
-            let moved = (t_ab * nalgebra::Point3::from(v)).coords;
-            if CellKey::containing(&moved, cell).is_some_and(|k| tile_of(&k) == tile) {
+        b.landing(*t, t_ab, |moved, lands_in| {
+            if lands_in == tile {
                 world.push(moved);
             }
-        });
+        })?;
     }
     Ok(world)
 }

@@ -43,12 +43,12 @@ impl<C: Capacity> Setup<C> {
         // With two threads or more, the next frame is read and filtered ahead on the pool;
         // under a cap too tight for the filter's buffers twice, read ahead only.
         let threads = workers.threads() > 1;
-        let closing = opts.loop_closure.is_some() && opts.loop_closure_unavailable().is_none();
+        let wanted = opts.loop_closure.is_some() && opts.loop_closure_unavailable().is_none();
         let Budget {
             max_layers,
             filter_ahead,
             closing,
-        } = layer_budget::<C>(opts, threads, closing)?;
+        } = layer_budget::<C>(opts, threads, wanted)?;
         window.max_layers = max_layers;
         let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
         let mut pipeline =
@@ -74,9 +74,10 @@ impl<C: Capacity> Setup<C> {
             pipeline.restore_progress(start.frames, motion);
             map_start = Some(start);
         }
-        let closer = match closing {
-            true => loop_closer(opts, streaming(opts, window, map_layers))?,
-            false => None,
+        // Asked for where the run cannot close loops: refused, naming why (`loop_closer`).
+        let closer = match wanted && !closing {
+            true => None,
+            false => loop_closer(opts, streaming(opts, window, map_layers))?,
         };
         Ok(Setup {
             closer,

@@ -175,7 +175,7 @@ impl Window {
         let centre = sensor.translation.vector;
         let far = |key: &CellKey| {
             self.radius_m.is_some_and(|r| {
-                let c = key.min_corner(cell_size).add_scalar(cell_size / 2.0);
+                let c = key.centre(cell_size);
                 (c - centre).norm() > r
             })
         };
