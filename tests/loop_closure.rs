@@ -474,3 +474,29 @@ fn under_a_memory_cap_the_loop_closes_and_what_left_the_window_moves_with_it() {
         "triangles: {t_on} with, {t_off} without"
     );
 }
+
+/// A library run that asks for loop closure where it cannot close loops (here at given poses)
+/// is refused, naming why, with and without a memory cap: the cap decides only whether loop
+/// closure fits, never whether it may run.
+#[test]
+fn a_library_run_asking_for_loop_closure_where_it_cannot_is_refused() {
+    let dir = scratch("loop-refused");
+    let mut drive = Drive::town(3, 3);
+    for cap in [None, Some(200.0)] {
+        let mut opts = options(&dir.join("out"), true);
+        opts.given_poses = Some(slamesh::formats::trajectory::Trajectory {
+            format: slamesh::formats::trajectory::Format::Kitti,
+            stamps: None,
+            poses: drive.poses.clone(),
+        });
+        opts.window.memory_cap_mb = cap;
+        let Err(e) = run::<KittiCapacity>(&mut drive, &opts, |_| {}) else {
+            panic!("ran with loop closure at given poses (cap {cap:?})");
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains("loop closure") && e.contains("the poses are given"),
+            "{e}"
+        );
+    }
+}
