@@ -275,6 +275,7 @@ fn score(
     let (step, height) = (robot.max_step_m, robot.height_m);
     let (mut both, mut either, mut free, mut free_bad, mut occupied) = (0, 0, 0, 0, 0);
     let (mut near_both, mut near_either) = (0, 0);
+    let mut dbg = vec![0u8; map.width * map.height];
     for row in 0..map.height {
         for col in 0..map.width {
             let [x, y] = map.centre(col, row);
@@ -288,6 +289,19 @@ fn score(
             });
             let ours = map.value(col, row);
             let c = (col as i64, (map.height - 1 - row) as i64);
+            dbg[row * map.width + col] = match (seen.contains(&c), truth, ours) {
+                (true, true, 100) => 1,
+                (true, false, 100) => 2,
+                (true, true, 0) => 3,
+                (true, true, _) => 4,
+                (true, false, 0) => 5,
+                (true, false, _) => 6,
+                (false, true, 100) => 7,
+                (false, false, 100) => 8,
+                (false, true, _) => 9,
+                (false, false, 0) => 10,
+                _ => 0,
+            };
             if seen.contains(&c) {
                 both += usize::from(truth && ours == 100);
                 either += usize::from(truth || ours == 100);
@@ -319,6 +333,11 @@ fn score(
             occupied += usize::from(ours == 100);
         }
     }
+    std::fs::write(
+        format!("/tmp/navdbg-{name}-{}x{}.bin", map.width, map.height),
+        &dbg,
+    )
+    .unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     // World (z = 0 up) to the image's column and row, if inside it.
     let pixel = |x: f64, y: f64| {

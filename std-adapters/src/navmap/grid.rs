@@ -12,7 +12,9 @@
 //!    nearest ground within about two metres: a sample standing above that by more than a
 //!    step and no more than the robot's height makes the cell an obstacle (but a floor
 //!    sample within [`DOUBLE_FLOOR_M`] of a ground cell's floor is that floor seen twice); a
-//!    ground sample gives the cell's height and spread for the elevation grid.
+//!    ground sample gives the cell's height and spread for the elevation grid. An obstacle
+//!    lower than [`LOW_RISE_M`] beside a taller one (its foot) or with no raised floor near
+//!    (a ridge of a noisy floor) is settled as unknown instead ([`Grid::settle_low_rises`]).
 //!
 //! Then lines of sight from the path mark what it saw ([`crate::navmap::sight`]). A cell is
 //! occupied (an obstacle stands in it, or a surface between the robot's height and the
@@ -91,6 +93,9 @@ pub(super) struct Cell {
     /// metre (0 to 6.4 m).
     pub(super) heights: u64,
     pub(super) obstacle: bool,
+    /// Only a low rise was seen, the foot of something taller or a bump of the surface
+    /// ([`Grid::settle_low_rises`]): unknown, neither an obstacle nor free.
+    pub(super) doubtful: bool,
     /// Seen from the path: a line of sight reaches it ([`Grid::carve`]).
     pub(super) visible: bool,
     /// The highest obstacle top (level frame z, decimetres, rounded up) in the cell or a
@@ -110,6 +115,7 @@ impl Default for Cell {
             sum_sq: 0.0,
             heights: 0,
             obstacle: false,
+            doubtful: false,
             visible: false,
             shadow: i16::MIN,
         }
@@ -150,6 +156,12 @@ impl Cell {
         }
     }
 }
+
+/// The height (m) under which a rise is only a foot or a bump when taller obstacles stand
+/// beside it or no raised floor does ([`Grid::settle_low_rises`]). Measured on the simulated
+/// town and office (docs/benchmarks.md, "Low rises"): the red fringe along walls' feet and the
+/// ridges of the office's floor stand lower.
+pub const LOW_RISE_M: f64 = 0.3;
 
 /// How far (m) from an obstacle's cell ground is taken as the obstacle's edge: the surface
 /// reconstruction carries ground up to about two tenths under a car's or a wall's foot.
@@ -212,8 +224,46 @@ impl Grid {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
             grid.samples(&corners, |c, z| c.classify(z, is_floor, step, height));
         })?;
+        grid.settle_low_rises();
         grid.carve(path);
         Ok(grid)
+    }
+
+    /// Obstacle cells whose samples all stand lower than [`LOW_RISE_M`] above their reference
+    /// are no obstacle of their own ([`Cell::doubtful`]) when a taller obstacle cell lies
+    /// within [`EDGE_M`] (the rounding of a wall's or a car's foot, which the reconstruction
+    /// carries out over the ground) or no floor raised above a step does (a ridge where two
+    /// layers of a noisy floor meet). A kerb keeps its face: the pavement behind it is raised
+    /// floor. Decided for every cell before any changes, so the order of the cells does not
+    /// matter.
+    fn settle_low_rises(&mut self) {
+        let low_bits = (LOW_RISE_M * 10.0).round() as u32;
+        let top = |c: &Cell| 64 - c.heights.leading_zeros();
+        let step = self.robot.max_step_m as f32;
+        let near = disc((EDGE_M / self.resolution).round().max(1.0) as i64);
+        let mut settled = Vec::new();
+        for (&t, tile) in &self.tiles {
+            for (k, c) in tile.iter().enumerate() {
+                if !c.obstacle || top(c) > low_bits {
+                    continue;
+                }
+                let (ix, iy) = cell_at(t, k);
+                let any_near = |f: &dyn Fn(&Cell) -> bool| {
+                    near.iter()
+                        .any(|&(dx, dy)| self.cell(ix + dx, iy + dy).is_some_and(f))
+                };
+                let taller = any_near(&|n| n.obstacle && top(n) > low_bits);
+                let raised = any_near(&|n| n.floor.is_finite() && n.floor - n.reference > step);
+                if taller || !raised {
+                    settled.push((ix, iy));
+                }
+            }
+        }
+        for (ix, iy) in settled {
+            let c = self.cell_mut(ix, iy);
+            c.obstacle = false;
+            c.doubtful = true;
+        }
     }
 
     /// The cell size (m).
@@ -257,6 +307,7 @@ impl Grid {
     fn own(&self, ix: i64, iy: i64) -> Occupancy {
         match self.cell(ix, iy) {
             Some(c) if c.obstacle => Occupancy::Occupied,
+            Some(c) if c.doubtful => Occupancy::Unknown,
             Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => Occupancy::Free,
             Some(c) if c.heights & self.from_above != 0 => Occupancy::Occupied,
             _ => Occupancy::Unknown,
@@ -539,6 +590,33 @@ mod tests {
         let foot = at_vertex(9.85, 5.05);
         assert_eq!(mesh.cost[foot], 1.0);
         assert!(mesh.triangles.len() > mesh.vertices.len());
+    }
+
+    #[test]
+    fn a_wall_s_rounded_foot_and_a_ridge_in_the_floor_are_no_obstacles() {
+        // A street, a wall at x = 5 whose mesh curls out 0.2 m over the street at its foot
+        // (up to 0.25 m high), and a ridge 0.15 m high across the street at x = 2.
+        let mut soup = floor(0.0, 0.0, 5.0, 10.0, 0.0);
+        soup.extend(wall(5.0, 0.0, 10.0, 0.25, 2.0));
+        let slant = |x0: f32, z0: f32, x1: f32, z1: f32| {
+            [
+                [[x0, 0.0, z0], [x1, 0.0, z1], [x1, 10.0, z1]],
+                [[x0, 0.0, z0], [x1, 10.0, z1], [x0, 10.0, z0]],
+            ]
+        };
+        soup.extend(slant(4.8, 0.0, 5.0, 0.25));
+        soup.extend(slant(1.9, 0.0, 2.0, 0.15));
+        soup.extend(slant(2.0, 0.15, 2.1, 0.0));
+        let path = [Vector3::new(3.5, 5.0, 1.7)];
+        let g = Grid::build(&mut Soup(soup), Robot::WHEELED, 0.1, Vector3::z(), &path).unwrap();
+        let at = |x: f64| {
+            let (ix, iy) = g.index_of(x, 5.05);
+            g.occupancy(ix, iy)
+        };
+        assert_eq!(at(5.05), Occupancy::Occupied, "the wall");
+        assert_eq!(at(4.85), Occupancy::Unknown, "the wall's foot");
+        assert_eq!(at(2.05), Occupancy::Unknown, "the ridge");
+        assert_eq!(at(3.05), Occupancy::Free, "the street");
     }
 
     #[test]
