@@ -275,7 +275,6 @@ fn score(
     let (step, height) = (robot.max_step_m, robot.height_m);
     let (mut both, mut either, mut free, mut free_bad, mut occupied) = (0, 0, 0, 0, 0);
     let (mut near_both, mut near_either) = (0, 0);
-    let mut dbg = vec![0u8; map.width * map.height];
     for row in 0..map.height {
         for col in 0..map.width {
             let [x, y] = map.centre(col, row);
@@ -289,19 +288,6 @@ fn score(
             });
             let ours = map.value(col, row);
             let c = (col as i64, (map.height - 1 - row) as i64);
-            dbg[row * map.width + col] = match (seen.contains(&c), truth, ours) {
-                (true, true, 100) => 1,
-                (true, false, 100) => 2,
-                (true, true, 0) => 3,
-                (true, true, _) => 4,
-                (true, false, 0) => 5,
-                (true, false, _) => 6,
-                (false, true, 100) => 7,
-                (false, false, 100) => 8,
-                (false, true, _) => 9,
-                (false, false, 0) => 10,
-                _ => 0,
-            };
             if seen.contains(&c) {
                 both += usize::from(truth && ours == 100);
                 either += usize::from(truth || ours == 100);
@@ -333,11 +319,6 @@ fn score(
             occupied += usize::from(ours == 100);
         }
     }
-    std::fs::write(
-        format!("/tmp/navdbg-{name}-{}x{}.bin", map.width, map.height),
-        &dbg,
-    )
-    .unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     // World (z = 0 up) to the image's column and row, if inside it.
     let pixel = |x: f64, y: f64| {
@@ -390,9 +371,9 @@ fn the_town_s_navigation_map_against_the_truth() {
     );
     println!("town, {frames} frames: {s:?}");
     assert!(s.free > 40_000 && s.occupied > 2_000, "{s:?}");
-    // Issue 56's targets: at most 0.5 % (met: 0.01 % measured) and an IoU of 0.9 (not met:
-    // 0.54, 0.66 within a cell; docs/benchmarks.md, "Maps a planner reads").
-    s.assert_within(0.6);
+    // Issue 56's targets: at most 0.5 % (met: 0.02 % measured) and an IoU of 0.9 (not met:
+    // 0.64, 0.77 within a cell; docs/benchmarks.md, "Low rises and unsure standing surfaces").
+    s.assert_within(0.72);
 }
 
 #[test]
@@ -416,7 +397,8 @@ fn the_office_s_navigation_map_against_the_truth() {
     );
     println!("office, {frames} frames: {s:?}");
     assert!(s.free > 4_000 && s.occupied > 2_000, "{s:?}");
-    s.assert_within(0.55);
+    // 0.53, 0.83 within a cell measured.
+    s.assert_within(0.78);
     // A planner finds its way from room A through the doorway into the corridor the walk
     // went along. (The corridor's far end, seen from its start by 16 beams, is mostly
     // unknown: docs/benchmarks.md, "Maps a planner reads".)

@@ -54,7 +54,7 @@ pub struct Background<T: Send + 'static> {
 /// An update for the worker: the window's triangles (copied), the path near it, where, and
 /// the caller's tag.
 struct Job<T> {
-    triangles: Vec<[Point; 3]>,
+    triangles: Vec<([Point; 3], f32)>,
     path: Vec<Vector3<f64>>,
     at: Vector3<f64>,
     tag: T,
@@ -158,7 +158,7 @@ impl<T: Send + 'static> Background<T> {
         let mut triangles = Vec::new();
         // Wide enough for the window turned by a tilted up.
         let half = self.window_m / 2.0 + 5.0;
-        mesh.each_triangle_near([at.x, at.y], half, &mut |t| triangles.push(t));
+        mesh.each_triangle_near([at.x, at.y], half, &mut |t, v| triangles.push((t, v)));
         let near = |p: &Vector3<f64>| (p.x - at.x).abs() <= half && (p.y - at.y).abs() <= half;
         let path = self.path.iter().filter(|p| near(p)).copied().collect();
         Job {
@@ -206,12 +206,12 @@ impl<T: Send + 'static> Background<T> {
     }
 }
 
-/// Triangles copied out of the tiles.
-struct Soup(Vec<[Point; 3]>);
+/// Triangles copied out of the tiles, with their mean variances.
+struct Soup(Vec<([Point; 3], f32)>);
 
 impl Triangles for Soup {
-    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
-        self.0.iter().for_each(|t| each(*t));
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3], f32)) -> Result<(), FileError> {
+        self.0.iter().for_each(|(t, v)| each(*t, *v));
         Ok(())
     }
 }

@@ -217,10 +217,19 @@ mod tests {
     struct FarApart;
 
     impl Triangles for FarApart {
-        fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
+        fn each_triangle(
+            &mut self,
+            each: &mut dyn FnMut([Point; 3], f32),
+        ) -> Result<(), FileError> {
             for o in [0.0f32, 3000.0] {
-                each([[o, o, 0.0], [o + 2.0, o, 0.0], [o + 2.0, o + 2.0, 0.0]]);
-                each([[o, o, 0.0], [o + 2.0, o + 2.0, 0.0], [o, o + 2.0, 0.0]]);
+                each(
+                    [[o, o, 0.0], [o + 2.0, o, 0.0], [o + 2.0, o + 2.0, 0.0]],
+                    0.0,
+                );
+                each(
+                    [[o, o, 0.0], [o + 2.0, o + 2.0, 0.0], [o, o + 2.0, 0.0]],
+                    0.0,
+                );
             }
             Ok(())
         }

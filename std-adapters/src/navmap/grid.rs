@@ -14,7 +14,7 @@
 //!    sample within [`DOUBLE_FLOOR_M`] of a ground cell's floor is that floor seen twice); a
 //!    ground sample gives the cell's height and spread for the elevation grid. An obstacle
 //!    lower than [`LOW_RISE_M`] beside a taller one (its foot) or with no raised floor near
-//!    (a ridge of a noisy floor) is settled as unknown instead ([`Grid::settle_low_rises`]).
+//!    (a ridge of a noisy floor) is settled as unknown instead (`Grid::settle_low_rises`).
 //!
 //! Then lines of sight from the path mark what it saw ([`crate::navmap::sight`]). A cell is
 //! occupied (an obstacle stands in it, or a surface between the robot's height and the
@@ -58,22 +58,46 @@ pub fn level_of(up: &Vector3<f64>) -> Rotation3<f64> {
 
 /// Anything that hands over a mesh's triangles (map frame), as many times as asked.
 pub trait Triangles {
-    /// Calls `each` with every triangle's three corners.
-    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError>;
+    /// Calls `each` with every triangle's three corners and their mean Gaussian-process
+    /// variance ([`mean_variance`]; NaN where the mesh carries none).
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3], f32)) -> Result<(), FileError>;
 }
 
 impl Triangles for crate::outputs::mesh_spool::MeshSpool {
-    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
-        self.for_each_triangle(|t, _| each(t))
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3], f32)) -> Result<(), FileError> {
+        self.for_each_triangle(|t, v| each(t, mean_variance(v)))
     }
 }
 
 impl Triangles for crate::formats::ply::PlyMesh {
-    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
-        self.triangle_corners().for_each(each);
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3], f32)) -> Result<(), FileError> {
+        for t in &self.triangles {
+            let corners = t.map(|i| self.vertices[i as usize]);
+            let v = t.map(|i| self.variances.get(i as usize).copied().unwrap_or(f32::NAN));
+            each(corners, mean_variance(v));
+        }
         Ok(())
     }
 }
+
+/// The mean of a triangle's corners' variances that are known (not NaN); NaN when none is.
+pub fn mean_variance(v: [f32; 3]) -> f32 {
+    let known = v.iter().filter(|x| !x.is_nan());
+    let n = known.clone().count();
+    if n == 0 {
+        f32::NAN
+    } else {
+        known.sum::<f32>() / n as f32
+    }
+}
+
+/// The highest mean variance of a standing triangle (one steeper than the robot's slope)
+/// the grid takes; NaN (no variance known) passes. The mesh's own limit (`mesh.variance_show`,
+/// 0.3 by default) is the ground's: a stricter one for the ground too cost the office's floor
+/// its doorways, while one for what stands alone drops the unsure surfaces the reconstruction
+/// carries past a wall's or a car's edge (docs/benchmarks.md, "Low rises and unsure standing
+/// surfaces").
+pub const STANDING_VARIANCE: f32 = 0.2;
 
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Cell {
@@ -94,7 +118,8 @@ pub(super) struct Cell {
     pub(super) heights: u64,
     pub(super) obstacle: bool,
     /// Only a low rise was seen, the foot of something taller or a bump of the surface
-    /// ([`Grid::settle_low_rises`]): unknown, neither an obstacle nor free.
+    /// ([`Grid::settle_low_rises`]), or a standing surface the map is unsure of
+    /// ([`STANDING_VARIANCE`]): unknown, unless an obstacle was seen too.
     pub(super) doubtful: bool,
     /// Seen from the path: a line of sight reaches it ([`Grid::carve`]).
     pub(super) visible: bool,
@@ -158,10 +183,19 @@ impl Cell {
 }
 
 /// The height (m) under which a rise is only a foot or a bump when taller obstacles stand
-/// beside it or no raised floor does ([`Grid::settle_low_rises`]). Measured on the simulated
-/// town and office (docs/benchmarks.md, "Low rises"): the red fringe along walls' feet and the
-/// ridges of the office's floor stand lower.
+/// beside it or no raised floor does (`Grid::settle_low_rises`). Measured on the simulated
+/// town and office (docs/benchmarks.md, "Low rises and unsure standing surfaces"): the fringe
+/// along walls' feet and the ridges of the office's floor stand lower.
 pub const LOW_RISE_M: f64 = 0.3;
+
+impl Cell {
+    /// Pass 2 for one sample of height `z` of a standing triangle the map is unsure of: where
+    /// it would make an obstacle, the cell is doubtful instead.
+    fn doubt(&mut self, z: f64, step: f32, height: f32) {
+        let above = z as f32 - self.reference;
+        self.doubtful |= above > step && above <= height;
+    }
+}
 
 /// How far (m) from an obstacle's cell ground is taken as the obstacle's edge: the surface
 /// reconstruction carries ground up to about two tenths under a car's or a wall's foot.
@@ -208,7 +242,7 @@ impl Grid {
             carved: false,
         };
         let max_slope_tan = robot.max_slope_deg.to_radians().tan();
-        mesh.each_triangle(&mut |t| {
+        mesh.each_triangle(&mut |t, _| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
             grid.samples(&corners, |c, z| {
                 if is_floor {
@@ -220,9 +254,13 @@ impl Grid {
         grid.grow_ground(seeds);
         grid.set_references();
         let (step, height) = (robot.max_step_m as f32, robot.height_m as f32);
-        mesh.each_triangle(&mut |t| {
+        mesh.each_triangle(&mut |t, variance| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
-            grid.samples(&corners, |c, z| c.classify(z, is_floor, step, height));
+            if !is_floor && variance > STANDING_VARIANCE {
+                grid.samples(&corners, |c, z| c.doubt(z, step, height));
+            } else {
+                grid.samples(&corners, |c, z| c.classify(z, is_floor, step, height));
+            }
         })?;
         grid.settle_low_rises();
         grid.carve(path);
@@ -307,8 +345,13 @@ impl Grid {
     fn own(&self, ix: i64, iy: i64) -> Occupancy {
         match self.cell(ix, iy) {
             Some(c) if c.obstacle => Occupancy::Occupied,
-            Some(c) if c.doubtful => Occupancy::Unknown,
-            Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => Occupancy::Free,
+            Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => {
+                if c.doubtful {
+                    Occupancy::Unknown
+                } else {
+                    Occupancy::Free
+                }
+            }
             Some(c) if c.heights & self.from_above != 0 => Occupancy::Occupied,
             _ => Occupancy::Unknown,
         }
@@ -513,8 +556,11 @@ mod tests {
     struct Soup(Vec<[Point; 3]>);
 
     impl Triangles for Soup {
-        fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
-            self.0.iter().copied().for_each(each);
+        fn each_triangle(
+            &mut self,
+            each: &mut dyn FnMut([Point; 3], f32),
+        ) -> Result<(), FileError> {
+            self.0.iter().for_each(|t| each(*t, f32::NAN));
             Ok(())
         }
     }

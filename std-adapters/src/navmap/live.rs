@@ -193,13 +193,13 @@ struct Window<'a> {
 }
 
 impl Triangles for Window<'_> {
-    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
+    fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3], f32)) -> Result<(), FileError> {
         let inside = self.inside;
-        self.mesh.each_triangle(&mut |t| {
+        self.mesh.each_triangle(&mut |t, variance| {
             let corner =
                 |p: &Point| Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
             if t.iter().any(|p| inside(&corner(p))) {
-                each(t);
+                each(t, variance);
             }
         })
     }
@@ -213,8 +213,11 @@ mod tests {
     struct Soup(Vec<[Point; 3]>);
 
     impl Triangles for Soup {
-        fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3])) -> Result<(), FileError> {
-            self.0.iter().for_each(|t| each(*t));
+        fn each_triangle(
+            &mut self,
+            each: &mut dyn FnMut([Point; 3], f32),
+        ) -> Result<(), FileError> {
+            self.0.iter().for_each(|t| each(*t, f32::NAN));
             Ok(())
         }
     }

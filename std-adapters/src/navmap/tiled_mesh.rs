@@ -3,7 +3,8 @@
 //! ([`crate::navmap::background`]: the ROS 2 node's `map`, the live view's `/map`), and what
 //! the node's mesh markers are made of (`ros2::mesh_tiles`).
 //!
-//! Memory: the shown triangles of every tile seen, three points each (72 bytes a triangle).
+//! Memory: the shown triangles of every tile seen, three points and their mean variance each
+//! (76 bytes a triangle).
 
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::lattice::{LatticeTable, VERTICES};
@@ -32,8 +33,16 @@ pub struct TiledMesh {
     tiles: BTreeMap<TileKey, Layers>,
 }
 
-/// A tile's layers (by cell and axis), each layer's triangles (three points each).
-type Layers = BTreeMap<(CellKey, u8), Vec<[f64; 3]>>;
+/// A tile's layers (by cell and axis), each layer's triangles.
+type Layers = BTreeMap<(CellKey, u8), LayerTriangles>;
+
+/// A layer's shown triangles: three points each, and each triangle's corners' mean
+/// Gaussian-process variance.
+#[derive(Debug, Default)]
+struct LayerTriangles {
+    points: Vec<[f64; 3]>,
+    variances: Vec<f32>,
+}
 
 impl TiledMesh {
     /// For the map's `lattice`, showing triangles as `shown` says.
@@ -55,13 +64,14 @@ impl TiledMesh {
                     [v.x, v.y, v.z]
                 })
                 .collect();
-            let triangles: Vec<[f64; 3]> = layer
-                .triangles(&self.lattice, self.shown)
-                .flat_map(|t| t.map(|j| vertices[j]))
-                .collect();
+            let mut triangles = LayerTriangles::default();
+            for t in layer.triangles(&self.lattice, self.shown) {
+                triangles.points.extend(t.map(|j| vertices[j]));
+                triangles.variances.push(layer.mean_variance(&t));
+            }
             let entry = self.tiles.entry(tile_of(key)).or_default();
             let id = (*key, *axis as u8);
-            if triangles.is_empty() {
+            if triangles.variances.is_empty() {
                 entry.remove(&id);
             } else {
                 entry.insert(id, triangles);
@@ -82,16 +92,16 @@ impl TiledMesh {
         self.tiles
             .get(&t)
             .into_iter()
-            .flat_map(|l| l.values().flatten())
+            .flat_map(|l| l.values().flat_map(|t| &t.points))
     }
 
     /// Calls `each` with the triangles of the tiles within `half` metres of `centre` along x
-    /// and y (the engine's world).
+    /// and y (the engine's world), and their mean variances.
     pub fn each_triangle_near(
         &self,
         centre: [f64; 2],
         half: f64,
-        each: &mut dyn FnMut([slamesh_core::Point; 3]),
+        each: &mut dyn FnMut([slamesh_core::Point; 3], f32),
     ) {
         let side = f64::from(TILE_CELLS) * self.lattice.cell_size;
         let near = |t: i32, c: f64| {
@@ -101,9 +111,9 @@ impl TiledMesh {
         let tiles =
             (self.tiles.iter()).filter(|(t, _)| near(t.0, centre[0]) && near(t.1, centre[1]));
         for (_, layers) in tiles {
-            for points in layers.values() {
-                for t in points.chunks_exact(3) {
-                    each(std::array::from_fn(|k| t[k].map(|c| c as f32)));
+            for layer in layers.values() {
+                for (t, v) in layer.points.chunks_exact(3).zip(&layer.variances) {
+                    each(std::array::from_fn(|k| t[k].map(|c| c as f32)), *v);
                 }
             }
         }
@@ -114,7 +124,7 @@ impl TiledMesh {
         self.tiles
             .values()
             .flat_map(|l| l.values())
-            .map(|t| t.len() / 3)
+            .map(|t| t.variances.len())
             .sum()
     }
 }
@@ -139,7 +149,10 @@ mod tests {
         assert_eq!(m.points_of((1, 0, 0)).count(), 3 * per_layer);
         // Within 5 m of the origin: tile (0, 0, 0) and, its edge at 12.8 m, not the others.
         let mut near = 0;
-        m.each_triangle_near([0.0, 0.0], 5.0, &mut |_| near += 1);
+        m.each_triangle_near([0.0, 0.0], 5.0, &mut |_, v| {
+            assert!(v.is_finite());
+            near += 1
+        });
         assert_eq!(near, per_layer);
         // A layer that shows nothing leaves its tile; clearing says which tiles there were.
         m.update(&[(CellKey { x: 8, y: 0, z: 0 }, Axis::Z, Layer::UNKNOWN)]);

@@ -346,28 +346,31 @@ impl MeshSpool {
         self.z_range
     }
 
-    /// Calls `each` with every triangle added so far, as its three corners, and the highest
-    /// vertex `z` of the mesh (for colour scales), in the order they were added. Reads the
+    /// Calls `each` with every triangle added so far, as its three corners and their
+    /// Gaussian-process variances (NaN for a corner welded in from an earlier set, whose record
+    /// that set holds), in the order they were added. Reads the
     /// spool files (flushed first) one welded set at a time: memory holds one set's vertex
     /// positions, never the whole mesh.
     pub fn for_each_triangle(
         &mut self,
-        mut each: impl FnMut([Point; 3], f32),
+        mut each: impl FnMut([Point; 3], [f32; 3]),
     ) -> Result<(), FileError> {
         self.flush()?;
         let io = |e: std::io::Error, p: &Path| FileError::at(p, format!("cannot read: {e}"));
-        let read_vertex = |r: &mut BufReader<File>| -> std::io::Result<Point> {
+        let read_vertex = |r: &mut BufReader<File>| -> std::io::Result<(Point, f32)> {
             let mut rec = [0u8; VERTEX_BYTES];
             r.read_exact(&mut rec)?;
-            Ok([float(&rec, 0), float(&rec, 1), float(&rec, 2)])
+            Ok((
+                [float(&rec, 0), float(&rec, 1), float(&rec, 2)],
+                float(&rec, 6),
+            ))
         };
         let open = |p: &Path| File::open(p).map(BufReader::new).map_err(|e| io(e, p));
-        let z_top = self.z_range.1;
         let sets = read_sets(&self.paths[2])?;
         let mut vertices = open(&self.paths[0])?;
         let mut faces = open(&self.paths[1])?;
         let mut imports = open(&self.paths[3])?;
-        let mut window: Vec<Point> = Vec::new();
+        let mut window: Vec<(Point, f32)> = Vec::new();
         let mut done = MeshCounts::default();
         for end in sets {
             window.clear();
@@ -379,14 +382,14 @@ impl MeshSpool {
                 faces
                     .read_exact(&mut rec)
                     .map_err(|e| io(e, &self.paths[1]))?;
-                let mut corners = [[0f32; 3]; 3];
+                let mut corners = [([0f32; 3], f32::NAN); 3];
                 for (c, index) in corners.iter_mut().zip(face_indices(&rec)) {
                     *c = if index < done.vertices {
                         let mut rec = [0u8; IMPORT_BYTES];
                         imports
                             .read_exact(&mut rec)
                             .map_err(|e| io(e, &self.paths[3]))?;
-                        [float(&rec, 0), float(&rec, 1), float(&rec, 2)]
+                        ([float(&rec, 0), float(&rec, 1), float(&rec, 2)], f32::NAN)
                     } else {
                         window
                             .get((index - done.vertices) as usize)
@@ -396,7 +399,7 @@ impl MeshSpool {
                             })?
                     };
                 }
-                each(corners, z_top);
+                each(corners.map(|c| c.0), corners.map(|c| c.1));
             }
             done = end;
         }
@@ -563,12 +566,8 @@ mod tests {
     /// Streaming the spool gives the map's triangles, corner for corner and in order, over
     /// many layers of different axes and heights (each layer's faces reuse earlier vertices
     /// of that layer only).
-    #[test]
-    fn the_spooled_triangles_stream_back_as_the_map_has_them() {
-        let lattice = Lattice {
-            cell_size: 1.6,
-            full_cover: true,
-        };
+    /// Twelve layers of every axis at varied heights, some vertices too uncertain to show.
+    fn varied_map(lattice: Lattice) -> MeshMap {
         let mut map = MeshMap::with_capacity(64, 64, lattice);
         let mut k = 0u32;
         for x in 0..4 {
@@ -587,6 +586,16 @@ mod tests {
                 k += 1;
             }
         }
+        map
+    }
+
+    #[test]
+    fn the_spooled_triangles_stream_back_as_the_map_has_them() {
+        let lattice = Lattice {
+            cell_size: 1.6,
+            full_cover: true,
+        };
+        let map = varied_map(lattice);
         let cfg = MeshConfig {
             variance_show: 0.3,
             max_slope_deg: 90.0,
@@ -599,15 +608,16 @@ mod tests {
         spool.add_layers(first.iter().copied()).unwrap();
         spool.add_layers(second.iter().copied()).unwrap();
         let mut streamed = Vec::new();
-        let mut tops = Vec::new();
+        let mut variances = Vec::new();
         spool
-            .for_each_triangle(|t, z_top| {
+            .for_each_triangle(|t, v| {
                 streamed.push(t);
-                tops.push(z_top);
+                variances.push(v);
             })
             .unwrap();
         let shown = Shown::new(&cfg);
         let mut expected: Vec<[Point; 3]> = Vec::new();
+        let mut variance_at = std::collections::HashMap::new();
         for set in [first, second] {
             let m = weld(set.iter().copied(), &lattice, shown);
             expected.extend(
@@ -615,6 +625,9 @@ mod tests {
                     .iter()
                     .map(|t| t.map(|i| m.vertices[i as usize].position)),
             );
+            for v in &m.vertices {
+                variance_at.insert(v.position.map(f32::to_bits), v.variance);
+            }
         }
         assert!(expected.len() > 400, "{} triangles", expected.len());
         // The spool welds each set in Z-order of its cells: the same triangles, in another
@@ -624,13 +637,15 @@ mod tests {
             v
         };
         assert_eq!(streamed.len(), expected.len());
+        // Each corner's variance is its vertex's, but for the corners the second set welded in
+        // from the first (NaN), which are few.
+        let corners = streamed.iter().flatten().zip(variances.iter().flatten());
+        let known = corners.clone().filter(|(_, v)| !v.is_nan()).count();
+        assert!(known * 10 > 9 * 3 * streamed.len(), "{known}");
+        for (p, v) in corners.filter(|(_, v)| !v.is_nan()) {
+            assert_eq!(variance_at[&p.map(f32::to_bits)], *v);
+        }
         assert!(sorted(streamed) == sorted(expected.clone()));
-        let z_top = expected
-            .iter()
-            .flatten()
-            .map(|v| v[2])
-            .fold(f32::MIN, f32::max);
-        assert!(tops.iter().all(|&z| z == z_top));
         // Resumed at the end of the first set, the spool streams the first set alone.
         let kept = {
             let m = weld(first.iter().copied(), &lattice, shown);
