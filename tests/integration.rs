@@ -25,6 +25,7 @@ mod loop_closure;
 mod map_persistence;
 mod merge;
 mod navmap;
+mod navmap_command;
 mod ouster;
 mod packets;
 mod parallel;

@@ -20,17 +20,17 @@ use std::path::Path;
 
 /// A Nav2 map as `map_server` reads it: its pixels (rows top-down), size, resolution and the
 /// lower-left pixel's corner.
-struct Nav2Map {
-    pixels: Vec<u8>,
-    width: usize,
-    height: usize,
-    resolution: f64,
-    origin: [f64; 2],
-    free_thresh: f64,
+pub(crate) struct Nav2Map {
+    pub(crate) pixels: Vec<u8>,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) resolution: f64,
+    pub(crate) origin: [f64; 2],
+    pub(crate) free_thresh: f64,
 }
 
 impl Nav2Map {
-    fn read(dir: &Path) -> Nav2Map {
+    pub(crate) fn read(dir: &Path) -> Nav2Map {
         let yaml = std::fs::read_to_string(dir.join("map.yaml")).unwrap();
         let key = |k: &str| {
             yaml.lines()
@@ -81,7 +81,7 @@ impl Nav2Map {
     }
 
     /// map_server's reading of pixel `(col, row)`: 100 occupied, 0 free, -1 unknown.
-    fn value(&self, col: usize, row: usize) -> i8 {
+    pub(crate) fn value(&self, col: usize, row: usize) -> i8 {
         let occ = (255.0 - self.pixels[row * self.width + col] as f64) / 255.0;
         if occ > 0.65 {
             100
@@ -126,11 +126,7 @@ fn obstacle_at(scene: &Scene, x: f64, y: f64, lo: f64, hi: f64) -> bool {
 /// The objects of `scene` that may stand over `map` (`to_world` takes its frame to the
 /// world's): the truth looked up per cell, among a few hundred objects instead of the town's
 /// thousands.
-fn near_the_map(
-    scene: &Scene,
-    map: &Nav2Map,
-    to_world: &impl Fn(f64, f64) -> Point3<f64>,
-) -> Scene {
+fn near_the_map(scene: &Scene, map: &Nav2Map, to_world: &dyn Fn(f64, f64) -> Point3<f64>) -> Scene {
     let (w, h) = (
         map.width as f64 * map.resolution,
         map.height as f64 * map.resolution,
@@ -213,121 +209,94 @@ impl Scores {
     }
 }
 
-/// Runs `frames` of `drive` with the navigation map on (up: the true gravity in the map's
-/// frame), reads the map back and scores it against the scene.
-fn score(
-    drive: Drive,
-    frames: usize,
-    robot: Robot,
-    name: &str,
-    segments: &[([f64; 2], [f64; 2])],
-) -> Scores {
-    let dir = scratch(name);
-    let first: Pose = drive.poses[0];
-    // The map's frame is the first sensor pose's: up there is the world's z seen from it.
-    let up = first.rotation.inverse() * Vector3::z();
-    // The configuration fitted to the scene's scale from the first scan, as the command
-    // fits it (`slamesh run`'s default preset): 0.5 m cells indoors.
-    let first_scan = drive.scan(0);
-    let config = slamesh::run::scale::fit(&Config::default(), &first_scan)
-        .map_or_else(Config::default, |f| f.config);
-    let opts = RunOptions {
-        out: dir.clone(),
-        config,
-        threads: 2,
-        mesh_formats: Vec::new(),
-        navmap: Some(NavMapOptions {
-            robot,
-            resolution_m: 0.1,
-            up: Some((up, "the simulator's gravity".into())),
-        }),
-        ..RunOptions::default()
-    };
-    let mut source = drive.clone();
-    let summary = run::<KittiCapacity>(&mut source, &opts, |_| {}).unwrap();
-    assert_eq!(summary.used, frames);
-    let map = Nav2Map::read(&dir);
-    assert!(
-        map.free_thresh < 50.0 / 255.0,
-        "unknown (205) must not load as free"
-    );
-    // Grid frame -> world: the level frame turned back to the map's, then the first pose.
-    let level = Rotation3::rotation_between(&up, &Vector3::z()).unwrap();
-    let to_world = |x: f64, y: f64| first * (level.inverse() * Point3::new(x, y, 0.0));
-    let to_grid = |w: &Point3<f64>| level * first.inverse_transform_point(w);
-    let scene = near_the_map(&drive.scene, &map, &to_world);
-    let mut seen: HashSet<(i64, i64)> = HashSet::new();
-    let cell = |g: Point3<f64>| {
+/// A drive's navigation map, made as `slamesh run --navmap` makes it, and its frame.
+struct Mapped {
+    map: Nav2Map,
+    /// The first sensor pose: the map's frame.
+    first: Pose,
+    /// The map frame turned level (up: the world's z seen from the first pose).
+    level: Rotation3<f64>,
+}
+
+impl Mapped {
+    /// Runs `frames` of `drive` with the navigation map on (up: the true gravity in the map's
+    /// frame), with the configuration fitted to the scene's scale from the first scan as the
+    /// command fits it (`slamesh run`'s default preset: 0.5 m cells indoors), and reads the
+    /// map back.
+    fn of(drive: &Drive, frames: usize, robot: Robot, name: &str) -> Mapped {
+        let dir = scratch(name);
+        let first: Pose = drive.poses[0];
+        let up = first.rotation.inverse() * Vector3::z();
+        let config = slamesh::run::scale::fit(&Config::default(), &drive.scan(0))
+            .map_or_else(Config::default, |f| f.config);
+        let opts = RunOptions {
+            out: dir.clone(),
+            config,
+            threads: 2,
+            mesh_formats: Vec::new(),
+            navmap: Some(NavMapOptions {
+                robot,
+                resolution_m: 0.1,
+                up: Some((up, "the simulator's gravity".into())),
+            }),
+            ..RunOptions::default()
+        };
+        let summary = run::<KittiCapacity>(&mut drive.clone(), &opts, |_| {}).unwrap();
+        assert_eq!(summary.used, frames);
+        let map = Nav2Map::read(&dir);
+        assert!(
+            map.free_thresh < 50.0 / 255.0,
+            "unknown (205) must not load as free"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+        Mapped {
+            map,
+            first,
+            level: Rotation3::rotation_between(&up, &Vector3::z()).unwrap(),
+        }
+    }
+
+    /// Grid frame `(x, y)` to the world: the level frame turned back to the map's, then the
+    /// first pose.
+    fn to_world(&self, x: f64, y: f64) -> Point3<f64> {
+        self.first * (self.level.inverse() * Point3::new(x, y, 0.0))
+    }
+
+    /// The grid cell (column, row from the bottom) holding world point `w`.
+    fn cell(&self, w: &Point3<f64>) -> (i64, i64) {
+        let g = self.level * self.first.inverse_transform_point(w);
         (
-            ((g.x - map.origin[0]) / map.resolution).floor() as i64,
-            ((g.y - map.origin[1]) / map.resolution).floor() as i64,
+            ((g.x - self.map.origin[0]) / self.map.resolution).floor() as i64,
+            ((g.y - self.map.origin[1]) / self.map.resolution).floor() as i64,
         )
-    };
-    for i in 0..frames {
-        for p in drive.true_points(i) {
-            seen.insert(cell(to_grid(&Point3::new(
-                p[0] as f64,
-                p[1] as f64,
-                p[2] as f64,
-            ))));
-        }
     }
-    let (step, height) = (robot.max_step_m, robot.height_m);
-    let (mut both, mut either, mut free, mut free_bad, mut occupied) = (0, 0, 0, 0, 0);
-    let (mut near_both, mut near_either) = (0, 0);
-    for row in 0..map.height {
-        for col in 0..map.width {
-            let [x, y] = map.centre(col, row);
-            // The truth over the cell: its centre and eight points around it.
-            let r = map.resolution * 0.45;
-            let truth = [-r, 0.0, r].iter().any(|dx| {
-                [-r, 0.0, r].iter().any(|dy| {
-                    let w = to_world(x + dx, y + dy);
-                    obstacle_at(&scene, w.x, w.y, step, height)
-                })
-            });
-            let ours = map.value(col, row);
-            let c = (col as i64, (map.height - 1 - row) as i64);
-            if seen.contains(&c) {
-                both += usize::from(truth && ours == 100);
-                either += usize::from(truth || ours == 100);
-                // Within a cell: an occupied cell next to a truth one counts as found.
-                let near = |want: bool| {
-                    (-1i64..=1).any(|dr| {
-                        (-1i64..=1).any(|dc| {
-                            let (r2, c2) = (row as i64 + dr, col as i64 + dc);
-                            let inside = (0..map.height as i64).contains(&r2)
-                                && (0..map.width as i64).contains(&c2);
-                            inside
-                                && if want {
-                                    map.value(c2 as usize, r2 as usize) == 100
-                                } else {
-                                    let [x2, y2] = map.centre(c2 as usize, r2 as usize);
-                                    let w = to_world(x2, y2);
-                                    obstacle_at(&scene, w.x, w.y, step, height)
-                                }
-                        })
-                    })
-                };
-                if truth || ours == 100 {
-                    near_either += 1;
-                    near_both += usize::from(if truth { near(true) } else { near(false) });
-                }
-            }
-            free += usize::from(ours == 0);
-            free_bad += usize::from(ours == 0 && truth);
-            occupied += usize::from(ours == 100);
-        }
-    }
-    std::fs::remove_dir_all(&dir).unwrap();
-    // World (z = 0 up) to the image's column and row, if inside it.
-    let pixel = |x: f64, y: f64| {
-        let (col, row) = cell(to_grid(&Point3::new(x, y, 0.0)));
-        let row = map.height as i64 - 1 - row;
-        ((0..map.width as i64).contains(&col) && (0..map.height as i64).contains(&row))
+
+    /// The image pixel (column, row top-down) of world `(x, y, 0)`, if inside it.
+    fn pixel(&self, x: f64, y: f64) -> Option<(usize, usize)> {
+        let (col, row) = self.cell(&Point3::new(x, y, 0.0));
+        let row = self.map.height as i64 - 1 - row;
+        ((0..self.map.width as i64).contains(&col) && (0..self.map.height as i64).contains(&row))
             .then_some((col as usize, row as usize))
+    }
+}
+
+/// The cells of `mapped`'s grid a true scan point of `drive`'s first `frames` fell in.
+fn seen_cells(mapped: &Mapped, drive: &Drive, frames: usize) -> HashSet<(i64, i64)> {
+    (0..frames)
+        .flat_map(|i| drive.true_points(i))
+        .map(|p| mapped.cell(&Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
+        .collect()
+}
+
+/// For each of `segments` (world, z = 0 up): the share of free cells along it, and whether
+/// free cells join its two ends (side by side, not corner to corner).
+fn along(mapped: &Mapped, segments: &[([f64; 2], [f64; 2])]) -> (Vec<f64>, Vec<bool>) {
+    let map = &mapped.map;
+    let free_at = |x: f64, y: f64| {
+        mapped
+            .pixel(x, y)
+            .is_some_and(|(c, r)| map.value(c, r) == 0)
     };
-    let free_at = |x: f64, y: f64| pixel(x, y).is_some_and(|(c, r)| map.value(c, r) == 0);
     let free_along = segments
         .iter()
         .map(|&(a, b)| {
@@ -343,11 +312,80 @@ fn score(
         .collect();
     let passable = segments
         .iter()
-        .map(|&(a, b)| match (pixel(a[0], a[1]), pixel(b[0], b[1])) {
-            (Some(from), Some(to)) => free_path(&map, from, to),
-            _ => false,
-        })
+        .map(
+            |&(a, b)| match (mapped.pixel(a[0], a[1]), mapped.pixel(b[0], b[1])) {
+                (Some(from), Some(to)) => free_path(map, from, to),
+                _ => false,
+            },
+        )
         .collect();
+    (free_along, passable)
+}
+
+/// Runs `frames` of `drive` with the navigation map on ([`Mapped::of`]) and scores the map
+/// against the scene.
+fn score(
+    drive: Drive,
+    frames: usize,
+    robot: Robot,
+    name: &str,
+    segments: &[([f64; 2], [f64; 2])],
+) -> Scores {
+    let mapped = Mapped::of(&drive, frames, robot, name);
+    let map = &mapped.map;
+    let scene = near_the_map(&drive.scene, map, &|x, y| mapped.to_world(x, y));
+    let seen = seen_cells(&mapped, &drive, frames);
+    let (step, height) = (robot.max_step_m, robot.height_m);
+    let truth_at = |col: usize, row: usize| {
+        let [x, y] = map.centre(col, row);
+        // The truth over the cell: its centre and eight points around it.
+        let r = map.resolution * 0.45;
+        [-r, 0.0, r].iter().any(|dx| {
+            [-r, 0.0, r].iter().any(|dy| {
+                let w = mapped.to_world(x + dx, y + dy);
+                obstacle_at(&scene, w.x, w.y, step, height)
+            })
+        })
+    };
+    let (mut both, mut either, mut free, mut free_bad, mut occupied) = (0, 0, 0, 0, 0);
+    let (mut near_both, mut near_either) = (0, 0);
+    for row in 0..map.height {
+        for col in 0..map.width {
+            let truth = truth_at(col, row);
+            let ours = map.value(col, row);
+            if seen.contains(&(col as i64, (map.height - 1 - row) as i64)) {
+                both += usize::from(truth && ours == 100);
+                either += usize::from(truth || ours == 100);
+                // Within a cell: an occupied cell next to a truth one counts as found.
+                let near = |want: &dyn Fn(usize, usize) -> bool| {
+                    (-1i64..=1).any(|dr| {
+                        (-1i64..=1).any(|dc| {
+                            let (r2, c2) = (row as i64 + dr, col as i64 + dc);
+                            (0..map.height as i64).contains(&r2)
+                                && (0..map.width as i64).contains(&c2)
+                                && want(c2 as usize, r2 as usize)
+                        })
+                    })
+                };
+                if truth || ours == 100 {
+                    near_either += 1;
+                    near_both += usize::from(if truth {
+                        near(&|c, r| map.value(c, r) == 100)
+                    } else {
+                        near(&|c, r| {
+                            let [x, y] = map.centre(c, r);
+                            let w = mapped.to_world(x, y);
+                            obstacle_at(&scene, w.x, w.y, step, height)
+                        })
+                    });
+                }
+            }
+            free += usize::from(ours == 0);
+            free_bad += usize::from(ours == 0 && truth);
+            occupied += usize::from(ours == 100);
+        }
+    }
+    let (free_along, passable) = along(&mapped, segments);
     Scores {
         free_along,
         passable,
@@ -409,143 +447,80 @@ fn the_office_s_navigation_map_against_the_truth() {
     );
 }
 
-/// A mesh PLY's vertices with `ground` and `cost` among their properties: ground vertices
-/// that are not lethal lie in free cells of `grid` (the map's z up: the grid's frame is the
-/// map's), vertices off the ground are lethal, and both kinds are there.
-fn check_mesh_layers(path: &Path, grid: &Nav2Map) {
-    let bytes = std::fs::read(path).unwrap();
-    let end = bytes
-        .windows(11)
-        .position(|w| w == b"end_header\n")
-        .unwrap()
-        + 11;
-    let header = String::from_utf8_lossy(&bytes[..end]);
-    let mut count = 0;
-    // Each vertex property's name and size in bytes.
-    let mut props: Vec<(String, usize)> = Vec::new();
-    for line in header.lines() {
-        let w: Vec<&str> = line.split_whitespace().collect();
-        match w.as_slice() {
-            ["element", "vertex", n] => count = n.parse().unwrap(),
-            ["element", ..] if count > 0 => break,
-            ["property", kind, name] => {
-                props.push((name.to_string(), if *kind == "uchar" { 1 } else { 4 }))
-            }
-            _ => {}
-        }
-    }
-    let at = |name: &str| {
-        let k = props.iter().position(|(n, _)| n == name).unwrap();
-        props[..k].iter().map(|p| p.1).sum::<usize>()
-    };
-    let stride: usize = props.iter().map(|p| p.1).sum();
-    let (x, y, ground, cost) = (at("x"), at("y"), at("ground"), at("cost"));
-    for layer in ["slope_deg", "step_m", "roughness_m", "border"] {
-        at(layer);
-    }
-    let float = |v: usize, off: usize| {
-        let i = end + v * stride + off;
-        f32::from_le_bytes(bytes[i..i + 4].try_into().unwrap())
-    };
-    let (mut on_ground, mut off_ground) = (0, 0);
-    for v in 0..count {
-        let (g, c) = (float(v, ground), float(v, cost));
-        if g == 0.0 {
-            assert_eq!(c, 1.0, "a vertex off the ground is lethal");
-            off_ground += 1;
-        } else if c < 1.0 {
-            // The cell as the grid finds it (x over the resolution, floored), less the corner's.
-            let cell = |at: usize, origin: f64| {
-                let c = (float(v, at) as f64 / grid.resolution).floor();
-                (c - (origin / grid.resolution).round()) as usize
-            };
-            let (col, row) = (cell(x, grid.origin[0]), cell(y, grid.origin[1]));
-            assert_eq!(
-                grid.value(col, grid.height - 1 - row),
-                0,
-                "vertex {v} of {path:?}"
-            );
-            on_ground += 1;
-        }
-    }
-    assert!(
-        on_ground > 100 && off_ground > 100,
-        "{on_ground} {off_ground}"
-    );
-}
-
-/// `run --navmap` and `navmap` of the map it saved write the same occupancy grid (the same
-/// mesh, the same path); `navmap` of its PLY mesh grows the ground from the largest floor;
-/// a bad robot file is refused, naming it.
+/// Issue 56's kerbs and ramps (`slamesh_sim::yard`): a kerb lower than the wheeled robot's
+/// step keeps the pavement behind it in reach; a ramp within the robot's slope limit is free up
+/// to its platform, and a planner finds its way up; a steeper one is not free where it stands
+/// more than a step up, nor is its platform, and no way of free cells leads there. Each judged
+/// over the cells of the area a true scan point fell in, 0.15 m in from its edges.
+///
+/// Not yet: the kerb higher than a step (0.15 m) is no obstacle. The mesh's lattice (0.3 m
+/// here) smooths it into a slope of about 14 degrees, within the robot's 15, so the grid
+/// grows the ground over it (docs/benchmarks.md, "Kerbs and ramps"); printed, not asserted.
 #[test]
-fn the_command_s_navigation_maps() {
-    use crate::common::{slamesh, slamesh_ok};
-    let dir = scratch("navmap-command");
-    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/recordings/scans");
-    let (run_out, from_map, from_ply) = (dir.join("run"), dir.join("map"), dir.join("ply"));
-    let saved = run_out.join("site.slamesh");
-    let s = |p: &Path| p.to_str().unwrap().to_string();
-    slamesh_ok(&[
-        "run",
-        &s(&input),
-        "--out",
-        &s(&run_out),
-        "-q",
-        "--no-picture",
-        "--navmap",
-        "--save-map",
-        &s(&saved),
-    ]);
-    slamesh_ok(&["navmap", &s(&saved), "--out", &s(&from_map), "-q"]);
-    for f in ["map.pgm", "map.yaml", "elevation.asc", "navmesh.ply"] {
-        assert_eq!(
-            std::fs::read(run_out.join(f)).unwrap(),
-            std::fs::read(from_map.join(f)).unwrap(),
-            "{f}"
+fn the_yard_s_kerbs_and_ramps() {
+    use slamesh_sim::yard::{ramp, KERBS, RAMPS, RAMP_Y};
+    let frames = 180;
+    let drive = Drive::yard(frames, 3);
+    let robot = Robot::WHEELED;
+    let mapped = Mapped::of(&drive, frames, robot, "navmap-yard");
+    let seen = seen_cells(&mapped, &drive, frames);
+    let map = &mapped.map;
+    // The share of the area's seen cells that are free, and how many there are.
+    let free_share = |x: [f64; 2], y: [f64; 2]| {
+        let mut cells = HashSet::new();
+        let mut free = 0;
+        let (nx, ny) = (
+            ((x[1] - x[0]) / 0.05) as usize,
+            ((y[1] - y[0]) / 0.05) as usize,
         );
-    }
-    // The navigation mesh: the ground with its layers as named vertex properties.
-    let navmesh = run_out.join("navmesh.ply");
-    let mesh = slamesh::formats::ply::read_ply_mesh(&navmesh).unwrap();
-    assert!(mesh.vertices.len() > 100 && mesh.triangles.len() > mesh.vertices.len());
-    let bytes = std::fs::read(&navmesh).unwrap();
-    let header = String::from_utf8_lossy(&bytes[..600]);
-    for layer in ["slope_deg", "step_m", "roughness_m", "border", "cost"] {
-        assert!(
-            header.contains(&format!("property float {layer}\n")),
-            "{layer}"
-        );
-    }
-    // The layers on the SLAM mesh's own vertices, in the run's mesh and in the command's.
-    let run_grid = Nav2Map::read(&run_out);
-    for mesh in [run_out.join("mesh.ply"), from_map.join("mesh.ply")] {
-        check_mesh_layers(&mesh, &run_grid);
-    }
-    let report = std::fs::read_to_string(run_out.join("report.json")).unwrap();
-    assert!(report.contains("\"navmap\"") && report.contains("first scan taken as level"));
-    slamesh_ok(&[
-        "navmap",
-        &s(&run_out.join("mesh.ply")),
-        "--out",
-        &s(&from_ply),
-        "-q",
-    ]);
-    let grid = Nav2Map::read(&from_ply);
-    assert!(grid.pixels.contains(&254) && grid.pixels.contains(&0));
-    let robot = dir.join("robot.toml");
-    std::fs::write(&robot, "max_step_m = 3.0\n").unwrap();
-    let refused = slamesh(&[
-        "navmap",
-        &s(&saved),
-        "--out",
-        &s(&from_ply),
-        "--robot",
-        &s(&robot),
-    ]);
-    let err = String::from_utf8_lossy(&refused.stderr);
-    assert!(
-        !refused.status.success() && err.contains("robot.toml") && err.contains("height_m"),
-        "{err}"
+        for (i, j) in (0..=nx).flat_map(|i| (0..=ny).map(move |j| (i, j))) {
+            let (px, py) = (x[0] + 0.05 * i as f64, y[0] + 0.05 * j as f64);
+            let cell = mapped.cell(&Point3::new(px, py, 0.0));
+            let Some((c, r)) = mapped.pixel(px, py) else {
+                continue;
+            };
+            if seen.contains(&cell) && cells.insert(cell) {
+                free += usize::from(map.value(c, r) == 0);
+            }
+        }
+        (free as f64 / cells.len().max(1) as f64, cells.len())
+    };
+    // Whether free cells join the yard's middle at `x` to `(x, y)`.
+    let reached = |x: f64, y: f64| match (mapped.pixel(x, 0.0), mapped.pixel(x, y)) {
+        (Some(from), Some(to)) => free_path(map, from, to),
+        _ => false,
+    };
+    let inset = 0.15;
+    let pavement =
+        |[x0, x1, _]: [f64; 3]| free_share([x0 + inset, x1 - inset], [4.0 + inset, 6.0 - inset]);
+    let (high, low) = (pavement(KERBS[0]), pavement(KERBS[1]));
+    let centre = |k: [f64; 3]| (k[0] + k[1]) / 2.0;
+    println!(
+        "free behind the high kerb {high:?}, reached {}; behind the low one {low:?}",
+        reached(centre(KERBS[0]), 5.0)
     );
-    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(low.1 > 500 && low.0 > 0.9, "{low:?}");
+    assert!(reached(centre(KERBS[1]), 5.0));
+    let y = [RAMP_Y[0] + inset, RAMP_Y[1] - inset];
+    let [gentle, steep] = RAMPS.map(|[x0, x1, degrees]| {
+        let (up, top) = ramp(x0, x1, degrees);
+        // From where the ramp stands a step up.
+        let from = up[0] + robot.max_step_m / degrees.to_radians().tan();
+        let on_ramp = free_share([from + inset, up[1] - inset], y);
+        let platform = free_share([top[0] + inset, top[1] - inset], y);
+        (on_ramp, platform, reached((top[0] + top[1]) / 2.0, -5.5))
+    });
+    println!(
+        "free on the gentle ramp, on its platform, reached: {gentle:?}; the steep one: {steep:?}"
+    );
+    assert!(gentle.0 .1 > 300 && gentle.0 .0 > 0.8, "{gentle:?}");
+    assert!(
+        gentle.1 .1 > 500 && gentle.1 .0 > 0.8 && gentle.2,
+        "{gentle:?}"
+    );
+    assert!(steep.0 .1 > 100 && steep.0 .0 < 0.05, "{steep:?}");
+    assert!(
+        steep.1 .1 > 500 && steep.1 .0 == 0.0 && !steep.2,
+        "{steep:?}"
+    );
 }

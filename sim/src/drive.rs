@@ -186,6 +186,15 @@ impl Drive {
         }
     }
 
+    /// Up to `frames` scans (10 a second, 2 m/s) along [`crate::yard`]'s court past its kerbs
+    /// and ramps, seen by [`Drive::town`]'s scanner, 2 cm range noise, 5 % dropouts.
+    pub fn yard(frames: usize, seed: u64) -> Self {
+        let mut d = Self::town(0, seed);
+        d.scene = crate::yard::scene();
+        d.poses = crate::yard::drive_poses(frames);
+        d
+    }
+
     /// The drive shaken by `vibration` over its smooth attitude: every frame's pose (and every
     /// firing's, in a rolling sweep) turned by the shake at its time.
     pub fn shaken(mut self, vibration: Vibration) -> Self {

@@ -12,6 +12,7 @@
 //! | an IMU on the scanner, a vibrating body | [`imu`] |
 //! | a procedural town and its loop | [`town`] |
 //! | an office floor and a walk through it | [`office`] |
+//! | a yard with kerbs and ramps, for the navigation maps | [`yard`] |
 //! | the exact distance to the true surfaces (mesh precision) | [`truth`] |
 #![deny(missing_docs)]
 
@@ -22,6 +23,7 @@ pub mod office;
 pub mod scene;
 pub mod town;
 pub mod truth;
+pub mod yard;
 
 pub use drive::{sensor_pose, Drive};
 pub use imu::{ImuModel, Vibration};

@@ -270,9 +270,10 @@ impl Grid {
     /// Obstacle cells whose samples all stand lower than [`LOW_RISE_M`] above their reference
     /// are no obstacle of their own ([`Cell::doubtful`]) when a taller obstacle cell lies
     /// within [`EDGE_M`] (the rounding of a wall's or a car's foot, which the reconstruction
-    /// carries out over the ground) or no floor raised above a step does (a ridge where two
-    /// layers of a noisy floor meet). A kerb keeps its face: the pavement behind it is raised
-    /// floor. Decided for every cell before any changes, so the order of the cells does not
+    /// carries out over the ground) or no floor raised more than a step above the cell's own
+    /// reference does (a ridge where two layers of a noisy floor meet). A kerb keeps its face:
+    /// the pavement behind it is raised floor (judged against the low cell's reference, since
+    /// the pavement may be ground of its own). Decided for every cell before any changes, so the order of the cells does not
     /// matter.
     fn settle_low_rises(&mut self) {
         let low_bits = (LOW_RISE_M * 10.0).round() as u32;
@@ -291,7 +292,7 @@ impl Grid {
                         .any(|&(dx, dy)| self.cell(ix + dx, iy + dy).is_some_and(f))
                 };
                 let taller = any_near(&|n| n.obstacle && top(n) > low_bits);
-                let raised = any_near(&|n| n.floor.is_finite() && n.floor - n.reference > step);
+                let raised = any_near(&|n| n.floor.is_finite() && n.floor - c.reference > step);
                 if taller || !raised {
                     settled.push((ix, iy));
                 }

@@ -1,0 +1,149 @@
+//! The navigation maps the command writes (`slamesh run --navmap`, `slamesh navmap`): the same
+//! grid from a run and from the map it saved, the traversability layers as named vertex
+//! properties of the navigation mesh and of the SLAM mesh, a PLY mesh's grid, a bad robot file
+//! refused. Read back with the Nav2 reader of [`crate::navmap`].
+
+use crate::common::scratch;
+use crate::navmap::Nav2Map;
+use std::path::Path;
+
+/// A mesh PLY's vertices with `ground` and `cost` among their properties: ground vertices
+/// that are not lethal lie in free cells of `grid` (the map's z up: the grid's frame is the
+/// map's), vertices off the ground are lethal, and both kinds are there.
+fn check_mesh_layers(path: &Path, grid: &Nav2Map) {
+    let bytes = std::fs::read(path).unwrap();
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    let mut count = 0;
+    // Each vertex property's name and size in bytes.
+    let mut props: Vec<(String, usize)> = Vec::new();
+    for line in header.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        match w.as_slice() {
+            ["element", "vertex", n] => count = n.parse().unwrap(),
+            ["element", ..] if count > 0 => break,
+            ["property", kind, name] => {
+                props.push((name.to_string(), if *kind == "uchar" { 1 } else { 4 }))
+            }
+            _ => {}
+        }
+    }
+    let at = |name: &str| {
+        let k = props.iter().position(|(n, _)| n == name).unwrap();
+        props[..k].iter().map(|p| p.1).sum::<usize>()
+    };
+    let stride: usize = props.iter().map(|p| p.1).sum();
+    let (x, y, ground, cost) = (at("x"), at("y"), at("ground"), at("cost"));
+    for layer in ["slope_deg", "step_m", "roughness_m", "border"] {
+        at(layer);
+    }
+    let float = |v: usize, off: usize| {
+        let i = end + v * stride + off;
+        f32::from_le_bytes(bytes[i..i + 4].try_into().unwrap())
+    };
+    let (mut on_ground, mut off_ground) = (0, 0);
+    for v in 0..count {
+        let (g, c) = (float(v, ground), float(v, cost));
+        if g == 0.0 {
+            assert_eq!(c, 1.0, "a vertex off the ground is lethal");
+            off_ground += 1;
+        } else if c < 1.0 {
+            // The cell as the grid finds it (x over the resolution, floored), less the corner's.
+            let cell = |at: usize, origin: f64| {
+                let c = (float(v, at) as f64 / grid.resolution).floor();
+                (c - (origin / grid.resolution).round()) as usize
+            };
+            let (col, row) = (cell(x, grid.origin[0]), cell(y, grid.origin[1]));
+            assert_eq!(
+                grid.value(col, grid.height - 1 - row),
+                0,
+                "vertex {v} of {path:?}"
+            );
+            on_ground += 1;
+        }
+    }
+    assert!(
+        on_ground > 100 && off_ground > 100,
+        "{on_ground} {off_ground}"
+    );
+}
+
+/// `run --navmap` and `navmap` of the map it saved write the same occupancy grid (the same
+/// mesh, the same path); `navmap` of its PLY mesh grows the ground from the largest floor;
+/// a bad robot file is refused, naming it.
+#[test]
+fn the_command_s_navigation_maps() {
+    use crate::common::{slamesh, slamesh_ok};
+    let dir = scratch("navmap-command");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/recordings/scans");
+    let (run_out, from_map, from_ply) = (dir.join("run"), dir.join("map"), dir.join("ply"));
+    let saved = run_out.join("site.slamesh");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    slamesh_ok(&[
+        "run",
+        &s(&input),
+        "--out",
+        &s(&run_out),
+        "-q",
+        "--no-picture",
+        "--navmap",
+        "--save-map",
+        &s(&saved),
+    ]);
+    slamesh_ok(&["navmap", &s(&saved), "--out", &s(&from_map), "-q"]);
+    for f in ["map.pgm", "map.yaml", "elevation.asc", "navmesh.ply"] {
+        assert_eq!(
+            std::fs::read(run_out.join(f)).unwrap(),
+            std::fs::read(from_map.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    // The navigation mesh: the ground with its layers as named vertex properties.
+    let navmesh = run_out.join("navmesh.ply");
+    let mesh = slamesh::formats::ply::read_ply_mesh(&navmesh).unwrap();
+    assert!(mesh.vertices.len() > 100 && mesh.triangles.len() > mesh.vertices.len());
+    let bytes = std::fs::read(&navmesh).unwrap();
+    let header = String::from_utf8_lossy(&bytes[..600]);
+    for layer in ["slope_deg", "step_m", "roughness_m", "border", "cost"] {
+        assert!(
+            header.contains(&format!("property float {layer}\n")),
+            "{layer}"
+        );
+    }
+    // The layers on the SLAM mesh's own vertices, in the run's mesh and in the command's.
+    let run_grid = Nav2Map::read(&run_out);
+    for mesh in [run_out.join("mesh.ply"), from_map.join("mesh.ply")] {
+        check_mesh_layers(&mesh, &run_grid);
+    }
+    let report = std::fs::read_to_string(run_out.join("report.json")).unwrap();
+    assert!(report.contains("\"navmap\"") && report.contains("first scan taken as level"));
+    slamesh_ok(&[
+        "navmap",
+        &s(&run_out.join("mesh.ply")),
+        "--out",
+        &s(&from_ply),
+        "-q",
+    ]);
+    let grid = Nav2Map::read(&from_ply);
+    assert!(grid.pixels.contains(&254) && grid.pixels.contains(&0));
+    let robot = dir.join("robot.toml");
+    std::fs::write(&robot, "max_step_m = 3.0\n").unwrap();
+    let refused = slamesh(&[
+        "navmap",
+        &s(&saved),
+        "--out",
+        &s(&from_ply),
+        "--robot",
+        &s(&robot),
+    ]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        !refused.status.success() && err.contains("robot.toml") && err.contains("height_m"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
