@@ -453,9 +453,9 @@ fn the_office_s_navigation_map_against_the_truth() {
 /// more than a step up, nor is its platform, and no way of free cells leads there. Each judged
 /// over the cells of the area a true scan point fell in, 0.15 m in from its edges.
 ///
-/// Not yet: the kerb higher than a step (0.15 m) is no obstacle. The mesh's lattice (0.3 m
-/// here) smooths it into a slope of about 14 degrees, within the robot's 15, so the grid
-/// grows the ground over it (docs/benchmarks.md, "Kerbs and ramps"); printed, not asserted.
+/// Not yet: the kerb higher than a step (0.15 m) is no obstacle. The mesh smooths it into a
+/// rise of under a step and then a slope the robot could climb, so the grid grows the ground
+/// over it (docs/benchmarks.md, "Kerbs and ramps"); printed, not asserted.
 #[test]
 fn the_yard_s_kerbs_and_ramps() {
     use slamesh_sim::yard::{ramp, KERBS, RAMPS, RAMP_Y};
