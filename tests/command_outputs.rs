@@ -488,6 +488,11 @@ fn bench_takes_a_preset() {
     assert_eq!(rows[0]["threads"], 1);
     assert_eq!(rows.last().unwrap()["threads"].as_u64(), Some(cores));
     assert!((rows[0]["speed_vs_one"].as_f64().unwrap() - 1.0).abs() < 1e-12);
+    // Each stage's median, reading among them.
+    let stages = rows[0]["stage_median_ms"].as_object().unwrap();
+    for stage in "read filter bucket reconstruct solve update total".split(' ') {
+        assert!(stages.contains_key(stage), "{stage}: {stages:?}");
+    }
     let o = slamesh(&["bench", s(&dir), "--preset", "nonsense"]);
     assert!(!o.status.success() && text(&o.stderr).contains("nonsense"));
     std::fs::remove_dir_all(&dir).unwrap();

@@ -393,11 +393,13 @@ impl Grid {
     }
 
     /// Cell `(ix, iy)`'s ground height (level frame) and the variance of the ground samples
-    /// in it; `None` where no ground was seen (or the ground was not in sight of the path).
+    /// in it; `None` where no ground was seen (or the ground was not in sight of the path),
+    /// or where something low or unsure may stand on it ([`Cell::doubtful`]: unknown, so the
+    /// elevation grid keeps to the ground the occupancy grid calls free or an obstacle's edge).
     pub fn elevation(&self, ix: i64, iy: i64) -> Option<(f64, f64)> {
         let c = self
             .cell(ix, iy)
-            .filter(|c| c.ground && c.n > 0 && (c.visible || !self.carved))?;
+            .filter(|c| c.ground && c.n > 0 && (c.visible || !self.carved) && !c.doubtful)?;
         let n = c.n as f64;
         let mean = c.sum as f64 / n;
         let var = (c.sum_sq as f64 / n - mean * mean).max(0.0);
