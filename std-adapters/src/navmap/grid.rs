@@ -180,15 +180,7 @@ impl Cell {
             self.sum_sq += above * above;
         }
     }
-}
 
-/// The height (m) under which a rise is only a foot or a bump when taller obstacles stand
-/// beside it or no raised floor does (`Grid::settle_low_rises`). Measured on the simulated
-/// town and office (docs/benchmarks.md, "Low rises and unsure standing surfaces"): the fringe
-/// along walls' feet and the ridges of the office's floor stand lower.
-pub const LOW_RISE_M: f64 = 0.3;
-
-impl Cell {
     /// Pass 2 for one sample of height `z` of a standing triangle the map is unsure of: where
     /// it would make an obstacle, the cell is doubtful instead.
     fn doubt(&mut self, z: f64, step: f32, height: f32) {
@@ -196,6 +188,12 @@ impl Cell {
         self.doubtful |= above > step && above <= height;
     }
 }
+
+/// The height (m) under which a rise is only a foot or a bump when taller obstacles stand
+/// beside it or no raised floor does (`Grid::settle_low_rises`). Measured on the simulated
+/// town and office (docs/benchmarks.md, "Low rises and unsure standing surfaces"): the fringe
+/// along walls' feet and the ridges of the office's floor stand lower.
+pub const LOW_RISE_M: f64 = 0.3;
 
 /// How far (m) from an obstacle's cell ground is taken as the obstacle's edge: the surface
 /// reconstruction carries ground up to about two tenths under a car's or a wall's foot.
@@ -273,8 +271,8 @@ impl Grid {
     /// carries out over the ground) or no floor raised more than a step above the cell's own
     /// reference does (a ridge where two layers of a noisy floor meet). A kerb keeps its face:
     /// the pavement behind it is raised floor (judged against the low cell's reference, since
-    /// the pavement may be ground of its own). Decided for every cell before any changes, so the order of the cells does not
-    /// matter.
+    /// the pavement may be ground of its own). Decided for every cell before any changes, so
+    /// the order of the cells does not matter.
     fn settle_low_rises(&mut self) {
         let low_bits = (LOW_RISE_M * 10.0).round() as u32;
         let top = |c: &Cell| 64 - c.heights.leading_zeros();
@@ -666,6 +664,53 @@ mod tests {
         assert_eq!(at(4.85), Occupancy::Unknown, "the wall's foot");
         assert_eq!(at(2.05), Occupancy::Unknown, "the ridge");
         assert_eq!(at(3.05), Occupancy::Free, "the street");
+    }
+
+    /// Triangles, each with its mean variance.
+    struct Listed(Vec<([Point; 3], f32)>);
+
+    impl Triangles for Listed {
+        fn each_triangle(
+            &mut self,
+            each: &mut dyn FnMut([Point; 3], f32),
+        ) -> Result<(), FileError> {
+            self.0.iter().for_each(|(t, v)| each(*t, *v));
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_standing_surface_the_map_is_unsure_of_leaves_its_ground_unknown() {
+        // A street (sure) with a wall across it at x = 5 whose triangles carry `variance`:
+        // only triangles steeper than the slope limit are held to STANDING_VARIANCE.
+        let path = [Vector3::new(2.0, 5.0, 1.7)];
+        let at = |variance: f32, x: f64| {
+            let mut rated: Vec<([Point; 3], f32)> = floor(0.0, 0.0, 10.0, 10.0, 0.0)
+                .into_iter()
+                .map(|t| (t, 0.01))
+                .collect();
+            rated.extend(
+                wall(5.0, 0.0, 10.0, 0.0, 2.0)
+                    .into_iter()
+                    .map(|t| (t, variance)),
+            );
+            let g =
+                Grid::build(&mut Listed(rated), Robot::WHEELED, 0.1, Vector3::z(), &path).unwrap();
+            let (ix, iy) = g.index_of(x, 5.05);
+            (g.occupancy(ix, iy), g.elevation(ix, iy).is_some())
+        };
+        assert_eq!(at(0.1, 5.05), (Occupancy::Occupied, false), "a sure wall");
+        assert_eq!(
+            at(f32::NAN, 5.05).0,
+            Occupancy::Occupied,
+            "no variance known"
+        );
+        assert_eq!(at(0.25, 5.05), (Occupancy::Unknown, false), "an unsure one");
+        assert_eq!(
+            at(0.25, 3.05),
+            (Occupancy::Free, true),
+            "the street before it"
+        );
     }
 
     #[test]
