@@ -392,7 +392,7 @@ impl Grid {
 
     /// Cell `(ix, iy)`'s ground height (level frame) and the variance of the ground samples
     /// in it; `None` where no ground was seen (or the ground was not in sight of the path),
-    /// or where something low or unsure may stand on it ([`Cell::doubtful`]: unknown, so the
+    /// or where something low or unsure may stand on it (`Cell::doubtful`: unknown, so the
     /// elevation grid keeps to the ground the occupancy grid calls free or an obstacle's edge).
     pub fn elevation(&self, ix: i64, iy: i64) -> Option<(f64, f64)> {
         let c = self
