@@ -2,7 +2,7 @@
 //! by a corridor, with desks, cabinets, pillars and a partition, walked through with a
 //! hand-held 16-beam scanner at 10 scans a second. Deterministic from a seed.
 
-use crate::scene::{OrientedBox, Scene};
+use crate::scene::{slab, Scene};
 use nalgebra::{Translation3, UnitQuaternion};
 use slamesh_core::random::SplitMix64;
 use slamesh_core::Pose;
@@ -11,15 +11,6 @@ use slamesh_core::Pose;
 pub const CEILING_M: f64 = 3.0;
 /// Sensor height above the floor (metres).
 pub const SENSOR_HEIGHT_M: f64 = 1.2;
-
-/// An axis-aligned box from its corners.
-fn slab(lo: [f64; 3], hi: [f64; 3]) -> OrientedBox {
-    OrientedBox {
-        centre: [0, 1, 2].map(|k| (lo[k] + hi[k]) / 2.0),
-        half: [0, 1, 2].map(|k| (hi[k] - lo[k]) / 2.0),
-        yaw: 0.0,
-    }
-}
 
 /// The floor: a 14 x 9 m room (x 0 to 14, y 0 to 9) and a 10 x 8 m room (x 18 to 28) joined by
 /// a 4 m corridor 2.5 m wide, 3 m ceilings, with furniture placed from `seed`.

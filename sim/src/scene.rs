@@ -15,6 +15,15 @@ pub struct OrientedBox {
     pub yaw: f64,
 }
 
+/// An axis-aligned box (no yaw) from its lowest and highest corners.
+pub fn slab(lo: [f64; 3], hi: [f64; 3]) -> OrientedBox {
+    OrientedBox {
+        centre: [0, 1, 2].map(|k| (lo[k] + hi[k]) / 2.0),
+        half: [0, 1, 2].map(|k| (hi[k] - lo[k]) / 2.0),
+        yaw: 0.0,
+    }
+}
+
 /// A sphere (tree crowns).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {

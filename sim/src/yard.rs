@@ -5,17 +5,8 @@
 //! lattice of 0.2 to 0.3 m sees as a slope), since the scene's boxes do not tilt.
 
 use crate::drive::sensor_pose;
-use crate::scene::{OrientedBox, Scene};
+use crate::scene::{slab, Scene};
 use slamesh_core::Pose;
-
-/// An axis-aligned box from its corners.
-fn slab(lo: [f64; 3], hi: [f64; 3]) -> OrientedBox {
-    OrientedBox {
-        centre: [0, 1, 2].map(|k| (lo[k] + hi[k]) / 2.0),
-        half: [0, 1, 2].map(|k| (hi[k] - lo[k]) / 2.0),
-        yaw: 0.0,
-    }
-}
 
 /// A ramp from `x0` up along x at `degrees` to a platform `RAMP_RISE_M` high ending at `x1`,
 /// from `y` -7 to -4 m: the ramp's own stretch of x, and the platform's.
