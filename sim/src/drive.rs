@@ -78,6 +78,11 @@ impl Drive {
     pub fn town(frames: usize, seed: u64) -> Self {
         let scene = crate::town::scene(seed);
         let poses = crate::town::drive_poses(&scene, frames);
+        Self::car_scanner(scene, poses, seed)
+    }
+
+    /// [`Drive::town`]'s car and scanner through any `scene` along `poses`.
+    fn car_scanner(scene: Scene, poses: Vec<Pose>, seed: u64) -> Self {
         let mut lidar = Lidar::hdl64(1000);
         lidar.max_range_m = 80.0;
         Drive {
@@ -115,8 +120,7 @@ impl Drive {
     /// second and back along it (a look-alike of the first, never driven before), round
     /// into the first again and 60 m along it (a true return).
     pub fn twin_streets(frames: usize, length_m: f64, gap_m: f64, seed: u64) -> Self {
-        let mut d = Self::town(0, seed);
-        d.scene = Scene::twin_streets(length_m, gap_m, seed);
+        let scene = Scene::twin_streets(length_m, gap_m, seed);
         let (x0, x1) = (-35.0, length_m + 35.0);
         let path = crate::town::path_through(&[
             [0.0, 0.0],
@@ -126,8 +130,8 @@ impl Drive {
             [x0, 0.0],
             [60.0, 0.0],
         ]);
-        d.poses = crate::town::drive_poses_along(&d.scene, path, frames);
-        d
+        let poses = crate::town::drive_poses_along(&scene, path, frames);
+        Self::car_scanner(scene, poses, seed)
     }
 
     /// [`Drive::town`] with a car's smooth attitude ([`crate::town::car_poses`]): for rolling
@@ -189,10 +193,7 @@ impl Drive {
     /// Up to `frames` scans (10 a second, 2 m/s) along [`crate::yard`]'s court past its kerbs
     /// and ramps, seen by [`Drive::town`]'s scanner, 2 cm range noise, 5 % dropouts.
     pub fn yard(frames: usize, seed: u64) -> Self {
-        let mut d = Self::town(0, seed);
-        d.scene = crate::yard::scene();
-        d.poses = crate::yard::drive_poses(frames);
-        d
+        Self::car_scanner(crate::yard::scene(), crate::yard::drive_poses(frames), seed)
     }
 
     /// The drive shaken by `vibration` over its smooth attitude: every frame's pose (and every

@@ -1,8 +1,9 @@
 //! A yard for the navigation maps' truth (kerbs and ramps): a 40 x 24 m court between walls,
 //! driven along its middle by the town's car and scanner, with on one side a kerb higher than
 //! a wheeled robot's step and one lower, each in front of a raised pavement, and on the other a
-//! gentle ramp and a steep one, each up to a platform. Ramps are stairs of 2 cm rises (what a
-//! lattice of 0.2 to 0.3 m sees as a slope), since the scene's boxes do not tilt.
+//! gentle ramp and a steep one, each up to a platform. Ramps are stairs of 2 cm rises (what
+//! the mesh's lattice, several times coarser, sees as a slope), since the scene's boxes do
+//! not tilt.
 
 use crate::drive::sensor_pose;
 use crate::scene::{slab, Scene};

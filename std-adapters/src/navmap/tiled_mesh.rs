@@ -44,6 +44,13 @@ struct LayerTriangles {
     variances: Vec<f32>,
 }
 
+impl LayerTriangles {
+    /// Triangles held.
+    fn count(&self) -> usize {
+        self.variances.len()
+    }
+}
+
 impl TiledMesh {
     /// For the map's `lattice`, showing triangles as `shown` says.
     pub fn new(lattice: LatticeTable, shown: Shown) -> Self {
@@ -71,7 +78,7 @@ impl TiledMesh {
             }
             let entry = self.tiles.entry(tile_of(key)).or_default();
             let id = (*key, *axis as u8);
-            if triangles.variances.is_empty() {
+            if triangles.count() == 0 {
                 entry.remove(&id);
             } else {
                 entry.insert(id, triangles);
@@ -124,7 +131,7 @@ impl TiledMesh {
         self.tiles
             .values()
             .flat_map(|l| l.values())
-            .map(|t| t.variances.len())
+            .map(LayerTriangles::count)
             .sum()
     }
 }

@@ -347,10 +347,10 @@ impl MeshSpool {
     }
 
     /// Calls `each` with every triangle added so far, as its three corners and their
-    /// Gaussian-process variances (NaN for a corner welded in from an earlier set, whose record
-    /// that set holds), in the order they were added. Reads the
-    /// spool files (flushed first) one welded set at a time: memory holds one set's vertex
-    /// positions, never the whole mesh.
+    /// Gaussian-process variances (NaN for a corner welded in from an earlier set: the import
+    /// records keep positions only), in the order they were added. Reads the spool files
+    /// (flushed first) one welded set at a time: memory holds one set's vertex positions,
+    /// never the whole mesh.
     pub fn for_each_triangle(
         &mut self,
         mut each: impl FnMut([Point; 3], [f32; 3]),
@@ -563,9 +563,6 @@ mod tests {
     use slamesh_core::lattice::VERTICES;
     use slamesh_core::layer::Layer;
 
-    /// Streaming the spool gives the map's triangles, corner for corner and in order, over
-    /// many layers of different axes and heights (each layer's faces reuse earlier vertices
-    /// of that layer only).
     /// Twelve layers of every axis at varied heights, some vertices too uncertain to show.
     fn varied_map(lattice: Lattice) -> MeshMap {
         let mut map = MeshMap::with_capacity(64, 64, lattice);
@@ -589,6 +586,9 @@ mod tests {
         map
     }
 
+    /// Streaming the spool gives the map's triangles, corner for corner and in order, over
+    /// many layers of different axes and heights (each layer's faces reuse earlier vertices
+    /// of that layer only), each corner with its vertex's variance.
     #[test]
     fn the_spooled_triangles_stream_back_as_the_map_has_them() {
         let lattice = Lattice {
