@@ -59,27 +59,9 @@ fn a_featureless_tunnel_is_degenerate_along_its_axis_and_the_motion_model_carrie
     // A 10 m wide, 6 m high tunnel, 500 m long, closed behind the start, with a few pillars
     // near the entrance: the first frames are well constrained and give the speed; beyond
     // 60 m the scanner (50 m range) sees only walls, floor and ceiling.
-    let mut boxes = vec![
-        wall([-12.0, 0.0, 3.0], [0.5, 6.0, 3.0]),
-        wall([240.0, 5.5, 3.0], [252.0, 0.5, 3.0]),
-        wall([240.0, -5.5, 3.0], [252.0, 0.5, 3.0]),
-        wall([240.0, 0.0, 6.5], [252.0, 6.0, 0.5]),
-    ];
-    for (x, y) in [(-6.0, 3.5), (-2.0, -3.8), (3.0, 3.6), (7.0, -3.5)] {
-        boxes.push(wall([x, y, 1.0], [0.4, 0.4, 1.0]));
-    }
-    let scene = Scene {
-        ground_z: 0.0,
-        terrain: None,
-        boxes,
-        spheres: Vec::new(),
-    };
-    let step = 1.5;
-    let mut d = drive(scene, 70, step, 50.0);
+    let mut d = drive(tunnel(), 70, TUNNEL_STEP_M, 50.0);
     let out = run(&mut d);
     let truth: Vec<Pose> = d.poses.iter().map(|p| d.poses[0].inverse() * p).collect();
-    // Once only walls are in view (50 m range past the last pillar and the end wall).
-    let walls_only = |i: usize| step * i as f64 > 50.0 + 12.0 + 10.0;
     let mut entered = None;
     for (i, (status, pose, cond)) in out.iter().enumerate() {
         let pose = pose.expect("every frame has a pose");
@@ -96,10 +78,15 @@ fn a_featureless_tunnel_is_degenerate_along_its_axis_and_the_motion_model_carrie
                 Ok(RegistrationStatus::Degenerate),
                 "frame {i}: only walls in view"
             );
-            // Along the tunnel the motion model carries the pose: no divergence.
+            // Along the tunnel the motion model carries the pose: no divergence, the error
+            // grows no faster than a speed 0.3 % off. The speed is the last registered
+            // frames': here 0.23 % off (0.052 m over the 22.5 m to frame 64); 0.09 % before
+            // layers kept their facing, when seeds 1 to 8 entered the tunnel 0.06 to 7.2 m
+            // off (five of them over 0.5 m), and now 0.05 to 0.41 m (docs/benchmarks.md,
+            // "Faces").
             let x0 = *entered.get_or_insert(e[0]);
             assert!(
-                e[0] < x0 + 0.05,
+                e[0] < x0 + 0.003 * TUNNEL_STEP_M * (i - 49) as f64 + 0.02,
                 "frame {i}: {} m, {x0} m on entering",
                 e[0]
             );
@@ -108,6 +95,52 @@ fn a_featureless_tunnel_is_degenerate_along_its_axis_and_the_motion_model_carrie
     // While a few distant pillars are the only hold along the axis (conditioning about
     // 0.011), a full solve slides on them, 0.7 m in three frames; they count as degenerate.
     assert!(entered.is_some_and(|x0| x0 < 0.1));
+}
+
+/// Metres a frame along the tunnel.
+const TUNNEL_STEP_M: f64 = 1.5;
+
+/// Once only walls are in view (50 m range past the last pillar and the end wall).
+fn walls_only(i: usize) -> bool {
+    TUNNEL_STEP_M * i as f64 > 50.0 + 12.0 + 10.0
+}
+
+/// The pillars near the tunnel's entrance are 0.8 m thick, both faces in one 1.6 m cell: the
+/// far face, seen once the scanner is past, replaces the near one instead of being fused with
+/// it (docs/design.md §1.5, "Faces"). Fused, they pulled the last registered frames, and the
+/// speed the motion model carries into the tunnel, off: on these seeds the pose entered 6.5,
+/// 7.2 and 4.5 m off.
+#[test]
+fn the_pillars_far_faces_do_not_throw_the_speed_into_the_tunnel() {
+    for seed in 4..=6 {
+        let mut d = drive(tunnel(), 50, TUNNEL_STEP_M, 50.0);
+        d.seed = seed;
+        let out = run(&mut d);
+        let i = out.len() - 1;
+        assert!(walls_only(i));
+        let truth = d.poses[0].inverse() * d.poses[i];
+        let e = position_error(&out[i].1.expect("a pose"), &truth);
+        assert!(e[0] < 0.5, "seed {seed}: {e:?} m on entering");
+    }
+}
+
+/// A 10 m wide, 6 m high tunnel along x, closed behind the start, with four pillars near it.
+fn tunnel() -> Scene {
+    let mut boxes = vec![
+        wall([-12.0, 0.0, 3.0], [0.5, 6.0, 3.0]),
+        wall([240.0, 5.5, 3.0], [252.0, 0.5, 3.0]),
+        wall([240.0, -5.5, 3.0], [252.0, 0.5, 3.0]),
+        wall([240.0, 0.0, 6.5], [252.0, 6.0, 0.5]),
+    ];
+    for (x, y) in [(-6.0, 3.5), (-2.0, -3.8), (3.0, 3.6), (7.0, -3.5)] {
+        boxes.push(wall([x, y, 1.0], [0.4, 0.4, 1.0]));
+    }
+    Scene {
+        ground_z: 0.0,
+        terrain: None,
+        boxes,
+        spheres: Vec::new(),
+    }
 }
 
 #[test]

@@ -370,10 +370,13 @@ fn damaged_map_files_are_refused_by_name() {
         let e = refused(&b);
         assert!(e.contains("not a usable map file"), "{e}");
     }
-    let mut v2 = good.clone();
-    v2[8] = 2;
-    let e = refused(&v2);
-    assert!(e.contains("version 2") && e.contains("version 1"), "{e}");
+    let mut v3 = good.clone();
+    v3[8] = 3;
+    let e = refused(&v3);
+    assert!(
+        e.contains("version 3") && e.contains("versions 1 to 2"),
+        "{e}"
+    );
     assert!(refused(&[]).contains("empty"));
     assert!(refused(b"ply\nformat ascii 1.0\n").contains("not a slamesh map file"));
     // A block the index names, corrupted: named with its offset.

@@ -192,6 +192,7 @@ mod tests {
         Layer {
             pred: [d; VERTICES],
             var: [0.05; VERTICES],
+            facing: crate::facing::Facing::Unknown,
         }
     }
 

@@ -1,13 +1,16 @@
 //! Map update by inverse-variance fusion of 1-D predictions (docs/design.md §1.5).
 //!
 //! Vertex locations are fixed, so fusing a scan into the map is fusing, per vertex, two
-//! scalar estimates. New cells are inserted; a layer a known cell lacks is added when
+//! scalar estimates, when the two face the same way ([`Facing`](crate::facing::Facing)) or lie within a sheet's
+//! thickness of each other; a scan layer facing the other way and farther off (the other face
+//! of a wall) replaces the map's. New cells are inserted; a layer a known cell lacks is added when
 //! [`MapConfig::add_missing_layers`] is set. Map-capacity refusals are counted, never fatal.
 
 use crate::cell::Axis;
 use crate::config::MapConfig;
+use crate::facing::MIN_THICKNESS_M;
 use crate::lattice::VERTICES;
-use crate::layer::ScanLayer;
+use crate::layer::{Layer, ScanLayer};
 use crate::map::MeshMap;
 
 /// Fuses map estimate `(u, var_u)` with observation `(o, var_o)`: inverse-variance weighting
@@ -46,6 +49,8 @@ pub struct FusionStats {
     pub refused: usize,
     /// Stale cells whose layers the scan replaced.
     pub refreshed: usize,
+    /// Map layers replaced by a scan layer facing the other way (docs/design.md §1.5).
+    pub turned: usize,
 }
 
 /// The frame before which a cell last seen is stale at `frame`
@@ -79,6 +84,14 @@ pub fn integrate(
             stats.refreshed += 1;
         }
         if let Some(m) = map.layer_mut(&s.key, s.axis, frame) {
+            if !m.facing.agrees(s.layer.facing) && apart(m, &s.layer, threshold) {
+                // The other face of a wall thinner than the cell: the face in view replaces
+                // the one seen from the other side, never averaged with it.
+                *m = s.layer;
+                stats.turned += 1;
+                continue;
+            }
+            m.facing = m.facing.fused_with(s.layer.facing);
             for j in 0..m.pred.len() {
                 let (u, v) = fuse_vertex(
                     m.pred[j],
@@ -102,6 +115,19 @@ pub fn integrate(
         }
     }
     stats
+}
+
+/// Whether layers `a` and `b` (one cell, one axis) lie more than [`MIN_THICKNESS_M`] apart on
+/// average over the vertices both have below `variance_update` (none: not apart).
+fn apart(a: &Layer, b: &Layer, variance_update: f32) -> bool {
+    let (mut sum, mut n) = (0.0f32, 0u32);
+    for j in 0..VERTICES {
+        if a.var[j] < variance_update && b.var[j] < variance_update {
+            sum += libm::fabsf(a.pred[j] - b.pred[j]);
+            n += 1;
+        }
+    }
+    n > 0 && sum > MIN_THICKNESS_M * n as f32
 }
 
 #[cfg(test)]
@@ -137,6 +163,7 @@ mod tests {
     #[test]
     fn a_stale_cell_is_replaced_and_a_fresh_one_fused() {
         use crate::cell::{Axis, CellKey};
+        use crate::facing::Facing;
         use crate::lattice::{Lattice, VERTICES};
         use crate::layer::Layer;
 
@@ -153,6 +180,7 @@ mod tests {
         let layer = |d: f32| Layer {
             pred: [d; VERTICES],
             var: [0.1; VERTICES],
+            facing: Facing::Unknown,
         };
         let (old, fresh) = (CellKey::new(0, 0, 0), CellKey::new(5, 0, 0));
         let mut map = MeshMap::with_capacity(4, 8, lattice);
@@ -190,9 +218,64 @@ mod tests {
         );
     }
 
+    /// A wall 0.3 m thick has both faces in one cell: the face in view replaces the other. A
+    /// sheet seen from its other side (2 cm off) is one surface, fused, facing both ways.
+    #[test]
+    fn a_wall_s_far_face_is_replaced_and_a_sheet_s_fused() {
+        use crate::cell::{Axis, CellKey};
+        use crate::facing::Facing;
+        use crate::lattice::{Lattice, VERTICES};
+        use crate::layer::Layer;
+
+        let lattice = Lattice {
+            cell_size: 1.0,
+            full_cover: false,
+        };
+        let cfg = MapConfig {
+            variance_update: 0.5,
+            add_missing_layers: true,
+            reconstruct_at_final_pose: true,
+            stale_after_frames: 0,
+        };
+        let key = CellKey::new(4, 0, 0);
+        let face = |d: f32, facing| ScanLayer {
+            key,
+            axis: Axis::X,
+            layer: Layer {
+                pred: [d; VERTICES],
+                var: [0.05; VERTICES],
+                facing,
+            },
+        };
+        let mut map = MeshMap::with_capacity(4, 4, lattice);
+        integrate(&mut map, &[face(0.3, Facing::Negative)], &cfg, 0);
+        let turned = integrate(&mut map, &[face(0.6, Facing::Positive)], &cfg, 1);
+        assert_eq!((turned.turned, turned.fused), (1, 0));
+        let wall = map.layer(&key, Axis::X).unwrap();
+        assert_eq!((wall.pred[0], wall.facing), (0.6, Facing::Positive));
+        // Seen again facing the same way: fused as before.
+        let again = integrate(&mut map, &[face(0.6, Facing::Positive)], &cfg, 2);
+        assert_eq!((again.turned, again.fused), (0, 1));
+        assert!(map.layer(&key, Axis::X).unwrap().var[0] < 0.05);
+
+        let mut map = MeshMap::with_capacity(4, 4, lattice);
+        integrate(&mut map, &[face(0.50, Facing::Negative)], &cfg, 0);
+        let sheet = integrate(&mut map, &[face(0.52, Facing::Positive)], &cfg, 1);
+        assert_eq!((sheet.turned, sheet.fused), (0, 1));
+        let fused = map.layer(&key, Axis::X).unwrap();
+        assert!((fused.pred[0] - 0.51).abs() < 1e-6);
+        assert_eq!(fused.facing, Facing::Both);
+        // An unknown facing takes the first known one.
+        let mut map = MeshMap::with_capacity(4, 4, lattice);
+        integrate(&mut map, &[face(0.3, Facing::Unknown)], &cfg, 0);
+        integrate(&mut map, &[face(0.6, Facing::Positive)], &cfg, 1);
+        assert_eq!(map.layer(&key, Axis::X).unwrap().facing, Facing::Positive);
+    }
+
     #[test]
     fn repeated_noisy_views_of_a_known_surface_converge_as_inverse_variance_predicts() {
         use crate::cell::{Axis, CellKey};
+        use crate::facing::Facing;
         use crate::lattice::{Lattice, VERTICES};
         use crate::layer::Layer;
         use crate::random::SplitMix64;
@@ -224,6 +307,7 @@ mod tests {
             let mut layer = Layer {
                 pred: [0.0; VERTICES],
                 var: [var; VERTICES],
+                facing: Facing::Unknown,
             };
             for j in 0..VERTICES {
                 layer.pred[j] = (truth + sigma * gauss()) as f32;

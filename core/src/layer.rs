@@ -2,9 +2,10 @@
 //!
 //! A layer stores, per lattice vertex, the prediction (metres from the cell's minimum face
 //! along the layer's axis) and its GP variance. The same type is a scan's reconstruction and
-//! the map's fused estimate. 288 bytes, no heap.
+//! the map's fused estimate, with the way its surface faces. 292 bytes, no heap.
 
 use crate::cell::{Axis, CellKey};
+use crate::facing::Facing;
 use crate::lattice::{neighbours, LatticeTable, N, VERTICES};
 use crate::math::{Pose, Vec3};
 use crate::real::Real;
@@ -132,6 +133,8 @@ pub struct Layer {
     pub pred: [f32; VERTICES],
     /// GP variance of vertex `j` (unit signal variance, so about 0 to 2).
     pub var: [f32; VERTICES],
+    /// Which way its surface faces along the axis ([`Facing`]).
+    pub facing: Facing,
 }
 
 impl Layer {
@@ -139,6 +142,7 @@ impl Layer {
     pub const UNKNOWN: Layer = Layer {
         pred: [0.0; VERTICES],
         var: [f32::INFINITY; VERTICES],
+        facing: Facing::Unknown,
     };
 
     /// The world position of vertex `j` of this layer, placed in cell `key` along `axis`.

@@ -61,6 +61,7 @@ pub mod cell_table;
 pub mod config;
 pub mod deskew;
 pub mod executor;
+pub mod facing;
 pub mod filter;
 pub mod fusion;
 pub mod gp;

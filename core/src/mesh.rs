@@ -50,6 +50,7 @@ pub fn triangles_into(map: &MeshMap, cfg: &MeshConfig, buf: &mut [Triangle]) -> 
 mod tests {
     use super::*;
     use crate::cell::{Axis, CellKey};
+    use crate::facing::Facing;
     use crate::lattice::{Lattice, VERTICES};
     use crate::layer::Layer;
 
@@ -70,6 +71,7 @@ mod tests {
         let layer = Layer {
             pred: [0.5; VERTICES],
             var: [0.1; VERTICES],
+            facing: Facing::Unknown,
         };
         map.insert_layer(CellKey::new(1, 2, 3), Axis::Z, layer, 0)
             .unwrap();

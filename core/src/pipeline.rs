@@ -383,6 +383,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             &self.map,
             &self.config,
             purpose,
+            &pose.translation.vector,
             &mut self.scan,
             exec,
         );

@@ -60,6 +60,7 @@ impl Empty for Layer {
     const EMPTY: Self = Layer {
         pred: [0.0; crate::lattice::VERTICES],
         var: [0.0; crate::lattice::VERTICES],
+        facing: crate::facing::Facing::Unknown,
     };
 }
 impl Empty for ScanLayer {

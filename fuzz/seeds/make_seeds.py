@@ -97,22 +97,33 @@ def block(body):
 config = b'preset = "default"\n'
 frame = b"map"
 hbody = struct.pack("<dBIH", 1.6, 0, 2, len(frame)) + frame + struct.pack("<I", len(config)) + config
-header = block(b"SLMSHMAP" + struct.pack("<II", 1, len(hbody)) + hbody)
-cells = b""
-for key, mask in (((0, 1, 0), 4), ((3, 1, 0), 5)):
-    layers = bin(mask).count("1")
-    cells += struct.pack("<3iIB", *key, 1, mask)
-    for _ in range(layers):
-        cells += struct.pack("<36f", *[0.4 + 0.01 * j for j in range(36)])
-        cells += struct.pack("<36f", *[0.05] * 36)
-tile = block(b"TILE" + struct.pack("<3iII", 0, 0, 0, 2, len(cells)) + cells)
-path_offset = len(header) + len(tile)
-path = block(b"PATH" + struct.pack("<I", 2) + struct.pack("<8d", 0.0, 0, 0, 1.7, 0, 0, 0, 1)
-             + struct.pack("<8d", 0.1, 1.0, 0, 1.7, 0, 0, 0, 1))
-index_offset = path_offset + len(path)
-index = block(b"INDX" + struct.pack("<I", 1) + struct.pack("<3iQI", 0, 0, 0, len(header), len(tile)))
-trailer = block(struct.pack("<QQ", index_offset, path_offset)) + b"MEND"
-put("map_file", "two_cells", header + tile + path + index + trailer)
+
+
+def map_file(version):
+    """Version 1: a cell's axes byte alone; version 2: bit 7 set and a byte of facings after it
+    (two bits per axis: 1 facing +axis, 2 -axis, 3 both)."""
+    header = block(b"SLMSHMAP" + struct.pack("<II", version, len(hbody)) + hbody)
+    cells = b""
+    for key, mask, facings in (((0, 1, 0), 4, 0b010000), ((3, 1, 0), 5, 0b010011)):
+        layers = bin(mask).count("1")
+        cells += struct.pack("<3iIB", *key, 1, mask | (0x80 if version > 1 else 0))
+        if version > 1:
+            cells += struct.pack("<B", facings)
+        for _ in range(layers):
+            cells += struct.pack("<36f", *[0.4 + 0.01 * j for j in range(36)])
+            cells += struct.pack("<36f", *[0.05] * 36)
+    tile = block(b"TILE" + struct.pack("<3iII", 0, 0, 0, 2, len(cells)) + cells)
+    path_offset = len(header) + len(tile)
+    path = block(b"PATH" + struct.pack("<I", 2) + struct.pack("<8d", 0.0, 0, 0, 1.7, 0, 0, 0, 1)
+                 + struct.pack("<8d", 0.1, 1.0, 0, 1.7, 0, 0, 0, 1))
+    index_offset = path_offset + len(path)
+    index = block(b"INDX" + struct.pack("<I", 1) + struct.pack("<3iQI", 0, 0, 0, len(header), len(tile)))
+    trailer = block(struct.pack("<QQ", index_offset, path_offset)) + b"MEND"
+    return header + tile + path + index + trailer
+
+
+put("map_file", "two_cells", map_file(1))
+put("map_file", "two_cells_v2", map_file(2))
 
 
 # Packets: the first frames of a real HDL-32E capture (tests/fixtures/packets), as pcap and

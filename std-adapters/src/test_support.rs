@@ -21,5 +21,6 @@ pub fn flat_layer() -> slamesh_core::layer::Layer {
     slamesh_core::layer::Layer {
         pred: [0.5; slamesh_core::lattice::VERTICES],
         var: [0.01; slamesh_core::lattice::VERTICES],
+        facing: slamesh_core::facing::Facing::Unknown,
     }
 }

@@ -38,7 +38,7 @@ pub fn header_len(prefix: &[u8]) -> Result<usize, MapFileError> {
     let mut r = Reader::new(prefix);
     r.skip(MAGIC.len())?;
     let version = r.u32()?;
-    if version != VERSION {
+    if !(FIRST_READ_VERSION..=VERSION).contains(&version) {
         return Err(MapFileError::Version {
             file: version,
             reader: VERSION,

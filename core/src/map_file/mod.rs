@@ -9,7 +9,7 @@
 //! | part | bytes | what |
 //! |---|---|---|
 //! | header | 16 + body + 4 | [`MAGIC`], [`VERSION`], the body's length; the body: cell size (f64), full cover (u8), the frames fused so far (u32), the frame's name (u16 length + UTF-8), the configuration that made it (u32 length + bytes, opaque here); CRC-32 |
-//! | tile blocks | 24 + cells + 4 each | `TILE`, the tile's key (3 × i32), cells (u32), payload bytes (u32); per cell: key (3 × i32), last seen (u32), axes present (u8 bit mask), then per axis present in X, Y, Z order 36 predictions and 36 variances (f32); CRC-32 |
+//! | tile blocks | 24 + cells + 4 each | `TILE`, the tile's key (3 × i32), cells (u32), payload bytes (u32); per cell: key (3 × i32), last seen (u32), axes present (u8 bit mask; bit 7: a facings byte follows, always in version 2), the layers' [`Facing`](crate::facing::Facing)s (u8, two bits per axis from bit 0, X first), then per axis present in X, Y, Z order 36 predictions and 36 variances (f32); CRC-32 |
 //! | path | 8 + 64 × poses + 4 | `PATH`, poses (u32); per pose: time (f64 s), translation (3 × f64), rotation quaternion i, j, k, w (4 × f64); CRC-32 |
 //! | index | 8 + 24 × blocks + 4 | `INDX`, entries (u32); per tile block: tile key (3 × i32), offset (u64), length (u32); CRC-32 |
 //! | trailer | [`TRAILER_BYTES`] | the index's offset and the path's (u64 each), CRC-32 of both, `MEND` |
@@ -49,8 +49,10 @@ use core::fmt;
 
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"SLMSHMAP";
-/// The format this code writes and reads.
-pub const VERSION: u32 = 1;
+/// The format this code writes (2: cells carry their layers' facings).
+pub const VERSION: u32 = 2;
+/// The oldest format this code reads (1: no facings; its layers read as facing unknown).
+pub const FIRST_READ_VERSION: u32 = 1;
 /// Cells along each edge of a tile, the unit of paging.
 pub const TILE_CELLS: i32 = 16;
 /// Bytes of the trailer at the file's end.
@@ -72,6 +74,8 @@ const INDEX_TAG: [u8; 4] = *b"INDX";
 const END_TAG: [u8; 4] = *b"MEND";
 const LAYER_BYTES: usize = 8 * VERTICES;
 const CELL_HEAD_BYTES: usize = 17;
+/// The bit of a cell's axes byte that says a facings byte follows it.
+const FACINGS_FOLLOW: u8 = 0x80;
 
 /// Where the bytes of a map file go: a file, a buffer, a flash page writer.
 pub trait ByteSink {
@@ -148,7 +152,7 @@ pub enum MapFileError {
     Version {
         /// The file's.
         file: u32,
-        /// This code's ([`VERSION`]).
+        /// The newest this code reads ([`VERSION`]).
         reader: u32,
     },
     /// The bytes end before the block does.
@@ -195,7 +199,7 @@ impl fmt::Display for MapFileError {
             MapFileError::NotAMapFile => write!(f, "not a slamesh map file (no SLMSHMAP signature)"),
             MapFileError::Version { file, reader } => write!(
                 f,
-                "map format version {file}, this program reads version {reader}"
+                "map format version {file}, this program reads versions {FIRST_READ_VERSION} to {reader}"
             ),
             MapFileError::Truncated { needed, available } => write!(
                 f,

@@ -2,6 +2,7 @@
 
 use super::crc32::Crc32;
 use super::*;
+use crate::facing::Facing;
 use crate::math::Pose;
 use alloc::vec::Vec;
 use nalgebra::{Translation3, UnitQuaternion};
@@ -32,14 +33,29 @@ fn layer(seed: f32) -> Layer {
     l
 }
 
+fn facing(mut l: Layer, facing: Facing) -> Layer {
+    l.facing = facing;
+    l
+}
+
 fn sample_map() -> MeshMap {
     let mut map = MeshMap::with_capacity(16, 16, LAT);
-    map.insert_layer(CellKey::new(-3, 7, 0), Axis::Z, layer(0.1), 4)
-        .unwrap();
-    map.insert_layer(CellKey::new(-3, 7, 0), Axis::X, layer(0.5), 5)
-        .unwrap();
-    map.insert_layer(CellKey::new(-1, 2, 0), Axis::Y, layer(0.9), 2)
-        .unwrap();
+    let mut put = |key, axis, l, f, seen| map.insert_layer(key, axis, facing(l, f), seen).unwrap();
+    put(
+        CellKey::new(-3, 7, 0),
+        Axis::Z,
+        layer(0.1),
+        Facing::Positive,
+        4,
+    );
+    put(CellKey::new(-3, 7, 0), Axis::X, layer(0.5), Facing::Both, 5);
+    put(
+        CellKey::new(-1, 2, 0),
+        Axis::Y,
+        layer(0.9),
+        Facing::Negative,
+        2,
+    );
     map
 }
 
@@ -75,7 +91,7 @@ fn a_header_reads_back() {
     other[8] = 9;
     assert_eq!(
         read_header(&other).unwrap_err(),
-        MapFileError::Version { file: 9, reader: 1 }
+        MapFileError::Version { file: 9, reader: 2 }
     );
     assert_eq!(
         read_header(b"PK\x03\x04").unwrap_err(),
@@ -112,6 +128,36 @@ fn a_tile_reads_back_bit_for_bit() {
         block.load_into(&mut small).unwrap_err(),
         MapFileError::Map(MapError::CellsFull)
     );
+}
+
+/// A version-1 tile block (no facings byte): its layers read back facing unknown.
+#[test]
+fn a_version_1_tile_reads_with_its_facings_unknown() {
+    let key = CellKey::new(-3, 7, 0);
+    let l = layer(0.1);
+    let mut payload = Vec::new();
+    for v in [key.x, key.y, key.z] {
+        payload.extend_from_slice(&v.to_le_bytes());
+    }
+    payload.extend_from_slice(&4u32.to_le_bytes());
+    payload.push(0b100);
+    for v in l.pred.iter().chain(&l.var) {
+        payload.extend_from_slice(&v.to_le_bytes());
+    }
+    let tile = tile_of(&key);
+    let mut bytes = b"TILE".to_vec();
+    for v in [tile.x, tile.y, tile.z] {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    bytes.extend_from_slice(&1u32.to_le_bytes());
+    bytes.extend_from_slice(&(payload.len() as u32).to_le_bytes());
+    bytes.extend_from_slice(&payload);
+    let crc = Crc32::of(&bytes);
+    bytes.extend_from_slice(&crc.to_le_bytes());
+    let mut back = MeshMap::with_capacity(16, 16, LAT);
+    assert_eq!(read_tile(&bytes).unwrap().load_into(&mut back).unwrap(), 1);
+    assert_eq!(back.layer(&key, Axis::Z), Some(&l));
+    assert_eq!(back.layer(&key, Axis::Z).unwrap().facing, Facing::Unknown);
 }
 
 #[test]

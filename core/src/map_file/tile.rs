@@ -3,10 +3,11 @@
 use super::bytes::*;
 use super::*;
 use crate::cell::Axis;
+use crate::facing::Facing;
 use crate::map::MeshMap;
 /// Bytes of a cell's record with `layers` layers.
 const fn record_bytes(layers: usize) -> usize {
-    CELL_HEAD_BYTES + layers * LAYER_BYTES
+    CELL_HEAD_BYTES + 1 + layers * LAYER_BYTES
 }
 
 /// Writes a tile block of the cells `cells` (all in `tile`, in the order given); returns its
@@ -40,7 +41,10 @@ pub fn write_tile<'a, S: ByteSink>(
             .enumerate()
             .filter(|(_, l)| l.is_some())
             .fold(0u8, |m, (i, _)| m | 1 << i);
-        s.put(&[mask])?;
+        let facings = c.layers.iter().enumerate().fold(0u8, |f, (i, l)| {
+            f | l.map_or(0, |l| l.facing.bits()) << (2 * i)
+        });
+        s.put(&[mask | FACINGS_FOLLOW, facings])?;
         for layer in c.layers.iter().flatten() {
             for v in layer.pred.iter().chain(&layer.var) {
                 s.put(&v.to_le_bytes())?;
@@ -135,7 +139,12 @@ impl TileCells<'_> {
         let key = self.r.key()?;
         let last_seen = self.r.u32()?;
         let at = TILE_PREFIX_BYTES + self.r.pos;
-        let mask = self.r.u8()?;
+        let head = self.r.u8()?;
+        let facings = match head & FACINGS_FOLLOW {
+            0 => 0,
+            _ => self.r.u8()?,
+        };
+        let mask = head & !FACINGS_FOLLOW;
         if mask == 0 || mask > 7 {
             return Err(MapFileError::Malformed {
                 what: "a cell's axes are not a set of x, y and z",
@@ -148,6 +157,7 @@ impl TileCells<'_> {
                 continue;
             }
             let mut layer = Layer::UNKNOWN;
+            layer.facing = Facing::from_bits(facings >> (2 * i));
             for v in layer.pred.iter_mut() {
                 let at = TILE_PREFIX_BYTES + self.r.pos;
                 *v = self.r.f32()?;

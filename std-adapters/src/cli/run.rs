@@ -76,8 +76,8 @@ pub struct RunArgs {
     #[command(flatten)]
     pub robot: crate::cli::navmap::RobotArgs,
     /// The capacity class: how many points a scan may keep within range, and how large the
-    /// map may grow (tiny: 2 048 points, 0.33 MB; 16: 36 000, 35.7 MB; 32: 72 000, 71.3 MB;
-    /// 64: 140 000, 137.5 MB). auto takes the smallest that holds the points within range of
+    /// map may grow (tiny: 2 048 points, 0.34 MB; 16: 36 000, 36.1 MB; 32: 72 000, 72.2 MB;
+    /// 64: 140 000, 139.2 MB). auto takes the smallest that holds the points within range of
     /// the largest of the first five scans with a quarter to spare.
     #[arg(long, value_enum, default_value_t = CapacityFlag::Auto)]
     pub capacity: CapacityFlag,

@@ -69,6 +69,7 @@ pub fn duplicated_near(
 mod tests {
     use super::*;
     use slamesh_core::cell::{Axis, CellKey};
+    use slamesh_core::facing::Facing;
     use slamesh_core::lattice::Lattice;
     use slamesh_core::layer::Layer;
 
@@ -76,6 +77,7 @@ mod tests {
         Layer {
             pred: [d; 36],
             var: [0.01; 36],
+            facing: Facing::Unknown,
         }
     }
 

@@ -216,6 +216,7 @@ mod tests {
     use super::*;
     use crate::outputs::mesh_weld::weld;
     use slamesh_core::config::MeshConfig;
+    use slamesh_core::facing::Facing;
     use slamesh_core::lattice::VERTICES;
     use slamesh_core::map::MeshMap;
 
@@ -232,6 +233,7 @@ mod tests {
         let flat = |h: f32| Layer {
             pred: [h; VERTICES],
             var: [0.01; VERTICES],
+            facing: Facing::Unknown,
         };
         let causes = |map: &MeshMap| {
             let welded = weld(map.layers(), &lattice, shown);

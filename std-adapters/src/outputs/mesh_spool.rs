@@ -560,6 +560,7 @@ mod tests {
     use crate::formats::ply::{read_ply_mesh, read_ply_points};
     use crate::outputs::mesh_weld::weld;
     use slamesh_core::cell::{Axis, CellKey};
+    use slamesh_core::facing::Facing;
     use slamesh_core::lattice::VERTICES;
     use slamesh_core::layer::Layer;
 
@@ -572,6 +573,7 @@ mod tests {
                 let mut layer = Layer {
                     pred: [0.0; VERTICES],
                     var: [0.01; VERTICES],
+                    facing: Facing::Unknown,
                 };
                 for (j, p) in layer.pred.iter_mut().enumerate() {
                     *p = 0.2 + 0.01 * ((j as u32 * 7 + k) % 13) as f32;
@@ -680,6 +682,7 @@ mod tests {
                 let layer = Layer {
                     pred: [h; VERTICES],
                     var: [0.01; VERTICES],
+                    facing: Facing::Unknown,
                 };
                 map.insert_layer(CellKey::new(x, y, 0), Axis::Z, layer, 0)
                     .unwrap();
@@ -752,6 +755,7 @@ mod tests {
         let mut layer = Layer {
             pred: [0.5; VERTICES],
             var: [var; VERTICES],
+            facing: Facing::Unknown,
         };
         change(&mut layer);
         map.insert_layer(CellKey::new(0, 0, 0), Axis::Z, layer, 0)

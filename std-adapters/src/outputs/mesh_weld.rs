@@ -370,6 +370,7 @@ fn sub(p: [f64; 3], q: [f64; 3]) -> [f64; 3] {
 mod tests {
     use super::*;
     use slamesh_core::config::MeshConfig;
+    use slamesh_core::facing::Facing;
     use slamesh_core::layer::Layer;
     use slamesh_core::map::MeshMap;
 
@@ -384,6 +385,7 @@ mod tests {
         Layer {
             pred: [height; VERTICES],
             var: [var; VERTICES],
+            facing: Facing::Unknown,
         }
     }
 

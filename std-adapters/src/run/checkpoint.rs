@@ -9,7 +9,7 @@
 //! - the session's running totals: poses, skipped frames, evicted cells, stage times, seconds;
 //! - how many bytes of the frame-record spool and how many mesh-spool records belong to it
 //!   (resuming cuts the spools back to those lengths: frames after the checkpoint are redone);
-//! - every map cell with its last-seen frame and layers, bit for bit.
+//! - every map cell with its last-seen frame and layers (facings included), bit for bit.
 //!
 //! The encoding is little-endian and versioned; every read is checked, so a damaged file is
 //! a [`FileError`] naming it, never a panic.
@@ -20,6 +20,7 @@ use crate::outputs::mesh_spool::MeshCounts;
 use crate::run::timing::StageMs;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use slamesh_core::cell::{Axis, CellKey};
+use slamesh_core::facing::Facing;
 use slamesh_core::lattice::VERTICES;
 use slamesh_core::layer::Layer;
 use slamesh_core::map::MeshMap;
@@ -29,7 +30,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 12] = b"SLAMESH-CKPT";
-const VERSION: u32 = 1;
+/// 2: each layer's facing after its axis.
+const VERSION: u32 = 2;
 
 /// The checkpoint file of the output folder `out`.
 pub fn path(out: &Path) -> PathBuf {
@@ -128,8 +130,8 @@ pub fn write(file: &Path, progress: &Progress, map: &MeshMap) -> Result<(), File
         let axes: Vec<Axis> = cell.axes().collect();
         e.push(axes.len() as u8);
         for axis in axes {
-            e.push(axis.index() as u8);
             let layer = map.layer(&key, axis).copied().unwrap_or(Layer::UNKNOWN);
+            e.extend_from_slice(&[axis.index() as u8, layer.facing.bits()]);
             for v in layer.pred.iter().chain(&layer.var) {
                 e.extend_from_slice(&v.to_le_bytes());
             }
@@ -225,6 +227,10 @@ fn read_map(d: &mut Decoder, map: &mut MeshMap) -> Result<(), String> {
                 a => return Err(format!("axis {a}")),
             };
             let mut layer = Layer::UNKNOWN;
+            layer.facing = match d.u8()? {
+                f @ 0..=3 => Facing::from_bits(f),
+                f => return Err(format!("facing {f}")),
+            };
             for v in layer.pred.iter_mut().chain(layer.var.iter_mut()) {
                 *v = f32::from_le_bytes(d.array()?);
             }

@@ -230,6 +230,7 @@ fn oldest_cutoff(map: &MeshMap, budget: usize) -> u32 {
 mod tests {
     use super::*;
     use slamesh_core::cell::Axis;
+    use slamesh_core::facing::Facing;
     use slamesh_core::lattice::{Lattice, VERTICES};
     use slamesh_core::layer::Layer;
     use slamesh_core::{KittiCapacity, SmallCapacity};
@@ -244,6 +245,7 @@ mod tests {
         let layer = Layer {
             pred: [0.5; VERTICES],
             var: [0.01; VERTICES],
+            facing: Facing::Unknown,
         };
         for i in 0..10 {
             m.insert_layer(CellKey::new(i, 0, 0), Axis::Z, layer, i as u32)
