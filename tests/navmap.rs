@@ -423,8 +423,9 @@ fn the_office_s_navigation_map_against_the_truth() {
         ([13.0, 4.5], [19.0, 4.5]),
         ([13.0, 3.9], [19.0, 3.9]),
         ([13.0, 5.1], [19.0, 5.1]),
-        // Through room A's doorway to where the walk has reached by its last scan.
-        ([12.0, 4.5], [15.5, 4.5]),
+        // Through room A's doorway to where the walk has reached by its last scan (x 15.3:
+        // from 15.5 the corridor is not seen on that line).
+        ([12.0, 4.5], [15.3, 4.5]),
     ];
     let s = score(
         Drive::office(frames, 2),

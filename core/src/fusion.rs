@@ -1,17 +1,19 @@
 //! Map update by inverse-variance fusion of 1-D predictions (docs/design.md §1.5).
 //!
 //! Vertex locations are fixed, so fusing a scan into the map is fusing, per vertex, two
-//! scalar estimates, when the two face the same way ([`Facing`](crate::facing::Facing)) or lie within a sheet's
-//! thickness of each other; a scan layer facing the other way and farther off (the other face
-//! of a wall) replaces the map's. New cells are inserted; a layer a known cell lacks is added when
-//! [`MapConfig::add_missing_layers`] is set. Map-capacity refusals are counted, never fatal.
+//! scalar estimates, when the two face the same way ([`Facing`], decided by [`face`]) or lie
+//! within a sheet's thickness of each other; a scan layer facing the other way and farther
+//! off (the other face of a wall) replaces the map's. New cells are inserted; a layer a known
+//! cell lacks is added when [`MapConfig::add_missing_layers`] is set. Map-capacity refusals
+//! are counted, never fatal.
 
 use crate::cell::Axis;
 use crate::config::MapConfig;
-use crate::facing::MIN_THICKNESS_M;
-use crate::lattice::VERTICES;
+use crate::facing::{Facing, MIN_THICKNESS_M};
+use crate::lattice::{LatticeTable, VERTICES};
 use crate::layer::{Layer, ScanLayer};
 use crate::map::MeshMap;
+use crate::math::Vec3;
 
 /// Fuses map estimate `(u, var_u)` with observation `(o, var_o)`: inverse-variance weighting
 /// when both variances are below `variance_update`, else the one with the smaller variance.
@@ -59,6 +61,15 @@ pub fn stale_before(frame: u32, cfg: &MapConfig) -> u32 {
     match cfg.stale_after_frames {
         0 => 0,
         n => frame.saturating_sub(n),
+    }
+}
+
+/// Decides the [`Facing`] of each of the scan's layers, seen from the sensor at `viewpoint`
+/// (world), counting the vertices with a variance below `max_var`.
+pub fn face(scan: &mut [ScanLayer], lattice: &LatticeTable, viewpoint: &Vec3, max_var: f32) {
+    for s in scan {
+        let surface = (&s.layer.pred, &s.layer.var);
+        s.layer.facing = Facing::seen_from(surface, lattice, &s.key, s.axis, viewpoint, max_var);
     }
 }
 

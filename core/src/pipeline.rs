@@ -17,7 +17,7 @@ use crate::config::Config;
 use crate::config::ConfigError;
 use crate::executor::Executor;
 use crate::filter::{filter_and_downsample, FilterStats, Filtered};
-use crate::fusion::integrate;
+use crate::fusion::{face, integrate};
 use crate::layer::ScanLayer;
 use crate::lm::Residual;
 use crate::map::MeshMap;
@@ -383,7 +383,6 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             &self.map,
             &self.config,
             purpose,
-            &pose.translation.vector,
             &mut self.scan,
             exec,
         );
@@ -436,6 +435,9 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
     fn fuse(&mut self, pose: Pose, bucketed: BucketStats, stats: &mut ScanStats) {
         stats.bucket = bucketed;
         stats.scan_layers = self.scan.len();
+        let lattice = self.config.lattice().table();
+        let max_var = self.config.map.variance_update as f32;
+        face(&mut self.scan, &lattice, &pose.translation.vector, max_var);
         stats.fusion = integrate(&mut self.map, &self.scan, &self.config.map, stats.frame);
         self.motion.push(pose);
     }

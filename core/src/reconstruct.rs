@@ -9,11 +9,10 @@ use crate::bucket::CellSpan;
 use crate::cell::{Axis, CellKey};
 use crate::config::Config;
 use crate::executor::Executor;
-use crate::facing::Facing;
 use crate::gp::{self, GpScratch};
 use crate::layer::ScanLayer;
 use crate::map::MeshMap;
-use crate::math::{Point, Vec3};
+use crate::math::Point;
 use crate::pca::{choose_layers, Shape};
 use crate::real::Real;
 
@@ -59,8 +58,7 @@ pub struct ReconstructStats {
 }
 
 /// Reconstructs the layers of cell `key` from its cell-local `points` (at most three layers;
-/// a layer whose GP fails is left out, and so is one `purpose` has no use for), each with its
-/// [`Facing`] seen from the sensor at `viewpoint` (world). `scratch` is
+/// a layer whose GP fails is left out, and so is one `purpose` has no use for). `scratch` is
 /// the GP's working memory (any content: the result does not depend on it); its scalar `R`
 /// is the GP's ([`Real`]).
 pub fn reconstruct_cell<R: Real>(
@@ -70,7 +68,6 @@ pub fn reconstruct_cell<R: Real>(
     map: &MeshMap,
     cfg: &Config,
     purpose: Purpose,
-    viewpoint: &Vec3,
 ) -> CellLayers {
     if let Purpose::Register {
         half_cells: true, ..
@@ -93,7 +90,6 @@ pub fn reconstruct_cell<R: Real>(
         Shape::Unclear => {}
     }
     let lattice = cfg.lattice();
-    let table = lattice.table();
     let mut out = CellLayers::default();
     for axis in axes {
         if let Purpose::Register { reach, since, .. } = purpose {
@@ -107,10 +103,7 @@ pub fn reconstruct_cell<R: Real>(
             Purpose::Update => gp::Variances::Exact,
         };
         let samples = gp::select_training(points, axis, lattice.cell_size);
-        if let Ok(mut layer) = gp::predict_in(scratch, &samples, &lattice, &cfg.gp, variances) {
-            let max_var = cfg.register.variance_register as f32;
-            let surface = (&layer.pred, &layer.var);
-            layer.facing = Facing::seen_from(surface, &table, &key, axis, viewpoint, max_var);
+        if let Ok(layer) = gp::predict_in(scratch, &samples, &lattice, &cfg.gp, variances) {
             // At most three axes: cannot overflow.
             let _ = out.layers.push(ScanLayer { key, axis, layer });
         }
@@ -125,7 +118,7 @@ pub fn in_checkerboard(key: CellKey) -> bool {
     (key.x ^ key.y ^ key.z) & 1 == 0
 }
 
-/// Reconstructs `cells` (spans into `bucketed`) seen from `viewpoint`, one [`reconstruct_cell`] per cell run by
+/// Reconstructs `cells` (spans into `bucketed`), one [`reconstruct_cell`] per cell run by
 /// `exec`, and appends their layers to `out` in cell order via [`append_layers`].
 pub fn reconstruct_cells<R: Real>(
     cells: &[CellSpan],
@@ -133,7 +126,6 @@ pub fn reconstruct_cells<R: Real>(
     map: &MeshMap,
     cfg: &Config,
     purpose: Purpose,
-    viewpoint: &Vec3,
     out: &mut BoundedVec<ScanLayer>,
     exec: &impl Executor,
 ) -> ReconstructStats {
@@ -141,10 +133,7 @@ pub fn reconstruct_cells<R: Real>(
     exec.map_in_order(
         cells,
         GpScratch::<R>::new,
-        |scratch, c| {
-            let points = c.points(bucketed);
-            reconstruct_cell(scratch, points, c.key, map, cfg, purpose, viewpoint)
-        },
+        |scratch, c| reconstruct_cell(scratch, c.points(bucketed), c.key, map, cfg, purpose),
         |cell| {
             stats.dropped += append_layers(out, &cell.layers);
             stats.unpaired += cell.unpaired;
@@ -196,7 +185,7 @@ mod tests {
         let flat = Layer {
             pred: [0.5; VERTICES],
             var: [0.05; VERTICES],
-            facing: Facing::Unknown,
+            facing: crate::facing::Facing::Unknown,
         };
         let (even, odd) = (CellKey::new(2, 0, 0), CellKey::new(3, 0, 0));
         for key in [even, odd] {
@@ -205,17 +194,9 @@ mod tests {
         let points = ground();
         let mut scratch = GpScratch::<f64>::new();
         let mut layers = |key, purpose| {
-            reconstruct_cell(
-                &mut scratch,
-                &points,
-                key,
-                &map,
-                &cfg,
-                purpose,
-                &Vec3::zeros(),
-            )
-            .layers
-            .len()
+            reconstruct_cell(&mut scratch, &points, key, &map, &cfg, purpose)
+                .layers
+                .len()
         };
         let coarse = Purpose::Register {
             reach: 1,
