@@ -24,6 +24,7 @@
 use crate::cell::{Axis, CellKey};
 use crate::lattice::{LatticeTable, VERTICES};
 use crate::math::Vec3;
+use crate::plane::Plane;
 
 /// The least sine of the angle between a viewpoint's line to a layer and the layer's plane for
 /// the view to decide its facing (about 6 degrees).
@@ -105,7 +106,7 @@ impl Facing {
         viewpoint: &Vec3,
         max_var: f32,
     ) -> Facing {
-        let Some(plane) = Plane::fit(pred, var, lattice, max_var) else {
+        let Some(plane) = plane_of(pred, var, lattice, max_var) else {
             return Facing::Unknown;
         };
         // The viewpoint in the cell's own (a, b, d) coordinates.
@@ -117,7 +118,7 @@ impl Facing {
             v[1] - plane.centre[1],
             v[2] - plane.centre[2],
         ];
-        let above = offset[2] - plane.slope[0] * offset[0] - plane.slope[1] * offset[1];
+        let above = v[2] - plane.at(v[0], v[1]);
         let tilt =
             libm::sqrt(1.0 + plane.slope[0] * plane.slope[0] + plane.slope[1] * plane.slope[1]);
         let distance = above / tilt;
@@ -133,68 +134,36 @@ impl Facing {
     }
 }
 
-/// A plane `d = centre_d + slope_a (a - centre_a) + slope_b (b - centre_b)` in a cell's
-/// `(a, b, d)` coordinates.
-struct Plane {
-    centre: [f64; 3],
-    slope: [f64; 2],
-}
-
-impl Plane {
-    /// The least-squares plane through the vertices (predictions `pred`, variances `var`)
-    /// with a variance below `max_var`; `None` when they are fewer than three, lie on a line
-    /// or are farther from it than [`MAX_PLANE_RMS_M`].
-    fn fit(
-        pred: &[f32; VERTICES],
-        var: &[f32; VERTICES],
-        lattice: &LatticeTable,
-        max_var: f32,
-    ) -> Option<Plane> {
-        let confident = || {
-            (0..VERTICES)
-                .filter(move |&j| var[j] < max_var)
-                .map(move |j| {
-                    let (a, b) = lattice.location(j);
-                    (a, b, f64::from(pred[j]))
-                })
-        };
-        let (mut n, mut sum) = (0usize, [0.0f64; 3]);
-        for (a, b, d) in confident() {
-            n += 1;
-            sum[0] += a;
-            sum[1] += b;
-            sum[2] += d;
-        }
-        if n < 3 {
-            return None;
-        }
-        let centre = sum.map(|s| s / n as f64);
-        let (mut saa, mut sab, mut sbb, mut sad, mut sbd) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for (a, b, d) in confident() {
-            let (a, b, d) = (a - centre[0], b - centre[1], d - centre[2]);
-            saa += a * a;
-            sab += a * b;
-            sbb += b * b;
-            sad += a * d;
-            sbd += b * d;
-        }
-        let det = saa * sbb - sab * sab;
-        // Collinear vertices leave the plane's tilt across their line undetermined.
-        if !(det > 1e-6 * (saa + sbb) * (saa + sbb)) {
-            return None;
-        }
-        let slope = [(sad * sbb - sbd * sab) / det, (sbd * saa - sad * sab) / det];
-        let mut squares = 0.0;
-        for (a, b, d) in confident() {
-            let off = d - centre[2] - slope[0] * (a - centre[0]) - slope[1] * (b - centre[1]);
-            squares += off * off;
-        }
-        // A surface no plane fits (foliage, a corner, a curved body) faces no one way.
-        if !(squares <= MAX_PLANE_RMS_M * MAX_PLANE_RMS_M * n as f64) {
-            return None;
-        }
-        Some(Plane { centre, slope })
+/// The least-squares plane through the vertices (predictions `pred`, variances `var`) with a
+/// variance below `max_var`; `None` when they are fewer than three, lie on a line or are
+/// farther from it than [`MAX_PLANE_RMS_M`].
+fn plane_of(
+    pred: &[f32; VERTICES],
+    var: &[f32; VERTICES],
+    lattice: &LatticeTable,
+    max_var: f32,
+) -> Option<Plane<f64>> {
+    let confident: heapless::Vec<[f64; 3], VERTICES> = (0..VERTICES)
+        .filter(|&j| var[j] < max_var)
+        .map(|j| {
+            let (a, b) = lattice.location(j);
+            [a, b, f64::from(pred[j])]
+        })
+        .collect();
+    let plane = Plane::fit(&confident);
+    if confident.len() < 3 || !plane.determined {
+        return None;
     }
+    let squares: f64 = confident
+        .iter()
+        .map(|s| {
+            let off = s[2] - plane.at(s[0], s[1]);
+            off * off
+        })
+        .sum();
+    // A surface no plane fits (foliage, a corner, a curved body) faces no one way.
+    let most = MAX_PLANE_RMS_M * MAX_PLANE_RMS_M * confident.len() as f64;
+    (squares <= most).then_some(plane)
 }
 
 #[cfg(test)]

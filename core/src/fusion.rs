@@ -229,17 +229,10 @@ mod tests {
         );
     }
 
-    /// A wall 0.3 m thick has both faces in one cell: the face in view replaces the other. A
-    /// sheet seen from its other side (2 cm off) is one surface, fused, facing both ways.
-    #[test]
-    fn a_wall_s_far_face_is_replaced_and_a_sheet_s_fused() {
-        use crate::cell::{Axis, CellKey};
-        use crate::facing::Facing;
-        use crate::lattice::{Lattice, VERTICES};
-        use crate::layer::Layer;
-
-        let lattice = Lattice {
-            cell_size: 1.0,
+    /// A lattice of cells `cell_size` wide and a map update that adds layers, never stale.
+    fn fusing(cell_size: f64) -> (crate::lattice::Lattice, MapConfig) {
+        let lattice = crate::lattice::Lattice {
+            cell_size,
             full_cover: false,
         };
         let cfg = MapConfig {
@@ -248,6 +241,19 @@ mod tests {
             reconstruct_at_final_pose: true,
             stale_after_frames: 0,
         };
+        (lattice, cfg)
+    }
+
+    /// A wall 0.3 m thick has both faces in one cell: the face in view replaces the other. A
+    /// sheet seen from its other side (2 cm off) is one surface, fused, facing both ways.
+    #[test]
+    fn a_wall_s_far_face_is_replaced_and_a_sheet_s_fused() {
+        use crate::cell::{Axis, CellKey};
+        use crate::facing::Facing;
+        use crate::lattice::VERTICES;
+        use crate::layer::Layer;
+
+        let (lattice, cfg) = fusing(1.0);
         let key = CellKey::new(4, 0, 0);
         let face = |d: f32, facing| ScanLayer {
             key,
@@ -287,20 +293,11 @@ mod tests {
     fn repeated_noisy_views_of_a_known_surface_converge_as_inverse_variance_predicts() {
         use crate::cell::{Axis, CellKey};
         use crate::facing::Facing;
-        use crate::lattice::{Lattice, VERTICES};
+        use crate::lattice::VERTICES;
         use crate::layer::Layer;
         use crate::random::SplitMix64;
 
-        let lattice = Lattice {
-            cell_size: 1.6,
-            full_cover: false,
-        };
-        let cfg = MapConfig {
-            variance_update: 0.5,
-            add_missing_layers: true,
-            reconstruct_at_final_pose: true,
-            stale_after_frames: 0,
-        };
+        let (lattice, cfg) = fusing(1.6);
         let (truth, sigma) = (0.5f64, 0.02f64);
         let key = CellKey::new(3, -2, 0);
         let mut map = MeshMap::with_capacity(4, 4, lattice);

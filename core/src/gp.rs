@@ -24,6 +24,7 @@ use crate::config::GpConfig;
 use crate::lattice::{Lattice, N, VERTICES};
 use crate::layer::Layer;
 use crate::math::Point;
+use crate::plane::Plane;
 use crate::real::Real;
 use core::fmt;
 
@@ -78,7 +79,7 @@ pub fn select_training<R: Real>(
     if all.len() < MIN_TRAINING {
         return all;
     }
-    let mut plane = plane_mean(&all);
+    let mut plane = Plane::fit(&all);
     let mut limit = R::INFINITY;
     for _ in 0..OUTLIER_ROUNDS {
         let new_limit = outlier_threshold(&all, &plane);
@@ -97,7 +98,7 @@ pub fn select_training<R: Real>(
         if inliers.len() == all.len() {
             return all;
         }
-        plane = plane_mean(&inliers);
+        plane = Plane::fit(&inliers);
     }
     if !limit.is_finite() {
         return all;
@@ -119,7 +120,7 @@ const OUTLIER_SPREADS: f64 = 3.0 * 1.4826;
 
 /// Farther from `plane` than this is an outlier: three robust standard deviations (from the
 /// median absolute residual), at least [`MIN_OUTLIER_DISTANCE_M`].
-fn outlier_threshold<R: Real>(samples: &[Sample<R>], plane: &PlaneMean<R>) -> R {
+fn outlier_threshold<R: Real>(samples: &[Sample<R>], plane: &Plane<R>) -> R {
     let (spreads, minimum) = (
         R::from_f64(OUTLIER_SPREADS),
         R::from_f64(MIN_OUTLIER_DISTANCE_M),
@@ -220,50 +221,6 @@ fn dot<R: Real>(a: &[R], b: &[R]) -> R {
         }
     }
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
-}
-
-/// The GP's mean function `d = c0 + c1 (a - ā) + c2 (b - b̄)`.
-#[derive(Debug, Clone, Copy)]
-struct PlaneMean<R> {
-    centre: [R; 3],
-    slope: [R; 2],
-}
-
-impl<R: Real> PlaneMean<R> {
-    #[inline]
-    fn at(&self, a: R, b: R) -> R {
-        self.centre[2] + self.slope[0] * (a - self.centre[0]) + self.slope[1] * (b - self.centre[1])
-    }
-}
-
-/// Least-squares plane through `samples` (centred normal equations, 2 x 2); flat when the
-/// samples are (nearly) collinear in their locations.
-fn plane_mean<R: Real>(samples: &[Sample<R>]) -> PlaneMean<R> {
-    let n = R::from_usize(samples.len().max(1));
-    let mut c = [R::ZERO; 3];
-    for s in samples {
-        for k in 0..3 {
-            c[k] += s[k] / n;
-        }
-    }
-    let (mut saa, mut sab, mut sbb, mut sad, mut sbd) =
-        (R::ZERO, R::ZERO, R::ZERO, R::ZERO, R::ZERO);
-    for s in samples {
-        let (a, b, d) = (s[0] - c[0], s[1] - c[1], s[2] - c[2]);
-        saa += a * a;
-        sab += a * b;
-        sbb += b * b;
-        sad += a * d;
-        sbd += b * d;
-    }
-    let det = saa * sbb - sab * sab;
-    // Collinear locations (det small against the spread): keep the constant mean.
-    let slope = if det > R::from_f64(1e-6) * (saa + sbb) * (saa + sbb) && det.is_finite() {
-        [(sad * sbb - sbd * sab) / det, (sbd * saa - sad * sab) / det]
-    } else {
-        [R::ZERO, R::ZERO]
-    };
-    PlaneMean { centre: c, slope }
 }
 
 /// Which variances [`predict`] must compute exactly.
@@ -373,7 +330,7 @@ pub fn predict_in<R: Real>(
         inv_diag[i] = R::ONE / l[ri + i];
     }
     // α = (K + σ² I)⁻¹ (f - m(u)): forward, then backward substitution.
-    let mean = plane_mean(samples);
+    let mean = Plane::fit(samples);
     let mut alpha = [R::ZERO; MAX_TRAINING];
     for i in 0..m {
         let s = samples[i];

@@ -78,6 +78,7 @@ pub mod mesh;
 pub mod motion;
 pub mod pca;
 pub mod pipeline;
+pub mod plane;
 pub mod random;
 pub mod real;
 pub mod reconstruct;
