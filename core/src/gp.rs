@@ -298,55 +298,11 @@ pub fn predict_in<R: Real>(
     if m < MIN_TRAINING {
         return Err(GpError::TooFewSamples);
     }
-    let kappa = R::from_f64(cfg.kappa_per_m);
     let noise = R::from_f64(cfg.sensor_noise_m * cfg.sensor_noise_m);
-    // Lower-triangular Cholesky factor of K + σ² I, in place, row by row, packed (rows
-    // `0..m` of `l`: each is written before it is read).
-    for i in 0..m {
-        let si = samples[i];
-        let row = &mut l[row_start(i)..=row_start(i) + i];
-        for (v, sj) in row.iter_mut().zip(samples) {
-            *v = kernel_exponent(kappa, si[0] - sj[0], si[1] - sj[1]);
-        }
-        for v in row.iter_mut() {
-            *v = v.exp();
-        }
-        l[row_start(i) + i] += noise;
-    }
-    // 1 / L_ii, so that the solves multiply instead of divide.
-    let mut inv_diag = [R::ZERO; MAX_TRAINING];
-    for i in 0..m {
-        let ri = row_start(i);
-        for j in 0..i {
-            let rj = row_start(j);
-            let v = l[ri + j] - dot(&l[ri..ri + j], &l[rj..rj + j]);
-            l[ri + j] = v * inv_diag[j];
-        }
-        let diag = l[ri + i] - dot(&l[ri..ri + i], &l[ri..ri + i]);
-        if !(diag > R::ZERO && diag.is_finite()) {
-            return Err(GpError::NotPositiveDefinite);
-        }
-        l[ri + i] = diag.sqrt();
-        inv_diag[i] = R::ONE / l[ri + i];
-    }
-    // α = (K + σ² I)⁻¹ (f - m(u)): forward, then backward substitution.
+    let inv_diag = factorize(l, samples, R::from_f64(cfg.kappa_per_m), noise)?;
     let mean = Plane::fit(samples);
-    let mut alpha = [R::ZERO; MAX_TRAINING];
-    for i in 0..m {
-        let s = samples[i];
-        let v = s[2] - mean.at(s[0], s[1]) - dot(&l[row_start(i)..][..i], &alpha[..i]);
-        alpha[i] = v * inv_diag[i];
-    }
-    for i in (0..m).rev() {
-        let mut v = alpha[i];
-        for k in i + 1..m {
-            v -= l[row_start(k) + i] * alpha[k];
-        }
-        alpha[i] = v * inv_diag[i];
-    }
-    // The vertices' locations, and the kernel between each sample and every vertex: in f32,
-    // four lanes to a vector, as it only weighs the known α and measures the variances (the
-    // factorization and α, which the predictions are sensitive to, stay in `R`).
+    let alpha = weights(l, &inv_diag, samples, &mean);
+    // The vertices' locations.
     let mut ta = [R::ZERO; VERTICES];
     let mut tb = [R::ZERO; VERTICES];
     let table = lattice.table();
@@ -354,22 +310,7 @@ pub fn predict_in<R: Real>(
         let (a, b) = table.location(j);
         (ta[j], tb[j]) = (R::from_f64(a), R::from_f64(b));
     }
-    let (ta32, tb32) = (ta.map(R::to_f32), tb.map(R::to_f32));
-    let kappa32 = cfg.kappa_per_m as f32;
-    // Rows `0..m` of `ks`, each written whole.
-    for (row, s) in ks.iter_mut().zip(samples) {
-        let (sa, sb) = (s[0].to_f32(), s[1].to_f32());
-        for j in 0..VERTICES {
-            let (da, db) = (ta32[j] - sa, tb32[j] - sb);
-            row[j] = da * da + db * db;
-        }
-        for v in row.iter_mut() {
-            *v = -kappa32 * crate::math::sqrt_f32(*v);
-        }
-        for v in row.iter_mut() {
-            *v = crate::math::exp_f32(*v);
-        }
-    }
+    vertex_kernels(ks, samples, &ta, &tb, cfg.kappa_per_m as f32);
     // Mean: f* = m(u*) + k*ᵀ α.
     let mut f = [R::ZERO; VERTICES];
     for j in 0..VERTICES {
@@ -380,21 +321,7 @@ pub fn predict_in<R: Real>(
             f[j] += R::from_f32(ks[i][j]) * alpha[i];
         }
     }
-    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) =
-        (R::INFINITY, R::NEG_INFINITY, R::INFINITY, R::NEG_INFINITY);
-    for s in samples {
-        lo_a = lo_a.min(s[0]);
-        hi_a = hi_a.max(s[0]);
-        lo_b = lo_b.min(s[1]);
-        hi_b = hi_b.max(s[1]);
-    }
-    // Twice the variance outside the training inputs' bounding box (extrapolation).
-    let mut factor = [R::ONE; VERTICES];
-    for j in 0..VERTICES {
-        if ta[j] < lo_a || ta[j] > hi_a || tb[j] < lo_b || tb[j] > hi_b {
-            factor[j] = R::from_f64(2.0);
-        }
-    }
+    let factor = extrapolation_factor(samples, &ta, &tb);
     // The factor in f32 for the variances' solves.
     for (d, v) in l32.iter_mut().zip(&l[..row_start(m)]) {
         *d = v.to_f32();
@@ -419,6 +346,120 @@ pub fn predict_in<R: Real>(
         layer.var[j] = (var[j].max(R::ZERO) * factor[j]).to_f32();
     }
     Ok(layer)
+}
+
+/// The lower-triangular Cholesky factor of K + σ² I (`noise` = σ²) of `samples`, in place in
+/// rows `0..m` of `l`, row by row, packed (each row is written before it is read); returns
+/// `1 / L_ii`, so that the solves multiply instead of divide.
+fn factorize<R: Real>(
+    l: &mut [R],
+    samples: &[Sample<R>],
+    kappa: R,
+    noise: R,
+) -> Result<[R; MAX_TRAINING], GpError> {
+    let m = samples.len();
+    for i in 0..m {
+        let si = samples[i];
+        let row = &mut l[row_start(i)..=row_start(i) + i];
+        for (v, sj) in row.iter_mut().zip(samples) {
+            *v = kernel_exponent(kappa, si[0] - sj[0], si[1] - sj[1]);
+        }
+        for v in row.iter_mut() {
+            *v = v.exp();
+        }
+        l[row_start(i) + i] += noise;
+    }
+    let mut inv_diag = [R::ZERO; MAX_TRAINING];
+    for i in 0..m {
+        let ri = row_start(i);
+        for j in 0..i {
+            let rj = row_start(j);
+            let v = l[ri + j] - dot(&l[ri..ri + j], &l[rj..rj + j]);
+            l[ri + j] = v * inv_diag[j];
+        }
+        let diag = l[ri + i] - dot(&l[ri..ri + i], &l[ri..ri + i]);
+        if !(diag > R::ZERO && diag.is_finite()) {
+            return Err(GpError::NotPositiveDefinite);
+        }
+        l[ri + i] = diag.sqrt();
+        inv_diag[i] = R::ONE / l[ri + i];
+    }
+    Ok(inv_diag)
+}
+
+/// α = (K + σ² I)⁻¹ (f - m(u)) from the factor `l` ([`factorize`]): forward, then backward
+/// substitution.
+fn weights<R: Real>(
+    l: &[R],
+    inv_diag: &[R; MAX_TRAINING],
+    samples: &[Sample<R>],
+    mean: &Plane<R>,
+) -> [R; MAX_TRAINING] {
+    let m = samples.len();
+    let mut alpha = [R::ZERO; MAX_TRAINING];
+    for i in 0..m {
+        let s = samples[i];
+        let v = s[2] - mean.at(s[0], s[1]) - dot(&l[row_start(i)..][..i], &alpha[..i]);
+        alpha[i] = v * inv_diag[i];
+    }
+    for i in (0..m).rev() {
+        let mut v = alpha[i];
+        for k in i + 1..m {
+            v -= l[row_start(k) + i] * alpha[k];
+        }
+        alpha[i] = v * inv_diag[i];
+    }
+    alpha
+}
+
+/// The kernel between each sample and every vertex (at `(ta, tb)`), rows `0..m` of `ks`, each
+/// written whole: in f32, four lanes to a vector, as it only weighs the known α and measures
+/// the variances (the factorization and α, which the predictions are sensitive to, stay in
+/// `R`).
+fn vertex_kernels<R: Real>(
+    ks: &mut [[f32; VERTICES]],
+    samples: &[Sample<R>],
+    ta: &[R; VERTICES],
+    tb: &[R; VERTICES],
+    kappa32: f32,
+) {
+    let (ta32, tb32) = (ta.map(R::to_f32), tb.map(R::to_f32));
+    for (row, s) in ks.iter_mut().zip(samples) {
+        let (sa, sb) = (s[0].to_f32(), s[1].to_f32());
+        for j in 0..VERTICES {
+            let (da, db) = (ta32[j] - sa, tb32[j] - sb);
+            row[j] = da * da + db * db;
+        }
+        for v in row.iter_mut() {
+            *v = -kappa32 * crate::math::sqrt_f32(*v);
+        }
+        for v in row.iter_mut() {
+            *v = crate::math::exp_f32(*v);
+        }
+    }
+}
+
+/// Per vertex: 2 outside the samples' bounding box (extrapolation doubles the variance), else 1.
+fn extrapolation_factor<R: Real>(
+    samples: &[Sample<R>],
+    ta: &[R; VERTICES],
+    tb: &[R; VERTICES],
+) -> [R; VERTICES] {
+    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) =
+        (R::INFINITY, R::NEG_INFINITY, R::INFINITY, R::NEG_INFINITY);
+    for s in samples {
+        lo_a = lo_a.min(s[0]);
+        hi_a = hi_a.max(s[0]);
+        lo_b = lo_b.min(s[1]);
+        hi_b = hi_b.max(s[1]);
+    }
+    let mut factor = [R::ONE; VERTICES];
+    for j in 0..VERTICES {
+        if ta[j] < lo_a || ta[j] > hi_a || tb[j] < lo_b || tb[j] > hi_b {
+            factor[j] = R::from_f64(2.0);
+        }
+    }
+    factor
 }
 
 /// Entries of a lower triangle of [`MAX_TRAINING`] rows, stored row after row (a full
