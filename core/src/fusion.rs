@@ -89,7 +89,9 @@ pub fn integrate(
         if since > 0 && map.cell(&s.key).is_some_and(|c| c.last_seen < since) {
             for axis in Axis::ALL {
                 if let Some(m) = map.layer_mut(&s.key, axis, frame) {
+                    // Mapped afresh: what it faced is forgotten with what it held.
                     m.var = [f32::INFINITY; VERTICES];
+                    m.facing = Facing::Unknown;
                 }
             }
             stats.refreshed += 1;
