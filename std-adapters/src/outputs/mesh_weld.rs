@@ -143,13 +143,75 @@ pub fn weld_set<'a>(
     shown: Shown,
 ) -> WeldedMesh {
     let table = lattice.table();
-    let spacing = lattice.cell_size / (N - 1) as f64;
-    let mut slots: Vec<Slot> = Vec::new();
-    let mut add_slots = |l: &LayerRef<'a>, neighbour: Option<bool>| {
+    let mut slots = Slots {
+        lattice,
+        table: &table,
+        min_axis_cosine: shown.min_axis_cosine,
+        all: Vec::new(),
+    };
+    // Each layer with the slot of each vertex of its triangles within the slope limit.
+    let placed: Vec<(LayerRef<'a>, [u32; VERTICES])> = layers
+        .into_iter()
+        .map(|l| (l, slots.add(&l, None)))
+        .collect();
+    for n in neighbours {
+        slots.add(&n.layer, Some(n.later));
+    }
+    let slots = slots.all;
+    let root = clusters(&slots, lattice.cell_size / (N - 1) as f64);
+    let sums = cluster_sums(&slots, &root);
+    // What each layer shows: its shown_mask with the fused variances of its merged vertices.
+    let mut corners: Vec<[u32; 3]> = Vec::new();
+    let shown_masks = placed
+        .iter()
+        .map(|(l, index)| {
+            let mask = welded_mask(l, index, &root, &sums, &table, shown);
+            corners.extend(
+                (0..TRIANGLES)
+                    .filter(|t| mask & (1 << t) != 0)
+                    .map(|t| lattice_triangle(t).map(|j| index[j]))
+                    .filter(|tri| !tri.contains(&u32::MAX)),
+            );
+            mask
+        })
+        .collect();
+    let mut out = vec![Out::Unused; slots.len()];
+    for &s in corners.iter().flatten() {
+        out[root[s as usize] as usize] = Out::Used;
+    }
+    let own = place(&slots, &root, &sums, &mut out, links);
+    link_later(&slots, &root, &out, &own.positions, first, links);
+    let Faces {
+        triangles,
+        imported,
+        normals,
+    } = faces(&corners, &root, &out, &own.positions, first);
+    let vertices = own.vertices(&normals);
+    WeldedMesh {
+        vertices,
+        triangles,
+        imported,
+        merged: own.merged,
+        shown: shown_masks,
+    }
+}
+
+/// The slots of a set's layers and neighbours, as they are added.
+struct Slots<'t> {
+    lattice: &'t Lattice,
+    table: &'t slamesh_core::lattice::LatticeTable,
+    min_axis_cosine: f32,
+    all: Vec<Slot>,
+}
+
+impl Slots<'_> {
+    /// Adds a slot for each vertex of `l`'s triangles within the slope limit (a neighbour's
+    /// border vertices only) and returns each lattice vertex's slot (`u32::MAX`: none).
+    fn add(&mut self, l: &LayerRef<'_>, neighbour: Option<bool>) -> [u32; VERTICES] {
         let mut index = [u32::MAX; VERTICES];
         let (a, b) = l.axis.locations();
         let d = l.axis.index();
-        let slope = l.layer.slope_mask(&table, shown.min_axis_cosine);
+        let slope = l.layer.slope_mask(self.table, self.min_axis_cosine);
         for t in (0..TRIANGLES).filter(|t| slope & (1 << t) != 0) {
             for j in lattice_triangle(t) {
                 let (ia, ib) = (j / N, j % N);
@@ -157,14 +219,14 @@ pub fn weld_set<'a>(
                 if index[j] != u32::MAX || (neighbour.is_some() && !border) {
                     continue;
                 }
-                index[j] = slots.len() as u32;
-                let p = l.layer.vertex(&table, &l.key, l.axis, j);
-                let line = (lattice.full_cover && border).then(|| {
+                index[j] = self.all.len() as u32;
+                let p = l.layer.vertex(self.table, &l.key, l.axis, j);
+                let line = (self.lattice.full_cover && border).then(|| {
                     let u = component(&l.key, a) * (N as i64 - 1) + ia as i64;
                     let v = component(&l.key, b) * (N as i64 - 1) + ib as i64;
                     ([d as i64, u, v], p[d])
                 });
-                slots.push(Slot {
+                self.all.push(Slot {
                     position: [p.x, p.y, p.z],
                     variance: l.layer.var[j],
                     axis: l.axis,
@@ -175,16 +237,12 @@ pub fn weld_set<'a>(
             }
         }
         index
-    };
-    // Each layer with the slot of each vertex of its triangles within the slope limit.
-    let placed: Vec<(LayerRef<'a>, [u32; VERTICES])> = layers
-        .into_iter()
-        .map(|l| (l, add_slots(&l, None)))
-        .collect();
-    for n in neighbours {
-        add_slots(&n.layer, Some(n.later));
     }
-    // Clusters: each slot's first slot on its line within half a spacing of it.
+}
+
+/// Each slot's cluster: the first slot on its weld line within half a `spacing` of it (a
+/// slot on no line is its own).
+fn clusters(slots: &[Slot], spacing: f64) -> Vec<u32> {
     let mut root: Vec<u32> = (0..slots.len() as u32).collect();
     let mut on_lines: Vec<u32> = (0..slots.len() as u32)
         .filter(|&s| slots[s as usize].line.is_some())
@@ -209,7 +267,14 @@ pub fn weld_set<'a>(
             start = i;
         }
     }
-    // Each cluster's fused position (weighted sum), inverse variance and size.
+    root
+}
+
+/// A cluster's inverse-variance weighted sum of positions, total inverse variance and size.
+type ClusterSum = ([f64; 3], f64, u32);
+
+/// Each cluster's [`ClusterSum`], at its root slot.
+fn cluster_sums(slots: &[Slot], root: &[u32]) -> Vec<ClusterSum> {
     let mut sums = vec![([0.0f64; 3], 0.0f64, 0u32); slots.len()];
     for (s, slot) in slots.iter().enumerate() {
         let w = 1.0 / f64::from(slot.variance).max(1e-6);
@@ -220,32 +285,77 @@ pub fn weld_set<'a>(
         sum.1 += w;
         sum.2 += 1;
     }
-    // What each layer shows: its shown_mask with the fused variances of its merged vertices.
-    let mut corners: Vec<[u32; 3]> = Vec::new();
-    let mut shown_masks = Vec::with_capacity(placed.len());
-    for (l, index) in &placed {
-        let mut welded = *l.layer;
-        for (var, &s) in welded.var.iter_mut().zip(index) {
-            let cluster = root.get(s as usize).and_then(|&r| sums.get(r as usize));
-            if let Some(&(_, w, members)) = cluster {
-                if members > 1 {
-                    *var = (1.0 / w) as f32;
-                }
+    sums
+}
+
+/// The triangles layer `l` shows with the fused variances of its merged vertices (`index`:
+/// its vertices' slots).
+fn welded_mask(
+    l: &LayerRef<'_>,
+    index: &[u32; VERTICES],
+    root: &[u32],
+    sums: &[ClusterSum],
+    table: &slamesh_core::lattice::LatticeTable,
+    shown: Shown,
+) -> u64 {
+    let mut welded = *l.layer;
+    for (var, &s) in welded.var.iter_mut().zip(index) {
+        let cluster = root.get(s as usize).and_then(|&r| sums.get(r as usize));
+        if let Some(&(_, w, members)) = cluster {
+            if members > 1 {
+                *var = (1.0 / w) as f32;
             }
         }
-        let mask = welded.shown_mask(&table, shown);
-        shown_masks.push(mask);
-        corners.extend(
-            (0..TRIANGLES)
-                .filter(|t| mask & (1 << t) != 0)
-                .map(|t| lattice_triangle(t).map(|j| index[j]))
-                .filter(|tri| !tri.contains(&u32::MAX)),
-        );
     }
-    let mut out = vec![Out::Unused; slots.len()];
-    for &s in corners.iter().flatten() {
-        out[root[s as usize] as usize] = Out::Used;
+    welded.shown_mask(table, shown)
+}
+
+/// The vertices a set writes itself.
+#[derive(Default)]
+struct OwnVertices {
+    positions: Vec<[f64; 3]>,
+    variances: Vec<f32>,
+    axes: Vec<Axis>,
+    /// Slots merged into another one.
+    merged: u64,
+}
+
+impl OwnVertices {
+    /// The mesh's vertices, each with its normal: the sum `normals` gives it, made unit (the
+    /// layer's axis where no usable triangle gave one).
+    fn vertices(&self, normals: &[[f64; 3]]) -> Vec<MeshVertex> {
+        self.positions
+            .iter()
+            .zip(&self.variances)
+            .zip(normals.iter().zip(&self.axes))
+            .map(|((p, &variance), (n, axis))| {
+                let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                let normal = if norm > 1e-12 {
+                    n.map(|c| (c / norm) as f32)
+                } else {
+                    let mut e = [0.0; 3];
+                    e[axis.index()] = 1.0;
+                    e
+                };
+                MeshVertex {
+                    position: p.map(|c| c as f32),
+                    normal,
+                    variance,
+                }
+            })
+            .collect()
     }
+}
+
+/// Places each used cluster (`out`): on the vertex an earlier set wrote for one of its slots
+/// (taken from `links`), else as this set's next vertex at its fused position, in slot order.
+fn place(
+    slots: &[Slot],
+    root: &[u32],
+    sums: &[ClusterSum],
+    out: &mut [Out],
+    links: &mut SeamLinks,
+) -> OwnVertices {
     // A used cluster with a vertex an earlier set wrote is that vertex.
     for (s, slot) in slots.iter().enumerate() {
         let r = root[s] as usize;
@@ -259,10 +369,7 @@ pub fn weld_set<'a>(
         }
     }
     // The others are this set's vertices, in slot order.
-    let mut axes: Vec<Axis> = Vec::new();
-    let mut positions: Vec<[f64; 3]> = Vec::new();
-    let mut variances: Vec<f32> = Vec::new();
-    let mut merged = 0;
+    let mut own = OwnVertices::default();
     let mut placed_root = vec![false; slots.len()];
     for (s, slot) in slots.iter().enumerate() {
         let r = root[s] as usize;
@@ -270,21 +377,32 @@ pub fn weld_set<'a>(
             continue;
         }
         if std::mem::replace(&mut placed_root[r], true) {
-            merged += 1;
+            own.merged += 1;
             continue;
         }
         match out[r] {
             Out::Used => {
                 let (sum, w, _) = sums[r];
-                out[r] = Out::Here(positions.len() as u32);
-                positions.push(sum.map(|c| c / w));
-                variances.push((1.0 / w) as f32);
-                axes.push(slot.axis);
+                out[r] = Out::Here(own.positions.len() as u32);
+                own.positions.push(sum.map(|c| c / w));
+                own.variances.push((1.0 / w) as f32);
+                own.axes.push(slot.axis);
             }
-            _ => merged += 1,
+            _ => own.merged += 1,
         }
     }
-    // Vertices later sets share: where they went.
+    own
+}
+
+/// Notes in `links` where each vertex of a later set's neighbour went.
+fn link_later(
+    slots: &[Slot],
+    root: &[u32],
+    out: &[Out],
+    positions: &[[f64; 3]],
+    first: u32,
+    links: &mut SeamLinks,
+) {
     for (s, slot) in slots.iter().enumerate() {
         if slot.neighbour != Some(true) {
             continue;
@@ -296,11 +414,32 @@ pub fn weld_set<'a>(
         };
         links.written.insert(slot.id, at);
     }
+}
+
+/// A set's triangles as [`faces`] finds them.
+struct Faces {
+    /// Indices into the whole mesh.
+    triangles: Vec<[u32; 3]>,
+    /// The positions of their corners an earlier set wrote, in order.
+    imported: Vec<[f32; 3]>,
+    /// The area-weighted sum of the triangles' normals at each of this set's vertices.
+    normals: Vec<[f64; 3]>,
+}
+
+/// The set's triangles from their `corners`' slots (a repeat of an earlier one's vertices,
+/// or one with a vertex twice, dropped).
+fn faces(
+    corners: &[[u32; 3]],
+    root: &[u32],
+    out: &[Out],
+    positions: &[[f64; 3]],
+    first: u32,
+) -> Faces {
     let mut seen = HashSet::new();
     let mut triangles = Vec::with_capacity(corners.len());
     let mut imported = Vec::new();
     let mut normals = vec![[0.0f64; 3]; positions.len()];
-    for c in &corners {
+    for c in corners {
         let o = c.map(|s| out[root[s as usize] as usize]);
         let at = o.map(|o| match o {
             Out::Here(i) => (first + i, positions[i as usize]),
@@ -333,32 +472,10 @@ pub fn weld_set<'a>(
         }
         triangles.push(t);
     }
-    let vertices = positions
-        .iter()
-        .zip(&variances)
-        .zip(normals.iter().zip(&axes))
-        .map(|((p, &variance), (n, axis))| {
-            let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            let normal = if norm > 1e-12 {
-                n.map(|c| (c / norm) as f32)
-            } else {
-                let mut e = [0.0; 3];
-                e[axis.index()] = 1.0;
-                e
-            };
-            MeshVertex {
-                position: p.map(|c| c as f32),
-                normal,
-                variance,
-            }
-        })
-        .collect();
-    WeldedMesh {
-        vertices,
+    Faces {
         triangles,
         imported,
-        merged,
-        shown: shown_masks,
+        normals,
     }
 }
 
