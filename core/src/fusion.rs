@@ -9,6 +9,7 @@
 
 use crate::cell::Axis;
 use crate::config::MapConfig;
+use crate::executor::Executor;
 use crate::facing::{Facing, MIN_THICKNESS_M};
 use crate::lattice::{LatticeTable, VERTICES};
 use crate::layer::{Layer, ScanLayer};
@@ -65,12 +66,19 @@ pub fn stale_before(frame: u32, cfg: &MapConfig) -> u32 {
 }
 
 /// Decides the [`Facing`] of each of the scan's layers, seen from the sensor at `viewpoint`
-/// (world), counting the vertices with a variance below `max_var`.
-pub fn face(scan: &mut [ScanLayer], lattice: &LatticeTable, viewpoint: &Vec3, max_var: f32) {
-    for s in scan {
+/// (world), counting the vertices with a variance below `max_var`. Each layer's on its own,
+/// spread over `exec`.
+pub fn face(
+    scan: &mut [ScanLayer],
+    lattice: &LatticeTable,
+    viewpoint: &Vec3,
+    max_var: f32,
+    exec: &impl Executor,
+) {
+    exec.update_each(scan, |s| {
         let surface = (&s.layer.pred, &s.layer.var);
         s.layer.facing = Facing::seen_from(surface, lattice, &s.key, s.axis, viewpoint, max_var);
-    }
+    });
 }
 
 /// Fuses the scan's layers into `map`, marking their cells seen at `frame`. A stale cell

@@ -400,7 +400,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         let (b, made) = self.reconstruct(&pose, exec, Purpose::Update, probe);
         stats.dropped_layers += made.dropped;
         probe.enter(Stage::Update);
-        self.fuse(pose, b, stats);
+        self.fuse(pose, b, exec, stats);
         probe.enter(Stage::Done);
     }
 
@@ -421,7 +421,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         exec.update_each(&mut self.scan, |s| {
             s.layer = s.layer.moved(&lattice, &s.key, s.axis, &motion);
         });
-        self.fuse(pose, bucketed, stats);
+        self.fuse(pose, bucketed, exec, stats);
         probe.enter(Stage::Done);
     }
 
@@ -431,13 +431,21 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         crate::fusion::stale_before(self.frame.saturating_sub(1), &self.config.map)
     }
 
-    /// Fuses `scan` (at `pose`, bucketed as `bucketed`) into the map; motion update.
-    fn fuse(&mut self, pose: Pose, bucketed: BucketStats, stats: &mut ScanStats) {
+    /// Fuses `scan` (at `pose`, bucketed as `bucketed`) into the map, its layers' facings
+    /// decided on `exec`; motion update.
+    fn fuse(
+        &mut self,
+        pose: Pose,
+        bucketed: BucketStats,
+        exec: &impl Executor,
+        stats: &mut ScanStats,
+    ) {
         stats.bucket = bucketed;
         stats.scan_layers = self.scan.len();
         let lattice = self.config.lattice().table();
         let max_var = self.config.map.variance_update as f32;
-        face(&mut self.scan, &lattice, &pose.translation.vector, max_var);
+        let viewpoint = pose.translation.vector;
+        face(&mut self.scan, &lattice, &viewpoint, max_var, exec);
         stats.fusion = integrate(&mut self.map, &self.scan, &self.config.map, stats.frame);
         self.motion.push(pose);
     }
