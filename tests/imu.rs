@@ -13,7 +13,7 @@ use crate::common::{scratch, slamesh_run_ok, write_bin};
 use nalgebra::{Translation3, UnitQuaternion};
 use slamesh::eval::odometry::consecutive_errors;
 use slamesh::formats::trajectory;
-use slamesh::inertial::ImuOptions;
+use slamesh::inertial::{AccelUnit, GravityReport, ImuOptions};
 use slamesh::run::{run, FrameSource, RunOptions, Sample, Summary};
 use slamesh_core::{Capacity, KittiCapacity, Lidar32Capacity, Point, Pose};
 use slamesh_sim::town::Carried;
@@ -383,6 +383,80 @@ fn a_tilted_lidar_maps_level_with_its_imu() {
     assert!(*without > tilt_deg - 0.5, "{without}");
     assert!(navmap.contains("gravity: the IMU"), "{navmap}");
     assert!(plain.contains("the map's z axis"), "{plain}");
+}
+
+/// The accelerometer in g, as some sensors' drivers give it (Livox's built-in IMU does).
+fn in_g(s: &mut Vec<Sample>) {
+    for Sample::Imu(r) in s {
+        r.accel = r.accel.map(|a| a / slamesh_core::imu::GRAVITY_M_S2);
+    }
+}
+
+#[test]
+fn an_accelerometer_in_g_is_told_and_levels_the_map_as_one_in_metres_per_second_squared() {
+    // The tilted car of the test above, its accelerometer read in g: told from the still
+    // start, the map is levelled as with m/s²; configured, the same without telling.
+    let tilt = Pose::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_euler_angles(2f64.to_radians(), 4f64.to_radians(), 0.0),
+    );
+    let mut d = Drive::car(8, 1);
+    d.poses.iter_mut().for_each(|p| *p *= tilt);
+    let d = d.with_imu(imu(200.0));
+    let out = scratch("imu-in-g");
+    let level = |source: &mut dyn FnMut(&RunOptions) -> Summary, unit: AccelUnit| {
+        let mut opts = options(&out, true);
+        opts.imu.accel_unit = unit;
+        let imu = source(&opts).imu.expect("readings came");
+        (
+            imu.gravity.expect("up was looked for"),
+            imu.accelerometer_unit,
+        )
+    };
+    let mut plain = |o: &RunOptions| run::<KittiCapacity>(&mut d.clone(), o, |_| {}).unwrap();
+    let mut altered =
+        |o: &RunOptions| run::<KittiCapacity>(&mut Altered(d.clone(), in_g), o, |_| {}).unwrap();
+    let (in_ms2, said_ms2) = level(&mut plain, AccelUnit::Auto);
+    let (told, said_told) = level(&mut altered, AccelUnit::Auto);
+    let (configured, said_configured) = level(&mut altered, AccelUnit::G);
+    println!("{said_ms2:?} {said_told:?} {said_configured:?}\n{in_ms2:?}\n{told:?}");
+    assert_eq!(said_ms2.as_deref(), Some("m/s²"));
+    assert!(said_told
+        .as_deref()
+        .is_some_and(|u| u.starts_with("g (told")));
+    assert_eq!(said_configured.as_deref(), Some("g (configured)"));
+    for g in [&in_ms2, &told, &configured] {
+        assert!(g.levelled, "{g:?}");
+    }
+    // The same up to the readings' rounding.
+    for g in [&told, &configured] {
+        assert!(
+            (g.tilt_deg.unwrap() - in_ms2.tilt_deg.unwrap()).abs() < 1e-6,
+            "{g:?}"
+        );
+        assert!(
+            (g.magnitude_m_s2 - in_ms2.magnitude_m_s2).abs() < 1e-6,
+            "{g:?}"
+        );
+    }
+    // Read as m/s², gravity would be 1.0 long: not levelled, named.
+    let (wrong, _) = level(&mut altered, AccelUnit::MetresPerSecondSquared);
+    let why = wrong.why_not.clone().unwrap_or_default();
+    assert!(
+        !wrong.levelled && why.contains("1.01 m/s², not gravity"),
+        "{wrong:?}"
+    );
+    // A start too unsteady to level: up over the first seconds of motion, as in m/s².
+    let d = hand_held(12);
+    let mut plain = |o: &RunOptions| run::<Lidar32Capacity>(&mut d.clone(), o, |_| {}).unwrap();
+    let mut altered =
+        |o: &RunOptions| run::<Lidar32Capacity>(&mut Altered(d.clone(), in_g), o, |_| {}).unwrap();
+    let up = |g: GravityReport| nalgebra::Vector3::from(g.moving.unwrap().up.unwrap());
+    let (moving_ms2, _) = level(&mut plain, AccelUnit::Auto);
+    let (moving_g, said) = level(&mut altered, AccelUnit::Auto);
+    assert!(said.is_some_and(|u| u.starts_with("g (told")));
+    assert!(up(moving_g).angle(&up(moving_ms2)) < 1e-6);
+    std::fs::remove_dir_all(&out).unwrap();
 }
 
 #[test]

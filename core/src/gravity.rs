@@ -28,6 +28,23 @@ pub const MAX_SPREAD_M_S2: f64 = 0.5;
 /// How far the mean's length may be from standard gravity (m/s²).
 pub const MAX_OFF_G_M_S2: f64 = 0.6;
 
+/// The least time (seconds) a mean of the specific force must span for [`reads_in_g`].
+pub const UNIT_SECONDS: f64 = 0.05;
+/// The mean specific force's lengths (in the readings' unit) that say the readings are in g:
+/// in m/s² they would be a body falling at 8 to 9.3 m/s² all the while, in g they are
+/// gravity with a body's own acceleration on it.
+pub const G_UNITS: [f64; 2] = [0.5, 2.0];
+
+/// Whether `force` (the readings' mean, in their own unit) says the accelerometer reads in g
+/// rather than m/s² ([`G_UNITS`], over at least [`UNIT_SECONDS`]); `None` when it spans too
+/// little to say.
+pub fn reads_in_g(force: &ForceMean) -> Option<bool> {
+    (force.seconds >= UNIT_SECONDS).then(|| {
+        let m = force.mean.norm();
+        (G_UNITS[0]..=G_UNITS[1]).contains(&m)
+    })
+}
+
 /// Up, read from the accelerometer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gravity {
@@ -138,6 +155,17 @@ mod tests {
         let x = level * Vec3::x();
         assert!(libm::atan2(x.y, x.x).abs() < 0.01, "{x}");
         assert!((g.tilt() - (tilt * Vec3::z()).z.acos()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn gravity_read_in_g_is_told_from_gravity_in_metres_per_second_squared() {
+        let up = Vec3::new(0.1, -0.2, 1.0).normalize();
+        // Still, in g; a shaking body in g; in m/s², still and shaken; too short to say.
+        assert_eq!(reads_in_g(&force(up, 0.01, 1.0)), Some(true));
+        assert_eq!(reads_in_g(&force(up * 1.3, 0.4, 0.1)), Some(true));
+        assert_eq!(reads_in_g(&force(up * GRAVITY_M_S2, 0.1, 1.0)), Some(false));
+        assert_eq!(reads_in_g(&force(up * 12.0, 3.0, 0.1)), Some(false));
+        assert_eq!(reads_in_g(&force(up, 0.01, 0.01)), None);
     }
 
     #[test]

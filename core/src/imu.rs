@@ -37,7 +37,8 @@ pub struct ImuSample {
     pub stamp: f64,
     /// Angular velocity about x, y, z (rad/s).
     pub gyro: [f64; 3],
-    /// Specific force along x, y, z (m/s²).
+    /// Specific force along x, y, z (m/s², or the unit [`ImuCalibration::accel_unit_m_s2`]
+    /// says).
     pub accel: [f64; 3],
 }
 
@@ -53,6 +54,9 @@ pub struct ImuCalibration {
     pub gyro_limit_rad_s: f64,
     /// An accelerometer reading at or above this on any axis is counted as saturated (m/s²).
     pub accel_limit_m_s2: f64,
+    /// What one accelerometer unit is in m/s²: 1 for readings in m/s², [`GRAVITY_M_S2`] for
+    /// readings in g (as some LiDARs' built-in IMUs give them).
+    pub accel_unit_m_s2: f64,
 }
 
 impl Default for ImuCalibration {
@@ -64,6 +68,7 @@ impl Default for ImuCalibration {
             time_offset_s: 0.0,
             gyro_limit_rad_s: 2000f64.to_radians(),
             accel_limit_m_s2: 16.0 * GRAVITY_M_S2,
+            accel_unit_m_s2: 1.0,
         }
     }
 }
@@ -240,8 +245,9 @@ impl ImuTrack {
             }
         }
         let c = &self.calibration;
+        let accel = Vec3::from(s.accel) * c.accel_unit_m_s2;
         if s.gyro.iter().any(|v| libm::fabs(*v) >= c.gyro_limit_rad_s)
-            || s.accel.iter().any(|v| libm::fabs(*v) >= c.accel_limit_m_s2)
+            || accel.iter().any(|v| libm::fabs(*v) >= c.accel_limit_m_s2)
         {
             self.counts.saturated += 1;
         }
@@ -249,7 +255,7 @@ impl ImuTrack {
         let reading = Reading {
             t,
             gyro: turn * Vec3::from(s.gyro),
-            accel: turn * Vec3::from(s.accel),
+            accel: turn * accel,
         };
         if self.readings.is_full() {
             self.forget_oldest_half();
@@ -259,6 +265,19 @@ impl ImuTrack {
             self.counts.taken += 1;
         }
         Ok(())
+    }
+
+    /// Takes the accelerometer's readings to be in units of `unit_m_s2` from now on, those
+    /// held included (they were taken in the calibration's unit until now).
+    pub fn set_accel_unit(&mut self, unit_m_s2: f64) {
+        let was = self.calibration.accel_unit_m_s2;
+        if !(unit_m_s2.is_finite() && unit_m_s2 > 0.0) || unit_m_s2 == was {
+            return;
+        }
+        for r in self.readings.iter_mut() {
+            r.accel = r.accel / was * unit_m_s2;
+        }
+        self.calibration.accel_unit_m_s2 = unit_m_s2;
     }
 
     /// Forgets the readings no rotation from `t` on needs (all before the last one at or
@@ -540,6 +559,43 @@ mod tests {
         let q = t.rotation(0.0, 0.5).unwrap();
         let want = UnitQuaternion::from_scaled_axis(Vec3::y() * 0.2);
         assert!(q.angle_to(&want) < 1e-9, "{q:?}");
+    }
+
+    #[test]
+    fn readings_in_g_are_taken_in_metres_per_second_squared() {
+        let in_g = ImuCalibration {
+            accel_unit_m_s2: GRAVITY_M_S2,
+            ..ImuCalibration::default()
+        };
+        let mut configured = ImuTrack::new(64, in_g);
+        let mut told_later = ImuTrack::new(64, ImuCalibration::default());
+        for k in 0..20 {
+            let s = ImuSample {
+                stamp: f64::from(k) * 0.01,
+                gyro: [0.0; 3],
+                accel: [0.0, 0.0, 1.0],
+            };
+            configured.push(&s).unwrap();
+            told_later.push(&s).unwrap();
+        }
+        told_later.set_accel_unit(GRAVITY_M_S2);
+        for t in [&configured, &told_later] {
+            let f = t.mean_force(f64::NEG_INFINITY, 0.19).unwrap();
+            assert!((f.mean - Vec3::z() * GRAVITY_M_S2).norm() < 1e-12, "{f:?}");
+        }
+        // 16 g is the default limit: 17 in g is saturated, 17 in m/s² is not.
+        let high = ImuSample {
+            stamp: 0.2,
+            gyro: [0.0; 3],
+            accel: [17.0, 0.0, 0.0],
+        };
+        configured.push(&high).unwrap();
+        let mut plain = ImuTrack::new(64, ImuCalibration::default());
+        plain.push(&high).unwrap();
+        assert_eq!(
+            (configured.counts().saturated, plain.counts().saturated),
+            (1, 0)
+        );
     }
 
     #[test]

@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use slamesh_core::deskew::{self, DeskewError, Deskewed};
 use slamesh_core::gravity::{Gravity, NotLevel};
-use slamesh_core::imu::{ImuCalibration, ImuGap, ImuTrack};
+use slamesh_core::imu::{ForceMean, ImuCalibration, ImuGap, ImuTrack, GRAVITY_M_S2};
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
 
 /// What the run does with an IMU's readings (`--imu`, `--deskew`, the configuration's `imu`).
@@ -34,6 +34,9 @@ pub struct ImuOptions {
     pub bias_gain: f64,
     /// A disagreement above this (degrees over a frame) is not taken into the bias.
     pub bias_max_deg: f64,
+    /// The accelerometer's unit (`[imu] accel_unit`); `calibration.accel_unit_m_s2` is set
+    /// from it when the run starts.
+    pub accel_unit: AccelUnit,
 }
 
 impl Default for ImuOptions {
@@ -43,6 +46,31 @@ impl Default for ImuOptions {
             calibration: ImuCalibration::default(),
             bias_gain: 0.2,
             bias_max_deg: 1.0,
+            accel_unit: AccelUnit::Auto,
+        }
+    }
+}
+
+/// The unit an accelerometer reads in. `sensor_msgs/Imu` and EuRoC's CSV say m/s², but some
+/// sensors' drivers give g (Livox's built-in IMU does): read in m/s², gravity would be 1.0
+/// and the map would never be levelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AccelUnit {
+    /// Told from the first readings' mean ([`slamesh_core::gravity::reads_in_g`]).
+    Auto,
+    /// Metres per second squared.
+    MetresPerSecondSquared,
+    /// Standard gravities.
+    G,
+}
+
+impl AccelUnit {
+    /// The unit's size in m/s², when it is not to be told from the readings.
+    pub fn m_s2(self) -> Option<f64> {
+        match self {
+            AccelUnit::Auto => None,
+            AccelUnit::MetresPerSecondSquared => Some(1.0),
+            AccelUnit::G => Some(GRAVITY_M_S2),
         }
     }
 }
@@ -99,6 +127,10 @@ pub struct ImuSummary {
     /// ([`calibration`]), when judged.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub calibration_check: Option<String>,
+    /// The accelerometer's unit, and whether it was configured or told from the readings;
+    /// absent while the readings have not told it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub accelerometer_unit: Option<String>,
 }
 
 /// What the accelerometer said of up at the map's first scan (`summary.imu.gravity`).
@@ -266,13 +298,19 @@ pub struct Inertial {
     moving: FirstSeconds,
     /// The calibration check's verdict, once given.
     checked: Option<Verdict>,
+    /// The accelerometer's unit, once configured or told ([`Inertial::tell_unit`]), in words.
+    unit: Option<String>,
 }
 
 impl Inertial {
     /// Ready for readings, holding at most the capacity's [`Capacity::IMU_SAMPLES`].
     pub fn new<C: Capacity>(options: ImuOptions) -> Self {
+        let mut calibration = options.calibration;
+        if let Some(unit) = options.accel_unit.m_s2() {
+            calibration.accel_unit_m_s2 = unit;
+        }
         Self {
-            track: ImuTrack::new(C::IMU_SAMPLES, options.calibration),
+            track: ImuTrack::new(C::IMU_SAMPLES, calibration),
             options,
             refs: (None, None),
             seen: false,
@@ -283,6 +321,11 @@ impl Inertial {
             check: CalibrationCheck::new(options.calibration.lidar_from_imu.rotation),
             moving: FirstSeconds::default(),
             checked: None,
+            unit: match options.accel_unit {
+                AccelUnit::Auto => None,
+                AccelUnit::MetresPerSecondSquared => Some("m/s² (configured)".into()),
+                AccelUnit::G => Some("g (configured)".into()),
+            },
         }
     }
 
@@ -314,6 +357,7 @@ impl Inertial {
             calibration_check: (self.checked.clone())
                 .or_else(|| self.check.pending())
                 .map(|v| v.text),
+            accelerometer_unit: self.unit.clone(),
         })
     }
 
@@ -407,6 +451,9 @@ impl Inertial {
     /// up, when the readings held say which way is up ([`Gravity`]); `None` otherwise (the map's
     /// z is the first scan's). Named in the log either way, and in the summary.
     pub fn level(&mut self, t: f64, file: &str, frame: usize) -> Option<Pose> {
+        if let (None, Ok(f)) = (&self.unit, self.track.mean_force(f64::NEG_INFINITY, t)) {
+            self.tell_unit(&f, &format!("{file}: frame {frame}: "));
+        }
         let judged = match self.track.mean_force(f64::NEG_INFINITY, t) {
             Ok(f) => Gravity::judge(&f).map_err(|e| (Some(f), not_level(e))),
             Err(gap) => Err((None, gap_words(gap))),
@@ -502,6 +549,13 @@ impl Inertial {
         if !(self.active() && not_levelled && self.moving.open()) {
             return;
         }
+        // Up from motion weighs the force against the registered positions' acceleration:
+        // not before the readings' unit is known (a gap is named below).
+        if let (None, Ok(f)) = (&self.unit, self.track.mean_force(from.1, to.1)) {
+            if !self.tell_unit(&f, "") {
+                return;
+            }
+        }
         let force = (self.track.mean_force(from.1, to.1)).map_err(gap_words);
         let Some(m) = self.moving.add(from, to, registered, force) else {
             return;
@@ -521,6 +575,30 @@ impl Inertial {
         if let Some(g) = &mut self.gravity {
             g.moving = Some(m);
         }
+    }
+
+    /// Tells the accelerometer's unit from `force`, the readings' mean over a stretch, while
+    /// it is not known ([`AccelUnit::Auto`]): in g, the readings held and to come are taken as
+    /// such, named in the log (`at` begins its line) and the summary. False while the
+    /// stretch is too short to tell.
+    fn tell_unit(&mut self, force: &ForceMean, at: &str) -> bool {
+        let Some(in_g) = slamesh_core::gravity::reads_in_g(force) else {
+            return false;
+        };
+        let size = force.mean.norm();
+        if in_g {
+            self.track.set_accel_unit(GRAVITY_M_S2);
+            log::warn!(
+                "{at}IMU: the accelerometer's mean over {:.2} s is {size:.2} long: its readings \
+                 are in g, not m/s², and are taken as such ([imu] accel_unit = \"g\" says so)",
+                force.seconds
+            );
+        }
+        self.unit = Some(match in_g {
+            true => format!("g (told from the readings: their mean {size:.2} long)"),
+            false => "m/s²".into(),
+        });
+        true
     }
 
     /// Keeps and logs the calibration check's verdict, when one came.

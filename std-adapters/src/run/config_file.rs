@@ -15,7 +15,7 @@
 //! Errors name the file, and the line or the parameter, and the reason; the assembled
 //! configuration is checked with [`Config::validate`].
 
-use crate::inertial::ImuOptions;
+use crate::inertial::{AccelUnit, ImuOptions};
 use crate::io::error::FileError;
 use crate::run::window::Window;
 use slamesh_core::Config;
@@ -358,7 +358,7 @@ fn read_window(t: &toml::Table) -> Result<WindowSettings, String> {
     Ok(w)
 }
 
-const IMU_DOCS: [(&str, &str, &str); 6] = [
+const IMU_DOCS: [(&str, &str, &str); 7] = [
     (
         "translation_m",
         "The IMU's position in the LiDAR frame (metres): the lever arm.",
@@ -389,6 +389,11 @@ const IMU_DOCS: [(&str, &str, &str); 6] = [
         "Share of the registration's disagreement with the gyro taken into its bias a frame.",
         "0.2",
     ),
+    (
+        "accel_unit",
+        "The accelerometer's unit: \"m/s2\", \"g\", or \"auto\" (told from the first readings).",
+        "\"auto\"",
+    ),
 ];
 
 fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
@@ -404,6 +409,14 @@ fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
             "gyro_limit_deg_s" => c.gyro_limit_rad_s = positive(v).map_err(e)?.to_radians(),
             "accel_limit_m_s2" => c.accel_limit_m_s2 = positive(v).map_err(e)?,
             "bias_gain" => o.bias_gain = positive(v).map_err(e)?.min(1.0),
+            "accel_unit" => {
+                o.accel_unit = match v.as_str() {
+                    Some("auto") => AccelUnit::Auto,
+                    Some("m/s2") => AccelUnit::MetresPerSecondSquared,
+                    Some("g") => AccelUnit::G,
+                    _ => return Err(e(format!("\"m/s2\", \"g\" or \"auto\", found {v}"))),
+                }
+            }
             _ => {
                 let known: Vec<&str> = IMU_DOCS.iter().map(|d| d.0).collect();
                 return Err(format!(
@@ -574,6 +587,9 @@ mod tests {
         assert!((x - nalgebra::Vector3::y()).norm() < 1e-12, "{x}");
         assert_eq!((c.time_offset_s, s.imu.bias_gain), (-0.02, 0.5));
         assert!(s.imu.enabled);
+        assert_eq!(s.imu.accel_unit, AccelUnit::Auto);
+        let g = parse("[imu]\naccel_unit = \"g\"\n").unwrap().imu.accel_unit;
+        assert_eq!(g, AccelUnit::G);
         for (text, want) in [
             (
                 "[imu]\ntranslation_m = [1, 2]\n",
@@ -586,6 +602,10 @@ mod tests {
             (
                 "[imu]\ngyro_limit_deg_s = -1\n",
                 "[imu] gyro_limit_deg_s: must be a positive",
+            ),
+            (
+                "[imu]\naccel_unit = \"ft/s2\"\n",
+                "[imu] accel_unit: \"m/s2\", \"g\" or \"auto\", found \"ft/s2\"",
             ),
         ] {
             let e = parse(text).unwrap_err();
