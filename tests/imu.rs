@@ -189,10 +189,10 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
         .with_imu(imu(200.0));
     let truth = d.poses.clone();
     let (s, statuses, _) =
-        run_drive::<KittiCapacity>(&mut Altered(d, in_degrees), &truth, true, "degrees");
+        run_drive::<KittiCapacity>(&mut Altered(d.clone(), in_degrees), &truth, true, "degrees");
     let imu = s.imu.expect("readings came");
     let why = imu.set_aside.expect("set aside");
-    assert!(why.contains("units (rad/s)"), "{why}");
+    assert!(why.contains("units (gyro_unit)"), "{why}");
     // The check over the first frames says why: the gyro's angles are 57.3 times too large.
     // (Judged on the frames after it was set aside: every frame before was lost.)
     let check = imu.calibration_check.expect("judged by the run's end");
@@ -200,6 +200,15 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
     // The frames after it ran on the motion model, to the end.
     assert_eq!(statuses.len(), 20);
     assert!(imu.prior_frames < 10, "{}", imu.prior_frames);
+    // Told in `[imu]` (`gyro_unit = "deg/s"`), the same readings serve every frame.
+    let out = scratch("imu-degrees-told");
+    let mut opts = options(&out, true);
+    opts.imu.calibration.gyro_unit_rad_s = 1f64.to_radians();
+    let s = run::<KittiCapacity>(&mut Altered(d, in_degrees), &opts, |_| {}).unwrap();
+    let imu = s.imu.expect("readings came");
+    assert!(imu.set_aside.is_none(), "{imu:?}");
+    assert_eq!(imu.prior_frames, 19);
+    std::fs::remove_dir_all(&out).unwrap();
 }
 
 /// The readings of an IMU turned 15 degrees further about its z than `[imu]` says.

@@ -35,7 +35,8 @@ pub const GRAVITY_M_S2: f64 = 9.80665;
 pub struct ImuSample {
     /// Seconds.
     pub stamp: f64,
-    /// Angular velocity about x, y, z (rad/s).
+    /// Angular velocity about x, y, z (rad/s, or the unit
+    /// [`ImuCalibration::gyro_unit_rad_s`] says).
     pub gyro: [f64; 3],
     /// Specific force along x, y, z (m/s², or the unit [`ImuCalibration::accel_unit_m_s2`]
     /// says).
@@ -57,6 +58,8 @@ pub struct ImuCalibration {
     /// What one accelerometer unit is in m/s²: 1 for readings in m/s², [`GRAVITY_M_S2`] for
     /// readings in g (as some LiDARs' built-in IMUs give them).
     pub accel_unit_m_s2: f64,
+    /// What one gyro unit is in rad/s: 1 for readings in rad/s, π/180 for degrees a second.
+    pub gyro_unit_rad_s: f64,
 }
 
 impl Default for ImuCalibration {
@@ -69,6 +72,7 @@ impl Default for ImuCalibration {
             gyro_limit_rad_s: 2000f64.to_radians(),
             accel_limit_m_s2: 16.0 * GRAVITY_M_S2,
             accel_unit_m_s2: 1.0,
+            gyro_unit_rad_s: 1.0,
         }
     }
 }
@@ -245,8 +249,9 @@ impl ImuTrack {
             }
         }
         let c = &self.calibration;
+        let gyro = Vec3::from(s.gyro) * c.gyro_unit_rad_s;
         let accel = Vec3::from(s.accel) * c.accel_unit_m_s2;
-        if s.gyro.iter().any(|v| libm::fabs(*v) >= c.gyro_limit_rad_s)
+        if gyro.iter().any(|v| libm::fabs(*v) >= c.gyro_limit_rad_s)
             || accel.iter().any(|v| libm::fabs(*v) >= c.accel_limit_m_s2)
         {
             self.counts.saturated += 1;
@@ -254,7 +259,7 @@ impl ImuTrack {
         let turn = c.lidar_from_imu.rotation;
         let reading = Reading {
             t,
-            gyro: turn * Vec3::from(s.gyro),
+            gyro: turn * gyro,
             accel: turn * accel,
         };
         if self.readings.is_full() {
@@ -596,6 +601,19 @@ mod tests {
             (configured.counts().saturated, plain.counts().saturated),
             (1, 0)
         );
+    }
+
+    #[test]
+    fn a_gyro_in_degrees_a_second_is_taken_in_radians() {
+        let degrees = ImuCalibration {
+            gyro_unit_rad_s: core::f64::consts::PI / 180.0,
+            ..ImuCalibration::default()
+        };
+        // 0.4 rad/s about x given as degrees a second, for a second.
+        let t = steady(100.0, 1.0, [0.4f64.to_degrees(), 0.0, 0.0], degrees);
+        let q = t.rotation(0.0, 0.5).unwrap();
+        let want = UnitQuaternion::from_scaled_axis(Vec3::x() * 0.2);
+        assert!(q.angle_to(&want) < 1e-9, "{q:?}");
     }
 
     #[test]

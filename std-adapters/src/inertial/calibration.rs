@@ -110,8 +110,8 @@ impl CalibrationCheck {
         if turned >= MIN_SCALE_TURN_DEG && !(0.8..=1.25).contains(&ratio) {
             return wrong(format!(
                 "the gyro's angles are {ratio:.2} times the registered ones over {} frames: \
-                 its readings are not in rad/s (57.3 times: degrees per second), or its clock \
-                 is not the LiDAR's",
+                 its readings are not in rad/s (57.3 times: degrees per second, [imu] \
+                 gyro_unit = \"deg/s\"), or its clock is not the LiDAR's",
                 self.pairs
             ));
         }

@@ -628,8 +628,8 @@ impl Inertial {
             let why = format!(
                 "the gyro's rotation missed the registered one by more than {:.1} degrees on {} \
                  frames in a row ({off_deg:.1} degrees over {dt:.3} s, the last): its place or \
-                 clock in [imu] (rotation_rpy_deg, time_offset_s) or its units (rad/s) are not \
-                 right; the IMU is set aside, the motion model carries on",
+                 clock in [imu] (rotation_rpy_deg, time_offset_s) or its units (gyro_unit) are \
+                 not right; the IMU is set aside, the motion model carries on",
                 self.options.bias_max_deg, DISTRUST_AFTER
             );
             let why = match &self.checked {

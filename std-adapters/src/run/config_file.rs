@@ -358,7 +358,7 @@ fn read_window(t: &toml::Table) -> Result<WindowSettings, String> {
     Ok(w)
 }
 
-const IMU_DOCS: [(&str, &str, &str); 7] = [
+const IMU_DOCS: [(&str, &str, &str); 8] = [
     (
         "translation_m",
         "The IMU's position in the LiDAR frame (metres): the lever arm.",
@@ -390,6 +390,11 @@ const IMU_DOCS: [(&str, &str, &str); 7] = [
         "0.2",
     ),
     (
+        "gyro_unit",
+        "The gyro's unit: \"rad/s\" (as sensor_msgs/Imu says) or \"deg/s\".",
+        "\"rad/s\"",
+    ),
+    (
         "accel_unit",
         "The accelerometer's unit: \"m/s2\", \"g\", or \"auto\" (told from the first readings).",
         "\"auto\"",
@@ -409,6 +414,13 @@ fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
             "gyro_limit_deg_s" => c.gyro_limit_rad_s = positive(v).map_err(e)?.to_radians(),
             "accel_limit_m_s2" => c.accel_limit_m_s2 = positive(v).map_err(e)?,
             "bias_gain" => o.bias_gain = positive(v).map_err(e)?.min(1.0),
+            "gyro_unit" => {
+                c.gyro_unit_rad_s = match v.as_str() {
+                    Some("rad/s") => 1.0,
+                    Some("deg/s") => 1f64.to_radians(),
+                    _ => return Err(e(format!("\"rad/s\" or \"deg/s\", found {v}"))),
+                }
+            }
             "accel_unit" => {
                 o.accel_unit = match v.as_str() {
                     Some("auto") => AccelUnit::Auto,
@@ -590,6 +602,11 @@ mod tests {
         assert_eq!(s.imu.accel_unit, AccelUnit::Auto);
         let g = parse("[imu]\naccel_unit = \"g\"\n").unwrap().imu.accel_unit;
         assert_eq!(g, AccelUnit::G);
+        let deg = parse("[imu]\ngyro_unit = \"deg/s\"\n")
+            .unwrap()
+            .imu
+            .calibration;
+        assert_eq!(deg.gyro_unit_rad_s, 1f64.to_radians());
         for (text, want) in [
             (
                 "[imu]\ntranslation_m = [1, 2]\n",
