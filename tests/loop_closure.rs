@@ -342,22 +342,28 @@ fn from_a_saved_map(dir: &Path, input: &Path, map: &str) {
 fn a_second_session_closes_its_loop_against_the_saved_map() {
     let dir = scratch("loop-sessions");
     let block = Drive::town_along(slamesh_sim::town::block_path(), 530, 3);
+    // Each session's scans simulated once (the simulator's scans cost more than the runs),
+    // read by its runs: with and without loop closure, and at the true poses.
     let mut first = block.clone();
     first.poses.truncate(230);
+    let scans: Vec<_> = (0..230).map(|i| first.read(i).unwrap()).collect();
+    let first_folder = write_scan_folder(&dir.join("first-scans"), &scans);
     // The town preset's fixed cells, as the command maps a town.
     let town = slamesh::run::config_file::preset("town").unwrap();
     let mapped = RunOptions {
         config: town,
         ..options(&dir.join("first"), false)
     };
-    run_ok(&mut first, &mapped);
+    run_ok(
+        &mut Input::open(&first_folder, None, Default::default()).unwrap(),
+        &mapped,
+    );
     let mut second = block.clone();
     second.seed = 1_000;
     let over = nalgebra::Translation3::new(0.0, 0.5, 0.0);
     second.poses = block.poses[180..].iter().map(|p| p * over).collect();
     let to_first = block.poses[0].inverse();
     let truth: Vec<Pose> = second.poses.iter().map(|p| to_first * p).collect();
-    // Simulated once (the simulator's scans cost more than the runs), read twice.
     let scans: Vec<_> = (0..truth.len()).map(|i| second.read(i).unwrap()).collect();
     let folder = write_scan_folder(&dir.join("second"), &scans);
     let session = |name: &str, on: bool| {
@@ -380,7 +386,7 @@ fn a_second_session_closes_its_loop_against_the_saved_map() {
         let rms = (off_truth.iter().map(|d| d * d).sum::<f64>() / off_truth.len() as f64).sqrt();
         (summary, rms)
     };
-    let floor_map = mapped_at_truth(&dir, &block, 230, &truth, &folder, &town);
+    let floor_map = mapped_at_truth(&dir, &block, [&first_folder, &folder], &truth, &town);
     let (off, ate_off) = session("off", false);
     let (on, ate_on) = session("on", true);
     let closures = &on.loop_closure.as_ref().unwrap().closures;
@@ -423,14 +429,13 @@ fn a_second_session_closes_its_loop_against_the_saved_map() {
 }
 
 /// The two sessions of [`a_second_session_closes_its_loop_against_the_saved_map`] mapped at
-/// their true poses (`first` frames of `block`, then the scans in `folder` from that map):
-/// the saved map that is the duplicate metric's floor there.
+/// their true poses (the scans in `folders`: the first session's, the start of `block`, then
+/// the second's from that map): the saved map that is the duplicate metric's floor there.
 fn mapped_at_truth(
     dir: &Path,
     block: &Drive,
-    first: usize,
+    folders: [&Path; 2],
     second_truth: &[Pose],
-    folder: &Path,
     config: &Config,
 ) -> std::path::PathBuf {
     let given = |poses: Vec<Pose>| {
@@ -440,24 +445,25 @@ fn mapped_at_truth(
             poses,
         })
     };
+    let open = |folder: &Path| Input::open(folder, None, Default::default()).unwrap();
     let to_first = block.poses[0].inverse();
-    let mut drive = block.clone();
-    drive.poses.truncate(first);
-    let first_truth = drive.poses.iter().map(|p| to_first * p).collect();
+    let mut first = open(folders[0]);
+    let first_truth = (block.poses[..first.frames()].iter())
+        .map(|p| to_first * p)
+        .collect();
     let opts = RunOptions {
         config: *config,
         given_poses: given(first_truth),
         ..options(&dir.join("truth-first"), false)
     };
-    run_ok(&mut drive, &opts);
+    run_ok(&mut first, &opts);
     let opts = RunOptions {
         config: *config,
         map: opts.save_map,
         given_poses: given(second_truth.to_vec()),
         ..options(&dir.join("truth"), false)
     };
-    let mut source = Input::open(folder, None, Default::default()).unwrap();
-    run_ok(&mut source, &opts);
+    run_ok(&mut open(folders[1]), &opts);
     dir.join("truth").join("map.slamesh")
 }
 
