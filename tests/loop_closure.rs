@@ -346,26 +346,21 @@ fn a_second_session_closes_its_loop_against_the_saved_map() {
     // read by its runs: with and without loop closure, and at the true poses.
     let mut first = block.clone();
     first.poses.truncate(230);
-    let scans: Vec<_> = (0..230).map(|i| first.read(i).unwrap()).collect();
-    let first_folder = write_scan_folder(&dir.join("first-scans"), &scans);
+    let first_folder = scanned(&first, &dir.join("first-scans"));
     // The town preset's fixed cells, as the command maps a town.
     let town = slamesh::run::config_file::preset("town").unwrap();
     let mapped = RunOptions {
         config: town,
         ..options(&dir.join("first"), false)
     };
-    run_ok(
-        &mut Input::open(&first_folder, None, Default::default()).unwrap(),
-        &mapped,
-    );
+    run_ok(&mut open(&first_folder), &mapped);
     let mut second = block.clone();
     second.seed = 1_000;
     let over = nalgebra::Translation3::new(0.0, 0.5, 0.0);
     second.poses = block.poses[180..].iter().map(|p| p * over).collect();
     let to_first = block.poses[0].inverse();
     let truth: Vec<Pose> = second.poses.iter().map(|p| to_first * p).collect();
-    let scans: Vec<_> = (0..truth.len()).map(|i| second.read(i).unwrap()).collect();
-    let folder = write_scan_folder(&dir.join("second"), &scans);
+    let folder = scanned(&second, &dir.join("second"));
     let session = |name: &str, on: bool| {
         let mut config = town;
         let s = LoopSettings::default();
@@ -378,8 +373,7 @@ fn a_second_session_closes_its_loop_against_the_saved_map() {
             loop_closure: on.then_some(s),
             ..options(&dir.join(name), false)
         };
-        let mut source = Input::open(&folder, None, Default::default()).unwrap();
-        let summary = run_ok(&mut source, &opts);
+        let summary = run_ok(&mut open(&folder), &opts);
         let off_truth: Vec<f64> = (summary.poses.iter().zip(&truth))
             .map(|((_, p), t)| (p.translation.vector - t.translation.vector).norm())
             .collect();
@@ -393,17 +387,10 @@ fn a_second_session_closes_its_loop_against_the_saved_map() {
     let with_saved = closures.iter().filter(|c| c.in_saved_map).count();
     // Where the second session came back into the first one's streets.
     let back = truth.len() - 60;
-    let twice = |s: &str| {
-        duplicated_near(
-            &loaded(&dir.join(s).join("map.slamesh")),
-            0.3,
-            0.3,
-            &truth[back],
-            60.0,
-        )
-    };
-    let (dup_off, dup_on) = (twice("off"), twice("on"));
-    let floor = duplicated_near(&loaded(&floor_map), 0.3, 0.3, &truth[back], 60.0);
+    let twice = |map: &Path| duplicated_near(&loaded(map), 0.3, 0.3, &truth[back], 60.0);
+    let saved = |s: &str| dir.join(s).join("map.slamesh");
+    let (dup_off, dup_on) = (twice(&saved("off")), twice(&saved("on")));
+    let floor = twice(&floor_map);
     println!(
         "second session, in the first's frame: ATE {ate_off:.3} m without loop closure, \
          {ate_on:.3} m with ({} closures, {with_saved} against the saved map); surfaces mapped \
@@ -428,6 +415,18 @@ fn a_second_session_closes_its_loop_against_the_saved_map() {
     );
 }
 
+/// `d`'s scans, simulated once, written as a folder of `.bin` files in `dir`.
+fn scanned(d: &Drive, dir: &Path) -> std::path::PathBuf {
+    let mut d = d.clone();
+    let scans: Vec<_> = (0..d.frames()).map(|i| d.read(i).unwrap()).collect();
+    write_scan_folder(dir, &scans)
+}
+
+/// A folder of scans as a run reads it.
+fn open(folder: &Path) -> Input {
+    Input::open(folder, None, Default::default()).unwrap()
+}
+
 /// The two sessions of [`a_second_session_closes_its_loop_against_the_saved_map`] mapped at
 /// their true poses (the scans in `folders`: the first session's, the start of `block`, then
 /// the second's from that map): the saved map that is the duplicate metric's floor there.
@@ -445,7 +444,6 @@ fn mapped_at_truth(
             poses,
         })
     };
-    let open = |folder: &Path| Input::open(folder, None, Default::default()).unwrap();
     let to_first = block.poses[0].inverse();
     let mut first = open(folders[0]);
     let first_truth = (block.poses[..first.frames()].iter())
