@@ -303,171 +303,167 @@ impl Config {
 
     /// Checks every field; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let positive = |name: &'static str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(ConfigError {
-                    field: name,
-                    reason: "must be a finite number above 0",
-                })
-            }
-        };
         let f = &self.filter;
-        if !(f.range_min_m.is_finite() && f.range_min_m >= 0.0) {
-            return Err(ConfigError {
-                field: "filter.range_min_m",
-                reason: "must be finite and at least 0",
-            });
-        }
+        check(
+            f.range_min_m.is_finite() && f.range_min_m >= 0.0,
+            "filter.range_min_m",
+            "must be finite and at least 0",
+        )?;
         positive("filter.range_max_m", f.range_max_m)?;
-        if f.range_max_m <= f.range_min_m {
-            return Err(ConfigError {
-                field: "filter.range_max_m",
-                reason: "must exceed filter.range_min_m",
-            });
-        }
-        if !(f.vertical_correction_deg.is_finite() && libm::fabs(f.vertical_correction_deg) <= 5.0)
-        {
-            return Err(ConfigError {
-                field: "filter.vertical_correction_deg",
-                reason: "must be within ±5 degrees",
-            });
-        }
-        positive("grid.cell_size_m", self.grid.cell_size_m)?;
-        if self.grid.cell_size_m < 0.05 || self.grid.cell_size_m > 100.0 {
-            return Err(ConfigError {
-                field: "grid.cell_size_m",
-                reason: "must be between 0.05 and 100 metres",
-            });
-        }
-        if self.grid.min_points < 3 {
-            return Err(ConfigError {
-                field: "grid.min_points",
-                reason: "must be at least 3",
-            });
-        }
+        check(
+            f.range_max_m > f.range_min_m,
+            "filter.range_max_m",
+            "must exceed filter.range_min_m",
+        )?;
+        check(
+            f.vertical_correction_deg.is_finite() && libm::fabs(f.vertical_correction_deg) <= 5.0,
+            "filter.vertical_correction_deg",
+            "must be within ±5 degrees",
+        )?;
+        let g = &self.grid;
+        positive("grid.cell_size_m", g.cell_size_m)?;
+        check(
+            !(g.cell_size_m < 0.05 || g.cell_size_m > 100.0),
+            "grid.cell_size_m",
+            "must be between 0.05 and 100 metres",
+        )?;
+        check(g.min_points >= 3, "grid.min_points", "must be at least 3")?;
         positive("gp.kappa_per_m", self.gp.kappa_per_m)?;
         positive("gp.sensor_noise_m", self.gp.sensor_noise_m)?;
-        let r = &self.register;
-        if r.iterations == 0 || r.iterations > 50 {
-            return Err(ConfigError {
-                field: "register.iterations",
-                reason: "must be 1 to 50",
-            });
-        }
-        if r.initial_iterations == 0 || r.initial_iterations > 50 {
-            return Err(ConfigError {
-                field: "register.initial_iterations",
-                reason: "must be 1 to 50",
-            });
-        }
-        if r.cross_cell_overlap > MAX_REACH {
-            return Err(ConfigError {
-                field: "register.cross_cell_overlap",
-                reason: "must be 0 to 8",
-            });
-        }
-        if r.initial_cross_cell_overlap > MAX_REACH {
-            return Err(ConfigError {
-                field: "register.initial_cross_cell_overlap",
-                reason: "must be 0 to 8",
-            });
-        }
-        positive("register.variance_register", r.variance_register)?;
-        if r.lm.max_iterations == 0 || r.lm.max_iterations > 100 {
-            return Err(ConfigError {
-                field: "register.lm.max_iterations",
-                reason: "must be 1 to 100",
-            });
-        }
-        positive("register.lm.tolerance", r.lm.tolerance)?;
-        positive("register.lm.huber_delta_m", r.lm.huber_delta_m)?;
-        if !(r.lm.degenerate_ratio.is_finite() && (0.0..1.0).contains(&r.lm.degenerate_ratio)) {
-            return Err(ConfigError {
-                field: "register.lm.degenerate_ratio",
-                reason: "must be in [0, 1)",
-            });
-        }
-        if r.lm.min_residuals < 6 {
-            return Err(ConfigError {
-                field: "register.lm.min_residuals",
-                reason: "must be at least 6 (six unknowns)",
-            });
-        }
-        let rc = &r.recovery;
-        if rc.rounds == 0 || rc.rounds > 50 {
-            return Err(ConfigError {
-                field: "register.recovery.rounds",
-                reason: "must be 1 to 50",
-            });
-        }
-        if !(rc.yaw_step_deg.is_finite() && (0.0..=180.0).contains(&rc.yaw_step_deg)) {
-            return Err(ConfigError {
-                field: "register.recovery.yaw_step_deg",
-                reason: "must be 0 to 180 degrees",
-            });
-        }
-        if !(rc.yaw_max_deg.is_finite() && (0.0..=180.0).contains(&rc.yaw_max_deg)) {
-            return Err(ConfigError {
-                field: "register.recovery.yaw_max_deg",
-                reason: "must be 0 to 180 degrees",
-            });
-        }
-        if !(rc.confirm_share.is_finite() && (0.0..=1.0).contains(&rc.confirm_share)) {
-            return Err(ConfigError {
-                field: "register.recovery.confirm_share",
-                reason: "must be in [0, 1]",
-            });
-        }
-        if !(rc.accept_share.is_finite() && (0.0..=rc.confirm_share).contains(&rc.accept_share)) {
-            return Err(ConfigError {
-                field: "register.recovery.accept_share",
-                reason: "must be in [0, register.recovery.confirm_share]",
-            });
-        }
-        positive("register.recovery.settle_m", rc.settle_m)?;
-        positive("register.recovery.settle_deg", rc.settle_deg)?;
-        positive(
-            "register.recovery.polish_huber_delta_m",
-            rc.polish_huber_delta_m,
-        )?;
-        if !(rc.polish_turn_deg.is_finite() && rc.polish_turn_deg >= 0.0) {
-            return Err(ConfigError {
-                field: "register.recovery.polish_turn_deg",
-                reason: "must be finite and at least 0",
-            });
-        }
-        if !(rc.profile_turn_max_deg.is_finite()
-            && (0.0..=180.0).contains(&rc.profile_turn_max_deg))
-        {
-            return Err(ConfigError {
-                field: "register.recovery.profile_turn_max_deg",
-                reason: "must be 0 to 180 degrees",
-            });
-        }
-        if rc.profile_rounds == 0 || rc.profile_rounds > 50 {
-            return Err(ConfigError {
-                field: "register.recovery.profile_rounds",
-                reason: "must be 1 to 50",
-            });
-        }
-        if !(rc.profile_disagree_deg.is_finite() && rc.profile_disagree_deg >= 0.0) {
-            return Err(ConfigError {
-                field: "register.recovery.profile_disagree_deg",
-                reason: "must be finite and at least 0",
-            });
-        }
+        self.register.validate()?;
         positive("map.variance_update", self.map.variance_update)?;
         positive("mesh.variance_show", self.mesh.variance_show)?;
-        if !(self.mesh.max_slope_deg > 0.0 && self.mesh.max_slope_deg <= 90.0) {
-            return Err(ConfigError {
-                field: "mesh.max_slope_deg",
-                reason: "must be above 0 and at most 90 degrees",
-            });
-        }
-        Ok(())
+        check(
+            self.mesh.max_slope_deg > 0.0 && self.mesh.max_slope_deg <= 90.0,
+            "mesh.max_slope_deg",
+            "must be above 0 and at most 90 degrees",
+        )
     }
+}
+
+impl RegisterConfig {
+    /// [`Config::validate`]'s checks of `register` and its sections, in order.
+    fn validate(&self) -> Result<(), ConfigError> {
+        let one_to_50 = "must be 1 to 50";
+        check(
+            (1..=50).contains(&self.iterations),
+            "register.iterations",
+            one_to_50,
+        )?;
+        check(
+            (1..=50).contains(&self.initial_iterations),
+            "register.initial_iterations",
+            one_to_50,
+        )?;
+        check(
+            self.cross_cell_overlap <= MAX_REACH,
+            "register.cross_cell_overlap",
+            "must be 0 to 8",
+        )?;
+        check(
+            self.initial_cross_cell_overlap <= MAX_REACH,
+            "register.initial_cross_cell_overlap",
+            "must be 0 to 8",
+        )?;
+        positive("register.variance_register", self.variance_register)?;
+        let lm = &self.lm;
+        check(
+            (1..=100).contains(&lm.max_iterations),
+            "register.lm.max_iterations",
+            "must be 1 to 100",
+        )?;
+        positive("register.lm.tolerance", lm.tolerance)?;
+        positive("register.lm.huber_delta_m", lm.huber_delta_m)?;
+        check(
+            lm.degenerate_ratio.is_finite() && (0.0..1.0).contains(&lm.degenerate_ratio),
+            "register.lm.degenerate_ratio",
+            "must be in [0, 1)",
+        )?;
+        check(
+            lm.min_residuals >= 6,
+            "register.lm.min_residuals",
+            "must be at least 6 (six unknowns)",
+        )?;
+        self.recovery.validate()
+    }
+}
+
+impl RecoveryConfig {
+    /// [`Config::validate`]'s checks of `register.recovery`, in order.
+    fn validate(&self) -> Result<(), ConfigError> {
+        let degrees = "must be 0 to 180 degrees";
+        let half_turn = |v: f64| v.is_finite() && (0.0..=180.0).contains(&v);
+        let at_least_0 = "must be finite and at least 0";
+        check(
+            (1..=50).contains(&self.rounds),
+            "register.recovery.rounds",
+            "must be 1 to 50",
+        )?;
+        check(
+            half_turn(self.yaw_step_deg),
+            "register.recovery.yaw_step_deg",
+            degrees,
+        )?;
+        check(
+            half_turn(self.yaw_max_deg),
+            "register.recovery.yaw_max_deg",
+            degrees,
+        )?;
+        check(
+            self.confirm_share.is_finite() && (0.0..=1.0).contains(&self.confirm_share),
+            "register.recovery.confirm_share",
+            "must be in [0, 1]",
+        )?;
+        check(
+            self.accept_share.is_finite()
+                && (0.0..=self.confirm_share).contains(&self.accept_share),
+            "register.recovery.accept_share",
+            "must be in [0, register.recovery.confirm_share]",
+        )?;
+        positive("register.recovery.settle_m", self.settle_m)?;
+        positive("register.recovery.settle_deg", self.settle_deg)?;
+        positive(
+            "register.recovery.polish_huber_delta_m",
+            self.polish_huber_delta_m,
+        )?;
+        check(
+            self.polish_turn_deg.is_finite() && self.polish_turn_deg >= 0.0,
+            "register.recovery.polish_turn_deg",
+            at_least_0,
+        )?;
+        check(
+            half_turn(self.profile_turn_max_deg),
+            "register.recovery.profile_turn_max_deg",
+            degrees,
+        )?;
+        check(
+            (1..=50).contains(&self.profile_rounds),
+            "register.recovery.profile_rounds",
+            "must be 1 to 50",
+        )?;
+        check(
+            self.profile_disagree_deg.is_finite() && self.profile_disagree_deg >= 0.0,
+            "register.recovery.profile_disagree_deg",
+            at_least_0,
+        )
+    }
+}
+
+/// `Ok` when `ok`, else `field` refused for `reason`.
+fn check(ok: bool, field: &'static str, reason: &'static str) -> Result<(), ConfigError> {
+    match ok {
+        true => Ok(()),
+        false => Err(ConfigError { field, reason }),
+    }
+}
+
+/// `field` refused unless `v` is finite and above 0.
+fn positive(field: &'static str, v: f64) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && v > 0.0,
+        field,
+        "must be a finite number above 0",
+    )
 }
 
 /// A configuration field and why its value is refused.
