@@ -61,8 +61,7 @@ struct Header {
 }
 
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
-    let (mut names, mut sizes, mut kinds, mut counts) = (vec![], vec![], vec![], vec![]);
-    let (mut width, mut height, mut points) = (None, None, None);
+    let mut declared = Declared::default();
     let mut pos = 0;
     let mut line_no = 0;
     loop {
@@ -81,112 +80,139 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, FileError> {
         let mut words = line.split_whitespace();
         let key = words.next().unwrap_or_default().to_ascii_uppercase();
         let rest: Vec<&str> = words.collect();
-        let numbers = || -> Result<Vec<usize>, FileError> {
+        if key == "DATA" {
+            let data = match rest.first().copied() {
+                Some("ascii") => Data::Ascii,
+                Some("binary") => Data::Binary,
+                Some("binary_compressed") => Data::Compressed,
+                other => {
+                    return Err(bad(format!(
+                        "DATA: unknown encoding {other:?} (ascii, binary, binary_compressed)"
+                    )))
+                }
+            };
+            return declared.header(data, pos).map_err(bad);
+        }
+        declared.take(&key, &rest, line).map_err(bad)?;
+    }
+}
+
+/// What a PCD header's lines before `DATA` declared.
+#[derive(Default)]
+struct Declared {
+    names: Vec<String>,
+    sizes: Vec<usize>,
+    kinds: Vec<u8>,
+    counts: Vec<usize>,
+    width: Option<usize>,
+    height: Option<usize>,
+    points: Option<usize>,
+}
+
+impl Declared {
+    /// Takes one line (`key` upper-cased, then the `rest` of its words), or says why not.
+    fn take(&mut self, key: &str, rest: &[&str], line: &str) -> Result<(), String> {
+        let numbers = || -> Result<Vec<usize>, String> {
             rest.iter()
                 .map(|w| {
                     w.parse::<usize>()
-                        .map_err(|_| bad(format!("{key}: not a count: {w:?}")))
+                        .map_err(|_| format!("{key}: not a count: {w:?}"))
                 })
                 .collect()
         };
-        match key.as_str() {
+        match key {
             "VERSION" | "VIEWPOINT" => {}
-            "FIELDS" | "COLUMNS" => names = rest.iter().map(|s| s.to_string()).collect(),
-            "SIZE" => sizes = numbers()?,
+            "FIELDS" | "COLUMNS" => self.names = rest.iter().map(|s| s.to_string()).collect(),
+            "SIZE" => self.sizes = numbers()?,
             "TYPE" => {
-                kinds = rest
+                self.kinds = rest
                     .iter()
                     .map(|w| match w.as_bytes() {
                         [k @ (b'F' | b'I' | b'U')] => Ok(*k),
-                        _ => Err(bad(format!("TYPE: unknown type {w:?} (F, I or U)"))),
+                        _ => Err(format!("TYPE: unknown type {w:?} (F, I or U)")),
                     })
                     .collect::<Result<_, _>>()?
             }
-            "COUNT" => counts = numbers()?,
-            "WIDTH" => width = numbers()?.first().copied(),
-            "HEIGHT" => height = numbers()?.first().copied(),
-            "POINTS" => points = numbers()?.first().copied(),
-            "DATA" => {
-                let data = match rest.first().copied() {
-                    Some("ascii") => Data::Ascii,
-                    Some("binary") => Data::Binary,
-                    Some("binary_compressed") => Data::Compressed,
-                    other => {
-                        return Err(bad(format!(
-                            "DATA: unknown encoding {other:?} (ascii, binary, binary_compressed)"
-                        )))
-                    }
-                };
-                if names.is_empty() {
-                    return Err(bad("no FIELDS line before DATA".into()));
-                }
-                if counts.is_empty() {
-                    counts = vec![1; names.len()];
-                }
-                if sizes.len() != names.len()
-                    || kinds.len() != names.len()
-                    || counts.len() != names.len()
-                {
-                    return Err(bad(format!(
-                        "FIELDS, SIZE, TYPE and COUNT disagree: {} names, {} sizes, {} types, {} counts",
-                        names.len(),
-                        sizes.len(),
-                        kinds.len(),
-                        counts.len()
-                    )));
-                }
-                let points = match (points, width, height) {
-                    (Some(p), _, _) => p,
-                    (None, Some(w), Some(h)) => w.saturating_mul(h),
-                    _ => return Err(bad("no POINTS, or WIDTH and HEIGHT, before DATA".into())),
-                };
-                let fields = names
-                    .into_iter()
-                    .zip(sizes)
-                    .zip(kinds)
-                    .zip(counts)
-                    .map(|(((name, size), kind), count)| Field {
-                        name,
-                        size,
-                        kind,
-                        count,
-                    })
-                    .collect::<Vec<_>>();
-                // A record's bytes, summed once here, where an overflow is an error.
-                let mut record = 0usize;
-                for f in &fields {
-                    let ok = match f.kind {
-                        b'F' => f.size == 4 || f.size == 8,
-                        _ => matches!(f.size, 1 | 2 | 4 | 8),
-                    };
-                    if !ok || f.count == 0 {
-                        return Err(bad(format!(
-                            "field {}: unsupported size {} / count {}",
-                            f.name, f.size, f.count
-                        )));
-                    }
-                    record = f
-                        .size
-                        .checked_mul(f.count)
-                        .and_then(|b| record.checked_add(b))
-                        .ok_or_else(|| {
-                            bad(format!(
-                                "field {}: a count of {} makes a record too large",
-                                f.name, f.count
-                            ))
-                        })?;
-                }
-                return Ok(Header {
-                    fields,
-                    points,
-                    data,
-                    start: pos,
-                    record,
-                });
-            }
-            _ => return Err(bad(format!("not a PCD header line: {line:?}"))),
+            "COUNT" => self.counts = numbers()?,
+            "WIDTH" => self.width = numbers()?.first().copied(),
+            "HEIGHT" => self.height = numbers()?.first().copied(),
+            "POINTS" => self.points = numbers()?.first().copied(),
+            _ => return Err(format!("not a PCD header line: {line:?}")),
         }
+        Ok(())
     }
+
+    /// The header, its data (`data`) starting at byte `start`: the fields declared, checked
+    /// to agree and to be sizes this reader takes.
+    fn header(mut self, data: Data, start: usize) -> Result<Header, String> {
+        let n = self.names.len();
+        if n == 0 {
+            return Err("no FIELDS line before DATA".into());
+        }
+        if self.counts.is_empty() {
+            self.counts = vec![1; n];
+        }
+        if self.sizes.len() != n || self.kinds.len() != n || self.counts.len() != n {
+            return Err(format!(
+                "FIELDS, SIZE, TYPE and COUNT disagree: {} names, {} sizes, {} types, {} counts",
+                n,
+                self.sizes.len(),
+                self.kinds.len(),
+                self.counts.len()
+            ));
+        }
+        let points = match (self.points, self.width, self.height) {
+            (Some(p), _, _) => p,
+            (None, Some(w), Some(h)) => w.saturating_mul(h),
+            _ => return Err("no POINTS, or WIDTH and HEIGHT, before DATA".into()),
+        };
+        let fields = (self.names.into_iter().zip(self.sizes))
+            .zip(self.kinds.into_iter().zip(self.counts))
+            .map(|((name, size), (kind, count))| Field {
+                name,
+                size,
+                kind,
+                count,
+            })
+            .collect::<Vec<_>>();
+        let record = record_bytes(&fields)?;
+        Ok(Header {
+            fields,
+            points,
+            data,
+            start,
+            record,
+        })
+    }
+}
+
+/// A record's bytes, summed once here, where an overflow is an error; a field of a size
+/// this reader does not take, or of no values, is one too.
+fn record_bytes(fields: &[Field]) -> Result<usize, String> {
+    let mut record = 0usize;
+    for f in fields {
+        let ok = match f.kind {
+            b'F' => f.size == 4 || f.size == 8,
+            _ => matches!(f.size, 1 | 2 | 4 | 8),
+        };
+        if !ok || f.count == 0 {
+            return Err(format!(
+                "field {}: unsupported size {} / count {}",
+                f.name, f.size, f.count
+            ));
+        }
+        record = f
+            .size
+            .checked_mul(f.count)
+            .and_then(|b| record.checked_add(b))
+            .ok_or_else(|| {
+                format!(
+                    "field {}: a count of {} makes a record too large",
+                    f.name, f.count
+                )
+            })?;
+    }
+    Ok(record)
 }
 
 /// Reads the points of a PCD file (in the sensor frame, as stored).
