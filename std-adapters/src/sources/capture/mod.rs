@@ -71,19 +71,86 @@ struct Interface {
     offset_s: i64,
 }
 
-/// A capture being read.
-pub struct Capture {
-    path: PathBuf,
-    reader: Box<dyn PcapReaderIterator + Send>,
+/// What the blocks read so far say of the frames to come, and the last frame's bytes.
+#[derive(Debug, Default)]
+struct Framing {
     /// Legacy format: its link type and whether times are in nanoseconds.
     legacy: Option<(i32, bool)>,
     /// pcapng: the current section's interfaces.
     interfaces: Vec<Interface>,
     /// pcapng: whether the current section is big-endian (`None` before the first section).
     ng_big_endian: Option<bool>,
-    network: Network,
     /// The last frame's bytes (copied out of the reading buffer).
     payload: Vec<u8>,
+}
+
+impl Framing {
+    /// Takes one block: a frame's link type, time and whether it was captured whole (its
+    /// bytes copied to `payload`), or `None` for a block that describes the ones to come (or
+    /// a frame of an interface never described).
+    fn frame(&mut self, block: PcapBlockOwned<'_>) -> Option<(i32, f64, bool)> {
+        match block {
+            PcapBlockOwned::LegacyHeader(h) => {
+                self.legacy = Some((h.network.0, h.is_nanosecond_precision()));
+                None
+            }
+            PcapBlockOwned::Legacy(b) => self.legacy.map(|(link, nanos)| {
+                let frac = if nanos { 1e-9 } else { 1e-6 };
+                let t = f64::from(b.ts_sec) + f64::from(b.ts_usec) * frac;
+                (
+                    link,
+                    t,
+                    copy(&mut self.payload, b.data, b.caplen, b.origlen),
+                )
+            }),
+            PcapBlockOwned::NG(Block::SectionHeader(h)) => {
+                self.interfaces.clear();
+                self.ng_big_endian = Some(h.big_endian());
+                None
+            }
+            PcapBlockOwned::NG(Block::InterfaceDescription(i)) => {
+                self.interfaces.push(Interface {
+                    link: i.linktype.0,
+                    units_per_s: i.ts_resolution().unwrap_or(1_000_000),
+                    offset_s: i.ts_offset(),
+                });
+                None
+            }
+            PcapBlockOwned::NG(Block::EnhancedPacket(p)) => {
+                let i = usize::try_from(p.if_id).ok();
+                i.and_then(|i| self.interfaces.get(i)).copied().map(|i| {
+                    let ticks = (u64::from(p.ts_high) << 32) | u64::from(p.ts_low);
+                    let t = i.offset_s as f64 + ticks as f64 / i.units_per_s as f64;
+                    let whole = !p.truncated();
+                    (
+                        i.link,
+                        t,
+                        copy_ng(&mut self.payload, p.packet_data(), whole),
+                    )
+                })
+            }
+            PcapBlockOwned::NG(Block::SimplePacket(p)) => {
+                // No time of its own: the previous one's stands in (0 first).
+                self.interfaces.first().copied().map(|i| {
+                    let whole = p.data.len() >= p.origlen as usize;
+                    (
+                        i.link,
+                        0.0,
+                        copy_ng(&mut self.payload, p.packet_data(), whole),
+                    )
+                })
+            }
+            PcapBlockOwned::NG(_) => None,
+        }
+    }
+}
+
+/// A capture being read.
+pub struct Capture {
+    path: PathBuf,
+    reader: Box<dyn PcapReaderIterator + Send>,
+    framing: Framing,
+    network: Network,
     /// The last datagram's payload.
     datagram: Vec<u8>,
     stats: CaptureStats,
@@ -123,11 +190,8 @@ impl Capture {
         Ok(Self {
             path: path.to_path_buf(),
             reader,
-            legacy: None,
-            interfaces: Vec::new(),
-            ng_big_endian: None,
+            framing: Framing::default(),
             network: Network::default(),
-            payload: Vec::new(),
             datagram: Vec::new(),
             stats: CaptureStats::default(),
         })
@@ -157,62 +221,7 @@ impl Capture {
             }
             // What the block gave: a frame (its link type and time), or nothing to hand out.
             let (consumed, frame) = match self.reader.next() {
-                Ok((consumed, block)) => {
-                    let frame = match block {
-                        PcapBlockOwned::LegacyHeader(h) => {
-                            self.legacy = Some((h.network.0, h.is_nanosecond_precision()));
-                            None
-                        }
-                        PcapBlockOwned::Legacy(b) => self.legacy.map(|(link, nanos)| {
-                            let frac = if nanos { 1e-9 } else { 1e-6 };
-                            let t = f64::from(b.ts_sec) + f64::from(b.ts_usec) * frac;
-                            (
-                                link,
-                                t,
-                                copy(&mut self.payload, b.data, b.caplen, b.origlen),
-                            )
-                        }),
-                        PcapBlockOwned::NG(Block::SectionHeader(h)) => {
-                            self.interfaces.clear();
-                            self.ng_big_endian = Some(h.big_endian());
-                            None
-                        }
-                        PcapBlockOwned::NG(Block::InterfaceDescription(i)) => {
-                            self.interfaces.push(Interface {
-                                link: i.linktype.0,
-                                units_per_s: i.ts_resolution().unwrap_or(1_000_000),
-                                offset_s: i.ts_offset(),
-                            });
-                            None
-                        }
-                        PcapBlockOwned::NG(Block::EnhancedPacket(p)) => {
-                            let i = usize::try_from(p.if_id).ok();
-                            i.and_then(|i| self.interfaces.get(i)).copied().map(|i| {
-                                let ticks = (u64::from(p.ts_high) << 32) | u64::from(p.ts_low);
-                                let t = i.offset_s as f64 + ticks as f64 / i.units_per_s as f64;
-                                let whole = !p.truncated();
-                                (
-                                    i.link,
-                                    t,
-                                    copy_ng(&mut self.payload, p.packet_data(), whole),
-                                )
-                            })
-                        }
-                        PcapBlockOwned::NG(Block::SimplePacket(p)) => {
-                            // No time of its own: the previous one's stands in (0 first).
-                            self.interfaces.first().copied().map(|i| {
-                                let whole = p.data.len() >= p.origlen as usize;
-                                (
-                                    i.link,
-                                    0.0,
-                                    copy_ng(&mut self.payload, p.packet_data(), whole),
-                                )
-                            })
-                        }
-                        PcapBlockOwned::NG(_) => None,
-                    };
-                    (consumed, Ok(frame))
-                }
+                Ok((consumed, block)) => (consumed, Ok(self.framing.frame(block))),
                 Err(PcapError::Eof) => return Ok(None),
                 Err(PcapError::Incomplete(_)) => (0, Err(None)),
                 Err(e) => (0, Err(Some(format!("{e:?}")))),
@@ -235,30 +244,7 @@ impl Capture {
                 self.stats.truncated += 1;
                 continue;
             }
-            // The frame is in `self.payload`; the datagram may be a reassembled one, in the
-            // network's buffer: its payload is copied to `self.datagram`.
-            let frame_bytes = std::mem::take(&mut self.payload);
-            let ports = match self.network.udp(link, &frame_bytes) {
-                Ok(u) => {
-                    self.datagram.clear();
-                    self.datagram.extend_from_slice(u.payload);
-                    Some((u.src_port, u.dst_port))
-                }
-                Err(Skip::Fragment) => None,
-                Err(Skip::Truncated | Skip::Malformed) => {
-                    self.stats.truncated += 1;
-                    None
-                }
-                Err(Skip::LinkType(_)) => {
-                    self.stats.unknown_link += 1;
-                    None
-                }
-                Err(Skip::NotIpv4 | Skip::NotUdp) => {
-                    self.stats.other_traffic += 1;
-                    None
-                }
-            };
-            self.payload = frame_bytes;
+            let ports = self.udp_of(link);
             if let Some((src_port, dst_port)) = ports {
                 self.stats.datagrams += 1;
                 return Ok(Some(Datagram {
@@ -273,13 +259,44 @@ impl Capture {
         }
     }
 
+    /// The ports of the UDP datagram in the last frame (its payload copied to
+    /// `self.datagram`), counting what is not one; `None` also for a fragment the network
+    /// holds until the datagram is whole.
+    fn udp_of(&mut self, link: i32) -> Option<(u16, u16)> {
+        // The frame is in the framing's payload; the datagram may be a reassembled one, in
+        // the network's buffer: its payload is copied to `self.datagram`.
+        let frame_bytes = std::mem::take(&mut self.framing.payload);
+        let ports = match self.network.udp(link, &frame_bytes) {
+            Ok(u) => {
+                self.datagram.clear();
+                self.datagram.extend_from_slice(u.payload);
+                Some((u.src_port, u.dst_port))
+            }
+            Err(Skip::Fragment) => None,
+            Err(Skip::Truncated | Skip::Malformed) => {
+                self.stats.truncated += 1;
+                None
+            }
+            Err(Skip::LinkType(_)) => {
+                self.stats.unknown_link += 1;
+                None
+            }
+            Err(Skip::NotIpv4 | Skip::NotUdp) => {
+                self.stats.other_traffic += 1;
+                None
+            }
+        };
+        self.framing.payload = frame_bytes;
+        ports
+    }
+
     /// In a pcapng section, passes over the next block when it is none of the four this reader
     /// uses (section header, interface description, enhanced and simple packet) without
     /// parsing it: `true` when one was passed over. (The parser's own reading of some of the
     /// other blocks can overflow on a damaged length; found by fuzzing pcap-parser 0.17.0.)
     fn skip_other_block(&mut self) -> Result<bool, FileError> {
         const USED: [u32; 4] = [0x0a0d_0d0a, 0x0000_0001, 0x0000_0006, 0x0000_0003];
-        let Some(big) = self.ng_big_endian else {
+        let Some(big) = self.framing.ng_big_endian else {
             return Ok(false);
         };
         let data = self.reader.data();
