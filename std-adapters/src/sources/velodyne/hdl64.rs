@@ -156,84 +156,17 @@ impl Hdl64 {
         time_s: f64,
         mut sink: impl FnMut(Firing),
     ) -> Result<ReturnMode, PacketError> {
-        if payload.len() != DATA_PACKET_BYTES {
-            return Err(PacketError::Size(payload.len()));
-        }
-        let word = |at: usize| u16::from_le_bytes([payload[at], payload[at + 1]]);
-        for b in 0..BLOCKS {
-            if !matches!(word(b * BLOCK_BYTES), 0xeeff | 0xddff) {
-                return Err(PacketError::BlockFlag(b));
-            }
-            if word(b * BLOCK_BYTES + 2) >= 36_000 {
-                return Err(PacketError::Azimuth(b));
-            }
-        }
-        let az = |b: usize| word(b * BLOCK_BYTES + 2);
+        check_blocks(payload)?;
+        let az = |b: usize| word(payload, b * BLOCK_BYTES + 2);
         let dual = az(0) == az(2);
         let turned = (i32::from(az(BLOCKS - 1)) - i32::from(az(0))).rem_euclid(36_000) as f32;
         let last = if dual { (BLOCKS - 1) / 2 } else { BLOCKS - 1 };
         let rate = turned / (self.timing[last][0] - self.timing[0][0]);
-        let channel = |b: usize, j: usize| {
-            let at = b * BLOCK_BYTES + 4 + 3 * j;
-            (word(at), payload[at + 2])
-        };
         for b in 0..BLOCKS {
             // Dual mode: blocks 0 and 1 of each four hold the strongest returns, 2 and 3 the
             // last ones of the same firing.
-            if dual && b % 4 > 1 {
-                continue;
-            }
-            let bank = if word(b * BLOCK_BYTES) == 0xeeff {
-                0
-            } else {
-                32
-            };
-            let (t0, row) = if dual {
-                (self.timing[b / 4 * 2][0], b / 4 * 2 + b % 2)
-            } else {
-                (self.timing[b / 2 * 2][0], b)
-            };
-            let base = az(b);
-            let [cos_b, sin_b] = cos_sin(u32::from(base));
-            for j in 0..CHANNELS {
-                let strongest = channel(b, j);
-                let last = if dual { channel(b + 2, j) } else { (0, 0) };
-                if strongest.0 == 0 && last.0 == 0 {
-                    continue;
-                }
-                let time = self.timing[row][j];
-                // Rounded as `lround` rounds, as the sensor reports azimuths.
-                let turned = (f32::from(base) + rate * (time - t0) + 36_000.5) as u32 - 36_000;
-                let [c, s] = match self.deltas.get((turned - u32::from(base)) as usize) {
-                    // cos(b + d) and sin(b + d).
-                    Some(&[cd, sd]) => [cos_b * cd - sin_b * sd, sin_b * cd + cos_b * sd],
-                    None => cos_sin(turned % 36_000),
-                };
-                let (c, s) = (c as f32, s as f32);
-                let laser = bank + j;
-                let time_s = time_s + f64::from(time);
-                let mut emit = |(d, intensity): (u16, u8), ret: Return| {
-                    if d != 0 {
-                        sink(Firing {
-                            point: self.xyz(&self.lasers[laser], c, s, d),
-                            time_s,
-                            // The firing's azimuth, for cutting turns: both banks of a firing
-                            // sweep the same angles, so a turn is cut between whole firings.
-                            azimuth: base,
-                            laser: laser as u8,
-                            intensity,
-                            ret,
-                        });
-                    }
-                };
-                if !dual {
-                    emit(strongest, Return::Strongest);
-                } else if strongest.0 == last.0 {
-                    emit(strongest, Return::Both);
-                } else {
-                    emit(last, Return::Last);
-                    emit(strongest, Return::Strongest);
-                }
+            if !(dual && b % 4 > 1) {
+                self.decode_block(payload, b, dual, rate, time_s, &mut sink);
             }
         }
         Ok(if dual {
@@ -241,6 +174,76 @@ impl Hdl64 {
         } else {
             ReturnMode::Strongest
         })
+    }
+
+    /// Hands `sink` the firings of block `b` (with its last returns' block in dual mode),
+    /// the sensor turning at `rate` (hundredths of a degree a second).
+    #[inline]
+    fn decode_block(
+        &self,
+        payload: &[u8],
+        b: usize,
+        dual: bool,
+        rate: f32,
+        time_s: f64,
+        sink: &mut impl FnMut(Firing),
+    ) {
+        let channel = |b: usize, j: usize| {
+            let at = b * BLOCK_BYTES + 4 + 3 * j;
+            (word(payload, at), payload[at + 2])
+        };
+        let bank = if word(payload, b * BLOCK_BYTES) == 0xeeff {
+            0
+        } else {
+            32
+        };
+        let (t0, row) = if dual {
+            (self.timing[b / 4 * 2][0], b / 4 * 2 + b % 2)
+        } else {
+            (self.timing[b / 2 * 2][0], b)
+        };
+        let base = word(payload, b * BLOCK_BYTES + 2);
+        let [cos_b, sin_b] = cos_sin(u32::from(base));
+        for j in 0..CHANNELS {
+            let strongest = channel(b, j);
+            let last = if dual { channel(b + 2, j) } else { (0, 0) };
+            if strongest.0 == 0 && last.0 == 0 {
+                continue;
+            }
+            let time = self.timing[row][j];
+            // Rounded as `lround` rounds, as the sensor reports azimuths.
+            let turned = (f32::from(base) + rate * (time - t0) + 36_000.5) as u32 - 36_000;
+            let [c, s] = match self.deltas.get((turned - u32::from(base)) as usize) {
+                // cos(b + d) and sin(b + d).
+                Some(&[cd, sd]) => [cos_b * cd - sin_b * sd, sin_b * cd + cos_b * sd],
+                None => cos_sin(turned % 36_000),
+            };
+            let (c, s) = (c as f32, s as f32);
+            let laser = bank + j;
+            let time_s = time_s + f64::from(time);
+            let mut emit = |(d, intensity): (u16, u8), ret: Return| {
+                if d != 0 {
+                    sink(Firing {
+                        point: self.xyz(&self.lasers[laser], c, s, d),
+                        time_s,
+                        // The firing's azimuth, for cutting turns: both banks of a firing
+                        // sweep the same angles, so a turn is cut between whole firings.
+                        azimuth: base,
+                        laser: laser as u8,
+                        intensity,
+                        ret,
+                    });
+                }
+            };
+            if !dual {
+                emit(strongest, Return::Strongest);
+            } else if strongest.0 == last.0 {
+                emit(strongest, Return::Both);
+            } else {
+                emit(last, Return::Last);
+                emit(strongest, Return::Strongest);
+            }
+        }
     }
 
     /// The point (sensor frame, metres) of laser `l` at the azimuth whose cos and sin are
@@ -274,6 +277,29 @@ impl Hdl64 {
         let z = (measured + dz) * l.sin_v + l.vert;
         [y, -x, z]
     }
+}
+
+/// The little-endian 16-bit word at byte `at`.
+#[inline(always)]
+fn word(payload: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([payload[at], payload[at + 1]])
+}
+
+/// A data packet's size, and each block's flag and azimuth: an error names the first that is
+/// not an HDL-64E's.
+fn check_blocks(payload: &[u8]) -> Result<(), PacketError> {
+    if payload.len() != DATA_PACKET_BYTES {
+        return Err(PacketError::Size(payload.len()));
+    }
+    for b in 0..BLOCKS {
+        if !matches!(word(payload, b * BLOCK_BYTES), 0xeeff | 0xddff) {
+            return Err(PacketError::BlockFlag(b));
+        }
+        if word(payload, b * BLOCK_BYTES + 2) >= 36_000 {
+            return Err(PacketError::Azimuth(b));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
