@@ -155,6 +155,19 @@ pub struct Reading {
     accel: Vec3,
 }
 
+impl Reading {
+    /// A reading as a track keeps it: its time on the LiDAR's clock, the gyro (rad/s) and the
+    /// specific force (m/s²) in the LiDAR's axes ([`ImuTrack::held`] gives them back).
+    pub fn new(t: f64, gyro: Vec3, accel: Vec3) -> Self {
+        Reading { t, gyro, accel }
+    }
+
+    /// Its time, gyro and specific force, as [`Reading::new`] takes them.
+    pub fn parts(&self) -> (f64, Vec3, Vec3) {
+        (self.t, self.gyro, self.accel)
+    }
+}
+
 impl Empty for Reading {
     /// An empty slot, for a `static` buffer.
     const EMPTY: Reading = Reading {
@@ -269,6 +282,39 @@ impl ImuTrack {
         if self.readings.push(reading).is_ok() {
             self.counts.taken += 1;
         }
+        Ok(())
+    }
+
+    /// The readings held, oldest first.
+    pub fn held(&self) -> &[Reading] {
+        &self.readings
+    }
+
+    /// Puts back what a track held (its readings, [`held`](Self::held), its bias, sampling
+    /// period, counts and accelerometer unit), as a resumed run does: what it held before is
+    /// dropped. Readings past its capacity, or not in time order, are refused, saying which
+    /// (nothing held).
+    pub fn restore(
+        &mut self,
+        held: &[Reading],
+        bias: Vec3,
+        period_s: f64,
+        counts: ImuCounts,
+        accel_unit_m_s2: f64,
+    ) -> Result<(), &'static str> {
+        self.readings.clear();
+        if held.len() > self.readings.capacity() {
+            return Err("more readings than the track holds");
+        }
+        if !held.windows(2).all(|w| w[0].t < w[1].t) {
+            return Err("readings out of time order");
+        }
+        for r in held {
+            // Within the capacity: cannot fail.
+            let _ = self.readings.push(*r);
+        }
+        (self.bias, self.period_s, self.counts) = (bias, period_s, counts);
+        self.calibration.accel_unit_m_s2 = accel_unit_m_s2;
         Ok(())
     }
 
@@ -601,6 +647,30 @@ mod tests {
             (configured.counts().saturated, plain.counts().saturated),
             (1, 0)
         );
+    }
+
+    #[test]
+    fn a_restored_track_holds_what_the_first_held() {
+        let mut a = steady(100.0, 0.5, [0.1, 0.0, 0.2], ImuCalibration::default());
+        a.set_accel_unit(GRAVITY_M_S2);
+        let mut b = ImuTrack::new(64, ImuCalibration::default());
+        let bias = Vec3::new(0.01, 0.0, -0.02);
+        let held = a.held().to_vec();
+        b.restore(&held, bias, a.period_s(), a.counts(), GRAVITY_M_S2)
+            .unwrap();
+        assert_eq!(b.held(), a.held());
+        assert_eq!(
+            (b.bias(), b.period_s(), b.counts()),
+            (bias, a.period_s(), a.counts())
+        );
+        assert_eq!(b.calibration().accel_unit_m_s2, GRAVITY_M_S2);
+        // Too many for its capacity, or out of order: refused, nothing held.
+        let mut small = ImuTrack::new(8, ImuCalibration::default());
+        assert!(small.restore(&held, bias, 0.01, a.counts(), 1.0).is_err());
+        let mut turned = held[..4].to_vec();
+        turned.reverse();
+        assert!(b.restore(&turned, bias, 0.01, a.counts(), 1.0).is_err());
+        assert!(b.held().is_empty());
     }
 
     #[test]

@@ -7,8 +7,10 @@
 //! |---|---|
 //! | errors naming the file, line and reason | [`error`] |
 //! | write-then-rename | [`atomic`] |
+//! | little-endian records of a run's state | [`le`] |
 
 pub mod atomic;
 pub mod error;
+pub mod le;
 
 pub use error::FileError;

@@ -16,9 +16,9 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
+use crate::io::le::{put_f64, put_pose, put_str, put_u32, put_u64, Decoder};
 use crate::outputs::mesh_spool::MeshCounts;
 use crate::run::timing::StageMs;
-use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::facing::Facing;
 use slamesh_core::lattice::VERTICES;
@@ -241,103 +241,6 @@ fn read_map(d: &mut Decoder, map: &mut MeshMap) -> Result<(), String> {
     Ok(())
 }
 
-fn put_u32(e: &mut Vec<u8>, v: u32) {
-    e.extend_from_slice(&v.to_le_bytes());
-}
-
-fn put_u64(e: &mut Vec<u8>, v: u64) {
-    e.extend_from_slice(&v.to_le_bytes());
-}
-
-fn put_f64(e: &mut Vec<u8>, v: f64) {
-    e.extend_from_slice(&v.to_le_bytes());
-}
-
-fn put_str(e: &mut Vec<u8>, s: &str) {
-    put_u32(e, s.len() as u32);
-    e.extend_from_slice(s.as_bytes());
-}
-
-/// Translation, then the quaternion `(i, j, k, w)`: 56 bytes, exact.
-fn put_pose(e: &mut Vec<u8>, p: &Pose) {
-    let t = &p.translation.vector;
-    let q = p.rotation.quaternion();
-    for v in [t.x, t.y, t.z, q.i, q.j, q.k, q.w] {
-        put_f64(e, v);
-    }
-}
-
-/// Checked reads from the front of a byte slice.
-struct Decoder<'a> {
-    bytes: &'a [u8],
-}
-
-impl<'a> Decoder<'a> {
-    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
-        if self.bytes.len() < n {
-            return Err("the file ends early (truncated)".into());
-        }
-        let (head, rest) = self.bytes.split_at(n);
-        self.bytes = rest;
-        Ok(head)
-    }
-
-    fn array<const K: usize>(&mut self) -> Result<[u8; K], String> {
-        let mut a = [0u8; K];
-        a.copy_from_slice(self.take(K)?);
-        Ok(a)
-    }
-
-    fn u8(&mut self) -> Result<u8, String> {
-        Ok(self.array::<1>()?[0])
-    }
-
-    fn u32(&mut self) -> Result<u32, String> {
-        Ok(u32::from_le_bytes(self.array()?))
-    }
-
-    fn i32(&mut self) -> Result<i32, String> {
-        Ok(i32::from_le_bytes(self.array()?))
-    }
-
-    fn u64(&mut self) -> Result<u64, String> {
-        Ok(u64::from_le_bytes(self.array()?))
-    }
-
-    fn f64(&mut self) -> Result<f64, String> {
-        Ok(f64::from_le_bytes(self.array()?))
-    }
-
-    /// A count of items of at least `min_bytes` each: refused when the rest of the file
-    /// cannot hold them (so a damaged count never sizes an allocation).
-    fn count(&mut self, min_bytes: usize) -> Result<usize, String> {
-        let n = self.u64()?;
-        if n.saturating_mul(min_bytes as u64) > self.bytes.len() as u64 {
-            return Err(format!("a count of {n} runs past the end of the file"));
-        }
-        Ok(n as usize)
-    }
-
-    fn string(&mut self) -> Result<String, String> {
-        let n = self.u32()? as usize;
-        String::from_utf8(self.take(n)?.to_vec()).map_err(|_| "a text is not UTF-8".into())
-    }
-
-    fn pose(&mut self) -> Result<Pose, String> {
-        let mut v = [0.0; 7];
-        for x in &mut v {
-            *x = self.f64()?;
-        }
-        if !v.iter().all(|x| x.is_finite()) {
-            return Err("a pose is not finite".into());
-        }
-        Ok(Pose::from_parts(
-            Translation3::new(v[0], v[1], v[2]),
-            UnitQuaternion::new_unchecked(Quaternion::new(v[6], v[3], v[4], v[5])),
-        ))
-    }
-}
-
 /// What identifies a run for resuming: its input, frames, capacity, configuration, window and
 /// given poses (the thread count is left out: it does not change the results).
 pub fn fingerprint<C: slamesh_core::Capacity>(
@@ -358,6 +261,7 @@ pub fn fingerprint<C: slamesh_core::Capacity>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
     use slamesh_core::lattice::Lattice;
 
     fn sample() -> (Progress, MeshMap) {
