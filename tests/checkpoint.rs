@@ -5,11 +5,13 @@
 
 use crate::common;
 
-use common::{scratch, slamesh_command, slamesh_run, slamesh_run_ok, write_bin};
+use common::{
+    scratch, slamesh_command, slamesh_run, slamesh_run_ok, write_bin, write_folder_with_imu,
+};
 use slamesh::formats::ply::read_ply_mesh;
 use slamesh::run::FrameSource;
-use slamesh_sim::Drive;
-use std::path::Path;
+use slamesh_sim::{Drive, ImuModel, Vibration};
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 const FRAMES: usize = 24;
@@ -34,19 +36,13 @@ fn triangles(path: &Path) -> Vec<[[u32; 3]; 3]> {
     t
 }
 
-#[test]
-fn a_killed_run_resumes_to_the_same_outputs() {
-    let dir = scratch("checkpoint");
-    let input = dir.join("scans");
-    std::fs::create_dir_all(&input).unwrap();
-    let mut drive = Drive::town(FRAMES, 3);
-    for i in 0..FRAMES {
-        write_bin(&input.join(format!("{i:06}.bin")), &drive.read(i).unwrap());
-    }
+/// Runs the scans in `input` into `dir/whole`, then into `dir/cut` with a checkpoint every 3
+/// frames, kills that run (SIGKILL) after its second checkpoint and resumes it, both with
+/// `options`. Returns the two output folders and a copy of the checkpoint the kill left;
+/// checks that the two wrote the same trajectories.
+fn whole_and_resumed(input: &Path, dir: &Path, options: &[&str]) -> (PathBuf, PathBuf, PathBuf) {
     let (whole, cut) = (dir.join("whole"), dir.join("cut"));
-    slamesh_run_ok(&input, &whole, &OPTIONS);
-
-    // Start the same run with checkpoints every 3 frames and kill it after the second.
+    slamesh_run_ok(input, &whole, options);
     let mut args = vec![
         "run",
         input.to_str().unwrap(),
@@ -56,7 +52,7 @@ fn a_killed_run_resumes_to_the_same_outputs() {
         "--checkpoint-every",
         "3",
     ];
-    args.extend_from_slice(&OPTIONS);
+    args.extend_from_slice(options);
     let mut child = slamesh_command(&args)
         .stderr(std::process::Stdio::null())
         .spawn()
@@ -83,10 +79,9 @@ fn a_killed_run_resumes_to_the_same_outputs() {
         !cut.join("report.json").exists(),
         "the run finished before it was killed"
     );
-
     let mut resume = vec!["--checkpoint-every", "3", "--resume"];
-    resume.extend_from_slice(&OPTIONS);
-    slamesh_run_ok(&input, &cut, &resume);
+    resume.extend_from_slice(options);
+    slamesh_run_ok(input, &cut, &resume);
     for name in ["poses_kitti.txt", "poses_tum.txt"] {
         assert_eq!(
             std::fs::read_to_string(whole.join(name)).unwrap(),
@@ -94,6 +89,20 @@ fn a_killed_run_resumes_to_the_same_outputs() {
             "{name} differs after resuming"
         );
     }
+    (whole, cut, saved)
+}
+
+#[test]
+fn a_killed_run_resumes_to_the_same_outputs() {
+    let dir = scratch("checkpoint");
+    let input = dir.join("scans");
+    std::fs::create_dir_all(&input).unwrap();
+    let mut drive = Drive::town(FRAMES, 3);
+    for i in 0..FRAMES {
+        write_bin(&input.join(format!("{i:06}.bin")), &drive.read(i).unwrap());
+    }
+    let (whole, cut, saved) = whole_and_resumed(&input, &dir, &OPTIONS);
+    let checkpoint = cut.join("checkpoint.bin");
     let mesh = triangles(&whole.join("mesh.ply"));
     assert!(mesh.len() > 1000, "a real mesh: {} triangles", mesh.len());
     assert_eq!(mesh, triangles(&cut.join("mesh.ply")));
@@ -110,6 +119,8 @@ fn a_killed_run_resumes_to_the_same_outputs() {
     assert!(!checkpoint.exists(), "a finished run leaves no checkpoint");
 
     // Nothing to resume now; and the checkpoint of this run does not resume another one.
+    let mut resume = vec!["--checkpoint-every", "3", "--resume"];
+    resume.extend_from_slice(&OPTIONS);
     let o = slamesh_run(&input, &cut, &resume);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
@@ -123,4 +134,29 @@ fn a_killed_run_resumes_to_the_same_outputs() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("checkpoint is of another run"), "{err}");
+}
+
+/// A run with an IMU (the shaken car, its readings in `imu0/data.csv` beside the scans) killed
+/// and resumed writes what it writes uninterrupted: the readings held, the gyro's bias and the
+/// checks carry across the checkpoint.
+#[test]
+fn a_killed_run_with_an_imu_resumes_to_the_same_outputs() {
+    let dir = scratch("checkpoint-imu");
+    let drive = Drive::car(FRAMES, 1)
+        .shaken(Vibration::rough_road())
+        .with_imu(ImuModel::mems(200.0, 7));
+    let input = write_folder_with_imu(&drive, &dir);
+    let (whole, cut, _) = whole_and_resumed(&input, &dir, &["--threads", "1"]);
+    assert_eq!(
+        triangles(&whole.join("mesh.ply")),
+        triangles(&cut.join("mesh.ply"))
+    );
+    let imu = |out: &Path| {
+        let text = std::fs::read_to_string(out.join("report.json")).unwrap();
+        let report: serde_json::Value = serde_json::from_str(&text).unwrap();
+        report["summary"]["imu"].clone()
+    };
+    let (a, b) = (imu(&whole), imu(&cut));
+    assert_eq!(a["prior_frames"], FRAMES - 1, "{a}");
+    assert_eq!(a, b);
 }

@@ -9,7 +9,7 @@
 //! - a LiDAR mounted tilted: with its IMU the map is levelled, up is up in every pose, and the
 //!   navigation map says gravity gave it.
 
-use crate::common::{scratch, slamesh_run_ok, write_bin};
+use crate::common::{scratch, slamesh_run_ok, write_folder_with_imu};
 use nalgebra::{Translation3, UnitQuaternion};
 use slamesh::eval::odometry::consecutive_errors;
 use slamesh::formats::trajectory;
@@ -18,7 +18,6 @@ use slamesh::run::{run, FrameSource, RunOptions, Sample, Summary};
 use slamesh_core::{Capacity, KittiCapacity, Lidar32Capacity, Point, Pose};
 use slamesh_sim::town::Carried;
 use slamesh_sim::{Drive, ImuModel, Vibration};
-use std::fmt::Write;
 
 /// The IMU's place on the LiDAR: 0.3 m off, turned 90 degrees about z.
 fn mount() -> Pose {
@@ -262,38 +261,11 @@ fn with_an_imu_fast_turns_need_no_recovery() {
     assert!(step < 0.02, "{step}");
 }
 
-/// Writes `d`'s scans as KITTI `.bin` files with `times.txt`, and its IMU's readings over the
-/// drive as `imu0/data.csv` in EuRoC's layout beside them.
-fn write_folder(d: &Drive, dir: &std::path::Path) -> std::path::PathBuf {
-    let scans = dir.join("velodyne");
-    std::fs::create_dir_all(&scans).unwrap();
-    let mut times = String::new();
-    for i in 0..d.frames() {
-        write_bin(&scans.join(format!("{i:06}.bin")), &d.scan(i));
-        writeln!(times, "{:.6}", d.stamp(i)).unwrap();
-    }
-    std::fs::write(dir.join("times.txt"), times).unwrap();
-    let mut csv = String::from(
-        "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],\
-         a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n",
-    );
-    let end = d.frames() as f64 * d.period_s;
-    for r in d.imu_between(-1.0, end) {
-        let [gx, gy, gz] = r.gyro;
-        let [ax, ay, az] = r.accel;
-        let ns = (r.stamp * 1e9).round() as i64;
-        writeln!(csv, "{ns},{gx:e},{gy:e},{gz:e},{ax:e},{ay:e},{az:e}").unwrap();
-    }
-    std::fs::create_dir_all(dir.join("imu0")).unwrap();
-    std::fs::write(dir.join("imu0").join("data.csv"), csv).unwrap();
-    scans
-}
-
 #[test]
 fn the_command_reads_an_imu_csv_beside_a_folder_of_scans() {
     let dir = scratch("imu-csv-folder");
     let d = hand_held(16);
-    let scans = write_folder(&d, &dir);
+    let scans = write_folder_with_imu(&d, &dir);
     std::fs::write(
         dir.join("imu.toml"),
         "[imu]\ntranslation_m = [0.3, 0.0, 0.0]\nrotation_rpy_deg = [0.0, 0.0, 90.0]\n",

@@ -3,6 +3,7 @@
 
 use slamesh_core::{Point, Pose};
 use slamesh_sim::{sensor_pose, Lidar, Scene};
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -308,4 +309,32 @@ pub fn kitti_positions(path: &Path) -> Vec<[f64; 3]> {
             [v[3], v[7], v[11]]
         })
         .collect()
+}
+
+/// Writes `d`'s scans as KITTI `.bin` files with `times.txt`, and its IMU's readings over the
+/// drive as `imu0/data.csv` in EuRoC's layout beside them.
+pub fn write_folder_with_imu(d: &slamesh_sim::Drive, dir: &Path) -> PathBuf {
+    use slamesh::run::FrameSource;
+    let scans = dir.join("velodyne");
+    std::fs::create_dir_all(&scans).unwrap();
+    let mut times = String::new();
+    for i in 0..d.frames() {
+        write_bin(&scans.join(format!("{i:06}.bin")), &d.scan(i));
+        writeln!(times, "{:.6}", d.stamp(i)).unwrap();
+    }
+    std::fs::write(dir.join("times.txt"), times).unwrap();
+    let mut csv = String::from(
+        "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],\
+         a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n",
+    );
+    let end = d.frames() as f64 * d.period_s;
+    for r in d.imu_between(-1.0, end) {
+        let [gx, gy, gz] = r.gyro;
+        let [ax, ay, az] = r.accel;
+        let ns = (r.stamp * 1e9).round() as i64;
+        writeln!(csv, "{ns},{gx:e},{gy:e},{gz:e},{ax:e},{ay:e},{az:e}").unwrap();
+    }
+    std::fs::create_dir_all(dir.join("imu0")).unwrap();
+    std::fs::write(dir.join("imu0").join("data.csv"), csv).unwrap();
+    scans
 }

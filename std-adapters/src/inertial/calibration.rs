@@ -7,6 +7,7 @@
 //! verdict a run: given when the window has passed, or earlier when asked (the IMU is being set
 //! aside, the run ends), and not repeated.
 
+use crate::io::le::{put_f64, put_option, put_u64, Decoder};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use slamesh_core::math::best_rotation;
 
@@ -88,6 +89,37 @@ impl CalibrationCheck {
     /// before any pair): what a run that ends within the window reports.
     pub fn pending(&self) -> Option<Verdict> {
         (!self.done && self.pairs > 0).then(|| self.judge())
+    }
+
+    /// Appends its sums to a checkpoint's record ([`crate::io::le`]; the configured turn is
+    /// the run's, not kept).
+    pub(super) fn put(&self, e: &mut Vec<u8>) {
+        for v in self.h.iter() {
+            put_f64(e, *v);
+        }
+        for v in [self.squares.0, self.squares.1, self.angles.0, self.angles.1] {
+            put_f64(e, v);
+        }
+        put_u64(e, self.pairs as u64);
+        put_option(e, self.since, 0.0, put_f64);
+        e.push(u8::from(self.done));
+    }
+
+    /// What [`put`](Self::put) wrote, for the IMU turned `configured` on the LiDAR.
+    pub(super) fn read(d: &mut Decoder, configured: UnitQuaternion<f64>) -> Result<Self, String> {
+        let mut h = Matrix3::zeros();
+        for v in h.iter_mut() {
+            *v = d.f64()?;
+        }
+        Ok(Self {
+            configured,
+            h,
+            squares: (d.f64()?, d.f64()?),
+            angles: (d.f64()?, d.f64()?),
+            pairs: d.usize()?,
+            since: d.option(Decoder::f64)?,
+            done: d.flag()?,
+        })
     }
 
     /// Whether it still takes pairs (no verdict given yet).

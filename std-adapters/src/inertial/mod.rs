@@ -13,6 +13,7 @@
 pub mod calibration;
 pub mod moving_up;
 pub mod report;
+pub mod state;
 
 use crate::sources::Sample;
 use calibration::{CalibrationCheck, Verdict};
@@ -121,6 +122,9 @@ pub struct Inertial {
     checked: Option<Verdict>,
     /// The accelerometer's unit, once configured or told ([`Inertial::tell_unit`]), in words.
     unit: Option<String>,
+    /// After a resume ([`Inertial::restore`]): the newest reading the checkpoint held. A
+    /// source resumed mid-way may hand the readings before it again; they were dealt with.
+    resumed_at: Option<f64>,
 }
 
 impl Inertial {
@@ -147,6 +151,7 @@ impl Inertial {
                 AccelUnit::MetresPerSecondSquared => Some("m/s² (configured)".into()),
                 AccelUnit::G => Some("g (configured)".into()),
             },
+            resumed_at: None,
         }
     }
 
@@ -194,7 +199,12 @@ impl Inertial {
             return;
         }
         let mut named = 0;
+        let offset = self.track.calibration().time_offset_s;
         for Sample::Imu(r) in samples {
+            if self.resumed_at.is_some_and(|t| r.stamp + offset <= t) {
+                continue;
+            }
+            self.resumed_at = None;
             self.seen = true;
             let saturated = self.track.counts().saturated;
             if let Err(e) = self.track.push(r) {

@@ -8,6 +8,7 @@
 //! the window not registered, readings that did not cover an interval, a result not
 //! gravity's size). The map keeps its frame; the navigation map takes up from here.
 
+use crate::io::le::{put_f64, put_u64, put_vec3, Decoder};
 use nalgebra::Vector3;
 use serde::Serialize;
 use slamesh_core::gravity::up_from_motion;
@@ -46,6 +47,27 @@ pub struct FirstSeconds {
 }
 
 impl FirstSeconds {
+    /// Appends its sums to a checkpoint's record ([`crate::io::le`]).
+    pub(super) fn put(&self, e: &mut Vec<u8>) {
+        put_vec3(e, &self.force);
+        put_u64(e, self.readings as u64);
+        let (v, t) = self.first.unwrap_or((Vector3::zeros(), 0.0));
+        e.push(u8::from(self.first.is_some()));
+        put_vec3(e, &v);
+        put_f64(e, t);
+        e.push(u8::from(self.done));
+    }
+
+    /// What [`put`](Self::put) wrote.
+    pub(super) fn read(d: &mut Decoder) -> Result<Self, String> {
+        Ok(Self {
+            force: d.vec3()?,
+            readings: d.usize()?,
+            first: d.option(|d| Ok((d.vec3()?, d.f64()?)))?,
+            done: d.flag()?,
+        })
+    }
+
     /// Takes the interval from `before` (at `t_before`) to `last` (at `t`), both registered
     /// (`registered`), and the IMU's force over it in the frame at `t` (`force`: the readings
     /// did not cover it when an error); the answer when this interval ends the window or

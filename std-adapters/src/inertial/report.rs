@@ -57,7 +57,7 @@ pub struct ImuSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gravity: Option<GravityReport>,
     /// Whether `[imu]` agreed with the registration over the first seconds
-    /// ([`calibration`]), when judged.
+    /// ([`crate::inertial::calibration`]), when judged.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub calibration_check: Option<String>,
     /// The accelerometer's unit, and whether it was configured or told from the readings;
@@ -89,7 +89,8 @@ pub struct GravityReport {
     /// Why the map was not levelled, when it was not.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub why_not: Option<String>,
-    /// Up from the first seconds of motion, when the map was not levelled ([`moving_up`]).
+    /// Up from the first seconds of motion, when the map was not levelled
+    /// ([`crate::inertial::moving_up`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub moving: Option<MovingUp>,
 }

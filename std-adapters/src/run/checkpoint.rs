@@ -9,6 +9,7 @@
 //! - the session's running totals: poses, skipped frames, evicted cells, stage times, seconds;
 //! - how many bytes of the frame-record spool and how many mesh-spool records belong to it
 //!   (resuming cuts the spools back to those lengths: frames after the checkpoint are redone);
+//! - the IMU's state ([`crate::inertial::state`]: its readings held, bias and checks);
 //! - every map cell with its last-seen frame and layers (facings included), bit for bit.
 //!
 //! The encoding is little-endian and versioned; every read is checked, so a damaged file is
@@ -30,8 +31,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 12] = b"SLAMESH-CKPT";
-/// 2: each layer's facing after its axis.
-const VERSION: u32 = 2;
+/// 2: each layer's facing after its axis. 3: the IMU's state after the mesh's counts.
+const VERSION: u32 = 3;
 
 /// The checkpoint file of the output folder `out`.
 pub fn path(out: &Path) -> PathBuf {
@@ -63,6 +64,9 @@ pub struct Progress {
     pub report_bytes: u64,
     /// Records of the mesh spool at the checkpoint.
     pub mesh: MeshCounts,
+    /// The IMU's state ([`Inertial::save`](crate::inertial::Inertial::save); empty before the
+    /// first checkpoint).
+    pub imu: Vec<u8>,
 }
 
 impl Progress {
@@ -80,6 +84,7 @@ impl Progress {
             seconds: 0.0,
             report_bytes: 0,
             mesh: MeshCounts::default(),
+            imu: Vec::new(),
         }
     }
 
@@ -121,6 +126,8 @@ pub fn write(file: &Path, progress: &Progress, map: &MeshMap) -> Result<(), File
     put_u64(&mut e, progress.report_bytes);
     put_u64(&mut e, progress.mesh.vertices);
     put_u64(&mut e, progress.mesh.triangles);
+    put_u64(&mut e, progress.imu.len() as u64);
+    e.extend_from_slice(&progress.imu);
     put_u64(&mut e, map.cell_count() as u64);
     for (key, cell) in map.cells() {
         for v in [key.x, key.y, key.z] {
@@ -208,6 +215,10 @@ fn read_progress(d: &mut Decoder) -> Result<Progress, String> {
         mesh: MeshCounts {
             vertices: d.u64()?,
             triangles: d.u64()?,
+        },
+        imu: {
+            let n = d.count(1)?;
+            d.take(n)?.to_vec()
         },
     })
 }
@@ -302,6 +313,7 @@ mod tests {
                 vertices: 10,
                 triangles: 7,
             },
+            imu: vec![3, 1, 4, 1, 5],
         };
         (progress, map)
     }

@@ -219,7 +219,12 @@ impl<'a, C: Capacity> Run<'a, C> {
             _ => None,
         };
         let checkpoint_path = checkpoint::path(&opts.out);
-        let inertial = Inertial::new::<C>(opts.imu);
+        let mut inertial = Inertial::new::<C>(opts.imu);
+        if !progress.imu.is_empty() {
+            inertial.restore(&progress.imu).map_err(|why| {
+                FileError::at(&checkpoint_path, format!("not a usable checkpoint: {why}"))
+            })?;
+        }
         let saved_map = match &opts.save_map {
             Some(path) => Some(MapWriter::create(
                 path,
@@ -328,6 +333,8 @@ impl<'a, C: Capacity> Run<'a, C> {
         p.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
         p.report_bytes = report_bytes;
         p.mesh = self.spool.counts();
+        p.imu.clear();
+        self.inertial.save(&mut p.imu);
         checkpoint::write(&self.checkpoint_path, p, self.pipeline.map())?;
         Ok(())
     }
