@@ -151,12 +151,17 @@ pub fn write(file: &Path, progress: &Progress, map: &MeshMap) -> Result<(), File
 /// the progress.
 pub fn read(file: &Path, map: &mut MeshMap) -> Result<Progress, FileError> {
     let bytes = std::fs::read(file).map_err(|e| FileError::at(file, e.to_string()))?;
-    let bad = |reason: String| FileError::at(file, format!("not a usable checkpoint: {reason}"));
-    let mut d = Decoder { bytes: &bytes };
-    let progress = read_progress(&mut d).map_err(&bad)?;
-    read_map(&mut d, map).map_err(&bad)?;
+    parse(&bytes, map)
+        .map_err(|reason| FileError::at(file, format!("not a usable checkpoint: {reason}")))
+}
+
+/// [`read`]'s work on the file's bytes: the progress, the map into `map`, or why not.
+pub fn parse(bytes: &[u8], map: &mut MeshMap) -> Result<Progress, String> {
+    let mut d = Decoder { bytes };
+    let progress = read_progress(&mut d)?;
+    read_map(&mut d, map)?;
     if !d.bytes.is_empty() {
-        return Err(bad(format!("{} bytes after the map", d.bytes.len())));
+        return Err(format!("{} bytes after the map", d.bytes.len()));
     }
     Ok(progress)
 }
