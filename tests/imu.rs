@@ -330,16 +330,21 @@ fn navmap_run<C: Capacity>(d: &Drive, use_imu: bool, name: &str) -> (Summary, Ve
     (s, estimate, navmap)
 }
 
-#[test]
-fn a_tilted_lidar_maps_level_with_its_imu() {
-    // The LiDAR sits pitched 4 degrees and rolled 2 on the car: its first scan is not level.
+/// `frames` of the car with its LiDAR pitched 4 degrees and rolled 2 (its first scan is not
+/// level), and its IMU.
+fn tilted_car(frames: usize) -> Drive {
     let tilt = Pose::from_parts(
         Translation3::identity(),
         UnitQuaternion::from_euler_angles(2f64.to_radians(), 4f64.to_radians(), 0.0),
     );
-    let mut d = Drive::car(20, 1);
+    let mut d = Drive::car(frames, 1);
     d.poses.iter_mut().for_each(|p| *p *= tilt);
-    let d = d.with_imu(imu(200.0));
+    d.with_imu(imu(200.0))
+}
+
+#[test]
+fn a_tilted_lidar_maps_level_with_its_imu() {
+    let d = tilted_car(20);
     let mut ups = Vec::new();
     for use_imu in [true, false] {
         let (s, estimate, navmap) = navmap_run::<KittiCapacity>(&d, use_imu, "level");
@@ -377,13 +382,7 @@ fn in_g(s: &mut Vec<Sample>) {
 fn an_accelerometer_in_g_is_told_and_levels_the_map_as_one_in_metres_per_second_squared() {
     // The tilted car of the test above, its accelerometer read in g: told from the still
     // start, the map is levelled as with m/s²; configured, the same without telling.
-    let tilt = Pose::from_parts(
-        Translation3::identity(),
-        UnitQuaternion::from_euler_angles(2f64.to_radians(), 4f64.to_radians(), 0.0),
-    );
-    let mut d = Drive::car(8, 1);
-    d.poses.iter_mut().for_each(|p| *p *= tilt);
-    let d = d.with_imu(imu(200.0));
+    let d = tilted_car(8);
     let out = scratch("imu-in-g");
     let level = |source: &mut dyn FnMut(&RunOptions) -> Summary, unit: AccelUnit| {
         let mut opts = options(&out, true);
