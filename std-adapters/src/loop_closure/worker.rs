@@ -144,14 +144,19 @@ impl<C: Capacity> Worker<C> {
             if self.rebuilding.is_none() {
                 let Ok(first) = rx.recv() else { return Ok(()) };
                 self.take(first)?;
+                self.check()?;
             }
-            while let Ok(m) = rx.try_recv() {
+            // Every keyframe due is checked, in order, however far behind the run the
+            // thread is (so which places are checked does not depend on timing), until a
+            // closure asks for a correction: that starts first.
+            while !self.correction_due() {
+                let Ok(m) = rx.try_recv() else { break };
                 self.take(m)?;
+                self.check()?;
             }
-            self.check()?;
             if self.rebuilding.is_some() {
                 self.rebuild_slice()?;
-            } else if self.dirty && !self.in_flight {
+            } else if self.correction_due() {
                 self.start_correction()?;
             }
             if self.finishing && !self.in_flight && !self.dirty && self.rebuilding.is_none() {
@@ -159,6 +164,11 @@ impl<C: Capacity> Worker<C> {
                 return Ok(());
             }
         }
+    }
+
+    /// The graph changed and a correction can start: none is with the run or being built.
+    fn correction_due(&self) -> bool {
+        self.dirty && !self.in_flight && self.rebuilding.is_none()
     }
 
     fn take(&mut self, m: ToWorker) -> Result<(), FileError> {
