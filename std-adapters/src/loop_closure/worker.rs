@@ -154,6 +154,9 @@ impl<C: Capacity> Worker<C> {
                 self.take(m)?;
                 self.check()?;
             }
+            if self.finishing && self.dirty {
+                self.drop_stale_rebuild();
+            }
             if self.rebuilding.is_some() {
                 self.rebuild_slice()?;
             } else if self.correction_due() {
@@ -447,6 +450,30 @@ impl<C: Capacity> Worker<C> {
             started: std::time::Instant::now(),
         });
         Ok(())
+    }
+
+    /// Gives up the rebuild under way when the graph has moved on since it started and the
+    /// run has sent its last frame: the map it would bring is replaced as soon as it lands,
+    /// so the next correction's rebuild starts now instead (the run waits for it at its end).
+    /// Its closures go with the next correction. A windowed run's rebuild is kept: its
+    /// outputs are files, and no check runs while it does, so the graph does not move then.
+    fn drop_stale_rebuild(&mut self) {
+        if self.streaming.is_some() {
+            return;
+        }
+        let Some(r) = self.rebuilding.take() else {
+            return;
+        };
+        let mut p = r.pipeline;
+        p.map_mut().evict_where(|_, _| true, |_| {});
+        self.rebuild = Some(p);
+        let mut closures = r.closures;
+        closures.append(&mut self.new_closures);
+        self.new_closures = closures;
+        log::debug!(
+            "loop closure: a rebuild given up after {:.1} s for the newer correction",
+            r.started.elapsed().as_secs_f64()
+        );
     }
 
     /// Fuses the next `REBUILD_SLICE` frames into the map being rebuilt (frames that came
