@@ -178,19 +178,22 @@ pub struct LoopClosure<C: Capacity> {
 impl<C: Capacity> LoopClosure<C> {
     /// Starts the loop-closure thread, spooling scans to `spool_path`; `saved_map`: the map
     /// file the run started from (its path is searched for revisits too, and a rebuild keeps
-    /// its cells); `streaming`: the run's window and outputs, when its map is a window.
+    /// its cells); `streaming`: the run's window and outputs, when its map is a window;
+    /// `threads`: the run's thread count (0: one per core), which a rebuild still under way
+    /// after the run's last frame uses.
     pub fn start(
         config: Config,
         s: LoopSettings,
         spool_path: &Path,
         saved_map: Option<&Path>,
         streaming: Option<Streaming>,
+        threads: usize,
     ) -> Result<Self, FileError> {
         let spool = ScanSpool::create(spool_path, (s.spool_budget_mb * 1e6) as u64)?;
         let saved = saved_map.map(SavedMap::open).transpose()?;
         let (to_worker, rx) = channel();
         let (tx, from_worker) = channel();
-        let worker = worker::Worker::<C>::new(config, s, spool, tx, saved, streaming)?;
+        let worker = worker::Worker::<C>::new(config, s, spool, tx, saved, streaming, threads)?;
         let thread = std::thread::Builder::new()
             .name("slamesh-loop-closure".into())
             .spawn(move || worker.run(rx))

@@ -13,11 +13,13 @@ use crate::loop_closure::settings::LoopSettings;
 use crate::loop_closure::spool::ScanSpool;
 use crate::loop_closure::streaming::{self, RebuiltOutputs, Streaming};
 use crate::loop_closure::{Closure, Corrected, ToWorker};
+use crate::parallel::Workers;
 use nalgebra::Matrix6;
 use slamesh_core::map::MeshMap;
 use slamesh_core::math::{rotation_angle, se3_exp, se3_log};
 use slamesh_core::motion::ConstantVelocity;
-use slamesh_core::{Capacity, Config, Pipeline, Pose};
+use slamesh_core::pipeline::{Known, Scan, Stepped};
+use slamesh_core::{Capacity, Config, NoProbe, Pipeline, Pose};
 use std::sync::mpsc::{Receiver, Sender};
 
 mod revisits;
@@ -86,6 +88,10 @@ pub(crate) struct Worker<C: Capacity> {
     streaming: Option<Streaming>,
     /// Rebuilds started (each windowed one has outputs of its own).
     rebuilds: usize,
+    /// The run's thread count (0: one per core), and a pool of as many for a rebuild after
+    /// the run's last frame ([`Worker::take_the_run_s_threads`]).
+    threads: usize,
+    pool: Option<Workers>,
     to_run: Sender<Corrected>,
     /// The saved map the run started from, if it did: revisits of its path are looked for
     /// too, and a rebuild starts from its cells.
@@ -100,6 +106,7 @@ impl<C: Capacity> Worker<C> {
         to_run: Sender<Corrected>,
         saved: Option<SavedMap>,
         streaming: Option<Streaming>,
+        threads: usize,
     ) -> Result<Self, FileError> {
         let submap = match &streaming {
             None => Pipeline::<C>::with_map_layers(config, SUBMAP_LAYERS),
@@ -132,6 +139,8 @@ impl<C: Capacity> Worker<C> {
             awaiting: None,
             streaming,
             rebuilds: 0,
+            threads,
+            pool: None,
             to_run,
             saved,
         })
@@ -505,12 +514,21 @@ impl<C: Capacity> Worker<C> {
         if next < self.frames.len() {
             r.corrections.extend_from_slice(&self.correction[next..]);
         }
+        self.take_the_run_s_threads();
         for i in done..(done + REBUILD_SLICE).min(self.frames.len()) {
             let pose = r.corrections[i] * self.frames[i].raw;
             let points = self.spool.read(i)?;
             // A frame that fails is counted all the same, so that frame `i` is the
             // pipeline's `i`-th.
-            let Ok(o) = r.pipeline.integrate_scan(&points, &pose) else {
+            let fused = match &self.pool {
+                // The same map as on one thread (the executor only spreads the work).
+                Some(pool) => r
+                    .pipeline
+                    .step(Scan::Raw(&points), Known::Pose(pose), pool, &mut NoProbe)
+                    .map(Stepped::into_outcome),
+                None => r.pipeline.integrate_scan(&points, &pose),
+            };
+            let Ok(o) = fused else {
                 continue;
             };
             if let (Some(w), Some(out)) = (&mut self.streaming, &mut r.outputs) {
@@ -526,6 +544,16 @@ impl<C: Capacity> Worker<C> {
         }
         self.rebuilding = Some(r);
         Ok(())
+    }
+
+    /// Once the run has sent its last frame it waits for this thread, and its threads are
+    /// idle: the rebuild spreads its work over as many (`threads`) from then on. Not in a
+    /// windowed run: the pool's buffers are not in what its memory cap counts.
+    fn take_the_run_s_threads(&mut self) {
+        let windowed = self.streaming.is_some();
+        if self.finishing && self.pool.is_none() && self.threads != 1 && !windowed {
+            self.pool = Workers::new(self.threads).ok();
+        }
     }
 
     /// Sends the run a correction: the trajectory's by `corrections`, the rebuilt map, and

@@ -277,6 +277,7 @@ fn loop_closer<C: Capacity>(
             &opts.out.join(".loop-closure.scans"),
             opts.map.as_deref(),
             streaming,
+            opts.threads,
         )?)),
         (None, _) => Ok(None),
     }
