@@ -269,6 +269,12 @@ impl MeshMap {
         });
         before - self.cells.len()
     }
+
+    /// Removes every cell ([`evict_where`](Self::evict_where) of all, shown to no one): the
+    /// map is empty, its capacity kept for the next use.
+    pub fn clear(&mut self) {
+        self.evict_where(|_, _| true, |_| {});
+    }
 }
 
 #[cfg(test)]
@@ -309,6 +315,15 @@ mod tests {
             .unwrap();
         assert_eq!(m.layer_count(), 3);
         assert!(m.cell(&CellKey::new(5, 5, 5)).unwrap().has(Axis::Y));
+        // Cleared, it is empty and holds as much as before.
+        m.clear();
+        assert!(m.is_empty());
+        assert_eq!((m.cell_count(), m.layer_count()), (0, 0));
+        for x in 0..2 {
+            m.insert_layer(CellKey::new(x, 0, 0), Axis::Z, Layer::UNKNOWN, 3)
+                .unwrap();
+        }
+        assert_eq!(m.cell_count(), 2);
     }
 
     #[test]

@@ -31,8 +31,9 @@ impl Inertial {
             c.out_of_order,
             c.duplicate,
             c.saturated,
+            c.forgotten_early,
         ];
-        for n in counts.into_iter().chain([c.forgotten_early]) {
+        for n in counts {
             put_u64(e, n as u64);
         }
         put_f64(e, self.track.calibration().accel_unit_m_s2);
@@ -114,8 +115,7 @@ impl Inertial {
 }
 
 fn put_up(e: &mut Vec<u8>, up: Option<[f64; 3]>) {
-    e.push(u8::from(up.is_some()));
-    put_vec3(e, &Vector3::from(up.unwrap_or_default()));
+    put_option(e, up, [0.0; 3], |e, v| put_vec3(e, &Vector3::from(v)));
 }
 
 fn read_up(d: &mut Decoder) -> Result<Option<[f64; 3]>, String> {

@@ -93,7 +93,7 @@ pub fn verify<C: Capacity, E>(
     revisit: &Revisit,
     mut scan: impl FnMut(usize) -> Result<Vec<Point>, E>,
 ) -> Result<Option<Verified>, E> {
-    pipeline.map_mut().evict_where(|_, _| true, |_| {});
+    pipeline.map_mut().clear();
     pipeline.set_map_updates(true);
     for p in &revisit.submap {
         // A frame that will not integrate (empty after filtering) leaves a gap only.

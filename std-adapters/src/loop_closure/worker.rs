@@ -208,7 +208,7 @@ impl<C: Capacity> Worker<C> {
                     if let Some(old) = returned {
                         *p.map_mut() = *old;
                     }
-                    p.map_mut().evict_where(|_, _| true, |_| {});
+                    p.map_mut().clear();
                     match self.streaming {
                         Some(_) => self.submap = Some(p),
                         None => self.rebuild = Some(p),

@@ -145,7 +145,7 @@ pub(super) fn fuse_by_tile<C: Capacity>(
     tiles.extend(lands.keys().copied());
     for tile in tiles {
         let map = pipeline.map_mut();
-        map.evict_where(|_, _| true, |_| {});
+        map.clear();
         a.load_tile(tile, map)?;
         fused.a.0 += map.cell_count();
         fused.a.1 += map.layer_count();

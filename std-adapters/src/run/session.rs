@@ -172,7 +172,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             .into());
         }
         // The checkpoint holds the whole map as it stood (a saved map's cells included).
-        setup.pipeline.map_mut().evict_where(|_, _| true, |_| {});
+        setup.pipeline.map_mut().clear();
         let progress = checkpoint::read(&path, setup.pipeline.map_mut())?;
         let fingerprint = checkpoint::fingerprint::<C>(source, &opts);
         if progress.fingerprint != fingerprint {

@@ -49,7 +49,7 @@ impl<C: Capacity> Worker<C> {
                     self.dirty = true;
                     return Ok(());
                 };
-                p.map_mut().evict_where(|_, _| true, |_| {});
+                p.map_mut().clear();
                 p.set_map_updates(true);
                 (p, Some(RebuiltOutputs::create(w, self.rebuilds)?))
             }
@@ -91,7 +91,7 @@ impl<C: Capacity> Worker<C> {
             return;
         };
         let mut p = r.pipeline;
-        p.map_mut().evict_where(|_, _| true, |_| {});
+        p.map_mut().clear();
         self.rebuild = Some(p);
         let mut closures = r.closures;
         closures.append(&mut self.new_closures);

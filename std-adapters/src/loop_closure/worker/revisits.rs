@@ -107,7 +107,7 @@ impl<C: Capacity> Worker<C> {
             return Ok(None);
         };
         let points = self.spool.read(kf)?;
-        submap.map_mut().evict_where(|_, _| true, |_| {});
+        submap.map_mut().clear();
         let near: Vec<Pose> = revisit.near.iter().map(|p| p.pose).collect();
         if let Err(e) = saved.load_near(&near, self.s.submap_margin_m, submap.map_mut()) {
             // The file was read whole when the run started: what fails here is room.
