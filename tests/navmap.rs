@@ -454,9 +454,10 @@ fn the_office_s_navigation_map_against_the_truth() {
 /// more than a step up, nor is its platform, and no way of free cells leads there. Each judged
 /// over the cells of the area a true scan point fell in, 0.15 m in from its edges.
 ///
-/// Not yet: the kerb higher than a step (0.15 m) is no obstacle. The mesh smooths it into a
-/// rise of under a step and then a slope the robot could climb, so the grid grows the ground
-/// over it (docs/benchmarks.md, "Kerbs and ramps"); printed, not asserted.
+/// The kerb higher than a step (0.15 m) keeps the robot off the pavement behind it: the
+/// mesh rounds it into a slope the robot could climb, but the scans' points saw it sharp
+/// (`navmap::hits`), so the ground does not grow over it and the pavement stands a kerb
+/// above the yard: occupied.
 #[test]
 fn the_yard_s_kerbs_and_ramps() {
     use slamesh_sim::yard::{ramp, KERBS, RAMPS, RAMP_Y};
@@ -466,8 +467,9 @@ fn the_yard_s_kerbs_and_ramps() {
     let mapped = Mapped::of(&drive, frames, robot, "navmap-yard");
     let seen = seen_cells(&mapped, &drive, frames);
     let map = &mapped.map;
-    // The share of the area's seen cells that are free, and how many there are.
-    let free_share = |x: [f64; 2], y: [f64; 2]| {
+    // The share of the area's seen cells that are `value` (0 free, 100 occupied), and how
+    // many there are.
+    let share = |x: [f64; 2], y: [f64; 2], value: i8| {
         let mut cells = HashSet::new();
         let mut free = 0;
         let (nx, ny) = (
@@ -481,7 +483,7 @@ fn the_yard_s_kerbs_and_ramps() {
                 continue;
             };
             if seen.contains(&cell) && cells.insert(cell) {
-                free += usize::from(map.value(c, r) == 0);
+                free += usize::from(map.value(c, r) == value);
             }
         }
         (free as f64 / cells.len().max(1) as f64, cells.len())
@@ -491,17 +493,24 @@ fn the_yard_s_kerbs_and_ramps() {
         (Some(from), Some(to)) => free_path(map, from, to),
         _ => false,
     };
+    let free_share = |x: [f64; 2], y: [f64; 2]| share(x, y, 0);
     let inset = 0.15;
-    let pavement =
-        |[x0, x1, _]: [f64; 3]| free_share([x0 + inset, x1 - inset], [4.0 + inset, 6.0 - inset]);
-    let (high, low) = (pavement(KERBS[0]), pavement(KERBS[1]));
+    let pavement = |[x0, x1, _]: [f64; 3], value: i8| {
+        share([x0 + inset, x1 - inset], [4.0 + inset, 6.0 - inset], value)
+    };
+    let (high, low) = (pavement(KERBS[0], 0), pavement(KERBS[1], 0));
+    let high_occupied = pavement(KERBS[0], 100);
     let centre = |k: [f64; 3]| (k[0] + k[1]) / 2.0;
+    let high_reached = reached(centre(KERBS[0]), 5.0);
     println!(
-        "free behind the high kerb {high:?}, reached {}; behind the low one {low:?}",
-        reached(centre(KERBS[0]), 5.0)
+        "free behind the high kerb {high:?} (occupied {:.3}), reached {high_reached}; behind \
+         the low one {low:?}",
+        high_occupied.0
     );
     assert!(low.1 > 500 && low.0 > 0.9, "{low:?}");
     assert!(reached(centre(KERBS[1]), 5.0));
+    assert!(high.1 > 500 && high.0 < 0.05 && !high_reached, "{high:?}");
+    assert!(high_occupied.0 > 0.9, "{high_occupied:?}");
     let y = [RAMP_Y[0] + inset, RAMP_Y[1] - inset];
     let [gentle, steep] = RAMPS.map(|[x0, x1, degrees]| {
         let (up, top) = ramp(x0, x1, degrees);

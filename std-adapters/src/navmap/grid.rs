@@ -214,6 +214,10 @@ pub struct Grid {
     /// and the sensor's median height where lines of sight were cast from: a surface there was
     /// seen from above. None where nothing was cast.
     pub(super) from_above: u64,
+    /// The floor the scans' points saw in a cell (level frame z; while the ground grows).
+    pub(super) point_floors: HashMap<CellIndex, f32, BuildCellHasher>,
+    /// Ground cells at the foot of a kerb the points saw (while the references are set).
+    pub(super) kerb_feet: std::collections::HashSet<CellIndex>,
 }
 
 /// A cell's index: column and row (level frame x and y over the resolution, floored).
@@ -230,6 +234,21 @@ impl Grid {
         up: Vector3<f64>,
         path: &[Vector3<f64>],
     ) -> Result<Grid, FileError> {
+        Grid::build_with_floors(mesh, &[], robot, resolution, up, path)
+    }
+
+    /// [`build`](Self::build), with the floor the scans' points saw (`floors`, map frame:
+    /// [`crate::navmap::hits::Hits::each_floor`]): the ground does not grow between two cells
+    /// whose points' floors differ by more than the robot climbs ([`crate::navmap::ground`]),
+    /// where the mesh rounded a kerb into a slope.
+    pub fn build_with_floors(
+        mesh: &mut dyn Triangles,
+        floors: &[Vector3<f64>],
+        robot: Robot,
+        resolution: f64,
+        up: Vector3<f64>,
+        path: &[Vector3<f64>],
+    ) -> Result<Grid, FileError> {
         let level = level_of(&up);
         let mut grid = Grid {
             resolution,
@@ -238,7 +257,16 @@ impl Grid {
             tiles: HashMap::default(),
             from_above: 0,
             carved: false,
+            point_floors: HashMap::default(),
+            kerb_feet: Default::default(),
         };
+        for f in floors {
+            let q = level * f;
+            let lowest = (grid.point_floors)
+                .entry(index_in(resolution, q.x, q.y))
+                .or_insert(f32::INFINITY);
+            *lowest = lowest.min(q.z as f32);
+        }
         let max_slope_tan = robot.max_slope_deg.to_radians().tan();
         mesh.each_triangle(&mut |t, _| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
@@ -250,7 +278,9 @@ impl Grid {
         })?;
         let seeds = grid.seeds(path);
         grid.grow_ground(seeds);
+        grid.point_floors = HashMap::default();
         grid.set_references();
+        grid.kerb_feet = Default::default();
         let (step, height) = (robot.max_step_m as f32, robot.height_m as f32);
         mesh.each_triangle(&mut |t, variance| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
@@ -711,6 +741,64 @@ mod tests {
             (Occupancy::Free, true),
             "the street before it"
         );
+    }
+
+    #[test]
+    fn a_kerb_the_mesh_rounds_into_a_slope_is_found_by_the_points_floor() {
+        // A street at 0, a pavement at 0.15 m from x = 5.6, and between them the mesh's
+        // rounding of the kerb at x = 5: a slope of 14 degrees, climbable for the wheeled
+        // robot (15). The scans' points saw the kerb sharp at x = 5, but not the 0.3 m behind
+        // its face (its shadow from the path).
+        let mut soup = floor(0.0, 0.0, 5.0, 10.0, 0.0);
+        soup.push([[5.0, 0.0, 0.0], [5.6, 0.0, 0.15], [5.6, 10.0, 0.15]]);
+        soup.push([[5.0, 0.0, 0.0], [5.6, 10.0, 0.15], [5.0, 10.0, 0.0]]);
+        soup.extend(floor(5.6, 0.0, 10.0, 10.0, 0.15));
+        let floors: Vec<Vector3<f64>> = (0..100)
+            .flat_map(|ix| (0..100).map(move |iy| (ix, iy)))
+            .filter(|&(ix, _)| !(50..53).contains(&ix))
+            .map(|(ix, iy)| {
+                let (x, y) = (ix as f64 * 0.1 + 0.05, iy as f64 * 0.1 + 0.05);
+                Vector3::new(x, y, if x < 5.0 { 0.01 } else { 0.16 })
+            })
+            .collect();
+        let path = [Vector3::new(2.5, 5.0, 1.7)];
+        let grid = |floors: &[Vector3<f64>]| {
+            let soup = Soup(soup.clone());
+            Grid::build_with_floors(
+                &mut { soup },
+                floors,
+                Robot::WHEELED,
+                0.1,
+                Vector3::z(),
+                &path,
+            )
+            .unwrap()
+        };
+        let at = |g: &Grid, x: f64| {
+            let (ix, iy) = g.index_of(x, 5.05);
+            g.occupancy(ix, iy)
+        };
+        let (mesh_only, with_points) = (grid(&[]), grid(&floors));
+        assert_eq!(
+            at(&mesh_only, 8.05),
+            Occupancy::Free,
+            "the mesh alone climbs it"
+        );
+        assert_eq!(at(&with_points, 2.05), Occupancy::Free, "the street");
+        // The pavement stands a kerb above the street near it, and further on (more than
+        // the reference's reach from the street) is no ground the robot reaches.
+        assert_eq!(at(&with_points, 5.85), Occupancy::Occupied, "the pavement");
+        assert_eq!(
+            at(&with_points, 8.05),
+            Occupancy::Unknown,
+            "the pavement's far side"
+        );
+        // The points' floor rising gently with the mesh's is climbed as before.
+        let gentle: Vec<Vector3<f64>> = floors
+            .iter()
+            .map(|f| Vector3::new(f.x, f.y, (f.x - 5.0).clamp(0.0, 0.6) * 0.25))
+            .collect();
+        assert_eq!(at(&grid(&gentle), 8.05), Occupancy::Free, "a gentle rise");
     }
 
     #[test]

@@ -59,7 +59,7 @@ impl Grid {
             if seen.contains(&(ix, iy)) {
                 continue;
             }
-            let part = self.stretch(vec![(ix, iy)], |i| seen.insert(i));
+            let part = self.stretch(vec![(ix, iy)], |i| seen.insert(i), |_| {});
             if part.len() > best.len() {
                 best = part;
             }
@@ -89,6 +89,7 @@ impl Grid {
         &self,
         from: Vec<CellIndex>,
         mut visit: impl FnMut(CellIndex) -> bool,
+        mut at_a_kerb: impl FnMut(CellIndex),
     ) -> Vec<CellIndex> {
         // One cell's rise at the slope limit over a step, whatever the gap: a gap is unseen,
         // and a kerb must not be bridged as a slope.
@@ -105,15 +106,36 @@ impl Grid {
                 .map(|c| c.floor)
                 .filter(|f| f.is_finite())
         };
-        let mut queue: Vec<CellIndex> = from.into_iter().filter(|&i| visit(i)).collect();
+        // Each cell reached carries the last floor the scans' points saw on the way to it
+        // (its own where they saw one): a cell whose points' floor differs from it by more
+        // than a step and the slope over the hop is not reached that way. A hop from a cell
+        // the points did not see earns no slope beyond one cell's, so the mesh's slope across
+        // a kerb's shadow (interpolated where no point fell) does not carry the ground over
+        // it.
+        let tan = (self.robot.max_slope_deg.to_radians().tan() * self.resolution) as f32;
+        let step = self.robot.max_step_m as f32;
+        let own = |i: CellIndex| self.point_floors.get(&i).copied();
+        let mut queue: Vec<(CellIndex, Option<f32>)> = from
+            .into_iter()
+            .filter(|&i| visit(i))
+            .map(|i| (i, own(i)))
+            .collect();
         let mut out = Vec::new();
-        while let Some(i) = queue.pop() {
+        while let Some((i, carried)) = queue.pop() {
             let Some(f) = floor(i) else { continue };
             out.push(i);
             for &(dx, dy, rise) in &near {
                 let n = (i.0 + dx, i.1 + dy);
-                if floor(n).is_some_and(|g| (g - f).abs() <= rise) && visit(n) {
-                    queue.push(n);
+                let climbs = match (carried, own(n)) {
+                    (Some(a), Some(b)) => (a - b).abs() <= step + tan,
+                    _ => true,
+                };
+                let mesh_climbs = floor(n).is_some_and(|g| (g - f).abs() <= rise);
+                if mesh_climbs && !climbs {
+                    at_a_kerb(i);
+                }
+                if mesh_climbs && climbs && visit(n) {
+                    queue.push((n, own(n).or(carried)));
                 }
             }
         }
@@ -123,10 +145,18 @@ impl Grid {
     /// Marks the floor reachable from `seeds` as ground.
     pub(super) fn grow_ground(&mut self, seeds: Vec<CellIndex>) {
         let mut seen: std::collections::HashSet<CellIndex> = Default::default();
-        let reached = self.stretch(seeds, |i| seen.insert(i));
+        let mut feet = std::collections::HashSet::new();
+        let reached = self.stretch(
+            seeds,
+            |i| seen.insert(i),
+            |i| {
+                feet.insert(i);
+            },
+        );
         for (ix, iy) in reached {
             self.cell_mut(ix, iy).ground = true;
         }
+        self.kerb_feet = feet;
     }
 
     /// Each cell's reference: its ground, or the ground nearest it within about
@@ -140,6 +170,10 @@ impl Grid {
         for (&(tx, ty), tile) in &self.tiles {
             for (k, c) in tile.iter().enumerate().filter(|(_, c)| c.ground) {
                 let (ix, iy) = cell_at((tx, ty), k);
+                // A kerb's foot, where the mesh rounds the kerb up, is no cell's reference.
+                if self.kerb_feet.contains(&(ix, iy)) {
+                    continue;
+                }
                 let b = lowest
                     .entry((ix.div_euclid(block), iy.div_euclid(block)))
                     .or_insert(f32::INFINITY);

@@ -7,6 +7,7 @@
 //! | the robot: radius, slope, step, height; profiles and its file | [`robot`] |
 //! | the grid: cells in tiles, floor, obstacles, occupancy, elevation | [`grid`] |
 //! | the ground: grown from the path; the height each cell is judged against | [`ground`] |
+//! | the floor as the scans' points saw it, in chunks of the path | [`hits`] |
 //! | what the path saw: lines of sight over the grid | [`sight`] |
 //! | traversability on a mesh of the ground: slope, step, roughness, border, cost | [`layers`] |
 //! | the files: Nav2's YAML and PGM, the elevation grids, `navmesh.ply`, `navmap.json` | [`files`] |
@@ -22,6 +23,7 @@ pub mod background;
 pub mod files;
 pub mod grid;
 pub mod ground;
+pub mod hits;
 pub mod layers;
 pub mod live;
 pub mod robot;
@@ -35,18 +37,21 @@ use crate::io::error::FileError;
 use nalgebra::Vector3;
 use std::path::Path;
 
-/// Builds the navigation map of the triangles `mesh` hands over (the ground grown from
-/// `path`, sensor positions in the map frame) and writes its files into `dir`
-/// ([`files::write`]); the summary is `None` when the mesh held nothing to map. The grid comes
-/// back for the layers on the mesh's own vertices ([`layers::OnMesh`]).
+/// Builds the navigation map of the triangles `mesh` hands over, with the floor the scans'
+/// points saw (`floors`, map frame, [`hits::Hits::each_floor`]; none from a saved map), the
+/// ground grown from `path` (sensor positions in the map frame), and writes its files into
+/// `dir` ([`files::write`]); the summary is `None` when the mesh held nothing to map. The grid
+/// comes back for the layers on the mesh's own vertices ([`layers::OnMesh`]).
 pub fn make(
     mesh: &mut dyn Triangles,
+    floors: &[Vector3<f64>],
     path: &[Vector3<f64>],
     how: &NavMapOptions,
     dir: &Path,
 ) -> Result<(Option<files::NavMapSummary>, Grid), FileError> {
     let t = std::time::Instant::now();
-    let grid = Grid::build(mesh, how.robot, how.resolution_m, how.up().0, path)?;
+    let (res, up) = (how.resolution_m, how.up().0);
+    let grid = Grid::build_with_floors(mesh, floors, how.robot, res, up, path)?;
     let summary = files::write(dir, &grid, how)?;
     match &summary {
         Some(s) => log::info!(

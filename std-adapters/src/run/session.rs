@@ -19,6 +19,7 @@ use crate::io::error::FileError;
 use crate::loop_closure::streaming::RunOutputs;
 use crate::loop_closure::LoopClosure;
 use crate::navmap::files::NavMapSummary;
+use crate::navmap::hits::Hits;
 use crate::navmap::layers::OnMesh;
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
@@ -134,6 +135,8 @@ pub struct Run<'a, C: Capacity> {
     pub(super) information: Option<PoseInformation>,
     /// The IMU's readings and what they give the frames.
     pub(super) inertial: Inertial,
+    /// The floor as the scans' points saw it, for the navigation map (with `navmap` only).
+    pub(super) hits: Option<Hits>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -232,7 +235,9 @@ impl<'a, C: Capacity> Run<'a, C> {
             )?),
             None => None,
         };
+        let hits = (opts.navmap.as_ref()).map(|n| Hits::new(n.resolution_m, &n.up().0));
         Ok(Run {
+            hits,
             closer: setup.closer,
             search,
             map_path,
@@ -382,7 +387,8 @@ impl<'a, C: Capacity> Run<'a, C> {
             shown_as,
         )?;
         let up = self.inertial.navmap_up();
-        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses, up)?;
+        let hits = self.hits.take();
+        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses, up, hits)?;
         let summary = Summary {
             frames: source.frames(),
             used: poses.len(),
@@ -418,13 +424,15 @@ impl<'a, C: Capacity> Run<'a, C> {
 
 /// Writes the mesh files, the picture and the navigation map from `spool` with `map`'s cells
 /// added; none when no frame was used (`poses` empty). `up` is the IMU's up for the
-/// navigation map and what gave it, when it gave one.
+/// navigation map and what gave it, when it gave one; `hits` the floor the scans saw, moved
+/// with the path as it ends.
 fn write_mesh(
     mut spool: MeshSpool,
     map: &slamesh_core::map::MeshMap,
     opts: &RunOptions,
     poses: &[(usize, Pose)],
     up: Option<(nalgebra::Vector3<f64>, String)>,
+    hits: Option<Hits>,
 ) -> Result<(MeshCounts, Option<NavMapSummary>), RunError> {
     let (out, used) = (&opts.out, !poses.is_empty());
     spool.add_map(map)?;
@@ -440,7 +448,17 @@ fn write_mesh(
             if how.up.is_none() {
                 how.up = up;
             }
-            let (summary, grid) = crate::navmap::make(&mut spool, &path, &how, out)?;
+            let now = |frame: usize| {
+                let i = poses.binary_search_by_key(&frame, |(j, _)| *j).ok()?;
+                Some(poses[i].1)
+            };
+            let mut floors = Vec::new();
+            if let Some(h) = &hits {
+                h.each_floor(&now, &mut |p| floors.push(p));
+                log::debug!("navigation map: the scans' floor took {} bytes", h.bytes());
+            }
+            drop(hits);
+            let (summary, grid) = crate::navmap::make(&mut spool, &floors, &path, &how, out)?;
             summary.map(|s| (s, grid, how.robot))
         }
         _ => None,

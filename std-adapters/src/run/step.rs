@@ -288,9 +288,13 @@ impl<C: Capacity> Run<'_, C> {
             ..
         } = self;
         let (deskew, config, workers) = (opts.deskew, &opts.config, &*workers);
+        // The navigation map's hits take the scan's own points: it is not filtered ahead.
+        let keep_points = opts.navmap.is_some();
         let mut read_next = Some(|| {
             ahead.read_ahead(source, i + 1, workers, config, |points, times| {
-                (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
+                (times.is_none() || deskew == Deskew::Off)
+                    && points.len() <= C::POINTS
+                    && !keep_points
             })
         });
         let everywhere = Search::default();
@@ -409,6 +413,9 @@ impl<C: Capacity> Run<'_, C> {
             _ => o.t_world_sensor,
         };
         self.progress.poses.push((i, at_stamp));
+        if let Some(h) = &mut self.hits {
+            h.add(i, &at_stamp, &o.t_world_sensor, &frame.points);
+        }
         (self.inertial).used(frame.reference, o.status, history, frame.imu.prior);
         if self.inertial.active() {
             self.inertial.count(&frame.imu);

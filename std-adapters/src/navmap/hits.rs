@@ -1,0 +1,254 @@
+//! What the scans hit: for each cell of a navigation grid, the heights the run's registered
+//! points fell at, so that the grid sees a kerb's sharp face where the mesh, fusing a lattice
+//! of 9 cm or more, rounded it into a slope a robot could climb (docs/design.md §1.18, "The
+//! scans' floor").
+//!
+//! A column per cell (the grid's cells, in the level frame of the `up` the run started with)
+//! keeps two masks of 64 height bins of [`BIN_M`] above its lowest bin: the bins a point fell
+//! in, and those at least two points fell in. What the grid reads is each column's lowest bin
+//! two points fell in, the floor as the points saw it ([`Hits::each_floor`]): a lone stray
+//! return below the floor is not taken. Bins are aligned to the level frame's zero, so a
+//! column's lowest bin moving down shifts the masks and keeps what lies within 3.2 m of it.
+//!
+//! The hits are kept in **chunks** of the path, a new one every [`CHUNK_M`] travelled, each
+//! with the pose of the frame it began at as the run kept it. When loop closure later corrects
+//! the path, a chunk is moved as its first frame moved, so the hits follow the corrected map
+//! as the rebuilt mesh does.
+//!
+//! Owns: the columns and chunks. Guarantees: memory grows with the area seen within
+//! [`RANGE_M`] of the path (24 bytes a cell, in tiles of 64 x 64, per chunk), never with the
+//! points; the same points in the same order give the same hits.
+
+use crate::navmap::grid::{cell_at, level_of, tile_of, TILE_CELLS};
+use nalgebra::{Rotation3, Vector3};
+use slamesh_core::cell::BuildCellHasher;
+use slamesh_core::{Point, Pose};
+use std::collections::HashMap;
+
+/// The height of a bin (m).
+pub const BIN_M: f64 = 0.02;
+
+/// How far from the sensor (m) a point counts: beyond it the rings fall further apart than a
+/// kerb's face is tall, and the area kept grows as its square.
+pub const RANGE_M: f64 = 20.0;
+
+/// How far (m) the path travels before a new chunk begins.
+pub const CHUNK_M: f64 = 20.0;
+
+/// One cell's heights: bit `b` of the masks for bin `base + b`.
+#[derive(Debug, Clone, Copy)]
+struct Column {
+    once: u64,
+    twice: u64,
+    /// The lowest bin's index (level-frame z over [`BIN_M`], floored); `i32::MAX` for none.
+    base: i32,
+}
+
+impl Default for Column {
+    fn default() -> Self {
+        Column {
+            once: 0,
+            twice: 0,
+            base: i32::MAX,
+        }
+    }
+}
+
+impl Column {
+    /// Counts a point in bin `b`.
+    fn add(&mut self, b: i32) {
+        if b < self.base {
+            let shift = self.base.saturating_sub(b);
+            let keep = |m: u64| if shift >= 64 { 0 } else { m << shift };
+            (self.once, self.twice) = (keep(self.once), keep(self.twice));
+            self.base = b;
+        }
+        let off = b - self.base;
+        if off < 64 {
+            let bit = 1u64 << off;
+            self.twice |= self.once & bit;
+            self.once |= bit;
+        }
+    }
+
+    /// The lowest bin two points fell in, if any.
+    fn floor(&self) -> Option<i32> {
+        (self.twice != 0).then(|| self.base + self.twice.trailing_zeros() as i32)
+    }
+}
+
+type Tile = Box<[Column; TILE_CELLS]>;
+
+/// The hits of one stretch of the path.
+struct Chunk {
+    /// The frame it began at, and that frame's pose as the run kept it then.
+    frame: usize,
+    pose: Pose,
+    tiles: HashMap<(i64, i64), Tile, BuildCellHasher>,
+}
+
+/// The heights a run's points fell at, cell by cell, in chunks of the path.
+pub struct Hits {
+    resolution: f64,
+    /// Map frame to the level frame the columns are in.
+    level: Rotation3<f64>,
+    chunks: Vec<Chunk>,
+}
+
+impl Hits {
+    /// No hits yet, for cells of `resolution` metres in the level frame of `up` (map frame).
+    pub fn new(resolution: f64, up: &Vector3<f64>) -> Hits {
+        Hits {
+            resolution,
+            level: level_of(up),
+            chunks: Vec::new(),
+        }
+    }
+
+    /// Counts frame `frame`'s `points` (sensor frame) at `pose` (sensor to map): those within
+    /// [`RANGE_M`]; a point that is not finite is passed over. `kept` is the frame's pose as
+    /// the run keeps it (what [`each_floor`](Self::each_floor)'s path is compared with).
+    pub fn add(&mut self, frame: usize, kept: &Pose, pose: &Pose, points: &[Point]) {
+        let moved = |c: &Chunk| (kept.translation.vector - c.pose.translation.vector).norm();
+        if self.chunks.last().is_none_or(|c| moved(c) >= CHUNK_M) {
+            self.chunks.push(Chunk {
+                frame,
+                pose: *kept,
+                tiles: HashMap::default(),
+            });
+        }
+        let res = self.resolution;
+        let to_level = self.level * pose.rotation.to_rotation_matrix();
+        let origin = self.level * pose.translation.vector;
+        let Some(chunk) = self.chunks.last_mut() else {
+            return;
+        };
+        let mut current: Option<((i64, i64), &mut Tile)> = None;
+        for p in points {
+            let q = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            // NaN or beyond the range.
+            if q.norm().partial_cmp(&RANGE_M) != Some(std::cmp::Ordering::Less) {
+                continue;
+            }
+            let w = to_level * q + origin;
+            let (ix, iy, b) = (
+                (w.x / res).floor(),
+                (w.y / res).floor(),
+                (w.z / BIN_M).floor(),
+            );
+            let bounded = |v: f64, limit: f64| v.abs() < limit;
+            if !(bounded(ix, 1e15) && bounded(iy, 1e15) && bounded(b, 1e9)) {
+                continue;
+            }
+            let (key, k) = tile_of(ix as i64, iy as i64);
+            if current.as_ref().map(|c| c.0) != Some(key) {
+                let tile = (chunk.tiles.entry(key))
+                    .or_insert_with(|| Box::new([Column::default(); TILE_CELLS]));
+                current = Some((key, tile));
+            }
+            if let Some((_, tile)) = current.as_mut() {
+                tile[k].add(b as i32);
+            }
+        }
+    }
+
+    /// Calls `each` with every column's floor ([`Hits`]) as a point in the map frame: the
+    /// cell's centre at the bin's middle, moved as its chunk's first frame moved from the pose
+    /// it had then to `now(frame)` (the path as it ends; `None`: not moved). A cell seen in
+    /// several chunks comes once from each.
+    pub fn each_floor(
+        &self,
+        now: &dyn Fn(usize) -> Option<Pose>,
+        each: &mut dyn FnMut(Vector3<f64>),
+    ) {
+        let back = self.level.inverse();
+        for chunk in &self.chunks {
+            let moved = now(chunk.frame).map(|p| p * chunk.pose.inverse());
+            let mut keys: Vec<&(i64, i64)> = chunk.tiles.keys().collect();
+            keys.sort_unstable();
+            for key in keys {
+                for (k, c) in chunk.tiles[key].iter().enumerate() {
+                    let Some(b) = c.floor() else { continue };
+                    let (ix, iy) = cell_at(*key, k);
+                    let level = Vector3::new(
+                        (ix as f64 + 0.5) * self.resolution,
+                        (iy as f64 + 0.5) * self.resolution,
+                        (b as f64 + 0.5) * BIN_M,
+                    );
+                    let map = back * level;
+                    each(match &moved {
+                        Some(m) => m.transform_vector(&map) + m.translation.vector,
+                        None => map,
+                    });
+                }
+            }
+        }
+    }
+
+    /// The bytes the columns take.
+    pub fn bytes(&self) -> usize {
+        let tiles: usize = self.chunks.iter().map(|c| c.tiles.len()).sum();
+        tiles * TILE_CELLS * std::mem::size_of::<Column>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_column_keeps_its_bins_when_a_lower_point_comes() {
+        let mut c = Column::default();
+        c.add(10);
+        c.add(10);
+        c.add(12);
+        c.add(8);
+        assert_eq!(c.base, 8);
+        assert_eq!(c.once, 0b10101);
+        assert_eq!(c.twice, 0b00100);
+        assert_eq!(c.floor(), Some(10));
+        // Far lower: what stood more than 64 bins over it is gone.
+        c.add(-100);
+        assert_eq!((c.base, c.once, c.twice, c.floor()), (-100, 1, 0, None));
+    }
+
+    #[test]
+    fn a_floor_is_two_points_low_and_a_chunk_moves_with_its_first_frame() {
+        let mut hits = Hits::new(0.1, &Vector3::z());
+        let pose = Pose::identity();
+        // Two points in one bin at (1.05, 2.05, 0.51); one alone lower; one alone elsewhere.
+        let points = [
+            [1.05, 2.05, 0.51],
+            [1.06, 2.04, 0.51],
+            [1.04, 2.02, 0.3],
+            [5.0, 0.0, 0.0],
+        ];
+        hits.add(0, &pose, &pose, &points);
+        let mut got = Vec::new();
+        hits.each_floor(&|_| None, &mut |p| got.push(p));
+        assert_eq!(got.len(), 1);
+        assert!(
+            (got[0] - Vector3::new(1.05, 2.05, 0.51)).norm() < 1e-9,
+            "{:?}",
+            got[0]
+        );
+        // The run's path corrected: its first frame 1 m further along x.
+        let shifted = Pose::from_parts(
+            nalgebra::Translation3::new(1.0, 0.0, 0.0),
+            nalgebra::UnitQuaternion::identity(),
+        );
+        got.clear();
+        hits.each_floor(&|_| Some(shifted), &mut |p| got.push(p));
+        assert!(
+            (got[0] - Vector3::new(2.05, 2.05, 0.51)).norm() < 1e-9,
+            "{:?}",
+            got[0]
+        );
+        // Points beyond the range or not finite count for nothing.
+        let far = [[40.0, 0.0, 0.0], [40.0, 0.0, 0.0], [f32::NAN, 0.0, 0.0]];
+        hits.add(1, &pose, &pose, &far);
+        let mut n = 0;
+        hits.each_floor(&|_| None, &mut |_| n += 1);
+        assert_eq!(n, 1);
+    }
+}
