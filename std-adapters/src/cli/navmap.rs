@@ -76,7 +76,7 @@ pub fn navmap(args: &NavMapArgs) -> Result<(), CliError> {
         .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
     let summary = if is_ply {
         let mut mesh = read_ply_mesh(&args.input)?;
-        navmap::make(&mut mesh, &[], &[], &how, &args.out)?.0
+        navmap::make(&mut mesh, &|_| {}, &[], &how, &args.out)?.0
     } else {
         from_map_file(&args.input, &how, &args.out)?
     };
@@ -114,7 +114,7 @@ fn from_map_file(
         .iter()
         .map(|(_, p)| p.translation.vector)
         .collect();
-    let (summary, grid) = navmap::make(&mut spool, &[], &seeds, how, out)?;
+    let (summary, grid) = navmap::make(&mut spool, &|_| {}, &seeds, how, out)?;
     // The map's mesh with the layers on its vertices.
     let mut layers = navmap::layers::OnMesh::new(&grid, how.robot);
     let target = [(out.join("mesh.ply"), MeshFormat::Ply)];

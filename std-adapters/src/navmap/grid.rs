@@ -29,6 +29,7 @@
 //! none for the space between streets.
 
 use crate::io::error::FileError;
+use crate::navmap::hits::Floors;
 use crate::navmap::robot::Robot;
 use nalgebra::{Rotation3, Vector3};
 use slamesh_core::cell::BuildCellHasher;
@@ -106,7 +107,9 @@ pub(super) struct Cell {
     /// Whether that floor is ground: reachable from the path.
     pub(super) ground: bool,
     /// The height the cell is judged against: its ground, or the nearest ground
-    /// (infinite for none).
+    /// (infinite for none). Until the references are set (`Grid::set_references`), the
+    /// floor the scans' points saw in the cell (infinite for none), which the ground's growth
+    /// reads.
     pub(super) reference: f32,
     /// Ground samples within a step of `reference`, the sum of their heights above it and of
     /// its squares.
@@ -214,8 +217,6 @@ pub struct Grid {
     /// and the sensor's median height where lines of sight were cast from: a surface there was
     /// seen from above. None where nothing was cast.
     pub(super) from_above: u64,
-    /// The floor the scans' points saw in a cell (level frame z; while the ground grows).
-    pub(super) point_floors: HashMap<CellIndex, f32, BuildCellHasher>,
     /// Ground cells at the foot of a kerb the points saw (while the references are set).
     pub(super) kerb_feet: std::collections::HashSet<CellIndex>,
 }
@@ -234,16 +235,16 @@ impl Grid {
         up: Vector3<f64>,
         path: &[Vector3<f64>],
     ) -> Result<Grid, FileError> {
-        Grid::build_with_floors(mesh, &[], robot, resolution, up, path)
+        Grid::build_with_floors(mesh, &|_| {}, robot, resolution, up, path)
     }
 
-    /// [`build`](Self::build), with the floor the scans' points saw (`floors`, map frame:
-    /// [`crate::navmap::hits::Hits::each_floor`]): the ground does not grow between two cells
-    /// whose points' floors differ by more than the robot climbs ([`crate::navmap::ground`]),
-    /// where the mesh rounded a kerb into a slope.
+    /// [`build`](Self::build), with the floor the scans' points saw (`floors` calls its
+    /// argument with each, map frame: [`crate::navmap::hits::Hits::each_floor`]): the ground
+    /// does not grow between two cells whose points' floors differ by more than the robot
+    /// climbs ([`crate::navmap::ground`]), where the mesh rounded a kerb into a slope.
     pub fn build_with_floors(
         mesh: &mut dyn Triangles,
-        floors: &[Vector3<f64>],
+        floors: &Floors,
         robot: Robot,
         resolution: f64,
         up: Vector3<f64>,
@@ -257,16 +258,8 @@ impl Grid {
             tiles: HashMap::default(),
             from_above: 0,
             carved: false,
-            point_floors: HashMap::default(),
             kerb_feet: Default::default(),
         };
-        for f in floors {
-            let q = level * f;
-            let lowest = (grid.point_floors)
-                .entry(index_in(resolution, q.x, q.y))
-                .or_insert(f32::INFINITY);
-            *lowest = lowest.min(q.z as f32);
-        }
         let max_slope_tan = robot.max_slope_deg.to_radians().tan();
         mesh.each_triangle(&mut |t, _| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
@@ -276,9 +269,17 @@ impl Grid {
                 }
             });
         })?;
+        // Until the references are set, a cell's reference holds the floor the points saw.
+        floors(&mut |f| {
+            let q = level * f;
+            let (ix, iy) = grid.index_of(q.x, q.y);
+            let (key, k) = tile_of(ix, iy);
+            if let Some(tile) = grid.tiles.get_mut(&key) {
+                tile[k].reference = tile[k].reference.min(q.z as f32);
+            }
+        });
         let seeds = grid.seeds(path);
         grid.grow_ground(seeds);
-        grid.point_floors = HashMap::default();
         grid.set_references();
         grid.kerb_feet = Default::default();
         let (step, height) = (robot.max_step_m as f32, robot.height_m as f32);
@@ -763,16 +764,10 @@ mod tests {
             .collect();
         let path = [Vector3::new(2.5, 5.0, 1.7)];
         let grid = |floors: &[Vector3<f64>]| {
-            let soup = Soup(soup.clone());
-            Grid::build_with_floors(
-                &mut { soup },
-                floors,
-                Robot::WHEELED,
-                0.1,
-                Vector3::z(),
-                &path,
-            )
-            .unwrap()
+            let each = |f: &mut dyn FnMut(Vector3<f64>)| floors.iter().for_each(|p| f(*p));
+            let mut soup = Soup(soup.clone());
+            Grid::build_with_floors(&mut soup, &each, Robot::WHEELED, 0.1, Vector3::z(), &path)
+                .unwrap()
         };
         let at = |g: &Grid, x: f64| {
             let (ix, iy) = g.index_of(x, 5.05);

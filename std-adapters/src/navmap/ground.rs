@@ -4,7 +4,10 @@
 //! Ground grows from the floor cells under the path (or, with no path, the largest stretch of
 //! floor) to floor cells within [`BRIDGE_CELLS`] (a gap between scan rings is bridged) whose
 //! floor differs by no more than a step and a cell's rise at the slope limit; a kerb higher
-//! than a step, a car's roof or a table are floor, not ground. A cell with no ground of its own
+//! than a step, a car's roof or a table are floor, not ground. Where the run's scans saw the
+//! floor ([`crate::navmap::hits`]) their floor must climb so too: the mesh rounds a kerb into
+//! a slope, the points see it sharp; the ground cells a kerb was found from (its foot, where
+//! the mesh starts rounding it up) are no cell's reference. A cell with no ground of its own
 //! is judged against the nearest ground within about [`REFERENCE_M`].
 
 use crate::navmap::grid::{cell_at, disc, CellIndex, Grid};
@@ -84,7 +87,10 @@ impl Grid {
 
     /// The floor cells joined to `from` through neighbours within [`BRIDGE_CELLS`] (a gap in
     /// the mesh between scan rings is bridged) whose floors differ by no more than a step and
-    /// a cell's rise at the slope limit; `visit` says whether a cell is new (and marks it).
+    /// a cell's rise at the slope limit, the mesh's and, where the scans' points saw it, the
+    /// points' (`Cell::reference` before the references are set); `visit` says whether a cell
+    /// is new (and marks it), `at_a_kerb` hears of each cell a join was refused from by the
+    /// points alone.
     pub(super) fn stretch(
         &self,
         from: Vec<CellIndex>,
@@ -108,13 +114,16 @@ impl Grid {
         };
         // Each cell reached carries the last floor the scans' points saw on the way to it
         // (its own where they saw one): a cell whose points' floor differs from it by more
-        // than a step and the slope over the hop is not reached that way. A hop from a cell
-        // the points did not see earns no slope beyond one cell's, so the mesh's slope across
-        // a kerb's shadow (interpolated where no point fell) does not carry the ground over
-        // it.
-        let tan = (self.robot.max_slope_deg.to_radians().tan() * self.resolution) as f32;
-        let step = self.robot.max_step_m as f32;
-        let own = |i: CellIndex| self.point_floors.get(&i).copied();
+        // than `rise` (a step and one cell at the slope limit, whatever the hop) is not
+        // reached that way, and the cell it was tried from is a kerb's foot (`at_a_kerb`).
+        // Neither a bridge nor the cells the points did not see earn more slope, so the
+        // mesh's slope across a kerb's shadow (interpolated where no point fell) does not
+        // carry the ground over it.
+        // Before the references are set, a cell's reference is the floor its points saw.
+        let own = |i: CellIndex| {
+            let f = self.cell(i.0, i.1)?.reference;
+            f.is_finite().then_some(f)
+        };
         let mut queue: Vec<(CellIndex, Option<f32>)> = from
             .into_iter()
             .filter(|&i| visit(i))
@@ -126,16 +135,22 @@ impl Grid {
             out.push(i);
             for &(dx, dy, rise) in &near {
                 let n = (i.0 + dx, i.1 + dy);
-                let climbs = match (carried, own(n)) {
-                    (Some(a), Some(b)) => (a - b).abs() <= step + tan,
+                // One look-up for the neighbour's floors, the mesh's and the points'.
+                let Some(c) = self.cell(n.0, n.1) else {
+                    continue;
+                };
+                if !(c.floor.is_finite() && (c.floor - f).abs() <= rise) {
+                    continue;
+                }
+                let seen = c.reference.is_finite().then_some(c.reference);
+                let climbs = match (carried, seen) {
+                    (Some(a), Some(b)) => (a - b).abs() <= rise,
                     _ => true,
                 };
-                let mesh_climbs = floor(n).is_some_and(|g| (g - f).abs() <= rise);
-                if mesh_climbs && !climbs {
+                if !climbs {
                     at_a_kerb(i);
-                }
-                if mesh_climbs && climbs && visit(n) {
-                    queue.push((n, own(n).or(carried)));
+                } else if visit(n) {
+                    queue.push((n, seen.or(carried)));
                 }
             }
         }

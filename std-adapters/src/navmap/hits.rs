@@ -4,11 +4,10 @@
 //! scans' floor").
 //!
 //! A column per cell (the grid's cells, in the level frame of the `up` the run started with)
-//! keeps two masks of 64 height bins of [`BIN_M`] above its lowest bin: the bins a point fell
-//! in, and those at least two points fell in. What the grid reads is each column's lowest bin
-//! two points fell in, the floor as the points saw it ([`Hits::each_floor`]): a lone stray
-//! return below the floor is not taken. Bins are aligned to the level frame's zero, so a
-//! column's lowest bin moving down shifts the masks and keeps what lies within 3.2 m of it.
+//! keeps the 32 height bins of [`BIN_M`] over its lowest point that a point fell in, and the
+//! lowest bin two points fell in: the floor as the points saw it ([`Hits::each_floor`]; a lone
+//! stray return below the floor is not taken). Bins are aligned to the level frame's zero
+//! (heights within 655 m of it), so a column's lowest bin moving down shifts its mask.
 //!
 //! The hits are kept in **chunks** of the path, a new one every [`CHUNK_M`] travelled, each
 //! with the pose of the frame it began at as the run kept it. When loop closure later corrects
@@ -16,14 +15,18 @@
 //! as the rebuilt mesh does.
 //!
 //! Owns: the columns and chunks. Guarantees: memory grows with the area seen within
-//! [`RANGE_M`] of the path (24 bytes a cell, in tiles of 64 x 64, per chunk), never with the
+//! [`RANGE_M`] of the path (8 bytes a cell, in tiles of 16 x 16, per chunk), never with the
 //! points; the same points in the same order give the same hits.
 
-use crate::navmap::grid::{cell_at, level_of, tile_of, TILE_CELLS};
+use crate::navmap::grid::level_of;
 use nalgebra::{Rotation3, Vector3};
 use slamesh_core::cell::BuildCellHasher;
 use slamesh_core::{Point, Pose};
 use std::collections::HashMap;
+
+/// What hands the scans' floors to the grid: it calls its argument with each (map frame),
+/// as [`Hits::each_floor`] does.
+pub type Floors<'a> = dyn Fn(&mut dyn FnMut(Vector3<f64>)) + 'a;
 
 /// The height of a bin (m).
 pub const BIN_M: f64 = 0.02;
@@ -33,51 +36,75 @@ pub const BIN_M: f64 = 0.02;
 pub const RANGE_M: f64 = 20.0;
 
 /// How far (m) the path travels before a new chunk begins.
-pub const CHUNK_M: f64 = 20.0;
+pub const CHUNK_M: f64 = 30.0;
 
-/// One cell's heights: bit `b` of the masks for bin `base + b`.
+/// One cell's heights: bit `b` of `once` for bin `base + b` (the 32 bins over the lowest
+/// point), and the lowest bin two points fell in.
 #[derive(Debug, Clone, Copy)]
 struct Column {
-    once: u64,
-    twice: u64,
-    /// The lowest bin's index (level-frame z over [`BIN_M`], floored); `i32::MAX` for none.
-    base: i32,
+    once: u32,
+    /// The lowest bin's index (level-frame z over [`BIN_M`], floored); `i16::MAX` for none.
+    base: i16,
+    /// The lowest bin two points fell in; `i16::MAX` for none.
+    floor: i16,
 }
 
 impl Default for Column {
     fn default() -> Self {
         Column {
             once: 0,
-            twice: 0,
-            base: i32::MAX,
+            base: i16::MAX,
+            floor: i16::MAX,
         }
     }
 }
 
 impl Column {
-    /// Counts a point in bin `b`.
-    fn add(&mut self, b: i32) {
+    /// Counts a point in bin `b`. A point more than 32 bins over the lowest one is passed
+    /// over: it is no floor (but for a lone stray return below the floor, whose column then
+    /// says nothing).
+    fn add(&mut self, b: i16) {
         if b < self.base {
-            let shift = self.base.saturating_sub(b);
-            let keep = |m: u64| if shift >= 64 { 0 } else { m << shift };
-            (self.once, self.twice) = (keep(self.once), keep(self.twice));
+            let shift = i32::from(self.base) - i32::from(b);
+            self.once = if shift >= 32 { 0 } else { self.once << shift };
             self.base = b;
         }
-        let off = b - self.base;
-        if off < 64 {
-            let bit = 1u64 << off;
-            self.twice |= self.once & bit;
+        let off = i32::from(b) - i32::from(self.base);
+        if off < 32 {
+            let bit = 1u32 << off;
+            if self.once & bit != 0 {
+                self.floor = self.floor.min(b);
+            }
             self.once |= bit;
         }
     }
 
     /// The lowest bin two points fell in, if any.
-    fn floor(&self) -> Option<i32> {
-        (self.twice != 0).then(|| self.base + self.twice.trailing_zeros() as i32)
+    fn floor(&self) -> Option<i16> {
+        (self.floor != i16::MAX).then_some(self.floor)
     }
 }
 
+/// Cells along a tile's side: smaller than the grid's, since a chunk's columns lie along a
+/// street or a corridor, not over a block.
+const TILE: i64 = 16;
+const TILE_CELLS: usize = (TILE * TILE) as usize;
+
 type Tile = Box<[Column; TILE_CELLS]>;
+
+/// The tile holding cell `(ix, iy)` and the cell's place in it.
+fn tile_of(ix: i64, iy: i64) -> ((i64, i64), usize) {
+    let key = (ix.div_euclid(TILE), iy.div_euclid(TILE));
+    (
+        key,
+        (iy.rem_euclid(TILE) * TILE + ix.rem_euclid(TILE)) as usize,
+    )
+}
+
+/// The cell at place `k` of tile `(tx, ty)`: [`tile_of`] turned back.
+fn cell_at((tx, ty): (i64, i64), k: usize) -> (i64, i64) {
+    (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE)
+}
 
 /// The hits of one stretch of the path.
 struct Chunk {
@@ -117,27 +144,34 @@ impl Hits {
                 tiles: HashMap::default(),
             });
         }
-        let res = self.resolution;
-        let to_level = self.level * pose.rotation.to_rotation_matrix();
+        let to_level = (self.level * pose.rotation.to_rotation_matrix()).into_inner();
         let origin = self.level * pose.translation.vector;
+        let (per_cell, per_bin) = (1.0 / self.resolution, 1.0 / BIN_M);
         let Some(chunk) = self.chunks.last_mut() else {
             return;
         };
         let mut current: Option<((i64, i64), &mut Tile)> = None;
         for p in points {
             let q = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-            // NaN or beyond the range.
-            if q.norm().partial_cmp(&RANGE_M) != Some(std::cmp::Ordering::Less) {
+            // A floor lies below the sensor: what the points hit above it is passed over
+            // (half a street's points, its walls), as is a point that is not finite or lies
+            // beyond the range.
+            let up = to_level.row(2).transpose().dot(&q);
+            if !(up < 0.0 && q.norm_squared() < RANGE_M * RANGE_M) {
                 continue;
             }
-            let w = to_level * q + origin;
+            let w = Vector3::new(
+                to_level.row(0).transpose().dot(&q),
+                to_level.row(1).transpose().dot(&q),
+                up,
+            ) + origin;
             let (ix, iy, b) = (
-                (w.x / res).floor(),
-                (w.y / res).floor(),
-                (w.z / BIN_M).floor(),
+                (w.x * per_cell).floor(),
+                (w.y * per_cell).floor(),
+                (w.z * per_bin).floor(),
             );
             let bounded = |v: f64, limit: f64| v.abs() < limit;
-            if !(bounded(ix, 1e15) && bounded(iy, 1e15) && bounded(b, 1e9)) {
+            if !(bounded(ix, 1e15) && bounded(iy, 1e15) && bounded(b, f64::from(i16::MAX))) {
                 continue;
             }
             let (key, k) = tile_of(ix as i64, iy as i64);
@@ -147,7 +181,7 @@ impl Hits {
                 current = Some((key, tile));
             }
             if let Some((_, tile)) = current.as_mut() {
-                tile[k].add(b as i32);
+                tile[k].add(b as i16);
             }
         }
     }
@@ -173,7 +207,7 @@ impl Hits {
                     let level = Vector3::new(
                         (ix as f64 + 0.5) * self.resolution,
                         (iy as f64 + 0.5) * self.resolution,
-                        (b as f64 + 0.5) * BIN_M,
+                        (f64::from(b) + 0.5) * BIN_M,
                     );
                     let map = back * level;
                     each(match &moved {
@@ -205,30 +239,38 @@ mod tests {
         c.add(8);
         assert_eq!(c.base, 8);
         assert_eq!(c.once, 0b10101);
-        assert_eq!(c.twice, 0b00100);
         assert_eq!(c.floor(), Some(10));
-        // Far lower: what stood more than 64 bins over it is gone.
+        c.add(8);
+        assert_eq!(c.floor(), Some(8));
+        // Far lower: what stood more than 32 bins over it is gone, the floor found kept.
         c.add(-100);
-        assert_eq!((c.base, c.once, c.twice, c.floor()), (-100, 1, 0, None));
+        assert_eq!((c.base, c.once, c.floor()), (-100, 1, Some(8)));
+        // A point 32 bins or more over the lowest is passed over.
+        c.add(-60);
+        c.add(-60);
+        assert_eq!((c.once, c.floor()), (1, Some(8)));
     }
 
     #[test]
     fn a_floor_is_two_points_low_and_a_chunk_moves_with_its_first_frame() {
         let mut hits = Hits::new(0.1, &Vector3::z());
         let pose = Pose::identity();
-        // Two points in one bin at (1.05, 2.05, 0.51); one alone lower; one alone elsewhere.
+        // Two points in one bin at (1.05, 2.05, -0.51); one alone lower; one alone elsewhere;
+        // two above the sensor.
         let points = [
-            [1.05, 2.05, 0.51],
-            [1.06, 2.04, 0.51],
-            [1.04, 2.02, 0.3],
-            [5.0, 0.0, 0.0],
+            [1.05, 2.05, -0.51],
+            [1.06, 2.04, -0.51],
+            [1.04, 2.02, -0.7],
+            [5.0, 0.0, -1.0],
+            [3.0, 3.0, 0.5],
+            [3.0, 3.0, 0.5],
         ];
         hits.add(0, &pose, &pose, &points);
         let mut got = Vec::new();
         hits.each_floor(&|_| None, &mut |p| got.push(p));
         assert_eq!(got.len(), 1);
         assert!(
-            (got[0] - Vector3::new(1.05, 2.05, 0.51)).norm() < 1e-9,
+            (got[0] - Vector3::new(1.05, 2.05, -0.51)).norm() < 1e-9,
             "{:?}",
             got[0]
         );
@@ -240,12 +282,12 @@ mod tests {
         got.clear();
         hits.each_floor(&|_| Some(shifted), &mut |p| got.push(p));
         assert!(
-            (got[0] - Vector3::new(2.05, 2.05, 0.51)).norm() < 1e-9,
+            (got[0] - Vector3::new(2.05, 2.05, -0.51)).norm() < 1e-9,
             "{:?}",
             got[0]
         );
         // Points beyond the range or not finite count for nothing.
-        let far = [[40.0, 0.0, 0.0], [40.0, 0.0, 0.0], [f32::NAN, 0.0, 0.0]];
+        let far = [[40.0, 0.0, -1.0], [40.0, 0.0, -1.0], [f32::NAN, 0.0, -1.0]];
         hits.add(1, &pose, &pose, &far);
         let mut n = 0;
         hits.each_floor(&|_| None, &mut |_| n += 1);

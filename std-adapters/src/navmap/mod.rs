@@ -38,13 +38,14 @@ use nalgebra::Vector3;
 use std::path::Path;
 
 /// Builds the navigation map of the triangles `mesh` hands over, with the floor the scans'
-/// points saw (`floors`, map frame, [`hits::Hits::each_floor`]; none from a saved map), the
-/// ground grown from `path` (sensor positions in the map frame), and writes its files into
-/// `dir` ([`files::write`]); the summary is `None` when the mesh held nothing to map. The grid
-/// comes back for the layers on the mesh's own vertices ([`layers::OnMesh`]).
+/// points saw (`floors` calls its argument with each, map frame: [`hits::Hits::each_floor`];
+/// none from a saved map), the ground grown from `path` (sensor positions in the map frame),
+/// and writes its files into `dir` ([`files::write`]); the summary is `None` when the mesh
+/// held nothing to map. The grid comes back for the layers on the mesh's own vertices
+/// ([`layers::OnMesh`]).
 pub fn make(
     mesh: &mut dyn Triangles,
-    floors: &[Vector3<f64>],
+    floors: &hits::Floors,
     path: &[Vector3<f64>],
     how: &NavMapOptions,
     dir: &Path,

@@ -452,13 +452,16 @@ fn write_mesh(
                 let i = poses.binary_search_by_key(&frame, |(j, _)| *j).ok()?;
                 Some(poses[i].1)
             };
-            let mut floors = Vec::new();
             if let Some(h) = &hits {
-                h.each_floor(&now, &mut |p| floors.push(p));
                 log::debug!("navigation map: the scans' floor took {} bytes", h.bytes());
             }
-            drop(hits);
+            let floors = |each: &mut dyn FnMut(nalgebra::Vector3<f64>)| {
+                if let Some(h) = &hits {
+                    h.each_floor(&now, each);
+                }
+            };
             let (summary, grid) = crate::navmap::make(&mut spool, &floors, &path, &how, out)?;
+            drop(hits);
             summary.map(|s| (s, grid, how.robot))
         }
         _ => None,
