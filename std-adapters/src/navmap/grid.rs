@@ -554,14 +554,24 @@ pub(super) fn disc(r: i64) -> Vec<(i64, i64)> {
 }
 
 /// The cell at place `k` of tile `(tx, ty)`: [`tile_of`] turned back.
-pub(super) fn cell_at((tx, ty): (i64, i64), k: usize) -> CellIndex {
-    (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE)
+pub(super) fn cell_at(tile: (i64, i64), k: usize) -> CellIndex {
+    cell_in_tiles_of(TILE, tile, k)
 }
 
 /// The tile holding cell `(ix, iy)` and the cell's place in it.
 pub(super) fn tile_of(ix: i64, iy: i64) -> ((i64, i64), usize) {
-    let key = (ix.div_euclid(TILE), iy.div_euclid(TILE));
-    let k = (iy.rem_euclid(TILE) * TILE + ix.rem_euclid(TILE)) as usize;
+    tile_in_tiles_of(TILE, ix, iy)
+}
+
+/// [`cell_at`] for tiles of `side` x `side` cells.
+pub(super) fn cell_in_tiles_of(side: i64, (tx, ty): (i64, i64), k: usize) -> CellIndex {
+    (tx * side + k as i64 % side, ty * side + k as i64 / side)
+}
+
+/// [`tile_of`] for tiles of `side` x `side` cells.
+pub(super) fn tile_in_tiles_of(side: i64, ix: i64, iy: i64) -> ((i64, i64), usize) {
+    let key = (ix.div_euclid(side), iy.div_euclid(side));
+    let k = (iy.rem_euclid(side) * side + ix.rem_euclid(side)) as usize;
     (key, k)
 }
 

@@ -18,7 +18,7 @@
 //! [`RANGE_M`] of the path (8 bytes a cell, in tiles of 16 x 16, per chunk), never with the
 //! points; the same points in the same order give the same hits.
 
-use crate::navmap::grid::level_of;
+use crate::navmap::grid::{cell_in_tiles_of, level_of, tile_in_tiles_of};
 use nalgebra::{Rotation3, Vector3};
 use slamesh_core::cell::BuildCellHasher;
 use slamesh_core::{Point, Pose};
@@ -94,16 +94,12 @@ type Tile = Box<[Column; TILE_CELLS]>;
 
 /// The tile holding cell `(ix, iy)` and the cell's place in it.
 fn tile_of(ix: i64, iy: i64) -> ((i64, i64), usize) {
-    let key = (ix.div_euclid(TILE), iy.div_euclid(TILE));
-    (
-        key,
-        (iy.rem_euclid(TILE) * TILE + ix.rem_euclid(TILE)) as usize,
-    )
+    tile_in_tiles_of(TILE, ix, iy)
 }
 
 /// The cell at place `k` of tile `(tx, ty)`: [`tile_of`] turned back.
-fn cell_at((tx, ty): (i64, i64), k: usize) -> (i64, i64) {
-    (tx * TILE + k as i64 % TILE, ty * TILE + k as i64 / TILE)
+fn cell_at(tile: (i64, i64), k: usize) -> (i64, i64) {
+    cell_in_tiles_of(TILE, tile, k)
 }
 
 /// The hits of one stretch of the path.

@@ -235,7 +235,11 @@ impl<'a, C: Capacity> Run<'a, C> {
             )?),
             None => None,
         };
-        let hits = (opts.navmap.as_ref()).map(|n| Hits::new(n.resolution_m, &n.up().0));
+        // The scans' floor grows with the area driven: not in a run whose memory a window
+        // bounds (its grid is the mesh's alone, as from a saved map).
+        let hits = (opts.navmap.as_ref())
+            .filter(|_| setup.window.is_off())
+            .map(|n| Hits::new(n.resolution_m, &n.up().0));
         Ok(Run {
             hits,
             closer: setup.closer,

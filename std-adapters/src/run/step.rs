@@ -285,11 +285,12 @@ impl<C: Capacity> Run<'_, C> {
             opts,
             pager,
             search,
+            hits,
             ..
         } = self;
         let (deskew, config, workers) = (opts.deskew, &opts.config, &*workers);
-        // The navigation map's hits take the scan's own points: it is not filtered ahead.
-        let keep_points = opts.navmap.is_some();
+        // The scans' floor takes the scan's own points: it is not filtered ahead.
+        let keep_points = hits.is_some();
         let mut read_next = Some(|| {
             ahead.read_ahead(source, i + 1, workers, config, |points, times| {
                 (times.is_none() || deskew == Deskew::Off)
