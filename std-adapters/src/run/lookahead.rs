@@ -75,6 +75,9 @@ pub struct Ahead {
     pub filter_ms: f64,
     /// Time the run waited for it (ms).
     pub wait_ms: f64,
+    /// The scan's own points, when the look-ahead keeps them ([`LookAhead::keep_points`]);
+    /// none otherwise.
+    pub raw: Vec<Point>,
 }
 
 impl Ahead {
@@ -99,11 +102,13 @@ pub struct LookAhead {
     /// `filtering` holds how many there were.
     next: Option<Read>,
     filtering: Option<usize>,
+    /// Whether a frame filtered ahead keeps its own points too ([`Ahead::raw`]).
+    keep_points: bool,
 }
 
-/// What a filter job hands back: the filter, the down-sampled points, what it did and the
-/// time it took (ms).
-type Job = (ScanFilter, Vec<Point>, FilterStats, f64);
+/// What a filter job hands back: the filter, the down-sampled points, what it did, the time
+/// it took (ms) and the scan's own points when they are kept.
+type Job = (ScanFilter, Vec<Point>, FilterStats, f64, Vec<Point>);
 
 impl LookAhead {
     /// No look-ahead: every frame is read when its step comes, and filtered in line.
@@ -129,6 +134,12 @@ impl LookAhead {
             done: Some(mpsc::channel()),
             ..Self::default()
         }
+    }
+
+    /// Frames filtered ahead keep their own points too ([`Ahead::raw`]: the navigation
+    /// map's floor counts them), held one frame longer.
+    pub fn keep_points(&mut self) {
+        self.keep_points = true;
     }
 
     /// Bytes a look-ahead adds for capacity `C`: its filter's buffers and one filtered scan.
@@ -188,6 +199,7 @@ impl LookAhead {
                     let n = points.len();
                     let (raw, outbox, config) = (std::mem::take(points), outbox.clone(), *config);
                     let spread = pool.threads() >= SPREAD_FROM;
+                    let keep = self.keep_points;
                     pool.spawn(move || {
                         let t = Instant::now();
                         let f = if spread {
@@ -197,7 +209,8 @@ impl LookAhead {
                         };
                         let (points, stats) = (f.points.to_vec(), f.stats);
                         let ms = t.elapsed().as_secs_f64() * 1e3;
-                        let _ = outbox.send((filter, points, stats, ms));
+                        let raw = if keep { raw } else { Vec::new() };
+                        let _ = outbox.send((filter, points, stats, ms, raw));
                     });
                     self.filtering = Some(n);
                 }
@@ -211,13 +224,14 @@ impl LookAhead {
         let t = Instant::now();
         let received = self.done.as_ref().map(|(_, inbox)| inbox.recv());
         match received {
-            Some(Ok((filter, points, stats, filter_ms))) => {
+            Some(Ok((filter, points, stats, filter_ms, raw))) => {
                 self.filter = Some(filter);
                 Ok(Ahead {
                     points,
                     stats,
                     filter_ms,
                     wait_ms: t.elapsed().as_secs_f64() * 1e3,
+                    raw,
                 })
             }
             _ => Err("the filter job stopped".into()),
@@ -324,6 +338,23 @@ mod tests {
         assert_eq!(raw_len(&ahead.take(&mut source, 4)), Some(14));
         ahead.read_ahead(&mut source, 6, &workers, &config, yes);
         assert!(ahead.next.is_none());
+    }
+
+    #[test]
+    fn a_look_ahead_keeping_points_hands_the_frame_as_read_with_its_filtered_points() {
+        let (config, yes) = (Config::default(), |_: &[Point], _: &Option<Vec<f32>>| true);
+        let workers = Workers::new(2).unwrap();
+        let mut ahead = LookAhead::new::<KittiCapacity>();
+        ahead.read_ahead(&mut Rows, 1, &workers, &config, yes);
+        assert!(
+            filtered(ahead.take(&mut Rows, 1)).raw.is_empty(),
+            "not kept"
+        );
+        ahead.keep_points();
+        ahead.read_ahead(&mut Rows, 3, &workers, &config, yes);
+        let got = filtered(ahead.take(&mut Rows, 3));
+        assert_eq!(got.raw, Rows.read(3).unwrap());
+        assert_eq!(got.stats.input, 13);
     }
 
     #[test]

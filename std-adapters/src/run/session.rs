@@ -240,6 +240,11 @@ impl<'a, C: Capacity> Run<'a, C> {
         let hits = (opts.navmap.as_ref())
             .filter(|_| setup.window.is_off())
             .map(|n| Hits::new(n.resolution_m, &n.up().0));
+        let mut ahead = setup.ahead;
+        if hits.is_some() {
+            // The floor counts the scan's own points.
+            ahead.keep_points();
+        }
         Ok(Run {
             hits,
             closer: setup.closer,
@@ -258,7 +263,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             seconds_before: progress.seconds,
             progress,
             timer: StageTimer::new(),
-            ahead: setup.ahead,
+            ahead,
             started: Instant::now(),
             recent_points: Default::default(),
             samples: Vec::new(),

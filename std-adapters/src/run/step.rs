@@ -30,7 +30,8 @@ pub(super) const RECENT_SCANS: usize = 9;
 /// A frame's scan on its way to the pipeline.
 #[derive(Debug, Default)]
 pub(super) struct Frame {
-    /// Its points as read (none when filtered ahead), deskewed once prepared.
+    /// Its points as read (none when filtered ahead, unless the look-ahead keeps them),
+    /// deskewed once prepared.
     points: Vec<Point>,
     /// Their times relative to the stamp, when the source records them.
     times: Option<Vec<f32>>,
@@ -65,10 +66,12 @@ impl Frame {
                 };
                 (frame, Ok(()))
             }
-            Ok(ReadScan::Filtered { points, ahead }) => {
+            Ok(ReadScan::Filtered { points, mut ahead }) => {
                 rec.points = points;
                 (
                     Frame {
+                        // The scan's own points when the look-ahead kept them.
+                        points: std::mem::take(&mut ahead.raw),
                         ahead: Some(ahead),
                         ..Frame::default()
                     },
@@ -285,17 +288,12 @@ impl<C: Capacity> Run<'_, C> {
             opts,
             pager,
             search,
-            hits,
             ..
         } = self;
         let (deskew, config, workers) = (opts.deskew, &opts.config, &*workers);
-        // The scans' floor takes the scan's own points: it is not filtered ahead.
-        let keep_points = hits.is_some();
         let mut read_next = Some(|| {
             ahead.read_ahead(source, i + 1, workers, config, |points, times| {
-                (times.is_none() || deskew == Deskew::Off)
-                    && points.len() <= C::POINTS
-                    && !keep_points
+                (times.is_none() || deskew == Deskew::Off) && points.len() <= C::POINTS
             })
         });
         let everywhere = Search::default();
