@@ -7,7 +7,8 @@
 //!    slope limit (give or take [`FLOOR_NOISE_M`] across the triangle: small triangles of a
 //!    noisy floor). **Ground** is the floor the robot can reach from its path
 //!    ([`crate::navmap::ground`]): a car's roof or a pavement behind a kerb higher than a step
-//!    is floor, not ground.
+//!    is floor, not ground. Where a run's scans saw the floor ([`crate::navmap::hits`],
+//!    [`Grid::build_with_floors`]) their floor must climb too: the mesh rounds a kerb.
 //! 2. **classify**: a cell is judged against its own ground, or where it has none against the
 //!    nearest ground within about two metres: a sample standing above that by more than a
 //!    step and no more than the robot's height makes the cell an obstacle (but a floor
