@@ -218,8 +218,6 @@ pub struct Grid {
     /// and the sensor's median height where lines of sight were cast from: a surface there was
     /// seen from above. None where nothing was cast.
     pub(super) from_above: u64,
-    /// Ground cells at the foot of a kerb the points saw (while the references are set).
-    pub(super) kerb_feet: std::collections::HashSet<CellIndex>,
 }
 
 /// A cell's index: column and row (level frame x and y over the resolution, floored).
@@ -259,7 +257,6 @@ impl Grid {
             tiles: HashMap::default(),
             from_above: 0,
             carved: false,
-            kerb_feet: Default::default(),
         };
         let max_slope_tan = robot.max_slope_deg.to_radians().tan();
         mesh.each_triangle(&mut |t, _| {
@@ -280,9 +277,8 @@ impl Grid {
             }
         });
         let seeds = grid.seeds(path);
-        grid.grow_ground(seeds);
-        grid.set_references();
-        grid.kerb_feet = Default::default();
+        let kerb_feet = grid.grow_ground(seeds);
+        grid.set_references(&kerb_feet);
         let (step, height) = (robot.max_step_m as f32, robot.height_m as f32);
         mesh.each_triangle(&mut |t, variance| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);

@@ -13,7 +13,7 @@
 use crate::navmap::grid::{cell_at, disc, CellIndex, Grid};
 use nalgebra::Vector3;
 use slamesh_core::cell::BuildCellHasher;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// How far (m) a cell with no ground of its own looks for ground to be judged against.
 pub const REFERENCE_M: f64 = 2.0;
@@ -56,7 +56,7 @@ impl Grid {
 
     /// The cells of the largest stretch of floor (cells joined as [`grow_ground`](Self::grow_ground) joins them).
     pub(super) fn largest_floor(&self) -> Vec<CellIndex> {
-        let mut seen: std::collections::HashSet<CellIndex> = Default::default();
+        let mut seen: HashSet<CellIndex> = Default::default();
         let mut best: Vec<CellIndex> = Vec::new();
         for (ix, iy) in self.floor_cells() {
             if seen.contains(&(ix, iy)) {
@@ -157,10 +157,11 @@ impl Grid {
         out
     }
 
-    /// Marks the floor reachable from `seeds` as ground.
-    pub(super) fn grow_ground(&mut self, seeds: Vec<CellIndex>) {
-        let mut seen: std::collections::HashSet<CellIndex> = Default::default();
-        let mut feet = std::collections::HashSet::new();
+    /// Marks the floor reachable from `seeds` as ground, and gives the ground cells a kerb
+    /// was found from (its foot: [`stretch`](Self::stretch)'s `at_a_kerb`).
+    pub(super) fn grow_ground(&mut self, seeds: Vec<CellIndex>) -> HashSet<CellIndex> {
+        let mut seen: HashSet<CellIndex> = Default::default();
+        let mut feet = HashSet::new();
         let reached = self.stretch(
             seeds,
             |i| seen.insert(i),
@@ -171,14 +172,15 @@ impl Grid {
         for (ix, iy) in reached {
             self.cell_mut(ix, iy).ground = true;
         }
-        self.kerb_feet = feet;
+        feet
     }
 
     /// Each cell's reference: its ground, or the ground nearest it within about
     /// [`REFERENCE_M`]: the lowest ground cell of the nearest block of [`BLOCK_M`] that holds
     /// any (nearest, not lowest over the whole reach: on a slope of a few degrees the lowest
-    /// ground two metres away lies more than a step below a cell's own floor).
-    pub(super) fn set_references(&mut self) {
+    /// ground two metres away lies more than a step below a cell's own floor). The ground
+    /// cells in `kerb_feet` are no other cell's reference.
+    pub(super) fn set_references(&mut self, kerb_feet: &HashSet<CellIndex>) {
         let block = (BLOCK_M / self.resolution).round().max(1.0) as i64;
         let reach = (REFERENCE_M / (block as f64 * self.resolution)).ceil() as i64;
         let mut lowest: HashMap<(i64, i64), f32, BuildCellHasher> = HashMap::default();
@@ -186,7 +188,7 @@ impl Grid {
             for (k, c) in tile.iter().enumerate().filter(|(_, c)| c.ground) {
                 let (ix, iy) = cell_at((tx, ty), k);
                 // A kerb's foot, where the mesh rounds the kerb up, is no cell's reference.
-                if self.kerb_feet.contains(&(ix, iy)) {
+                if kerb_feet.contains(&(ix, iy)) {
                     continue;
                 }
                 let b = lowest

@@ -19,7 +19,7 @@
 //! points; the same points in the same order give the same hits.
 
 use crate::navmap::grid::{cell_in_tiles_of, level_of, tile_in_tiles_of};
-use nalgebra::{Rotation3, Vector3};
+use nalgebra::{Point3, Rotation3, Vector3};
 use slamesh_core::cell::BuildCellHasher;
 use slamesh_core::{Point, Pose};
 use std::collections::HashMap;
@@ -140,7 +140,7 @@ impl Hits {
                 tiles: HashMap::default(),
             });
         }
-        let to_level = (self.level * pose.rotation.to_rotation_matrix()).into_inner();
+        let to_level = self.level * pose.rotation.to_rotation_matrix();
         let origin = self.level * pose.translation.vector;
         let (per_cell, per_bin) = (1.0 / self.resolution, 1.0 / BIN_M);
         let Some(chunk) = self.chunks.last_mut() else {
@@ -149,18 +149,14 @@ impl Hits {
         let mut current: Option<((i64, i64), &mut Tile)> = None;
         for p in points {
             let q = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            let w = to_level * q;
             // A floor lies below the sensor: what the points hit above it is passed over
             // (half a street's points, its walls), as is a point that is not finite or lies
             // beyond the range.
-            let up = to_level.row(2).transpose().dot(&q);
-            if !(up < 0.0 && q.norm_squared() < RANGE_M * RANGE_M) {
+            if !(w.z < 0.0 && q.norm_squared() < RANGE_M * RANGE_M) {
                 continue;
             }
-            let w = Vector3::new(
-                to_level.row(0).transpose().dot(&q),
-                to_level.row(1).transpose().dot(&q),
-                up,
-            ) + origin;
+            let w = w + origin;
             let (ix, iy, b) = (
                 (w.x * per_cell).floor(),
                 (w.y * per_cell).floor(),
@@ -205,11 +201,8 @@ impl Hits {
                         (iy as f64 + 0.5) * self.resolution,
                         (f64::from(b) + 0.5) * BIN_M,
                     );
-                    let map = back * level;
-                    each(match &moved {
-                        Some(m) => m.transform_vector(&map) + m.translation.vector,
-                        None => map,
-                    });
+                    let map = Point3::from(back * level);
+                    each(moved.map_or(map, |m| m * map).coords);
                 }
             }
         }
