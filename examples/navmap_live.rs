@@ -1,8 +1,8 @@
 //! The ROS 2 node's `map` (docs/design.md §1.18, `ros2::occupancy`), measured without DDS: a
 //! simulated town drive through the command's run loop with a sink that does what the node's
-//! does for `map`: keeps the mesh's tiles from each frame's map update and makes the grid
-//! around the sensor again every `--every` scans on its worker thread ([`LiveMap`]), then once
-//! at the end.
+//! does for `map`: keeps the mesh's tiles from each frame's map update, counts the scans' own
+//! points' floor, and makes the grid around the sensor again every `--every` scans on its
+//! worker thread ([`LiveMap`]), then once at the end.
 //!
 //! Prints the updates' count, median and 95th percentile (ms), the cells' memory and the
 //! last grid's size and counts.
@@ -46,8 +46,9 @@ impl Sink for Grid {
         if let Some(u) = &e.map {
             self.tiles.update(&u.layers);
         }
-        let at = e.pose.map(|p| p.translation.vector);
-        self.map.scan(&self.tiles, at, Header::default());
+        // As the node does: the scan's own points at the pose they were registered at.
+        let seen = e.map.as_ref().map(|u| (&u.pose, &u.own_points[..]));
+        self.map.scan(&self.tiles, seen, Header::default());
         Ok(())
     }
     fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {

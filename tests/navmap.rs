@@ -10,13 +10,18 @@
 
 use crate::common::scratch;
 use nalgebra::{Point3, Rotation3, Vector3};
+use slamesh::navmap::background::Background;
+use slamesh::navmap::live::{Cells, LiveGrid, FREE, OCCUPIED};
+use slamesh::navmap::tiled_mesh::TiledMesh;
 use slamesh::navmap::{NavMapOptions, Robot};
-use slamesh::run::{run, RunOptions};
+use slamesh::run::{run_to, FrameEvent, RunOptions, Sink, Sinks, Summary};
+use slamesh_core::layer::Shown;
 use slamesh_core::{Config, KittiCapacity, Pose};
 use slamesh_sim::scene::Scene;
 use slamesh_sim::Drive;
 use std::collections::HashSet;
 use std::path::Path;
+use std::sync::{Arc, Mutex};
 
 /// A Nav2 map as `map_server` reads it: its pixels (rows top-down), size, resolution and the
 /// lower-left pixel's corner.
@@ -92,12 +97,83 @@ impl Nav2Map {
         }
     }
 
+    /// The live grid's `cells` (of `resolution` metres) as `map_server` would read them from
+    /// a trinary image.
+    fn of_live(cells: &Cells, resolution: f64) -> Nav2Map {
+        let pixel = |v: i8| match v {
+            FREE => 254,
+            OCCUPIED => 0,
+            _ => 205,
+        };
+        let rows = cells.data.chunks(cells.width).rev();
+        Nav2Map {
+            pixels: rows.flat_map(|r| r.iter().map(|v| pixel(*v))).collect(),
+            width: cells.width,
+            height: cells.height,
+            resolution,
+            origin: [cells.origin.0, cells.origin.1].map(|i| i as f64 * resolution),
+            free_thresh: 0.19,
+        }
+    }
+
     /// The centre of pixel `(col, row)` in the grid's frame.
     fn centre(&self, col: usize, row: usize) -> [f64; 2] {
         [
             self.origin[0] + (col as f64 + 0.5) * self.resolution,
             self.origin[1] + ((self.height - 1 - row) as f64 + 0.5) * self.resolution,
         ]
+    }
+}
+
+/// The grid the ROS 2 node keeps current (`ros2::occupancy`, with the node's window and its
+/// default `map_every` of 10 scans), fed as the node feeds it: the mesh's tiles from each
+/// frame's map update, the scans' points and poses. Its last grid goes to `last`.
+struct LiveSink {
+    tiles: TiledMesh,
+    grid: Background<()>,
+}
+
+impl LiveSink {
+    fn new(config: &Config, how: NavMapOptions, last: Arc<Mutex<Option<Cells>>>) -> LiveSink {
+        // The node's window and the inner square it keeps (`ros2::occupancy`'s `WINDOW_M` and
+        // `KEEP_M`; the ROS 2 node is a feature these tests do not need).
+        let (window_m, keep_m) = (30.0, 20.0);
+        let out = move |g: &LiveGrid, ()| {
+            *last.lock().unwrap() = g.cells();
+            true
+        };
+        LiveSink {
+            tiles: TiledMesh::new(config.lattice().table(), Shown::new(&config.mesh)),
+            grid: Background::new("live-grid", 10, how, (window_m, keep_m), Box::new(out)),
+        }
+    }
+}
+
+impl Sink for LiveSink {
+    fn name(&self) -> String {
+        "live grid".into()
+    }
+
+    fn wants_map(&self) -> bool {
+        true
+    }
+
+    fn frame(&mut self, e: Arc<FrameEvent>) -> Result<(), String> {
+        if let Some(u) = &e.map {
+            if let Some((path, _)) = &u.closed {
+                self.tiles.clear();
+                self.grid.correct(path);
+            }
+            self.tiles.update(&u.layers);
+            self.grid
+                .scan(&self.tiles, Some((&u.pose, &u.own_points)), ());
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
+        self.grid.finish(&self.tiles, ());
+        Ok(None)
     }
 }
 
@@ -224,24 +300,42 @@ impl Mapped {
     /// command fits it (`slamesh run`'s default preset: 0.5 m cells indoors), and reads the
     /// map back.
     fn of(drive: &Drive, frames: usize, robot: Robot, name: &str) -> Mapped {
+        Mapped::with_live(drive, frames, robot, name, false).0
+    }
+
+    /// [`of`](Self::of), and with `live` the grid the ROS 2 node keeps current during the run
+    /// too ([`LiveSink`]), as it is at the end.
+    fn with_live(
+        drive: &Drive,
+        frames: usize,
+        robot: Robot,
+        name: &str,
+        live: bool,
+    ) -> (Mapped, Option<Mapped>) {
         let dir = scratch(name);
         let first: Pose = drive.poses[0];
         let up = first.rotation.inverse() * Vector3::z();
         let config = slamesh::run::scale::fit(&Config::default(), &drive.scan(0))
             .map_or_else(Config::default, |f| f.config);
+        let how = NavMapOptions {
+            robot,
+            resolution_m: 0.1,
+            up: Some((up, "the simulator's gravity".into())),
+        };
         let opts = RunOptions {
             out: dir.clone(),
             config,
             threads: 2,
             mesh_formats: Vec::new(),
-            navmap: Some(NavMapOptions {
-                robot,
-                resolution_m: 0.1,
-                up: Some((up, "the simulator's gravity".into())),
-            }),
+            navmap: Some(how.clone()),
             ..RunOptions::default()
         };
-        let summary = run::<KittiCapacity>(&mut drive.clone(), &opts, |_| {}).unwrap();
+        let last = Arc::new(Mutex::new(None));
+        let mut sinks = Sinks::new();
+        if live {
+            sinks.add(LiveSink::new(&config, how, last.clone()));
+        }
+        let summary = run_to::<KittiCapacity>(&mut drive.clone(), &opts, sinks).unwrap();
         assert_eq!(summary.used, frames);
         let map = Nav2Map::read(&dir);
         assert!(
@@ -249,11 +343,16 @@ impl Mapped {
             "unknown (205) must not load as free"
         );
         std::fs::remove_dir_all(&dir).unwrap();
-        Mapped {
-            map,
-            first,
-            level: Rotation3::rotation_between(&up, &Vector3::z()).unwrap(),
-        }
+        let level = Rotation3::rotation_between(&up, &Vector3::z()).unwrap();
+        let live = live.then(|| {
+            let cells = last.lock().unwrap().take().expect("the live grid was made");
+            Mapped {
+                map: Nav2Map::of_live(&cells, 0.1),
+                first,
+                level,
+            }
+        });
+        (Mapped { map, first, level }, live)
     }
 
     /// Grid frame `(x, y)` to the world: the level frame turned back to the map's, then the
@@ -459,20 +558,25 @@ fn the_office_s_navigation_map_against_the_truth() {
 /// mesh rounds it into a slope the robot could climb, but the scans' points saw it sharp
 /// (`navmap::hits`), so the ground does not grow over it and the pavement stands a kerb
 /// above the yard: occupied.
+///
+/// The grid the ROS 2 node keeps current during the run sees the kerbs as the file does: its
+/// window is made from the scans' points too (`navmap::background`). It is judged over the
+/// cells its updates judged (an update due while the last is being made is skipped, so which
+/// windows were made varies from run to run).
 #[test]
 fn the_yard_s_kerbs_and_ramps() {
     use slamesh_sim::yard::{ramp, KERBS, RAMPS, RAMP_Y};
     let frames = 180;
     let drive = Drive::yard(frames, 3);
     let robot = Robot::WHEELED;
-    let mapped = Mapped::of(&drive, frames, robot, "navmap-yard");
+    let (mapped, live) = Mapped::with_live(&drive, frames, robot, "navmap-yard", true);
+    let live = live.unwrap();
     let seen = seen_cells(&mapped, &drive, frames);
-    let map = &mapped.map;
-    // The share of the area's seen cells that are `value` (0 free, 100 occupied), and how
-    // many there are.
-    let share = |x: [f64; 2], y: [f64; 2], value: i8| {
+    // In `m`, the share of the area's seen cells that are `value` (0 free, 100 occupied),
+    // and how many there are; with `judged`, of those not unknown.
+    let share = |m: &Mapped, x: [f64; 2], y: [f64; 2], value: i8, judged: bool| {
         let mut cells = HashSet::new();
-        let mut free = 0;
+        let mut count = 0;
         let (nx, ny) = (
             ((x[1] - x[0]) / 0.05) as usize,
             ((y[1] - y[0]) / 0.05) as usize,
@@ -480,27 +584,32 @@ fn the_yard_s_kerbs_and_ramps() {
         for (i, j) in (0..=nx).flat_map(|i| (0..=ny).map(move |j| (i, j))) {
             let (px, py) = (x[0] + 0.05 * i as f64, y[0] + 0.05 * j as f64);
             let cell = mapped.cell(&Point3::new(px, py, 0.0));
-            let Some((c, r)) = mapped.pixel(px, py) else {
+            let Some((c, r)) = m.pixel(px, py) else {
                 continue;
             };
-            if seen.contains(&cell) && cells.insert(cell) {
-                free += usize::from(map.value(c, r) == value);
+            let v = m.map.value(c, r);
+            if seen.contains(&cell) && (!judged || v != -1) && cells.insert(cell) {
+                count += usize::from(v == value);
             }
         }
-        (free as f64 / cells.len().max(1) as f64, cells.len())
+        (count as f64 / cells.len().max(1) as f64, cells.len())
     };
+    let map = &mapped.map;
     // Whether free cells join the yard's middle at `x` to `(x, y)`.
     let reached = |x: f64, y: f64| match (mapped.pixel(x, 0.0), mapped.pixel(x, y)) {
         (Some(from), Some(to)) => free_path(map, from, to),
         _ => false,
     };
-    let free_share = |x: [f64; 2], y: [f64; 2]| share(x, y, 0);
     let inset = 0.15;
-    let pavement = |[x0, x1, _]: [f64; 3], value: i8| {
-        share([x0 + inset, x1 - inset], [4.0 + inset, 6.0 - inset], value)
+    let pavement = |m: &Mapped, [x0, x1, _]: [f64; 3], value: i8, judged: bool| {
+        let (x, y) = ([x0 + inset, x1 - inset], [4.0 + inset, 6.0 - inset]);
+        share(m, x, y, value, judged)
     };
-    let (high, low) = (pavement(KERBS[0], 0), pavement(KERBS[1], 0));
-    let high_occupied = pavement(KERBS[0], 100);
+    let (high, low) = (
+        pavement(&mapped, KERBS[0], 0, false),
+        pavement(&mapped, KERBS[1], 0, false),
+    );
+    let high_occupied = pavement(&mapped, KERBS[0], 100, false);
     let centre = |k: [f64; 3]| (k[0] + k[1]) / 2.0;
     let high_reached = reached(centre(KERBS[0]), 5.0);
     println!(
@@ -513,14 +622,17 @@ fn the_yard_s_kerbs_and_ramps() {
     assert!(high.1 > 500 && high.0 < 0.05 && !high_reached, "{high:?}");
     assert!(high_occupied.0 > 0.9, "{high_occupied:?}");
     let y = [RAMP_Y[0] + inset, RAMP_Y[1] - inset];
-    let [gentle, steep] = RAMPS.map(|[x0, x1, degrees]| {
-        let (up, top) = ramp(x0, x1, degrees);
-        // From where the ramp stands a step up.
-        let from = up[0] + robot.max_step_m / degrees.to_radians().tan();
-        let on_ramp = free_share([from + inset, up[1] - inset], y);
-        let platform = free_share([top[0] + inset, top[1] - inset], y);
-        (on_ramp, platform, reached((top[0] + top[1]) / 2.0, -5.5))
-    });
+    let ramps = |m: &Mapped, judged: bool| {
+        RAMPS.map(|[x0, x1, degrees]| {
+            let (up, top) = ramp(x0, x1, degrees);
+            // From where the ramp stands a step up.
+            let from = up[0] + robot.max_step_m / degrees.to_radians().tan();
+            let on_ramp = share(m, [from + inset, up[1] - inset], y, 0, judged);
+            let platform = share(m, [top[0] + inset, top[1] - inset], y, 0, judged);
+            (on_ramp, platform, (top[0] + top[1]) / 2.0)
+        })
+    };
+    let [gentle, steep] = ramps(&mapped, false).map(|(r, p, x)| (r, p, reached(x, -5.5)));
     println!(
         "free on the gentle ramp, on its platform, reached: {gentle:?}; the steep one: {steep:?}"
     );
@@ -534,4 +646,25 @@ fn the_yard_s_kerbs_and_ramps() {
         steep.1 .1 > 500 && steep.1 .0 == 0.0 && !steep.2,
         "{steep:?}"
     );
+    // The live grid, over the cells it judged.
+    let (high, low) = (
+        pavement(&live, KERBS[0], 0, true),
+        pavement(&live, KERBS[1], 0, true),
+    );
+    let high_occupied = pavement(&live, KERBS[0], 100, true);
+    let [gentle, steep] = ramps(&live, true);
+    println!(
+        "live: free behind the high kerb {high:?} (occupied {:.3}), behind the low one {low:?}; \
+         on the gentle ramp and its platform {:?}, the steep one {:?}",
+        high_occupied.0,
+        (gentle.0, gentle.1),
+        (steep.0, steep.1)
+    );
+    assert!(
+        high.1 > 300 && high.0 < 0.05 && high_occupied.0 > 0.9,
+        "{high:?}"
+    );
+    assert!(low.1 > 300 && low.0 > 0.9, "{low:?}");
+    assert!(gentle.1 .1 > 300 && gentle.1 .0 > 0.8, "{gentle:?}");
+    assert!(steep.1 .1 > 300 && steep.1 .0 == 0.0, "{steep:?}");
 }

@@ -364,10 +364,10 @@ impl Publisher {
             if let Some((path, _)) = &u.closed {
                 // The update holds every layer: the mesh anew, the ground's path corrected.
                 tiles.clear();
-                grid.correct(path.iter().map(|p| p.translation.vector));
+                grid.correct(path);
             }
             tiles.update(&u.layers);
-            grid.scan(tiles, Some(u.pose.translation.vector), (time, nanos));
+            grid.scan(tiles, Some((&u.pose, &u.own_points)), (time, nanos));
         }
         self.last = Some((time, nanos));
         self.sent += 1;

@@ -5,18 +5,21 @@
 //! an update due while the last is still being made is skipped (counted); at the end, once
 //! more.
 //!
-//! It owns the grid, the path the ground is grown from (the sensor's positions, corrected
-//! after a loop closure) and the update times (the last [`TIMES`], for a median and a 95th
-//! percentile). Each update carries a tag of the caller's (a message header, a time stamp)
-//! to `out` with the grid.
+//! It owns the grid, the path the ground is grown from (the sensor's poses, corrected after
+//! a loop closure), the floor the scans' points saw ([`Hits`], counted as each scan comes, on
+//! the caller's thread: the last [`FLOOR_CHUNKS`] stretches of the path, so that the live
+//! grid finds a kerb the mesh rounded as the run's files do, in bounded memory) and the update
+//! times (the last [`TIMES`], for a median and a 95th percentile). Each update carries a tag
+//! of the caller's (a message header, a time stamp) to `out` with the grid.
 
 use crate::io::error::FileError;
 use crate::navmap::grid::Triangles;
+use crate::navmap::hits::Hits;
 use crate::navmap::live::LiveGrid;
 use crate::navmap::tiled_mesh::TiledMesh;
 use crate::navmap::NavMapOptions;
 use nalgebra::Vector3;
-use slamesh_core::Point;
+use slamesh_core::{Point, Pose};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
@@ -25,6 +28,12 @@ use std::time::Instant;
 
 /// Update times kept.
 pub const TIMES: usize = 1000;
+
+/// Stretches of the path ([`CHUNK_M`](crate::navmap::hits::CHUNK_M) each) whose scans' floor
+/// is kept: at least the last two whole ones, whose scans saw the ground up to
+/// [`RANGE_M`](crate::navmap::hits::RANGE_M) around the last 60 m of the path, which holds the
+/// window around the sensor; the memory is that of three stretches, however long the run.
+pub const FLOOR_CHUNKS: usize = 3;
 
 /// What takes a grid once it is made, with its update's tag: true when it went out.
 pub type Out<T> = Box<dyn FnMut(&LiveGrid, T) -> bool + Send>;
@@ -37,8 +46,11 @@ pub struct Background<T: Send + 'static> {
     /// Scans between updates, and scans since the last.
     every: usize,
     since: usize,
-    /// The sensor's positions so far (the engine's world), the ground's seeds.
-    path: Vec<Vector3<f64>>,
+    /// The sensor's poses so far (the engine's world): the ground's seeds, and where the
+    /// floor's chunks began.
+    path: Vec<Pose>,
+    /// The floor the scans' points saw, by the index in `path` of the scan that counted it.
+    floors: Hits,
     /// Update times (ms).
     times: Arc<Mutex<Vec<f64>>>,
     /// Where a grid goes once made, and how many went.
@@ -51,10 +63,11 @@ pub struct Background<T: Send + 'static> {
     skipped: u64,
 }
 
-/// An update for the worker: the window's triangles (copied), the path near it, where, and
-/// the caller's tag.
+/// An update for the worker: the window's triangles and the scans' floor there (copied), the
+/// path near it, where, and the caller's tag.
 struct Job<T> {
     triangles: Vec<([Point; 3], f32)>,
+    floors: Vec<Vector3<f64>>,
     path: Vec<Vector3<f64>>,
     at: Vector3<f64>,
     tag: T,
@@ -71,12 +84,14 @@ impl<T: Send + 'static> Background<T> {
         (window_m, keep_m): (f64, f64),
         out: Out<T>,
     ) -> Self {
+        let floors = Hits::new(how.resolution_m, &how.up().0);
         let mut b = Background {
             grid: Arc::new(Mutex::new(LiveGrid::new(how, window_m, keep_m))),
             window_m,
             every: every.max(1),
             since: 0,
             path: Vec::new(),
+            floors,
             times: Arc::default(),
             out: Arc::new(Mutex::new(out)),
             sent: Arc::default(),
@@ -110,7 +125,9 @@ impl<T: Send + 'static> Background<T> {
             let t = Instant::now();
             let Ok(mut g) = grid.lock() else { return };
             let mut soup = Soup(job.triangles);
-            if let Err(e) = g.update(&mut soup, &job.path, &job.at) {
+            let floors =
+                |each: &mut dyn FnMut(Vector3<f64>)| job.floors.iter().for_each(|f| each(*f));
+            if let Err(e) = g.update(&mut soup, &floors, &job.path, &job.at) {
                 log::warn!("grid: {e}");
                 return;
             }
@@ -128,17 +145,27 @@ impl<T: Send + 'static> Background<T> {
         }
     }
 
-    /// The path corrected (after a loop closure): the sensor's positions, oldest first.
-    pub fn correct(&mut self, corrected: impl IntoIterator<Item = Vector3<f64>>) {
-        self.path = corrected.into_iter().collect();
+    /// The path corrected (after a loop closure): the sensor's poses, one for each scan used,
+    /// oldest first. The scans' floor moves with it; when the count differs from the scans
+    /// used, it is forgotten (the next scans count it again).
+    pub fn correct(&mut self, corrected: &[Pose]) {
+        if corrected.len() != self.path.len() {
+            self.floors.keep_last(0);
+        }
+        self.path = corrected.to_vec();
     }
 
-    /// After a scan at `at` (the sensor's position, the engine's world; `None`: a scan not
-    /// used): when due, the window around the last position goes to the worker with the
-    /// triangles of `mesh` near it (an update still being made skips this one, counted).
-    pub fn scan(&mut self, mesh: &TiledMesh, at: Option<Vector3<f64>>, tag: T) {
-        self.path.extend(at);
-        let Some(at) = self.path.last().copied() else {
+    /// After a scan (`seen`: the sensor's pose, the engine's world, and the scan's points,
+    /// sensor frame; `None`: a scan not used): its points' floor counted, and when due the
+    /// window around the last position goes to the worker with the triangles of `mesh` and
+    /// the scans' floor near it (an update still being made skips this one, counted).
+    pub fn scan(&mut self, mesh: &TiledMesh, seen: Option<(&Pose, &[Point])>, tag: T) {
+        if let Some((pose, points)) = seen {
+            self.floors.add(self.path.len(), pose, pose, points);
+            self.floors.keep_last(FLOOR_CHUNKS);
+            self.path.push(*pose);
+        }
+        let Some(at) = self.path.last().map(|p| p.translation.vector) else {
             return;
         };
         self.since += 1;
@@ -160,9 +187,18 @@ impl<T: Send + 'static> Background<T> {
         let half = self.window_m / 2.0 + 5.0;
         mesh.each_triangle_near([at.x, at.y], half, &mut |t, v| triangles.push((t, v)));
         let near = |p: &Vector3<f64>| (p.x - at.x).abs() <= half && (p.y - at.y).abs() <= half;
-        let path = self.path.iter().filter(|p| near(p)).copied().collect();
+        let path = self.path.iter().map(|p| p.translation.vector);
+        let path = path.filter(|p| near(p)).collect();
+        let mut floors = Vec::new();
+        let now = |frame: usize| self.path.get(frame).copied();
+        (self.floors).each_floor(&now, &mut |f| {
+            if near(&f) {
+                floors.push(f)
+            }
+        });
         Job {
             triangles,
+            floors,
             path,
             at,
             tag,
@@ -176,7 +212,7 @@ impl<T: Send + 'static> Background<T> {
         if let Some(w) = self.worker.take() {
             let _ = w.join();
         }
-        if let Some(at) = self.path.last().copied() {
+        if let Some(at) = self.path.last().map(|p| p.translation.vector) {
             (self.work())(self.job(mesh, at, tag));
         }
     }
@@ -187,7 +223,7 @@ impl<T: Send + 'static> Background<T> {
     }
 
     /// Updates made (of the last [`TIMES`]), their median and 95th percentile (ms), updates
-    /// skipped (the last still being made), and the cells' bytes.
+    /// skipped (the last still being made), and the bytes of the cells and the scans' floor.
     pub fn costs(&self) -> (usize, f64, f64, u64, usize) {
         let mut t = self.times.lock().map(|t| t.clone()).unwrap_or_default();
         t.sort_by(f64::total_cmp);
@@ -195,7 +231,7 @@ impl<T: Send + 'static> Background<T> {
             t.get(((t.len() as f64 - 1.0) * q).round() as usize)
                 .copied()
         };
-        let bytes = self.grid.lock().map_or(0, |g| g.bytes());
+        let bytes = self.grid.lock().map_or(0, |g| g.bytes()) + self.floors.bytes();
         (
             t.len(),
             at(0.5).unwrap_or(0.0),

@@ -234,13 +234,15 @@ impl Grid {
         up: Vector3<f64>,
         path: &[Vector3<f64>],
     ) -> Result<Grid, FileError> {
-        Grid::build_with_floors(mesh, &|_| {}, robot, resolution, up, path)
+        Grid::build_with_floors(mesh, &|_| {}, robot, resolution, up, path, &[])
     }
 
     /// [`build`](Self::build), with the floor the scans' points saw (`floors` calls its
     /// argument with each, map frame: [`crate::navmap::hits::Hits::each_floor`]): the ground
     /// does not grow between two cells whose points' floors differ by more than the robot
-    /// climbs ([`crate::navmap::ground`]), where the mesh rounded a kerb into a slope.
+    /// climbs ([`crate::navmap::ground`]), where the mesh rounded a kerb into a slope. The
+    /// ground grows from `ground` too (cells known to be ground: a live grid's free cells
+    /// around the window it makes, [`crate::navmap::live`]).
     pub fn build_with_floors(
         mesh: &mut dyn Triangles,
         floors: &Floors,
@@ -248,6 +250,7 @@ impl Grid {
         resolution: f64,
         up: Vector3<f64>,
         path: &[Vector3<f64>],
+        ground: &[CellIndex],
     ) -> Result<Grid, FileError> {
         let level = level_of(&up);
         let mut grid = Grid {
@@ -276,8 +279,9 @@ impl Grid {
                 tile[k].reference = tile[k].reference.min(q.z as f32);
             }
         });
-        let seeds = grid.seeds(path);
-        let kerb_feet = grid.grow_ground(seeds);
+        let faces = grid.kerb_faces();
+        let seeds = grid.seeds(path, ground, &faces);
+        let kerb_feet = grid.grow_ground(seeds, &faces);
         grid.set_references(&kerb_feet);
         let (step, height) = (robot.max_step_m as f32, robot.height_m as f32);
         mesh.each_triangle(&mut |t, variance| {
@@ -535,7 +539,7 @@ impl Grid {
 }
 
 /// The cell of `resolution` metres holding level-frame `(x, y)`.
-fn index_in(resolution: f64, x: f64, y: f64) -> CellIndex {
+pub(crate) fn index_in(resolution: f64, x: f64, y: f64) -> CellIndex {
     (
         (x / resolution).floor() as i64,
         (y / resolution).floor() as i64,
@@ -773,8 +777,8 @@ mod tests {
         let grid = |floors: &[Vector3<f64>]| {
             let each = |f: &mut dyn FnMut(Vector3<f64>)| floors.iter().for_each(|p| f(*p));
             let mut soup = Soup(soup.clone());
-            Grid::build_with_floors(&mut soup, &each, Robot::WHEELED, 0.1, Vector3::z(), &path)
-                .unwrap()
+            let z = Vector3::z();
+            Grid::build_with_floors(&mut soup, &each, Robot::WHEELED, 0.1, z, &path, &[]).unwrap()
         };
         let at = |g: &Grid, x: f64| {
             let (ix, iy) = g.index_of(x, 5.05);
@@ -801,6 +805,42 @@ mod tests {
             .map(|f| Vector3::new(f.x, f.y, (f.x - 5.0).clamp(0.0, 0.6) * 0.25))
             .collect();
         assert_eq!(at(&grid(&gentle), 8.05), Occupancy::Free, "a gentle rise");
+    }
+
+    #[test]
+    fn a_kerb_whose_face_the_points_saw_slanting_is_not_climbed_in_two_hops() {
+        // A street at 0, a pavement at 0.15 m from x = 5.4, the mesh rounding the kerb from
+        // x = 4.8 into a slope of 14 degrees, climbable for the wheeled robot (15). The points
+        // saw the face slanting (as at a kerb's end, seen along it): halfway up in the two
+        // cells before the pavement, so no hop between neighbours rises a step.
+        let mut soup = floor(0.0, 0.0, 4.8, 10.0, 0.0);
+        soup.push([[4.8, 0.0, 0.0], [5.4, 0.0, 0.15], [5.4, 10.0, 0.15]]);
+        soup.push([[4.8, 0.0, 0.0], [5.4, 10.0, 0.15], [4.8, 10.0, 0.0]]);
+        soup.extend(floor(5.4, 0.0, 10.0, 10.0, 0.15));
+        let floors: Vec<Vector3<f64>> = (0..100)
+            .flat_map(|ix| (0..100).map(move |iy| (ix, iy)))
+            .map(|(ix, iy)| {
+                let (x, y) = (ix as f64 * 0.1 + 0.05, iy as f64 * 0.1 + 0.05);
+                let z = match x {
+                    x if x < 5.0 => 0.01,
+                    x if x < 5.2 => 0.08,
+                    _ => 0.16,
+                };
+                Vector3::new(x, y, z)
+            })
+            .collect();
+        let each = |f: &mut dyn FnMut(Vector3<f64>)| floors.iter().for_each(|p| f(*p));
+        let path = [Vector3::new(2.5, 5.0, 1.7)];
+        let (robot, z) = (Robot::WHEELED, Vector3::z());
+        let g = Grid::build_with_floors(&mut Soup(soup), &each, robot, 0.1, z, &path, &[]);
+        let g = g.unwrap();
+        let at = |x: f64| {
+            let (ix, iy) = g.index_of(x, 5.05);
+            g.occupancy(ix, iy)
+        };
+        assert_eq!(at(2.05), Occupancy::Free, "the street");
+        assert_eq!(at(5.85), Occupancy::Occupied, "the pavement");
+        assert!(!g.cell(58, 50).unwrap().ground, "no ground on the pavement");
     }
 
     #[test]

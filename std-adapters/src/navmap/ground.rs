@@ -23,12 +23,24 @@ pub const BLOCK_M: f64 = 0.5;
 pub const BRIDGE_CELLS: i64 = 3;
 /// How far (m) from a point of the path its ground is looked for.
 pub const SEED_M: f64 = 1.0;
+/// A hop of the ground's growth: its offset, and the offsets of the cells it passes over.
+type Hop = (CellIndex, Vec<CellIndex>);
+
+/// How far apart (cells) two cells' points' floors are compared for a kerb's face
+/// ([`Grid::kerb_faces`]).
+pub const FACE_CELLS: i64 = 3;
 
 impl Grid {
     /// The floor cells the ground grows from: for each point of `path` (map frame), the
-    /// highest floor cell below it within [`SEED_M`]; with no path, the cells of the largest
-    /// stretch of floor.
-    pub(super) fn seeds(&self, path: &[Vector3<f64>]) -> Vec<CellIndex> {
+    /// highest floor cell below it within [`SEED_M`], and the cells of `ground` with floor
+    /// (known to be ground); with neither, the cells of the largest stretch of floor
+    /// (`faces`: [`kerb_faces`](Self::kerb_faces), which the stretches stop at).
+    pub(super) fn seeds(
+        &self,
+        path: &[Vector3<f64>],
+        ground: &[CellIndex],
+        faces: &HashSet<CellIndex>,
+    ) -> Vec<CellIndex> {
         let r = (SEED_M / self.resolution).ceil() as i64;
         let mut seeds: Vec<CellIndex> = path
             .iter()
@@ -46,8 +58,10 @@ impl Grid {
                     .map(|(_, i)| i)
             })
             .collect();
+        let has_floor = |i: &&CellIndex| self.cell(i.0, i.1).is_some_and(|c| c.floor.is_finite());
+        seeds.extend(ground.iter().filter(has_floor));
         if seeds.is_empty() {
-            seeds = self.largest_floor();
+            seeds = self.largest_floor(faces);
         }
         seeds.sort_unstable();
         seeds.dedup();
@@ -55,14 +69,14 @@ impl Grid {
     }
 
     /// The cells of the largest stretch of floor (cells joined as [`grow_ground`](Self::grow_ground) joins them).
-    pub(super) fn largest_floor(&self) -> Vec<CellIndex> {
+    pub(super) fn largest_floor(&self, faces: &HashSet<CellIndex>) -> Vec<CellIndex> {
         let mut seen: HashSet<CellIndex> = Default::default();
         let mut best: Vec<CellIndex> = Vec::new();
         for (ix, iy) in self.floor_cells() {
             if seen.contains(&(ix, iy)) {
                 continue;
             }
-            let part = self.stretch(vec![(ix, iy)], |i| seen.insert(i), |_| {});
+            let part = self.stretch(vec![(ix, iy)], faces, |i| seen.insert(i), |_| {});
             if part.len() > best.len() {
                 best = part;
             }
@@ -85,15 +99,72 @@ impl Grid {
         out
     }
 
+    /// The cells a kerb's face stands in, as the scans' points saw it (`Cell::reference` before
+    /// the references are set): two cells within [`FACE_CELLS`] of each other whose points'
+    /// floors differ by more than the robot steps (or, further apart than that, than its
+    /// slope limit climbs over the distance with half a step for the points' noise), where
+    /// the mesh rises the same way by more than half a step too (it rounds a kerb into a slope,
+    /// but does not rise where a swaying hand-held walk's points scatter over a flat floor),
+    /// and the upper cell's two floors agree within a step (a top to stand on, not a wall's
+    /// foot, whose points' floor is the wall's lowest return). Both cells are the face: the
+    /// points see a kerb's face in a cell or two between the street's floor and the
+    /// pavement's, or spread over a few cells where they hit it slanting at its end, and
+    /// whichever way the ground comes it does not climb across. Judged pair by pair, not along
+    /// the ground's way, so it does not hang on the order the ground grows in.
+    pub(super) fn kerb_faces(&self) -> HashSet<CellIndex> {
+        let (step, tan) = (
+            self.robot.max_step_m,
+            self.robot.max_slope_deg.to_radians().tan(),
+        );
+        // Each pair once: the offsets of half the disc, with the rise allowed over each.
+        let half: Vec<(i64, i64, f32)> = disc(FACE_CELLS)
+            .into_iter()
+            .filter(|&(dx, dy)| dy > 0 || (dy == 0 && dx > 0))
+            .map(|(dx, dy)| {
+                let d = ((dx * dx + dy * dy) as f64).sqrt() * self.resolution;
+                (dx, dy, step.max(d * tan + step / 2.0) as f32)
+            })
+            .collect();
+        // The points' floor and the mesh's.
+        let seen = |i: CellIndex| {
+            let c = self.cell(i.0, i.1)?;
+            (c.reference.is_finite() && c.floor.is_finite()).then_some((c.reference, c.floor))
+        };
+        let half_step = (step / 2.0) as f32;
+        let mut faces = HashSet::new();
+        for i in self.floor_cells() {
+            let Some(one) = seen(i) else { continue };
+            for &(dx, dy, allowed) in &half {
+                let n = (i.0 + dx, i.1 + dy);
+                let Some(other) = seen(n) else { continue };
+                // Lower and upper cell: (points' floor, mesh floor) each.
+                let (low, top) = if other.0 > one.0 {
+                    (one, other)
+                } else {
+                    (other, one)
+                };
+                let (rise, mesh_rise) = (top.0 - low.0, top.1 - low.1);
+                let stands = (top.0 - top.1).abs() <= 2.0 * half_step;
+                if rise > allowed && mesh_rise > half_step && stands {
+                    faces.insert(i);
+                    faces.insert(n);
+                }
+            }
+        }
+        faces
+    }
+
     /// The floor cells joined to `from` through neighbours within [`BRIDGE_CELLS`] (a gap in
     /// the mesh between scan rings is bridged) whose floors differ by no more than a step and
     /// a cell's rise at the slope limit, the mesh's and, where the scans' points saw it, the
-    /// points' (`Cell::reference` before the references are set); `visit` says whether a cell
-    /// is new (and marks it), `at_a_kerb` hears of each cell a join was refused from by the
-    /// points alone.
+    /// points' (`Cell::reference` before the references are set), and that are no kerb's
+    /// face (`faces`, [`kerb_faces`](Self::kerb_faces)); `visit` says whether a cell is new
+    /// (and marks it), `at_a_kerb` hears of each cell a join was refused from by the points
+    /// alone.
     pub(super) fn stretch(
         &self,
         from: Vec<CellIndex>,
+        faces: &HashSet<CellIndex>,
         mut visit: impl FnMut(CellIndex) -> bool,
         mut at_a_kerb: impl FnMut(CellIndex),
     ) -> Vec<CellIndex> {
@@ -102,10 +173,20 @@ impl Grid {
         let rise = (self.robot.max_step_m
             + self.resolution * self.robot.max_slope_deg.to_radians().tan())
             as f32;
-        let near: Vec<(i64, i64, f32)> = disc(BRIDGE_CELLS)
+        // Each hop with the cells it passes over (a bridge over a kerb's face would skip it).
+        let near: Vec<Hop> = disc(BRIDGE_CELLS)
             .into_iter()
             .filter(|&d| d != (0, 0))
-            .map(|(dx, dy)| (dx, dy, rise))
+            .map(|(dx, dy)| {
+                let m = dx.abs().max(dy.abs());
+                let over = (1..m)
+                    .map(|k| {
+                        let at = |d: i64| (d as f64 * k as f64 / m as f64).round() as i64;
+                        (at(dx), at(dy))
+                    })
+                    .collect();
+                ((dx, dy), over)
+            })
             .collect();
         let floor = |i: CellIndex| {
             self.cell(i.0, i.1)
@@ -133,7 +214,7 @@ impl Grid {
         while let Some((i, carried)) = queue.pop() {
             let Some(f) = floor(i) else { continue };
             out.push(i);
-            for &(dx, dy, rise) in &near {
+            for ((dx, dy), over) in &near {
                 let n = (i.0 + dx, i.1 + dy);
                 // One look-up for the neighbour's floors, the mesh's and the points'.
                 let Some(c) = self.cell(n.0, n.1) else {
@@ -143,10 +224,13 @@ impl Grid {
                     continue;
                 }
                 let seen = c.reference.is_finite().then_some(c.reference);
-                let climbs = match (carried, seen) {
-                    (Some(a), Some(b)) => (a - b).abs() <= rise,
-                    _ => true,
-                };
+                let face = |(ox, oy): &(i64, i64)| faces.contains(&(i.0 + ox, i.1 + oy));
+                let climbs = !faces.contains(&n)
+                    && !over.iter().any(face)
+                    && match (carried, seen) {
+                        (Some(a), Some(b)) => (a - b).abs() <= rise,
+                        _ => true,
+                    };
                 if !climbs {
                     at_a_kerb(i);
                 } else if visit(n) {
@@ -158,12 +242,18 @@ impl Grid {
     }
 
     /// Marks the floor reachable from `seeds` as ground, and gives the ground cells a kerb
-    /// was found from (its foot: [`stretch`](Self::stretch)'s `at_a_kerb`).
-    pub(super) fn grow_ground(&mut self, seeds: Vec<CellIndex>) -> HashSet<CellIndex> {
+    /// was found from (its foot: [`stretch`](Self::stretch)'s `at_a_kerb`); `faces` as
+    /// [`kerb_faces`](Self::kerb_faces) gives them.
+    pub(super) fn grow_ground(
+        &mut self,
+        seeds: Vec<CellIndex>,
+        faces: &HashSet<CellIndex>,
+    ) -> HashSet<CellIndex> {
         let mut seen: HashSet<CellIndex> = Default::default();
         let mut feet = HashSet::new();
         let reached = self.stretch(
             seeds,
+            faces,
             |i| seen.insert(i),
             |i| {
                 feet.insert(i);

@@ -208,6 +208,13 @@ impl Hits {
         }
     }
 
+    /// Forgets all but the last `chunks` chunks (the live grid's bound: its window lies
+    /// within the last stretches of the path; `0` forgets every hit).
+    pub fn keep_last(&mut self, chunks: usize) {
+        let old = self.chunks.len().saturating_sub(chunks);
+        self.chunks.drain(..old);
+    }
+
     /// The bytes the columns take.
     pub fn bytes(&self) -> usize {
         let tiles: usize = self.chunks.iter().map(|c| c.tiles.len()).sum();
@@ -281,5 +288,24 @@ mod tests {
         let mut n = 0;
         hits.each_floor(&|_| None, &mut |_| n += 1);
         assert_eq!(n, 1);
+        // A chunk 30 m on; the first forgotten, then every one.
+        let on = Pose::from_parts(
+            nalgebra::Translation3::new(CHUNK_M, 0.0, 0.0),
+            nalgebra::UnitQuaternion::identity(),
+        );
+        hits.add(2, &on, &on, &points);
+        let count = |hits: &Hits| {
+            let mut n = 0;
+            hits.each_floor(&|_| None, &mut |_| n += 1);
+            n
+        };
+        assert_eq!((hits.chunks.len(), count(&hits)), (2, 2));
+        hits.keep_last(1);
+        assert_eq!(
+            (hits.chunks.len(), hits.chunks[0].frame, count(&hits)),
+            (1, 2, 1)
+        );
+        hits.keep_last(0);
+        assert_eq!((count(&hits), hits.bytes()), (0, 0));
     }
 }

@@ -1,6 +1,7 @@
 //! An occupancy grid kept current while a run goes on (the ROS 2 node's `map`, docs/design.md
-//! §1.18): an update rebuilds the grid of a square window around the sensor ([`Grid::build`]
-//! on the triangles in the window, the ground grown from the path in it) and keeps the cells
+//! §1.18): an update rebuilds the grid of a square window around the sensor
+//! ([`Grid::build_with_floors`] on the triangles in the window and the floor the scans' points
+//! saw there, the ground grown from the path in it) and keeps the cells
 //! of the window's inner square ([`LiveGrid::keep_m`]: the ground a window's edge cuts off
 //! from the path is not judged there); everywhere else the cells stay as the last update that
 //! covered them left them. An update costs what its window holds, not what the map holds.
@@ -11,7 +12,8 @@
 //! left, as `nav_msgs/OccupancyGrid` holds them.
 
 use crate::io::error::FileError;
-use crate::navmap::grid::{level_of, CellIndex, Grid, Occupancy, Triangles};
+use crate::navmap::grid::{index_in, level_of, CellIndex, Grid, Occupancy, Triangles};
+use crate::navmap::hits::Floors;
 use crate::navmap::NavMapOptions;
 use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
 use slamesh_core::{Point, Pose};
@@ -80,11 +82,13 @@ impl LiveGrid {
     }
 
     /// Rebuilds the window around `at` (map frame) from `mesh` (any triangles: those outside
-    /// the window are passed over) and `path` (the sensor's positions, map frame), and keeps
-    /// its inner square's cells.
+    /// the window are passed over), the floor the scans' points saw (`floors`, map frame, as
+    /// [`Grid::build_with_floors`] takes it) and `path` (the sensor's positions, map frame),
+    /// and keeps its inner square's cells.
     pub fn update(
         &mut self,
         mesh: &mut dyn Triangles,
+        floors: &Floors,
         path: &[Vector3<f64>],
         at: &Vector3<f64>,
     ) -> Result<(), FileError> {
@@ -100,10 +104,23 @@ impl LiveGrid {
             inside: &inside,
         };
         let (robot, res, up) = (self.how.robot, self.how.resolution_m, self.how.up().0);
-        let grid = Grid::build(&mut window, robot, res, up, &near)?;
+        let index = |x: f64, y: f64| index_in(res, x, y);
         let keep = self.keep_m / 2.0;
-        let lo = grid.index_of(centre.x - keep, centre.y - keep);
-        let hi = grid.index_of(centre.x + keep, centre.y + keep);
+        let lo = index(centre.x - keep, centre.y - keep);
+        let hi = index(centre.x + keep, centre.y + keep);
+        // The free cells earlier updates left between the inner square and the window's edge
+        // are ground this update grows from too: a ramp whose foot lies outside the window
+        // is still climbed from where the robot was.
+        let (outer_lo, outer_hi) = (
+            index(centre.x - half, centre.y - half),
+            index(centre.x + half, centre.y + half),
+        );
+        let ground: Vec<CellIndex> = (outer_lo.1..outer_hi.1)
+            .flat_map(|iy| (outer_lo.0..outer_hi.0).map(move |ix| (ix, iy)))
+            .filter(|&(ix, iy)| !((lo.0..hi.0).contains(&ix) && (lo.1..hi.1).contains(&iy)))
+            .filter(|&i| self.get(i) == FREE)
+            .collect();
+        let grid = Grid::build_with_floors(&mut window, floors, robot, res, up, &near, &ground)?;
         for iy in lo.1..hi.1 {
             for ix in lo.0..hi.0 {
                 let value = match grid.occupancy(ix, iy) {
@@ -262,7 +279,8 @@ mod tests {
         assert!(live.cells().is_none());
         for at in [10, 30, 50, 70] {
             let upto = &path[..=at];
-            live.update(&mut Soup(street()), upto, &path[at]).unwrap();
+            live.update(&mut Soup(street()), &|_| {}, upto, &path[at])
+                .unwrap();
         }
         let cells = live.cells().unwrap();
         assert_eq!(cells.data.len(), cells.width * cells.height);

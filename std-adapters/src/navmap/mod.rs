@@ -52,7 +52,7 @@ pub fn make(
 ) -> Result<(Option<files::NavMapSummary>, Grid), FileError> {
     let t = std::time::Instant::now();
     let (res, up) = (how.resolution_m, how.up().0);
-    let grid = Grid::build_with_floors(mesh, floors, how.robot, res, up, path)?;
+    let grid = Grid::build_with_floors(mesh, floors, how.robot, res, up, path, &[])?;
     let summary = files::write(dir, &grid, how)?;
     match &summary {
         Some(s) => log::info!(

@@ -18,7 +18,7 @@ use crate::navmap::NavMapOptions;
 use crate::ros2::mesh_tiles::MeshTiles;
 use crate::ros2::messages::{Header, MapMetaData, OccupancyGrid, PoseMsg};
 use nalgebra::Vector3;
-use slamesh_core::Pose;
+use slamesh_core::{Point, Pose};
 
 /// The window rebuilt around the robot (m), and the inner square kept (m).
 pub const WINDOW_M: f64 = 30.0;
@@ -58,15 +58,15 @@ impl LiveMap {
 
     /// The path corrected (after a loop closure): the LiDAR's poses, oldest first.
     pub fn correct(&mut self, corrected: &[Pose]) {
-        self.grid
-            .correct(corrected.iter().map(|p| p.translation.vector));
+        self.grid.correct(corrected);
     }
 
-    /// After a scan at `at` (the LiDAR's position, the engine's world; `None`: a scan not
-    /// used): when due, the window around the last position goes to the worker with the
-    /// triangles of `tiles` near it (an update still being made skips this one, counted).
-    pub fn scan(&mut self, tiles: &MeshTiles, at: Option<Vector3<f64>>, header: Header) {
-        self.grid.scan(tiles.mesh(), at, header);
+    /// After a scan (`seen`: the LiDAR's pose, the engine's world, and the scan's points;
+    /// `None`: a scan not used): its points' floor counted, and when due the window around
+    /// the last position goes to the worker with the triangles of `tiles` near it (an update
+    /// still being made skips this one, counted).
+    pub fn scan(&mut self, tiles: &MeshTiles, seen: Option<(&Pose, &[Point])>, header: Header) {
+        self.grid.scan(tiles.mesh(), seen, header);
     }
 
     /// The end: the worker finishes, and the window around the last position is made once

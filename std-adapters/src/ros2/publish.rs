@@ -30,7 +30,7 @@ use crate::run::sink::{FrameEvent, MapUpdate, Sink};
 use crate::run::Summary;
 use nalgebra::Matrix6;
 use ros2_client::Publisher;
-use slamesh_core::Pose;
+use slamesh_core::{Point, Pose};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -303,9 +303,10 @@ impl Ros2Sink {
         Ok(())
     }
 
-    /// After a scan (at `lidar`, when it was used; `now`: at the end): the grid made again
-    /// around the robot when due (it goes out from the map's own thread).
-    fn publish_map(&mut self, lidar: Option<&Pose>, now: bool) {
+    /// After a scan (`seen`: the LiDAR's pose and the scan's points, when it was used; `now`:
+    /// at the end): the grid made again around the robot when due (it goes out from the map's
+    /// own thread).
+    fn publish_map(&mut self, seen: Option<(&Pose, &[Point])>, now: bool) {
         let (Some(map), Some(tiles)) = (&mut self.map, &self.tiles) else {
             return;
         };
@@ -316,7 +317,7 @@ impl Ros2Sink {
         if now {
             map.finish(tiles, header);
         } else {
-            map.scan(tiles, lidar.map(|p| p.translation.vector), header);
+            map.scan(tiles, seen, header);
         }
     }
 
@@ -414,7 +415,12 @@ impl Sink for Ros2Sink {
             self.used += 1;
             self.publish_pose(e, &lidar)?;
             self.publish_mesh(e.map.as_ref(), false)?;
-            self.publish_map(Some(&lidar), false);
+            // The map update's pose is the one its points were registered at.
+            let seen = e
+                .map
+                .as_ref()
+                .map_or((&lidar, &[][..]), |u| (&u.pose, &u.own_points[..]));
+            self.publish_map(Some(seen), false);
             self.published += 1;
         } else {
             self.not_used += 1;

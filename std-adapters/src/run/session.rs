@@ -36,7 +36,7 @@ use crate::run::timing::StageTimer;
 use crate::run::window::Window;
 use crate::sources::{FrameSource, Sample, Waited};
 use slamesh_core::lm::PoseInformation;
-use slamesh_core::{Capacity, Pipeline, Pose};
+use slamesh_core::{Capacity, Pipeline, Point, Pose};
 use std::borrow::Cow;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -58,6 +58,9 @@ pub fn run_to<C: Capacity>(
         Run::<C>::start(source, opts)?
     };
     let want_map = sinks.want_map();
+    if want_map {
+        run.hand_own_points();
+    }
     // `wait` waits for a live source's next frame (a file's are all there), or a request.
     let mut i = run.next_frame();
     loop {
@@ -137,6 +140,9 @@ pub struct Run<'a, C: Capacity> {
     pub(super) inertial: Inertial,
     /// The floor as the scans' points saw it, for the navigation map (with `navmap` only).
     pub(super) hits: Option<Hits>,
+    /// The last used frame's own points, for its event's map update
+    /// ([`hand_own_points`](Self::hand_own_points)); `None`: not kept.
+    pub(super) own_points: Option<Vec<Point>>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -247,6 +253,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         }
         Ok(Run {
             hits,
+            own_points: None,
             closer: setup.closer,
             search,
             map_path,
@@ -282,6 +289,13 @@ impl<'a, C: Capacity> Run<'a, C> {
         &self.pipeline
     }
 
+    /// From now on a used frame's own points go to its event's map update
+    /// ([`MapUpdate::own_points`]; moved, not copied), and a frame filtered ahead keeps them.
+    pub fn hand_own_points(&mut self) {
+        self.own_points = Some(Vec::new());
+        self.ahead.keep_points();
+    }
+
     /// What the sinks are told of the frame `record` describes: its pose at its stamp when it
     /// was used, the samples that came with it, and with `want_map` the map as it changed it
     /// (the whole map and the corrected path when loops were closed with it).
@@ -311,6 +325,11 @@ impl<'a, C: Capacity> Run<'a, C> {
                 record.loop_closures.iter().map(|c| c.describe()).collect(),
             ),
         };
+        let own = self.own_points.as_mut().map(std::mem::take);
+        let map = map.map(|u| MapUpdate {
+            own_points: own.unwrap_or_default(),
+            ..u
+        });
         FrameEvent {
             record,
             pose,

@@ -55,6 +55,11 @@ pub struct MapUpdate {
     pub pose: Pose,
     /// The scan's points as registered, sensor frame.
     pub points: Vec<Point>,
+    /// The scan's own points, before down-sampling (sensor frame, deskewed as registered):
+    /// what the live grid's floor counts ([`crate::navmap::hits`]). Empty from
+    /// [`of`](Self::of); [`run_to`](crate::run::run_to) hands them over when a sink wants
+    /// the map.
+    pub own_points: Vec<Point>,
     /// The map layers the frame changed, as they are after it (every layer after a loop
     /// closure).
     pub layers: Vec<(CellKey, Axis, Layer)>,
@@ -77,6 +82,7 @@ impl MapUpdate {
             stamp_s,
             pose,
             points: pipeline.last_points().to_vec(),
+            own_points: Vec::new(),
             layers,
             closed: None,
         })

@@ -118,6 +118,9 @@ impl<C: Capacity> Run<'_, C> {
                 self.update_map(&o, &mut rec)?;
                 rec.ms.total = rec.ms.pipeline() + rec.ms.evict - not_waited;
                 self.keep_pose(source, i, &o, &frame, &mut rec);
+                if let Some(own) = &mut self.own_points {
+                    *own = std::mem::take(&mut frame.points);
+                }
             }
             Err(fault) => self.skip(FrameError::new(&rec.file, i, fault), &mut rec),
         }
