@@ -26,6 +26,7 @@ mod map_persistence;
 mod merge;
 mod navmap;
 mod navmap_command;
+mod navmap_kerbs;
 mod ouster;
 mod packets;
 mod parallel;
