@@ -10,7 +10,7 @@
 //! the mesh starts rounding it up) are no cell's reference. A cell with no ground of its own
 //! is judged against the nearest ground within about [`REFERENCE_M`].
 
-use crate::navmap::grid::{cell_at, disc, CellIndex, Grid};
+use crate::navmap::grid::{cell_at, disc, tile_of, Cell, CellIndex, Grid, Tile};
 use nalgebra::Vector3;
 use slamesh_core::cell::BuildCellHasher;
 use std::collections::{HashMap, HashSet};
@@ -23,6 +23,9 @@ pub const BLOCK_M: f64 = 0.5;
 pub const BRIDGE_CELLS: i64 = 3;
 /// How far (m) from a point of the path its ground is looked for.
 pub const SEED_M: f64 = 1.0;
+/// A set of cells (hashed as the grid's tiles are).
+pub(super) type CellSet = HashSet<CellIndex, BuildCellHasher>;
+
 /// A hop of the ground's growth: its offset, and the offsets of the cells it passes over.
 type Hop = (CellIndex, Vec<CellIndex>);
 
@@ -39,7 +42,7 @@ impl Grid {
         &self,
         path: &[Vector3<f64>],
         ground: &[CellIndex],
-        faces: &HashSet<CellIndex>,
+        faces: &CellSet,
     ) -> Vec<CellIndex> {
         let r = (SEED_M / self.resolution).ceil() as i64;
         let mut seeds: Vec<CellIndex> = path
@@ -69,8 +72,8 @@ impl Grid {
     }
 
     /// The cells of the largest stretch of floor (cells joined as [`grow_ground`](Self::grow_ground) joins them).
-    pub(super) fn largest_floor(&self, faces: &HashSet<CellIndex>) -> Vec<CellIndex> {
-        let mut seen: HashSet<CellIndex> = Default::default();
+    pub(super) fn largest_floor(&self, faces: &CellSet) -> Vec<CellIndex> {
+        let mut seen: CellSet = Default::default();
         let mut best: Vec<CellIndex> = Vec::new();
         for (ix, iy) in self.floor_cells() {
             if seen.contains(&(ix, iy)) {
@@ -111,7 +114,7 @@ impl Grid {
     /// pavement's, or spread over a few cells where they hit it slanting at its end, and
     /// whichever way the ground comes it does not climb across. Judged pair by pair, not along
     /// the ground's way, so it does not hang on the order the ground grows in.
-    pub(super) fn kerb_faces(&self) -> HashSet<CellIndex> {
+    pub(super) fn kerb_faces(&self) -> CellSet {
         let (step, tan) = (
             self.robot.max_step_m,
             self.robot.max_slope_deg.to_radians().tan(),
@@ -125,29 +128,40 @@ impl Grid {
                 (dx, dy, step.max(d * tan + step / 2.0) as f32)
             })
             .collect();
+        let half_step = (step / 2.0) as f32;
         // The points' floor and the mesh's.
-        let seen = |i: CellIndex| {
-            let c = self.cell(i.0, i.1)?;
+        let floors = |c: &Cell| {
             (c.reference.is_finite() && c.floor.is_finite()).then_some((c.reference, c.floor))
         };
-        let half_step = (step / 2.0) as f32;
-        let mut faces = HashSet::new();
-        for i in self.floor_cells() {
-            let Some(one) = seen(i) else { continue };
-            for &(dx, dy, allowed) in &half {
-                let n = (i.0 + dx, i.1 + dy);
-                let Some(other) = seen(n) else { continue };
-                // Lower and upper cell: (points' floor, mesh floor) each.
-                let (low, top) = if other.0 > one.0 {
-                    (one, other)
-                } else {
-                    (other, one)
-                };
-                let (rise, mesh_rise) = (top.0 - low.0, top.1 - low.1);
-                let stands = (top.0 - top.1).abs() <= 2.0 * half_step;
-                if rise > allowed && mesh_rise > half_step && stands {
-                    faces.insert(i);
-                    faces.insert(n);
+        let mut faces = CellSet::default();
+        // Tile by tile, the neighbours looked up in the tile and the eight around it.
+        for (&key, tile) in &self.tiles {
+            let around: Vec<Option<&Tile>> = (-1..=1)
+                .flat_map(|oy| (-1..=1).map(move |ox| (key.0 + ox, key.1 + oy)))
+                .map(|k| self.tiles.get(&k))
+                .collect();
+            for (k, c) in tile.iter().enumerate() {
+                let Some(one) = floors(c) else { continue };
+                let i = cell_at(key, k);
+                for &(dx, dy, allowed) in &half {
+                    let n = (i.0 + dx, i.1 + dy);
+                    let (nkey, nk) = tile_of(n.0, n.1);
+                    let at = (nkey.1 - key.1 + 1) * 3 + (nkey.0 - key.0 + 1);
+                    let Some(other) = around[at as usize].and_then(|t| floors(&t[nk])) else {
+                        continue;
+                    };
+                    // Lower and upper cell: (points' floor, mesh floor) each.
+                    let (low, top) = if other.0 > one.0 {
+                        (one, other)
+                    } else {
+                        (other, one)
+                    };
+                    let (rise, mesh_rise) = (top.0 - low.0, top.1 - low.1);
+                    let stands = (top.0 - top.1).abs() <= 2.0 * half_step;
+                    if rise > allowed && mesh_rise > half_step && stands {
+                        faces.insert(i);
+                        faces.insert(n);
+                    }
                 }
             }
         }
@@ -164,7 +178,7 @@ impl Grid {
     pub(super) fn stretch(
         &self,
         from: Vec<CellIndex>,
-        faces: &HashSet<CellIndex>,
+        faces: &CellSet,
         mut visit: impl FnMut(CellIndex) -> bool,
         mut at_a_kerb: impl FnMut(CellIndex),
     ) -> Vec<CellIndex> {
@@ -244,13 +258,9 @@ impl Grid {
     /// Marks the floor reachable from `seeds` as ground, and gives the ground cells a kerb
     /// was found from (its foot: [`stretch`](Self::stretch)'s `at_a_kerb`); `faces` as
     /// [`kerb_faces`](Self::kerb_faces) gives them.
-    pub(super) fn grow_ground(
-        &mut self,
-        seeds: Vec<CellIndex>,
-        faces: &HashSet<CellIndex>,
-    ) -> HashSet<CellIndex> {
-        let mut seen: HashSet<CellIndex> = Default::default();
-        let mut feet = HashSet::new();
+    pub(super) fn grow_ground(&mut self, seeds: Vec<CellIndex>, faces: &CellSet) -> CellSet {
+        let mut seen: CellSet = Default::default();
+        let mut feet = CellSet::default();
         let reached = self.stretch(
             seeds,
             faces,
@@ -270,7 +280,7 @@ impl Grid {
     /// any (nearest, not lowest over the whole reach: on a slope of a few degrees the lowest
     /// ground two metres away lies more than a step below a cell's own floor). The ground
     /// cells in `kerb_feet` are no other cell's reference.
-    pub(super) fn set_references(&mut self, kerb_feet: &HashSet<CellIndex>) {
+    pub(super) fn set_references(&mut self, kerb_feet: &CellSet) {
         let block = (BLOCK_M / self.resolution).round().max(1.0) as i64;
         let reach = (REFERENCE_M / (block as f64 * self.resolution)).ceil() as i64;
         let mut lowest: HashMap<(i64, i64), f32, BuildCellHasher> = HashMap::default();
