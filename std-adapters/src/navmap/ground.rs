@@ -29,8 +29,9 @@ pub(super) type CellSet = HashSet<CellIndex, BuildCellHasher>;
 /// A hop of the ground's growth: its offset, and the offsets of the cells it passes over.
 type Hop = (CellIndex, Vec<CellIndex>);
 
-/// How far apart (cells) two cells' points' floors are compared for a kerb's face
-/// ([`Grid::kerb_faces`]).
+/// How far apart (cells) two cells' points' floors are compared for a kerb's face (two
+/// cells whose points' floors differ by more than the robot climbs there, with the mesh
+/// rising between them: the ground enters neither; docs/design.md §1.18).
 pub const FACE_CELLS: i64 = 3;
 
 impl Grid {
