@@ -95,6 +95,15 @@ fn the_command_s_navigation_maps() {
         &s(&saved),
     ]);
     slamesh_ok(&["navmap", &s(&saved), "--out", &s(&from_map), "-q"]);
+    // The run's grid had its scans' floor, the saved map's none (it keeps no points); here
+    // they agree (no kerb), and `navmap.json` says which was which.
+    let floor_cells = |dir: &Path| {
+        let json = std::fs::read_to_string(dir.join("navmap.json")).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        v["scans_floor_cells"].as_u64().unwrap()
+    };
+    assert!(floor_cells(&run_out) > 0);
+    assert_eq!(floor_cells(&from_map), 0);
     for f in ["map.pgm", "map.yaml", "elevation.asc", "navmesh.ply"] {
         assert_eq!(
             std::fs::read(run_out.join(f)).unwrap(),

@@ -56,6 +56,10 @@ pub struct NavMapSummary {
     pub robot: crate::navmap::Robot,
     /// The navigation mesh's vertices and triangles (`navmesh.ply`).
     pub navmesh: [usize; 2],
+    /// Cells whose floor the run's own points saw (`run --navmap`; docs/design.md §1.18,
+    /// "The scans' floor"): 0 when the grid is the mesh's alone (from a saved map, or a run
+    /// under a memory cap or a window), which may climb a kerb the mesh rounded.
+    pub scans_floor_cells: usize,
 }
 
 impl NavMapSummary {
@@ -138,6 +142,7 @@ pub fn write(
         up,
         robot: opts.robot,
         navmesh: [mesh.vertices.len(), mesh.triangles.len()],
+        scans_floor_cells: grid.scans_floor_cells(),
     };
     write_atomic(&dir.join("navmap.json"), |w| {
         serde_json::to_writer_pretty(&mut *w, &summary).map_err(std::io::Error::from)?;

@@ -218,6 +218,8 @@ pub struct Grid {
     /// and the sensor's median height where lines of sight were cast from: a surface there was
     /// seen from above. None where nothing was cast.
     pub(super) from_above: u64,
+    /// Cells whose floor the scans' points saw ([`build_with_floors`](Self::build_with_floors)).
+    pub(super) scans_floor: usize,
 }
 
 /// A cell's index: column and row (level frame x and y over the resolution, floored).
@@ -260,6 +262,7 @@ impl Grid {
             tiles: HashMap::default(),
             from_above: 0,
             carved: false,
+            scans_floor: 0,
         };
         let max_slope_tan = robot.max_slope_deg.to_radians().tan();
         mesh.each_triangle(&mut |t, _| {
@@ -276,7 +279,9 @@ impl Grid {
             let (ix, iy) = grid.index_of(q.x, q.y);
             let (key, k) = tile_of(ix, iy);
             if let Some(tile) = grid.tiles.get_mut(&key) {
-                tile[k].reference = tile[k].reference.min(q.z as f32);
+                let r = &mut tile[k].reference;
+                grid.scans_floor += usize::from(!r.is_finite());
+                *r = r.min(q.z as f32);
             }
         });
         let faces = grid.kerb_faces();
@@ -338,6 +343,11 @@ impl Grid {
     /// The cell size (m).
     pub fn resolution(&self) -> f64 {
         self.resolution
+    }
+
+    /// How many cells' floor the scans' points saw (none: the grid is the mesh's alone).
+    pub fn scans_floor_cells(&self) -> usize {
+        self.scans_floor
     }
 
     /// The rotation from the map frame to the grid's level frame.
