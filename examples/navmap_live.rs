@@ -13,6 +13,7 @@
 mod flags;
 
 use flags::Flags;
+use slamesh::navmap::background::Seen;
 use slamesh::ros2::mesh_tiles::MeshTiles;
 use slamesh::ros2::messages::{Header, OccupancyGrid};
 use slamesh::ros2::occupancy::LiveMap;
@@ -47,7 +48,11 @@ impl Sink for Grid {
             self.tiles.update(&u.layers);
         }
         // As the node does: the scan's own points at the pose they were registered at.
-        let seen = e.map.as_ref().map(|u| (&u.pose, &u.own_points[..]));
+        let seen = (e.pose.as_ref().zip(e.map.as_ref())).map(|(kept, u)| Seen {
+            kept,
+            pose: &u.pose,
+            points: &u.own_points,
+        });
         self.map.scan(&self.tiles, seen, Header::default());
         Ok(())
     }

@@ -10,7 +10,7 @@
 
 use crate::common::scratch;
 use nalgebra::{Point3, Rotation3, Vector3};
-use slamesh::navmap::background::Background;
+use slamesh::navmap::background::{Background, Seen};
 use slamesh::navmap::live::{Cells, LiveGrid, FREE, OCCUPIED};
 use slamesh::navmap::tiled_mesh::TiledMesh;
 use slamesh::navmap::{NavMapOptions, Robot};
@@ -165,8 +165,12 @@ impl Sink for LiveSink {
                 self.grid.correct(path);
             }
             self.tiles.update(&u.layers);
-            self.grid
-                .scan(&self.tiles, Some((&u.pose, &u.own_points)), ());
+            let seen = Seen {
+                kept: e.pose.as_ref().unwrap_or(&u.pose),
+                pose: &u.pose,
+                points: &u.own_points,
+            };
+            self.grid.scan(&self.tiles, Some(seen), ());
         }
         Ok(())
     }

@@ -22,7 +22,7 @@
 //! messages cannot change or stop the run.
 
 use crate::io::error::FileError;
-use crate::navmap::background::Background;
+use crate::navmap::background::{Background, Seen};
 use crate::navmap::live::{LiveGrid, FREE, OCCUPIED};
 use crate::navmap::tiled_mesh::TiledMesh;
 use crate::navmap::NavMapOptions;
@@ -316,7 +316,8 @@ impl Publisher {
         }
     }
 
-    fn publish(&mut self, u: &MapUpdate) {
+    /// One frame's update, `kept` its pose at its stamp (the path's).
+    fn publish(&mut self, u: &MapUpdate, kept: Option<&Pose>) {
         let nanos = (u.stamp_s.max(0.0) * 1e9) as u64;
         let time = timestamp(u.stamp_s);
         self.scan.log_with_time(&point_cloud(u, time), nanos);
@@ -367,7 +368,12 @@ impl Publisher {
                 grid.correct(path);
             }
             tiles.update(&u.layers);
-            grid.scan(tiles, Some((&u.pose, &u.own_points)), (time, nanos));
+            let seen = Seen {
+                kept: kept.unwrap_or(&u.pose),
+                pose: &u.pose,
+                points: &u.own_points,
+            };
+            grid.scan(tiles, Some(seen), (time, nanos));
         }
         self.last = Some((time, nanos));
         self.sent += 1;
@@ -383,7 +389,7 @@ impl Sink for Publisher {
     }
     fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
         if let Some(u) = &event.map {
-            self.publish(u);
+            self.publish(u, event.pose.as_ref());
         }
         Ok(())
     }

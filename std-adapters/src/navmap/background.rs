@@ -35,6 +35,18 @@ pub const TIMES: usize = 1000;
 /// window around the sensor; the memory is that of three stretches, however long the run.
 pub const FLOOR_CHUNKS: usize = 3;
 
+/// A used scan as the grid takes it.
+#[derive(Debug, Clone, Copy)]
+pub struct Seen<'a> {
+    /// Its pose as the path keeps it (the sensor's at the scan's stamp: what a loop closure
+    /// corrects).
+    pub kept: &'a Pose,
+    /// The pose its points were registered at (sensor to the engine's world).
+    pub pose: &'a Pose,
+    /// Its own points (sensor frame).
+    pub points: &'a [Point],
+}
+
 /// What takes a grid once it is made, with its update's tag: true when it went out.
 pub type Out<T> = Box<dyn FnMut(&LiveGrid, T) -> bool + Send>;
 
@@ -155,15 +167,14 @@ impl<T: Send + 'static> Background<T> {
         self.path = corrected.to_vec();
     }
 
-    /// After a scan (`seen`: the sensor's pose, the engine's world, and the scan's points,
-    /// sensor frame; `None`: a scan not used): its points' floor counted, and when due the
+    /// After a scan (`None`: a scan not used): its points' floor counted, and when due the
     /// window around the last position goes to the worker with the triangles of `mesh` and
     /// the scans' floor near it (an update still being made skips this one, counted).
-    pub fn scan(&mut self, mesh: &TiledMesh, seen: Option<(&Pose, &[Point])>, tag: T) {
-        if let Some((pose, points)) = seen {
-            self.floors.add(self.path.len(), pose, pose, points);
+    pub fn scan(&mut self, mesh: &TiledMesh, seen: Option<Seen>, tag: T) {
+        if let Some(s) = seen {
+            (self.floors).add(self.path.len(), s.kept, s.pose, s.points);
             self.floors.keep_last(FLOOR_CHUNKS);
-            self.path.push(*pose);
+            self.path.push(*s.kept);
         }
         let Some(at) = self.path.last().map(|p| p.translation.vector) else {
             return;

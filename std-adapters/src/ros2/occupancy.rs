@@ -12,13 +12,13 @@
 //! origin pose, as the mesh's markers are placed. The grid, its thread and its update times
 //! are [`crate::navmap::background`]'s; this module turns each grid into the message.
 
-use crate::navmap::background::Background;
+use crate::navmap::background::{Background, Seen};
 use crate::navmap::live::LiveGrid;
 use crate::navmap::NavMapOptions;
 use crate::ros2::mesh_tiles::MeshTiles;
 use crate::ros2::messages::{Header, MapMetaData, OccupancyGrid, PoseMsg};
 use nalgebra::Vector3;
-use slamesh_core::{Point, Pose};
+use slamesh_core::Pose;
 
 /// The window rebuilt around the robot (m), and the inner square kept (m).
 pub const WINDOW_M: f64 = 30.0;
@@ -61,11 +61,11 @@ impl LiveMap {
         self.grid.correct(corrected);
     }
 
-    /// After a scan (`seen`: the LiDAR's pose, the engine's world, and the scan's points;
-    /// `None`: a scan not used): its points' floor counted, and when due the window around
-    /// the last position goes to the worker with the triangles of `tiles` near it (an update
-    /// still being made skips this one, counted).
-    pub fn scan(&mut self, tiles: &MeshTiles, seen: Option<(&Pose, &[Point])>, header: Header) {
+    /// After a scan (the LiDAR's, in the engine's world; `None`: a scan not used): its
+    /// points' floor counted, and when due the window around the last position goes to the
+    /// worker with the triangles of `tiles` near it (an update still being made skips this
+    /// one, counted).
+    pub fn scan(&mut self, tiles: &MeshTiles, seen: Option<Seen>, header: Header) {
         self.grid.scan(tiles.mesh(), seen, header);
     }
 

@@ -17,6 +17,7 @@
 //! goes into `map -> odom`, and `odom` goes on as it was moving.
 
 use crate::loop_closure::graph::local_covariance;
+use crate::navmap::background::Seen;
 use crate::ros2::listen::Counts;
 use crate::ros2::mesh_tiles::{MeshTiles, FRAME_POINTS};
 use crate::ros2::messages::{
@@ -30,7 +31,7 @@ use crate::run::sink::{FrameEvent, MapUpdate, Sink};
 use crate::run::Summary;
 use nalgebra::Matrix6;
 use ros2_client::Publisher;
-use slamesh_core::{Point, Pose};
+use slamesh_core::Pose;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -303,10 +304,9 @@ impl Ros2Sink {
         Ok(())
     }
 
-    /// After a scan (`seen`: the LiDAR's pose and the scan's points, when it was used; `now`:
-    /// at the end): the grid made again around the robot when due (it goes out from the map's
-    /// own thread).
-    fn publish_map(&mut self, seen: Option<(&Pose, &[Point])>, now: bool) {
+    /// After a scan (`seen`, when it was used; `now`: at the end): the grid made again around
+    /// the robot when due (it goes out from the map's own thread).
+    fn publish_map(&mut self, seen: Option<Seen>, now: bool) {
         let (Some(map), Some(tiles)) = (&mut self.map, &self.tiles) else {
             return;
         };
@@ -416,10 +416,11 @@ impl Sink for Ros2Sink {
             self.publish_pose(e, &lidar)?;
             self.publish_mesh(e.map.as_ref(), false)?;
             // The map update's pose is the one its points were registered at.
-            let seen = e
-                .map
-                .as_ref()
-                .map_or((&lidar, &[][..]), |u| (&u.pose, &u.own_points[..]));
+            let seen = Seen {
+                kept: &lidar,
+                pose: e.map.as_ref().map_or(&lidar, |u| &u.pose),
+                points: e.map.as_ref().map_or(&[][..], |u| &u.own_points[..]),
+            };
             self.publish_map(Some(seen), false);
             self.published += 1;
         } else {
