@@ -5,8 +5,8 @@
 //! an update due while the last is still being made is skipped (counted); at the end, once
 //! more.
 //!
-//! It owns the grid, the path the ground is grown from (the sensor's poses, corrected after
-//! a loop closure), the floor the scans' points saw ([`Hits`], counted as each scan comes, on
+//! It owns the grid, the path the ground is grown from (the sensor's positions, corrected
+//! after a loop closure), the floor the scans' points saw ([`Hits`], counted as each scan comes, on
 //! the caller's thread: the last [`FLOOR_CHUNKS`] stretches of the path, so that the live
 //! grid finds a kerb the mesh rounded as the run's files do, in bounded memory) and the update
 //! times (the last [`TIMES`], for a median and a 95th percentile). Each update carries a tag
@@ -20,6 +20,7 @@ use crate::navmap::tiled_mesh::TiledMesh;
 use crate::navmap::NavMapOptions;
 use nalgebra::Vector3;
 use slamesh_core::{Point, Pose};
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
@@ -58,11 +59,13 @@ pub struct Background<T: Send + 'static> {
     /// Scans between updates, and scans since the last.
     every: usize,
     since: usize,
-    /// The sensor's poses so far (the engine's world): the ground's seeds, and where the
-    /// floor's chunks began.
-    path: Vec<Pose>,
+    /// The sensor's positions so far (the engine's world), the ground's seeds.
+    path: Vec<Vector3<f64>>,
     /// The floor the scans' points saw, by the index in `path` of the scan that counted it.
     floors: Hits,
+    /// Since the last loop closure: the corrected pose of each scan a chunk of `floors` began
+    /// at (a chunk begun since has not moved).
+    moved: HashMap<usize, Pose>,
     /// Update times (ms).
     times: Arc<Mutex<Vec<f64>>>,
     /// Where a grid goes once made, and how many went.
@@ -104,6 +107,7 @@ impl<T: Send + 'static> Background<T> {
             since: 0,
             path: Vec::new(),
             floors,
+            moved: HashMap::new(),
             times: Arc::default(),
             out: Arc::new(Mutex::new(out)),
             sent: Arc::default(),
@@ -164,7 +168,10 @@ impl<T: Send + 'static> Background<T> {
         if corrected.len() != self.path.len() {
             self.floors.keep_last(0);
         }
-        self.path = corrected.to_vec();
+        self.path = corrected.iter().map(|p| p.translation.vector).collect();
+        self.moved = (self.floors.chunk_frames())
+            .filter_map(|f| Some((f, *corrected.get(f)?)))
+            .collect();
     }
 
     /// After a scan (`None`: a scan not used): its points' floor counted, and when due the
@@ -174,9 +181,9 @@ impl<T: Send + 'static> Background<T> {
         if let Some(s) = seen {
             (self.floors).add(self.path.len(), s.kept, s.pose, s.points);
             self.floors.keep_last(FLOOR_CHUNKS);
-            self.path.push(*s.kept);
+            self.path.push(s.kept.translation.vector);
         }
-        let Some(at) = self.path.last().map(|p| p.translation.vector) else {
+        let Some(at) = self.path.last().copied() else {
             return;
         };
         self.since += 1;
@@ -198,10 +205,9 @@ impl<T: Send + 'static> Background<T> {
         let half = self.window_m / 2.0 + 5.0;
         mesh.each_triangle_near([at.x, at.y], half, &mut |t, v| triangles.push((t, v)));
         let near = |p: &Vector3<f64>| (p.x - at.x).abs() <= half && (p.y - at.y).abs() <= half;
-        let path = self.path.iter().map(|p| p.translation.vector);
-        let path = path.filter(|p| near(p)).collect();
+        let path = self.path.iter().filter(|p| near(p)).copied().collect();
         let mut floors = Vec::new();
-        let now = |frame: usize| self.path.get(frame).copied();
+        let now = |frame: usize| self.moved.get(&frame).copied();
         (self.floors).each_floor(&now, &mut |f| {
             if near(&f) {
                 floors.push(f)
@@ -223,7 +229,7 @@ impl<T: Send + 'static> Background<T> {
         if let Some(w) = self.worker.take() {
             let _ = w.join();
         }
-        if let Some(at) = self.path.last().map(|p| p.translation.vector) {
+        if let Some(at) = self.path.last().copied() {
             (self.work())(self.job(mesh, at, tag));
         }
     }
@@ -260,5 +266,44 @@ impl Triangles for Soup {
     fn each_triangle(&mut self, each: &mut dyn FnMut([Point; 3], f32)) -> Result<(), FileError> {
         self.0.iter().for_each(|(t, v)| each(*t, *v));
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+    use slamesh_core::config::Config;
+    use slamesh_core::layer::Shown;
+
+    #[test]
+    fn the_scans_floor_moves_with_a_corrected_path_and_is_dropped_when_it_does_not_match() {
+        let config = Config::default();
+        let mesh = TiledMesh::new(config.lattice().table(), Shown::new(&config.mesh));
+        let how = NavMapOptions::default();
+        let mut b =
+            Background::<()>::new("test-map", 1000, how, (30.0, 20.0), Box::new(|_, ()| true));
+        let pose = Pose::identity();
+        // Two points in one 2 cm bin: a floor at (1.05, 2.05, -0.51).
+        let points = [[1.05, 2.05, -0.51], [1.06, 2.04, -0.51]];
+        let seen = Seen {
+            kept: &pose,
+            pose: &pose,
+            points: &points,
+        };
+        b.scan(&mesh, Some(seen), ());
+        let floors = |b: &Background<()>| b.job(&mesh, Vector3::zeros(), ()).floors;
+        let near = |f: &[Vector3<f64>], want: [f64; 3]| {
+            f.len() == 1 && (f[0] - Vector3::from(want)).norm() < 1e-6
+        };
+        assert!(near(&floors(&b), [1.05, 2.05, -0.51]), "{:?}", floors(&b));
+        // The loop closed: the scan was 1 m further along x.
+        let shifted =
+            Pose::from_parts(Translation3::new(1.0, 0.0, 0.0), UnitQuaternion::identity());
+        b.correct(&[shifted]);
+        assert!(near(&floors(&b), [2.05, 2.05, -0.51]), "{:?}", floors(&b));
+        // A corrected path of another length than the scans counted: the floor is dropped.
+        b.correct(&[shifted, shifted]);
+        assert!(floors(&b).is_empty());
     }
 }

@@ -208,6 +208,11 @@ impl Hits {
         }
     }
 
+    /// The frames the chunks began at, oldest first.
+    pub fn chunk_frames(&self) -> impl Iterator<Item = usize> + '_ {
+        self.chunks.iter().map(|c| c.frame)
+    }
+
     /// Forgets all but the last `chunks` chunks (the live grid's bound: its window lies
     /// within the last stretches of the path; `0` forgets every hit).
     pub fn keep_last(&mut self, chunks: usize) {
@@ -300,10 +305,11 @@ mod tests {
             n
         };
         assert_eq!((hits.chunks.len(), count(&hits)), (2, 2));
+        assert_eq!(hits.chunk_frames().collect::<Vec<_>>(), [0, 2]);
         hits.keep_last(1);
         assert_eq!(
-            (hits.chunks.len(), hits.chunks[0].frame, count(&hits)),
-            (1, 2, 1)
+            (hits.chunk_frames().collect::<Vec<_>>(), count(&hits)),
+            (vec![2], 1)
         );
         hits.keep_last(0);
         assert_eq!((count(&hits), hits.bytes()), (0, 0));
