@@ -116,6 +116,10 @@ impl Grid {
     /// whichever way the ground comes it does not climb across. Judged pair by pair, not along
     /// the ground's way, so it does not hang on the order the ground grows in.
     pub(super) fn kerb_faces(&self) -> CellSet {
+        // No points' floor (a saved map's grid): no face to find.
+        if self.scans_floor == 0 {
+            return CellSet::default();
+        }
         let (step, tan) = (
             self.robot.max_step_m,
             self.robot.max_slope_deg.to_radians().tan(),
