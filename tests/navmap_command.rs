@@ -95,8 +95,10 @@ fn the_command_s_navigation_maps() {
         &s(&saved),
     ]);
     slamesh_ok(&["navmap", &s(&saved), "--out", &s(&from_map), "-q"]);
-    // The run's grid had its scans' floor, the saved map's none (it keeps no points); here
-    // they agree (no kerb), and `navmap.json` says which was which.
+    // The run's grid had its scans' floor, the saved map's none (it keeps no points), and
+    // `navmap.json` says which was which. They agree but where the scans' floor stood raised
+    // where the mesh has no surface (`navmap::raised`): occupied from the run, unknown from
+    // the map.
     let floor_cells = |dir: &Path| {
         let json = std::fs::read_to_string(dir.join("navmap.json")).unwrap();
         let v: serde_json::Value = serde_json::from_str(&json).unwrap();
@@ -104,7 +106,23 @@ fn the_command_s_navigation_maps() {
     };
     assert!(floor_cells(&run_out) > 0);
     assert_eq!(floor_cells(&from_map), 0);
-    for f in ["map.pgm", "map.yaml", "elevation.asc", "navmesh.ply"] {
+    let (ran, loaded) = (Nav2Map::read(&run_out), Nav2Map::read(&from_map));
+    assert_eq!(
+        (ran.width, ran.height, ran.origin),
+        (loaded.width, loaded.height, loaded.origin)
+    );
+    let mut raised = 0;
+    for row in 0..ran.height {
+        for col in 0..ran.width {
+            let (a, b) = (ran.value(col, row), loaded.value(col, row));
+            if a != b {
+                assert_eq!((a, b), (100, -1), "cell ({col}, {row})");
+                raised += 1;
+            }
+        }
+    }
+    println!("cells the scans' floor raised: {raised}");
+    for f in ["map.yaml", "elevation.asc", "navmesh.ply"] {
         assert_eq!(
             std::fs::read(run_out.join(f)).unwrap(),
             std::fs::read(from_map.join(f)).unwrap(),

@@ -16,6 +16,8 @@
 //!    ground sample gives the cell's height and spread for the elevation grid. An obstacle
 //!    lower than [`LOW_RISE_M`] beside a taller one (its foot) or with no raised floor near
 //!    (a ridge of a noisy floor) is settled as unknown instead (`Grid::settle_low_rises`).
+//!    Where the mesh saw no ground, the scans' floor raised over the reference is something
+//!    standing that the mesh dropped ([`crate::navmap::raised`]: a car's roof).
 //!
 //! Then lines of sight from the path mark what it saw ([`crate::navmap::sight`]). A cell is
 //! occupied (an obstacle stands in it, or a surface between the robot's height and the
@@ -297,6 +299,7 @@ impl Grid {
                 grid.samples(&corners, |c, z| c.classify(z, is_floor, step, height));
             }
         })?;
+        grid.raise_from_scans(floors);
         grid.settle_low_rises();
         grid.carve(path);
         Ok(grid)
@@ -587,11 +590,11 @@ pub(super) fn tile_in_tiles_of(side: i64, ix: i64, iy: i64) -> ((i64, i64), usiz
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// A floor of two triangles over `[x0, x1] x [y0, y1]` at height `z`.
-    fn floor(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Vec<[Point; 3]> {
+    pub(in crate::navmap) fn floor(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Vec<[Point; 3]> {
         vec![
             [[x0, y0, z], [x1, y0, z], [x1, y1, z]],
             [[x0, y0, z], [x1, y1, z], [x0, y1, z]],
@@ -606,7 +609,7 @@ mod tests {
         ]
     }
 
-    struct Soup(Vec<[Point; 3]>);
+    pub(in crate::navmap) struct Soup(pub(in crate::navmap) Vec<[Point; 3]>);
 
     impl Triangles for Soup {
         fn each_triangle(

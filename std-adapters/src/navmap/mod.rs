@@ -8,6 +8,7 @@
 //! | the grid: cells in tiles, floor, obstacles, occupancy, elevation | [`grid`] |
 //! | the ground: grown from the path; the height each cell is judged against | [`ground`] |
 //! | the floor as the scans' points saw it, in chunks of the path | [`hits`] |
+//! | what stands where the mesh has no surface: the scans' floor raised over the ground | [`raised`] |
 //! | what the path saw: lines of sight over the grid | [`sight`] |
 //! | traversability on a mesh of the ground: slope, step, roughness, border, cost | [`layers`] |
 //! | the files: Nav2's YAML and PGM, the elevation grids, `navmesh.ply`, `navmap.json` | [`files`] |
@@ -26,6 +27,7 @@ pub mod ground;
 pub mod hits;
 pub mod layers;
 pub mod live;
+pub mod raised;
 pub mod robot;
 pub mod sight;
 pub mod tiled_mesh;

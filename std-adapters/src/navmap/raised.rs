@@ -1,0 +1,129 @@
+//! What stands where the mesh has no surface: the scans' floor raised over the ground
+//! (docs/design.md §1.18, "The scans' floor raised").
+//!
+//! The surface reconstruction drops what few rings saw, at a grazing angle, from a sensor a
+//! little above it: a car's roof, the top of a wall's plinth. The scans' points saw it all the
+//! same, and their floor in such a cell ([`crate::navmap::hits`]: the lowest height two points
+//! fell at) stands far above the ground the cell is judged against. Where the mesh saw no
+//! ground in the cell and no ground beside it lies level with that floor (a hole in the mesh's
+//! floor, or a platform's edge, is no obstacle), the floor is something standing there: an
+//! obstacle up to the robot's height, and above it a surface seen from above (occupied where
+//! the lines of sight were cast from higher, [`crate::navmap::sight`]).
+//!
+//! Owns no state: it marks the grid's cells. Guarantees: only cells with no ground of their
+//! own change, and only towards an obstacle; a grid built with no scans' floor (a saved map's)
+//! is untouched.
+
+use crate::navmap::grid::{disc, tile_of, Grid, LOW_RISE_M};
+use crate::navmap::hits::Floors;
+
+/// How far (m) around a raised floor ground level with it is looked for: ground beside it
+/// makes it more of the same floor, not something standing.
+pub const LEVEL_GROUND_M: f64 = 0.5;
+
+impl Grid {
+    /// Marks the cells whose scans' floor (`floors`, map frame, as
+    /// [`build_with_floors`](Self::build_with_floors) takes it) stands more than
+    /// [`LOW_RISE_M`] over the cell's reference where the mesh saw no ground, with no ground
+    /// within [`LEVEL_GROUND_M`] level with it (within a step): a height of the cell's
+    /// ([`Cell::heights`](crate::navmap::grid::Cell)), and an obstacle when no higher than
+    /// the robot. Run after the references are set and the mesh's samples classified.
+    pub(super) fn raise_from_scans(&mut self, floors: &Floors) {
+        let (step, height) = (self.robot.max_step_m as f32, self.robot.height_m as f32);
+        let near = disc((LEVEL_GROUND_M / self.resolution).round().max(1.0) as i64);
+        let mut raised = Vec::new();
+        floors(&mut |f| {
+            let q = self.level * f;
+            let (ix, iy) = self.index_of(q.x, q.y);
+            let z = q.z as f32;
+            let Some(c) = self.cell(ix, iy) else { return };
+            let above = z - c.reference;
+            // An infinite reference (no ground near) gives a NaN or infinite rise: no height.
+            let high = above.is_finite() && above > LOW_RISE_M as f32;
+            if c.ground && c.n > 0 || !high {
+                return;
+            }
+            let level_ground = near.iter().any(|&(dx, dy)| {
+                self.cell(ix + dx, iy + dy)
+                    .is_some_and(|n| n.ground && (n.floor - z).abs() <= step)
+            });
+            if !level_ground {
+                raised.push((ix, iy, above));
+            }
+        });
+        for (ix, iy, above) in raised {
+            let (key, k) = tile_of(ix, iy);
+            let Some(c) = self.tiles.get_mut(&key).map(|t| &mut t[k]) else {
+                continue;
+            };
+            if above < 6.4 {
+                c.heights |= 1 << (above * 10.0) as u32;
+            }
+            c.obstacle |= above <= height;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::navmap::grid::tests::{floor, Soup};
+    use crate::navmap::grid::{Grid, Occupancy};
+    use crate::navmap::robot::Robot;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn a_car_the_mesh_dropped_stands_where_the_points_saw_its_top() {
+        // A street at 0 (y 0 to 10) with a hole in its mesh at x, y 4 to 6: a car whose top
+        // (0.7 m) only the points saw, and the street's edge around it. A platform at 0.5 m
+        // from y = 10, the robot's too (a point of the path on it), with a band at its edge
+        // (x 4 to 6, y 10 to 10.5) that the mesh missed and the points saw level with it.
+        let mut soup = floor(0.0, 0.0, 4.0, 10.0, 0.0);
+        soup.extend(floor(6.0, 0.0, 10.0, 10.0, 0.0));
+        soup.extend(floor(4.0, 0.0, 6.0, 4.0, 0.0));
+        soup.extend(floor(4.0, 6.0, 6.0, 10.0, 0.0));
+        soup.extend(floor(0.0, 10.0, 4.0, 12.0, 0.5));
+        soup.extend(floor(6.0, 10.0, 10.0, 12.0, 0.5));
+        soup.extend(floor(4.0, 10.5, 6.0, 12.0, 0.5));
+        let floors: Vec<Vector3<f64>> = (0..100)
+            .flat_map(|ix| (0..120).map(move |iy| (ix, iy)))
+            .map(|(ix, iy)| {
+                let (x, y) = (ix as f64 * 0.1 + 0.05, iy as f64 * 0.1 + 0.05);
+                let car = (4.3..5.7).contains(&x) && (4.3..5.7).contains(&y);
+                let z = match y {
+                    _ if car => 0.7,
+                    y if y < 10.0 => 0.01,
+                    _ => 0.51,
+                };
+                Vector3::new(x, y, z)
+            })
+            .collect();
+        let path = [Vector3::new(2.0, 5.0, 1.7), Vector3::new(2.0, 11.0, 2.2)];
+        let grid = |floors: &[Vector3<f64>]| {
+            let each = |f: &mut dyn FnMut(Vector3<f64>)| floors.iter().for_each(|p| f(*p));
+            let (robot, z) = (Robot::WHEELED, Vector3::z());
+            Grid::build_with_floors(&mut Soup(soup.clone()), &each, robot, 0.1, z, &path, &[])
+                .unwrap()
+        };
+        let (mesh_only, with_points) = (grid(&[]), grid(&floors));
+        let at = |g: &Grid, x: f64, y: f64| {
+            let (ix, iy) = g.index_of(x, y);
+            g.occupancy(ix, iy)
+        };
+        assert_eq!(at(&mesh_only, 5.05, 5.05), Occupancy::Unknown, "no surface");
+        assert_eq!(at(&with_points, 5.05, 5.05), Occupancy::Occupied, "the car");
+        assert_eq!(at(&with_points, 2.05, 5.05), Occupancy::Free, "the street");
+        // The street's floor the points saw in the hole, and the platform's band level with
+        // the platform beside it (though judged against the street, the nearer ground), are
+        // nothing standing.
+        assert_ne!(
+            at(&with_points, 4.15, 5.05),
+            Occupancy::Occupied,
+            "the street"
+        );
+        assert_ne!(
+            at(&with_points, 5.05, 10.05),
+            Occupancy::Occupied,
+            "the band"
+        );
+    }
+}
