@@ -540,8 +540,9 @@ fn the_office_s_navigation_map_against_the_truth() {
     );
     println!("office, {frames} frames: {s:?}");
     assert!(s.free > 4_000 && s.occupied > 2_000, "{s:?}");
-    // 0.52, 0.83 within a cell measured.
-    s.assert_within(0.78);
+    // 0.58, 0.87 within a cell measured (docs/benchmarks.md, "A wall's foot under its
+    // leaning top").
+    s.assert_within(0.84);
     // A planner finds its way from room A through the doorway into the corridor the walk
     // went along. (The corridor's far end, seen from its start by 16 beams, is mostly
     // unknown: docs/benchmarks.md, "Maps a planner reads".)

@@ -305,17 +305,26 @@ impl Grid {
         Ok(grid)
     }
 
-    /// Obstacle cells whose samples all stand lower than [`LOW_RISE_M`] above their reference
-    /// are no obstacle of their own ([`Cell::doubtful`]) when a taller obstacle cell lies
-    /// within [`EDGE_M`] (the rounding of a wall's or a car's foot, which the reconstruction
-    /// carries out over the ground) or no floor raised more than a step above the cell's own
-    /// reference does (a ridge where two layers of a noisy floor meet). A kerb keeps its face:
+    /// Obstacle cells whose samples up to the robot's height all stand lower than
+    /// [`LOW_RISE_M`] above their reference are no obstacle of their own ([`Cell::doubtful`])
+    /// when a taller obstacle cell lies within [`EDGE_M`] (the rounding of a wall's or a car's
+    /// foot, which the reconstruction carries out over the ground) or no floor raised more
+    /// than a step above the cell's own reference does (a ridge where two layers of a noisy
+    /// floor meet). A kerb keeps its face:
     /// the pavement behind it is raised floor (judged against the low cell's reference, since
     /// the pavement may be ground of its own). Decided for every cell before any changes, so
     /// the order of the cells does not matter.
     fn settle_low_rises(&mut self) {
         let low_bits = (LOW_RISE_M * 10.0).round() as u32;
-        let top = |c: &Cell| 64 - c.heights.leading_zeros();
+        // A cell's top among the heights that make obstacles: what stands over the robot's
+        // height (a wall's top the mesh leans out over its foot) is passed under.
+        let reach = (self.robot.height_m * 10.0).ceil() as u32;
+        let mask = if reach >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << reach) - 1
+        };
+        let top = |c: &Cell| 64 - (c.heights & mask).leading_zeros();
         let step = self.robot.max_step_m as f32;
         let near = disc((EDGE_M / self.resolution).round().max(1.0) as i64);
         let mut settled = Vec::new();
@@ -697,7 +706,9 @@ pub(super) mod tests {
     #[test]
     fn a_wall_s_rounded_foot_and_a_ridge_in_the_floor_are_no_obstacles() {
         // A street, a wall at x = 5 whose mesh curls out 0.2 m over the street at its foot
-        // (up to 0.25 m high), and a ridge 0.15 m high across the street at x = 2.
+        // (up to 0.25 m high) and leans out 0.15 m over it at its top (from 1.5 m up: what
+        // the robot passes under, no taller foot), and a ridge 0.15 m high across the street
+        // at x = 2.
         let mut soup = floor(0.0, 0.0, 5.0, 10.0, 0.0);
         soup.extend(wall(5.0, 0.0, 10.0, 0.25, 2.0));
         let slant = |x0: f32, z0: f32, x1: f32, z1: f32| {
@@ -707,6 +718,7 @@ pub(super) mod tests {
             ]
         };
         soup.extend(slant(4.8, 0.0, 5.0, 0.25));
+        soup.extend(slant(4.85, 2.0, 5.0, 1.5));
         soup.extend(slant(1.9, 0.0, 2.0, 0.15));
         soup.extend(slant(2.0, 0.15, 2.1, 0.0));
         let path = [Vector3::new(3.5, 5.0, 1.7)];
