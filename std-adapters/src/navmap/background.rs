@@ -14,7 +14,7 @@
 
 use crate::io::error::FileError;
 use crate::navmap::grid::Triangles;
-use crate::navmap::hits::Hits;
+use crate::navmap::hits::{Hits, ScanFloor};
 use crate::navmap::live::LiveGrid;
 use crate::navmap::tiled_mesh::TiledMesh;
 use crate::navmap::NavMapOptions;
@@ -82,7 +82,7 @@ pub struct Background<T: Send + 'static> {
 /// path near it, where, and the caller's tag.
 struct Job<T> {
     triangles: Vec<([Point; 3], f32)>,
-    floors: Vec<Vector3<f64>>,
+    floors: Vec<ScanFloor>,
     path: Vec<Vector3<f64>>,
     at: Vector3<f64>,
     tag: T,
@@ -141,8 +141,7 @@ impl<T: Send + 'static> Background<T> {
             let t = Instant::now();
             let Ok(mut g) = grid.lock() else { return };
             let mut soup = Soup(job.triangles);
-            let floors =
-                |each: &mut dyn FnMut(Vector3<f64>)| job.floors.iter().for_each(|f| each(*f));
+            let floors = |each: &mut dyn FnMut(ScanFloor)| job.floors.iter().for_each(|f| each(*f));
             if let Err(e) = g.update(&mut soup, &floors, &job.path, &job.at) {
                 log::warn!("grid: {e}");
                 return;
@@ -209,7 +208,7 @@ impl<T: Send + 'static> Background<T> {
         let mut floors = Vec::new();
         let now = |frame: usize| self.moved.get(&frame).copied();
         (self.floors).each_floor(&now, &mut |f| {
-            if near(&f) {
+            if near(&f.at) {
                 floors.push(f)
             }
         });
@@ -293,8 +292,8 @@ mod tests {
         };
         b.scan(&mesh, Some(seen), ());
         let floors = |b: &Background<()>| b.job(&mesh, Vector3::zeros(), ()).floors;
-        let near = |f: &[Vector3<f64>], want: [f64; 3]| {
-            f.len() == 1 && (f[0] - Vector3::from(want)).norm() < 1e-6
+        let near = |f: &[ScanFloor], want: [f64; 3]| {
+            f.len() == 1 && f[0].twice && (f[0].at - Vector3::from(want)).norm() < 1e-6
         };
         assert!(near(&floors(&b), [1.05, 2.05, -0.51]), "{:?}", floors(&b));
         // The loop closed: the scan was 1 m further along x.

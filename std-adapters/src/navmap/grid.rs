@@ -275,17 +275,7 @@ impl Grid {
                 }
             });
         })?;
-        // Until the references are set, a cell's reference holds the floor the points saw.
-        floors(&mut |f| {
-            let q = level * f;
-            let (ix, iy) = grid.index_of(q.x, q.y);
-            let (key, k) = tile_of(ix, iy);
-            if let Some(tile) = grid.tiles.get_mut(&key) {
-                let r = &mut tile[k].reference;
-                grid.scans_floor += usize::from(!r.is_finite());
-                *r = r.min(q.z as f32);
-            }
-        });
+        grid.take_scans_floor(floors);
         let faces = grid.kerb_faces();
         let seeds = grid.seeds(path, ground, &faces);
         let kerb_feet = grid.grow_ground(seeds, &faces);
@@ -601,6 +591,7 @@ pub(super) fn tile_in_tiles_of(side: i64, ix: i64, iy: i64) -> ((i64, i64), usiz
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
+    use crate::navmap::hits::ScanFloor;
 
     /// A floor of two triangles over `[x0, x1] x [y0, y1]` at height `z`.
     pub(in crate::navmap) fn floor(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Vec<[Point; 3]> {
@@ -800,7 +791,11 @@ pub(super) mod tests {
             .collect();
         let path = [Vector3::new(2.5, 5.0, 1.7)];
         let grid = |floors: &[Vector3<f64>]| {
-            let each = |f: &mut dyn FnMut(Vector3<f64>)| floors.iter().for_each(|p| f(*p));
+            let each = |f: &mut dyn FnMut(ScanFloor)| {
+                floors
+                    .iter()
+                    .for_each(|&at| f(ScanFloor { at, twice: true }))
+            };
             let mut soup = Soup(soup.clone());
             let z = Vector3::z();
             Grid::build_with_floors(&mut soup, &each, Robot::WHEELED, 0.1, z, &path, &[]).unwrap()
@@ -854,7 +849,11 @@ pub(super) mod tests {
                 Vector3::new(x, y, z)
             })
             .collect();
-        let each = |f: &mut dyn FnMut(Vector3<f64>)| floors.iter().for_each(|p| f(*p));
+        let each = |f: &mut dyn FnMut(ScanFloor)| {
+            floors
+                .iter()
+                .for_each(|&at| f(ScanFloor { at, twice: true }))
+        };
         let path = [Vector3::new(2.5, 5.0, 1.7)];
         let (robot, z) = (Robot::WHEELED, Vector3::z());
         let g = Grid::build_with_floors(&mut Soup(soup), &each, robot, 0.1, z, &path, &[]);

@@ -11,6 +11,7 @@
 //! is judged against the nearest ground within about [`REFERENCE_M`].
 
 use crate::navmap::grid::{cell_at, disc, tile_of, Cell, CellIndex, Grid, Tile};
+use crate::navmap::hits::Floors;
 use nalgebra::Vector3;
 use slamesh_core::cell::BuildCellHasher;
 use std::collections::{HashMap, HashSet};
@@ -35,6 +36,26 @@ type Hop = (CellIndex, Vec<CellIndex>);
 pub const FACE_CELLS: i64 = 3;
 
 impl Grid {
+    /// Keeps in each cell's reference, until the references are set, the lowest floor the
+    /// scans' points saw in it (`floors`; only floors two points fell in,
+    /// [`ScanFloor::twice`](crate::navmap::hits::ScanFloor::twice):
+    /// a kerb's face is judged on them), and counts the cells that have one.
+    pub(super) fn take_scans_floor(&mut self, floors: &Floors) {
+        floors(&mut |f| {
+            if !f.twice {
+                return;
+            }
+            let q = self.level * f.at;
+            let (ix, iy) = self.index_of(q.x, q.y);
+            let (key, k) = tile_of(ix, iy);
+            if let Some(tile) = self.tiles.get_mut(&key) {
+                let r = &mut tile[k].reference;
+                self.scans_floor += usize::from(!r.is_finite());
+                *r = r.min(q.z as f32);
+            }
+        });
+    }
+
     /// The floor cells the ground grows from: for each point of `path` (map frame), the
     /// highest floor cell below it within [`SEED_M`], and the cells of `ground` with floor
     /// (known to be ground); with neither, the cells of the largest stretch of floor

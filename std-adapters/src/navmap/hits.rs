@@ -6,7 +6,9 @@
 //! A column per cell (the grid's cells, in the level frame of the `up` the run started with)
 //! keeps the 32 height bins of [`BIN_M`] over its lowest point that a point fell in, and the
 //! lowest bin two points fell in: the floor as the points saw it ([`Hits::each_floor`]; a lone
-//! stray return below the floor is not taken). Bins are aligned to the level frame's zero
+//! stray return below the floor is not taken). A column no two points fell in alike hands over
+//! its lowest point, marked as alone ([`ScanFloor::twice`]): a car's roof seen by one ring a
+//! pass, which a neighbour's floor may bear out ([`crate::navmap::raised`]). Bins are aligned to the level frame's zero
 //! (heights within 655 m of it), so a column's lowest bin moving down shifts its mask.
 //!
 //! The hits are kept in **chunks** of the path, a new one every [`CHUNK_M`] travelled, each
@@ -24,9 +26,18 @@ use slamesh_core::cell::BuildCellHasher;
 use slamesh_core::{Point, Pose};
 use std::collections::HashMap;
 
-/// What hands the scans' floors to the grid: it calls its argument with each (map frame),
-/// as [`Hits::each_floor`] does.
-pub type Floors<'a> = dyn Fn(&mut dyn FnMut(Vector3<f64>)) + 'a;
+/// A cell's floor as the scans' points saw it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanFloor {
+    /// The cell's centre at the floor's height (map frame).
+    pub at: Vector3<f64>,
+    /// Two points fell in its bin; else it is the cell's lowest point, alone in its bin.
+    pub twice: bool,
+}
+
+/// What hands the scans' floors to the grid: it calls its argument with each, as
+/// [`Hits::each_floor`] does.
+pub type Floors<'a> = dyn Fn(&mut dyn FnMut(ScanFloor)) + 'a;
 
 /// The height of a bin (m).
 pub const BIN_M: f64 = 0.02;
@@ -178,15 +189,12 @@ impl Hits {
         }
     }
 
-    /// Calls `each` with every column's floor ([`Hits`]) as a point in the map frame: the
+    /// Calls `each` with every column's floor ([`Hits`]; where no two points fell in a bin,
+    /// its lowest point, not [`twice`](ScanFloor::twice)) as a point in the map frame: the
     /// cell's centre at the bin's middle, moved as its chunk's first frame moved from the pose
     /// it had then to `now(frame)` (the path as it ends; `None`: not moved). A cell seen in
     /// several chunks comes once from each.
-    pub fn each_floor(
-        &self,
-        now: &dyn Fn(usize) -> Option<Pose>,
-        each: &mut dyn FnMut(Vector3<f64>),
-    ) {
+    pub fn each_floor(&self, now: &dyn Fn(usize) -> Option<Pose>, each: &mut dyn FnMut(ScanFloor)) {
         let back = self.level.inverse();
         for chunk in &self.chunks {
             let moved = now(chunk.frame).map(|p| p * chunk.pose.inverse());
@@ -194,7 +202,11 @@ impl Hits {
             keys.sort_unstable();
             for key in keys {
                 for (k, c) in chunk.tiles[key].iter().enumerate() {
-                    let Some(b) = c.floor() else { continue };
+                    let (b, twice) = match c.floor() {
+                        Some(b) => (b, true),
+                        None if c.base != i16::MAX => (c.base, false),
+                        None => continue,
+                    };
                     let (ix, iy) = cell_at(*key, k);
                     let level = Vector3::new(
                         (ix as f64 + 0.5) * self.resolution,
@@ -202,7 +214,8 @@ impl Hits {
                         (f64::from(b) + 0.5) * BIN_M,
                     );
                     let map = Point3::from(back * level);
-                    each(moved.map_or(map, |m| m * map).coords);
+                    let at = moved.map_or(map, |m| m * map).coords;
+                    each(ScanFloor { at, twice });
                 }
             }
         }
@@ -256,8 +269,8 @@ mod tests {
     fn a_floor_is_two_points_low_and_a_chunk_moves_with_its_first_frame() {
         let mut hits = Hits::new(0.1, &Vector3::z());
         let pose = Pose::identity();
-        // Two points in one bin at (1.05, 2.05, -0.51); one alone lower; one alone elsewhere;
-        // two above the sensor.
+        // Two points in one bin at (1.05, 2.05, -0.51); one alone lower; one alone elsewhere
+        // (handed over as alone); two above the sensor.
         let points = [
             [1.05, 2.05, -0.51],
             [1.06, 2.04, -0.51],
@@ -268,8 +281,17 @@ mod tests {
         ];
         hits.add(0, &pose, &pose, &points);
         let mut got = Vec::new();
-        hits.each_floor(&|_| None, &mut |p| got.push(p));
+        let mut alone = Vec::new();
+        hits.each_floor(&|_| None, &mut |f| {
+            if f.twice {
+                got.push(f.at)
+            } else {
+                alone.push(f.at)
+            }
+        });
         assert_eq!(got.len(), 1);
+        assert_eq!(alone.len(), 1);
+        assert!((alone[0] - Vector3::new(5.05, 0.05, -0.99)).norm() < 1e-9);
         assert!(
             (got[0] - Vector3::new(1.05, 2.05, -0.51)).norm() < 1e-9,
             "{:?}",
@@ -281,7 +303,9 @@ mod tests {
             nalgebra::UnitQuaternion::identity(),
         );
         got.clear();
-        hits.each_floor(&|_| Some(shifted), &mut |p| got.push(p));
+        hits.each_floor(&|_| Some(shifted), &mut |f| {
+            got.extend(f.twice.then_some(f.at))
+        });
         assert!(
             (got[0] - Vector3::new(2.05, 2.05, -0.51)).norm() < 1e-9,
             "{:?}",
@@ -291,7 +315,7 @@ mod tests {
         let far = [[40.0, 0.0, -1.0], [40.0, 0.0, -1.0], [f32::NAN, 0.0, -1.0]];
         hits.add(1, &pose, &pose, &far);
         let mut n = 0;
-        hits.each_floor(&|_| None, &mut |_| n += 1);
+        hits.each_floor(&|_| None, &mut |f| n += usize::from(f.twice));
         assert_eq!(n, 1);
         // A chunk 30 m on; the first forgotten, then every one.
         let on = Pose::from_parts(
@@ -301,7 +325,7 @@ mod tests {
         hits.add(2, &on, &on, &points);
         let count = |hits: &Hits| {
             let mut n = 0;
-            hits.each_floor(&|_| None, &mut |_| n += 1);
+            hits.each_floor(&|_| None, &mut |f| n += usize::from(f.twice));
             n
         };
         assert_eq!((hits.chunks.len(), count(&hits)), (2, 2));

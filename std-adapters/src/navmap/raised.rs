@@ -14,16 +14,22 @@
 //! own change, and only towards an obstacle; a grid built with no scans' floor (a saved map's)
 //! is untouched.
 
-use crate::navmap::grid::{disc, tile_of, Grid, LOW_RISE_M};
+use crate::navmap::grid::{disc, tile_of, CellIndex, Grid, LOW_RISE_M};
 use crate::navmap::hits::Floors;
 
 /// How far (m) around a raised floor ground level with it is looked for: ground beside it
 /// makes it more of the same floor, not something standing.
 pub const LEVEL_GROUND_M: f64 = 0.5;
 
+/// How close in height (m) a neighbouring cell's floor must lie to bear out a cell's lowest
+/// point where no two points fell in one of its bins: the two points a floor asks for, in
+/// cells side by side (a car's roof seen by one ring a pass).
+pub const BORNE_OUT_M: f64 = 0.1;
+
 impl Grid {
-    /// Marks the cells whose scans' floor (`floors`, map frame, as
-    /// [`build_with_floors`](Self::build_with_floors) takes it) stands more than
+    /// Marks the cells whose scans' floor (`floors`, as
+    /// [`build_with_floors`](Self::build_with_floors) takes it; a lowest point alone only
+    /// where a floor in a cell beside lies within [`BORNE_OUT_M`] of it) stands more than
     /// [`LOW_RISE_M`] over the cell's reference where the mesh saw no ground, with no ground
     /// within [`LEVEL_GROUND_M`] level with it (within a step): a height of the cell's
     /// ([`Cell::heights`](crate::navmap::grid::Cell)), and an obstacle when no higher than
@@ -31,26 +37,47 @@ impl Grid {
     pub(super) fn raise_from_scans(&mut self, floors: &Floors) {
         let (step, height) = (self.robot.max_step_m as f32, self.robot.height_m as f32);
         let near = disc((LEVEL_GROUND_M / self.resolution).round().max(1.0) as i64);
-        let mut raised = Vec::new();
+        // The floors raised near enough to bear out a raised one (a lone point's neighbours
+        // on a car's roof, even where the mesh carried its ground under the roof), sorted by
+        // cell: few, however many floors there are.
+        let bears = (LOW_RISE_M - BORNE_OUT_M) as f32;
+        let mut floors_seen: Vec<(CellIndex, f32, bool)> = Vec::new();
         floors(&mut |f| {
-            let q = self.level * f;
-            let (ix, iy) = self.index_of(q.x, q.y);
-            let z = q.z as f32;
-            let Some(c) = self.cell(ix, iy) else { return };
-            let above = z - c.reference;
+            let q = self.level * f.at;
+            let cell = self.index_of(q.x, q.y);
+            let reference = self.cell(cell.0, cell.1).map(|c| c.reference);
+            if reference.is_some_and(|r| q.z as f32 - r > bears) {
+                floors_seen.push((cell, q.z as f32, f.twice));
+            }
+        });
+        floors_seen.sort_unstable_by_key(|f| f.0);
+        let borne_out = |(ix, iy): CellIndex, z: f32| {
+            disc(1).iter().filter(|&&d| d != (0, 0)).any(|&(dx, dy)| {
+                let cell = (ix + dx, iy + dy);
+                let from = floors_seen.partition_point(|f| f.0 < cell);
+                (floors_seen[from..].iter())
+                    .take_while(|f| f.0 == cell)
+                    .any(|f| (f.1 - z).abs() <= BORNE_OUT_M as f32)
+            })
+        };
+        let mut raised = Vec::new();
+        for &((ix, iy), z, twice) in &floors_seen {
+            let Some(c) = self.cell(ix, iy).filter(|c| !(c.ground && c.n > 0)) else {
+                continue;
+            };
             // An infinite reference (no ground near) gives a NaN or infinite rise: no height.
-            let high = above.is_finite() && above > LOW_RISE_M as f32;
-            if c.ground && c.n > 0 || !high {
-                return;
+            let above = z - c.reference;
+            if !(above.is_finite() && above > LOW_RISE_M as f32) {
+                continue;
             }
             let level_ground = near.iter().any(|&(dx, dy)| {
                 self.cell(ix + dx, iy + dy)
                     .is_some_and(|n| n.ground && (n.floor - z).abs() <= step)
             });
-            if !level_ground {
+            if !level_ground && (twice || borne_out((ix, iy), z)) {
                 raised.push((ix, iy, above));
             }
-        });
+        }
         for (ix, iy, above) in raised {
             let (key, k) = tile_of(ix, iy);
             let Some(c) = self.tiles.get_mut(&key).map(|t| &mut t[k]) else {
@@ -68,6 +95,7 @@ impl Grid {
 mod tests {
     use crate::navmap::grid::tests::{floor, Soup};
     use crate::navmap::grid::{Grid, Occupancy};
+    use crate::navmap::hits::ScanFloor;
     use crate::navmap::robot::Robot;
     use nalgebra::Vector3;
 
@@ -84,22 +112,30 @@ mod tests {
         soup.extend(floor(0.0, 10.0, 4.0, 12.0, 0.5));
         soup.extend(floor(6.0, 10.0, 10.0, 12.0, 0.5));
         soup.extend(floor(4.0, 10.5, 6.0, 12.0, 0.5));
-        let floors: Vec<Vector3<f64>> = (0..100)
+        // The car's top: two points in a bin in each cell, but for one alone in each of a
+        // stripe three cells wide (x 4.7 to 5.0), borne out by one another. A stray return alone at the car's height in the
+        // hole's street cell (4.15, 4.15), its neighbours the street.
+        let floors: Vec<ScanFloor> = (0..100)
             .flat_map(|ix| (0..120).map(move |iy| (ix, iy)))
             .map(|(ix, iy)| {
                 let (x, y) = (ix as f64 * 0.1 + 0.05, iy as f64 * 0.1 + 0.05);
                 let car = (4.3..5.7).contains(&x) && (4.3..5.7).contains(&y);
+                let stray = (ix, iy) == (41, 41);
                 let z = match y {
-                    _ if car => 0.7,
+                    _ if car || stray => 0.7,
                     y if y < 10.0 => 0.01,
                     _ => 0.51,
                 };
-                Vector3::new(x, y, z)
+                let twice = !(stray || car && (47..50).contains(&ix));
+                ScanFloor {
+                    at: Vector3::new(x, y, z),
+                    twice,
+                }
             })
             .collect();
         let path = [Vector3::new(2.0, 5.0, 1.7), Vector3::new(2.0, 11.0, 2.2)];
-        let grid = |floors: &[Vector3<f64>]| {
-            let each = |f: &mut dyn FnMut(Vector3<f64>)| floors.iter().for_each(|p| f(*p));
+        let grid = |floors: &[ScanFloor]| {
+            let each = |f: &mut dyn FnMut(ScanFloor)| floors.iter().for_each(|&s| f(s));
             let (robot, z) = (Robot::WHEELED, Vector3::z());
             Grid::build_with_floors(&mut Soup(soup.clone()), &each, robot, 0.1, z, &path, &[])
                 .unwrap()
@@ -110,20 +146,15 @@ mod tests {
             g.occupancy(ix, iy)
         };
         assert_eq!(at(&mesh_only, 5.05, 5.05), Occupancy::Unknown, "no surface");
-        assert_eq!(at(&with_points, 5.05, 5.05), Occupancy::Occupied, "the car");
-        assert_eq!(at(&with_points, 2.05, 5.05), Occupancy::Free, "the street");
+        let with = |x: f64, y: f64| at(&with_points, x, y);
+        assert_eq!(with(5.05, 5.05), Occupancy::Occupied, "the car");
+        assert_eq!(with(4.85, 5.05), Occupancy::Occupied, "a lone point");
+        assert_ne!(with(4.15, 4.15), Occupancy::Occupied, "the stray");
+        assert_eq!(with(2.05, 5.05), Occupancy::Free, "the street");
         // The street's floor the points saw in the hole, and the platform's band level with
         // the platform beside it (though judged against the street, the nearer ground), are
         // nothing standing.
-        assert_ne!(
-            at(&with_points, 4.15, 5.05),
-            Occupancy::Occupied,
-            "the street"
-        );
-        assert_ne!(
-            at(&with_points, 5.05, 10.05),
-            Occupancy::Occupied,
-            "the band"
-        );
+        assert_ne!(with(4.15, 5.05), Occupancy::Occupied, "the street");
+        assert_ne!(with(5.05, 10.05), Occupancy::Occupied, "the band");
     }
 }

@@ -483,7 +483,7 @@ fn write_mesh(
             if let Some(h) = &hits {
                 log::debug!("navigation map: the scans' floor took {} bytes", h.bytes());
             }
-            let floors = |each: &mut dyn FnMut(nalgebra::Vector3<f64>)| {
+            let floors = |each: &mut dyn FnMut(crate::navmap::hits::ScanFloor)| {
                 if let Some(h) = &hits {
                     h.each_floor(&now, each);
                 }
