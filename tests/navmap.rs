@@ -513,9 +513,9 @@ fn the_town_s_navigation_map_against_the_truth() {
     println!("town, {frames} frames: {s:?}");
     assert!(s.free > 40_000 && s.occupied > 2_000, "{s:?}");
     // Issue 56's targets: at most 0.5 % (met: no free cell holds one) and an IoU of 0.9
-    // (not met: 0.82, 0.90 within a cell; docs/benchmarks.md, "A car's roof seen by one ring
-    // a pass").
-    s.assert_within(0.88);
+    // (not met: 0.84, 0.93 within a cell; docs/benchmarks.md, "A plinth's top with no ground
+    // near").
+    s.assert_within(0.9);
 }
 
 #[test]

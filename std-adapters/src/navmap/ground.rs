@@ -307,13 +307,38 @@ impl Grid {
     /// ground two metres away lies more than a step below a cell's own floor). The ground
     /// cells in `kerb_feet` are no other cell's reference.
     pub(super) fn set_references(&mut self, kerb_feet: &CellSet) {
-        let block = (BLOCK_M / self.resolution).round().max(1.0) as i64;
-        let reach = (REFERENCE_M / (block as f64 * self.resolution)).ceil() as i64;
+        let blocks = GroundBlocks::of(self, kerb_feet);
+        let near = blocks.offsets(self.resolution, REFERENCE_M);
+        for (&(tx, ty), tile) in self.tiles.iter_mut() {
+            for (k, c) in tile.iter_mut().enumerate() {
+                c.reference = if c.ground {
+                    c.floor
+                } else {
+                    let cell = cell_at((tx, ty), k);
+                    blocks.nearest(cell, &near).unwrap_or(f32::INFINITY)
+                };
+            }
+        }
+    }
+}
+
+/// The lowest ground floor in each block of [`BLOCK_M`] square: a cell with no ground of its
+/// own is judged against the nearest block's.
+pub(super) struct GroundBlocks {
+    /// Cells along a block's side.
+    block: i64,
+    lowest: HashMap<(i64, i64), f32, BuildCellHasher>,
+}
+
+impl GroundBlocks {
+    /// The blocks of `grid`'s ground cells, but for `kerb_feet` (where the mesh rounds a
+    /// kerb up: no cell's reference).
+    pub(super) fn of(grid: &Grid, kerb_feet: &CellSet) -> GroundBlocks {
+        let block = (BLOCK_M / grid.resolution).round().max(1.0) as i64;
         let mut lowest: HashMap<(i64, i64), f32, BuildCellHasher> = HashMap::default();
-        for (&(tx, ty), tile) in &self.tiles {
+        for (&(tx, ty), tile) in &grid.tiles {
             for (k, c) in tile.iter().enumerate().filter(|(_, c)| c.ground) {
                 let (ix, iy) = cell_at((tx, ty), k);
-                // A kerb's foot, where the mesh rounds the kerb up, is no cell's reference.
                 if kerb_feet.contains(&(ix, iy)) {
                     continue;
                 }
@@ -323,26 +348,31 @@ impl Grid {
                 *b = b.min(c.floor);
             }
         }
-        // Block offsets nearest first: the first block with ground gives the reference.
+        GroundBlocks { block, lowest }
+    }
+
+    /// Block offsets within `reach_m` (cells of `resolution`), nearest first.
+    pub(super) fn offsets(&self, resolution: f64, reach_m: f64) -> Vec<(i64, i64)> {
+        let reach = (reach_m / (self.block as f64 * resolution)).ceil() as i64;
         let mut near: Vec<(i64, i64)> = (-reach..=reach)
             .flat_map(|dy| (-reach..=reach).map(move |dx| (dx, dy)))
             .filter(|(dx, dy)| dx * dx + dy * dy <= reach * reach)
             .collect();
         near.sort_by_key(|&(dx, dy)| (dx * dx + dy * dy, dy, dx));
-        for (&(tx, ty), tile) in self.tiles.iter_mut() {
-            for (k, c) in tile.iter_mut().enumerate() {
-                if c.ground {
-                    c.reference = c.floor;
-                    continue;
-                }
-                let (ix, iy) = cell_at((tx, ty), k);
-                let (bx, by) = (ix.div_euclid(block), iy.div_euclid(block));
-                c.reference = near
-                    .iter()
-                    .find_map(|(dx, dy)| lowest.get(&(bx + dx, by + dy)))
-                    .copied()
-                    .unwrap_or(f32::INFINITY);
-            }
-        }
+        near
+    }
+
+    /// The ground of the first block with ground at `offsets` from cell `(ix, iy)`'s.
+    pub(super) fn nearest(&self, (ix, iy): CellIndex, offsets: &[(i64, i64)]) -> Option<f32> {
+        let (bx, by) = self.block_of((ix, iy));
+        offsets
+            .iter()
+            .find_map(|(dx, dy)| self.lowest.get(&(bx + dx, by + dy)))
+            .copied()
+    }
+
+    /// The block holding cell `(ix, iy)`.
+    pub(super) fn block_of(&self, (ix, iy): CellIndex) -> (i64, i64) {
+        (ix.div_euclid(self.block), iy.div_euclid(self.block))
     }
 }

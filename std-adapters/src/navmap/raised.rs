@@ -15,7 +15,10 @@
 //! is untouched.
 
 use crate::navmap::grid::{disc, tile_of, CellIndex, Grid, LOW_RISE_M};
+use crate::navmap::ground::{CellSet, GroundBlocks, REFERENCE_M};
 use crate::navmap::hits::Floors;
+use slamesh_core::cell::BuildCellHasher;
+use std::collections::HashMap;
 
 /// How far (m) around a raised floor ground level with it is looked for: ground beside it
 /// makes it more of the same floor, not something standing.
@@ -33,7 +36,10 @@ impl Grid {
     /// [`LOW_RISE_M`] over the cell's reference where the mesh saw no ground, with no ground
     /// within [`LEVEL_GROUND_M`] level with it (within a step): a height of the cell's
     /// ([`Cell::heights`](crate::navmap::grid::Cell)), and an obstacle when no higher than
-    /// the robot. Run after the references are set and the mesh's samples classified.
+    /// the robot. A cell with no ground within [`REFERENCE_M`] to judge it against is judged
+    /// against ground up to twice as far, and only a floor over the robot's height counts
+    /// there (a plinth's top, a roof: seen from above). Run after the references are set and
+    /// the mesh's samples classified.
     pub(super) fn raise_from_scans(&mut self, floors: &Floors) {
         let (step, height) = (self.robot.max_step_m as f32, self.robot.height_m as f32);
         let near = disc((LEVEL_GROUND_M / self.resolution).round().max(1.0) as i64);
@@ -41,13 +47,30 @@ impl Grid {
         // on a car's roof, even where the mesh carried its ground under the roof), sorted by
         // cell: few, however many floors there are.
         let bears = (LOW_RISE_M - BORNE_OUT_M) as f32;
-        let mut floors_seen: Vec<(CellIndex, f32, bool)> = Vec::new();
+        let blocks = GroundBlocks::of(self, &CellSet::default());
+        let far = blocks.offsets(self.resolution, 2.0 * REFERENCE_M);
+        let mut far_ground: HashMap<(i64, i64), Option<f32>, BuildCellHasher> = HashMap::default();
+        // Each: the cell, the floor's height, whether two points fell in its bin, its rise
+        // over the cell's reference and whether that reference lies further than a cell's.
+        let mut floors_seen: Vec<(CellIndex, f32, bool, f32, bool)> = Vec::new();
         floors(&mut |f| {
             let q = self.level * f.at;
-            let cell = self.index_of(q.x, q.y);
-            let reference = self.cell(cell.0, cell.1).map(|c| c.reference);
-            if reference.is_some_and(|r| q.z as f32 - r > bears) {
-                floors_seen.push((cell, q.z as f32, f.twice));
+            let (cell, z) = (self.index_of(q.x, q.y), q.z as f32);
+            let Some(c) = self.cell(cell.0, cell.1) else {
+                return;
+            };
+            let (reference, further) = match c.reference {
+                r if r.is_finite() => (r, false),
+                _ => {
+                    let block = blocks.block_of(cell);
+                    let r = *far_ground
+                        .entry(block)
+                        .or_insert_with(|| blocks.nearest(cell, &far));
+                    (r.unwrap_or(f32::INFINITY), true)
+                }
+            };
+            if z - reference > bears {
+                floors_seen.push((cell, z, f.twice, z - reference, further));
             }
         });
         floors_seen.sort_unstable_by_key(|f| f.0);
@@ -61,13 +84,14 @@ impl Grid {
             })
         };
         let mut raised = Vec::new();
-        for &((ix, iy), z, twice) in &floors_seen {
-            let Some(c) = self.cell(ix, iy).filter(|c| !(c.ground && c.n > 0)) else {
+        for &((ix, iy), z, twice, above, further) in &floors_seen {
+            if self.cell(ix, iy).is_none_or(|c| c.ground && c.n > 0) {
                 continue;
-            };
-            // An infinite reference (no ground near) gives a NaN or infinite rise: no height.
-            let above = z - c.reference;
-            if !(above.is_finite() && above > LOW_RISE_M as f32) {
+            }
+            // Judged against ground further off, only what stands over the robot counts: a
+            // slope's rise over the distance does not reach so high.
+            let over = if further { height } else { LOW_RISE_M as f32 };
+            if !(above.is_finite() && above > over) {
                 continue;
             }
             let level_ground = near.iter().any(|&(dx, dy)| {
@@ -133,6 +157,23 @@ mod tests {
                 }
             })
             .collect();
+        // Beyond the street's end (x 10), further than a reference is looked for: a plinth's
+        // top at 1.3 m (x 12.3 to 12.8, y 4 to 6) and something 0.5 m high (y 7 to 8).
+        let beyond = (123..128).flat_map(|ix| (40..80).map(move |iy| (ix, iy)));
+        let floors: Vec<ScanFloor> = (floors.into_iter())
+            .chain(
+                beyond
+                    .filter(|&(_, iy)| !(60..70).contains(&iy))
+                    .map(|(ix, iy)| {
+                        let (x, y) = (ix as f64 * 0.1 + 0.05, iy as f64 * 0.1 + 0.05);
+                        let z = if y < 6.0 { 1.3 } else { 0.5 };
+                        ScanFloor {
+                            at: Vector3::new(x, y, z),
+                            twice: true,
+                        }
+                    }),
+            )
+            .collect();
         let path = [Vector3::new(2.0, 5.0, 1.7), Vector3::new(2.0, 11.0, 2.2)];
         let grid = |floors: &[ScanFloor]| {
             let each = |f: &mut dyn FnMut(ScanFloor)| floors.iter().for_each(|&s| f(s));
@@ -156,5 +197,9 @@ mod tests {
         // nothing standing.
         assert_ne!(with(4.15, 5.05), Occupancy::Occupied, "the street");
         assert_ne!(with(5.05, 10.05), Occupancy::Occupied, "the band");
+        // Judged against the street 2.5 m off: the plinth's top is seen from above, the lower
+        // floor (a slope's rise over the distance, for all it tells) is not taken.
+        assert_eq!(with(12.55, 5.05), Occupancy::Occupied, "the plinth's top");
+        assert_eq!(with(12.55, 7.55), Occupancy::Unknown, "the lower floor");
     }
 }
