@@ -14,7 +14,7 @@
 
 use crate::io::error::FileError;
 use crate::navmap::grid::Triangles;
-use crate::navmap::hits::{Hits, ScanFloor};
+use crate::navmap::hits::{hand, Hits, ScanFloor};
 use crate::navmap::live::LiveGrid;
 use crate::navmap::tiled_mesh::TiledMesh;
 use crate::navmap::NavMapOptions;
@@ -141,7 +141,7 @@ impl<T: Send + 'static> Background<T> {
             let t = Instant::now();
             let Ok(mut g) = grid.lock() else { return };
             let mut soup = Soup(job.triangles);
-            let floors = |each: &mut dyn FnMut(ScanFloor)| job.floors.iter().for_each(|f| each(*f));
+            let floors = hand(&job.floors);
             if let Err(e) = g.update(&mut soup, &floors, &job.path, &job.at) {
                 log::warn!("grid: {e}");
                 return;

@@ -164,14 +164,20 @@ pub const DOUBLE_FLOOR_M: f64 = 0.2;
 impl Cell {
     /// Pass 2 for one sample of height `z` in the cell, of a floor triangle or not, for a
     /// robot that climbs `step` and is `height` tall.
+    /// Counts something standing `above` the cell's reference among its heights
+    /// ([`Cell::heights`], 0 to 6.4 m).
+    pub(super) fn mark_height(&mut self, above: f32) {
+        if (0.0..6.4).contains(&above) {
+            self.heights |= 1 << (above * 10.0) as u32;
+        }
+    }
+
     fn classify(&mut self, z: f64, is_floor: bool, step: f32, height: f32) {
         let above = z as f32 - self.reference;
         if !above.is_finite() {
             return;
         }
-        if (0.0..6.4).contains(&above) {
-            self.heights |= 1 << (above * 10.0) as u32;
-        }
+        self.mark_height(above);
         // A ground cell's floor seen again a little higher (two passes of a drifting map,
         // fused as two layers) is the same floor, not a step: a step's face is steep.
         let same_floor = self.ground && is_floor && above <= DOUBLE_FLOOR_M as f32;
@@ -279,7 +285,7 @@ impl Grid {
         let faces = grid.kerb_faces();
         let seeds = grid.seeds(path, ground, &faces);
         let kerb_feet = grid.grow_ground(seeds, &faces);
-        grid.set_references(&kerb_feet);
+        let blocks = grid.set_references(&kerb_feet);
         let (step, height) = (robot.max_step_m as f32, robot.height_m as f32);
         mesh.each_triangle(&mut |t, variance| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
@@ -289,7 +295,7 @@ impl Grid {
                 grid.samples(&corners, |c, z| c.classify(z, is_floor, step, height));
             }
         })?;
-        grid.raise_from_scans(floors);
+        grid.raise_from_scans(floors, &blocks);
         grid.settle_low_rises();
         grid.carve(path);
         Ok(grid)
@@ -591,7 +597,20 @@ pub(super) fn tile_in_tiles_of(side: i64, ix: i64, iy: i64) -> ((i64, i64), usiz
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::navmap::hits::ScanFloor;
+    use crate::navmap::hits::{hand, ScanFloor};
+
+    /// What `g` says of the cell holding level-frame `(x, y)`.
+    pub(in crate::navmap) fn occupancy_at(g: &Grid, x: f64, y: f64) -> Occupancy {
+        let (ix, iy) = g.index_of(x, y);
+        g.occupancy(ix, iy)
+    }
+
+    /// Floors at `points`, each two points in a bin.
+    fn twice(points: &[Vector3<f64>]) -> Vec<ScanFloor> {
+        (points.iter())
+            .map(|&at| ScanFloor { at, twice: true })
+            .collect()
+    }
 
     /// A floor of two triangles over `[x0, x1] x [y0, y1]` at height `z`.
     pub(in crate::navmap) fn floor(x0: f32, y0: f32, x1: f32, y1: f32, z: f32) -> Vec<[Point; 3]> {
@@ -647,10 +666,7 @@ pub(super) mod tests {
         ]);
         let path = [Vector3::new(5.0, 5.0, 1.7)];
         let g = Grid::build(&mut Soup(soup), Robot::WHEELED, 0.1, Vector3::z(), &path).unwrap();
-        let at = |x: f64, y: f64| {
-            let (ix, iy) = g.index_of(x, y);
-            g.occupancy(ix, iy)
-        };
+        let at = |x: f64, y: f64| occupancy_at(&g, x, y);
         assert_eq!(at(5.05, 5.05), Occupancy::Free, "the street");
         assert_eq!(at(1.05, 1.05), Occupancy::Free, "under the roof");
         assert_eq!(at(12.05, 5.05), Occupancy::Occupied, "the wall");
@@ -714,10 +730,7 @@ pub(super) mod tests {
         soup.extend(slant(2.0, 0.15, 2.1, 0.0));
         let path = [Vector3::new(3.5, 5.0, 1.7)];
         let g = Grid::build(&mut Soup(soup), Robot::WHEELED, 0.1, Vector3::z(), &path).unwrap();
-        let at = |x: f64| {
-            let (ix, iy) = g.index_of(x, 5.05);
-            g.occupancy(ix, iy)
-        };
+        let at = |x: f64| occupancy_at(&g, x, 5.05);
         assert_eq!(at(5.05), Occupancy::Occupied, "the wall");
         assert_eq!(at(4.85), Occupancy::Unknown, "the wall's foot");
         assert_eq!(at(2.05), Occupancy::Unknown, "the ridge");
@@ -791,19 +804,13 @@ pub(super) mod tests {
             .collect();
         let path = [Vector3::new(2.5, 5.0, 1.7)];
         let grid = |floors: &[Vector3<f64>]| {
-            let each = |f: &mut dyn FnMut(ScanFloor)| {
-                floors
-                    .iter()
-                    .for_each(|&at| f(ScanFloor { at, twice: true }))
-            };
+            let floors = twice(floors);
+            let each = hand(&floors);
             let mut soup = Soup(soup.clone());
             let z = Vector3::z();
             Grid::build_with_floors(&mut soup, &each, Robot::WHEELED, 0.1, z, &path, &[]).unwrap()
         };
-        let at = |g: &Grid, x: f64| {
-            let (ix, iy) = g.index_of(x, 5.05);
-            g.occupancy(ix, iy)
-        };
+        let at = |g: &Grid, x: f64| occupancy_at(g, x, 5.05);
         let (mesh_only, with_points) = (grid(&[]), grid(&floors));
         assert_eq!(
             at(&mesh_only, 8.05),
@@ -849,19 +856,13 @@ pub(super) mod tests {
                 Vector3::new(x, y, z)
             })
             .collect();
-        let each = |f: &mut dyn FnMut(ScanFloor)| {
-            floors
-                .iter()
-                .for_each(|&at| f(ScanFloor { at, twice: true }))
-        };
+        let floors = twice(&floors);
+        let each = hand(&floors);
         let path = [Vector3::new(2.5, 5.0, 1.7)];
         let (robot, z) = (Robot::WHEELED, Vector3::z());
         let g = Grid::build_with_floors(&mut Soup(soup), &each, robot, 0.1, z, &path, &[]);
         let g = g.unwrap();
-        let at = |x: f64| {
-            let (ix, iy) = g.index_of(x, 5.05);
-            g.occupancy(ix, iy)
-        };
+        let at = |x: f64| occupancy_at(&g, x, 5.05);
         assert_eq!(at(2.05), Occupancy::Free, "the street");
         assert_eq!(at(5.85), Occupancy::Occupied, "the pavement");
         assert!(!g.cell(58, 50).unwrap().ground, "no ground on the pavement");

@@ -305,8 +305,8 @@ impl Grid {
     /// [`REFERENCE_M`]: the lowest ground cell of the nearest block of [`BLOCK_M`] that holds
     /// any (nearest, not lowest over the whole reach: on a slope of a few degrees the lowest
     /// ground two metres away lies more than a step below a cell's own floor). The ground
-    /// cells in `kerb_feet` are no other cell's reference.
-    pub(super) fn set_references(&mut self, kerb_feet: &CellSet) {
+    /// cells in `kerb_feet` are no other cell's reference. Returns the blocks it looked in.
+    pub(super) fn set_references(&mut self, kerb_feet: &CellSet) -> GroundBlocks {
         let blocks = GroundBlocks::of(self, kerb_feet);
         let near = blocks.offsets(self.resolution, REFERENCE_M);
         for (&(tx, ty), tile) in self.tiles.iter_mut() {
@@ -319,6 +319,7 @@ impl Grid {
                 };
             }
         }
+        blocks
     }
 }
 

@@ -6,10 +6,11 @@
 //! A column per cell (the grid's cells, in the level frame of the `up` the run started with)
 //! keeps the 32 height bins of [`BIN_M`] over its lowest point that a point fell in, and the
 //! lowest bin two points fell in: the floor as the points saw it ([`Hits::each_floor`]; a lone
-//! stray return below the floor is not taken). A column no two points fell in alike hands over
-//! its lowest point, marked as alone ([`ScanFloor::twice`]): a car's roof seen by one ring a
-//! pass, which a neighbour's floor may bear out ([`crate::navmap::raised`]). Bins are aligned to the level frame's zero
-//! (heights within 655 m of it), so a column's lowest bin moving down shifts its mask.
+//! stray return below the floor is not taken). A column no two points fell in alike hands
+//! over its lowest point, marked as alone ([`ScanFloor::twice`]): a car's roof seen by one
+//! ring a pass, which a neighbour's floor may bear out ([`crate::navmap::raised`]). Bins are
+//! aligned to the level frame's zero (heights within 655 m of it), so a column's lowest bin
+//! moving down shifts its mask.
 //!
 //! The hits are kept in **chunks** of the path, a new one every [`CHUNK_M`] travelled, each
 //! with the pose of the frame it began at as the run kept it. When loop closure later corrects
@@ -38,6 +39,11 @@ pub struct ScanFloor {
 /// What hands the scans' floors to the grid: it calls its argument with each, as
 /// [`Hits::each_floor`] does.
 pub type Floors<'a> = dyn Fn(&mut dyn FnMut(ScanFloor)) + 'a;
+
+/// `floors` handed over as [`Floors`] hands them (a window's copy of them, a test's).
+pub fn hand(floors: &[ScanFloor]) -> impl Fn(&mut dyn FnMut(ScanFloor)) + '_ {
+    move |each| floors.iter().for_each(|f| each(*f))
+}
 
 /// The height of a bin (m).
 pub const BIN_M: f64 = 0.02;

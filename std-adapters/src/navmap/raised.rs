@@ -15,7 +15,7 @@
 //! is untouched.
 
 use crate::navmap::grid::{disc, tile_of, CellIndex, Grid, LOW_RISE_M};
-use crate::navmap::ground::{CellSet, GroundBlocks, REFERENCE_M};
+use crate::navmap::ground::{GroundBlocks, REFERENCE_M};
 use crate::navmap::hits::Floors;
 use slamesh_core::cell::BuildCellHasher;
 use std::collections::HashMap;
@@ -38,21 +38,20 @@ impl Grid {
     /// ([`Cell::heights`](crate::navmap::grid::Cell)), and an obstacle when no higher than
     /// the robot. A cell with no ground within [`REFERENCE_M`] to judge it against is judged
     /// against ground up to twice as far, and only a floor over the robot's height counts
-    /// there (a plinth's top, a roof: seen from above). Run after the references are set and
-    /// the mesh's samples classified.
-    pub(super) fn raise_from_scans(&mut self, floors: &Floors) {
+    /// there (a plinth's top, a roof: seen from above; `blocks`: the ground's blocks the
+    /// references were found in, [`Grid::set_references`]). Run after the references are set
+    /// and the mesh's samples classified.
+    pub(super) fn raise_from_scans(&mut self, floors: &Floors, blocks: &GroundBlocks) {
         let (step, height) = (self.robot.max_step_m as f32, self.robot.height_m as f32);
         let near = disc((LEVEL_GROUND_M / self.resolution).round().max(1.0) as i64);
-        // The floors raised near enough to bear out a raised one (a lone point's neighbours
-        // on a car's roof, even where the mesh carried its ground under the roof), sorted by
-        // cell: few, however many floors there are.
-        let bears = (LOW_RISE_M - BORNE_OUT_M) as f32;
-        let blocks = GroundBlocks::of(self, &CellSet::default());
+        let beside: Vec<CellIndex> = disc(1).into_iter().filter(|&d| d != (0, 0)).collect();
         let far = blocks.offsets(self.resolution, 2.0 * REFERENCE_M);
         let mut far_ground: HashMap<(i64, i64), Option<f32>, BuildCellHasher> = HashMap::default();
-        // Each: the cell, the floor's height, whether two points fell in its bin, its rise
-        // over the cell's reference and whether that reference lies further than a cell's.
-        let mut floors_seen: Vec<(CellIndex, f32, bool, f32, bool)> = Vec::new();
+        // The floors raised near enough to bear out a raised one (a lone point's neighbours
+        // on a car's roof, even where the mesh carried its ground under the roof), sorted by
+        // cell.
+        let bears = (LOW_RISE_M - BORNE_OUT_M) as f32;
+        let mut seen: Vec<Raised> = Vec::new();
         floors(&mut |f| {
             let q = self.level * f.at;
             let (cell, z) = (self.index_of(q.x, q.y), q.z as f32);
@@ -69,57 +68,76 @@ impl Grid {
                     (r.unwrap_or(f32::INFINITY), true)
                 }
             };
-            if z - reference > bears {
-                floors_seen.push((cell, z, f.twice, z - reference, further));
+            let above = z - reference;
+            if above > bears {
+                seen.push(Raised {
+                    cell,
+                    z,
+                    twice: f.twice,
+                    above,
+                    further,
+                });
             }
         });
-        floors_seen.sort_unstable_by_key(|f| f.0);
+        seen.sort_unstable_by_key(|r| r.cell);
         let borne_out = |(ix, iy): CellIndex, z: f32| {
-            disc(1).iter().filter(|&&d| d != (0, 0)).any(|&(dx, dy)| {
+            beside.iter().any(|&(dx, dy)| {
                 let cell = (ix + dx, iy + dy);
-                let from = floors_seen.partition_point(|f| f.0 < cell);
-                (floors_seen[from..].iter())
-                    .take_while(|f| f.0 == cell)
-                    .any(|f| (f.1 - z).abs() <= BORNE_OUT_M as f32)
+                let from = seen.partition_point(|r| r.cell < cell);
+                (seen[from..].iter())
+                    .take_while(|r| r.cell == cell)
+                    .any(|r| (r.z - z).abs() <= BORNE_OUT_M as f32)
             })
         };
-        let mut raised = Vec::new();
-        for &((ix, iy), z, twice, above, further) in &floors_seen {
+        let mut standing = Vec::new();
+        for r in &seen {
+            let (ix, iy) = r.cell;
             if self.cell(ix, iy).is_none_or(|c| c.ground && c.n > 0) {
                 continue;
             }
             // Judged against ground further off, only what stands over the robot counts: a
             // slope's rise over the distance does not reach so high.
-            let over = if further { height } else { LOW_RISE_M as f32 };
-            if !(above.is_finite() && above > over) {
+            let over = if r.further { height } else { LOW_RISE_M as f32 };
+            if !(r.above.is_finite() && r.above > over) {
                 continue;
             }
             let level_ground = near.iter().any(|&(dx, dy)| {
                 self.cell(ix + dx, iy + dy)
-                    .is_some_and(|n| n.ground && (n.floor - z).abs() <= step)
+                    .is_some_and(|n| n.ground && (n.floor - r.z).abs() <= step)
             });
-            if !level_ground && (twice || borne_out((ix, iy), z)) {
-                raised.push((ix, iy, above));
+            if !level_ground && (r.twice || borne_out(r.cell, r.z)) {
+                standing.push((r.cell, r.above));
             }
         }
-        for (ix, iy, above) in raised {
+        for ((ix, iy), above) in standing {
             let (key, k) = tile_of(ix, iy);
-            let Some(c) = self.tiles.get_mut(&key).map(|t| &mut t[k]) else {
-                continue;
-            };
-            if above < 6.4 {
-                c.heights |= 1 << (above * 10.0) as u32;
+            if let Some(c) = self.tiles.get_mut(&key).map(|t| &mut t[k]) {
+                c.mark_height(above);
+                c.obstacle |= above <= height;
             }
-            c.obstacle |= above <= height;
         }
     }
 }
 
+/// A scans' floor raised over its cell's reference by more than a floor bearing out another
+/// may lie below it.
+struct Raised {
+    cell: CellIndex,
+    /// The floor's height (level frame).
+    z: f32,
+    /// Two points fell in its bin ([`crate::navmap::hits::ScanFloor::twice`]).
+    twice: bool,
+    /// Its rise over the reference.
+    above: f32,
+    /// The reference is the ground up to twice as far off (the cell had none near).
+    further: bool,
+}
+
 #[cfg(test)]
 mod tests {
-    use crate::navmap::grid::tests::{floor, Soup};
+    use crate::navmap::grid::tests::{floor, occupancy_at, Soup};
     use crate::navmap::grid::{Grid, Occupancy};
-    use crate::navmap::hits::ScanFloor;
+    use crate::navmap::hits::{hand, ScanFloor};
     use crate::navmap::robot::Robot;
     use nalgebra::Vector3;
 
@@ -176,18 +194,14 @@ mod tests {
             .collect();
         let path = [Vector3::new(2.0, 5.0, 1.7), Vector3::new(2.0, 11.0, 2.2)];
         let grid = |floors: &[ScanFloor]| {
-            let each = |f: &mut dyn FnMut(ScanFloor)| floors.iter().for_each(|&s| f(s));
             let (robot, z) = (Robot::WHEELED, Vector3::z());
-            Grid::build_with_floors(&mut Soup(soup.clone()), &each, robot, 0.1, z, &path, &[])
-                .unwrap()
+            let (mut soup, each) = (Soup(soup.clone()), hand(floors));
+            Grid::build_with_floors(&mut soup, &each, robot, 0.1, z, &path, &[]).unwrap()
         };
         let (mesh_only, with_points) = (grid(&[]), grid(&floors));
-        let at = |g: &Grid, x: f64, y: f64| {
-            let (ix, iy) = g.index_of(x, y);
-            g.occupancy(ix, iy)
-        };
-        assert_eq!(at(&mesh_only, 5.05, 5.05), Occupancy::Unknown, "no surface");
-        let with = |x: f64, y: f64| at(&with_points, x, y);
+        let unseen = occupancy_at(&mesh_only, 5.05, 5.05);
+        assert_eq!(unseen, Occupancy::Unknown, "no surface");
+        let with = |x: f64, y: f64| occupancy_at(&with_points, x, y);
         assert_eq!(with(5.05, 5.05), Occupancy::Occupied, "the car");
         assert_eq!(with(4.85, 5.05), Occupancy::Occupied, "a lone point");
         assert_ne!(with(4.15, 4.15), Occupancy::Occupied, "the stray");
