@@ -4,8 +4,9 @@
 //! consecutive-frame error, the ATE and the median ms a frame. `auto` is a preset fitted to
 //! the first scan's scale (`slamesh::run::scale`), as the command's default preset is.
 //!
-//! `cargo run --release --example presets -- [--frames N] [--presets a,b,...] [--sets a,b,...]`
-//! (sets: office, hand-held, drone, car; N scans each, 300 by default, 120 for the 2 Hz ones).
+//! `cargo run --release --example presets -- [--frames N] [--presets a,b,...] [--sets a,b,...]
+//! [--seed S]` (sets: office, hand-held, drone, car; N scans each, 300 by default, 120 for the
+//! 2 Hz ones; the scenes and the scans' noise from seed S, 1 by default).
 
 #[path = "common/flags.rs"]
 mod flags;
@@ -24,6 +25,7 @@ use std::time::Instant;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let flags = Flags::from_env();
     let frames: usize = flags.parse_or("--frames", 300)?;
+    let seed: u64 = flags.parse_or("--seed", 1)?;
     let list = |flag: &str, all: &str| -> Vec<String> {
         flags
             .value(flag)
@@ -37,10 +39,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let workers = Workers::new(0)?;
     for set in &sets {
         let drive = match set.as_str() {
-            "office" => Drive::office(frames, 1),
-            "hand-held" => Drive::carried(frames.min(120), Carried::HANDHELD, 1),
-            "drone" => Drive::carried(frames.min(120), Carried::DRONE, 1),
-            "car" => Drive::car(frames, 1),
+            "office" => Drive::office(frames, seed),
+            "hand-held" => Drive::carried(frames.min(120), Carried::HANDHELD, seed),
+            "drone" => Drive::carried(frames.min(120), Carried::DRONE, seed),
+            "car" => Drive::car(frames, seed),
             other => return Err(format!("unknown set {other}").into()),
         };
         let n = drive.poses.len();

@@ -64,16 +64,28 @@ fn track_with_errors(
 }
 
 #[test]
-fn polishing_after_a_fast_turn_cuts_the_step_error_by_a_third() {
+fn polishing_after_a_fast_turn_cuts_the_step_error_by_a_fifth() {
     // The `default` preset's registration (1.4 m face lattice), with and without the polish:
-    // 4.8 against 7.2 mm (hand-held) and 7.5 against 11.0 mm (drone) when written.
-    for (name, how) in [("hand-held", Carried::HANDHELD), ("drone", Carried::DRONE)] {
-        let mut config = preset("default").expect("the default preset");
-        let (_, _, polished, _) = track_with_errors(how, 24, config);
-        config.register.recovery.polish_rounds = 0;
-        let (_, _, plain, _) = track_with_errors(how, 24, config);
-        println!("{name}: mean step error {polished:.4} m polished, {plain:.4} m without");
-        assert!(polished < 0.8 * plain, "{name}: {polished} against {plain}");
+    // 4.8 against 7.2 mm (hand-held) and 7.5 against 11.0 mm (drone) when written; 4.6
+    // against 5.8 and 7.4 against 11.1 before a wall's ring took the wall's axis
+    // (`slamesh_core::stroke`), which took a tenth off both on the hand-held drive and an
+    // eighth off the drone's without: 4.1 against 5.1 and 7.5 against 9.8 since.
+    let errors: Vec<_> = [("hand-held", Carried::HANDHELD), ("drone", Carried::DRONE)]
+        .into_iter()
+        .map(|(name, how)| {
+            let mut config = preset("default").expect("the default preset");
+            let (_, _, polished, _) = track_with_errors(how, 24, config);
+            config.register.recovery.polish_rounds = 0;
+            let (_, _, plain, _) = track_with_errors(how, 24, config);
+            println!("{name}: mean step error {polished:.4} m polished, {plain:.4} m without");
+            (name, polished, plain)
+        })
+        .collect();
+    for (name, polished, plain) in errors {
+        assert!(
+            polished < 0.85 * plain,
+            "{name}: {polished} against {plain}"
+        );
     }
 }
 
