@@ -211,7 +211,7 @@ fn training_samples(
         );
         for c in cells.iter() {
             let pts = c.points(&work);
-            if let Shape::Surface(axes) | Shape::Stroke(axes) = choose_layers::<f64>(pts) {
+            if let Shape::Surface(axes) = choose_layers::<f64>(pts) {
                 for axis in axes {
                     layers.push(select_training(pts, axis, lattice.cell_size).to_vec());
                 }

@@ -67,9 +67,9 @@ fn track_with_errors(
 fn polishing_after_a_fast_turn_cuts_the_step_error_by_a_fifth() {
     // The `default` preset's registration (1.4 m face lattice), with and without the polish:
     // 4.8 against 7.2 mm (hand-held) and 7.5 against 11.0 mm (drone) when written; 4.6
-    // against 5.8 and 7.4 against 11.1 before a wall's ring took the wall's axis
-    // (`slamesh_core::stroke`), which took a tenth off both on the hand-held drive and an
-    // eighth off the drone's without: 4.1 against 5.1 and 7.5 against 9.8 since.
+    // against 5.8 and 7.4 against 11.1 on 2026-12-06 (named for a third, it has cut a fifth
+    // since the azimuth profiles' turn came). Both drives are measured before either is
+    // judged.
     let errors: Vec<_> = [("hand-held", Carried::HANDHELD), ("drone", Carried::DRONE)]
         .into_iter()
         .map(|(name, how)| {
@@ -82,10 +82,7 @@ fn polishing_after_a_fast_turn_cuts_the_step_error_by_a_fifth() {
         })
         .collect();
     for (name, polished, plain) in errors {
-        assert!(
-            polished < 0.85 * plain,
-            "{name}: {polished} against {plain}"
-        );
+        assert!(polished < 0.8 * plain, "{name}: {polished} against {plain}");
     }
 }
 

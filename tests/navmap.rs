@@ -539,10 +539,9 @@ fn the_office_s_navigation_map_against_the_truth() {
         &corridor,
     );
     println!("office, {frames} frames: {s:?}");
-    // Fewer occupied cells since a wall's ring takes the wall's axis: 1 934 (2 029 with the
-    // shelves the rings made along the walls).
-    assert!(s.free > 4_000 && s.occupied > 1_500, "{s:?}");
-    // 0.60, 0.87 within a cell measured (docs/benchmarks.md, "A wall's ring is no shelf").
+    assert!(s.free > 4_000 && s.occupied > 2_000, "{s:?}");
+    // 0.58, 0.87 within a cell measured (docs/benchmarks.md, "A wall's foot under its
+    // leaning top").
     s.assert_within(0.84);
     // A planner finds its way from room A through the doorway into the corridor the walk
     // went along. (The corridor's far end, seen from its start by 16 beams, is mostly

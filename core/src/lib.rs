@@ -13,7 +13,7 @@
 //! | the IMU's rotation as a prior and for deskewing | [`imu`] |
 //! | up from the accelerometer, to level the map | [`gravity`] |
 //! | bucketing points into world-fixed cells | [`bucket`] (keys in [`cell`], sorted by [`sort`]) |
-//! | layer choice by PCA | [`pca`]; a single ring's, checked against the map: [`stroke`] |
+//! | layer choice by PCA | [`pca`] |
 //! | Gaussian-process reconstruction of a layer | [`gp`] on the [`lattice`] |
 //! | location-indexed association, residual combination | [`associate`] |
 //! | Levenberg-Marquardt on SE(3) | [`lm`] (SE(3) helpers in [`math`]) |
@@ -87,7 +87,6 @@ pub mod relocalize;
 pub mod sort;
 pub mod stage;
 pub mod storage;
-pub mod stroke;
 
 pub use capacity::{
     Capacity, KittiCapacity, Lidar16Capacity, Lidar32Capacity, ScanLimits, SmallCapacity,

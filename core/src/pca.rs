@@ -17,10 +17,6 @@ use nalgebra::SymmetricEigen;
 /// 0.971 with 48, 0.986 with 1000; precision rose too), and KITTI odometry was unchanged
 /// (1.92 against 1.93 cm). The layer axes then come from the normal as for any cell.
 pub const LINE_RATIO: f64 = 1000.0;
-/// The middle eigenvalue's square root (m) below this: a stroke, one scan ring across the
-/// cell, as wide as the range noise (2 cm in docs/design.md §3), where two rings apart make
-/// 5 cm or more ([`crate::stroke`]).
-pub const STROKE_WIDTH_M: f64 = 0.03;
 /// a2 - a1 above this (radians): one layer.
 pub const ONE_LAYER_GAP: f64 = 0.95;
 /// a3 - a2 above this (radians): two layers, else three.
@@ -31,9 +27,6 @@ pub const TWO_LAYER_GAP: f64 = 0.2;
 pub enum Shape {
     /// A surface: the layers to reconstruct, best-aligned axis first.
     Surface(HVec<Axis, 3>),
-    /// A surface of one scan ring's line ([`STROKE_WIDTH_M`]): the layers its normal gives,
-    /// a guess that [`crate::stroke::stroke_axes`] checks against the map.
-    Stroke(HVec<Axis, 3>),
     /// Line-like: no layer unless the map already has a surface in the cell.
     LineLike,
     /// Too few distinct points or a failed decomposition.
@@ -96,11 +89,7 @@ pub fn choose_layers<R: Real>(points: &[(CellKey, Point)]) -> Shape {
             let _ = axes.push(x3);
         }
     }
-    if l2 < STROKE_WIDTH_M * STROKE_WIDTH_M {
-        Shape::Stroke(axes)
-    } else {
-        Shape::Surface(axes)
-    }
+    Shape::Surface(axes)
 }
 
 /// nalgebra's iterative decomposition, for what [`symmetric_eigen3`] refuses (the two smallest

@@ -15,7 +15,6 @@ use crate::map::MeshMap;
 use crate::math::Point;
 use crate::pca::{choose_layers, Shape};
 use crate::real::Real;
-use crate::stroke::stroke_axes;
 
 /// What a reconstruction is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,7 +80,6 @@ pub fn reconstruct_cell<R: Real>(
     let mut axes = heapless::Vec::<Axis, 3>::new();
     match choose_layers::<R>(points) {
         Shape::Surface(a) => axes = a,
-        Shape::Stroke(guess) => axes = stroke_axes(points, key, map, cfg, guess),
         Shape::LineLike => {
             if let Some(cell) = map.cell(&key) {
                 for a in cell.axes() {
