@@ -7,6 +7,13 @@
 //!   truth's;
 //! - free cells that hold an obstacle (the error that crashes robots): counted, at most 0.5 %;
 //! - unknown stays unknown: `free_thresh` below 205's 0.196.
+//!
+//! With `SLAMESH_NAVMAP_DIAG=DIR` set, each scored run also leaves its files in `DIR/NAME/`
+//! (the grid, the mesh as `mesh.ply`, the poses) and `cells.csv`: every seen cell that is
+//! occupied in the map or the truth, by kind (`hit`, `false`: occupied where the truth has
+//! nothing, `missed`), its column and row (from the bottom) in the grid and its centre in the
+//! world. `tools/navmap_cells.py DIR/NAME` counts
+//! them and draws `cells.png`.
 
 use crate::common::scratch;
 use nalgebra::{Point3, Rotation3, Vector3};
@@ -22,6 +29,12 @@ use slamesh_sim::Drive;
 use std::collections::HashSet;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
+
+/// The folder `SLAMESH_NAVMAP_DIAG` names, if set: where the scored runs leave their files
+/// and cells (see the module).
+fn diagnostics() -> Option<std::path::PathBuf> {
+    std::env::var_os("SLAMESH_NAVMAP_DIAG").map(std::path::PathBuf::from)
+}
 
 /// A Nav2 map as `map_server` reads it: its pixels (rows top-down), size, resolution and the
 /// lower-left pixel's corner.
@@ -330,7 +343,10 @@ impl Mapped {
             out: dir.clone(),
             config,
             threads: 2,
-            mesh_formats: Vec::new(),
+            mesh_formats: match diagnostics() {
+                Some(_) => vec![slamesh::outputs::mesh_spool::MeshFormat::Ply],
+                None => Vec::new(),
+            },
             navmap: Some(how.clone()),
             ..RunOptions::default()
         };
@@ -346,6 +362,15 @@ impl Mapped {
             map.free_thresh < 50.0 / 255.0,
             "unknown (205) must not load as free"
         );
+        if let Some(diag) = diagnostics() {
+            // Copied, not renamed: the scratch folder may lie on another file system.
+            let keep = diag.join(name);
+            std::fs::create_dir_all(&keep).unwrap();
+            for f in std::fs::read_dir(&dir).unwrap() {
+                let f = f.unwrap().path();
+                std::fs::copy(&f, keep.join(f.file_name().unwrap())).unwrap();
+            }
+        }
         std::fs::remove_dir_all(&dir).unwrap();
         let level = Rotation3::rotation_between(&up, &Vector3::z()).unwrap();
         let live = live.then(|| {
@@ -450,6 +475,7 @@ fn score(
             })
         })
     };
+    let mut cells = String::from("kind,column,row,x,y\n");
     let (mut both, mut either, mut free, mut free_bad, mut occupied) = (0, 0, 0, 0, 0);
     let (mut near_both, mut near_either) = (0, 0);
     for row in 0..map.height {
@@ -459,6 +485,17 @@ fn score(
             if seen.contains(&(col as i64, (map.height - 1 - row) as i64)) {
                 both += usize::from(truth && ours == 100);
                 either += usize::from(truth || ours == 100);
+                if truth || ours == 100 {
+                    let kind = match (truth, ours == 100) {
+                        (true, true) => "hit",
+                        (false, _) => "false",
+                        (true, false) => "missed",
+                    };
+                    let [x, y] = map.centre(col, row);
+                    let w = mapped.to_world(x, y);
+                    let up = map.height - 1 - row;
+                    cells += &format!("{kind},{col},{up},{:.3},{:.3}\n", w.x, w.y);
+                }
                 // Within a cell: an occupied cell next to a truth one counts as found.
                 let near = |want: &dyn Fn(usize, usize) -> bool| {
                     (-1i64..=1).any(|dr| {
@@ -487,6 +524,9 @@ fn score(
             free_bad += usize::from(ours == 0 && truth);
             occupied += usize::from(ours == 100);
         }
+    }
+    if let Some(diag) = diagnostics() {
+        std::fs::write(diag.join(name).join("cells.csv"), cells).unwrap();
     }
     let (free_along, passable) = along(&mapped, segments);
     Scores {
