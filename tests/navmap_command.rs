@@ -108,8 +108,9 @@ fn ascii_grid(dir: &Path) -> std::collections::HashMap<(i64, i64), String> {
 }
 
 /// `run --navmap` and `navmap` of the map it saved write the same occupancy grid (the same
-/// mesh, the same path); `navmap` of its PLY mesh grows the ground from the largest floor;
-/// a bad robot file is refused, naming it.
+/// mesh, the same path, the scans' floor the run kept beside the map); without that floor the
+/// saved map's grid is the mesh's alone; `navmap` of its PLY mesh grows the ground from the
+/// largest floor; a bad robot file is refused, naming it.
 #[test]
 fn the_command_s_navigation_maps() {
     use crate::common::{slamesh, slamesh_ok};
@@ -129,20 +130,67 @@ fn the_command_s_navigation_maps() {
         "--save-map",
         &s(&saved),
     ]);
+    let floor = run_out.join("site.floor");
+    assert!(floor.is_file(), "the scans' floor beside the map");
     slamesh_ok(&["navmap", &s(&saved), "--out", &s(&from_map), "-q"]);
-    // The run's grid had its scans' floor, the saved map's none (it keeps no points), and
-    // `navmap.json` says which was which. They agree but where the scans' floor stood raised
-    // where the mesh has no surface (`navmap::raised`): occupied from the run, unknown (or
-    // beyond the map) from the saved map; and the ground beside such a cell or in its shadow
-    // is unknown, so the run's elevation is the saved map's less those cells.
+    // `navmap.json` says how many cells the scans' floor gave.
     let floor_cells = |dir: &Path| {
         let json = std::fs::read_to_string(dir.join("navmap.json")).unwrap();
         let v: serde_json::Value = serde_json::from_str(&json).unwrap();
         v["scans_floor_cells"].as_u64().unwrap()
     };
     assert!(floor_cells(&run_out) > 0);
-    assert_eq!(floor_cells(&from_map), 0);
+    assert_eq!(floor_cells(&from_map), floor_cells(&run_out));
     let (ran, loaded) = (Nav2Map::read(&run_out), Nav2Map::read(&from_map));
+    assert_eq!(
+        (ran.width, ran.height, ran.origin, ran.resolution),
+        (
+            loaded.width,
+            loaded.height,
+            loaded.origin,
+            loaded.resolution
+        )
+    );
+    assert!(
+        ran.pixels == loaded.pixels,
+        "the run's grid and the saved map's differ"
+    );
+    assert_eq!(ascii_grid(&run_out), ascii_grid(&from_map));
+    // A second session in that map, saved again: the first one's floor carried beside it.
+    let (again, resaved) = (dir.join("again"), dir.join("again").join("site2.slamesh"));
+    slamesh_ok(&[
+        "localize",
+        &s(&input),
+        "--map",
+        &s(&saved),
+        "--update",
+        "--out",
+        &s(&again),
+        "-q",
+        "--no-picture",
+        "--navmap",
+        "--save-map",
+        &s(&resaved),
+    ]);
+    let floors = |p: &Path| {
+        slamesh::navmap::floor_file::FloorFile::read(p)
+            .unwrap()
+            .count
+    };
+    assert!(floors(&again.join("site2.floor")) > floors(&floor));
+    // A damaged floor file is passed over, named; the grid is then the mesh's alone.
+    let kept = std::fs::read(&floor).unwrap();
+    std::fs::write(&floor, &kept[..kept.len() / 2]).unwrap();
+    let alone = dir.join("alone");
+    let out = slamesh(&["navmap", &s(&saved), "--out", &s(&alone)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && err.contains("site.floor"), "{err}");
+    assert_eq!(floor_cells(&alone), 0);
+    // They agree but where the scans' floor stood raised where the mesh has no surface
+    // (`navmap::raised`): occupied from the run, unknown (or beyond the map) from the mesh
+    // alone; and the ground beside such a cell or in its shadow is unknown, so the run's
+    // elevation is the mesh's less those cells.
+    let loaded = Nav2Map::read(&alone);
     assert_eq!(ran.resolution, loaded.resolution);
     // The cell of `map` a cell of `ran` lies over, by the grids' lower-left corners.
     let over = |map: &Nav2Map, col: usize, row: usize| {
@@ -167,7 +215,7 @@ fn the_command_s_navigation_maps() {
         }
     }
     println!("cells the scans' floor raised: {raised}");
-    let (ran_z, loaded_z) = (ascii_grid(&run_out), ascii_grid(&from_map));
+    let (ran_z, loaded_z) = (ascii_grid(&run_out), ascii_grid(&alone));
     assert!(ran_z.len() > 100);
     for (cell, z) in &ran_z {
         assert_eq!(loaded_z.get(cell), Some(z), "elevation at {cell:?}");

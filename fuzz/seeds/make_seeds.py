@@ -125,6 +125,17 @@ def map_file(version):
 put("map_file", "two_cells", map_file(1))
 put("map_file", "two_cells_v2", map_file(2))
 
+# The scans' floor beside a saved map, from the table in std-adapters/src/navmap/floor_file.rs:
+# two floors (one seen twice) that go with a path of two poses, and none at all.
+def floor_file(floors):
+    body = b"SLMFLOOR" + struct.pack("<IdQdQ", 1, 0.1, 2, 0.1, len(floors))
+    body += b"".join(struct.pack("<3fB", *at, twice) for at, twice in floors)
+    return block(body)
+
+
+put("floor_file", "two", floor_file([((1.05, -2.25, -1.49), 1), ((3.5, 0.15, 0.01), 0)]))
+put("floor_file", "none", floor_file([]))
+
 
 # Packets: the first frames of a real HDL-32E capture (tests/fixtures/packets), as pcap and
 # pcapng, and one data packet alone.

@@ -6,7 +6,7 @@ use crate::cli::error::CliError;
 use crate::formats::map_file::MapFile;
 use crate::formats::ply::read_ply_mesh;
 use crate::io::error::FileError;
-use crate::navmap::{self, NavMapOptions, Robot};
+use crate::navmap::{self, floor_file, NavMapOptions, Robot};
 use crate::outputs::mesh_spool::{MeshFormat, MeshSpool};
 use crate::run::saved_map;
 use crate::say;
@@ -54,8 +54,10 @@ fn resolution(text: &str) -> Result<f64, String> {
 /// `slamesh navmap`'s arguments.
 #[derive(Args, Debug)]
 pub struct NavMapArgs {
-    /// A map file (`run --save-map`), whose path grows the ground, or a PLY mesh (`mesh.ply`:
-    /// the ground grows from its largest stretch of floor).
+    /// A map file (`run --save-map`), whose path grows the ground (with the scans' floor a
+    /// run with `--navmap` kept beside it, `NAME.floor`: kerbs and cars' roofs as that run
+    /// found them), or a PLY mesh (`mesh.ply`: the ground grows from its largest stretch of
+    /// floor).
     pub input: PathBuf,
     /// Output folder (created if missing).
     #[arg(long)]
@@ -93,7 +95,8 @@ pub fn navmap(args: &NavMapArgs) -> Result<(), CliError> {
 }
 
 /// The navigation map of the saved map `path`: its mesh spooled beside the outputs (as a run
-/// spools it), its path the ground's seeds.
+/// spools it), its path the ground's seeds, and the scans' floor kept beside it
+/// ([`floor_file`]) when a run with `--navmap` saved it.
 fn from_map_file(
     path: &Path,
     how: &NavMapOptions,
@@ -114,7 +117,21 @@ fn from_map_file(
         .iter()
         .map(|(_, p)| p.translation.vector)
         .collect();
-    let (summary, grid) = navmap::make(&mut spool, &|_| {}, &seeds, how, out)?;
+    // The scans' floor the run kept beside the map (`run --navmap --save-map`), if it did.
+    let floor = floor_file::read_beside(path, &file.poses);
+    if let Some(f) = &floor {
+        log::info!(
+            "with the scans' floor beside the map: {} cells of {} m",
+            f.count,
+            f.resolution
+        );
+    }
+    let floors = |each: &mut dyn FnMut(navmap::hits::ScanFloor)| {
+        if let Some(f) = &floor {
+            f.each(each);
+        }
+    };
+    let (summary, grid) = navmap::make(&mut spool, &floors, &seeds, how, out)?;
     // The map's mesh with the layers on its vertices.
     let mut layers = navmap::layers::OnMesh::new(&grid, how.robot);
     let target = [(out.join("mesh.ply"), MeshFormat::Ply)];

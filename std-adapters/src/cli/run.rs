@@ -94,7 +94,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "POSE", requires = "map", value_parser = parse_initial_pose)]
     pub initial_pose: Option<InitialPose>,
     /// Save the whole map to FILE at the end (cells a window evicted included), to localize
-    /// in later or map on from (`--map`).
+    /// in later or map on from (`--map`); with `--navmap`, the floor the scans saw beside it
+    /// (FILE with the extension `.floor`), which `slamesh navmap FILE` reads.
     #[arg(long, value_name = "FILE")]
     pub save_map: Option<PathBuf>,
     /// Close loops: when the sensor comes back to where it has been, correct the trajectory

@@ -8,6 +8,7 @@
 //! | the grid: cells in tiles, floor, obstacles, occupancy, elevation | [`grid`] |
 //! | the ground: grown from the path; the height each cell is judged against | [`ground`] |
 //! | the floor as the scans' points saw it, in chunks of the path | [`hits`] |
+//! | that floor kept beside a saved map, for `slamesh navmap` | [`floor_file`] |
 //! | what stands where the mesh has no surface: the scans' floor raised over the ground | [`raised`] |
 //! | what the path saw: lines of sight over the grid | [`sight`] |
 //! | traversability on a mesh of the ground: slope, step, roughness, border, cost | [`layers`] |
@@ -22,6 +23,7 @@
 
 pub mod background;
 pub mod files;
+pub mod floor_file;
 pub mod grid;
 pub mod ground;
 pub mod hits;

@@ -11,8 +11,8 @@
 //! the lines of sight were cast from higher, [`crate::navmap::sight`]).
 //!
 //! Owns no state: it marks the grid's cells. Guarantees: only cells with no ground of their
-//! own change, and only towards an obstacle; a grid built with no scans' floor (a saved map's)
-//! is untouched.
+//! own change, and only towards an obstacle; a grid built with no scans' floor (a saved map's
+//! with no floor file beside it) is untouched.
 
 use crate::navmap::grid::{disc, tile_of, CellIndex, Grid, LOW_RISE_M};
 use crate::navmap::ground::{GroundBlocks, REFERENCE_M};

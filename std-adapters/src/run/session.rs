@@ -19,6 +19,7 @@ use crate::io::error::FileError;
 use crate::loop_closure::streaming::RunOutputs;
 use crate::loop_closure::LoopClosure;
 use crate::navmap::files::NavMapSummary;
+use crate::navmap::floor_file::{self, FloorFile};
 use crate::navmap::hits::Hits;
 use crate::navmap::layers::OnMesh;
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
@@ -406,6 +407,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let stamped = poses.iter().zip(&stamps).map(|((_, p), t)| (*t, *p));
         let shown_as = self.opts.save_map.as_deref().unwrap_or(out);
         let start = std::mem::take(&mut self.map_path);
+        let floors = floor_beside(&self.opts, &start, &stamps, self.hits.take());
         save_map(
             self.saved_map.take(),
             start,
@@ -415,8 +417,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             shown_as,
         )?;
         let up = self.inertial.navmap_up();
-        let hits = self.hits.take();
-        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses, up, hits)?;
+        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses, up, floors)?;
         let summary = Summary {
             frames: source.frames(),
             used: poses.len(),
@@ -450,18 +451,64 @@ impl<'a, C: Capacity> Run<'a, C> {
     }
 }
 
+/// The floor the scans saw: this run's `hits`, what the map the run started from kept beside
+/// it (`opts.map`, whose path is `start`), and the path the map saved now will have (`start`,
+/// then this run's `stamps`), which its floor file goes with. A floor file beside the map to
+/// be saved goes with the map saved there before: without `--navmap` it is removed.
+fn floor_beside(
+    opts: &RunOptions,
+    start: &[(f64, Pose)],
+    stamps: &[f64],
+    hits: Option<Hits>,
+) -> ScansFloor {
+    let carried = (opts.map.as_deref()).and_then(|m| floor_file::read_beside(m, start));
+    let saved_path = floor_file::MapPath {
+        poses: (start.len() + stamps.len()) as u64,
+        last_stamp: (stamps.last().or(start.last().map(|(t, _)| t))).map_or(0.0, |t| *t),
+    };
+    if let (Some(saved), None) = (&opts.save_map, &opts.navmap) {
+        let stale = floor_file::beside(saved);
+        if stale.is_file() && std::fs::remove_file(&stale).is_ok() {
+            log::info!(
+                "removed {}: it went with the map saved before",
+                stale.display()
+            );
+        }
+    }
+    ScansFloor {
+        hits,
+        carried,
+        saved_path,
+    }
+}
+
+/// The floor the scans saw, for the navigation map and beside the saved map.
+struct ScansFloor {
+    /// This run's, moved with the path as it ends.
+    hits: Option<Hits>,
+    /// What the map the run started from kept beside it.
+    carried: Option<FloorFile>,
+    /// The path of the map the run saves, which its floor file goes with.
+    saved_path: floor_file::MapPath,
+}
+
 /// Writes the mesh files, the picture and the navigation map from `spool` with `map`'s cells
 /// added; none when no frame was used (`poses` empty). `up` is the IMU's up for the
-/// navigation map and what gave it, when it gave one; `hits` the floor the scans saw, moved
-/// with the path as it ends.
+/// navigation map and what gave it, when it gave one. With `--save-map` and the scans' floor,
+/// that floor goes beside the map file ([`floor_file`]).
 fn write_mesh(
     mut spool: MeshSpool,
     map: &slamesh_core::map::MeshMap,
     opts: &RunOptions,
     poses: &[(usize, Pose)],
     up: Option<(nalgebra::Vector3<f64>, String)>,
-    hits: Option<Hits>,
+    scans: ScansFloor,
 ) -> Result<(MeshCounts, Option<NavMapSummary>), RunError> {
+    let ScansFloor {
+        hits,
+        carried,
+        saved_path,
+    } = scans;
     let (out, used) = (&opts.out, !poses.is_empty());
     spool.add_map(map)?;
     spool.colour_by(opts.mesh_colour);
@@ -484,11 +531,19 @@ fn write_mesh(
                 log::debug!("navigation map: the scans' floor took {} bytes", h.bytes());
             }
             let floors = |each: &mut dyn FnMut(crate::navmap::hits::ScanFloor)| {
+                if let Some(c) = &carried {
+                    c.each(each);
+                }
                 if let Some(h) = &hits {
                     h.each_floor(&now, each);
                 }
             };
             let (summary, grid) = crate::navmap::make(&mut spool, &floors, &path, &how, out)?;
+            if let (Some(saved), Some(_)) = (&opts.save_map, &hits) {
+                let beside = floor_file::beside(saved);
+                let n = floor_file::write(&beside, how.resolution_m, saved_path, &floors)?;
+                log::info!("the scans' floor saved to {}: {n} cells", beside.display());
+            }
             drop(hits);
             summary.map(|s| (s, grid, how.robot))
         }
