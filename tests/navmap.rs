@@ -317,18 +317,20 @@ impl Mapped {
     /// command fits it (`slamesh run`'s default preset: 0.5 m cells indoors), and reads the
     /// map back.
     fn of(drive: &Drive, frames: usize, robot: Robot, name: &str) -> Mapped {
-        Mapped::with_live(drive, frames, robot, name, false).0
+        Mapped::with_live(drive, frames, robot, name, false, false).0
     }
 
     /// [`of`](Self::of), and with `live` the grid the ROS 2 node keeps current during the run
-    /// too ([`LiveSink`]), as it is at the end.
+    /// too ([`LiveSink`]), as it is at the end; with `saved`, the grid `slamesh navmap` makes
+    /// of the map the run saved (`--save-map`, the scans' floor beside it; up: the map's z).
     pub(crate) fn with_live(
         drive: &Drive,
         frames: usize,
         robot: Robot,
         name: &str,
         live: bool,
-    ) -> (Mapped, Option<Mapped>) {
+        saved: bool,
+    ) -> (Mapped, Option<Mapped>, Option<Mapped>) {
         let dir = scratch(name);
         let first: Pose = drive.poses[0];
         let up = first.rotation.inverse() * Vector3::z();
@@ -348,6 +350,7 @@ impl Mapped {
                 None => Vec::new(),
             },
             navmap: Some(how.clone()),
+            save_map: saved.then(|| dir.join("site.slamesh")),
             ..RunOptions::default()
         };
         let last = Arc::new(Mutex::new(None));
@@ -362,13 +365,25 @@ impl Mapped {
             map.free_thresh < 50.0 / 255.0,
             "unknown (205) must not load as free"
         );
+        let from_map = saved.then(|| {
+            let (site, out) = (dir.join("site.slamesh"), dir.join("from-map"));
+            let s = |p: &Path| p.to_str().unwrap().to_string();
+            crate::common::slamesh_ok(&["navmap", &s(&site), "--out", &s(&out), "-q"]);
+            Mapped {
+                map: Nav2Map::read(&out),
+                first,
+                level: Rotation3::identity(),
+            }
+        });
         if let Some(diag) = diagnostics() {
             // Copied, not renamed: the scratch folder may lie on another file system.
             let keep = diag.join(name);
             std::fs::create_dir_all(&keep).unwrap();
             for f in std::fs::read_dir(&dir).unwrap() {
                 let f = f.unwrap().path();
-                std::fs::copy(&f, keep.join(f.file_name().unwrap())).unwrap();
+                if f.is_file() {
+                    std::fs::copy(&f, keep.join(f.file_name().unwrap())).unwrap();
+                }
             }
         }
         std::fs::remove_dir_all(&dir).unwrap();
@@ -381,7 +396,7 @@ impl Mapped {
                 level,
             }
         });
-        (Mapped { map, first, level }, live)
+        (Mapped { map, first, level }, live, from_map)
     }
 
     /// Grid frame `(x, y)` to the world: the level frame turned back to the map's, then the

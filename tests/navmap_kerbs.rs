@@ -1,6 +1,6 @@
 //! The navigation map on the simulated yard's kerbs and ramps (`slamesh_sim::yard`), in the
-//! run's files and in the grid the ROS 2 node keeps current, read back as
-//! [`crate::navmap`] reads them.
+//! run's files, in the grid the ROS 2 node keeps current and in what `slamesh navmap` makes
+//! of the map the run saved, read back as [`crate::navmap`] reads them.
 
 use crate::navmap::{free_path, seen_cells, Mapped};
 use nalgebra::Point3;
@@ -29,8 +29,8 @@ fn the_yard_s_kerbs_and_ramps() {
     let frames = 180;
     let drive = Drive::yard(frames, 3);
     let robot = Robot::WHEELED;
-    let (mapped, live) = Mapped::with_live(&drive, frames, robot, "navmap-yard", true);
-    let live = live.unwrap();
+    let (mapped, live, saved) = Mapped::with_live(&drive, frames, robot, "navmap-yard", true, true);
+    let (live, saved) = (live.unwrap(), saved.unwrap());
     let seen = seen_cells(&mapped, &drive, frames);
     // In `m`, the share of the area's seen cells that are `value` (0 free, 100 occupied),
     // and how many there are; with `judged`, of those not unknown.
@@ -127,4 +127,21 @@ fn the_yard_s_kerbs_and_ramps() {
     assert!(low.1 > 300 && low.0 > 0.9, "{low:?}");
     assert!(gentle.1 .1 > 300 && gentle.1 .0 > 0.8, "{gentle:?}");
     assert!(steep.1 .1 > 300 && steep.1 .0 == 0.0, "{steep:?}");
+    // `slamesh navmap` of the map the run saved, with the scans' floor kept beside it
+    // (`navmap::floor_file`): the high kerb keeps the robot off as in the run's files.
+    let (high, low) = (
+        pavement(&saved, KERBS[0], 0, false),
+        pavement(&saved, KERBS[1], 0, false),
+    );
+    let high_occupied = pavement(&saved, KERBS[0], 100, false);
+    println!(
+        "from the saved map: free behind the high kerb {high:?} (occupied {:.3}), behind the \
+         low one {low:?}",
+        high_occupied.0
+    );
+    assert!(
+        high.1 > 500 && high.0 < 0.05 && high_occupied.0 > 0.9,
+        "{high:?}"
+    );
+    assert!(low.1 > 500 && low.0 > 0.9, "{low:?}");
 }

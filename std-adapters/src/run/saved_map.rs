@@ -139,6 +139,9 @@ pub fn not_found(r: &Relocalized) -> String {
 /// What a map file written by a run with `config` (from preset `preset`) after `frames`
 /// scans says about its map.
 pub fn info(config: &Config, preset: &str, frames: u32) -> MapInfo {
+    // A library run names no preset (`RunOptions::default()`): its file still has to read
+    // back, and it lists every parameter, so the preset it names fills nothing it left out.
+    let preset = if preset.is_empty() { "default" } else { preset };
     MapInfo {
         lattice: config.lattice(),
         frames,
@@ -150,6 +153,15 @@ pub fn info(config: &Config, preset: &str, frames: u32) -> MapInfo {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_map_saved_by_a_run_that_names_no_preset_reads_back_with_its_configuration() {
+        let mut config = Config::default();
+        config.grid.cell_size_m = 0.5;
+        let toml = info(&config, "", 0).config_toml;
+        let read = config_file::parse(&toml).expect("the configuration reads");
+        assert_eq!(read.config.grid.cell_size_m, 0.5);
+    }
 
     #[test]
     fn candidates_follow_the_path_and_its_sides() {
