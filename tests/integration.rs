@@ -24,6 +24,7 @@ mod kitti_odometry;
 mod loop_closure;
 mod map_persistence;
 mod merge;
+mod nav2_map;
 mod navmap;
 mod navmap_command;
 mod navmap_kerbs;

@@ -4,7 +4,7 @@
 //! refused. Read back with the Nav2 reader of [`crate::navmap`].
 
 use crate::common::scratch;
-use crate::navmap::Nav2Map;
+use crate::nav2_map::Nav2Map;
 use std::path::Path;
 
 /// A mesh PLY's vertices with `ground` and `cost` among their properties: ground vertices
