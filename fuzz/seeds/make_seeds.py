@@ -128,7 +128,7 @@ put("map_file", "two_cells_v2", map_file(2))
 # The scans' floor beside a saved map, from the table in std-adapters/src/navmap/floor_file.rs:
 # two floors (one seen twice) that go with a path of two poses, and none at all.
 def floor_file(floors):
-    body = b"SLMFLOOR" + struct.pack("<IdQdQ", 1, 0.1, 2, 0.1, len(floors))
+    body = b"SLMFLOOR" + struct.pack("<IdQd", 1, 0.1, 2, 0.1)
     body += b"".join(struct.pack("<3fB", *at, twice) for at, twice in floors)
     return block(body)
 

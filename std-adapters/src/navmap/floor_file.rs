@@ -6,9 +6,11 @@
 //! ## Layout (little-endian)
 //! | part | bytes | what |
 //! |---|---|---|
-//! | header | 44 | [`MAGIC`], [`VERSION`] (u32), the cell size the floors were found in (f64, m), the map's path it goes with: its poses (u64) and its last pose's time (f64, s; 0 for none), the floors (u64) |
+//! | header | 36 | [`MAGIC`], [`VERSION`] (u32), the cell size the floors were found in (f64, m), the map's path it goes with: its poses (u64) and its last pose's time (f64, s; 0 for none) |
 //! | floors | 13 each | the cell's centre at the floor's height, map frame (3 × f32), flags (u8; bit 0: two points fell in its bin, [`ScanFloor::twice`]) |
 //! | check | 4 | CRC-32 of everything before it |
+//!
+//! How many floors follows from the length, so the file is written in one pass over them.
 //!
 //! A map saved again (a request during a run, the ROS 2 node's `save_map`, a run without
 //! `--navmap`) leaves a floor file beside it that no longer goes with it: the path recorded
@@ -32,7 +34,7 @@ use std::path::{Path, PathBuf};
 pub const MAGIC: [u8; 8] = *b"SLMFLOOR";
 /// The format this code writes and reads.
 pub const VERSION: u32 = 1;
-const HEADER_BYTES: usize = 44;
+const HEADER_BYTES: usize = 36;
 const FLOOR_BYTES: usize = 13;
 const CHECK_BYTES: usize = 4;
 
@@ -69,7 +71,6 @@ pub fn write(
     floors: &Floors,
 ) -> Result<u64, FileError> {
     let mut count = 0u64;
-    floors(&mut |_| count += 1);
     write_atomic(path, |w| {
         let mut crc = Crc32::new();
         let mut put = |w: &mut dyn Write, bytes: &[u8]| {
@@ -81,7 +82,6 @@ pub fn write(
         put(w, &resolution.to_le_bytes())?;
         put(w, &map.poses.to_le_bytes())?;
         put(w, &map.last_stamp.to_le_bytes())?;
-        put(w, &count.to_le_bytes())?;
         let mut result = Ok(());
         floors(&mut |f| {
             let mut record = [0u8; FLOOR_BYTES];
@@ -91,6 +91,7 @@ pub fn write(
             record[12] = u8::from(f.twice);
             if result.is_ok() {
                 result = put(w, &record);
+                count += 1;
             }
         });
         result?;
@@ -171,21 +172,20 @@ impl FloorFile {
             poses: u64::from_le_bytes(wide(20)),
             last_stamp: f64::from_le_bytes(wide(28)),
         };
-        let count = u64::from_le_bytes(wide(36));
-        let expected = usize::try_from(count)
-            .ok()
-            .and_then(|n| n.checked_mul(FLOOR_BYTES))
-            .and_then(|n| n.checked_add(HEADER_BYTES + CHECK_BYTES));
-        if expected != Some(bytes.len()) {
-            return Err(bad(format!("{count} floors in {} bytes", bytes.len())));
+        let records = bytes.len() - HEADER_BYTES - CHECK_BYTES;
+        if !records.is_multiple_of(FLOOR_BYTES) {
+            return Err(bad(format!(
+                "{records} bytes of floors, not a whole number of {FLOOR_BYTES}-byte floors"
+            )));
         }
+        let count = records / FLOOR_BYTES;
         let end = bytes.len() - CHECK_BYTES;
         if Crc32::of(&bytes[..end]) != word(end) {
             return Err(bad("its checksum does not match (damaged)".into()));
         }
         let file = FloorFile {
             resolution,
-            count: count as usize,
+            count,
             map,
             bytes,
         };
@@ -276,6 +276,15 @@ mod tests {
     }
 
     #[test]
+    fn the_fuzz_seeds_written_from_the_table_read() {
+        let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus/floor_file");
+        let two = FloorFile::read(&corpus.join("two")).unwrap();
+        assert_eq!((two.count, two.resolution), (2, 0.1));
+        assert!(two.goes_with(&[(0.0, ()), (0.1, ())]));
+        assert_eq!(FloorFile::read(&corpus.join("none")).unwrap().count, 0);
+    }
+
+    #[test]
     fn damaged_files_are_refused_with_the_reason() {
         let dir = tempdir("damaged");
         let path = dir.join("map.floor");
@@ -286,7 +295,7 @@ mod tests {
             assert!(e.to_string().contains("map.floor"), "{e}");
             e.to_string()
         };
-        assert!(refused(good[..good.len() - 1].to_vec()).contains("floors in"));
+        assert!(refused(good[..good.len() - 1].to_vec()).contains("whole number"));
         assert!(refused(b"SLMSHMAP".to_vec()).contains("header"));
         let mut flipped = good.clone();
         flipped[HEADER_BYTES + 2] ^= 0x10;
