@@ -13,7 +13,9 @@
 //! occupied in the map or the truth, by kind (`hit`, `false`: occupied where the truth has
 //! nothing, `missed`), its column and row (from the bottom) in the grid and its centre in the
 //! world. `tools/navmap_cells.py DIR/NAME` counts
-//! them and draws `cells.png`.
+//! them and draws `cells.png`. `SLAMESH_NAVMAP_SEED=S` drives the town and the office of seed
+//! `S` instead of the tests' own (1 and 2), to judge a change of the grid over other drives;
+//! the asserted bounds hold for the tests' own seeds.
 
 use crate::common::scratch;
 use crate::nav2_map::Nav2Map;
@@ -35,6 +37,14 @@ use std::sync::{Arc, Mutex};
 /// and cells (see the module).
 fn diagnostics() -> Option<std::path::PathBuf> {
     std::env::var_os("SLAMESH_NAVMAP_DIAG").map(std::path::PathBuf::from)
+}
+
+/// The drive's seed: `SLAMESH_NAVMAP_SEED` if set (see the module), else `own`.
+fn seed_or(own: u64) -> u64 {
+    std::env::var("SLAMESH_NAVMAP_SEED")
+        .ok()
+        .map(|s| s.parse().expect("SLAMESH_NAVMAP_SEED: a whole number"))
+        .unwrap_or(own)
 }
 
 /// The grid the ROS 2 node keeps current (`ros2::occupancy`, with the node's window and its
@@ -458,7 +468,7 @@ fn score(
 fn the_town_s_navigation_map_against_the_truth() {
     let frames = 30;
     let s = score(
-        Drive::town(frames, 1),
+        Drive::town(frames, seed_or(1)),
         frames,
         Robot::WHEELED,
         "navmap-town",
@@ -467,8 +477,7 @@ fn the_town_s_navigation_map_against_the_truth() {
     println!("town, {frames} frames: {s:?}");
     assert!(s.free > 40_000 && s.occupied > 2_000, "{s:?}");
     // Issue 56's targets: at most 0.5 % (met: no free cell holds one) and an IoU of 0.9
-    // (not met: 0.84, 0.93 within a cell; docs/benchmarks.md, "A plinth's top with no ground
-    // near").
+    // (not met: 0.86, 0.95 within a cell; docs/benchmarks.md, "Unsure level surfaces").
     s.assert_within(0.9);
 }
 
@@ -486,17 +495,17 @@ fn the_office_s_navigation_map_against_the_truth() {
         ([12.0, 4.5], [15.3, 4.5]),
     ];
     let s = score(
-        Drive::office(frames, 2),
+        Drive::office(frames, seed_or(2)),
         frames,
         Robot::WHEELED,
         "navmap-office",
         &corridor,
     );
     println!("office, {frames} frames: {s:?}");
-    assert!(s.free > 4_000 && s.occupied > 2_000, "{s:?}");
-    // 0.58, 0.87 within a cell measured (docs/benchmarks.md, "A wall's foot under its
-    // leaning top").
-    s.assert_within(0.84);
+    // The truth has about 1 150 occupied cells where the walk saw.
+    assert!(s.free > 4_000 && s.occupied > 1_000, "{s:?}");
+    // 0.66, 0.95 within a cell measured (docs/benchmarks.md, "Unsure level surfaces").
+    s.assert_within(0.9);
     // A planner finds its way from room A through the doorway into the corridor the walk
     // went along. (The corridor's far end, seen from its start by 16 beams, is mostly
     // unknown: docs/benchmarks.md, "Maps a planner reads".)

@@ -26,7 +26,9 @@
 //! what the robot passes under, a surface with no ground near enough to judge it, ground out
 //! of sight behind a wall or in an obstacle's shadow). The mesh holds only
 //! triangles whose corners' mean Gaussian-process variance is below `mesh.variance_show`, so
-//! a surface the map is unsure of is no surface here: unknown, never free.
+//! a surface the map is unsure of is no surface here: unknown, never free. The grid is
+//! stricter with what stands ([`crate::navmap::unsure`]): a triangle it is unsure of
+//! leaves the cell it would stand in unknown.
 //!
 //! Memory: cells are kept in tiles of 64 x 64, made where a triangle falls (32 bytes a cell),
 //! none for the space between streets.
@@ -34,6 +36,7 @@
 use crate::io::error::FileError;
 use crate::navmap::hits::Floors;
 use crate::navmap::robot::Robot;
+use crate::navmap::unsure::{is_sure, mean_variance};
 use nalgebra::{Rotation3, Vector3};
 use slamesh_core::cell::BuildCellHasher;
 use slamesh_core::Point;
@@ -84,25 +87,6 @@ impl Triangles for crate::formats::ply::PlyMesh {
     }
 }
 
-/// The mean of a triangle's corners' variances that are known (not NaN); NaN when none is.
-pub fn mean_variance(v: [f32; 3]) -> f32 {
-    let known = v.iter().filter(|x| !x.is_nan());
-    let n = known.clone().count();
-    if n == 0 {
-        f32::NAN
-    } else {
-        known.sum::<f32>() / n as f32
-    }
-}
-
-/// The highest mean variance of a standing triangle (one steeper than the robot's slope)
-/// the grid takes; NaN (no variance known) passes. The mesh's own limit (`mesh.variance_show`,
-/// 0.3 by default) is the ground's: a stricter one for the ground too cost the office's floor
-/// its doorways, while one for what stands alone drops the unsure surfaces the reconstruction
-/// carries past a wall's or a car's edge (docs/benchmarks.md, "Low rises and unsure standing
-/// surfaces").
-pub const STANDING_VARIANCE: f32 = 0.2;
-
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Cell {
     /// The lowest floor sample (level frame z), infinite for none.
@@ -125,7 +109,7 @@ pub(super) struct Cell {
     pub(super) obstacle: bool,
     /// Only a low rise was seen, the foot of something taller or a bump of the surface
     /// ([`Grid::settle_low_rises`]), or a standing surface the map is unsure of
-    /// ([`STANDING_VARIANCE`]): unknown, unless an obstacle was seen too.
+    /// ([`is_sure`]): unknown, unless an obstacle was seen too.
     pub(super) doubtful: bool,
     /// Seen from the path: a line of sight reaches it ([`Grid::carve`]).
     pub(super) visible: bool,
@@ -162,8 +146,6 @@ pub const FLOOR_NOISE_M: f64 = 0.02;
 pub const DOUBLE_FLOOR_M: f64 = 0.2;
 
 impl Cell {
-    /// Pass 2 for one sample of height `z` in the cell, of a floor triangle or not, for a
-    /// robot that climbs `step` and is `height` tall.
     /// Counts something standing `above` the cell's reference among its heights
     /// ([`Cell::heights`], 0 to 6.4 m).
     pub(super) fn mark_height(&mut self, above: f32) {
@@ -172,16 +154,28 @@ impl Cell {
         }
     }
 
-    fn classify(&mut self, z: f64, is_floor: bool, step: f32, height: f32) {
+    /// Pass 2 for one sample of height `z` in the cell, of a floor triangle or not, for a
+    /// robot that climbs `step` and is `height` tall; `sure`: whether the map is sure of the
+    /// triangle ([`is_sure`]). A sample of an unsure steep triangle, or of an unsure level
+    /// one where it would stand, is no height and no obstacle: where it would make one, the
+    /// cell is doubtful instead.
+    fn classify(&mut self, z: f64, is_floor: bool, sure: bool, step: f32, height: f32) {
         let above = z as f32 - self.reference;
         if !above.is_finite() {
             return;
         }
-        self.mark_height(above);
         // A ground cell's floor seen again a little higher (two passes of a drifting map,
         // fused as two layers) is the same floor, not a step: a step's face is steep.
         let same_floor = self.ground && is_floor && above <= DOUBLE_FLOOR_M as f32;
-        if above > step && above <= height && !same_floor {
+        let stands = above > step && above <= height && !same_floor;
+        if !sure && (stands || !is_floor) {
+            // A surface the map is unsure of is no height and no obstacle: where it would
+            // stand, the cell is doubtful.
+            self.doubtful |= stands;
+            return;
+        }
+        self.mark_height(above);
+        if stands {
             self.obstacle = true;
         } else if is_floor && self.ground && above <= step {
             if self.n == u16::MAX {
@@ -191,13 +185,6 @@ impl Cell {
             self.sum += above;
             self.sum_sq += above * above;
         }
-    }
-
-    /// Pass 2 for one sample of height `z` of a standing triangle the map is unsure of: where
-    /// it would make an obstacle, the cell is doubtful instead.
-    fn doubt(&mut self, z: f64, step: f32, height: f32) {
-        let above = z as f32 - self.reference;
-        self.doubtful |= above > step && above <= height;
     }
 }
 
@@ -289,11 +276,8 @@ impl Grid {
         let (step, height) = (robot.max_step_m as f32, robot.height_m as f32);
         mesh.each_triangle(&mut |t, variance| {
             let (corners, is_floor) = grid.levelled(t, max_slope_tan);
-            if !is_floor && variance > STANDING_VARIANCE {
-                grid.samples(&corners, |c, z| c.doubt(z, step, height));
-            } else {
-                grid.samples(&corners, |c, z| c.classify(z, is_floor, step, height));
-            }
+            let sure = is_sure(variance, is_floor);
+            grid.samples(&corners, |c, z| c.classify(z, is_floor, sure, step, height));
         })?;
         grid.raise_from_scans(floors, &blocks);
         grid.settle_low_rises();
@@ -782,6 +766,30 @@ pub(super) mod tests {
             (Occupancy::Free, true),
             "the street before it"
         );
+    }
+
+    #[test]
+    fn a_level_surface_the_map_is_unsure_of_stands_only_where_it_is_sure() {
+        // A street whose triangles carry `street`, and a level patch 0.5 m over it (a table's
+        // top, or the shelf a single ring makes off a wall) carrying `shelf`: only level
+        // triangles that would stand are held to LEVEL_VARIANCE.
+        let path = [Vector3::new(2.0, 5.0, 1.7)];
+        let at = |street: f32, shelf: f32, x: f64| {
+            let rate = |v: f32| move |t: [Point; 3]| (t, v);
+            let mut rated: Vec<([Point; 3], f32)> = floor(0.0, 0.0, 10.0, 10.0, 0.0)
+                .into_iter()
+                .map(rate(street))
+                .collect();
+            rated.extend(floor(5.0, 4.0, 5.3, 6.0, 0.5).into_iter().map(rate(shelf)));
+            let g =
+                Grid::build(&mut Listed(rated), Robot::WHEELED, 0.1, Vector3::z(), &path).unwrap();
+            occupancy_at(&g, x, 5.05)
+        };
+        assert_eq!(at(0.01, 0.05, 5.15), Occupancy::Occupied, "a sure top");
+        assert_eq!(at(0.01, f32::NAN, 5.15), Occupancy::Occupied, "none known");
+        assert_eq!(at(0.01, 0.15, 5.15), Occupancy::Unknown, "an unsure one");
+        assert_eq!(at(0.15, 0.01, 3.05), Occupancy::Free, "an unsure street");
+        assert_eq!(at(0.15, 0.01, 5.15), Occupancy::Occupied, "a top over it");
     }
 
     #[test]

@@ -6,6 +6,7 @@
 //! |---|---|
 //! | the robot: radius, slope, step, height; profiles and its file | [`robot`] |
 //! | the grid: cells in tiles, floor, obstacles, occupancy, elevation | [`grid`] |
+//! | how sure the map is of a triangle, and how sure what stands must be | [`unsure`] |
 //! | the ground: grown from the path; the height each cell is judged against | [`ground`] |
 //! | the floor as the scans' points saw it, in chunks of the path | [`hits`] |
 //! | that floor kept beside a saved map, for `slamesh navmap` | [`floor_file`] |
@@ -33,6 +34,7 @@ pub mod raised;
 pub mod robot;
 pub mod sight;
 pub mod tiled_mesh;
+pub mod unsure;
 
 pub use grid::{Grid, Occupancy, Triangles};
 pub use robot::Robot;
