@@ -14,6 +14,7 @@ mod flags;
 
 use flags::Flags;
 use slamesh::navmap::background::Seen;
+use slamesh::navmap::NavMapOptions;
 use slamesh::ros2::mesh_tiles::MeshTiles;
 use slamesh::ros2::messages::{Header, OccupancyGrid};
 use slamesh::ros2::occupancy::LiveMap;
@@ -94,7 +95,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let made = Arc::new(Mutex::new(None));
     let slot = made.clone();
     let keep = Box::new(move |g| slot.lock().map(|mut s| *s = Some(g)).is_ok());
-    let map = LiveMap::new(every, Pose::identity(), keep);
+    let map = LiveMap::new(every, Pose::identity(), NavMapOptions::default(), keep);
     let grid = Grid {
         tiles: MeshTiles::new(config.lattice().table(), Shown::new(&config.mesh)),
         map,

@@ -1,11 +1,18 @@
 //! The navigation maps the command writes (`slamesh run --navmap`, `slamesh navmap`): the same
 //! grid from a run and from the map it saved, the traversability layers as named vertex
 //! properties of the navigation mesh and of the SLAM mesh, a PLY mesh's grid, a bad robot file
-//! refused. Read back with the Nav2 reader of [`crate::navmap`].
+//! refused; a map saved during a run (the ROS 2 node's `~/save_map`) with the scans' floor
+//! beside it. Read back with the Nav2 reader of [`crate::navmap`].
 
 use crate::common::scratch;
 use crate::nav2_map::Nav2Map;
+use slamesh::navmap::NavMapOptions;
+use slamesh::run::{run_to, RunOptions, Sinks};
+use slamesh::sources::{FrameSource, Request};
+use slamesh_core::{Config, KittiCapacity};
+use slamesh_sim::Drive;
 use std::path::Path;
+use std::sync::mpsc;
 
 /// A mesh PLY's vertices with `ground` and `cost` among their properties: ground vertices
 /// that are not lethal lie in free cells of `grid` (the map's z up: the grid's frame is the
@@ -263,5 +270,84 @@ fn the_command_s_navigation_maps() {
         !refused.status.success() && err.contains("robot.toml") && err.contains("height_m"),
         "{err}"
     );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A drive that asks the run to save its map (as the ROS 2 node's `~/save_map` does) once frame
+/// `at` has been read, and keeps the way the answer comes back.
+struct SavingAt {
+    drive: Drive,
+    at: usize,
+    due: bool,
+    answer: Option<mpsc::Receiver<Result<String, String>>>,
+}
+
+impl FrameSource for SavingAt {
+    fn frames(&self) -> usize {
+        self.drive.frames()
+    }
+    fn label(&self, i: usize) -> String {
+        self.drive.label(i)
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        self.drive.stamp(i)
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<slamesh_core::Point>, slamesh::FileError> {
+        self.due |= i == self.at;
+        self.drive.read(i)
+    }
+    fn requests(&mut self) -> Vec<Request> {
+        if !std::mem::take(&mut self.due) {
+            return Vec::new();
+        }
+        let (tx, rx) = mpsc::channel();
+        self.answer = Some(rx);
+        vec![Request::SaveMap(tx)]
+    }
+}
+
+#[test]
+fn a_map_saved_during_a_run_keeps_the_scans_floor_beside_it() {
+    use crate::common::slamesh_ok;
+    let dir = scratch("navmap-saved-during");
+    for navmap in [true, false] {
+        let out = dir.join(if navmap { "navmap" } else { "plain" });
+        std::fs::create_dir_all(&out).unwrap();
+        // A floor file from an earlier save: replaced, or without the navigation map removed.
+        let floor = out.join("map.floor");
+        std::fs::write(&floor, b"from an earlier save").unwrap();
+        let opts = RunOptions {
+            out: out.clone(),
+            config: Config::default(),
+            threads: 2,
+            picture: false,
+            navmap: navmap.then(NavMapOptions::default),
+            ..RunOptions::default()
+        };
+        let mut source = SavingAt {
+            drive: Drive::town(12, 1),
+            at: 8,
+            due: false,
+            answer: None,
+        };
+        run_to::<KittiCapacity>(&mut source, &opts, Sinks::new()).unwrap();
+        let answer = source.answer.unwrap().recv().unwrap().unwrap();
+        let map = out.join("map.slamesh");
+        assert!(map.is_file(), "{answer}");
+        if !navmap {
+            assert!(!floor.exists() && answer.contains("removed"), "{answer}");
+            continue;
+        }
+        assert!(answer.contains("the scans' floor beside it"), "{answer}");
+        // `slamesh navmap` on the map reads it (a floor file from another save is passed over).
+        let grid = dir.join("grid");
+        let s = |p: &Path| p.to_str().unwrap().to_string();
+        slamesh_ok(&["navmap", &s(&map), "--out", &s(&grid), "-q"]);
+        let json = std::fs::read_to_string(grid.join("navmap.json")).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        let cells = v["scans_floor_cells"].as_u64().unwrap();
+        assert!(cells > 1_000, "{cells} cells of the scans' floor; {answer}");
+        println!("{answer}; `slamesh navmap` read {cells} cells of it");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -11,7 +11,8 @@ Checks, each printed as it passes (the first failure stops it with its reason):
    `slamesh run`'s on the same folder; IMU readings between the scans reach the run with
    their frames (not used, `use_imu:=false`: the peer's readings are not the scans' motion); the node's own trajectory file is `run`'s byte for byte; /tf, odom, path, mesh and /diagnostics are advertised with their types and carry
    what they should; `~/save_map` writes a map that `slamesh localize` loads and localizes
-   in.
+   in, and (the node run with `--navmap`) the scans' floor beside it, which `slamesh navmap`
+   reads, and the navigation map's files when the node stops.
 2. the same from a publisher that restarts halfway, best effort the second time.
 3. `hostile`: malformed clouds are each skipped and counted, a 100 Hz flood drops scans
    whole (named, counted) with memory flat, and the node still ends cleanly with its
@@ -124,7 +125,7 @@ def same_poses(odom, reference, what):
 
 
 def check_scans(args, reference, run_mesh):
-    node = Node(args, os.path.join(args.work, "scans", "out"))
+    node = Node(args, os.path.join(args.work, "scans", "out"), ["--navmap"])
     idle = peer(args, "idle", os.path.join(args.work, "idle.json"), "--seconds", "8",
                 background=True)
     r = peer(args, "scans", os.path.join(args.work, "scans.json"), "--imu", node=node)
@@ -182,6 +183,18 @@ def check_scans(args, reference, run_mesh):
         fail(f"localize in the saved map: {len(moved)} poses, {worst:.3f} m off")
     ok(f"~/save_map wrote a map that localize uses ({worst * 100:.1f} cm from run's poses); "
        f"the node said: {saved['message']}")
+    # With --navmap: the scans' floor beside the saved map, which `slamesh navmap` reads, and
+    # the navigation map written when the node stopped.
+    grid = os.path.join(args.work, "saved-grid")
+    subprocess.run([args.slamesh, "navmap", map_file, "--out", grid, "-q"], check=True)
+    cells = json.load(open(os.path.join(grid, "navmap.json")))["scans_floor_cells"]
+    floor = os.path.join(node.out, "map.floor")
+    written = os.path.isfile(os.path.join(node.out, "map.yaml"))
+    if not (os.path.isfile(floor) and cells > 0 and written):
+        fail(f"--navmap: floor file {os.path.isfile(floor)}, {cells} cells of it read, "
+             f"map.yaml at the end {written}")
+    ok(f"--navmap: the scans' floor beside the saved map, {cells} cells read by slamesh navmap; "
+       "the navigation map written at the end")
     report = json.load(open(os.path.join(node.out, "report.json")))
     taken = report["summary"]["input"]["imu_readings"]
     with_frames = sum(f.get("samples", 0) for f in report["frames"])

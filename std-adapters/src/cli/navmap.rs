@@ -37,14 +37,16 @@ impl RobotArgs {
     }
 }
 
-fn robot(text: &str) -> Result<Robot, String> {
+/// The robot a profile's name or a TOML file's path names.
+pub fn robot(text: &str) -> Result<Robot, String> {
     match Robot::named(text) {
         Some(r) => Ok(r),
         None => Robot::read(Path::new(text)).map_err(|e| e.to_string()),
     }
 }
 
-fn resolution(text: &str) -> Result<f64, String> {
+/// A navigation map's cell size from text (0.01 to 2 m).
+pub fn resolution(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(r) if (0.01..=2.0).contains(&r) => Ok(r),
         _ => Err(format!("`{text}` is not a cell size from 0.01 to 2 m")),

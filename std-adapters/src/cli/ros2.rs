@@ -17,6 +17,7 @@ use crate::run::config_file::Settings;
 use crate::run::sink::{FnSink, Queued, WhenFull};
 use crate::run::{FrameEvent, RunOptions, Sinks};
 use clap::Args;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -59,6 +60,15 @@ pub struct Ros2Args {
     /// Do not draw topview.png at the end.
     #[arg(long)]
     pub no_picture: bool,
+    /// Also write the navigation map when the node stops (as `run --navmap`; ROS parameter
+    /// `navmap`, true or false), and the scans' floor beside each map `~/save_map` saves,
+    /// which `slamesh navmap FILE` reads.
+    #[arg(long)]
+    pub navmap: bool,
+    /// The robot and cell size of the `map` topic's grid and of --navmap (ROS parameters
+    /// `robot`: a profile or a TOML file; `navmap_resolution`, m).
+    #[command(flatten)]
+    pub robot: crate::cli::navmap::RobotArgs,
     /// The ROS arguments: `--ros-args -r points:=/velodyne_points -p preset:=kitti
     /// --params-file FILE.yaml -r __ns:=/robot1`.
     #[arg(
@@ -73,6 +83,18 @@ fn node_error(reason: String) -> CliError {
     CliError::BadFlag {
         flag: "ros2",
         reason,
+    }
+}
+
+/// The true-or-false ROS parameter `key` of `params` (taken out), if given.
+fn flag(params: &mut BTreeMap<String, ParamValue>, key: &str) -> Result<Option<bool>, CliError> {
+    match params.remove(key) {
+        None => Ok(None),
+        Some(ParamValue::Bool(b)) => Ok(Some(b)),
+        Some(v) => Err(node_error(format!(
+            "parameter {key}: {} is not true or false",
+            v.as_text()
+        ))),
     }
 }
 
@@ -101,26 +123,22 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
             )))
         }
     };
-    let localize = match p.remove("localize") {
-        None => args.localize,
-        Some(ParamValue::Bool(b)) => b,
-        Some(v) => {
-            return Err(node_error(format!(
-                "parameter localize: {} is not true or false",
-                v.as_text()
-            )))
-        }
-    };
-    let loop_closure = match p.remove("loop_closure") {
-        None => args.loop_closure,
-        Some(ParamValue::Bool(true)) => Some(OnOff::On),
-        Some(ParamValue::Bool(false)) => Some(OnOff::Off),
-        Some(v) => {
-            return Err(node_error(format!(
-                "parameter loop_closure: {} is not true or false",
-                v.as_text()
-            )))
-        }
+    let localize = flag(p, "localize")?.unwrap_or(args.localize);
+    let loop_closure = flag(p, "loop_closure")?
+        .map(|on| if on { OnOff::On } else { OnOff::Off })
+        .or(args.loop_closure);
+    let navmap = flag(p, "navmap")?.unwrap_or(args.navmap);
+    let robot = crate::cli::navmap::RobotArgs {
+        robot: match p.remove("robot") {
+            None => args.robot.robot,
+            Some(v) => crate::cli::navmap::robot(&v.as_text())
+                .map_err(|e| node_error(format!("parameter robot: {e}")))?,
+        },
+        navmap_resolution: match p.remove("navmap_resolution") {
+            None => args.robot.navmap_resolution,
+            Some(v) => crate::cli::navmap::resolution(&v.as_text())
+                .map_err(|e| node_error(format!("parameter navmap_resolution: {e}")))?,
+        },
     };
     if localize && map.is_none() {
         return Err(node_error(
@@ -141,6 +159,8 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
         save_map,
         loop_closure,
         no_picture: args.no_picture,
+        navmap,
+        robot,
         ros_args: Vec::new(),
     })
 }
@@ -185,7 +205,9 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     if !args.localize {
         choose_loop_closure(args.loop_closure, &mut opts)?;
     }
-    let sink = node.publish(&opts.config, &source).map_err(node_error)?;
+    let sink = node
+        .publish(&opts.config, &source, args.robot.options())
+        .map_err(node_error)?;
     let sink = Queued::new(sink, 8, WhenFull::Wait)
         .map_err(|e| node_error(format!("cannot start the publishing thread: {e}")))?;
     let bar = crate::cli::progress_open(quiet);
@@ -217,6 +239,7 @@ fn run_options(args: &Ros2Args, s: &Settings, use_imu: bool) -> RunOptions {
         map: args.map.clone(),
         localize_only: args.localize,
         save_map: args.save_map.clone(),
+        navmap: args.navmap.then(|| args.robot.options()),
         imu: crate::inertial::ImuOptions {
             enabled: use_imu,
             ..s.imu
@@ -228,6 +251,7 @@ fn run_options(args: &Ros2Args, s: &Settings, use_imu: bool) -> RunOptions {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::navmap::Robot;
     use clap::Parser;
 
     #[derive(Parser)]
@@ -263,5 +287,31 @@ mod tests {
         assert!(bad
             .to_string()
             .contains("loop_closure: 3 is not true or false"));
+    }
+
+    #[test]
+    fn the_navigation_map_and_its_robot_come_from_the_flags_or_the_parameters() {
+        let plain = resolved(&[], "").unwrap();
+        assert!(!plain.navmap);
+        assert_eq!(plain.robot.options().robot, Robot::WHEELED);
+        let flags = resolved(&["--navmap", "--robot", "legged"], "").unwrap();
+        assert!(flags.navmap && flags.robot.robot == Robot::LEGGED);
+        let params = resolved(
+            &["--navmap"],
+            "--ros-args -p navmap:=false -p robot:=legged -p navmap_resolution:=0.05",
+        )
+        .unwrap();
+        assert!(!params.navmap && params.robot.robot == Robot::LEGGED);
+        assert_eq!(params.robot.options().resolution_m, 0.05);
+        for (bad, says) in [
+            ("navmap:=3", "navmap: 3 is not true or false"),
+            ("robot:=tracked", "parameter robot:"),
+            ("navmap_resolution:=5.0", "not a cell size"),
+        ] {
+            let e = resolved(&[], &format!("--ros-args -p {bad}"))
+                .err()
+                .unwrap();
+            assert!(e.to_string().contains(says), "{bad}: {e}");
+        }
     }
 }

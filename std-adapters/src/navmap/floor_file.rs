@@ -12,9 +12,11 @@
 //!
 //! How many floors follows from the length, so the file is written in one pass over them.
 //!
-//! A map saved again (a request during a run, the ROS 2 node's `save_map`, a run without
-//! `--navmap`) leaves a floor file beside it that no longer goes with it: the path recorded
-//! tells ([`FloorFile::goes_with`]), and such a file is passed over, said.
+//! A run with `--navmap` writes it beside the map it saves at its end and beside each map it
+//! saves on request (the ROS 2 node's `~/save_map`), and a save without the navigation map
+//! removes one left there. A floor file that no longer goes with the map beside it all the
+//! same (the map saved again by other means) is told by the path recorded
+//! ([`FloorFile::goes_with`]), and passed over, said.
 //!
 //! Owns: the format. Guarantees: a file is checked whole (length, checksum, every floor finite
 //! with known flags) before any floor of it is handed on, and a bad one is an error naming
@@ -24,9 +26,10 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
-use crate::navmap::hits::{Floors, ScanFloor};
+use crate::navmap::hits::{Floors, Hits, ScanFloor};
 use nalgebra::Vector3;
 use slamesh_core::map_file::crc32::Crc32;
+use slamesh_core::Pose;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -59,6 +62,27 @@ impl MapPath {
             poses: path.len() as u64,
             last_stamp: path.last().map_or(0.0, |(t, _)| *t),
         }
+    }
+}
+
+/// Hands `each` the floors a map saved now keeps beside it: `carried`'s (the floor file beside
+/// the map the run started from), then this run's `hits`, each chunk moved with its frame's
+/// pose in `poses` (frame, pose; in frame order, as corrected so far).
+pub fn each_kept(
+    carried: Option<&FloorFile>,
+    hits: Option<&Hits>,
+    poses: &[(usize, Pose)],
+    each: &mut dyn FnMut(ScanFloor),
+) {
+    if let Some(c) = carried {
+        c.each(each);
+    }
+    if let Some(h) = hits {
+        let now = |frame: usize| {
+            let i = poses.binary_search_by_key(&frame, |(j, _)| *j).ok()?;
+            Some(poses[i].1)
+        };
+        h.each_floor(&now, each);
     }
 }
 

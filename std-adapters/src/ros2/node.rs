@@ -13,6 +13,7 @@
 //!   last 10 and 1; `imu`: best effort, the last 400 (a second at 400 Hz); `~/save_map`: the
 //!   services' default.
 
+use crate::navmap::NavMapOptions;
 use crate::ros2::clouds::{RawAdapter, RawMessage};
 use crate::ros2::listen::{Endpoints, Names, Ros2Source};
 use crate::ros2::mesh_tiles::MeshTiles;
@@ -203,7 +204,12 @@ impl RosNode {
 
     /// The way out: the publishers, as a sink of the run; `config` is the run's (the mesh's
     /// lattice and what it shows); `source` the way in (its counts go into `diagnostics`).
-    pub fn publish(&mut self, config: &Config, source: &Ros2Source) -> Result<Ros2Sink, String> {
+    pub fn publish(
+        &mut self,
+        config: &Config,
+        source: &Ros2Source,
+        grid: NavMapOptions,
+    ) -> Result<Ros2Sink, String> {
         let s = self.settings.clone();
         let t = &s.topics;
         let publishers = Publishers {
@@ -232,7 +238,7 @@ impl RosNode {
                         false
                     }
                 });
-                Some(LiveMap::new(every, s.lidar_in_base, out))
+                Some(LiveMap::new(every, s.lidar_in_base, grid, out))
             }
             None => None,
         };

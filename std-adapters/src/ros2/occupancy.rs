@@ -34,13 +34,14 @@ pub struct LiveMap {
 pub type Out = Box<dyn FnMut(OccupancyGrid) -> bool + Send>;
 
 impl LiveMap {
-    /// A grid updated every `every` scans, for a robot carrying its LiDAR at `lidar_in_base`,
-    /// each grid handed to `out`; the updates run on a thread of their own.
-    pub fn new(every: usize, lidar_in_base: Pose, mut out: Out) -> Self {
+    /// A grid updated every `every` scans, for a robot carrying its LiDAR at `lidar_in_base`
+    /// (`grid`: the robot and the cell size; up is the robot's z axis), each grid handed to
+    /// `out`; the updates run on a thread of their own.
+    pub fn new(every: usize, lidar_in_base: Pose, grid: NavMapOptions, mut out: Out) -> Self {
         let up = lidar_in_base.rotation.inverse() * Vector3::z();
         let how = NavMapOptions {
             up: Some((up, "the robot's z axis".into())),
-            ..NavMapOptions::default()
+            ..grid
         };
         let to_message = move |g: &LiveGrid, header: Header| {
             message(g, lidar_in_base, header).is_some_and(&mut out)

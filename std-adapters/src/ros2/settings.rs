@@ -12,7 +12,7 @@
 //! | `map_every` | integer | 10 | scans between two updates of `map` (1 to 1000) |
 //! | `use_sim_time` | bool | false | stamp `diagnostics` with `/clock` |
 //! | `use_imu` | bool | true | use the readings on `imu` (docs/design.md §1.19; its place on the LiDAR is the configuration's `[imu]`) |
-//! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize`, `loop_closure` | | | as the command's flags of the same names (`loop_closure`: true or false, on by default where the run can close loops, under a memory cap or window only when true) |
+//! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize`, `loop_closure`, `navmap`, `robot`, `navmap_resolution` | | | as the command's flags of the same names (`loop_closure`: true or false, on by default where the run can close loops, under a memory cap or window only when true; `robot` and `navmap_resolution` are the `map` topic's too) |
 //!
 //! Environment: `ROS_DOMAIN_ID` (0 to 232), `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` or
 //! `OFF`: this machine only) and the older `ROS_LOCALHOST_ONLY=1`.
@@ -353,7 +353,17 @@ mod tests {
         assert_eq!(s.frames.map, "map");
         // What is left is the command's (cli/ros2.rs), as the module docs list.
         let left: Vec<&str> = s.params.keys().map(String::as_str).collect();
-        assert_eq!(left, ["out", "preset", "threads"]);
+        assert_eq!(
+            left,
+            [
+                "navmap",
+                "navmap_resolution",
+                "out",
+                "preset",
+                "robot",
+                "threads"
+            ]
+        );
     }
 
     #[test]

@@ -4,17 +4,22 @@
 //! - **Save the map now**: the map as it is in memory, with the path so far (the saved map's
 //!   first, when the run started from one), to `--save-map`'s file or `map.slamesh` in the
 //!   output folder, written to a temporary file and renamed. Cells a window has evicted are in
-//!   the final map file (`--save-map`), not in one saved during the run.
+//!   the final map file (`--save-map`), not in one saved during the run. With the navigation
+//!   map on, the scans' floor so far goes beside it ([`floor_file`]), as at the run's end, so
+//!   that `slamesh navmap` on a map the ROS 2 node saved finds the kerbs the run found; a
+//!   floor file there from an earlier save is removed otherwise.
 //! - **Relocalize**: the next frames search for their pose near the one given (then along the
 //!   saved map's path) instead of following the motion, until one is found, as a run from a
 //!   saved map searches for its first pose.
 
 use crate::formats::map_file::MapWriter;
+use crate::navmap::floor_file::{self, MapPath};
+use crate::navmap::hits::ScanFloor;
 use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::sources::{FrameSource, Request};
 use slamesh_core::{Capacity, Pose};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 impl<C: Capacity> Run<'_, C> {
     /// Serves `request` (from `source`, whose stamps date the path).
@@ -72,13 +77,43 @@ impl<C: Capacity> Run<'_, C> {
             let _ = std::fs::remove_file(&staging);
             format!("{}: cannot rename the map file: {e}", target.display())
         })?;
+        let floor = self.floor_beside(&target, &path)?;
         Ok(format!(
-            "map saved to {}: {} cells, {} layers, {} poses, {:.1} MB",
+            "map saved to {}: {} cells, {} layers, {} poses, {:.1} MB{floor}",
             target.display(),
             stats.cells,
             stats.layers,
             path.len(),
             stats.bytes as f64 / 1e6
+        ))
+    }
+
+    /// Writes the scans' floor so far beside the map saved now at `target`, whose path is
+    /// `path` (with the navigation map on; what the map the run started from kept beside it
+    /// first), or removes a floor file there, which went with the map saved before. Returns
+    /// what the answer adds.
+    fn floor_beside(&self, target: &Path, path: &[(f64, Pose)]) -> Result<String, String> {
+        let beside = floor_file::beside(target);
+        let (Some(how), Some(hits)) = (&self.opts.navmap, &self.hits) else {
+            if beside.is_file() && std::fs::remove_file(&beside).is_ok() {
+                return Ok(format!(
+                    "; removed {}, which went with the map saved before",
+                    beside.display()
+                ));
+            }
+            return Ok(String::new());
+        };
+        let carried =
+            (self.opts.map.as_deref()).and_then(|m| floor_file::read_beside(m, &self.map_path));
+        let poses = &self.progress.poses;
+        let floors = |each: &mut dyn FnMut(ScanFloor)| {
+            floor_file::each_kept(carried.as_ref(), Some(hits), poses, each)
+        };
+        let n = floor_file::write(&beside, how.resolution_m, MapPath::of(path), &floors)
+            .map_err(|e| e.to_string())?;
+        Ok(format!(
+            "; the scans' floor beside it, {n} cells: {}",
+            beside.display()
         ))
     }
 

@@ -523,20 +523,11 @@ fn write_mesh(
             if how.up.is_none() {
                 how.up = up;
             }
-            let now = |frame: usize| {
-                let i = poses.binary_search_by_key(&frame, |(j, _)| *j).ok()?;
-                Some(poses[i].1)
-            };
             if let Some(h) = &hits {
                 log::debug!("navigation map: the scans' floor took {} bytes", h.bytes());
             }
             let floors = |each: &mut dyn FnMut(crate::navmap::hits::ScanFloor)| {
-                if let Some(c) = &carried {
-                    c.each(each);
-                }
-                if let Some(h) = &hits {
-                    h.each_floor(&now, each);
-                }
+                floor_file::each_kept(carried.as_ref(), hits.as_ref(), poses, each)
             };
             let (summary, grid) = crate::navmap::make(&mut spool, &floors, &path, &how, out)?;
             if let (Some(saved), Some(_)) = (&opts.save_map, &hits) {
