@@ -77,7 +77,7 @@ impl<C: Capacity> Run<'_, C> {
             let _ = std::fs::remove_file(&staging);
             format!("{}: cannot rename the map file: {e}", target.display())
         })?;
-        let floor = self.floor_beside(&target, &path)?;
+        let floor = self.floor_beside(&target, &path);
         Ok(format!(
             "map saved to {}: {} cells, {} layers, {} poses, {:.1} MB{floor}",
             target.display(),
@@ -91,17 +91,18 @@ impl<C: Capacity> Run<'_, C> {
     /// Writes the scans' floor so far beside the map saved now at `target`, whose path is
     /// `path` (with the navigation map on; what the map the run started from kept beside it
     /// first), or removes a floor file there, which went with the map saved before. Returns
-    /// what the answer adds.
-    fn floor_beside(&self, target: &Path, path: &[(f64, Pose)]) -> Result<String, String> {
+    /// what the answer adds: the map is saved either way, and a floor file that could not be
+    /// written is said (one left from before does not go with the new map: passed over).
+    fn floor_beside(&self, target: &Path, path: &[(f64, Pose)]) -> String {
         let beside = floor_file::beside(target);
         let (Some(how), Some(hits)) = (&self.opts.navmap, &self.hits) else {
             if beside.is_file() && std::fs::remove_file(&beside).is_ok() {
-                return Ok(format!(
+                return format!(
                     "; removed {}, which went with the map saved before",
                     beside.display()
-                ));
+                );
             }
-            return Ok(String::new());
+            return String::new();
         };
         let carried =
             (self.opts.map.as_deref()).and_then(|m| floor_file::read_beside(m, &self.map_path));
@@ -109,12 +110,16 @@ impl<C: Capacity> Run<'_, C> {
         let floors = |each: &mut dyn FnMut(ScanFloor)| {
             floor_file::each_kept(carried.as_ref(), Some(hits), poses, each)
         };
-        let n = floor_file::write(&beside, how.resolution_m, MapPath::of(path), &floors)
-            .map_err(|e| e.to_string())?;
-        Ok(format!(
-            "; the scans' floor beside it, {n} cells: {}",
-            beside.display()
-        ))
+        match floor_file::write(&beside, how.resolution_m, MapPath::of(path), &floors) {
+            Ok(n) => format!(
+                "; the scans' floor beside it, {n} cells: {}",
+                beside.display()
+            ),
+            Err(e) => {
+                log::warn!("{e}");
+                format!("; the scans' floor not beside it: {e}")
+            }
+        }
     }
 
     fn relocalize_near(&mut self, pose: Pose) {
