@@ -194,8 +194,9 @@ struct Scores {
 
 impl Scores {
     /// At most 0.5 % of the free cells hold an obstacle (issue 56's target), and the occupied
-    /// cells' IoU within a cell is at least `iou_within_a_cell`.
-    fn assert_within(&self, iou_within_a_cell: f64) {
+    /// cells' IoU is at least `iou` (issue 56 asks 0.9; a floor under what is measured, so
+    /// that the grid does not slip back) and within a cell at least `iou_within_a_cell`.
+    fn assert_within(&self, iou: f64, iou_within_a_cell: f64) {
         let bad = self.free_with_obstacle as f64 / self.free as f64;
         assert!(
             bad <= 0.005,
@@ -203,7 +204,7 @@ impl Scores {
             bad * 100.0
         );
         assert!(
-            self.iou_within_a_cell >= iou_within_a_cell,
+            self.iou >= iou && self.iou_within_a_cell >= iou_within_a_cell,
             "occupied IoU {:.3} ({:.3} within a cell)",
             self.iou,
             self.iou_within_a_cell
@@ -478,7 +479,7 @@ fn the_town_s_navigation_map_against_the_truth() {
     assert!(s.free > 40_000 && s.occupied > 2_000, "{s:?}");
     // Issue 56's targets: at most 0.5 % (met: no free cell holds one) and an IoU of 0.9
     // (not met: 0.86, 0.95 within a cell; docs/benchmarks.md, "Unsure level surfaces").
-    s.assert_within(0.9);
+    s.assert_within(0.85, 0.93);
 }
 
 #[test]
@@ -504,8 +505,9 @@ fn the_office_s_navigation_map_against_the_truth() {
     println!("office, {frames} frames: {s:?}");
     // The truth has about 1 150 occupied cells where the walk saw.
     assert!(s.free > 4_000 && s.occupied > 1_000, "{s:?}");
-    // 0.66, 0.95 within a cell measured (docs/benchmarks.md, "Unsure level surfaces").
-    s.assert_within(0.9);
+    // 0.66, 0.95 within a cell measured (docs/benchmarks.md, "Unsure level surfaces"); any
+    // change to the map's layers moves the walk, and this IoU, by a few hundredths.
+    s.assert_within(0.62, 0.93);
     // A planner finds its way from room A through the doorway into the corridor the walk
     // went along. (The corridor's far end, seen from its start by 16 beams, is mostly
     // unknown: docs/benchmarks.md, "Maps a planner reads".)
