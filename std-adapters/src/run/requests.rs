@@ -112,7 +112,7 @@ impl<C: Capacity> Run<'_, C> {
         };
         match floor_file::write(&beside, how.resolution_m, MapPath::of(path), &floors) {
             Ok(n) => format!(
-                "; the scans' floor beside it, {n} cells: {}",
+                "; the scans' floor beside it, {n} floors: {}",
                 beside.display()
             ),
             Err(e) => {
