@@ -273,13 +273,31 @@ fn the_command_s_navigation_maps() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A drive that asks the run to save its map (as the ROS 2 node's `~/save_map` does) once frame
-/// `at` has been read, and keeps the way the answer comes back.
+/// A drive that asks the run to save its map (as the ROS 2 node's `~/save_map` does) once each
+/// frame of `at` has been read, and keeps the ways the answers come back.
 struct SavingAt {
     drive: Drive,
-    at: usize,
+    at: Vec<usize>,
     due: bool,
-    answer: Option<mpsc::Receiver<Result<String, String>>>,
+    answers: Vec<mpsc::Receiver<Result<String, String>>>,
+}
+
+impl SavingAt {
+    fn new(drive: Drive, at: &[usize]) -> SavingAt {
+        SavingAt {
+            drive,
+            at: at.to_vec(),
+            due: false,
+            answers: Vec::new(),
+        }
+    }
+
+    /// The answers, in the order asked.
+    fn answers(&self) -> Vec<String> {
+        (self.answers.iter())
+            .map(|rx| rx.recv().unwrap().unwrap())
+            .collect()
+    }
 }
 
 impl FrameSource for SavingAt {
@@ -293,7 +311,7 @@ impl FrameSource for SavingAt {
         self.drive.stamp(i)
     }
     fn read(&mut self, i: usize) -> Result<Vec<slamesh_core::Point>, slamesh::FileError> {
-        self.due |= i == self.at;
+        self.due |= self.at.contains(&i);
         self.drive.read(i)
     }
     fn requests(&mut self) -> Vec<Request> {
@@ -301,9 +319,15 @@ impl FrameSource for SavingAt {
             return Vec::new();
         }
         let (tx, rx) = mpsc::channel();
-        self.answer = Some(rx);
+        self.answers.push(rx);
         vec![Request::SaveMap(tx)]
     }
+}
+
+/// The floors a save's answer says it wrote beside the map.
+fn floors_said(answer: &str) -> usize {
+    let (_, after) = answer.split_once("floor beside it, ").expect(answer);
+    after.split(' ').next().unwrap().parse().expect(answer)
 }
 
 #[test]
@@ -324,14 +348,9 @@ fn a_map_saved_during_a_run_keeps_the_scans_floor_beside_it() {
             navmap: navmap.then(NavMapOptions::default),
             ..RunOptions::default()
         };
-        let mut source = SavingAt {
-            drive: Drive::town(12, 1),
-            at: 8,
-            due: false,
-            answer: None,
-        };
+        let mut source = SavingAt::new(Drive::town(12, 1), &[8]);
         run_to::<KittiCapacity>(&mut source, &opts, Sinks::new()).unwrap();
-        let answer = source.answer.unwrap().recv().unwrap().unwrap();
+        let answer = source.answers().remove(0);
         let map = out.join("map.slamesh");
         assert!(map.is_file(), "{answer}");
         if !navmap {
@@ -349,5 +368,37 @@ fn a_map_saved_during_a_run_keeps_the_scans_floor_beside_it() {
         assert!(cells > 1_000, "{cells} cells of the scans' floor; {answer}");
         println!("{answer}; `slamesh navmap` read {cells} cells of it");
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn saves_during_a_session_from_a_map_keep_the_floor_that_map_kept() {
+    use slamesh::navmap::floor_file::FloorFile;
+    let dir = scratch("navmap-saved-again");
+    let site = dir.join("site.slamesh");
+    let opts = |out: &str, map: Option<&Path>| RunOptions {
+        out: dir.join(out),
+        config: Config::default(),
+        threads: 2,
+        picture: false,
+        navmap: Some(NavMapOptions::default()),
+        map: map.map(Path::to_path_buf),
+        save_map: Some(site.clone()),
+        ..RunOptions::default()
+    };
+    run_to::<KittiCapacity>(&mut Drive::town(12, 1), &opts("first", None), Sinks::new()).unwrap();
+    let first = FloorFile::read(&dir.join("site.floor")).unwrap().count;
+    // The second session maps on from the site and saves it in place, twice during the run:
+    // the first save replaces the floor file the session started from, and the second must
+    // still carry that file's floors.
+    let mut source = SavingAt::new(Drive::town(12, 1), &[4, 8]);
+    run_to::<KittiCapacity>(&mut source, &opts("second", Some(&site)), Sinks::new()).unwrap();
+    let said: Vec<usize> = source.answers().iter().map(|a| floors_said(a)).collect();
+    let last = FloorFile::read(&dir.join("site.floor")).unwrap().count;
+    println!("first session {first} floors; saves during the second {said:?}; at its end {last}");
+    assert!(
+        first < said[0] && said[0] <= said[1] && said[1] <= last,
+        "first session {first} floors; saves during the second {said:?}; at its end {last}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -65,6 +65,13 @@ impl MapPath {
     }
 }
 
+/// Removes the floor file beside map file `map`, which went with the map saved there before,
+/// when the map saved now gets none; returns its path if there was one and it is gone.
+pub fn remove_beside(map: &Path) -> Option<PathBuf> {
+    let stale = beside(map);
+    (stale.is_file() && std::fs::remove_file(&stale).is_ok()).then_some(stale)
+}
+
 /// Hands `each` the floors a map saved now keeps beside it: `carried`'s (the floor file beside
 /// the map the run started from), then this run's `hits`, each chunk moved with its frame's
 /// pose in `poses` (frame, pose; in frame order, as corrected so far).

@@ -90,25 +90,23 @@ impl<C: Capacity> Run<'_, C> {
 
     /// Writes the scans' floor so far beside the map saved now at `target`, whose path is
     /// `path` (with the navigation map on; what the map the run started from kept beside it
-    /// first), or removes a floor file there, which went with the map saved before. Returns
+    /// first, as read when the run started: this save may replace that file), or removes a floor file there, which went with the map saved before. Returns
     /// what the answer adds: the map is saved either way, and a floor file that could not be
     /// written is said (one left from before does not go with the new map: passed over).
     fn floor_beside(&self, target: &Path, path: &[(f64, Pose)]) -> String {
         let beside = floor_file::beside(target);
         let (Some(how), Some(hits)) = (&self.opts.navmap, &self.hits) else {
-            if beside.is_file() && std::fs::remove_file(&beside).is_ok() {
-                return format!(
+            return match floor_file::remove_beside(target) {
+                Some(stale) => format!(
                     "; removed {}, which went with the map saved before",
-                    beside.display()
-                );
-            }
-            return String::new();
+                    stale.display()
+                ),
+                None => String::new(),
+            };
         };
-        let carried =
-            (self.opts.map.as_deref()).and_then(|m| floor_file::read_beside(m, &self.map_path));
-        let poses = &self.progress.poses;
+        let (carried, poses) = (self.carried_floor.as_ref(), &self.progress.poses);
         let floors = |each: &mut dyn FnMut(ScanFloor)| {
-            floor_file::each_kept(carried.as_ref(), Some(hits), poses, each)
+            floor_file::each_kept(carried, Some(hits), poses, each)
         };
         match floor_file::write(&beside, how.resolution_m, MapPath::of(path), &floors) {
             Ok(n) => format!(

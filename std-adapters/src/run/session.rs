@@ -141,6 +141,9 @@ pub struct Run<'a, C: Capacity> {
     pub(super) inertial: Inertial,
     /// The floor as the scans' points saw it, for the navigation map (with `navmap` only).
     pub(super) hits: Option<Hits>,
+    /// What the map the run started from kept beside it ([`floor_file`]; with `navmap`
+    /// only), read at the start: a save during the run may replace that file.
+    pub(super) carried_floor: Option<FloorFile>,
     /// The last used frame's own points, for its event's map update
     /// ([`hand_own_points`](Self::hand_own_points)); `None`: not kept.
     pub(super) own_points: Option<Vec<Point>>,
@@ -252,8 +255,12 @@ impl<'a, C: Capacity> Run<'a, C> {
             // The floor counts the scan's own points.
             ahead.keep_points();
         }
+        let carried_floor = (opts.navmap.as_ref())
+            .and(opts.map.as_deref())
+            .and_then(|m| floor_file::read_beside(m, &map_path));
         Ok(Run {
             hits,
+            carried_floor,
             own_points: None,
             closer: setup.closer,
             search,
@@ -407,7 +414,8 @@ impl<'a, C: Capacity> Run<'a, C> {
         let stamped = poses.iter().zip(&stamps).map(|((_, p), t)| (*t, *p));
         let shown_as = self.opts.save_map.as_deref().unwrap_or(out);
         let start = std::mem::take(&mut self.map_path);
-        let floors = floor_beside(&self.opts, &start, &stamps, self.hits.take());
+        let carried = self.carried_floor.take();
+        let floors = floor_beside(&self.opts, &start, &stamps, self.hits.take(), carried);
         save_map(
             self.saved_map.take(),
             start,
@@ -452,23 +460,23 @@ impl<'a, C: Capacity> Run<'a, C> {
 }
 
 /// The floor the scans saw: this run's `hits`, what the map the run started from kept beside
-/// it (`opts.map`, whose path is `start`), and the path the map saved now will have (`start`,
-/// then this run's `stamps`), which its floor file goes with. A floor file beside the map to
-/// be saved goes with the map saved there before: without `--navmap` it is removed.
+/// it (`carried`), and the path the map saved now will have (`start`, the start map's, then
+/// this run's `stamps`), which its floor file goes with. A floor file beside the map to be
+/// saved goes with the map saved there before: where none is written (no scans' floor) it is
+/// removed.
 fn floor_beside(
     opts: &RunOptions,
     start: &[(f64, Pose)],
     stamps: &[f64],
     hits: Option<Hits>,
+    carried: Option<FloorFile>,
 ) -> ScansFloor {
-    let carried = (opts.map.as_deref()).and_then(|m| floor_file::read_beside(m, start));
     let saved_path = floor_file::MapPath {
         poses: (start.len() + stamps.len()) as u64,
         last_stamp: (stamps.last().or(start.last().map(|(t, _)| t))).map_or(0.0, |t| *t),
     };
-    if let (Some(saved), None) = (&opts.save_map, &opts.navmap) {
-        let stale = floor_file::beside(saved);
-        if stale.is_file() && std::fs::remove_file(&stale).is_ok() {
+    if let (Some(saved), None) = (&opts.save_map, &hits) {
+        if let Some(stale) = floor_file::remove_beside(saved) {
             log::info!(
                 "removed {}: it went with the map saved before",
                 stale.display()
