@@ -113,7 +113,6 @@ fn config_prints_every_preset_as_a_file_that_reads_back_as_that_preset() {
             );
         }
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -167,7 +166,6 @@ fn demo_as_a_user_calls_it_writes_its_outputs_and_scores() {
         .read_info()
         .unwrap();
     assert!(info.info().width >= 500 && info.info().height >= 500);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -274,7 +272,6 @@ fn eval_reads_kitti_folders_and_calib_files_scores_meshes_and_builds_references(
     slamesh::formats::ply::write_points(&lifted_path, &lifted).unwrap();
     let off = scores(&lifted_path);
     assert!(off[0].1 < 0.5 * matched[0].1, "lifted cloud: {off:?}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -321,7 +318,6 @@ fn mesh_mode_with_fewer_poses_than_frames_meshes_those_and_skips_the_rest() {
     }
     let mesh = read_ply_mesh(&out.join("mesh.ply")).unwrap();
     assert!(share_near_surfaces(&mesh.vertices, &truth, 0.1) > 0.95);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// The RGB pixels of a PNG, with its size.
@@ -371,7 +367,6 @@ fn run_obj_writes_the_same_mesh_as_the_ply() {
             b.iter().map(|i| f64::from(*i) + 1.0).collect::<Vec<_>>()
         );
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -446,7 +441,6 @@ fn window_flags_and_the_memory_cap_from_the_command_line() {
             "{e}"
         );
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -495,7 +489,6 @@ fn bench_takes_a_preset() {
     }
     let o = slamesh(&["bench", s(&dir), "--preset", "nonsense"]);
     assert!(!o.status.success() && text(&o.stderr).contains("nonsense"));
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -589,5 +582,4 @@ fn the_capacity_class_fits_the_first_scans_and_a_scan_too_large_for_it_is_refuse
     let out = dir.join("largest");
     slamesh_run_ok(&scans_dir, &out, &["--capacity", "64"]);
     assert_eq!(report(&out)["summary"]["capacity"], "64-beam");
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -18,9 +18,9 @@ const MARGIN: f64 = 1.15;
 
 #[test]
 fn the_first_100_town_frames_write_everything_track_and_reach_the_mesh_targets() {
-    let out = std::env::temp_dir().join(format!("slamesh-demo-{}", std::process::id()));
+    let out = crate::common::scratch("demo");
     let opts = RunOptions {
-        out: out.clone(),
+        out: out.to_path_buf(),
         config: slamesh::run::config_file::preset("town").unwrap(),
         preset: "town".into(),
         window: WindowSettings::default(),
@@ -61,5 +61,4 @@ fn the_first_100_town_frames_write_everything_track_and_reach_the_mesh_targets()
     assert!(r.ate_m <= MEASURED_ATE_M * MARGIN, "ATE {} m", r.ate_m);
     let at = |t: f64| r.mesh.iter().find(|m| m.threshold_m == t).unwrap();
     assert!(at(0.1).f1 >= 0.95 && at(0.3).f1 >= 0.99, "{:?}", r.mesh);
-    std::fs::remove_dir_all(&out).unwrap();
 }

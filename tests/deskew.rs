@@ -18,9 +18,9 @@ const FRAMES: usize = 60;
 fn mean_step_error(sweep: Option<f64>, deskew: Deskew, name: &str) -> (f64, usize) {
     let mut drive = Drive::car(FRAMES, 1);
     drive.sweep_s = sweep;
-    let out = std::env::temp_dir().join(format!("slamesh-deskew-{name}-{}", std::process::id()));
+    let out = crate::common::scratch(&format!("deskew-{name}"));
     let opts = RunOptions {
-        out: out.clone(),
+        out: out.to_path_buf(),
         config: Config::default(),
         preset: "default".into(),
         threads: 2,
@@ -34,7 +34,7 @@ fn mean_step_error(sweep: Option<f64>, deskew: Deskew, name: &str) -> (f64, usiz
     })
     .unwrap();
     let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
-    std::fs::remove_dir_all(&out).unwrap();
+    drop(out);
     let truth: Vec<Pose> = drive
         .poses
         .iter()

@@ -122,7 +122,6 @@ fn frames_not_registered_are_named_counted_reported_and_fail_a_strict_run() {
         "{stderr}"
     );
     assert!(strict.join("poses_kitti.txt").is_file());
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -144,7 +143,6 @@ fn a_long_stretch_of_bad_frames_does_not_flood_the_terminal() {
     assert!(stderr.contains("more frame warnings held back"), "{stderr}");
     let stdout = text(&o.stdout);
     assert!(stdout.contains("40 TooFewResiduals"), "{stdout}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -185,7 +183,6 @@ fn verbosity_follows_v_q_and_rust_log() {
     );
     let only_errors = run(&[], Some("error"));
     assert!(!only_errors.contains("slamesh: warning: "), "{only_errors}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

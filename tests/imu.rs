@@ -64,7 +64,6 @@ fn run_drive<C: Capacity>(
     let mut statuses = Vec::new();
     let summary = run::<C>(source, &opts, |r| statuses.push(r.status.clone())).unwrap();
     let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
-    std::fs::remove_dir_all(&out).unwrap();
     let truth: Vec<Pose> = truth.iter().map(|p| truth[0].inverse() * p).collect();
     let step = consecutive_errors(&estimate, &truth).mean_translation_m;
     (summary, statuses, step)
@@ -207,7 +206,6 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
     let imu = s.imu.expect("readings came");
     assert!(imu.set_aside.is_none(), "{imu:?}");
     assert_eq!(imu.prior_frames, 19);
-    std::fs::remove_dir_all(&out).unwrap();
 }
 
 /// The readings of an IMU turned 15 degrees further about its z than `[imu]` says.
@@ -305,7 +303,6 @@ fn the_command_reads_an_imu_csv_beside_a_folder_of_scans() {
         frames[1]
     );
     assert!(without["frames"][1].get("imu").is_none());
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// The angle (degrees) between up as the estimate and as the truth see it from the sensor.
@@ -326,7 +323,6 @@ fn navmap_run<C: Capacity>(d: &Drive, use_imu: bool, name: &str) -> (Summary, Ve
     let s = run::<C>(&mut d.clone(), &opts, |_| {}).unwrap();
     let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
     let navmap = std::fs::read_to_string(out.join("navmap.json")).unwrap();
-    std::fs::remove_dir_all(&out).unwrap();
     (s, estimate, navmap)
 }
 
@@ -436,7 +432,6 @@ fn an_accelerometer_in_g_is_told_and_levels_the_map_as_one_in_metres_per_second_
     let (moving_g, said) = level(&mut altered, AccelUnit::Auto);
     assert!(said.is_some_and(|u| u.starts_with("g (told")));
     assert!(up(moving_g).angle(&up(moving_ms2)) < 1e-6);
-    std::fs::remove_dir_all(&out).unwrap();
 }
 
 #[test]

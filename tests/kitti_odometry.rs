@@ -75,7 +75,6 @@ fn kitti_mini_consecutive_frame_errors_through_the_command() {
         over.push(format!("mean rotation {:.4} deg", r_sum / n));
     }
     assert!(over.is_empty(), "worse than measured: {over:#?}");
-    std::fs::remove_dir_all(&out).unwrap();
 }
 
 #[test]
@@ -105,5 +104,4 @@ fn threads_and_repeats_write_identical_outputs() {
         );
         assert!(o.3 == first.3, "{}: mesh differs from serial", o.0);
     }
-    std::fs::remove_dir_all(&out).unwrap();
 }

@@ -571,5 +571,4 @@ fn save_map_localize_and_map_on_from_the_command_line() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -252,7 +252,7 @@ impl Mapped {
             up: Some((up, "the simulator's gravity".into())),
         };
         let opts = RunOptions {
-            out: dir.clone(),
+            out: dir.to_path_buf(),
             config,
             threads: 2,
             mesh_formats: match diagnostics() {
@@ -296,7 +296,6 @@ impl Mapped {
                 }
             }
         }
-        std::fs::remove_dir_all(&dir).unwrap();
         let level = Rotation3::rotation_between(&up, &Vector3::z()).unwrap();
         let live = live.then(|| {
             let cells = last.lock().unwrap().take().expect("the live grid was made");

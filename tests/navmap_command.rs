@@ -270,7 +270,6 @@ fn the_command_s_navigation_maps() {
         !refused.status.success() && err.contains("robot.toml") && err.contains("height_m"),
         "{err}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A drive that asks the run to save its map (as the ROS 2 node's `~/save_map` does) once each
@@ -368,7 +367,6 @@ fn a_map_saved_during_a_run_keeps_the_scans_floor_beside_it() {
         assert!(cells > 1_000, "{cells} cells of the scans' floor; {answer}");
         println!("{answer}; `slamesh navmap` read {cells} cells of it");
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -400,5 +398,4 @@ fn saves_during_a_session_from_a_map_keep_the_floor_that_map_kept() {
         first < said[0] && said[0] <= said[1] && said[1] <= last,
         "first session {first} floors; saves during the second {said:?}; at its end {last}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }

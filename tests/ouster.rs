@@ -360,5 +360,4 @@ fn a_live_ouster_s_imu_port_is_listened_on() {
         "{readings:?}"
     );
     drop(live);
-    std::fs::remove_dir_all(&dir).unwrap();
 }

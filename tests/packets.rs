@@ -247,7 +247,7 @@ fn a_live_stream_runs_at_its_rate_and_three_times_faster() {
         let sender = replay_to(live.local_addr(), speed);
         let out = common::scratch(name);
         let opts = RunOptions {
-            out: out.clone(),
+            out: out.to_path_buf(),
             deskew: Deskew::Off,
             threads: 2,
             ..RunOptions::default()

@@ -121,13 +121,9 @@ fn the_run_loop_filtering_ahead_writes_what_one_thread_writes() {
             .map(|&threads| {
                 let mut drive = Drive::car(12, 3);
                 drive.sweep_s = sweep;
-                let out = std::env::temp_dir().join(format!(
-                    "slamesh-ahead-{threads}-{}-{}",
-                    sweep.is_some(),
-                    std::process::id()
-                ));
+                let out = crate::common::scratch(&format!("ahead-{threads}-{}", sweep.is_some()));
                 let opts = RunOptions {
-                    out: out.clone(),
+                    out: out.to_path_buf(),
                     threads,
                     input: "simulated car".into(),
                     mesh_formats: vec![slamesh::outputs::mesh_spool::MeshFormat::Ply],
@@ -140,7 +136,6 @@ fn the_run_loop_filtering_ahead_writes_what_one_thread_writes() {
                 .unwrap();
                 let poses = std::fs::read_to_string(out.join("poses_kitti.txt")).unwrap();
                 let mesh = std::fs::read(out.join("mesh.ply")).unwrap();
-                std::fs::remove_dir_all(&out).unwrap();
                 (poses, mesh, used)
             })
             .collect();

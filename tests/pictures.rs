@@ -63,7 +63,6 @@ fn the_demo_draws_its_picture_as_a_run_does_with_the_true_path() {
         count([255, 255, 255]) > 50,
         "the legend's text and the true path"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -119,7 +118,6 @@ fn run_draws_a_picture_of_its_mesh_and_path() {
         "{}",
         text(&o.stderr)
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// The run's mesh and path drawn as the run draws its picture.

@@ -48,11 +48,9 @@ fn a_corrupt_back_reference_is_an_error_naming_the_file() {
         .unwrap()
         + 23;
     bytes[data + 8] = 0xff;
-    let dir = std::env::temp_dir().join(format!("slamesh-readers-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::scratch("readers");
     let path = dir.join("corrupt.pcd");
     std::fs::write(&path, &bytes).unwrap();
     let e = read_pcd(&path).unwrap_err().to_string();
     assert!(e.contains("corrupt.pcd"), "{e}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -59,7 +59,6 @@ fn every_container_gives_the_folder_runs_outputs() {
             assert!(a == b, "{rec}: {f} differs from the folder run's");
         }
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Points deskewed in each frame of a run on `rec` with `--deskew auto`.
@@ -105,7 +104,6 @@ fn clouds_with_point_times_are_deskewed_once_the_motion_is_known() {
     }
     // No time field: nothing to deskew.
     assert_eq!(deskewed("ros2-db3", &dir.join("db3")), vec![0, 0, 0]);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -130,7 +128,6 @@ fn a_malformed_cloud_is_skipped_with_its_reason() {
         .as_str()
         .unwrap()
         .contains("message 1: data holds 3896 bytes"));
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -171,7 +168,6 @@ fn topics_are_chosen_or_refused_by_name_and_type() {
         &out,
         &["--topic", "/ouster/points", "--no-picture"],
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -224,5 +220,4 @@ fn the_imu_topic_is_read_beside_the_clouds_in_every_container() {
         "{}",
         report["summary"]
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -114,7 +114,6 @@ fn a_run_fans_each_frame_out_to_its_sinks_in_order() {
             "{f}"
         );
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -136,7 +135,6 @@ fn the_runs_own_files_are_sinks_that_write_the_same_files_elsewhere() {
         assert_eq!(a, b.unwrap(), "{f}");
     }
     assert!(!copy.join(".report.frames.spool").exists());
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A drive whose frames each come with four IMU readings (the one way in for what is not a
@@ -193,5 +191,4 @@ fn samples_between_scans_reach_the_sinks_with_their_frame() {
         (0..4).map(|i| (i, 4, i as f64)).collect::<Vec<_>>(),
         "each frame's own readings"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -15,12 +15,9 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 use websocket::{Client, Message};
 
-fn scratch(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("slamesh-view-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::scratch;
 
 #[test]
 fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
@@ -28,7 +25,7 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
     let frames = 12;
     let mut drive = Drive::town(frames, 1);
     let opts = RunOptions {
-        out: out.clone(),
+        out: out.to_path_buf(),
         config: Config::default(),
         threads: 2,
         ..RunOptions::default()
@@ -104,7 +101,6 @@ fn a_recorded_run_reads_back_with_its_channels_counts_and_mesh() {
     // The scan: float32 x, y, z in the world frame, as many points as the frame kept.
     assert_eq!(scans[i].point_stride, 12);
     assert_eq!(scans[i].data.len(), 12 * records[i].points_kept);
-    std::fs::remove_dir_all(&out).unwrap();
 }
 
 /// A WebSocket client of the view at `address`, with the Foxglove SDK's subprotocol.
@@ -251,7 +247,6 @@ fn a_websocket_client_subscribes_and_receives_a_scan_and_a_mesh_update() {
     assert!(!mesh.unwrap().entities.is_empty());
     let stats = view.finish().unwrap();
     assert_eq!(stats.sent + stats.dropped, 3);
-    std::fs::remove_dir_all(&out).unwrap();
 }
 
 #[test]
@@ -305,7 +300,6 @@ fn garbage_and_clients_that_never_read_do_not_stall_the_run() {
     );
     assert_eq!(stats.sent + stats.dropped, 40);
     drop((rude, stuck));
-    std::fs::remove_dir_all(&out).unwrap();
 }
 
 /// A WebSocket client (RFC 6455), just what these tests need: the opening handshake (the

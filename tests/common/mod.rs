@@ -7,6 +7,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod scratch;
+pub use scratch::scratch;
+
 /// `SLAMESH_DATA/kitti-mini`; a relative `SLAMESH_DATA` is taken from the workspace root
 /// (cargo runs tests in the package folder). Without the variable, prints that the test is
 /// skipped and returns `None`; with it, a missing folder fails the test.
@@ -28,14 +31,6 @@ pub fn kitti_mini() -> Option<PathBuf> {
         k.display()
     );
     Some(k)
-}
-
-/// A fresh, empty folder for one test.
-pub fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("slamesh-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// The `slamesh` binary with `args`, not started. When the tests run under an emulator
@@ -155,9 +150,9 @@ pub fn run_drive<C: slamesh_core::Capacity>(
     name: &str,
 ) -> (Vec<slamesh::run::FrameRecord>, slamesh::run::Summary) {
     let frames = drive.poses.len();
-    let out = std::env::temp_dir().join(format!("slamesh-{name}-{}", std::process::id()));
+    let out = scratch(name);
     let opts = slamesh::run::RunOptions {
-        out: out.clone(),
+        out: out.to_path_buf(),
         config: slamesh_core::Config::default(),
         preset: "default".into(),
         window,
@@ -169,7 +164,6 @@ pub fn run_drive<C: slamesh_core::Capacity>(
     };
     let mut records = Vec::new();
     let summary = slamesh::run::run::<C>(drive, &opts, |r| records.push(r.clone())).unwrap();
-    std::fs::remove_dir_all(&out).unwrap();
     assert_eq!(summary.used, frames, "every simulated frame is used");
     (records, summary)
 }
