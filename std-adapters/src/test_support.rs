@@ -1,19 +1,41 @@
 //! Scratch files and small map pieces for unit tests.
 
-use std::path::PathBuf;
+use std::ops::Deref;
+use std::path::{Path, PathBuf};
 
-/// A folder of this process for the test `tag` (created, initially as left by earlier runs).
-pub fn scratch_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("slamesh-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+// One scratch folder for the unit tests and the integration tests alike.
+#[path = "../../tests/common/scratch.rs"]
+mod scratch;
+pub use scratch::Scratch;
+
+/// A fresh folder for the test `tag`, removed when the test passes ([`Scratch`]).
+pub fn scratch_dir(tag: &str) -> Scratch {
+    scratch::scratch(tag)
 }
 
-/// Writes `bytes` to `name` in the scratch folder of `tag`; returns its path.
-pub fn scratch_file(tag: &str, name: &str, bytes: &[u8]) -> PathBuf {
-    let p = scratch_dir(tag).join(name);
-    std::fs::write(&p, bytes).unwrap();
-    p
+/// A file in a scratch folder of its own (so that tests side by side never share one),
+/// removed with it.
+pub struct ScratchFile {
+    path: PathBuf,
+    _folder: Scratch,
+}
+
+impl Deref for ScratchFile {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// Writes `bytes` to `name` in a scratch folder of `tag` and `name`.
+pub fn scratch_file(tag: &str, name: &str, bytes: &[u8]) -> ScratchFile {
+    let folder = scratch_dir(&format!("{tag}-{name}"));
+    let path = folder.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    ScratchFile {
+        path,
+        _folder: folder,
+    }
 }
 
 /// A flat, certain layer: every triangle shown.

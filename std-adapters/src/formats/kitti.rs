@@ -234,7 +234,6 @@ mod tests {
             .ends_with("the file may be cut short"));
         std::fs::write(&p, []).unwrap();
         assert!(read_bin(&p).unwrap_err().reason.contains("empty"));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

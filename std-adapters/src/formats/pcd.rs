@@ -456,7 +456,7 @@ pub fn encode_pcd(points: &[Point], encoding: &str) -> Vec<u8> {
 mod tests {
     use super::*;
 
-    fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
+    fn tmp(name: &str, bytes: &[u8]) -> crate::test_support::ScratchFile {
         crate::test_support::scratch_file("pcd", name, bytes)
     }
 

@@ -529,7 +529,7 @@ mod tests {
         }
     }
 
-    fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
+    fn tmp(name: &str, bytes: &[u8]) -> crate::test_support::ScratchFile {
         crate::test_support::scratch_file("ply", name, bytes)
     }
 
@@ -539,7 +539,8 @@ mod tests {
 property float y\nproperty float z\nproperty uchar red\nend_header\n1 2 3 255\n-4.5 0 6 0\n";
         let want = vec![[1.0, 2.0, 3.0], [-4.5, 0.0, 6.0]];
         assert_eq!(read_ply_points(&tmp("a.ply", ascii)).unwrap(), want);
-        let written = crate::test_support::scratch_dir("ply").join("w.ply");
+        let dir = crate::test_support::scratch_dir("ply-written");
+        let written = dir.join("w.ply");
         write_points(&written, &want).unwrap();
         assert_eq!(read_ply_points(&written).unwrap(), want);
         for (name, big) in [("little", false), ("big", true)] {

@@ -245,7 +245,6 @@ mod tests {
             e.to_string().contains("bad.txt:1") && e.reason.contains("neither"),
             "{e}"
         );
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

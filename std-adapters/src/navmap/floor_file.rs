@@ -276,7 +276,7 @@ mod tests {
 
     #[test]
     fn floors_written_read_back_as_they_were_in_f32() {
-        let dir = tempdir("roundtrip");
+        let dir = crate::test_support::scratch_dir("floor-roundtrip");
         let path = dir.join("map.floor");
         assert_eq!(beside(&dir.join("map.slamesh")), path);
         let given = floors();
@@ -303,7 +303,6 @@ mod tests {
         assert_eq!(std::fs::read(&path).unwrap(), first);
         write(&path, 0.05, MapPath::of(&map), &hand(&[])).unwrap();
         assert_eq!(FloorFile::read(&path).unwrap().count, 0);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -317,7 +316,7 @@ mod tests {
 
     #[test]
     fn damaged_files_are_refused_with_the_reason() {
-        let dir = tempdir("damaged");
+        let dir = crate::test_support::scratch_dir("floor-damaged");
         let path = dir.join("map.floor");
         write(&path, 0.1, MapPath::of(&[(1.0, ())]), &hand(&floors())).unwrap();
         let good = std::fs::read(&path).unwrap();
@@ -340,12 +339,5 @@ mod tests {
         let crc = Crc32::of(&nan);
         nan.extend_from_slice(&crc.to_le_bytes());
         assert!(refused(nan).contains("floor 0"));
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    fn tempdir(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("slamesh-floor-{name}-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
     }
 }

@@ -663,7 +663,6 @@ mod tests {
         resumed.for_each_triangle(|_, _| again += 1).unwrap();
         assert_eq!(again as u64, kept.triangles);
         drop(resumed);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// Welded in sets of two layers, a 3 x 3 floor of cells is the mesh one set makes: one
@@ -745,7 +744,6 @@ mod tests {
         spool.finish(&[(target.clone(), MeshFormat::Ply)]).unwrap();
         let written = read_ply_mesh(&target).unwrap();
         assert_eq!(Topology::of(&written.triangles).pieces, 1);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// A map of one flat floor layer at 0.5 m in cell (0, 0, 0), every vertex of variance
@@ -823,7 +821,6 @@ mod tests {
                 .to_string_lossy()
                 .ends_with(".spool")));
         }
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -858,6 +855,5 @@ mod tests {
         let (first, rest) = (colour(0), colour(1));
         assert!(first[0] > 200 && first[2] < 80, "{first:?}");
         assert!(rest[2] > 150 && rest[0] < 80, "{rest:?}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
