@@ -98,6 +98,19 @@ fn flag(params: &mut BTreeMap<String, ParamValue>, key: &str) -> Result<Option<b
     }
 }
 
+/// The ROS parameter `key` of `params` (taken out), read from its text by `parse` (the
+/// flag's own reader), if given.
+fn parsed<T>(
+    params: &mut BTreeMap<String, ParamValue>,
+    key: &str,
+    parse: fn(&str) -> Result<T, String>,
+) -> Result<Option<T>, CliError> {
+    let value = params.remove(key).map(|v| parse(&v.as_text()));
+    value
+        .transpose()
+        .map_err(|e| node_error(format!("parameter {key}: {e}")))
+}
+
 /// The flags with the ROS parameters of the same names put over them.
 fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args, CliError> {
     let p = &mut node.params;
@@ -129,16 +142,9 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
         .or(args.loop_closure);
     let navmap = flag(p, "navmap")?.unwrap_or(args.navmap);
     let robot = crate::cli::navmap::RobotArgs {
-        robot: match p.remove("robot") {
-            None => args.robot.robot,
-            Some(v) => crate::cli::navmap::robot(&v.as_text())
-                .map_err(|e| node_error(format!("parameter robot: {e}")))?,
-        },
-        navmap_resolution: match p.remove("navmap_resolution") {
-            None => args.robot.navmap_resolution,
-            Some(v) => crate::cli::navmap::resolution(&v.as_text())
-                .map_err(|e| node_error(format!("parameter navmap_resolution: {e}")))?,
-        },
+        robot: parsed(p, "robot", crate::cli::navmap::robot)?.unwrap_or(args.robot.robot),
+        navmap_resolution: parsed(p, "navmap_resolution", crate::cli::navmap::resolution)?
+            .unwrap_or(args.robot.navmap_resolution),
     };
     if localize && map.is_none() {
         return Err(node_error(

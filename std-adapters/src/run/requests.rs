@@ -90,9 +90,10 @@ impl<C: Capacity> Run<'_, C> {
 
     /// Writes the scans' floor so far beside the map saved now at `target`, whose path is
     /// `path` (with the navigation map on; what the map the run started from kept beside it
-    /// first, as read when the run started: this save may replace that file), or removes a floor file there, which went with the map saved before. Returns
-    /// what the answer adds: the map is saved either way, and a floor file that could not be
-    /// written is said (one left from before does not go with the new map: passed over).
+    /// first, as read when the run started: this save may replace that file), or removes a
+    /// floor file there, which went with the map saved before. Returns what the answer adds:
+    /// the map is saved either way, and a floor file that could not be written is said (one
+    /// left from before does not go with the new map: passed over).
     fn floor_beside(&self, target: &Path, path: &[(f64, Pose)]) -> String {
         let beside = floor_file::beside(target);
         let (Some(how), Some(hits)) = (&self.opts.navmap, &self.hits) else {
