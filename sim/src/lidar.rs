@@ -42,28 +42,45 @@ impl Lidar {
         }
     }
 
-    /// The unit ray of `beam` (evenly spread between the two elevations) at firing `step` of
-    /// the turn, in the sensor frame.
-    fn direction(&self, beam: usize, step: usize) -> Vector3<f64> {
-        let f = if self.beams > 1 {
-            beam as f64 / (self.beams - 1) as f64
-        } else {
-            0.0
+    /// The unit rays of every beam (evenly spread between the two elevations) at every firing
+    /// of the turn, in the sensor frame, as their sines and cosines: a scan's 64 000 rays from
+    /// a thousand-odd of them.
+    fn rays(&self) -> Rays {
+        let elevation = |beam: usize| {
+            let f = if self.beams > 1 {
+                beam as f64 / (self.beams - 1) as f64
+            } else {
+                0.0
+            };
+            (self.elevation_min_deg + f * (self.elevation_max_deg - self.elevation_min_deg))
+                .to_radians()
         };
-        let el = (self.elevation_min_deg + f * (self.elevation_max_deg - self.elevation_min_deg))
-            .to_radians();
-        let az = std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
-        Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin())
+        let azimuth = |step: usize| std::f64::consts::TAU * step as f64 / self.azimuth_steps as f64;
+        Rays {
+            beams: (0..self.beams)
+                .map(|b| {
+                    let el = elevation(b);
+                    (el.cos(), el.sin())
+                })
+                .collect(),
+            steps: (0..self.azimuth_steps)
+                .map(|k| {
+                    let az = azimuth(k);
+                    (az.cos(), az.sin())
+                })
+                .collect(),
+        }
     }
 
     /// One noise-free scan of `scene` from `t_world_sensor`, in the sensor frame.
     pub fn scan(&self, scene: &Scene, t_world_sensor: &Pose) -> Vec<Point> {
         let origin = t_world_sensor.translation.vector;
-        let scene = Prepared::new(scene, &origin, self.max_range_m);
+        let scene = Prepared::new(scene, &origin, self.max_range_m, 0.0);
+        let rays = self.rays();
         let mut out = Vec::with_capacity(self.beams * self.azimuth_steps);
         for beam in 0..self.beams {
             for step in 0..self.azimuth_steps {
-                let dir_s = self.direction(beam, step);
+                let dir_s = rays.direction(beam, step);
                 let dir_w = t_world_sensor.rotation * dir_s;
                 if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
                     let p = Point3::from(dir_s * range);
@@ -86,15 +103,27 @@ impl Lidar {
     ) -> (Vec<Point>, Vec<f32>) {
         let (start, end) = (pose_at(0.0), pose_at(period_s));
         let travel = (end.translation.vector - start.translation.vector).norm();
-        let scene = Prepared::new(scene, &start.translation.vector, self.max_range_m + travel);
+        let time = |step: usize| period_s * step as f64 / self.azimuth_steps as f64;
+        let poses: Vec<Pose> = (0..self.azimuth_steps).map(|k| pose_at(time(k))).collect();
+        // How far the sweep's origin strays from where it began (more than `travel` on a bend).
+        let strayed = poses
+            .iter()
+            .map(|p| (p.translation.vector - start.translation.vector).norm())
+            .fold(travel, f64::max);
+        let scene = Prepared::new(
+            scene,
+            &start.translation.vector,
+            self.max_range_m + travel,
+            strayed,
+        );
+        let rays = self.rays();
         let mut points = Vec::with_capacity(self.beams * self.azimuth_steps);
         let mut times = Vec::with_capacity(self.beams * self.azimuth_steps);
-        for step in 0..self.azimuth_steps {
-            let t = period_s * step as f64 / self.azimuth_steps as f64;
-            let pose = pose_at(t);
+        for (step, pose) in poses.iter().enumerate() {
+            let t = time(step);
             let origin = pose.translation.vector;
             for beam in 0..self.beams {
-                let dir_s = self.direction(beam, step);
+                let dir_s = rays.direction(beam, step);
                 let dir_w = pose.rotation * dir_s;
                 if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
                     let p = dir_s * range;
@@ -104,5 +133,21 @@ impl Lidar {
             }
         }
         (points, times)
+    }
+}
+
+/// The sines and cosines of a [`Lidar`]'s beams' elevations and of its firings' azimuths.
+struct Rays {
+    /// Per beam, the cosine and sine of its elevation.
+    beams: Vec<(f64, f64)>,
+    /// Per firing, the cosine and sine of its azimuth.
+    steps: Vec<(f64, f64)>,
+}
+
+impl Rays {
+    /// The unit ray of `beam` at firing `step` of the turn, in the sensor frame.
+    fn direction(&self, beam: usize, step: usize) -> Vector3<f64> {
+        let ((ce, se), (ca, sa)) = (self.beams[beam], self.steps[step]);
+        Vector3::new(ce * ca, ce * sa, se)
     }
 }
