@@ -77,7 +77,7 @@ impl<C: Capacity> Run<'_, C> {
             let _ = std::fs::remove_file(&staging);
             format!("{}: cannot rename the map file: {e}", target.display())
         })?;
-        let floor = self.floor_beside(&target, &path);
+        let floor = self.write_floor_beside(&target, &path);
         Ok(format!(
             "map saved to {}: {} cells, {} layers, {} poses, {:.1} MB{floor}",
             target.display(),
@@ -94,7 +94,7 @@ impl<C: Capacity> Run<'_, C> {
     /// floor file there, which went with the map saved before. Returns what the answer adds:
     /// the map is saved either way, and a floor file that could not be written is said (one
     /// left from before does not go with the new map: passed over).
-    fn floor_beside(&self, target: &Path, path: &[(f64, Pose)]) -> String {
+    fn write_floor_beside(&self, target: &Path, path: &[(f64, Pose)]) -> String {
         let beside = floor_file::beside(target);
         let (Some(how), Some(hits)) = (&self.opts.navmap, &self.hits) else {
             return match floor_file::remove_beside(target) {

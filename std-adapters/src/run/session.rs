@@ -415,7 +415,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let shown_as = self.opts.save_map.as_deref().unwrap_or(out);
         let start = std::mem::take(&mut self.map_path);
         let carried = self.carried_floor.take();
-        let floors = floor_beside(&self.opts, &start, &stamps, self.hits.take(), carried);
+        let floors = scans_floor(&self.opts, &start, &stamps, self.hits.take(), carried);
         save_map(
             self.saved_map.take(),
             start,
@@ -464,7 +464,7 @@ impl<'a, C: Capacity> Run<'a, C> {
 /// this run's `stamps`), which its floor file goes with. A floor file beside the map to be
 /// saved goes with the map saved there before: where none is written (no scans' floor) it is
 /// removed.
-fn floor_beside(
+fn scans_floor(
     opts: &RunOptions,
     start: &[(f64, Pose)],
     stamps: &[f64],
