@@ -505,7 +505,10 @@ fn the_office_s_navigation_map_against_the_truth() {
     // The truth has about 1 150 occupied cells where the walk saw.
     assert!(s.free > 4_000 && s.occupied > 1_000, "{s:?}");
     // 0.66, 0.95 within a cell measured (docs/benchmarks.md, "Unsure level surfaces"); any
-    // change to the map's layers moves the walk, and this IoU, by a few hundredths.
+    // change to the map's layers moves the walk, and this IoU, by a few hundredths. Most of
+    // the office's faces lie on the cells' edges, where the truth takes the cell behind and
+    // the map's millimetres decide (docs/benchmarks.md, "Where the office's false cells come
+    // from").
     s.assert_within(0.62, 0.93);
     // A planner finds its way from room A through the doorway into the corridor the walk
     // went along. (The corridor's far end, seen from its start by 16 beams, is mostly
