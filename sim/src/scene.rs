@@ -64,6 +64,12 @@ impl Terrain {
                 + 0.2 * (2.0 * x - 1.1 * y + 0.7).sin())
     }
 
+    /// A lower bound on the height [`height`](Self::height) gives: the hills' and the
+    /// roughness's amplitudes below zero.
+    pub fn lowest(&self) -> f64 {
+        -self.hill_m.abs() - self.roughness_m.abs()
+    }
+
     /// An upper bound on the slope `|∇h|`.
     pub fn max_slope(&self) -> f64 {
         let k = std::f64::consts::TAU / self.hill_wavelength_m;
@@ -194,6 +200,12 @@ impl Scene {
 /// Azimuth sectors of a [`Prepared`] scene.
 const SECTORS: usize = 720;
 
+/// The azimuth sector a ray along `dir` lies in.
+fn sector_of(dir: &Vector3<f64>) -> usize {
+    let per = std::f64::consts::TAU / SECTORS as f64;
+    ((dir.y.atan2(dir.x) / per).floor() as i64).rem_euclid(SECTORS as i64) as usize
+}
+
 /// A scene made ready for many rays from one place: objects out of reach dropped, box
 /// rotations computed once, and each object listed in the azimuth sectors it covers as seen
 /// from the origin, nearest first, so that a ray tests only the objects of its sector and
@@ -247,29 +259,27 @@ impl Prepared {
             }
         };
         let mut boxes = Vec::new();
+        // Every point of an object lies within its bounding radius `r` of its centre, `d` away.
         let mut nearest = Vec::new();
-        // Every point of an object lies within its bounding radius of its centre.
-        let mut near = |centre: [f64; 3], r: f64| {
-            let d = (Vector3::from(centre) - origin).norm();
-            nearest.push(d - r - travel - NEAREST_SLACK_M);
-            d
-        };
+        let nearest_of = |d: f64, r: f64| d - r - travel - NEAREST_SLACK_M;
         for b in &scene.boxes {
             let r = Vector3::from(b.half).norm();
-            if (Vector3::from(b.centre) - origin).norm() > reach + r {
+            let d = (Vector3::from(b.centre) - origin).norm();
+            if d > reach + r {
                 continue;
             }
-            near(b.centre, r);
+            nearest.push(nearest_of(d, r));
             list(boxes.len() as u32, b.centre, b.half[0].hypot(b.half[1]));
             let (s, c) = (-b.yaw).sin_cos();
             boxes.push((b.centre, b.half, c, s));
         }
         let mut spheres = Vec::new();
         for sp in &scene.spheres {
-            if (Vector3::from(sp.centre) - origin).norm() > reach + sp.radius {
+            let d = (Vector3::from(sp.centre) - origin).norm();
+            if d > reach + sp.radius {
                 continue;
             }
-            near(sp.centre, sp.radius);
+            nearest.push(nearest_of(d, sp.radius));
             list((boxes.len() + spheres.len()) as u32, sp.centre, sp.radius);
             spheres.push(*sp);
         }
@@ -320,10 +330,7 @@ impl Prepared {
         dir: &Vector3<f64>,
         max_range: f64,
     ) -> Option<f64> {
-        let per = std::f64::consts::TAU / SECTORS as f64;
-        let sector =
-            ((dir.y.atan2(dir.x) / per).floor() as i64).rem_euclid(SECTORS as i64) as usize;
-        let objects = &self.sectors[sector];
+        let objects = &self.sectors[sector_of(dir)];
         let (mut best, mut hit) = (max_range, false);
         let Some(t) = self.terrain else {
             // Flat ground: one division, so first, and the objects only nearer than it.
@@ -336,7 +343,7 @@ impl Prepared {
         // Terrain costs a few dozen sines a ray to trace, so the objects first, those short of
         // where a falling ray has sunk below the terrain's lowest point (it has met the
         // ground by then), and the ground traced only up to the nearest of them.
-        let lowest = self.ground_z - t.hill_m.abs() - t.roughness_m.abs();
+        let lowest = self.ground_z + t.lowest();
         let sunk = if dir.z < 0.0 {
             (origin.z - lowest) / -dir.z
         } else {
@@ -498,11 +505,8 @@ mod tests {
                 };
                 let culled = prepared.cast(&origin, &dir, 80.0);
                 // Every object (of the ray's sector from a moved origin), in any order.
-                let per = std::f64::consts::TAU / SECTORS as f64;
-                let sector =
-                    ((dir.y.atan2(dir.x) / per).floor() as i64).rem_euclid(SECTORS as i64) as usize;
-                let listed =
-                    |id: usize| k % 2 == 0 || prepared.sectors[sector].contains(&(id as u32));
+                let sector = &prepared.sectors[sector_of(&dir)];
+                let listed = |id: usize| k % 2 == 0 || sector.contains(&(id as u32));
                 let mut best = prepared.ground(&origin, &dir, 80.0);
                 let boxes = prepared.boxes.iter().map(|b| hit_box(b, &origin, &dir));
                 let spheres = prepared
