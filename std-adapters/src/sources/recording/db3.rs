@@ -17,9 +17,7 @@ const PAGE: i64 = 8;
 /// file is opened as a reader of the log too, or the messages only the log holds would be
 /// missed.
 fn connect(path: &Path) -> Result<Connection, String> {
-    let mut log = path.as_os_str().to_owned();
-    log.push("-wal");
-    let has_log = std::fs::metadata(&log).is_ok_and(|m| m.len() > 0);
+    let has_log = std::fs::metadata(beside(path, "-wal")).is_ok_and(|m| m.len() > 0);
     let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
     let opened = if has_log {
         Connection::open_with_flags(path, flags)
@@ -27,6 +25,13 @@ fn connect(path: &Path) -> Result<Connection, String> {
         Connection::open_with_flags(immutable_uri(path), flags | OpenFlags::SQLITE_OPEN_URI)
     };
     opened.map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The file SQLite keeps beside `path` with `suffix` added to its name (`-wal`, `-shm`).
+fn beside(path: &Path, suffix: &str) -> std::path::PathBuf {
+    let mut p = path.as_os_str().to_owned();
+    p.push(suffix);
+    p.into()
 }
 
 /// `path` as an SQLite URI opening it immutable: `file:` and the path's bytes, every one but
@@ -177,12 +182,6 @@ mod tests {
                 .unwrap();
         }
         db
-    }
-
-    fn beside(path: &Path, suffix: &str) -> std::path::PathBuf {
-        let mut p = path.as_os_str().to_owned();
-        p.push(suffix);
-        p.into()
     }
 
     #[test]
