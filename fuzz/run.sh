@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # Runs every fuzz target for the given number of seconds each (default 600), growing
-# fuzz/corpus/<target>. Needs the nightly toolchain and cargo-fuzz.
+# fuzz/corpus/<target>. Needs the nightly toolchain only: the targets are built here with the
+# flags `cargo fuzz build` passes (so cargo-fuzz need not be installed; `cargo +nightly fuzz
+# run TARGET` works on this crate as well).
 #   fuzz/run.sh [SECONDS [TARGET...]]
 # Environment: FUZZ_JOBS targets at a time (default: the cores present); FUZZ_SANITIZER
-# (default address; CI's smoke pass uses none: the code fuzzed forbids unsafe code, and the
-# build is faster).
+# (address, the default, or none: the code fuzzed forbids unsafe code, and the build is
+# faster); FUZZ_QUICK_BUILD=1 for a smoke pass (CI's): the crates fuzzed unoptimised and
+# without debug information, built in half the time, fuzzing more slowly.
 # Fails when a target does not build, when the fuzzer fails, and on a crash, a hang (over
 # 10 s on one input) or an allocation over 2 GB, which leave the input in
 # fuzz/artifacts/<target>/.
@@ -17,9 +20,34 @@ targets=("$@")
 [ ${#targets[@]} -gt 0 ] || mapfile -t targets < <(awk '/^\[\[bin\]\]/ { bin = 1 } bin && /^name = / { gsub(/"/, "", $3); print $3; bin = 0 }' Cargo.toml)
 jobs=${FUZZ_JOBS:-$(nproc)}
 sanitizer=${FUZZ_SANITIZER:-address}
-# One build for every target; each binary is then run as `cargo fuzz run` would run it.
-cargo +nightly fuzz build --sanitizer "$sanitizer"
 triple=$(rustc +nightly -vV | sed -n 's/^host: //p')
+# One build for every target, as cargo-fuzz 0.13 builds them: libFuzzer's coverage
+# instrumentation and `cfg(fuzzing)` in RUSTFLAGS, with `--target` named so that build scripts
+# and procedural macros are left uninstrumented; each binary is then run as `cargo fuzz run`
+# would run it.
+flags=(-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
+  -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table
+  -Cllvm-args=-sanitizer-coverage-trace-compares -Cllvm-args=-simplifycfg-branch-fold-threshold=0
+  --cfg fuzzing)
+case "$triple" in *-linux-*) flags+=(-Cllvm-args=-sanitizer-coverage-stack-depth) ;; esac
+case "$sanitizer" in
+  none) ;;
+  *) flags+=("-Zsanitizer=$sanitizer") ;;
+esac
+profile=(--config 'profile.release.debug="line-tables-only"')
+if [ "${FUZZ_QUICK_BUILD:-0}" = 1 ]; then
+  # Every crate but the targets' own unoptimised: the pipeline's generic code is compiled
+  # in the targets, and unoptimised there it took 27 s to read core_scan's corpus, not 4.
+  profile=(--config 'profile.release.package."*".opt-level=0' --config profile.release.debug=0)
+else
+  # cargo-fuzz's reason: with the coverage passes, more than one codegen unit leaves ThinLTO
+  # nothing to inline across units, and the fuzzer runs markedly slower.
+  flags+=(-Ccodegen-units=1)
+fi
+RUSTFLAGS="${flags[*]} ${RUSTFLAGS:-}" cargo +nightly build --release --target "$triple" --bins "${profile[@]}"
+# As `cargo fuzz run` sets it: the instrumented standard library and crates can define a
+# global twice, which ASan would report as a violation of the one-definition rule.
+[ "$sanitizer" != address ] || export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_odr_violation=0"
 logs=$(mktemp -d)
 trap 'rm -rf "$logs"' EXIT
 
