@@ -37,7 +37,7 @@ esac
 profile=(--config 'profile.release.debug="line-tables-only"')
 if [ "${FUZZ_QUICK_BUILD:-0}" = 1 ]; then
   # Every crate but the targets' own unoptimised: the pipeline's generic code is compiled
-  # in the targets, and unoptimised there it took 27 s to read core_scan's corpus, not 4.
+  # in the targets, and unoptimised there it took 27 s to read core_scan's corpus, not 7.
   profile=(--config 'profile.release.package."*".opt-level=0' --config profile.release.debug=0)
 else
   # cargo-fuzz's reason: with the coverage passes, more than one codegen unit leaves ThinLTO
