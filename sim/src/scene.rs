@@ -3,6 +3,7 @@
 
 use nalgebra::Vector3;
 use slamesh_core::random::SplitMix64;
+use std::cell::Cell;
 
 /// A box with a yaw about z: centre, half extents along its own axes, yaw in radians.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,7 +68,13 @@ impl Terrain {
     /// A lower bound on the height [`height`](Self::height) gives: the hills' and the
     /// roughness's amplitudes below zero.
     pub fn lowest(&self) -> f64 {
-        -self.hill_m.abs() - self.roughness_m.abs()
+        -self.highest()
+    }
+
+    /// An upper bound on the height [`height`](Self::height) gives: the hills' and the
+    /// roughness's amplitudes.
+    pub fn highest(&self) -> f64 {
+        self.hill_m.abs() + self.roughness_m.abs()
     }
 
     /// An upper bound on the slope `|∇h|`.
@@ -228,7 +235,18 @@ pub(crate) struct Prepared {
     nearest: Vec<f64>,
     /// Per sector, object ids (boxes first, then spheres), by `nearest`.
     sectors: Vec<Vec<u32>>,
+    /// The last origin traced from and the terrain's height under it: a scan's rays (a
+    /// rolling sweep's firing's) share their origin, and so the tracing's first step.
+    under_origin: Cell<([f64; 2], f64)>,
 }
+
+/// The clearance over the terrain at which sphere tracing calls it met (m).
+const CONTACT_CLEARANCE_M: f64 = 1e-4;
+
+/// What rounding may take off a bound on the clearance over the terrain within a few
+/// kilometres (m): far more than it does, so that the bound never settles a ray the tracing
+/// would have hit.
+const BOUND_SLACK_M: f64 = 1e-6;
 
 /// How far short of an object's `nearest` range a ray's hit on it may fall through rounding
 /// (m): far more than the rounding of ranges within a few kilometres.
@@ -293,6 +311,7 @@ impl Prepared {
             spheres,
             nearest,
             sectors,
+            under_origin: Cell::new(([f64::NAN; 2], 0.0)),
         }
     }
 
@@ -302,7 +321,39 @@ impl Prepared {
             let s = (self.ground_z - o.z) / d.z;
             return (d.z < -1e-9 && s > 0.0 && s < max_range).then_some(s);
         };
-        // Sphere tracing on the height field: the clearance shrinks at most at this rate.
+        // The same answer as the tracing's, without its sines: rays that meet a wall or a car
+        // before they come near the ground, and rays that rise, are settled here.
+        if self.clear_of_terrain(&t, o, d, max_range) {
+            return None;
+        }
+        self.trace_ground(&t, o, d, max_range)
+    }
+
+    /// Whether the ray stays over the terrain's highest point by more than the tracing's
+    /// contact clearance up to `max_range` (at its end for a falling ray, at its start for
+    /// one that rises): then [`trace_ground`](Self::trace_ground) cannot stop short of it.
+    fn clear_of_terrain(
+        &self,
+        t: &Terrain,
+        o: &Vector3<f64>,
+        d: &Vector3<f64>,
+        max_range: f64,
+    ) -> bool {
+        let end = if d.z < 0.0 { max_range } else { 0.0 };
+        o.z + end * d.z - self.ground_z - t.highest() > CONTACT_CLEARANCE_M + BOUND_SLACK_M
+    }
+
+    /// [`ground`](Self::ground) over terrain by sphere tracing: from the origin, steps as
+    /// long as the clearance over the terrain divided by the fastest rate it can shrink at,
+    /// until it is under [`CONTACT_CLEARANCE_M`] (a hit), `max_range` is passed or 200 steps
+    /// are taken (none).
+    fn trace_ground(
+        &self,
+        t: &Terrain,
+        o: &Vector3<f64>,
+        d: &Vector3<f64>,
+        max_range: f64,
+    ) -> Option<f64> {
         let horizontal = d.x.hypot(d.y);
         let rate = -d.z + t.max_slope() * horizontal;
         if rate <= 1e-9 {
@@ -310,10 +361,23 @@ impl Prepared {
         }
         let clearance =
             |s: f64| o.z + s * d.z - self.ground_z - t.height(o.x + s * d.x, o.y + s * d.y);
+        // At the first step (s = 0) the height is the one under the origin: `o.x + 0 * d.x`
+        // is `o.x` for any finite direction.
+        let (last, under) = self.under_origin.get();
+        let under = if last == [o.x, o.y] {
+            under
+        } else {
+            let h = t.height(o.x, o.y);
+            self.under_origin.set(([o.x, o.y], h));
+            h
+        };
+        let mut c = o.z - self.ground_z - under;
         let mut s = 0.0;
-        for _ in 0..200 {
-            let c = clearance(s);
-            if c < 1e-4 {
+        for step in 0..200 {
+            if step > 0 {
+                c = clearance(s);
+            }
+            if c < CONTACT_CLEARANCE_M {
                 return (s > 0.0).then_some(s);
             }
             s += c / rate;
@@ -521,6 +585,41 @@ mod tests {
                 assert_eq!(culled, best, "ray {dir:?} from {origin:?}, {terrain:?}");
             }
         }
+    }
+
+    #[test]
+    fn the_bound_over_the_terrain_settles_only_rays_the_tracing_misses() {
+        let mut scene = Scene::long_street(120.0, 3);
+        let mut rng = SplitMix64(7);
+        let mut settled = 0;
+        for (hill_m, roughness_m) in [(1.0, 0.03), (3.0, 0.05), (-0.5, 0.0)] {
+            scene.terrain = Some(Terrain {
+                hill_m,
+                hill_wavelength_m: 60.0,
+                roughness_m,
+            });
+            let origin = Vector3::new(20.0, 0.5, 1.7);
+            let prepared = Prepared::new(&scene, &origin, 100.0, 0.0);
+            let t = prepared.terrain.unwrap();
+            for _ in 0..20_000 {
+                let dir = Vector3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-0.4, 0.1),
+                )
+                .normalize();
+                // Ranges as an object's hit cuts them, from a few metres to the scanner's.
+                let range = rng.range(1.0, 100.0);
+                let traced = prepared.trace_ground(&t, &origin, &dir, range);
+                if prepared.clear_of_terrain(&t, &origin, &dir, range) {
+                    assert_eq!(traced, None, "ray {dir:?} to {range} m over {t:?}");
+                    settled += 1;
+                }
+                assert_eq!(prepared.ground(&origin, &dir, range), traced);
+            }
+        }
+        // The bound settled a good part of the rays, not all.
+        assert!((6_000..54_000).contains(&settled), "{settled}");
     }
 
     #[test]
