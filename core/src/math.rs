@@ -85,14 +85,28 @@ pub fn level_rotation(up: &Vec3) -> UnitQuaternion<f64> {
         .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vec3::x_axis(), core::f64::consts::PI))
 }
 
+/// Most iterations [`svd3`] lets nalgebra's SVD take. A 3 x 3 matrix converges in a handful;
+/// nalgebra's `svd` iterates until it does, without a limit, and no input may hold a run (the
+/// core's other iterative decompositions are bounded too).
+const SVD_MAX_ITERATIONS: usize = 200;
+
+/// The singular value decomposition of `h` (with `U` and `Vᵀ` when `vectors`), as nalgebra's
+/// `svd` computes it (its tolerance, 5 ε) but within [`SVD_MAX_ITERATIONS`]; `None` when `h`
+/// is not finite or the decomposition does not converge within them.
+pub fn svd3(h: &Mat3, vectors: bool) -> Option<nalgebra::SVD<f64, nalgebra::U3, nalgebra::U3>> {
+    if !h.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    h.try_svd(vectors, vectors, 5.0 * f64::EPSILON, SVD_MAX_ITERATIONS)
+}
+
 /// The rotation `R` that best maps vectors `aₖ` onto `bₖ` in the least-squares sense (Kabsch),
 /// from their cross-covariance `h = Σ aₖ bₖᵀ`; always proper (no reflection). The identity
 /// when `h` is not finite or its decomposition fails.
 pub fn best_rotation(h: &Mat3) -> Rotation3<f64> {
-    if !h.iter().all(|v| v.is_finite()) {
+    let Some(svd) = svd3(h, true) else {
         return Rotation3::identity();
-    }
-    let svd = h.svd(true, true);
+    };
     match (svd.u, svd.v_t) {
         (Some(u), Some(v_t)) => {
             let v = v_t.transpose();
@@ -105,13 +119,25 @@ pub fn best_rotation(h: &Mat3) -> Rotation3<f64> {
     }
 }
 
-/// A pose from 12 row-major `[R | t]` numbers; `None` if not finite. The rotation is
+/// How far the 3 x 3 of a pose read from numbers may be from a rotation (`‖MᵀM − I‖`,
+/// Frobenius) and still be taken for one: rows written with 9 significant digits are within
+/// 1e-8. Farther, it is not a rotation; and past about 1e10 an entry made nalgebra's
+/// re-orthonormalisation loop for ever (`slamesh eval` hung on such a line: the `trajectory`
+/// fuzz target's find).
+const ROTATION_TOLERANCE: f64 = 0.01;
+
+/// A pose from 12 row-major `[R | t]` numbers; `None` unless they are finite and `R` is a
+/// rotation to within [`ROTATION_TOLERANCE`] (no reflection). The rotation is
 /// re-orthonormalised (KITTI files carry 9 significant digits).
 pub fn pose_from_row(v: &[f64]) -> Option<Pose> {
     if v.len() != 12 || !v.iter().all(|x| x.is_finite()) {
         return None;
     }
     let m = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
+    let off = (m.transpose() * m - Matrix3::identity()).norm();
+    if !(off <= ROTATION_TOLERANCE && m.determinant() > 0.0) {
+        return None;
+    }
     let r = Rotation3::from_matrix_eps(&m, 1e-12, 100, Rotation3::identity());
     let t = Translation3::new(v[3], v[7], v[11]);
     Some(Pose::from_parts(
@@ -362,6 +388,56 @@ pub fn rotation_angle(pose: &Pose) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn best_rotation_finds_a_turn_and_gives_up_on_what_does_not_decompose() {
+        // Vectors turned a quarter about z: their cross-covariance gives the turn back.
+        let turn = Rotation3::from_axis_angle(&Vec3::z_axis(), core::f64::consts::FRAC_PI_2);
+        let a = [Vec3::x(), Vec3::y(), Vec3::new(1.0, 1.0, 1.0)];
+        let h = a
+            .iter()
+            .fold(Mat3::zeros(), |h, v| h + v * (turn * v).transpose());
+        assert!((best_rotation(&h).matrix() - turn.matrix()).norm() < 1e-12);
+        // Not finite: no decomposition, the identity.
+        let h = Mat3::from_element(f64::INFINITY);
+        assert!(svd3(&h, true).is_none());
+        assert_eq!(best_rotation(&h), Rotation3::identity());
+    }
+
+    #[test]
+    fn a_pose_row_is_a_rotation_and_a_translation_or_nothing() {
+        // kitti-mini 00's second camera pose, as its poses.txt writes it.
+        let row = [
+            0.999991,
+            -0.00316351,
+            -0.00274942,
+            -0.00135393,
+            0.00316045,
+            0.999994,
+            -0.00111659,
+            -0.0248245,
+            0.00275294,
+            0.00110789,
+            0.999996,
+            0.672716,
+        ];
+        let p = pose_from_row(&row).unwrap();
+        assert!(
+            (p.translation.vector - Vec3::new(-0.00135393, -0.0248245, 0.672716)).norm() < 1e-15
+        );
+        assert!(p.rotation.angle() > 0.003 && p.rotation.angle() < 0.006);
+        // Not a rotation: scaled, mirrored, or an entry far out (nalgebra's
+        // re-orthonormalisation looped for ever on -3.8e50, the fuzz target's input).
+        let scaled = row.map(|x| 2.0 * x);
+        let mut mirrored = row;
+        mirrored[0] = -mirrored[0];
+        let mut far = row;
+        far[2] = -3.8e50;
+        for bad in [scaled, mirrored, far] {
+            assert_eq!(pose_from_row(&bad), None, "{bad:?}");
+        }
+        assert_eq!(pose_from_row(&row[..11]), None);
+    }
 
     #[test]
     fn exp_of_pure_translation_and_rotation() {

@@ -287,3 +287,16 @@ put("checkpoint", "imu_v3",
     + le("Q", 0) + le("Q", 0) + le("Q", 0) + le("d", 0.2) + le("Q", 0) + le("Q", 0) + le("Q", 0)
     + le("Q", len(imu_state)) + imu_state
     + le("Q", 1) + le("3i", 0, 0, -1) + le("I", 1) + bytes([1]) + ground)
+
+# Trajectories as `slamesh eval` reads them (trajectory): estimate, reference and calib.txt
+# between zero bytes. kitti-mini 00's first six camera poses with its calib.txt; the same
+# positions as TUM lines with stamps, the reference's a frame late; and a KITTI estimate paired
+# with a TUM reference by line.
+kitti_poses = open(f"{DATA}/kitti-mini/00/poses.txt", "rb").read().splitlines(keepends=True)[:6]
+calib = open(f"{DATA}/kitti-mini/00/calib.txt", "rb").read()
+tum = [f"{0.1 * i:.1f} {r.split()[3].decode()} {r.split()[7].decode()} {r.split()[11].decode()} 0 0 0 1\n"
+       for i, r in enumerate(kitti_poses)]
+put("trajectory", "kitti_calib", b"".join(kitti_poses) + b"\0" + b"".join(kitti_poses) + b"\0" + calib)
+put("trajectory", "tum", ("# t x y z qx qy qz qw\n" + "".join(tum)).encode() + b"\0"
+    + "".join(tum[1:]).encode())
+put("trajectory", "kitti_tum", b"".join(kitti_poses) + b"\0" + "".join(tum).encode())

@@ -168,6 +168,11 @@ fn push_records(bytes: &[u8], fields: &BinFields, points: &mut Vec<Point>) {
 /// Reads `Tr` (LiDAR to camera) from a KITTI `calib.txt`.
 pub fn read_calib_tr(path: &Path) -> Result<Pose, FileError> {
     let text = std::fs::read_to_string(path).map_err(|e| err(path, None, e.to_string()))?;
+    parse_calib_tr(path, &text)
+}
+
+/// [`read_calib_tr`] on the text of the file at `path` (named in the errors).
+pub fn parse_calib_tr(path: &Path, text: &str) -> Result<Pose, FileError> {
     for (i, line) in text.lines().enumerate() {
         if let Some(rest) = line.strip_prefix("Tr:") {
             let v = parse_numbers(path, i + 1, rest)?;
@@ -178,8 +183,13 @@ pub fn read_calib_tr(path: &Path) -> Result<Pose, FileError> {
                     format!("Tr: expected 12 numbers, found {}", v.len()),
                 ));
             }
-            return pose_from_row(&v)
-                .ok_or_else(|| err(path, Some(i + 1), "Tr is not a finite transform"));
+            return pose_from_row(&v).ok_or_else(|| {
+                err(
+                    path,
+                    Some(i + 1),
+                    "Tr is not a rigid transform (its numbers finite, its 3 x 3 a rotation)",
+                )
+            });
         }
     }
     Err(err(path, None, "no line starting with Tr:"))

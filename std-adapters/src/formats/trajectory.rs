@@ -42,14 +42,19 @@ pub(crate) fn parse_numbers(
         .collect()
 }
 
+/// Why a line's numbers are not a pose.
+const NOT_A_POSE: &str = "not a pose: a number is not finite, or the rotation is not one (a \
+                          KITTI line's 3 x 3 must be a rotation, a TUM line's quaternion of \
+                          finite, non-zero length)";
+
 /// The pose of a TUM line's numbers `t x y z qx qy qz qw` (the quaternion normalised);
-/// `None` unless there are eight, all finite, with a non-zero quaternion.
+/// `None` unless there are eight, all finite, with a quaternion of finite, non-zero length.
 pub fn tum_pose(v: &[f64]) -> Option<Pose> {
     let &[_, x, y, z, qx, qy, qz, qw] = v else {
         return None;
     };
     let q = Quaternion::new(qw, qx, qy, qz);
-    (v.iter().all(|x| x.is_finite()) && q.norm() > 1e-9).then(|| {
+    (v.iter().all(|x| x.is_finite()) && q.norm() > 1e-9 && q.norm().is_finite()).then(|| {
         Pose::from_parts(
             Translation3::new(x, y, z),
             UnitQuaternion::from_quaternion(q),
@@ -61,6 +66,11 @@ pub fn tum_pose(v: &[f64]) -> Option<Pose> {
 /// lines and blank lines are skipped).
 pub fn read(path: &Path) -> Result<Trajectory, FileError> {
     let text = std::fs::read_to_string(path).map_err(|e| FileError::at(path, e.to_string()))?;
+    parse(path, &text)
+}
+
+/// [`read`] on the text of the file at `path` (named in the errors).
+pub fn parse(path: &Path, text: &str) -> Result<Trajectory, FileError> {
     let mut format = None;
     let mut stamps = Vec::new();
     let mut poses = Vec::new();
@@ -96,7 +106,7 @@ pub fn read(path: &Path) -> Result<Trajectory, FileError> {
             Format::Kitti => pose_from_row(&v),
             Format::Tum => tum_pose(&v),
         };
-        poses.push(pose.ok_or_else(|| FileError::new(path, Some(i + 1), "not a finite pose"))?);
+        poses.push(pose.ok_or_else(|| FileError::new(path, Some(i + 1), NOT_A_POSE))?);
         if f == Format::Tum {
             stamps.push(v[0]);
         }
@@ -245,6 +255,26 @@ mod tests {
             e.to_string().contains("bad.txt:1") && e.reason.contains("neither"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn lines_that_are_not_poses_are_named() {
+        let identity = "1 0 0 0 0 1 0 0 0 0 1 0\n";
+        let path = Path::new("poses.txt");
+        for (line, bad) in [
+            // An entry 4e50: nalgebra's re-orthonormalisation looped for ever on it.
+            ("1 0 -4e50 0 0 1 0 0 0 0 1 0\n", "far"),
+            ("2 0 0 0 0 2 0 0 0 0 2 0\n", "scaled"),
+            ("-1 0 0 0 0 1 0 0 0 0 1 0\n", "mirrored"),
+        ] {
+            let e = parse(path, &format!("{identity}{line}")).unwrap_err();
+            assert!(
+                e.to_string().contains("poses.txt:2") && e.reason.contains("not a pose"),
+                "{bad}: {e}"
+            );
+        }
+        let e = parse(path, "0.1 1 2 3 1e300 1e300 0 0\n").unwrap_err();
+        assert!(e.reason.contains("quaternion"), "{e}");
     }
 
     #[test]

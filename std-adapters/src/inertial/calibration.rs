@@ -9,7 +9,7 @@
 
 use crate::io::le::{put_f64, put_option, put_u64, Decoder};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
-use slamesh_core::math::best_rotation;
+use slamesh_core::math::{best_rotation, svd3};
 
 /// The time from the first pair over which pairs are taken (seconds).
 pub const WINDOW_S: f64 = 10.0;
@@ -168,7 +168,14 @@ impl CalibrationCheck {
                 per_frame(before)
             ));
         }
-        let s = self.h.svd(false, false).singular_values;
+        let Some(svd) = svd3(&self.h, false) else {
+            return fine(format!(
+                "not checked: the gyro's and the registered rotations over {} frames give no \
+                 axis to compare (their sums do not decompose)",
+                self.pairs
+            ));
+        };
+        let s = svd.singular_values;
         let mut s = [s[0], s[1], s[2]];
         s.sort_by(|a, b| b.total_cmp(a));
         if s[1] < 0.1 * s[0] {
