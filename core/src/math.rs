@@ -91,7 +91,7 @@ pub fn level_rotation(up: &Vec3) -> UnitQuaternion<f64> {
 const SVD_MAX_ITERATIONS: usize = 200;
 
 /// The singular value decomposition of `h` (with `U` and `Vᵀ` when `vectors`), as nalgebra's
-/// `svd` computes it (its tolerance, 5 ε) but within [`SVD_MAX_ITERATIONS`]; `None` when `h`
+/// `svd` computes it (its tolerance, 5 ε) but within `SVD_MAX_ITERATIONS` (200); `None` when `h`
 /// is not finite or the decomposition does not converge within them.
 pub fn svd3(h: &Mat3, vectors: bool) -> Option<nalgebra::SVD<f64, nalgebra::U3, nalgebra::U3>> {
     if !h.iter().all(|v| v.is_finite()) {
@@ -127,7 +127,7 @@ pub fn best_rotation(h: &Mat3) -> Rotation3<f64> {
 const ROTATION_TOLERANCE: f64 = 0.01;
 
 /// A pose from 12 row-major `[R | t]` numbers; `None` unless they are finite and `R` is a
-/// rotation to within [`ROTATION_TOLERANCE`] (no reflection). The rotation is
+/// rotation to within `ROTATION_TOLERANCE` (0.01, no reflection). The rotation is
 /// re-orthonormalised (KITTI files carry 9 significant digits).
 pub fn pose_from_row(v: &[f64]) -> Option<Pose> {
     if v.len() != 12 || !v.iter().all(|x| x.is_finite()) {
