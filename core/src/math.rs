@@ -121,8 +121,8 @@ pub fn best_rotation(h: &Mat3) -> Rotation3<f64> {
 
 /// How far the 3 x 3 of a pose read from numbers may be from a rotation (`‖MᵀM − I‖`,
 /// Frobenius) and still be taken for one: rows written with 9 significant digits are within
-/// 1e-8. Farther, it is not a rotation; and past about 1e10 an entry made nalgebra's
-/// re-orthonormalisation loop for ever (`slamesh eval` hung on such a line: the `trajectory`
+/// 1e-8. Farther, it is not a rotation; and an entry of -3.8e50 made nalgebra's
+/// re-orthonormalisation loop for ever (`slamesh eval` hung on that line: the `trajectory`
 /// fuzz target's find).
 const ROTATION_TOLERANCE: f64 = 0.01;
 
