@@ -360,7 +360,7 @@ impl Grid {
     /// occupied: a planner's inflation around the obstacle covers it, and a doorway keeps its
     /// width); and a cell where nothing was seen between two occupied cells, or else between
     /// two free ones (a seam of the mesh between its voxel cells, one or two cells wide, on a
-    /// car's roof or on a street), is occupied, or free.
+    /// car's roof or on a street, or where such seams cross), is occupied, or free.
     pub fn occupancy(&self, ix: i64, iy: i64) -> Occupancy {
         match self.own(ix, iy) {
             Occupancy::Free if self.touches_obstacle(ix, iy) => Occupancy::Unknown,
@@ -402,8 +402,10 @@ impl Grid {
     }
 
     /// Whether nothing was seen in the cell and it lies between two cells that are `what`
-    /// of their own (free ones not at an obstacle's edge), in a row or a column, at most two
-    /// cells apart: a seam of the mesh between its voxel cells, on a street or on a car's roof.
+    /// of their own (free ones not at an obstacle's edge), in a row, a column or a diagonal,
+    /// at most two cells apart: a seam of the mesh between its voxel cells, on a street or on
+    /// a car's roof. The diagonals take the cells where four voxel cells' seams cross, whose
+    /// rows and columns run along the seams.
     fn in_seam(&self, ix: i64, iy: i64, what: Occupancy) -> bool {
         let empty = |x, y| {
             self.cell(x, y)
@@ -413,7 +415,7 @@ impl Grid {
             self.own(x, y) == what && (what != Occupancy::Free || !self.touches_obstacle(x, y))
         };
         empty(ix, iy)
-            && [(1, 0), (0, 1)].iter().any(|&(dx, dy)| {
+            && [(1, 0), (0, 1), (1, 1), (1, -1)].iter().any(|&(dx, dy)| {
                 (is(ix - dx, iy - dy) && is(ix + dx, iy + dy))
                     || (is(ix - dx, iy - dy)
                         && empty(ix + dx, iy + dy)
@@ -692,6 +694,41 @@ pub(super) mod tests {
         let foot = at_vertex(9.85, 5.05);
         assert_eq!(mesh.cost[foot], 1.0);
         assert!(mesh.triangles.len() > mesh.vertices.len());
+    }
+
+    #[test]
+    fn the_seams_between_voxel_cells_and_where_they_cross_are_free() {
+        // A street meshed as the default lattice meshes it: each 1.6 m cell's layer spans
+        // its vertices at the interval centres, 0.133 m in from the cell's faces, so a seam
+        // 0.267 m wide runs between neighbouring cells and four cells' seams cross at their
+        // corner.
+        let (cell, inset) = (1.6f32, 1.6f32 / 12.0);
+        let side = cell - 2.0 * inset;
+        let mut soup = Vec::new();
+        for i in 0..4 {
+            for j in 0..4 {
+                let (x, y) = (i as f32 * cell + inset, j as f32 * cell + inset);
+                soup.extend(floor(x, y, x + side, y + side, 0.0));
+            }
+        }
+        let path = [Vector3::new(3.2, 3.2, 1.7)];
+        let g = Grid::build(&mut Soup(soup), Robot::WHEELED, 0.1, Vector3::z(), &path).unwrap();
+        let at = |x: f64, y: f64| occupancy_at(&g, x, y);
+        assert_eq!(at(2.4, 2.4), Occupancy::Free, "a cell's own floor");
+        assert_eq!(at(3.2, 2.4), Occupancy::Free, "the seam between two cells");
+        assert_eq!(at(2.4, 3.2), Occupancy::Free, "the seam between two cells");
+        // Every cell where the seams cross, at the corners inside the street.
+        for corner in [(1.6, 1.6), (3.2, 3.2), (4.8, 1.6), (1.6, 4.8)] {
+            for (dx, dy) in [(-0.1, -0.1), (-0.1, 0.0), (0.0, -0.1), (0.0, 0.0)] {
+                let (x, y) = (corner.0 + dx + 0.05, corner.1 + dy + 0.05);
+                assert_eq!(
+                    at(x, y),
+                    Occupancy::Free,
+                    "the seams' crossing at ({x}, {y})"
+                );
+            }
+        }
+        assert_eq!(at(7.0, 7.0), Occupancy::Unknown, "beyond the street");
     }
 
     #[test]
