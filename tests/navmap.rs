@@ -477,7 +477,7 @@ fn the_town_s_navigation_map_against_the_truth() {
     println!("town, {frames} frames: {s:?}");
     assert!(s.free > 40_000 && s.occupied > 2_000, "{s:?}");
     // Issue 56's targets: at most 0.5 % (met: no free cell holds one) and an IoU of 0.9
-    // (not met: 0.86, 0.95 within a cell; docs/benchmarks.md, "Unsure level surfaces").
+    // (not met: 0.87, 0.95 within a cell; docs/benchmarks.md, "Where voxel cells' seams cross").
     s.assert_within(0.85, 0.93);
 }
 

@@ -362,10 +362,12 @@ impl Grid {
     /// two free ones (a seam of the mesh between its voxel cells, one or two cells wide, on a
     /// car's roof or on a street, or where such seams cross), is occupied, or free.
     pub fn occupancy(&self, ix: i64, iy: i64) -> Occupancy {
-        match self.own(ix, iy) {
+        let at = self.cell(ix, iy);
+        match self.own_of(at) {
             Occupancy::Free if self.touches_obstacle(ix, iy) => Occupancy::Unknown,
-            Occupancy::Unknown if self.in_seam(ix, iy, Occupancy::Occupied) => Occupancy::Occupied,
-            Occupancy::Unknown if self.in_seam(ix, iy, Occupancy::Free) => Occupancy::Free,
+            Occupancy::Unknown if nothing_seen(at) => {
+                self.seam(ix, iy).unwrap_or(Occupancy::Unknown)
+            }
             own => own,
         }
     }
@@ -376,7 +378,12 @@ impl Grid {
     /// robot passes under what it saw the ground beneath (or saw from below, a ceiling),
     /// nothing else.
     fn own(&self, ix: i64, iy: i64) -> Occupancy {
-        match self.cell(ix, iy) {
+        self.own_of(self.cell(ix, iy))
+    }
+
+    /// [`own`](Self::own) of a cell looked up (`None`: never touched).
+    fn own_of(&self, cell: Option<&Cell>) -> Occupancy {
+        match cell {
             Some(c) if c.obstacle => Occupancy::Occupied,
             Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => {
                 if c.doubtful {
@@ -401,28 +408,41 @@ impl Grid {
         })
     }
 
-    /// Whether nothing was seen in the cell and it lies between two cells that are `what`
-    /// of their own (free ones not at an obstacle's edge), in a row, a column or a diagonal,
-    /// at most two cells apart: a seam of the mesh between its voxel cells, on a street or on
-    /// a car's roof. The diagonals take the cells where four voxel cells' seams cross, whose
-    /// rows and columns run along the seams.
-    fn in_seam(&self, ix: i64, iy: i64, what: Occupancy) -> bool {
-        let empty = |x, y| {
-            self.cell(x, y)
-                .is_none_or(|c| !c.floor.is_finite() && c.heights == 0)
-        };
-        let is = |x, y| {
-            self.own(x, y) == what && (what != Occupancy::Free || !self.touches_obstacle(x, y))
-        };
-        empty(ix, iy)
-            && [(1, 0), (0, 1), (1, 1), (1, -1)].iter().any(|&(dx, dy)| {
-                (is(ix - dx, iy - dy) && is(ix + dx, iy + dy))
-                    || (is(ix - dx, iy - dy)
-                        && empty(ix + dx, iy + dy)
-                        && is(ix + 2 * dx, iy + 2 * dy))
-                    || (is(ix + dx, iy + dy)
-                        && empty(ix - dx, iy - dy)
-                        && is(ix - 2 * dx, iy - 2 * dy))
+    /// What a cell where nothing was seen is for lying between two cells that are one thing of
+    /// their own (free ones not at an obstacle's edge), in a row, a column or a diagonal, at
+    /// most two cells apart: a seam of the mesh between its voxel cells, on a street or on a
+    /// car's roof, occupied between occupied cells, else free between free ones. The diagonals
+    /// take the cells where four voxel cells' seams cross, whose rows and columns run along
+    /// the seams. `None` when it lies in no seam. Each neighbour is looked up once (most cells
+    /// of a map's grid have nothing around them).
+    fn seam(&self, ix: i64, iy: i64) -> Option<Occupancy> {
+        const DIRECTIONS: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (1, -1)];
+        // Each direction's two neighbours, behind and ahead: what they are of their own, and
+        // whether nothing was seen in them.
+        let near = DIRECTIONS.map(|(dx, dy)| {
+            [-1, 1].map(|s| {
+                let c = self.cell(ix + s * dx, iy + s * dy);
+                (self.own_of(c), nothing_seen(c))
+            })
+        });
+        [Occupancy::Occupied, Occupancy::Free]
+            .into_iter()
+            .find(|&what| {
+                // Whether the cell `s` steps along direction `d`, `own` of its own, counts.
+                let is = |own: Occupancy, d: (i64, i64), s: i64| {
+                    own == what
+                        && (what != Occupancy::Free
+                            || !self.touches_obstacle(ix + s * d.0, iy + s * d.1))
+                };
+                let far = |d: (i64, i64), s: i64| is(self.own(ix + s * d.0, iy + s * d.1), d, s);
+                DIRECTIONS.iter().zip(&near).any(
+                    |(&d, &[(behind, behind_empty), (ahead, ahead_empty)])| {
+                        let (b, a) = (is(behind, d, -1), is(ahead, d, 1));
+                        (b && a)
+                            || (b && ahead_empty && far(d, 2))
+                            || (a && behind_empty && far(d, -2))
+                    },
+                )
             })
     }
 
@@ -561,6 +581,12 @@ pub(super) fn disc(r: i64) -> Vec<(i64, i64)> {
 /// The cell at place `k` of tile `(tx, ty)`: [`tile_of`] turned back.
 pub(super) fn cell_at(tile: (i64, i64), k: usize) -> CellIndex {
     cell_in_tiles_of(TILE, tile, k)
+}
+
+/// Whether nothing was seen in a cell looked up (`None`: never touched): no floor and no
+/// heights.
+fn nothing_seen(cell: Option<&Cell>) -> bool {
+    cell.is_none_or(|c| !c.floor.is_finite() && c.heights == 0)
 }
 
 /// The tile holding cell `(ix, iy)` and the cell's place in it.
