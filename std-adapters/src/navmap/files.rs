@@ -95,7 +95,9 @@ pub fn write(
         ));
     }
     let res = grid.resolution();
-    let origin = [lo.0 as f64 * res, lo.1 as f64 * res];
+    // To the micrometre: a whole number of cells, which `-287 x 0.1` would write as
+    // -28.700000000000003 in the YAML, the ASCII grids and `navmap.json`.
+    let origin = [lo.0, lo.1].map(|i| (i as f64 * res * 1e6).round() / 1e6);
     let mut counts = [0usize; 3];
     write_atomic(&dir.join("map.pgm"), |w| {
         write!(
@@ -252,5 +254,30 @@ mod tests {
         let e = write(&dir, &grid, &opts).unwrap_err().to_string();
         assert!(e.contains("map.pgm") && e.contains("coarser"), "{e}");
         assert!(!dir.join("map.pgm").exists());
+    }
+
+    #[test]
+    fn the_origin_is_written_as_the_whole_cells_it_is() {
+        use crate::navmap::grid::tests::{floor, Soup};
+        // A floor whose lower-left cell is (-287, -165): -287 x 0.1 is -28.700000000000003.
+        let mut soup = Soup(floor(-28.65, -16.45, -25.0, -13.0, 0.0));
+        let path = [Vector3::new(-27.0, -15.0, 1.7)];
+        let opts = NavMapOptions::default();
+        let grid = Grid::build(&mut soup, opts.robot, 0.1, Vector3::z(), &path).unwrap();
+        let dir = crate::test_support::scratch_dir("navmap-origin");
+        let summary = write(&dir, &grid, &opts).unwrap().unwrap();
+        let yaml = std::fs::read_to_string(dir.join("map.yaml")).unwrap();
+        let [x, y] = summary.origin;
+        assert!(yaml.contains(&format!("origin: [{x}, {y}, 0]")), "{yaml}");
+        for (v, text) in [(x, x.to_string()), (y, y.to_string())] {
+            let decimals = text.split('.').nth(1).map_or(0, str::len);
+            assert!(decimals <= 6, "{text}");
+            assert!(((v / 0.1) - (v / 0.1).round()).abs() < 1e-6, "{text}");
+        }
+        let asc = std::fs::read_to_string(dir.join("elevation.asc")).unwrap();
+        assert!(
+            asc.contains(&format!("xllcorner {x}\nyllcorner {y}\n")),
+            "{asc}"
+        );
     }
 }
