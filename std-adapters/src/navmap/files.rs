@@ -17,7 +17,7 @@
 use crate::formats::ply::write_mesh_with_properties;
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
-use crate::navmap::grid::{CellIndex, Grid, Occupancy};
+use crate::navmap::grid::{corner_in, CellIndex, Grid, Occupancy};
 use crate::navmap::layers::NavMesh;
 use crate::navmap::NavMapOptions;
 use serde::Serialize;
@@ -95,9 +95,7 @@ pub fn write(
         ));
     }
     let res = grid.resolution();
-    // To the micrometre: a whole number of cells, which `-287 x 0.1` would write as
-    // -28.700000000000003 in the YAML, the ASCII grids and `navmap.json`.
-    let origin = [lo.0, lo.1].map(|i| (i as f64 * res * 1e6).round() / 1e6);
+    let origin = corner_in(res, lo);
     let mut counts = [0usize; 3];
     write_atomic(&dir.join("map.pgm"), |w| {
         write!(

@@ -478,6 +478,13 @@ pub(crate) fn index_in(resolution: f64, x: f64, y: f64) -> CellIndex {
     )
 }
 
+/// The level-frame x and y of the lower-left corner of cell `(ix, iy)` of `resolution`
+/// metres, to the micrometre: a whole number of cells, which `-287 x 0.1` would give as
+/// -28.700000000000003 (for the files and messages that place a grid).
+pub(crate) fn corner_in(resolution: f64, (ix, iy): CellIndex) -> [f64; 2] {
+    [ix, iy].map(|i| (i as f64 * resolution * 1e6).round() / 1e6)
+}
+
 /// The offsets of the cells within `r` cells of a cell (a disc), nearest rows first.
 pub(super) fn disc(r: i64) -> Vec<(i64, i64)> {
     (-r..=r)

@@ -12,7 +12,7 @@
 //! left, as `nav_msgs/OccupancyGrid` holds them.
 
 use crate::io::error::FileError;
-use crate::navmap::grid::{index_in, level_of, CellIndex, Grid, Occupancy, Triangles};
+use crate::navmap::grid::{corner_in, index_in, level_of, CellIndex, Grid, Occupancy, Triangles};
 use crate::navmap::hits::Floors;
 use crate::navmap::NavMapOptions;
 use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
@@ -177,12 +177,8 @@ impl LiveGrid {
     /// Where `cells` lie in the map frame: the pose of their lower-left cell's lower-left
     /// corner, its x and y along the grid's rows and columns (the level frame turned back).
     pub fn corner_pose(&self, cells: &Cells) -> Pose {
-        let res = self.resolution();
-        let corner = Vector3::new(
-            cells.origin.0 as f64 * res,
-            cells.origin.1 as f64 * res,
-            0.0,
-        );
+        let [x, y] = corner_in(self.resolution(), cells.origin);
+        let corner = Vector3::new(x, y, 0.0);
         let level_inv = self.level.inverse();
         Pose::from_parts(
             Translation3::from(level_inv * corner),

@@ -17,7 +17,7 @@ impl Grid {
     /// car's roof or on a street, or where such seams cross), is occupied, or free.
     pub fn occupancy(&self, ix: i64, iy: i64) -> Occupancy {
         let at = self.cell(ix, iy);
-        match self.own_of(at) {
+        match self.own(at) {
             Occupancy::Free if self.touches_obstacle(ix, iy) => Occupancy::Unknown,
             Occupancy::Unknown if nothing_seen(at) => {
                 self.seam(ix, iy).unwrap_or(Occupancy::Unknown)
@@ -26,17 +26,12 @@ impl Grid {
         }
     }
 
-    /// What the cell's own samples say. A surface higher than the robot but lower than the
-    /// sensor, over a cell whose ground was never seen, was seen from above: the top or the
-    /// upper face of something standing there (a car's roof, a wall above a plinth). The
-    /// robot passes under what it saw the ground beneath (or saw from below, a ceiling),
-    /// nothing else.
-    fn own(&self, ix: i64, iy: i64) -> Occupancy {
-        self.own_of(self.cell(ix, iy))
-    }
-
-    /// [`own`](Self::own) of a cell looked up (`None`: never touched).
-    fn own_of(&self, cell: Option<&Cell>) -> Occupancy {
+    /// What a cell's own samples say (`None`: a cell never touched). A surface higher than
+    /// the robot but lower than the sensor, over a cell whose ground was never seen, was seen
+    /// from above: the top or the upper face of something standing there (a car's roof, a
+    /// wall above a plinth). The robot passes under what it saw the ground beneath (or saw
+    /// from below, a ceiling), nothing else.
+    fn own(&self, cell: Option<&Cell>) -> Occupancy {
         match cell {
             Some(c) if c.obstacle => Occupancy::Occupied,
             Some(c) if c.ground && c.n > 0 && (c.visible || !self.carved) => {
@@ -76,7 +71,7 @@ impl Grid {
         let near = DIRECTIONS.map(|(dx, dy)| {
             [-1, 1].map(|s| {
                 let c = self.cell(ix + s * dx, iy + s * dy);
-                (self.own_of(c), nothing_seen(c))
+                (self.own(c), nothing_seen(c))
             })
         });
         [Occupancy::Occupied, Occupancy::Free]
@@ -88,7 +83,9 @@ impl Grid {
                         && (what != Occupancy::Free
                             || !self.touches_obstacle(ix + s * d.0, iy + s * d.1))
                 };
-                let far = |d: (i64, i64), s: i64| is(self.own(ix + s * d.0, iy + s * d.1), d, s);
+                let far = |d: (i64, i64), s: i64| {
+                    is(self.own(self.cell(ix + s * d.0, iy + s * d.1)), d, s)
+                };
                 DIRECTIONS.iter().zip(&near).any(
                     |(&d, &[(behind, behind_empty), (ahead, ahead_empty)])| {
                         let (b, a) = (is(behind, d, -1), is(ahead, d, 1));
