@@ -4,7 +4,9 @@
 #   slamesh-NAME (or slamesh-NAME.gz): each build, stripped (`strip -o DIR/slamesh-A
 #     target/release/slamesh`), gzipped to travel light if need be;
 #   write_drive (or .gz): `cargo build --release --example write_drive`, stripped;
-#   kitti00/: a copy of kitti-mini's sequence 00.
+#   kitti00/: a copy of kitti-mini's sequence 00;
+#   pool_wake (or .gz), optional: `cargo build --release --example pool_wake`, stripped: how
+#     late the pool's idle threads join a loop, at 2 to 16 threads, sleeping and hovering.
 # It writes the 400-frame 64-beam town (`write_drive --azimuth-steps 2000`), runs `bench
 # --scaling` on kitti00 with each build, then `slamesh run` on the town at 1, 2, 4, 8 and 16
 # threads, two rounds alternating the builds, checks that every thread count wrote the poses
@@ -16,9 +18,15 @@ set -u
 cd "$(dirname "$0")"
 for z in *.gz; do [ -e "$z" ] && gunzip -kf "$z"; done
 chmod +x slamesh-* write_drive
+[ -e pool_wake ] && chmod +x pool_wake
 bins=${BINS:-"A B"}
 echo "cores: $(nproc)"; lscpu | grep -E "Model name|L3|Socket|Thread" || true
 t0=$SECONDS
+if [ -x pool_wake ]; then
+  for t in 2 4 8 16; do ./pool_wake --threads "$t"; ./pool_wake --threads "$t" --hover; done \
+    > "$OUT/wake.txt" 2>&1
+  cat "$OUT/wake.txt"
+fi
 ./write_drive --out /tmp/town --frames "${FRAMES:-400}" --azimuth-steps 2000 >/dev/null
 echo "town written in $((SECONDS - t0)) s"
 for b in $bins; do
