@@ -13,7 +13,9 @@
 //! closure. `--path campus` (about 2 400 frames, several loops through the town's inner
 //! streets) or `--path block` (one block round and on past the start, about 450 frames)
 //! drive another path; `--path hand-held` and `--path drone` carry a rig through the town at
-//! 2 Hz with fast turns, as the example `hard_motion` does (`times.txt` then 2 Hz). `--azimuth-steps N`: firings per turn of each of the 64 beams (1 000 by
+//! 2 Hz with fast turns, as the example `hard_motion` does (`times.txt` then 2 Hz); `--path
+//! office` walks a 16-beam sensor through the office of the navigation map's tests (about 900
+//! frames). `--azimuth-steps N`: firings per turn of each of the 64 beams (1 000 by
 //! default, about 55 000 points in range; 2 000 gives a KITTI-sized scan of about 110 000).
 
 #[path = "common/flags.rs"]
@@ -45,8 +47,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Drive::carried(start + frames, slamesh_sim::town::Carried::HANDHELD, seed)
         }
         Some("drone") => Drive::carried(start + frames, slamesh_sim::town::Carried::DRONE, seed),
+        Some("office") => Drive::office(start + frames, seed),
         Some(other) => {
-            return Err(format!("--path {other}: campus, block, hand-held or drone").into())
+            return Err(format!("--path {other}: campus, block, hand-held, drone or office").into())
         }
         None if flags.has("--round") => Drive::town_round(start + frames, seed),
         None => Drive::town(start + frames, seed),
@@ -76,8 +79,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     poses.flush()?;
     times.flush()?;
     fs::write(out.join("calib.txt"), "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n")?;
+    let scene = match flags.value("--path") {
+        Some("office") => "office",
+        _ => "town",
+    };
     println!(
-        "{} frames of the town (seed {seed}) in {}",
+        "{} frames of the {scene} (seed {seed}) in {}",
         drive.poses.len(),
         out.display()
     );
