@@ -19,6 +19,7 @@ use crate::navmap::live::LiveGrid;
 use crate::navmap::tiled_mesh::TiledMesh;
 use crate::navmap::NavMapOptions;
 use nalgebra::Vector3;
+use slamesh_core::executor::Serial;
 use slamesh_core::{Point, Pose};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -178,7 +179,7 @@ impl<T: Send + 'static> Background<T> {
     /// the scans' floor near it (an update still being made skips this one, counted).
     pub fn scan(&mut self, mesh: &TiledMesh, seen: Option<Seen>, tag: T) {
         if let Some(s) = seen {
-            (self.floors).add(self.path.len(), s.kept, s.pose, s.points);
+            (self.floors).add(self.path.len(), s.kept, s.pose, s.points, &Serial);
             self.floors.keep_last(FLOOR_CHUNKS);
             self.path.push(s.kept.translation.vector);
         }

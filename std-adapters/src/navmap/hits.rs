@@ -17,13 +17,21 @@
 //! the path, a chunk is moved as its first frame moved, so the hits follow the corrected map
 //! as the rebuilt mesh does.
 //!
-//! Owns: the columns and chunks. Guarantees: memory grows with the area seen within
-//! [`RANGE_M`] of the path (8 bytes a cell, in tiles of 16 x 16, per chunk), never with the
-//! points; the same points in the same order give the same hits.
+//! A scan is counted in two steps: where each point falls (its cell and bin: the most of the
+//! work, 120 000 points a 64-beam scan) point by point through the run's
+//! [`Executor`], so on its pool, then the columns counted in the points' order, which
+//! [`Column::add`] depends on.
+//!
+//! Owns: the columns and chunks, and the room for one scan's binned points. Guarantees:
+//! memory grows with the area seen within [`RANGE_M`] of the path (8 bytes a cell, in tiles
+//! of 16 x 16, per chunk) and with the largest scan counted (24 bytes a point); the same
+//! points in the same order give the same hits, on any executor.
 
 use crate::navmap::grid::{cell_in_tiles_of, level_of, tile_in_tiles_of};
 use nalgebra::{Point3, Rotation3, Vector3};
+use slamesh_core::bounded::BoundedVec;
 use slamesh_core::cell::BuildCellHasher;
+use slamesh_core::executor::Executor;
 use slamesh_core::{Point, Pose};
 use std::collections::HashMap;
 
@@ -119,6 +127,26 @@ fn cell_at(tile: (i64, i64), k: usize) -> (i64, i64) {
     cell_in_tiles_of(TILE, tile, k)
 }
 
+/// Where one point falls: its tile, its place in the tile and its bin.
+#[derive(Debug, Clone, Copy, Default)]
+struct Binned {
+    tile: (i64, i64),
+    k: u16,
+    bin: i16,
+}
+
+/// `v` rounded down, when it lies within `limit` (at most 2^53) of zero; a NaN does not.
+/// Truncation, one less below zero: what `f64::floor` gives, without a call to the C
+/// library's `floor` on CPUs without SSE4.1 (x86-64's baseline), which took most of a
+/// scan's counting.
+#[inline]
+fn floor_within(v: f64, limit: f64) -> Option<i64> {
+    (v.abs() < limit).then(|| {
+        let t = v as i64;
+        t - i64::from((t as f64) > v)
+    })
+}
+
 /// The hits of one stretch of the path.
 struct Chunk {
     /// The frame it began at, and that frame's pose as the run kept it then.
@@ -133,6 +161,8 @@ pub struct Hits {
     /// Map frame to the level frame the columns are in.
     level: Rotation3<f64>,
     chunks: Vec<Chunk>,
+    /// Room for one scan's binned points, kept for the next scan.
+    binned: BoundedVec<Binned>,
 }
 
 impl Hits {
@@ -142,13 +172,22 @@ impl Hits {
             resolution,
             level: level_of(up),
             chunks: Vec::new(),
+            binned: BoundedVec::with_capacity(0),
         }
     }
 
     /// Counts frame `frame`'s `points` (sensor frame) at `pose` (sensor to map): those within
     /// [`RANGE_M`]; a point that is not finite is passed over. `kept` is the frame's pose as
     /// the run keeps it (what [`each_floor`](Self::each_floor)'s path is compared with).
-    pub fn add(&mut self, frame: usize, kept: &Pose, pose: &Pose, points: &[Point]) {
+    /// Where each point falls is worked out through `exec`.
+    pub fn add(
+        &mut self,
+        frame: usize,
+        kept: &Pose,
+        pose: &Pose,
+        points: &[Point],
+        exec: &impl Executor,
+    ) {
         let moved = |c: &Chunk| (kept.translation.vector - c.pose.translation.vector).norm();
         if self.chunks.last().is_none_or(|c| moved(c) >= CHUNK_M) {
             self.chunks.push(Chunk {
@@ -160,37 +199,45 @@ impl Hits {
         let to_level = self.level * pose.rotation.to_rotation_matrix();
         let origin = self.level * pose.translation.vector;
         let (per_cell, per_bin) = (1.0 / self.resolution, 1.0 / BIN_M);
-        let Some(chunk) = self.chunks.last_mut() else {
-            return;
-        };
-        let mut current: Option<((i64, i64), &mut Tile)> = None;
-        for p in points {
+        let bin = |p: &Point, _: &mut ()| {
             let q = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
             let w = to_level * q;
             // A floor lies below the sensor: what the points hit above it is passed over
             // (half a street's points, its walls), as is a point that is not finite or lies
             // beyond the range.
             if !(w.z < 0.0 && q.norm_squared() < RANGE_M * RANGE_M) {
-                continue;
+                return None;
             }
             let w = w + origin;
-            let (ix, iy, b) = (
-                (w.x * per_cell).floor(),
-                (w.y * per_cell).floor(),
-                (w.z * per_bin).floor(),
-            );
-            let bounded = |v: f64, limit: f64| v.abs() < limit;
-            if !(bounded(ix, 1e15) && bounded(iy, 1e15) && bounded(b, f64::from(i16::MAX))) {
-                continue;
-            }
-            let (key, k) = tile_of(ix as i64, iy as i64);
-            if current.as_ref().map(|c| c.0) != Some(key) {
-                let tile = (chunk.tiles.entry(key))
+            let ix = floor_within(w.x * per_cell, 1e15)?;
+            let iy = floor_within(w.y * per_cell, 1e15)?;
+            let b = floor_within(w.z * per_bin, f64::from(i16::MAX))?;
+            let (tile, k) = tile_of(ix, iy);
+            Some(Binned {
+                tile,
+                // Within a tile of 256 cells and within i16: the bounds above.
+                k: k as u16,
+                bin: b as i16,
+            })
+        };
+        if self.binned.capacity() < points.len() {
+            self.binned = BoundedVec::with_capacity(points.len());
+        }
+        self.binned.clear();
+        // Room for every point: the executor cannot refuse.
+        exec.filter_map_into(points, &mut self.binned, bin, |()| {});
+        let Some(chunk) = self.chunks.last_mut() else {
+            return;
+        };
+        let mut current: Option<((i64, i64), &mut Tile)> = None;
+        for h in self.binned.iter() {
+            if current.as_ref().map(|c| c.0) != Some(h.tile) {
+                let tile = (chunk.tiles.entry(h.tile))
                     .or_insert_with(|| Box::new([Column::default(); TILE_CELLS]));
-                current = Some((key, tile));
+                current = Some((h.tile, tile));
             }
             if let Some((_, tile)) = current.as_mut() {
-                tile[k].add(b as i16);
+                tile[usize::from(h.k)].add(h.bin);
             }
         }
     }
@@ -249,6 +296,62 @@ impl Hits {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use slamesh_core::executor::Serial;
+
+    #[test]
+    fn rounding_down_is_floor_within_its_bounds() {
+        for v in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.999,
+            -2.999,
+            1e14 + 0.5,
+            -1e14 - 0.5,
+        ] {
+            assert_eq!(floor_within(v, 1e15), Some(v.floor() as i64), "{v}");
+        }
+        for v in [1e15, -1e15, f64::INFINITY, f64::NAN] {
+            assert_eq!(floor_within(v, 1e15), None, "{v}");
+        }
+    }
+
+    /// Counted on a pool, where each point falls is worked out in parallel: the same floors,
+    /// in the same order, as counted serially (a column depends on its points' order).
+    #[test]
+    fn a_pool_counts_the_floor_the_serial_loop_counts() {
+        let mut rng = slamesh_core::random::SplitMix64(5);
+        let mut r = |a: f64, b: f64| (a + (b - a) * rng.next_f64()) as f32;
+        // Points over a 30 m square, most below the sensor, some not finite.
+        let points: Vec<Point> = (0..50_000)
+            .map(|i| match i % 997 {
+                0 => [f32::NAN, 0.0, -1.0],
+                _ => [r(-15.0, 15.0), r(-15.0, 15.0), r(-2.0, 0.3)],
+            })
+            .collect();
+        let pose = Pose::from_parts(
+            nalgebra::Translation3::new(3.2, -1.7, 0.4),
+            nalgebra::UnitQuaternion::from_euler_angles(0.03, -0.02, 0.7),
+        );
+        let floors = |hits: &Hits| {
+            let mut all = Vec::new();
+            hits.each_floor(&|_| None, &mut |f| all.push((f.at, f.twice)));
+            all
+        };
+        let mut serial = Hits::new(0.1, &Vector3::z());
+        serial.add(0, &pose, &pose, &points, &Serial);
+        let want = floors(&serial);
+        assert!(want.len() > 10_000, "{}", want.len());
+        for threads in [2, 3, 16] {
+            let pool = crate::parallel::Rayon::new(threads).unwrap();
+            let mut spread = Hits::new(0.1, &Vector3::z());
+            spread.add(0, &pose, &pose, &points, &pool);
+            assert_eq!(floors(&spread), want, "{threads} threads");
+        }
+    }
 
     #[test]
     fn a_column_keeps_its_bins_when_a_lower_point_comes() {
@@ -285,7 +388,7 @@ mod tests {
             [3.0, 3.0, 0.5],
             [3.0, 3.0, 0.5],
         ];
-        hits.add(0, &pose, &pose, &points);
+        hits.add(0, &pose, &pose, &points, &Serial);
         let mut got = Vec::new();
         let mut alone = Vec::new();
         hits.each_floor(&|_| None, &mut |f| {
@@ -319,7 +422,7 @@ mod tests {
         );
         // Points beyond the range or not finite count for nothing.
         let far = [[40.0, 0.0, -1.0], [40.0, 0.0, -1.0], [f32::NAN, 0.0, -1.0]];
-        hits.add(1, &pose, &pose, &far);
+        hits.add(1, &pose, &pose, &far, &Serial);
         let mut n = 0;
         hits.each_floor(&|_| None, &mut |f| n += usize::from(f.twice));
         assert_eq!(n, 1);
@@ -328,7 +431,7 @@ mod tests {
             nalgebra::Translation3::new(CHUNK_M, 0.0, 0.0),
             nalgebra::UnitQuaternion::identity(),
         );
-        hits.add(2, &on, &on, &points);
+        hits.add(2, &on, &on, &points, &Serial);
         let count = |hits: &Hits| {
             let mut n = 0;
             hits.each_floor(&|_| None, &mut |f| n += usize::from(f.twice));

@@ -416,7 +416,13 @@ impl<C: Capacity> Run<'_, C> {
         };
         self.progress.poses.push((i, at_stamp));
         if let Some(h) = &mut self.hits {
-            h.add(i, &at_stamp, &o.t_world_sensor, &frame.points);
+            h.add(
+                i,
+                &at_stamp,
+                &o.t_world_sensor,
+                &frame.points,
+                &self.workers,
+            );
         }
         (self.inertial).used(frame.reference, o.status, history, frame.imu.prior);
         if self.inertial.active() {
