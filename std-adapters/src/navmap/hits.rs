@@ -20,7 +20,7 @@
 //! A scan is counted in two steps: where each point falls (its cell and bin: the most of the
 //! work, 120 000 points a 64-beam scan) point by point through the run's
 //! [`Executor`], so on its pool, then the columns counted in the points' order, which
-//! [`Column::add`] depends on.
+//! a column's bins depend on.
 //!
 //! Owns: the columns and chunks, and the room for one scan's binned points. Guarantees:
 //! memory grows with the area seen within [`RANGE_M`] of the path (8 bytes a cell, in tiles
