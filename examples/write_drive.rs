@@ -40,19 +40,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some("hand-held" | "drone") => 0.5,
         _ => 0.1,
     };
-    let mut drive = match flags.value("--path") {
-        Some("campus") => Drive::town_along(slamesh_sim::town::campus_path(), start + frames, seed),
-        Some("block") => Drive::town_along(slamesh_sim::town::block_path(), start + frames, seed),
-        Some("hand-held") => {
-            Drive::carried(start + frames, slamesh_sim::town::Carried::HANDHELD, seed)
-        }
-        Some("drone") => Drive::carried(start + frames, slamesh_sim::town::Carried::DRONE, seed),
-        Some("office") => Drive::office(start + frames, seed),
+    let town = |drive| (drive, "town");
+    let (mut drive, scene) = match flags.value("--path") {
+        Some("campus") => town(Drive::town_along(
+            slamesh_sim::town::campus_path(),
+            start + frames,
+            seed,
+        )),
+        Some("block") => town(Drive::town_along(
+            slamesh_sim::town::block_path(),
+            start + frames,
+            seed,
+        )),
+        Some("hand-held") => town(Drive::carried(
+            start + frames,
+            slamesh_sim::town::Carried::HANDHELD,
+            seed,
+        )),
+        Some("drone") => town(Drive::carried(
+            start + frames,
+            slamesh_sim::town::Carried::DRONE,
+            seed,
+        )),
+        Some("office") => (Drive::office(start + frames, seed), "office"),
         Some(other) => {
             return Err(format!("--path {other}: campus, block, hand-held, drone or office").into())
         }
-        None if flags.has("--round") => Drive::town_round(start + frames, seed),
-        None => Drive::town(start + frames, seed),
+        None if flags.has("--round") => town(Drive::town_round(start + frames, seed)),
+        None => town(Drive::town(start + frames, seed)),
     };
     drive.lidar.azimuth_steps = flags.parse_or("--azimuth-steps", drive.lidar.azimuth_steps)?;
     let first = drive.poses[0].inverse();
@@ -79,10 +94,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     poses.flush()?;
     times.flush()?;
     fs::write(out.join("calib.txt"), "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n")?;
-    let scene = match flags.value("--path") {
-        Some("office") => "office",
-        _ => "town",
-    };
     println!(
         "{} frames of the {scene} (seed {seed}) in {}",
         drive.poses.len(),

@@ -27,7 +27,7 @@
 //! of 16 x 16, per chunk) and with the largest scan counted (24 bytes a point); the same
 //! points in the same order give the same hits, on any executor.
 
-use crate::navmap::grid::{cell_in_tiles_of, level_of, tile_in_tiles_of};
+use crate::navmap::grid::{cell_in_tiles_of, floor_index, level_of, tile_in_tiles_of};
 use nalgebra::{Point3, Rotation3, Vector3};
 use slamesh_core::bounded::BoundedVec;
 use slamesh_core::cell::BuildCellHasher;
@@ -135,16 +135,10 @@ struct Binned {
     bin: i16,
 }
 
-/// `v` rounded down, when it lies within `limit` (at most 2^53) of zero; a NaN does not.
-/// Truncation, one less below zero: what `f64::floor` gives, without a call to the C
-/// library's `floor` on CPUs without SSE4.1 (x86-64's baseline), which took most of a
-/// scan's counting.
+/// `v` rounded down ([`floor_index`]), when it lies within `limit` of zero; a NaN does not.
 #[inline]
 fn floor_within(v: f64, limit: f64) -> Option<i64> {
-    (v.abs() < limit).then(|| {
-        let t = v as i64;
-        t - i64::from((t as f64) > v)
-    })
+    (v.abs() < limit).then(|| floor_index(v))
 }
 
 /// The hits of one stretch of the path.
