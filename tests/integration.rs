@@ -17,6 +17,7 @@ mod degenerate;
 mod demo;
 mod deskew;
 mod docs_examples;
+mod first_scan;
 mod hard_motion;
 mod health;
 mod imu;

@@ -31,7 +31,14 @@ pub const MAX_POINTS: usize = 16384;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AzimuthProfile {
     log_range: [f32; BINS],
+    /// The points it read (finite, off the vertical axis).
+    read: u32,
 }
+
+/// Two profiles are compared only when neither read more than this many times the other's
+/// points: a scan far smaller than its neighbours (a partial sweep, a few stray returns)
+/// fills some sectors by chance, and the turn that lays them over a full scan's is a guess.
+pub const MAX_READ_RATIO: u32 = 4;
 
 /// The turn that best lays a scan's profile over an earlier one's ([`AzimuthProfile::turn_from`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -68,19 +75,26 @@ impl AzimuthProfile {
                 *l = 0.5 * libm::logf(s / n as f32);
             }
         }
-        Self { log_range }
+        let read = count.iter().sum();
+        Self { log_range, read }
     }
 
     /// The profile of no points: compares with nothing.
     pub const fn empty() -> Self {
         Self {
             log_range: [f32::NAN; BINS],
+            read: 0,
         }
     }
 
     /// The mean absolute log-range difference when this profile is the earlier one turned by
-    /// `shift` sectors; `None` when fewer than a quarter of the sectors are seen in both.
+    /// `shift` sectors; `None` when fewer than a quarter of the sectors are seen in both, or
+    /// when one profile read over [`MAX_READ_RATIO`] times the other's points.
     fn mismatch_at(&self, earlier: &Self, shift: usize) -> Option<f32> {
+        let (few, many) = (self.read.min(earlier.read), self.read.max(earlier.read));
+        if few.saturating_mul(MAX_READ_RATIO) < many {
+            return None;
+        }
         let mut sum = 0.0f32;
         let mut shared = 0usize;
         for (b, now) in self.log_range.iter().enumerate() {
@@ -98,7 +112,7 @@ impl AzimuthProfile {
     /// The turn of at most `max_turn` radians either way from `earlier`'s scan to this one
     /// that best lays the profiles over each other, refined between sectors by a V through the
     /// best shift and its neighbours; `None` when the two share too few sectors at every
-    /// shift.
+    /// shift, or when one read over [`MAX_READ_RATIO`] times the other's points.
     pub fn turn_from(&self, earlier: &Self, max_turn: f64) -> Option<Turn> {
         let reach = libm::round(max_turn.clamp(0.0, core::f64::consts::PI) / SECTOR_RAD) as usize;
         let mut costs = [f32::INFINITY; BINS];
@@ -273,6 +287,26 @@ mod tests {
         let earlier = AzimuthProfile::of(&room(0.0, 0.0, 0.0));
         let t = AzimuthProfile::of(&big).turn_from(&earlier, PI).unwrap();
         assert!((t.yaw - 0.4).abs() < 1f64.to_radians());
+    }
+
+    #[test]
+    fn a_scan_far_smaller_than_the_other_gives_no_turn() {
+        let full = room(0.0, 0.0, 0.0);
+        let earlier = AzimuthProfile::of(&full);
+        let turned = room(0.5, 0.0, 0.0);
+        // 64 points of the turned room (every 125th): enough sectors seen, far too few points.
+        let few: Vec<Point> = turned.iter().step_by(turned.len() / 64).copied().collect();
+        assert!(AzimuthProfile::of(&few).read <= 64);
+        assert_eq!(AzimuthProfile::of(&few).turn_from(&earlier, PI), None);
+        assert_eq!(earlier.turn_from(&AzimuthProfile::of(&few), PI), None);
+        assert_eq!(
+            AzimuthProfile::of(&few).mismatch_at_turn(&earlier, 0.5),
+            None
+        );
+        // A third of the points (within the ratio) still compares, and finds the turn.
+        let third: Vec<Point> = turned.iter().step_by(3).copied().collect();
+        let t = AzimuthProfile::of(&third).turn_from(&earlier, PI).unwrap();
+        assert!((t.yaw - 0.5).abs() < 1f64.to_radians(), "{}", t.yaw);
     }
 
     #[test]

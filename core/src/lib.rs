@@ -94,6 +94,6 @@ pub use capacity::{
 pub use config::{Config, ConfigError};
 pub use executor::{Executor, Serial};
 pub use math::{Point, Pose};
-pub use pipeline::{Pipeline, RegistrationStatus, ScanError, ScanOutcome, ScanStats};
+pub use pipeline::{MapRestart, Pipeline, RegistrationStatus, ScanError, ScanOutcome, ScanStats};
 pub use real::Real;
 pub use stage::{NoProbe, Probe, Stage};

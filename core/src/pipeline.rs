@@ -35,7 +35,7 @@ mod register;
 mod relocalize;
 mod step;
 
-pub use outcome::{RegistrationStatus, ScanError, ScanOutcome, ScanStats};
+pub use outcome::{MapRestart, RegistrationStatus, ScanError, ScanOutcome, ScanStats};
 pub use relocalize::Relocalized;
 pub use step::{Known, Scan, Stepped};
 
@@ -60,6 +60,9 @@ pub struct Pipeline<C: Capacity = KittiCapacity, R: Real = f64> {
     map_updates: bool,
     /// The last frame's number and its scan's azimuth profile ([`crate::azimuth`]).
     last_profile: Option<(u32, AzimuthProfile)>,
+    /// The scan the map was started from, while no registration against the map has
+    /// converged since ([`MapBase`]).
+    base: Option<MapBase>,
     /// The capacity and the reconstruction's scalar ([`Real`]) are types only: the pipeline
     /// holds none of them (and is `Send` whatever they are).
     _types: PhantomData<fn() -> (C, R)>,
@@ -126,6 +129,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             motion: ConstantVelocity::new(),
             frame: 0,
             last_profile: None,
+            base: None,
             points,
             work,
             sorter,
@@ -187,6 +191,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         self.frame = frames;
         self.motion = motion;
         self.last_profile = None;
+        self.base = None;
     }
 
     /// Whether scans are fused into the map (the default), or only registered against it:
@@ -236,6 +241,35 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             stats.information = best.information;
             (pose, status, for_update) = (best.pose, best.status, best.for_update);
         }
+        if let Some(base) = self.base_to_drop(status, &stats) {
+            // The map rests on a scan too small to register against: it starts again here,
+            // where that scan was (or at the prior), with no motion history.
+            self.map.clear();
+            self.motion = ConstantVelocity::new();
+            pose = prior.unwrap_or(base.pose);
+            (status, for_update) = (RegistrationStatus::FirstScan, None);
+            stats = ScanStats {
+                frame: stats.frame,
+                filter: stats.filter,
+                map_restart: Some(MapRestart {
+                    base_frame: base.frame,
+                    base_points: base.points,
+                }),
+                ..ScanStats::default()
+            };
+        }
+        match status {
+            _ if !self.map_updates => self.base = None,
+            RegistrationStatus::FirstScan => {
+                self.base = Some(MapBase {
+                    frame: stats.frame,
+                    points: stats.filter.kept,
+                    pose,
+                })
+            }
+            RegistrationStatus::Converged | RegistrationStatus::Recovered => self.base = None,
+            _ => {}
+        }
         match for_update {
             _ if !self.map_updates => {
                 stats.scan_layers = self.scan.len();
@@ -245,6 +279,27 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             None => self.finish(pose, exec, probe, &mut stats),
         }
         self.outcome(pose, status, stats)
+    }
+
+    /// The map's base, when a registration that ended with `status` shows that the map must
+    /// start again: it did not converge, no registration has converged since the map was
+    /// started, and the scan the map was started from kept under
+    /// 1 / [`BASE_POINTS_RATIO`] of this scan's points (a scan far smaller than its
+    /// neighbours: a driver's partial first sweep, say). Left as it is, the registration's
+    /// pose would be an unchecked prediction, the map would be made from it, and every later
+    /// scan would follow that map: a whole trajectory turned by a guess.
+    fn base_to_drop(&self, status: RegistrationStatus, stats: &ScanStats) -> Option<MapBase> {
+        let failed = !matches!(
+            status,
+            RegistrationStatus::FirstScan
+                | RegistrationStatus::Converged
+                | RegistrationStatus::Recovered
+        );
+        self.base.filter(|b| {
+            failed
+                && self.map_updates
+                && b.points.saturating_mul(BASE_POINTS_RATIO) < stats.filter.kept
+        })
     }
 
     /// A given pose that is not finite counts the frame and refuses it.
@@ -451,6 +506,18 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
     }
 }
 
+/// A map whose first scan kept fewer than 1 / this of a later scan's points starts again from
+/// that later scan when it cannot register against it ([`Pipeline::base_to_drop`]).
+pub const BASE_POINTS_RATIO: usize = 4;
+
+/// The scan a map was started from: its frame, its points after the filter and its pose.
+#[derive(Debug, Clone, Copy)]
+struct MapBase {
+    frame: u32,
+    points: usize,
+    pose: Pose,
+}
+
 /// True when every number of `pose` is finite.
 fn pose_is_finite(pose: &Pose) -> bool {
     pose.translation
@@ -597,6 +664,8 @@ mod tests {
         p.process_scan(&scan).unwrap();
         let out = p.process_scan(&scan).unwrap();
         assert_eq!(out.status, RegistrationStatus::TooFewResiduals);
+        // A map started by a scan as large as this one stays.
+        assert_eq!(out.stats.map_restart, None);
         assert_eq!(out.t_world_sensor, Pose::identity());
         assert!(out
             .t_world_sensor
@@ -604,6 +673,52 @@ mod tests {
             .vector
             .iter()
             .all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn a_map_started_by_a_scan_far_smaller_than_the_next_starts_again_from_it() {
+        let config = Config::default();
+        let mut p = Pipeline::<Tiny>::new(config).unwrap();
+        // A patch of floor in one cell, then one over four cells around it: too few residuals
+        // against either map.
+        let (small, big) = (patch(3.3, 1.2, -1.0, 0.1), patch(3.3, 3.1, -1.0, 0.2));
+        let first = p.process_scan(&small).unwrap();
+        assert_eq!(first.status, RegistrationStatus::FirstScan);
+        assert!(p.map().layer_count() > 0);
+        let out = p.process_scan(&big).unwrap();
+        assert!(first.stats.filter.kept * BASE_POINTS_RATIO < out.stats.filter.kept);
+        assert_eq!(out.status, RegistrationStatus::FirstScan);
+        let restart = MapRestart {
+            base_frame: 0,
+            base_points: first.stats.filter.kept,
+        };
+        assert_eq!(out.stats.map_restart, Some(restart));
+        assert_eq!(out.t_world_sensor, Pose::identity());
+        // The map is the large scan's alone, as if it had come first.
+        let mut fresh = Pipeline::<Tiny>::new(config).unwrap();
+        let alone = fresh.process_scan(&big).unwrap();
+        assert_eq!(out.stats.fusion, alone.stats.fusion);
+        let layers = |p: &Pipeline<Tiny>| {
+            let mut v: Vec<_> = p
+                .map()
+                .layers()
+                .map(|l| (l.key, l.axis, *l.layer))
+                .collect();
+            v.sort_by_key(|(k, a, _)| (*k, a.index()));
+            v
+        };
+        assert_eq!(layers(&p), layers(&fresh));
+        // Now the map rests on a scan of its size: a failure keeps the prediction.
+        let again = p.process_scan(&big).unwrap();
+        assert_eq!(again.status, RegistrationStatus::TooFewResiduals);
+        assert_eq!(again.stats.map_restart, None);
+        // Off when the map is fixed (localization): nothing is dropped.
+        let mut fixed = Pipeline::<Tiny>::new(config).unwrap();
+        fixed.process_scan(&small).unwrap();
+        fixed.set_map_updates(false);
+        let kept = fixed.process_scan(&big).unwrap();
+        assert_eq!(kept.status, RegistrationStatus::TooFewResiduals);
+        assert!(fixed.map().layer_count() > 0);
     }
 
     #[test]

@@ -18,6 +18,9 @@ Checks, each printed as it passes (the first failure stops it with its reason):
    whole (named, counted) with memory flat, and the node still ends cleanly with its
    outputs.
 4. `initialpose`: a pose 1.1 m off relocalizes the next scan to within 5 cm of `run`'s pose.
+5. `first_bad`: a first cloud whose fields overlap is refused with its reason and decides
+   nothing; the scans after it get `run`'s poses, each Odometry stamped with its scan's stamp
+   to the nanosecond (epoch stamps, which f64 seconds cannot hold).
 """
 
 import argparse
@@ -249,7 +252,7 @@ def check_hostile(args):
     if int(last["messages_refused"]) != len(r["malformed"]):
         fail(f"{len(r['malformed'])} malformed clouds, {last['messages_refused']} refused")
     for reason in ["lies past point_step", "fewer than", "no x, y and z", "empty cloud", "row_step",
-                   "not the scans'"]:
+                   "not the scans'", "overlap: not a point layout"]:
         if reason not in log:
             fail(f"no message in the node's log says {reason!r}")
     ok(f"malformed clouds ({', '.join(r['malformed'])}): each skipped with its reason, counted")
@@ -281,6 +284,28 @@ def check_initialpose(args, reference):
     if len(r["last_path"]) != len(reference) or worst > 0.05:
         fail(f"after initialpose: {len(r['last_path'])} poses, {worst:.3f} m from run's")
     ok(f"initialpose 1.1 m off: relocalized, every pose within {worst * 100:.1f} cm of run's")
+
+
+def check_first_bad(args, reference):
+    node = Node(args, os.path.join(args.work, "first_bad", "out"))
+    r = peer(args, "first_bad", os.path.join(args.work, "first_bad.json"), node=node)
+    log = node.stop()
+    last = r["diagnostics"][-1] if r["diagnostics"] else {}
+    if last.get("messages_refused") != "1" or "overlap: not a point layout" not in log:
+        fail(f"the overlapping first cloud was not refused with its reason: {last}")
+    sent, odom = r["sent_ns"], r["odom"]
+    got = [o["stamp_ns"] for o in odom]
+    if got != sent:
+        off = [g - s for g, s in zip(got, sent)]
+        fail(f"Odometry stamps are not the scans' to the nanosecond: {len(got)} for "
+             f"{len(sent)} scans, off by {off} ns")
+    # The scans' poses are run's, in order (their stamps moved to the epoch).
+    ref = [reference[t] for t in sorted(reference)]
+    worst = max(max(abs(a - b) for a, b in zip(o["pose"], p)) for o, p in zip(odom, ref))
+    if worst > 2e-9:
+        fail(f"after a refused first cloud, the poses differ from run's by {worst}")
+    ok(f"an overlapping first cloud refused with its reason; the {len(odom)} scans after it "
+       "have run's poses, each Odometry stamped with its scan's stamp to the nanosecond")
 
 
 def mesh_bounds(ply):
@@ -329,6 +354,7 @@ def main():
     check_other_publishers(args, reference)
     check_hostile(args)
     check_initialpose(args, reference)
+    check_first_bad(args, reference)
     print("PASS")
 
 

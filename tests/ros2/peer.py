@@ -16,6 +16,9 @@ Scenarios:
   then one good scan; records diagnostics and the Odometry that still come.
 - `initialpose`: three scans, then an `initialpose` at --pose, then the rest; records the
   Odometry and the path.
+- `first_bad`: a cloud whose fields overlap (float64 x, y, z laid over float32 data) first,
+  then the scans at --rate stamped at an epoch time with odd nanoseconds (what f64 seconds
+  cannot hold); records the Odometry (with their stamps' integers) and the diagnostics.
 - `idle`: subscribes to everything and never reads, for --seconds.
 """
 
@@ -38,6 +41,10 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 FLOAT32 = PointField.FLOAT32
+FLOAT64 = PointField.FLOAT64
+
+# `first_bad`'s stamps: 2024-12-07 plus the scan's own time plus 7 ns.
+EPOCH_NS = 1_733_560_000_000_000_007
 
 
 def kitti_scans(folder):
@@ -69,6 +76,23 @@ def cloud(stamp, points, frame="velodyne"):
     return m
 
 
+def cloud_ns(ns, points):
+    """`cloud` stamped `ns` nanoseconds since the epoch, exactly."""
+    m = cloud(0.0, points)
+    m.header.stamp.sec, m.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+    return m
+
+
+def overlapping(stamp, points):
+    """`cloud` whose x, y and z say float64 at offsets 0, 4 and 8: laid over float32 data."""
+    m = cloud(stamp, points)
+    m.fields = [
+        PointField(name=n, offset=4 * k, datatype=FLOAT64, count=1)
+        for k, n in enumerate(["x", "y", "z"])
+    ]
+    return m
+
+
 def malformed(stamp, points):
     """(name, message) for each kind of bad cloud the node must skip."""
     out = []
@@ -89,6 +113,7 @@ def malformed(stamp, points):
     m.row_step = 16
     out.append(("a huge width", m))
     out.append(("an unknown frame", cloud(stamp, points, frame="camera")))
+    out.append(("overlapping fields", overlapping(stamp, points)))
     return out
 
 
@@ -149,6 +174,7 @@ class Peer:
         self.odom.append(
             {
                 "stamp": m.header.stamp.sec + m.header.stamp.nanosec * 1e-9,
+                "stamp_ns": m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec,
                 "frame": m.header.frame_id,
                 "child": m.child_frame_id,
                 "pose": [p.x, p.y, p.z, q.x, q.y, q.z, q.w],
@@ -263,12 +289,13 @@ class Peer:
         r = future.result()
         return {"success": r.success, "message": r.message} if r else None
 
-    def publish_scans(self, scans, rate, free=False):
+    def publish_scans(self, scans, rate, free=False, messages=None):
         """Each scan at `rate`, each waiting for the last one's Odometry (5 s at most) unless
-        `free` (a sensor's pace, whatever the node does)."""
+        `free` (a sensor's pace, whatever the node does); `messages` in place of the scans'
+        own clouds."""
         sent = []
         period = 1.0 / rate
-        messages = [cloud(stamp, pts) for stamp, pts in scans]
+        messages = messages or [cloud(stamp, pts) for stamp, pts in scans]
         # Odometry of scans sent before this call (a scenario may send in parts).
         before = len(self.odom)
         start = time.monotonic()
@@ -348,6 +375,19 @@ def scenario_hostile(peer, args):
     }
 
 
+def scenario_first_bad(peer, args):
+    scans = list(kitti_scans(args.kitti))[: args.last]
+    peer.wait_for_node()
+    peer.points.publish(overlapping(scans[0][0], scans[0][1]))
+    peer.spin_for(0.3)
+    stamps = [EPOCH_NS + round(stamp * 1e9) for stamp, _ in scans]
+    messages = [cloud_ns(ns, pts) for ns, (_, pts) in zip(stamps, scans)]
+    peer.publish_scans(scans, args.rate, messages=messages)
+    peer.spin_until(lambda: len(peer.odom) >= len(scans), 10)
+    peer.spin_for(1.5)
+    return {"sent_ns": stamps, "odom": peer.odom, "diagnostics": peer.diagnostics}
+
+
 def stamps_after(scans, k):
     return scans[k][0] - 0.05
 
@@ -377,7 +417,7 @@ def scenario_idle(peer, args):
 
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("scenario", choices=["scans", "hostile", "initialpose", "idle"])
+    p.add_argument("scenario", choices=["scans", "hostile", "initialpose", "first_bad", "idle"])
     p.add_argument("--kitti", required=True)
     p.add_argument("--out", required=True)
     p.add_argument("--rate", type=float, default=10.0)
@@ -396,6 +436,7 @@ def main():
         "scans": scenario_scans,
         "hostile": scenario_hostile,
         "initialpose": scenario_initialpose,
+        "first_bad": scenario_first_bad,
         "idle": scenario_idle,
     }[args.scenario]
     result = run(peer, args)

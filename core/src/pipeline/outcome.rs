@@ -195,6 +195,21 @@ pub struct ScanStats {
     pub recovery_attempts: usize,
     /// Map update.
     pub fusion: FusionStats,
+    /// Set when this scan started the map again ([`MapRestart`]).
+    pub map_restart: Option<MapRestart>,
+}
+
+/// The map was started again from a scan (status `FirstScan`): the scan it had been started
+/// from kept far fewer points, and this one could not register against what it gave
+/// ([`BASE_POINTS_RATIO`](super::BASE_POINTS_RATIO)). What the earlier scans put in the map
+/// is gone; their poses stand as they were, unchecked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MapRestart {
+    /// The frame the map had been started from.
+    pub base_frame: u32,
+    /// Its points after the filter.
+    pub base_points: usize,
 }
 
 /// What [`Pipeline::step`](super::Pipeline::step) did with a scan it used.

@@ -84,6 +84,9 @@ impl Field {
 pub struct Cloud<'a> {
     /// Header stamp, seconds.
     pub stamp: f64,
+    /// Header stamp as it was written: whole nanoseconds (what a reply's header carries back,
+    /// to the nanosecond: `stamp` is a round trip through `f64`, off by up to some 100 ns).
+    pub stamp_ns: i64,
     /// Header frame id.
     pub frame_id: String,
     /// Rows (1 for an unorganised cloud).
@@ -181,7 +184,7 @@ impl<'a> Cloud<'a> {
         let _seq = b.u32("header.seq")?;
         let sec = b.u32("header.stamp")?;
         let nsec = b.u32("header.stamp")?;
-        Self::parse_rest(&mut b, sec as f64 + nsec as f64 * 1e-9)
+        Self::parse_rest(&mut b, i64::from(sec), nsec)
     }
 
     /// Parses a ROS 2 message in CDR (either byte order, as its 4-byte header says).
@@ -213,10 +216,13 @@ impl<'a> Cloud<'a> {
         };
         let sec = b.u32("header.stamp")? as i32;
         let nsec = b.u32("header.stamp")?;
-        Self::parse_rest(&mut b, sec as f64 + nsec as f64 * 1e-9)
+        Self::parse_rest(&mut b, i64::from(sec), nsec)
     }
 
-    fn parse_rest(b: &mut Bytes<'a>, stamp: f64) -> Result<Self, String> {
+    /// The message after its header's stamp, `sec` seconds and `nsec` nanoseconds.
+    fn parse_rest(b: &mut Bytes<'a>, sec: i64, nsec: u32) -> Result<Self, String> {
+        let stamp = sec as f64 + nsec as f64 * 1e-9;
+        let stamp_ns = sec * 1_000_000_000 + i64::from(nsec);
         let frame_id = b.string("header.frame_id")?;
         let height = b.u32("height")?;
         let width = b.u32("width")?;
@@ -245,6 +251,7 @@ impl<'a> Cloud<'a> {
         let data = b.bytes_of(len, "data")?;
         Ok(Cloud {
             stamp,
+            stamp_ns,
             frame_id,
             height,
             width,
@@ -299,6 +306,8 @@ impl<'a> Cloud<'a> {
             .map(|n| self.field(n))
             .find_map(|r| r.transpose())
             .transpose()?;
+        let read = [Some(x), Some(y), Some(z), time, intensity, ring];
+        disjoint(read.iter().flatten().copied())?;
         if !self.has_points()? {
             return Ok(DecodedScan {
                 times: time.map(|_| Vec::new()),
@@ -432,6 +441,32 @@ impl<'a> Cloud<'a> {
         out.intensity = intensity.map(|_| inten);
         out.ring = ring.map(|_| rings);
     }
+}
+
+/// An error naming the first two of `fields` (each checked to fit its point) whose bytes
+/// overlap: no sensor lays out a point that way, and its values would be garbage (a float64
+/// x, y and z laid over float32 data read as points thousands of metres away).
+fn disjoint<'f>(fields: impl Iterator<Item = &'f Field> + Clone) -> Result<(), String> {
+    let span = |f: &Field| {
+        let start = f.offset as usize;
+        (start, start + f.size().unwrap_or(0))
+    };
+    for (i, a) in fields.clone().enumerate() {
+        for b in fields.clone().skip(i + 1) {
+            let ((a0, a1), (b0, b1)) = (span(a), span(b));
+            if a0 < b1 && b0 < a1 {
+                return Err(format!(
+                    "fields {} (offset {a0}, {} bytes) and {} (offset {b0}, {} bytes) overlap: \
+                     not a point layout (a mistyped field?)",
+                    a.name,
+                    a1 - a0,
+                    b.name,
+                    b1 - b0
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A ring number: unsigned 8 or 16 bits read as they are, anything else through `f64`, clamped.
@@ -671,6 +706,46 @@ mod tests {
         assert_eq!(e, "message ends inside point_step");
         let e = Cloud::parse_ros1(&m[..30]).unwrap_err();
         assert_eq!(e, "3 fields do not fit in the message");
+        // float64 x, y and z laid over float32 data (a sensor's x, y, z, intensity) overlap.
+        let over = vec![
+            field("x", 0, FLOAT64),
+            field("y", 4, FLOAT64),
+            field("z", 8, FLOAT64),
+        ];
+        let m = encode::cdr((0, 0), "", 1, 1, &over, false, 16, 16, &[0u8; 16]);
+        let e = Cloud::parse_cdr(&m).unwrap().decode().unwrap_err();
+        assert_eq!(
+            e,
+            "fields x (offset 0, 8 bytes) and y (offset 4, 8 bytes) overlap: not a point \
+             layout (a mistyped field?)"
+        );
+        // A time or an intensity laid over a coordinate too; fields nothing reads may.
+        for (name, offset) in [("t", 8), ("intensity", 11), ("ring", 0)] {
+            let mut fields = xyz_f32();
+            fields.push(field(name, offset, UINT8));
+            fields.push(field("label", 0, FLOAT32));
+            let m = encode::cdr((0, 0), "", 1, 1, &fields, false, 16, 16, &[0u8; 16]);
+            let e = Cloud::parse_cdr(&m).unwrap().decode().unwrap_err();
+            assert!(
+                e.contains(&format!("and {name} (offset {offset}, 1 bytes)")),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_stamp_is_kept_to_the_nanosecond() {
+        // An epoch stamp: f64 seconds hold it to some 240 ns only.
+        let (sec, nsec) = (1_733_560_000, 123_456_789);
+        let m = encode::cdr((sec, nsec), "", 1, 0, &xyz_f32(), false, 12, 0, &[]);
+        let c = Cloud::parse_cdr(&m).unwrap();
+        assert_eq!(c.stamp_ns, 1_733_560_000_123_456_789);
+        assert_ne!((c.stamp * 1e9) as i64, c.stamp_ns, "f64 seconds lose it");
+        let m = encode::ros1((sec as u32, nsec), "", 1, 0, &xyz_f32(), false, 12, 0, &[]);
+        assert_eq!(Cloud::parse_ros1(&m).unwrap().stamp_ns, c.stamp_ns);
+        // Before 1970 (ROS 2's seconds are signed).
+        let m = encode::cdr((-2, 5), "", 1, 0, &xyz_f32(), false, 12, 0, &[]);
+        assert_eq!(Cloud::parse_cdr(&m).unwrap().stamp_ns, -1_999_999_995);
     }
 
     #[test]

@@ -56,6 +56,20 @@ impl Time {
     pub fn seconds(&self) -> f64 {
         self.sec as f64 + self.nanosec as f64 * 1e-9
     }
+
+    /// `ns` nanoseconds since the epoch, exactly (seconds out of `i32`'s range are clamped).
+    pub fn from_nanoseconds(ns: i64) -> Self {
+        let (sec, nanosec) = (ns.div_euclid(1_000_000_000), ns.rem_euclid(1_000_000_000));
+        Time {
+            sec: sec.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32,
+            nanosec: nanosec as u32,
+        }
+    }
+
+    /// In nanoseconds, exactly.
+    pub fn nanoseconds(&self) -> i64 {
+        i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)
+    }
 }
 
 /// `std_msgs/Header`.
@@ -523,6 +537,15 @@ mod tests {
         assert_eq!((t.sec, t.nanosec), (12, 250_000_000));
         assert_eq!(Time::from_seconds(f64::NAN), Time::default());
         assert_eq!(Time::from_seconds(-3.0), Time::default());
+        // Nanoseconds both ways, exactly, where f64 seconds are off.
+        let ns = 1_733_560_000_123_456_789;
+        let t = Time::from_nanoseconds(ns);
+        assert_eq!((t.sec, t.nanosec), (1_733_560_000, 123_456_789));
+        assert_eq!(t.nanoseconds(), ns);
+        assert_ne!(Time::from_seconds(t.seconds()), t);
+        let before = Time::from_nanoseconds(-1_999_999_995);
+        assert_eq!((before.sec, before.nanosec), (-2, 5));
+        assert_eq!(Time::from_nanoseconds(i64::MAX).sec, i32::MAX);
     }
 
     #[test]

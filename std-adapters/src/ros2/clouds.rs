@@ -124,6 +124,7 @@ impl FrameCheck {
         }
         Ok(TimedScan {
             stamp: cloud.stamp,
+            stamp_ns: Some(cloud.stamp_ns),
             points: decoded.points,
             times: decoded.times,
             arrived,

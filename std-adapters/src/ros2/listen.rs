@@ -180,6 +180,9 @@ impl FrameSource for Ros2Source {
     fn stamp(&self, i: usize) -> f64 {
         self.feed.stamp(i)
     }
+    fn stamp_ns(&self, i: usize) -> Option<i64> {
+        self.feed.stamp_ns(i)
+    }
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
         self.feed.read_timed(i).map(|(p, _)| p)
     }

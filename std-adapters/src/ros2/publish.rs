@@ -164,7 +164,11 @@ impl Ros2Sink {
     }
 
     fn publish_pose(&mut self, e: &FrameEvent, lidar: &Pose) -> Result<(), String> {
-        let stamp = Time::from_seconds(e.record.stamp);
+        // The scan's own stamp, to the nanosecond, for exact-time synchronisers.
+        let stamp = e.record.stamp_ns.map_or_else(
+            || Time::from_seconds(e.record.stamp),
+            Time::from_nanoseconds,
+        );
         let map_base = self.base_of(lidar);
         let jumped = e.record.relocalization.is_some() || !e.record.loop_closures.is_empty();
         let odom = OdomFrame::next(self.odom, map_base, jumped);

@@ -25,7 +25,9 @@ pub struct FrameRecord {
     /// Why it was skipped.
     pub error: Option<String>,
     /// Why it was not registered normally (statuses `Degenerate`, `TooFewResiduals`,
-    /// `SolverFailed`, `Recovered`, `NotConverged`), naming the parameter involved.
+    /// `SolverFailed`, `Recovered`, `NotConverged`), naming the parameter involved; or why a
+    /// `FirstScan` after the first started the map again
+    /// ([`MapRestart`](slamesh_core::MapRestart)).
     pub reason: Option<String>,
     /// Milliseconds per stage.
     pub ms: StageMs,
@@ -70,6 +72,11 @@ pub struct FrameRecord {
     /// name, or the assumed 10 Hz.
     #[serde(default)]
     pub stamp: f64,
+    /// The frame's stamp exactly, in nanoseconds, when the source had it
+    /// ([`FrameSource::stamp_ns`](crate::sources::FrameSource::stamp_ns)): what the ROS 2
+    /// node's replies carry. Not in `report.json` (`stamp` is).
+    #[serde(skip)]
+    pub stamp_ns: Option<i64>,
     /// A run from a saved map with no pose given: how the frame that found the pose found it
     /// (position, the share of the scan on the map, the best elsewhere, hypotheses tried).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -119,6 +126,7 @@ impl FrameRecord {
             rss_mb: None,
             deskewed_points: 0,
             stamp: 0.0,
+            stamp_ns: None,
             relocalization: None,
             loop_closures: Vec::new(),
             latency_ms: None,
@@ -345,8 +353,19 @@ pub fn registration_reason(
 ) -> Option<String> {
     let lm = &config.register.lm;
     match status {
-        RegistrationStatus::FirstScan
-        | RegistrationStatus::Converged
+        RegistrationStatus::FirstScan => stats.map_restart.map(|r| {
+            format!(
+                "the map starts again here: frame {} had started it with {} points after the \
+                 filter, under 1/{} of this scan's {}, and this scan could not register \
+                 against what it gave; the map keeps none of it, and the poses before this \
+                 frame are assumed, not measured",
+                r.base_frame,
+                r.base_points,
+                slamesh_core::pipeline::BASE_POINTS_RATIO,
+                stats.filter.kept
+            )
+        }),
+        RegistrationStatus::Converged
         | RegistrationStatus::Given
         | RegistrationStatus::Relocalized => None,
         RegistrationStatus::NotLocalized => Some(

@@ -99,6 +99,7 @@ impl<C: Capacity> Run<'_, C> {
         rec.samples = self.samples.len();
         // After the read: a recording knows a frame's stamp once it has read the message.
         rec.stamp = source.stamp(i);
+        rec.stamp_ns = source.stamp_ns(i);
         self.inertial.take(&self.samples, &rec.file, i);
         rec.points_dropped_by_reader = read.dropped_by_reader;
         let motion = self.last_motion(source);

@@ -25,6 +25,9 @@ pub const KEPT: usize = 2;
 pub struct TimedScan {
     /// Its stamp (seconds).
     pub stamp: f64,
+    /// Its stamp exactly, in nanoseconds, when the sensor's message gives it in whole numbers
+    /// (a ROS header): what the run's replies carry back ([`Feed::stamp_ns`]).
+    pub stamp_ns: Option<i64>,
     /// Its points, sensor frame.
     pub points: Vec<Point>,
     /// Each point's time relative to the stamp (seconds), when the sensor gives them.
@@ -97,8 +100,8 @@ pub struct Feed {
     label: String,
     unit: &'static str,
     rx: Receiver<Message>,
-    /// Each frame's stamp and arrival.
-    frames: Vec<(f64, Instant)>,
+    /// Each frame's stamp (and its exact one) and arrival.
+    frames: Vec<(f64, Option<i64>, Instant)>,
     /// The next scan, taken from the queue ahead of its read.
     next: Option<TimedScan>,
     /// The last frames read (at most [`KEPT`]).
@@ -202,15 +205,25 @@ impl Feed {
     /// Frame `i`'s stamp (0 when it has not come).
     pub fn stamp(&self, i: usize) -> f64 {
         match (self.frames.get(i), &self.next) {
-            (Some((t, _)), _) => *t,
+            (Some((t, _, _)), _) => *t,
             (None, Some(s)) if i == self.frames.len() => s.stamp,
             _ => 0.0,
         }
     }
 
+    /// Frame `i`'s exact stamp in nanoseconds, when its message gave one
+    /// ([`TimedScan::stamp_ns`]).
+    pub fn stamp_ns(&self, i: usize) -> Option<i64> {
+        match (self.frames.get(i), &self.next) {
+            (Some((_, t, _)), _) => *t,
+            (None, Some(s)) if i == self.frames.len() => s.stamp_ns,
+            _ => None,
+        }
+    }
+
     /// When frame `i` came.
     pub fn arrival(&self, i: usize) -> Option<Instant> {
-        self.frames.get(i).map(|f| f.1)
+        self.frames.get(i).map(|f| f.2)
     }
 
     /// Frame `i`, waiting for it: the next one, or one of the last [`KEPT`] read (a live
@@ -233,7 +246,7 @@ impl Feed {
         let Some(scan) = self.next.take() else {
             return Err(err("the stream has ended".into()));
         };
-        self.frames.push((scan.stamp, scan.arrived));
+        self.frames.push((scan.stamp, scan.stamp_ns, scan.arrived));
         if self.kept.len() == KEPT {
             self.kept.remove(0);
         }
@@ -266,6 +279,7 @@ mod tests {
         TimedScan {
             samples: Vec::new(),
             stamp,
+            stamp_ns: None,
             points: vec![[stamp as f32, 0.0, 0.0]],
             times: None,
             arrived: Instant::now(),

@@ -43,6 +43,12 @@ pub trait FrameSource {
     fn label(&self, i: usize) -> String;
     /// Timestamp of frame `i` (seconds).
     fn stamp(&self, i: usize) -> f64;
+    /// Frame `i`'s timestamp exactly, in nanoseconds, when the source has it in whole numbers
+    /// (a ROS message's header): what a reply to the frame is stamped with. By default none
+    /// (replies use [`stamp`](Self::stamp)).
+    fn stamp_ns(&self, _i: usize) -> Option<i64> {
+        None
+    }
     /// The points of frame `i`, in the sensor frame.
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError>;
     /// The points of frame `i` with each one's time relative to the frame's stamp (seconds),

@@ -346,6 +346,7 @@ fn timed(sweep: Sweep, imu: Vec<ImuSample>) -> TimedScan {
     TimedScan {
         samples: imu.into_iter().map(Sample::Imu).collect(),
         stamp: sweep.stamp().unwrap_or(0.0),
+        stamp_ns: None,
         times: Some(sweep.relative_times()),
         points: sweep.points,
         arrived: Instant::now(),

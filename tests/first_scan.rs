@@ -1,0 +1,72 @@
+//! No lock-in by a bad first scan: a scan far smaller than the ones after it (a partial sweep,
+//! a cut-off file) that starts the map is dropped from it as soon as the next scan cannot
+//! register against what it gave (`slamesh_core::MapRestart`). The run then goes on as if it
+//! had started at that next scan, and says so.
+
+use crate::common;
+
+use common::{kitti_mini, scratch, slamesh_run};
+use std::path::Path;
+
+/// The first 64 points of `seq`'s first scan (one stretch of a beam: a few cells' worth), then
+/// every scan of `seq`, as a folder under `dir`.
+fn with_short_first_scan(seq: &Path, dir: &Path) -> std::path::PathBuf {
+    let scans = dir.join("velodyne");
+    std::fs::create_dir_all(&scans).unwrap();
+    let mut files: Vec<_> = std::fs::read_dir(seq.join("velodyne"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    let first = std::fs::read(&files[0]).unwrap();
+    std::fs::write(scans.join("000000.bin"), &first[..64 * 16]).unwrap();
+    for (i, f) in files.iter().enumerate() {
+        std::fs::copy(f, scans.join(format!("{:06}.bin", i + 1))).unwrap();
+    }
+    dir.to_path_buf()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+#[test]
+fn a_short_first_scan_does_not_turn_the_trajectory() {
+    let Some(k) = kitti_mini() else { return };
+    let dir = scratch("first-scan");
+    for seq in ["00", "03"] {
+        let input = with_short_first_scan(&k.join(seq), &dir.join(seq));
+        let (out, plain) = (
+            dir.join(format!("out{seq}")),
+            dir.join(format!("plain{seq}")),
+        );
+        // --strict: the run vouches for every pose from the first full scan on.
+        let o = slamesh_run(&input, &out, &["--threads", "2", "--strict"]);
+        let stderr = text(&o.stderr);
+        assert!(o.status.success(), "{seq}: {stderr}");
+        assert!(
+            stderr.contains("frame 1 (") && stderr.contains("the map starts again here: frame 0"),
+            "{seq}: the restart is said: {stderr}"
+        );
+        let o = slamesh_run(&k.join(seq), &plain, &["--threads", "2"]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        // Today the frames after the short scan are the run without it to the last digit
+        // written: the map restarts empty, with no motion history, at the short scan's pose.
+        let poses = |d: &Path| std::fs::read_to_string(d.join("poses_kitti.txt")).unwrap();
+        let (with, without) = (poses(&out), poses(&plain));
+        let with: Vec<&str> = with.lines().collect();
+        assert_eq!(with[1..], without.lines().collect::<Vec<_>>()[..], "{seq}");
+        let mesh = |d: &Path| std::fs::read(d.join("mesh.ply")).unwrap();
+        assert!(mesh(&out) == mesh(&plain), "{seq}: the same mesh");
+        // The report names the restart on the frame that made it.
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        let (frame0, frame1) = (&report["frames"][0], &report["frames"][1]);
+        assert_eq!(frame0["status"], "FirstScan", "{seq}");
+        assert_eq!(frame1["status"], "FirstScan", "{seq}");
+        let started = format!("started it with {} points", frame0["points_kept"]);
+        let reason = frame1["reason"].as_str().unwrap_or_default();
+        assert!(reason.contains(&started), "{seq}: {reason}");
+    }
+}
