@@ -17,13 +17,19 @@
 //! office` walks a 16-beam sensor through the office of the navigation map's tests (about 900
 //! frames). `--azimuth-steps N`: firings per turn of each of the 64 beams (1 000 by
 //! default, about 55 000 points in range; 2 000 gives a KITTI-sized scan of about 110 000).
+//! `--path car`: the town's drive with a car's smooth attitude. `--rolling`: each firing from
+//! the pose at its own time over the frame's sweep; the scans are then written as binary PCD
+//! files (`velodyne/NNNNNN.pcd`) with each point's time after the stamp in a field `t`.
+//! `--shaken`: a rough road's vibration over the drive (a rolling sweep too). `--imu HZ`: an
+//! IMU on the scanner (its axes the LiDAR's), its readings in EuRoC's `imu0/data.csv`.
 
 #[path = "common/flags.rs"]
 mod flags;
 
 use flags::Flags;
 use slamesh::formats::trajectory::write_kitti_line;
-use slamesh_sim::Drive;
+use slamesh::formats::{imu_csv, pcd};
+use slamesh_sim::{Drive, ImuModel, Vibration};
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -63,8 +69,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             seed,
         )),
         Some("office") => (Drive::office(start + frames, seed), "office"),
+        Some("car") => town(Drive::car(start + frames, seed)),
         Some(other) => {
-            return Err(format!("--path {other}: campus, block, hand-held, drone or office").into())
+            return Err(
+                format!("--path {other}: campus, block, hand-held, drone, office or car").into(),
+            )
         }
         None if flags.has("--round") => town(Drive::town_round(start + frames, seed)),
         None => town(Drive::town(start + frames, seed)),
@@ -77,17 +86,41 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|p| p * left)
         .collect();
+    let shaken = flags.has("--shaken");
+    if shaken || flags.has("--rolling") {
+        drive.sweep_s = Some(period_s);
+    }
+    if shaken {
+        drive = drive.shaken(Vibration::rough_road());
+    }
+    if let Some(hz) = flags.value("--imu") {
+        let hz: f64 = hz
+            .parse()
+            .map_err(|_| format!("--imu {hz}: not a rate in Hz"))?;
+        drive = drive.with_imu(ImuModel::mems(hz, seed));
+        let end = drive.poses.len() as f64 * period_s;
+        fs::create_dir_all(out.join("imu0"))?;
+        let csv = imu_csv::encode(&drive.imu_between(-1.0, end));
+        fs::write(out.join("imu0").join("data.csv"), csv)?;
+    }
     fs::create_dir_all(out.join("velodyne"))?;
     let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
     let mut times = BufWriter::new(File::create(out.join("times.txt"))?);
     for i in 0..drive.poses.len() {
-        let mut bin = Vec::new();
-        for p in drive.scan(i) {
-            for v in [p[0], p[1], p[2], 0.0] {
-                bin.extend_from_slice(&v.to_le_bytes());
+        let scans = out.join("velodyne");
+        if drive.sweep_s.is_some() {
+            let (points, times) = drive.scan_timed(i);
+            let file = pcd::encode_pcd_timed(&points, &times);
+            fs::write(scans.join(format!("{i:06}.pcd")), file)?;
+        } else {
+            let mut bin = Vec::new();
+            for p in drive.scan(i) {
+                for v in [p[0], p[1], p[2], 0.0] {
+                    bin.extend_from_slice(&v.to_le_bytes());
+                }
             }
+            fs::write(scans.join(format!("{i:06}.bin")), bin)?;
         }
-        fs::write(out.join("velodyne").join(format!("{i:06}.bin")), bin)?;
         write_kitti_line(&mut poses, &(first * drive.poses[i]))?;
         writeln!(times, "{:.6}", i as f64 * period_s)?;
     }

@@ -317,17 +317,8 @@ pub fn write_folder_with_imu(d: &slamesh_sim::Drive, dir: &Path) -> PathBuf {
         writeln!(times, "{:.6}", d.stamp(i)).unwrap();
     }
     std::fs::write(dir.join("times.txt"), times).unwrap();
-    let mut csv = String::from(
-        "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],\
-         a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n",
-    );
     let end = d.frames() as f64 * d.period_s;
-    for r in d.imu_between(-1.0, end) {
-        let [gx, gy, gz] = r.gyro;
-        let [ax, ay, az] = r.accel;
-        let ns = (r.stamp * 1e9).round() as i64;
-        writeln!(csv, "{ns},{gx:e},{gy:e},{gz:e},{ax:e},{ay:e},{az:e}").unwrap();
-    }
+    let csv = slamesh::formats::imu_csv::encode(&d.imu_between(-1.0, end));
     std::fs::create_dir_all(dir.join("imu0")).unwrap();
     std::fs::write(dir.join("imu0").join("data.csv"), csv).unwrap();
     scans

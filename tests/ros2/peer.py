@@ -19,6 +19,11 @@ Scenarios:
 - `first_bad`: a cloud whose fields overlap (float64 x, y, z laid over float32 data) first,
   then the scans at --rate stamped at an epoch time with odd nanoseconds (what f64 seconds
   cannot hold); records the Odometry (with their stamps' integers) and the diagnostics.
+- `imu_drive`: the simulated drive in --drive (`write_drive --rolling --imu HZ`: PCD scans
+  with each point's time, `imu0/data.csv`) replayed as `ros2 bag play` would: each scan
+  published at its stamp (its sweep's start, so before the IMU's readings over its sweep),
+  each reading at its stamp plus --imu-lag seconds, every stamp moved 10 s on (the IMU reads
+  from a second before the first scan); records the Odometry.
 - `idle`: subscribes to everything and never reads, for --seconds.
 """
 
@@ -91,6 +96,36 @@ def overlapping(stamp, points):
         for k, n in enumerate(["x", "y", "z"])
     ]
     return m
+
+
+def timed_cloud(stamp, points):
+    """A PointCloud2 of x, y, z and t (seconds after the stamp) float32 points."""
+    m = cloud(stamp, points)
+    m.fields = [
+        PointField(name=n, offset=4 * k, datatype=FLOAT32, count=1)
+        for k, n in enumerate(["x", "y", "z", "t"])
+    ]
+    return m
+
+
+def drive_events(folder, lag):
+    """(due, kind, stamp, payload) of a written drive, in the order they are due: each scan
+    (its x y z t rows) at its stamp, each IMU reading ([gyro, accel]) at its stamp + `lag`."""
+    stamps = [float(l) for l in open(os.path.join(folder, "times.txt")) if l.strip()]
+    names = sorted(os.listdir(os.path.join(folder, "velodyne")))
+    events = []
+    for name, stamp in zip(names, stamps):
+        raw = open(os.path.join(folder, "velodyne", name), "rb").read()
+        data = raw[raw.index(b"DATA binary\n") + len(b"DATA binary\n"):]
+        events.append((stamp, 0, stamp, np.frombuffer(data, dtype=np.float32).reshape(-1, 4)))
+    for line in open(os.path.join(folder, "imu0", "data.csv")):
+        if line.startswith("#") or not line.strip():
+            continue
+        v = line.split(",")
+        stamp = int(v[0]) * 1e-9
+        events.append((stamp + lag, 1, stamp, [float(x) for x in v[1:7]]))
+    events.sort(key=lambda e: (e[0], e[1]))
+    return events
 
 
 def malformed(stamp, points):
@@ -388,6 +423,32 @@ def scenario_first_bad(peer, args):
     return {"sent_ns": stamps, "odom": peer.odom, "diagnostics": peer.diagnostics}
 
 
+def scenario_imu_drive(peer, args):
+    shift = 10.0
+    events = drive_events(args.drive, args.imu_lag)
+    scans = sum(1 for e in events if e[1] == 0)
+    peer.wait_for_node()
+    start = time.monotonic() - events[0][0] + 0.5
+    for due, kind, stamp, payload in events:
+        while time.monotonic() < start + due:
+            rclpy.spin_once(peer.node, timeout_sec=max(0.0, min(0.002, start + due - time.monotonic())))
+        if kind == 0:
+            peer.points.publish(timed_cloud(stamp + shift, payload))
+        else:
+            m = Imu()
+            t = stamp + shift
+            m.header.stamp.sec = int(math.floor(t))
+            m.header.stamp.nanosec = int(round((t - math.floor(t)) * 1e9)) % 1_000_000_000
+            m.header.frame_id = "imu"
+            w, a = payload[:3], payload[3:]
+            m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = w
+            m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = a
+            peer.imu.publish(m)
+    peer.spin_until(lambda: len(peer.odom) >= scans, 5)
+    peer.spin_for(1.0)
+    return {"scans": scans, "odom": peer.odom, "diagnostics": peer.diagnostics}
+
+
 def stamps_after(scans, k):
     return scans[k][0] - 0.05
 
@@ -417,7 +478,9 @@ def scenario_idle(peer, args):
 
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("scenario", choices=["scans", "hostile", "initialpose", "first_bad", "idle"])
+    p.add_argument(
+        "scenario", choices=["scans", "hostile", "initialpose", "first_bad", "imu_drive", "idle"]
+    )
     p.add_argument("--kitti", required=True)
     p.add_argument("--out", required=True)
     p.add_argument("--rate", type=float, default=10.0)
@@ -429,6 +492,8 @@ def main():
     p.add_argument("--seconds", type=float, default=30.0, help="idle: how long")
     p.add_argument("--free", action="store_true", help="scans: do not wait for each Odometry")
     p.add_argument("--imu", action="store_true", help="scans: IMU readings between the scans")
+    p.add_argument("--drive", help="imu_drive: the folder write_drive wrote")
+    p.add_argument("--imu-lag", type=float, default=0.0, help="imu_drive: the IMU's lag (s)")
     args = p.parse_args()
     rclpy.init()
     peer = Peer(args)
@@ -437,6 +502,7 @@ def main():
         "hostile": scenario_hostile,
         "initialpose": scenario_initialpose,
         "first_bad": scenario_first_bad,
+        "imu_drive": scenario_imu_drive,
         "idle": scenario_idle,
     }[args.scenario]
     result = run(peer, args)

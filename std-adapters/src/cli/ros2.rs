@@ -190,6 +190,7 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     }
     let mut node = RosNode::start(node_settings).map_err(node_error)?;
     let mut source = node.listen(stop).map_err(node_error)?;
+    let advertised = node.advertise().map_err(node_error)?;
     log::info!(
         "ROS 2 node {} in domain {}{}: scans on {}, poses on {} (preset {}), output in {}",
         node.settings.fqn(),
@@ -211,9 +212,7 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     if !args.localize {
         choose_loop_closure(args.loop_closure, &mut opts)?;
     }
-    let sink = node
-        .publish(&opts.config, &source, args.robot.options())
-        .map_err(node_error)?;
+    let sink = advertised.sink(&opts.config, &source, args.robot.options());
     let sink = Queued::new(sink, 8, WhenFull::Wait)
         .map_err(|e| node_error(format!("cannot start the publishing thread: {e}")))?;
     let bar = crate::cli::progress_open(quiet);

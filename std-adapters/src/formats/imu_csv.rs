@@ -85,6 +85,24 @@ fn reading(line: &str) -> Result<ImuReading, String> {
     })
 }
 
+/// `readings` as a file in this layout, stamps rounded to the nanosecond (what [`parse`]
+/// reads back).
+pub fn encode(readings: &[ImuReading]) -> String {
+    use std::fmt::Write as _;
+    let mut csv = String::from(
+        "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],\
+         a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n",
+    );
+    for r in readings {
+        let [gx, gy, gz] = r.gyro;
+        let [ax, ay, az] = r.accel;
+        let ns = (r.stamp * 1e9).round() as i64;
+        // Writing to a String cannot fail.
+        let _ = writeln!(csv, "{ns},{gx:e},{gy:e},{gz:e},{ax:e},{ay:e},{az:e}");
+    }
+    csv
+}
+
 /// The readings file that goes with a folder of scans, if there is one: `imu0/data.csv` or
 /// `imu.csv` in the folder, or beside it.
 pub fn beside(folder: &Path) -> Option<std::path::PathBuf> {
@@ -120,6 +138,29 @@ mod tests {
         assert!(csv.skipped[0].starts_with("line 5: 4 fields"));
         assert!(csv.skipped[1].contains("\"nan\" is not a finite number"));
         assert!(csv.skipped[2].contains("not a whole number"));
+    }
+
+    #[test]
+    fn encoded_readings_read_back() {
+        let readings = [
+            ImuReading {
+                stamp: 1_733_560_000.005,
+                gyro: [0.1, -0.25, 3e-7],
+                accel: [0.0, 9.81, -1.5e3],
+            },
+            ImuReading {
+                stamp: 0.0,
+                gyro: [0.0; 3],
+                accel: [1.0; 3],
+            },
+        ];
+        let csv = parse(encode(&readings).as_bytes());
+        assert!(csv.skipped.is_empty(), "{:?}", csv.skipped);
+        assert_eq!(csv.readings.len(), 2);
+        for (read, given) in csv.readings.iter().zip(&readings) {
+            assert_eq!((read.gyro, read.accel), (given.gyro, given.accel));
+            assert!((read.stamp - given.stamp).abs() < 1e-9);
+        }
     }
 
     #[test]

@@ -452,6 +452,26 @@ pub fn encode_pcd(points: &[Point], encoding: &str) -> Vec<u8> {
     out
 }
 
+/// Writes `points` with each one's time after the scan's stamp (seconds) as a binary PCD with
+/// float `x y z t` fields, as a rolling-sweep sensor's driver records them. For the
+/// simulator's drives and tests, so hidden from the docs like [`encode_pcd`].
+#[doc(hidden)]
+pub fn encode_pcd_timed(points: &[Point], times: &[f32]) -> Vec<u8> {
+    let n = points.len().min(times.len());
+    let mut out = format!(
+        "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z t\n\
+         SIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH {n}\nHEIGHT 1\n\
+         VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA binary\n"
+    )
+    .into_bytes();
+    for (p, t) in points.iter().zip(times) {
+        for v in [p[0], p[1], p[2], *t] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -14,6 +14,11 @@
 //! - IMU readings reach the run with the first frame whose stamp, plus the time since the
 //!   frame before (its sweep, when scans are stamped at the sweep's start), reaches theirs
 //!   ([`FrameSource::samples`]), at most [`IMU_KEPT`] waiting;
+//! - once an IMU has been heard, a scan is handed to the run when a reading at or past the end
+//!   of its sweep has come, or when the wait the node was given (`imu_wait`) has passed since
+//!   the scan came; then it runs with the readings it has, said once and counted
+//!   ([`Counts::imu_late`]). The queue holds a scan more for each 50 ms of that wait, so that
+//!   waiting drops no scan of a sensor at up to 20 Hz;
 //! - the stream ends when the stop flag is set (the command sets it on SIGINT and SIGTERM);
 //!   the run then writes its outputs as a finished one does.
 
@@ -56,6 +61,9 @@ pub struct Counts {
     pub imu_readings: u64,
     /// Readings refused (a number not finite) or dropped (more than [`IMU_KEPT`] waiting).
     pub imu_dropped: u64,
+    /// Scans handed to the run before the IMU's readings covered their sweep: the wait
+    /// (`imu_wait`) ran out.
+    pub imu_late: u64,
     /// Map saves asked for on `~/save_map`.
     pub save_requests: u64,
     /// The latest `/clock` (seconds), when `use_sim_time` is set.
@@ -90,7 +98,22 @@ pub struct Names {
 pub const IMU_KEPT: usize = 4000;
 
 /// IMU readings waiting for the frame whose stamp follows theirs.
-type ImuQueue = Arc<Mutex<VecDeque<Sample>>>;
+type ImuQueue = Arc<Mutex<ImuWaiting>>;
+
+/// The IMU's readings not yet handed to a frame, and the newest stamp heard.
+#[derive(Debug, Default)]
+struct ImuWaiting {
+    readings: VecDeque<Sample>,
+    /// The newest reading's stamp, handed or not (`None`: no IMU heard yet).
+    newest: Option<f64>,
+}
+
+/// How often a scan waiting for the IMU looks again.
+const IMU_LOOK: Duration = Duration::from_millis(1);
+
+/// The queue's room for scans that wait for the IMU: one more scan for each this long of
+/// `imu_wait` (a sensor at up to 20 Hz).
+const WAIT_PER_SCAN: Duration = Duration::from_millis(50);
 
 /// The node's inputs as frames.
 pub struct Ros2Source {
@@ -102,6 +125,10 @@ pub struct Ros2Source {
     thread: Option<JoinHandle<()>>,
     /// The stamp of the last frame the readings went with.
     last_stamp: Option<f64>,
+    /// How long after it came a scan waits for the IMU's readings over its sweep (zero: never).
+    imu_wait: Duration,
+    /// The last frame handed over before the IMU covered it (counted once, said once).
+    late: Option<usize>,
 }
 
 impl std::fmt::Debug for Ros2Source {
@@ -113,16 +140,19 @@ impl std::fmt::Debug for Ros2Source {
 }
 
 impl Ros2Source {
-    /// Starts the listening thread on `endpoints`; at most `queue` scans wait for the run;
-    /// scans not in `lidar_frame` (the first scan's, if `None`) are refused.
+    /// Starts the listening thread on `endpoints`; at most `queue` scans wait for the run (and
+    /// one more for each [`WAIT_PER_SCAN`] of `imu_wait`, the longest a scan waits for the
+    /// IMU's readings over its sweep); scans not in `lidar_frame` (the first scan's, if
+    /// `None`) are refused.
     pub fn start(
         endpoints: Endpoints,
         names: Names,
-        queue: usize,
+        (queue, imu_wait): (usize, Duration),
         lidar_frame: Option<String>,
         stop: Arc<AtomicBool>,
     ) -> Result<Self, String> {
-        let (tx, feed) = crate::sources::feed::channel(names.points.clone(), "scan", queue);
+        let depth = queue + imu_wait.as_micros().div_ceil(WAIT_PER_SCAN.as_micros()) as usize;
+        let (tx, feed) = crate::sources::feed::channel(names.points.clone(), "scan", depth);
         let (request_tx, requests) = mpsc::channel();
         let counts = Arc::new(Mutex::new(Counts::default()));
         let imu = ImuQueue::default();
@@ -151,7 +181,62 @@ impl Ros2Source {
             stop,
             thread: Some(thread),
             last_stamp: None,
+            imu_wait,
+            late: None,
         })
+    }
+
+    /// The end of frame `i`'s sweep: its stamp plus the time since the frame before (the
+    /// readings up to it go with the frame, [`FrameSource::samples`]).
+    fn sweep_end(&self, i: usize) -> f64 {
+        let stamp = self.feed.stamp(i);
+        stamp + frame_period(stamp, self.last_stamp, None)
+    }
+
+    /// Whether frame `i` (come) may be handed over as far as the IMU goes: no wait set, no
+    /// IMU heard, a reading at or past its sweep's end come, or the wait passed.
+    fn imu_ready(&mut self, i: usize) -> bool {
+        if self.imu_wait.is_zero() {
+            return true;
+        }
+        let newest = match self.imu.lock() {
+            Ok(q) => q.newest,
+            Err(_) => return true,
+        };
+        let Some(newest) = newest else {
+            return true;
+        };
+        if newest >= self.sweep_end(i) {
+            return true;
+        }
+        let came = self.feed.arrival(i).unwrap_or_else(Instant::now);
+        if came.elapsed() < self.imu_wait {
+            return false;
+        }
+        if self.late == Some(i) {
+            return true;
+        }
+        if let Ok(mut c) = self.counts.lock() {
+            c.imu_late += 1;
+        }
+        if self.late.replace(i).is_none() {
+            log::warn!(
+                "{}: the IMU's readings did not cover its sweep (to {:.3} s; the newest is at \
+                 {newest:.3} s) within imu_wait = {:.3} s: it runs with what came (said once; \
+                 counted as imu_late in /diagnostics and report.json)",
+                self.feed.label(i),
+                self.sweep_end(i),
+                self.imu_wait.as_secs_f64()
+            );
+        }
+        true
+    }
+
+    /// Waits until frame `i` (come) is [`imu_ready`](Self::imu_ready).
+    fn wait_for_imu(&mut self, i: usize) {
+        while !self.imu_ready(i) {
+            std::thread::sleep(IMU_LOOK);
+        }
     }
 
     /// What the inputs counted so far.
@@ -190,13 +275,21 @@ impl FrameSource for Ros2Source {
         self.feed.read_timed(i)
     }
     fn has(&mut self, i: usize) -> bool {
-        self.feed.has(i)
+        let has = self.feed.has(i);
+        if has {
+            self.wait_for_imu(i);
+        }
+        has
     }
     fn wait(&mut self, i: usize) -> Waited {
-        self.feed.wait(i)
+        let waited = self.feed.wait(i);
+        if waited == Waited::Frame {
+            self.wait_for_imu(i);
+        }
+        waited
     }
     fn would_wait(&mut self, i: usize) -> bool {
-        self.feed.would_wait(i)
+        self.feed.would_wait(i) || !self.imu_ready(i)
     }
     fn arrival(&self, i: usize) -> Option<Instant> {
         self.feed.arrival(i)
@@ -209,8 +302,8 @@ impl FrameSource for Ros2Source {
             return Vec::new();
         };
         let mut out: Vec<Sample> = Vec::new();
-        while q.front().is_some_and(|s| s.stamp() <= up_to) {
-            out.extend(q.pop_front());
+        while q.readings.front().is_some_and(|s| s.stamp() <= up_to) {
+            out.extend(q.readings.pop_front());
         }
         out.sort_by(|a, b| a.stamp().total_cmp(&b.stamp()));
         out
@@ -407,11 +500,12 @@ impl Listener {
                 dropped += 1;
                 continue;
             }
-            if q.len() == IMU_KEPT {
-                q.pop_front();
+            if q.readings.len() == IMU_KEPT {
+                q.readings.pop_front();
                 dropped += 1;
             }
-            q.push_back(Sample::Imu(reading));
+            q.newest = Some(q.newest.map_or(reading.stamp, |t| t.max(reading.stamp)));
+            q.readings.push_back(Sample::Imu(reading));
             taken += 1;
         }
         if taken + dropped > 0 {

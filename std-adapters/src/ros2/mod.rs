@@ -27,6 +27,6 @@ pub mod publish;
 pub mod settings;
 
 pub use listen::Ros2Source;
-pub use node::RosNode;
+pub use node::{Advertised, RosNode};
 pub use publish::Ros2Sink;
 pub use settings::NodeSettings;

@@ -193,23 +193,23 @@ impl RosNode {
             points: t.points.clone(),
             initialpose: t.initialpose.clone(),
         };
+        // Readings that go unused are not waited for.
+        let imu_wait = match self.settings.use_imu {
+            true => self.settings.imu_wait,
+            false => std::time::Duration::ZERO,
+        };
         Ros2Source::start(
             endpoints,
             names,
-            self.settings.queue,
+            (self.settings.queue, imu_wait),
             self.settings.lidar_frame.clone(),
             stop,
         )
     }
 
-    /// The way out: the publishers, as a sink of the run; `config` is the run's (the mesh's
-    /// lattice and what it shows); `source` the way in (its counts go into `diagnostics`).
-    pub fn publish(
-        &mut self,
-        config: &Config,
-        source: &Ros2Source,
-        grid: NavMapOptions,
-    ) -> Result<Ros2Sink, String> {
+    /// The way out, advertised: every output topic, at start (before the first scan decides
+    /// the run's scale), so that a subscriber or `ros2 topic list` finds them at once.
+    pub fn advertise(&mut self) -> Result<Advertised, String> {
         let s = self.settings.clone();
         let t = &s.topics;
         let publishers = Publishers {
@@ -225,12 +225,37 @@ impl RosNode {
             },
             diagnostics: self.publisher::<DiagnosticArray>(&t.diagnostics, reliable(10))?,
         };
+        let map = match s.map_every {
+            Some(_) => Some(self.publisher::<OccupancyGrid>(&t.map, latched())?),
+            None => None,
+        };
+        Ok(Advertised {
+            publishers,
+            map,
+            settings: s,
+        })
+    }
+}
+
+/// The node's output topics, advertised ([`RosNode::advertise`]), waiting for the run's
+/// configuration to become its sink.
+pub struct Advertised {
+    publishers: Publishers,
+    map: Option<Publisher<OccupancyGrid>>,
+    settings: NodeSettings,
+}
+
+impl Advertised {
+    /// The publishers as a sink of the run; `config` is the run's (the mesh's lattice and
+    /// what it shows); `source` the way in (its counts go into `diagnostics`); `grid` the
+    /// `map` topic's.
+    pub fn sink(self, config: &Config, source: &Ros2Source, grid: NavMapOptions) -> Ros2Sink {
+        let s = self.settings;
         // The grid is made from the mesh's tiles, kept also when the mesh is not published.
         let tiles = (s.publish_mesh || s.map_every.is_some())
             .then(|| MeshTiles::new(config.lattice().table(), Shown::new(&config.mesh)));
-        let map = match s.map_every {
-            Some(every) => {
-                let publisher = self.publisher::<OccupancyGrid>(&t.map, latched())?;
+        let map = match (s.map_every, self.map) {
+            (Some(every), Some(publisher)) => {
                 let out = Box::new(move |grid| match publisher.publish(grid) {
                     Ok(()) => true,
                     Err(e) => {
@@ -240,15 +265,15 @@ impl RosNode {
                 });
                 Some(LiveMap::new(every, s.lidar_in_base, grid, out))
             }
-            None => None,
+            _ => None,
         };
-        Ok(Ros2Sink::new(
-            publishers,
+        Ros2Sink::new(
+            self.publishers,
             s.frames.clone(),
             s.lidar_in_base,
             (tiles, map),
             source.counts(),
             s.fqn(),
-        ))
+        )
     }
 }

@@ -365,6 +365,7 @@ impl Ros2Sink {
                 kv("initial_poses", counts.initial_poses.to_string()),
                 kv("imu_readings", counts.imu_readings.to_string()),
                 kv("imu_dropped", counts.imu_dropped.to_string()),
+                kv("imu_late", counts.imu_late.to_string()),
                 kv("save_requests", counts.save_requests.to_string()),
             ],
         };

@@ -12,6 +12,7 @@
 //! | `map_every` | integer | 10 | scans between two updates of `map` (1 to 1000) |
 //! | `use_sim_time` | bool | false | stamp `diagnostics` with `/clock` |
 //! | `use_imu` | bool | true | use the readings on `imu` (docs/design.md §1.19; its place on the LiDAR is the configuration's `[imu]`) |
+//! | `imu_wait` | seconds | 0.2 | with `use_imu`, once an IMU has been heard: how long after a scan came it waits for the readings that cover its sweep (0 to 2; 0: never waits) |
 //! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize`, `loop_closure`, `navmap`, `robot`, `navmap_resolution` | | | as the command's flags of the same names (`loop_closure`: true or false, on by default where the run can close loops, under a memory cap or window only when true; `robot` and `navmap_resolution` are the `map` topic's too) |
 //!
 //! Environment: `ROS_DOMAIN_ID` (0 to 232), `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` or
@@ -23,6 +24,14 @@ use std::collections::BTreeMap;
 
 /// The node's name unless `__node` says otherwise.
 pub const NODE_NAME: &str = "slamesh";
+
+/// `imu_wait`'s default (seconds): two sweeps at 10 Hz. A driver that stamps a scan at its
+/// sweep's start and publishes it at once sends it a sweep before the IMU's last reading over
+/// it; this leaves as much again for an IMU whose transport lags the LiDAR's.
+pub const IMU_WAIT_S: f64 = 0.2;
+
+/// The longest `imu_wait` taken (seconds).
+pub const MAX_IMU_WAIT_S: f64 = 2.0;
 
 /// The highest domain id ROS 2 allows.
 pub const MAX_DOMAIN_ID: u16 = 232;
@@ -96,6 +105,8 @@ pub struct NodeSettings {
     pub use_sim_time: bool,
     /// Use the readings on `imu`.
     pub use_imu: bool,
+    /// How long a scan waits for the IMU's readings over its sweep ([`IMU_WAIT_S`]).
+    pub imu_wait: std::time::Duration,
     /// The rest of the parameters (`preset`, `threads`, ...), for the command.
     pub params: BTreeMap<String, ParamValue>,
 }
@@ -158,6 +169,7 @@ impl NodeSettings {
             map_every: flag("publish_map", take("publish_map"), true)?.then_some(map_every),
             use_sim_time: flag("use_sim_time", take("use_sim_time"), false)?,
             use_imu: flag("use_imu", take("use_imu"), true)?,
+            imu_wait: seconds("imu_wait", take("imu_wait"), IMU_WAIT_S, MAX_IMU_WAIT_S)?,
             domain_id: domain_id(env)?,
             localhost_only: localhost_only(env),
             namespace,
@@ -179,6 +191,27 @@ impl NodeSettings {
     pub fn fqn(&self) -> String {
         join(&self.namespace, &self.name)
     }
+}
+
+/// A duration parameter from 0 to `max` seconds (a double or an integer), `default` when not
+/// given.
+fn seconds(
+    name: &str,
+    v: Option<ParamValue>,
+    default: f64,
+    max: f64,
+) -> Result<std::time::Duration, String> {
+    let s = match v {
+        None => default,
+        Some(ParamValue::Double(d)) => d,
+        Some(ParamValue::Int(n)) => n as f64,
+        // Not a number of seconds: refused below.
+        Some(_) => f64::NAN,
+    };
+    if !(0.0..=max).contains(&s) {
+        return Err(format!("parameter {name}: not 0 to {max} seconds"));
+    }
+    Ok(std::time::Duration::from_secs_f64(s))
 }
 
 /// An integer parameter from 1 to 1000, `default` when not given.
@@ -317,6 +350,15 @@ mod tests {
         assert_eq!(off.map_every, None);
         let every = settings("--ros-args -p map_every:=3", &[]).unwrap();
         assert_eq!(every.map_every, Some(3));
+        assert_eq!(s.imu_wait.as_secs_f64(), IMU_WAIT_S);
+        for (given, wait) in [("0.5", 0.5), ("0", 0.0), ("1", 1.0)] {
+            let s = settings(&format!("--ros-args -p imu_wait:={given}"), &[]).unwrap();
+            assert_eq!(s.imu_wait.as_secs_f64(), wait);
+        }
+        for bad in ["-0.1", "2.5", "soon", "true"] {
+            let e = settings(&format!("--ros-args -p imu_wait:={bad}"), &[]).unwrap_err();
+            assert_eq!(e, "parameter imu_wait: not 0 to 2 seconds");
+        }
     }
 
     #[test]

@@ -221,9 +221,13 @@ impl Feed {
         }
     }
 
-    /// When frame `i` came.
+    /// When frame `i` came (also the next one, come but not read yet).
     pub fn arrival(&self, i: usize) -> Option<Instant> {
-        self.frames.get(i).map(|f| f.2)
+        match (self.frames.get(i), &self.next) {
+            (Some(f), _) => Some(f.2),
+            (None, Some(s)) if i == self.frames.len() => Some(s.arrived),
+            _ => None,
+        }
     }
 
     /// Frame `i`, waiting for it: the next one, or one of the last [`KEPT`] read (a live
