@@ -15,8 +15,9 @@ Checks, each printed as it passes (the first failure stops it with its reason):
    reads, and the navigation map's files when the node stops.
 2. the same from a publisher that restarts halfway, best effort the second time.
 3. `hostile`: malformed clouds are each skipped and counted, a 100 Hz flood drops scans
-   whole (named, counted) with memory flat, and the node still ends cleanly with its
-   outputs.
+   whole (named, counted) with the node's memory under FLOOD_PEAK_MB, the closing line,
+   report.json and /diagnostics agree on every message, and the node still ends cleanly with
+   its outputs.
 4. `initialpose`: a pose 1.1 m off relocalizes the next scan to within 5 cm of `run`'s pose.
 5. `first_bad`: a first cloud whose fields overlap is refused with its reason and decides
    nothing; the scans after it get `run`'s poses, each Odometry stamped with its scan's stamp
@@ -45,6 +46,10 @@ TYPES = {
     "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
     "/points": "sensor_msgs/msg/PointCloud2",
 }
+
+
+# The hostile check's bound on the node's resident memory through a 4 s flood of 2 MB clouds.
+FLOOD_PEAK_MB = 580
 
 
 def fail(why):
@@ -141,7 +146,8 @@ def check_scans(args, reference, run_mesh):
     idle.wait()
     same_poses(r["odom"], reference, "reliable 10 Hz")
     ok(f"{len(r['odom'])} scans at 10 Hz, each with an Odometry equal to run's "
-       f"(latency median {sorted(r['latency_ms'])[len(r['latency_ms']) // 2]:.0f} ms)")
+       f"(latency median {sorted(r['latency_ms'])[len(r['latency_ms']) // 2]:.0f} ms; "
+       f"resident memory at most {max(node.rss, default=0):.0f} MB)")
     covs = [o["covariance"] for o in r["odom"][1:]]
     if not all(c[0] > 0 and c[35] > 0 and abs(c[1] - c[6]) < 1e-12 for c in covs):
         fail("a registered scan's covariance is not positive and symmetric")
@@ -264,12 +270,28 @@ def check_hostile(args):
     dropped = int(last["scans_dropped"])
     if dropped == 0 or "dropped: the pipeline is behind" not in log:
         fail(f"a {r['flood']}-scan flood at 100 Hz dropped nothing: {last}")
+    # The flood's peak, bounded near today's: 484 to 495 MB in four runs here (RustDDS keeps up
+    # to 128 clouds whose fragments it lost, 2 MB each, and the mesh writer's history; the
+    # points topic's cache is bounded to the reader's depth), 601 to 605 MB at f4c47a3, whose
+    # topic cache kept 64 clouds.
     rss = node.rss
-    half = len(rss) // 2
-    if not rss or max(rss[half:]) > 1.25 * max(rss[:half]) + 50:
-        fail(f"memory grew through the flood: {rss}")
+    if not rss or max(rss) > FLOOD_PEAK_MB:
+        fail(f"memory through the flood past {FLOOD_PEAK_MB} MB: {rss}")
     ok(f"a flood of {r['flood']} scans at 100 Hz: {dropped} dropped whole and named, "
-       f"memory flat (peak {max(rss):.0f} MB, first half {max(rss[:half]):.0f} MB)")
+       f"peak memory {max(rss):.0f} MB (at most {FLOOD_PEAK_MB})")
+    # The closing line, report.json and /diagnostics agree on every message.
+    report = json.load(open(os.path.join(node.out, "report.json")))
+    counts, summary = report["summary"]["input"], report["summary"]
+    line = next((l for l in log.splitlines() if "message(s) received:" in l), "")
+    said = (f"{counts['received']} message(s) received: {summary['used']} scan(s) used, "
+            f"{len(summary['skipped'])} skipped, {counts['dropped']} dropped whole (the pipeline "
+            f"was behind), {counts['refused']} refused (not scans)")
+    total = summary["used"] + len(summary["skipped"]) + counts["dropped"] + counts["refused"]
+    if (said not in line or counts["dropped"] < dropped or counts["refused"] != len(r["malformed"])
+            or total != counts["received"]):
+        fail(f"the closing line {line!r} against report.json's {counts} and {dropped} dropped "
+             "on /diagnostics")
+    ok(f"the closing line, report.json and /diagnostics agree: {line}")
     if not os.path.isfile(os.path.join(node.out, "report.json")):
         fail("no report.json after SIGINT")
     ok("SIGINT: the outputs written")

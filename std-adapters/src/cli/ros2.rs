@@ -16,6 +16,7 @@ use crate::ros2::{NodeSettings, RosNode};
 use crate::run::config_file::Settings;
 use crate::run::sink::{FnSink, Queued, WhenFull};
 use crate::run::{FrameEvent, RunOptions, Sinks};
+use crate::say;
 use clap::Args;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -227,6 +228,14 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     bar.finish_and_clear();
     notices.finish();
     print_summary(&summary, &args.out);
+    if let Ok(counts) = source.counts().lock() {
+        let topic = &node.settings.topics.points;
+        let skipped = summary.skipped.len();
+        say!(
+            "slamesh: {}",
+            counts.closing_line(topic, summary.used, skipped)
+        );
+    }
     Ok(())
 }
 

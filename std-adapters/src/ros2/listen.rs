@@ -70,6 +70,28 @@ pub struct Counts {
     pub clock_s: Option<f64>,
 }
 
+impl Counts {
+    /// The closing line of a node's run: what came on `points` (the topic) and what became of
+    /// it, with the run's own counts of frames `used` and `skipped` (read but not used): every
+    /// message is received, then refused (not a scan), dropped whole (the run was behind) or
+    /// handed to the run; the IMU's part when readings came.
+    pub fn closing_line(&self, points: &str, used: usize, skipped: usize) -> String {
+        let mut line = format!(
+            "{points}: {} message(s) received: {used} scan(s) used, {skipped} skipped, {} \
+             dropped whole (the pipeline was behind), {} refused (not scans)",
+            self.received, self.dropped, self.refused
+        );
+        if self.imu_readings > 0 {
+            line += &format!(
+                "; IMU: {} reading(s), {} dropped, {} scan(s) ran before the readings covered \
+                 their sweep",
+                self.imu_readings, self.imu_dropped, self.imu_late
+            );
+        }
+        line
+    }
+}
+
 /// The DDS endpoints the listening thread reads.
 pub struct Endpoints {
     /// `points`, as raw CDR.
@@ -575,3 +597,29 @@ fn worth_saying(n: u64) -> bool {
 
 /// How long a `~/save_map` call waits for the run's answer.
 const SAVE_TIMEOUT: Duration = Duration::from_secs(60);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_closing_line_counts_every_message() {
+        let mut c = Counts {
+            received: 120,
+            queued: 71,
+            dropped: 47,
+            refused: 2,
+            ..Counts::default()
+        };
+        assert_eq!(
+            c.closing_line("/points", 70, 1),
+            "/points: 120 message(s) received: 70 scan(s) used, 1 skipped, 47 dropped whole \
+             (the pipeline was behind), 2 refused (not scans)"
+        );
+        (c.imu_readings, c.imu_dropped, c.imu_late) = (2400, 3, 5);
+        assert!(c.closing_line("/points", 70, 1).ends_with(
+            "; IMU: 2400 reading(s), 3 dropped, 5 scan(s) ran before the readings covered their \
+             sweep"
+        ));
+    }
+}

@@ -5,7 +5,9 @@
 //! Quality of service, as ROS 2's own profiles are:
 //! - `points`: best effort, the last `queue` + 3 messages: it takes sensor drivers' best-effort
 //!   publishers and reliable ones alike (a reliable reader would not match a best-effort
-//!   writer);
+//!   writer). Its topic is made with resource limits of the same depth: RustDDS keeps each
+//!   topic's samples in a cache of its own, 64 deep when the topic's QoS sets no limits (and
+//!   it never shrinks): 64 clouds of 2 MB held for nothing;
 //! - `odom`, `path`, `/diagnostics`: reliable, volatile, the last 10; `mesh` the last 64
 //!   (a frame's tiles go out in several messages); `map`: reliable, transient local, the
 //!   last 1 (as Nav2's `map_server`: a planner that starts late gets the map);
@@ -29,7 +31,8 @@ use ros2_client::{
     Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
     ServiceMapping, ServiceTypeName, Subscription,
 };
-use rustdds::DomainParticipantBuilder;
+use rustdds::policy::ResourceLimits;
+use rustdds::{DomainParticipantBuilder, QosPolicies, QosPolicyBuilder, TopicKind};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use slamesh_core::layer::Shown;
@@ -130,30 +133,38 @@ impl RosNode {
     /// The way in: subscriptions and the service, on a thread of their own, until `stop`.
     pub fn listen(&mut self, stop: Arc<AtomicBool>) -> Result<Ros2Source, String> {
         let t = self.settings.topics.clone();
+        let depth = self.settings.queue + 3;
         let sensor = QosProfile::subscription_default()
             .reliability_best_effort()
             .durability(Durability::Volatile)
-            .history(History::KeepLast {
-                depth: self.settings.queue + 3,
-            });
-        let topic = self
-            .node
+            .history(History::KeepLast { depth });
+        // The topic's cache as deep as the reader's history (see the module's docs): made
+        // here as `Node::create_topic` makes it, with the limits its QoS cannot carry.
+        let depth = i32::try_from(depth).unwrap_or(i32::MAX);
+        let limits = QosPolicyBuilder::new()
+            .resource_limits(ResourceLimits {
+                max_samples: depth,
+                max_instances: 1,
+                max_samples_per_instance: depth,
+            })
+            .build();
+        let qos = QosPolicies::from(&sensor).modify_by(&limits);
+        let node_name = NodeName::new(&self.settings.namespace, &self.settings.name)
+            .map_err(|e| format!("{}: not a node name ({e:?})", self.settings.fqn()))?;
+        let participant = self.context.domain_participant();
+        let topic = participant
             .create_topic(
-                &name(&t.points)?,
-                MessageTypeName::new("sensor_msgs", "PointCloud2"),
-                &sensor,
+                name(&t.points)?.to_dds_name("rt", &node_name, ""),
+                MessageTypeName::new("sensor_msgs", "PointCloud2").dds_msg_type(),
+                &qos,
+                TopicKind::NoKey,
             )
             .map_err(|e| format!("{}: cannot create the topic: {e:?}", t.points))?;
-        let subscriber = self
-            .context
-            .domain_participant()
-            .create_subscriber(&(&sensor).into())
+        let subscriber = participant
+            .create_subscriber(&qos)
             .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
         let points = subscriber
-            .create_simple_datareader_no_key::<RawMessage, RawAdapter>(
-                &topic,
-                Some((&sensor).into()),
-            )
+            .create_simple_datareader_no_key::<RawMessage, RawAdapter>(&topic, Some(qos))
             .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
         let clock = match self.settings.use_sim_time {
             true => Some(
