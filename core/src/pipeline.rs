@@ -507,7 +507,8 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
 }
 
 /// A map whose first scan kept fewer than 1 / this of a later scan's points starts again from
-/// that later scan when it cannot register against it ([`Pipeline::base_to_drop`]).
+/// that later scan when it cannot register against it, while no registration against the map
+/// has converged ([`MapRestart`]).
 pub const BASE_POINTS_RATIO: usize = 4;
 
 /// The scan a map was started from: its frame, its points after the filter and its pose.

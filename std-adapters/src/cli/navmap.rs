@@ -22,8 +22,21 @@ pub struct RobotArgs {
     #[arg(long, value_name = "PROFILE|FILE", default_value = "wheeled", value_parser = robot)]
     pub robot: Robot,
     /// The navigation map's cell size (m; 0.05 to 0.1 suits Nav2).
-    #[arg(long, value_name = "M", default_value_t = 0.1, value_parser = resolution)]
+    #[arg(long, value_name = "M", default_value_t = DEFAULT_RESOLUTION_M, value_parser = resolution)]
     pub navmap_resolution: f64,
+}
+
+/// `--navmap-resolution`'s default (m).
+pub const DEFAULT_RESOLUTION_M: f64 = 0.1;
+
+impl Default for RobotArgs {
+    /// The flags' defaults: `wheeled`, [`DEFAULT_RESOLUTION_M`].
+    fn default() -> Self {
+        RobotArgs {
+            robot: Robot::WHEELED,
+            navmap_resolution: DEFAULT_RESOLUTION_M,
+        }
+    }
 }
 
 impl RobotArgs {

@@ -3,7 +3,9 @@
 //!
 //! The run's settings come from the flags, or from ROS parameters of the same names
 //! (`-p preset:=kitti`, `-p threads:=4`, `-p out:=DIR`, `-p map:=FILE`, `-p save_map:=FILE`,
-//! `-p localize:=true`, `-p loop_closure:=false`), which win when both are given.
+//! `-p localize:=true`, `-p loop_closure:=false`, or a `--params-file`'s): a flag given on the
+//! command line wins, and the node says which parameter it set aside. A flag left at its
+//! default (`--robot wheeled`, `--navmap-resolution 0.1`) counts as not given.
 
 use crate::cli::error::CliError;
 use crate::cli::notices::FrameNotices;
@@ -27,15 +29,16 @@ use std::sync::Arc;
 #[derive(Args, Debug)]
 pub struct Ros2Args {
     /// Output folder, written when the node stops (SIGINT, SIGTERM) as `run --out` writes
-    /// it (ROS parameter `out`).
-    #[arg(long, default_value = "slamesh-ros2")]
-    pub out: PathBuf,
+    /// it (ROS parameter `out`; default `slamesh-ros2`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
     /// Where the parameters come from (ROS parameters `preset`, `config`).
     #[command(flatten)]
     pub profile: Profile,
-    /// Reconstruction threads (1: serial; 0: one per core; ROS parameter `threads`).
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
+    /// Reconstruction threads (1: serial; 0, the default: one per core; ROS parameter
+    /// `threads`).
+    #[arg(long)]
+    pub threads: Option<usize>,
     /// The sliding window's flags.
     #[command(flatten)]
     pub window: WindowFlags,
@@ -80,6 +83,18 @@ pub struct Ros2Args {
     pub ros_args: Vec<String>,
 }
 
+/// The output folder when neither `--out` nor the parameter `out` names one.
+pub const DEFAULT_OUT: &str = "slamesh-ros2";
+
+impl Ros2Args {
+    /// The output folder.
+    pub fn out_dir(&self) -> PathBuf {
+        self.out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(DEFAULT_OUT))
+    }
+}
+
 fn node_error(reason: String) -> CliError {
     CliError::BadFlag {
         flag: "ros2",
@@ -112,24 +127,52 @@ fn parsed<T>(
         .map_err(|e| node_error(format!("parameter {key}: {e}")))
 }
 
-/// The flags with the ROS parameters of the same names put over them.
+/// `flag` when given, else `param`: a flag on the command line wins over the ROS parameter
+/// `name`, and the node says when it set the parameter aside.
+fn either<T: PartialEq + std::fmt::Debug>(
+    name: &str,
+    flag: Option<T>,
+    param: Option<T>,
+) -> Option<T> {
+    match (flag, param) {
+        (Some(f), Some(p)) => {
+            if f != p {
+                log::info!(
+                    "--{} {f:?} given: the ROS parameter {name} ({p:?}) is set aside",
+                    name.replace('_', "-")
+                );
+            }
+            Some(f)
+        }
+        (f, p) => f.or(p),
+    }
+}
+
+/// The flags, with the ROS parameters of the same names where a flag was not given
+/// ([`either`]).
 fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args, CliError> {
     let p = &mut node.params;
     let mut take_text = |k: &str| p.remove(k).map(|v| v.as_text());
-    let profile = Profile {
-        preset: take_text("preset").or(args.profile.preset.clone()),
-        config: take_text("config")
-            .map(PathBuf::from)
-            .or(args.profile.config.clone()),
+    let (preset, config) = (take_text("preset"), take_text("config").map(PathBuf::from));
+    // The profile is one choice: `--preset` or `--config` sets both parameters aside.
+    let profile = match &args.profile {
+        Profile {
+            preset: None,
+            config: None,
+        } => Profile { preset, config },
+        given => {
+            either("preset", given.preset.clone(), preset);
+            either("config", given.config.clone(), config);
+            given.clone()
+        }
     };
-    let out = take_text("out").map_or(args.out.clone(), PathBuf::from);
-    let map = take_text("map").map(PathBuf::from).or(args.map.clone());
-    let save_map = take_text("save_map")
-        .map(PathBuf::from)
-        .or(args.save_map.clone());
+    let out = either("out", args.out.clone(), take_text("out").map(PathBuf::from));
+    let map = either("map", args.map.clone(), take_text("map").map(PathBuf::from));
+    let save_map = take_text("save_map").map(PathBuf::from);
+    let save_map = either("save_map", args.save_map.clone(), save_map);
     let threads = match p.remove("threads") {
-        None => args.threads,
-        Some(ParamValue::Int(n)) if (0..=1024).contains(&n) => n as usize,
+        None => None,
+        Some(ParamValue::Int(n)) if (0..=1024).contains(&n) => Some(n as usize),
         Some(v) => {
             return Err(node_error(format!(
                 "parameter threads: {} is not 0 to 1024",
@@ -137,16 +180,32 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
             )))
         }
     };
-    let localize = flag(p, "localize")?.unwrap_or(args.localize);
-    let loop_closure = flag(p, "loop_closure")?
-        .map(|on| if on { OnOff::On } else { OnOff::Off })
-        .or(args.loop_closure);
-    let navmap = flag(p, "navmap")?.unwrap_or(args.navmap);
+    let threads = either("threads", args.threads, threads);
+    let localize = either(
+        "localize",
+        args.localize.then_some(true),
+        flag(p, "localize")?,
+    );
+    let loop_closure = flag(p, "loop_closure")?.map(|on| if on { OnOff::On } else { OnOff::Off });
+    let loop_closure = either("loop_closure", args.loop_closure, loop_closure);
+    let navmap = either("navmap", args.navmap.then_some(true), flag(p, "navmap")?);
+    let (robot, resolution) = (&args.robot.robot, args.robot.navmap_resolution);
+    let default = crate::cli::navmap::RobotArgs::default();
     let robot = crate::cli::navmap::RobotArgs {
-        robot: parsed(p, "robot", crate::cli::navmap::robot)?.unwrap_or(args.robot.robot),
-        navmap_resolution: parsed(p, "navmap_resolution", crate::cli::navmap::resolution)?
-            .unwrap_or(args.robot.navmap_resolution),
+        robot: either(
+            "robot",
+            (*robot != default.robot).then_some(*robot),
+            parsed(p, "robot", crate::cli::navmap::robot)?,
+        )
+        .unwrap_or(default.robot),
+        navmap_resolution: either(
+            "navmap_resolution",
+            (resolution != default.navmap_resolution).then_some(resolution),
+            parsed(p, "navmap_resolution", crate::cli::navmap::resolution)?,
+        )
+        .unwrap_or(default.navmap_resolution),
     };
+    let (localize, navmap) = (localize.unwrap_or(false), navmap.unwrap_or(false));
     if localize && map.is_none() {
         return Err(node_error(
             "localize needs a map (--map or -p map:=FILE)".into(),
@@ -204,7 +263,7 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
         node.settings.topics.points,
         node.settings.topics.odom,
         s.preset,
-        args.out.display()
+        args.out_dir().display()
     );
     if args.map.is_none() {
         crate::run::scale::fit_to_scene(&mut s, &mut source);
@@ -227,7 +286,7 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     let summary = args.capacity.run(&mut source, &opts, sinks)?;
     bar.finish_and_clear();
     notices.finish();
-    print_summary(&summary, &args.out);
+    print_summary(&summary, &args.out_dir());
     if let Ok(counts) = source.counts().lock() {
         let topic = &node.settings.topics.points;
         let skipped = summary.skipped.len();
@@ -241,11 +300,11 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
 
 fn run_options(args: &Ros2Args, s: &Settings, use_imu: bool) -> RunOptions {
     RunOptions {
-        out: args.out.clone(),
+        out: args.out_dir(),
         config: s.config,
         preset: s.preset.to_string(),
         window: s.window,
-        threads: args.threads,
+        threads: args.threads.unwrap_or(0),
         mesh_formats: vec![MeshFormat::Ply],
         mesh_colour: MeshColour::None,
         input: "ROS 2".into(),
@@ -284,15 +343,15 @@ mod tests {
     }
 
     #[test]
-    fn loop_closure_comes_from_the_flag_or_the_parameter_which_wins() {
+    fn loop_closure_comes_from_the_flag_which_wins_or_the_parameter() {
         assert_eq!(resolved(&[], "").unwrap().loop_closure, None);
         let flag = resolved(&["--loop-closure", "off"], "").unwrap();
         assert_eq!(flag.loop_closure, Some(OnOff::Off));
-        let param = resolved(
+        let both = resolved(
             &["--loop-closure", "off"],
             "--ros-args -p loop_closure:=true",
         );
-        assert_eq!(param.unwrap().loop_closure, Some(OnOff::On));
+        assert_eq!(both.unwrap().loop_closure, Some(OnOff::Off));
         let off = resolved(&[], "--ros-args -p loop_closure:=false").unwrap();
         assert_eq!(off.loop_closure, Some(OnOff::Off));
         let bad = resolved(&[], "--ros-args -p loop_closure:=3")
@@ -311,12 +370,20 @@ mod tests {
         let flags = resolved(&["--navmap", "--robot", "legged"], "").unwrap();
         assert!(flags.navmap && flags.robot.robot == Robot::LEGGED);
         let params = resolved(
-            &["--navmap"],
+            &[],
+            "--ros-args -p navmap:=true -p robot:=legged -p navmap_resolution:=0.05",
+        )
+        .unwrap();
+        assert!(params.navmap && params.robot.robot == Robot::LEGGED);
+        assert_eq!(params.robot.options().resolution_m, 0.05);
+        // The flags win; a flag at its default (wheeled) counts as not given.
+        let both = resolved(
+            &["--navmap", "--navmap-resolution", "0.08"],
             "--ros-args -p navmap:=false -p robot:=legged -p navmap_resolution:=0.05",
         )
         .unwrap();
-        assert!(!params.navmap && params.robot.robot == Robot::LEGGED);
-        assert_eq!(params.robot.options().resolution_m, 0.05);
+        assert!(both.navmap && both.robot.robot == Robot::LEGGED);
+        assert_eq!(both.robot.options().resolution_m, 0.08);
         for (bad, says) in [
             ("navmap:=3", "navmap: 3 is not true or false"),
             ("robot:=tracked", "parameter robot:"),
@@ -327,5 +394,32 @@ mod tests {
                 .unwrap();
             assert!(e.to_string().contains(says), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn flags_win_over_the_example_parameter_file() {
+        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/ros2/params.yaml");
+        let ros_args = format!("--ros-args --params-file {file}");
+        // The file alone: its own out, preset and threads.
+        let file_only = resolved(&[], &ros_args).unwrap();
+        assert_eq!(file_only.out_dir(), PathBuf::from("slamesh-ros2"));
+        assert_eq!(file_only.profile.preset.as_deref(), Some("kitti"));
+        let given = resolved(
+            &["--out", "run1", "--preset", "fast", "--threads", "2"],
+            &ros_args,
+        )
+        .unwrap();
+        assert_eq!(given.out_dir(), PathBuf::from("run1"));
+        assert_eq!(given.profile.preset.as_deref(), Some("fast"));
+        assert_eq!(given.threads, Some(2));
+        // --config is the profile too: the file's preset is set aside.
+        let config = resolved(&["--config", "my.toml"], &ros_args).unwrap();
+        assert_eq!(config.profile.preset, None);
+        assert_eq!(config.profile.config, Some(PathBuf::from("my.toml")));
+        // Nothing at all: the default folder.
+        assert_eq!(
+            resolved(&[], "").unwrap().out_dir(),
+            PathBuf::from(DEFAULT_OUT)
+        );
     }
 }

@@ -135,7 +135,7 @@ const IMU_LOOK: Duration = Duration::from_millis(1);
 
 /// The queue's room for scans that wait for the IMU: one more scan for each this long of
 /// `imu_wait` (a sensor at up to 20 Hz).
-const WAIT_PER_SCAN: Duration = Duration::from_millis(50);
+pub const WAIT_PER_SCAN: Duration = Duration::from_millis(50);
 
 /// The node's inputs as frames.
 pub struct Ros2Source {
