@@ -152,7 +152,11 @@ def check_scans(args, reference, run_mesh):
     covs = [o["covariance"] for o in r["odom"][1:]]
     if not all(c[0] > 0 and c[35] > 0 and abs(c[1] - c[6]) < 1e-12 for c in covs):
         fail("a registered scan's covariance is not positive and symmetric")
-    ok("covariances positive and symmetric")
+    # The velocity's from the second registered scan on (the first scan is not registered).
+    twists = [o["twist_covariance"] for o in r["odom"][2:]]
+    if not all(c[0] > 0 and c[35] > 0 and abs(c[1] - c[6]) < 1e-12 for c in twists):
+        fail(f"a velocity's covariance is not positive and symmetric: {twists[:1]}")
+    ok("covariances of the poses and the velocities positive and symmetric")
     with open(os.path.join(node.out, "poses_tum.txt")) as a, open(args.run_tum) as b:
         if a.read() != b.read():
             fail("the node's poses_tum.txt differs from run's")

@@ -214,6 +214,7 @@ class Peer:
                 "child": m.child_frame_id,
                 "pose": [p.x, p.y, p.z, q.x, q.y, q.z, q.w],
                 "covariance": list(m.pose.covariance),
+                "twist_covariance": list(m.twist.covariance),
             }
         )
 

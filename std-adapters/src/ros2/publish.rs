@@ -2,7 +2,7 @@
 //!
 //! | topic | type | what |
 //! |---|---|---|
-//! | `odom` | `nav_msgs/Odometry` | every registered scan: `base_link` in `odom`, stamped with the scan's stamp, its covariance from the registration, its velocity from the last two poses |
+//! | `odom` | `nav_msgs/Odometry` | every registered scan: `base_link` in `odom`, stamped with the scan's stamp (to the nanosecond), its covariance from the registration, its velocity from the last two poses with theirs (the two registrations' covariances over the time between them squared, in `base_link`; zeros when either is unknown) |
 //! | `/tf` | `tf2_msgs/TFMessage` | `odom -> base_link` and `map -> odom` with every pose |
 //! | `path` | `nav_msgs/Path` | the trajectory in `map` (corrected after a loop closure) |
 //! | `mesh` | `visualization_msgs/MarkerArray` | the tiles a frame changed ([`crate::ros2::mesh_tiles`]) |
@@ -99,6 +99,8 @@ pub struct Ros2Sink {
     node: String,
     odom: Option<OdomFrame>,
     last: Option<(f64, Pose)>,
+    /// The last pose's covariance in the robot's frame, (ω, ρ) order, when it was registered.
+    last_local: Option<Matrix6<f64>>,
     path: PathMsg,
     tiles: Option<MeshTiles>,
     /// The grid on `map` (it holds `map`'s publisher).
@@ -139,6 +141,7 @@ impl Ros2Sink {
             node,
             odom: None,
             last: None,
+            last_local: None,
             path,
             tiles,
             map,
@@ -173,16 +176,26 @@ impl Ros2Sink {
         let jumped = e.record.relocalization.is_some() || !e.record.loop_closures.is_empty();
         let odom = OdomFrame::next(self.odom, map_base, jumped);
         self.odom = Some(odom);
-        let covariance = e
+        // The registration's information is about the LiDAR's pose in the world; the robot's
+        // pose there is `T · E⁻¹`.
+        let base_in_world = lidar * self.lidar_in_base.inverse();
+        let local = e
             .information
             .as_ref()
-            .map_or(Covariance::default(), |info| {
-                // The registration's information is about the LiDAR's pose in the world; the
-                // robot's pose there is `T · E⁻¹`.
-                let base_in_world = lidar * self.lidar_in_base.inverse();
-                ros_covariance(&local_covariance(info, &base_in_world), &odom.odom_base)
-            });
-        let twist = self.velocity(e.record.stamp, &odom.odom_base);
+            .map(|info| local_covariance(info, &base_in_world));
+        let covariance = local.map_or(Covariance::default(), |c| {
+            ros_covariance(&c, &odom.odom_base)
+        });
+        let last_local = std::mem::replace(&mut self.last_local, local);
+        let (twist, dt) = self.velocity(e.record.stamp, &odom.odom_base);
+        // The velocity is the step between two registered poses over `dt`: its covariance the
+        // sum of theirs (taken as independent) over `dt²`, in `base_link`.
+        let twist_covariance = match (local, last_local, dt) {
+            (Some(now), Some(before), Some(dt)) => {
+                ros_covariance(&((now + before) / (dt * dt)), &Pose::identity())
+            }
+            _ => Covariance::default(),
+        };
         let odometry = Odometry {
             header: self.header(stamp, &self.frames.odom),
             child_frame_id: self.frames.base.clone(),
@@ -192,7 +205,7 @@ impl Ros2Sink {
             },
             twist: TwistWithCovariance {
                 twist,
-                covariance: Covariance::default(),
+                covariance: twist_covariance,
             },
         };
         self.publishers
@@ -232,20 +245,21 @@ impl Ros2Sink {
             .map_err(|e| format!("path: {e:?}"))
     }
 
-    /// The velocity in the robot's frame from its last two poses in `odom`.
-    fn velocity(&mut self, stamp: f64, odom_base: &Pose) -> Twist {
+    /// The velocity in the robot's frame from its last two poses in `odom`, and the time
+    /// between them (`None`, and no velocity, for the first or a repeated stamp).
+    fn velocity(&mut self, stamp: f64, odom_base: &Pose) -> (Twist, Option<f64>) {
         let last = self.last.replace((stamp, *odom_base));
         let Some((t0, p0)) = last else {
-            return Twist::default();
+            return (Twist::default(), None);
         };
         let dt = stamp - t0;
         if dt.is_nan() || dt <= 1e-6 {
-            return Twist::default();
+            return (Twist::default(), None);
         }
         let d = p0.inverse() * odom_base;
         let v = d.translation.vector / dt;
         let w = d.rotation.scaled_axis() / dt;
-        Twist {
+        let twist = Twist {
             linear: Vector3 {
                 x: v.x,
                 y: v.y,
@@ -256,7 +270,8 @@ impl Ros2Sink {
                 y: w.y,
                 z: w.z,
             },
-        }
+        };
+        (twist, Some(dt))
     }
 
     /// The path after a loop closure: `corrected` holds every used frame's LiDAR pose.
