@@ -22,6 +22,9 @@ Checks, each printed as it passes (the first failure stops it with its reason):
 5. `first_bad`: a first cloud whose fields overlap is refused with its reason and decides
    nothing; the scans after it get `run`'s poses, each Odometry stamped with its scan's stamp
    to the nanosecond (epoch stamps, which f64 seconds cannot hold).
+7. `tf_static`: with no `lidar_in_base`, the node takes the LiDAR's place on the robot from a
+   robot_state_publisher's `/tf_static` (its odometry is run's moved there); given, the
+   parameter wins and the node publishes it on `/tf_static`.
 6. `imu_drive` (with --drive, a shaken rolling-sweep drive and its 200 Hz IMU that
    `write_drive` wrote): replayed as `ros2 bag play` would, each scan at its stamp (before the
    IMU's readings over its sweep), the IMU on time and then 50 ms late: the node waits for the
@@ -31,6 +34,7 @@ Checks, each printed as it passes (the first failure stops it with its reason):
 
 import argparse
 import json
+import math
 import os
 import signal
 import subprocess
@@ -75,13 +79,14 @@ class Node:
     """`slamesh ros2` in the background, its memory sampled; `stop` sends SIGINT. The IMU's
     readings are counted, not used (`use_imu:=false`): the peer's are not the scans' motion."""
 
-    def __init__(self, args, out, extra=(), params=()):
+    def __init__(self, args, out, extra=(), params=(), remaps=(), quiet=True):
         os.makedirs(os.path.dirname(out), exist_ok=True)
         self.log = open(out + ".log", "w")
         self.p = subprocess.Popen(
-            [args.slamesh, "ros2", "--out", out, "-q", *extra, "--ros-args",
-             "-p", "preset:=kitti", "-p", "threads:=2", "-p", "use_imu:=false",
-             "-p", "map_every:=3", *(w for p in params for w in ("-p", p))],
+            [args.slamesh, "ros2", "--out", out, *(["-q"] if quiet else []), *extra,
+             "--ros-args", "-p", "preset:=kitti", "-p", "threads:=2", "-p", "use_imu:=false",
+             "-p", "map_every:=3", *(w for p in params for w in ("-p", p)),
+             *(w for r in remaps for w in ("-r", r))],
             stdout=self.log, stderr=subprocess.STDOUT,
         )
         self.out = out
@@ -388,6 +393,59 @@ def check_imu_drive(args, wait=()):
            f"(run {run_ate * 100:.2f} cm), {late} scans ran before the IMU covered them")
 
 
+def matrix(pose):
+    """4 x 4 of [x y z qx qy qz qw]."""
+    import numpy as np
+
+    x, y, z, qx, qy, qz, qw = pose
+    r = np.array([
+        [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)],
+        [2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)],
+        [2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)],
+    ])
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = r, [x, y, z]
+    return m
+
+
+def placed_like_run(odom, reference, e):
+    """The largest difference (m, or rotation-matrix entry) of each Odometry from run's pose
+    of its scan moved onto the robot: E T E^-1."""
+    import numpy as np
+
+    worst = 0.0
+    for o in odom:
+        t = matrix(reference[round(o["stamp"], 6)])
+        want = e @ t @ np.linalg.inv(e)
+        worst = max(worst, float(np.abs(matrix(o["pose"]) - want).max()))
+    return worst
+
+
+def check_tf_static(args, reference):
+    """No wheel of tf2_msgs exists for rclpy: a second node is the robot's static publisher.
+    Node A is given lidar_in_base (and lidar_frame) and publishes it on /tf_static at start;
+    node B, given neither and its outputs remapped, takes it from there."""
+    yaw = 0.3
+    a = Node(args, os.path.join(args.work, "tf-static-a", "out"),
+             params=["lidar_in_base:=[0.1,0.0,0.8,0.0,0.0,0.3]", "lidar_frame:=velodyne"])
+    time.sleep(1.0)
+    b = Node(args, os.path.join(args.work, "tf-static-b", "out"), quiet=False,
+             params=["publish_tf:=false", "publish_mesh:=false", "publish_map:=false"],
+             remaps=["odom:=odom_b", "path:=path_b", "/diagnostics:=/diagnostics_b"])
+    r = peer(args, "scans", os.path.join(args.work, "tf-static.json"), "--last", "5", node=a)
+    a.stop()
+    log_b = b.stop()
+    e = matrix([0.1, 0.0, 0.8, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
+    worst = placed_like_run(r["odom"], reference, e)
+    if len(r["odom"]) != 5 or worst > 1e-6:
+        fail(f"lidar_in_base given: {len(r['odom'])} Odometry, {worst} from run's moved there")
+    said = "the LiDAR on the robot from /tf_static: base_link -> velodyne at (0.100, 0.000, 0.800) m"
+    if said not in log_b:
+        fail(f"the second node did not take the first's /tf_static: {log_b[-800:]}")
+    ok(f"lidar_in_base given: Odometry run's poses moved onto the robot (within {worst:.1e}), "
+       "published on /tf_static; a node given none took it from there")
+
+
 def mesh_bounds(ply):
     """The bounding box of a binary or ASCII PLY's vertices (x, y, z first)."""
     import numpy as np
@@ -426,7 +484,7 @@ def main():
     p.add_argument("--only", help="these checks only, by number (1,2,...): for a developer")
     p.add_argument("--imu-wait", help="check 6 with this imu_wait (seconds): 0 shows the need")
     args = p.parse_args()
-    only = {int(k) for k in args.only.split(",")} if args.only else set(range(1, 7))
+    only = {int(k) for k in args.only.split(",")} if args.only else set(range(1, 8))
     wait = [f"imu_wait:={args.imu_wait}"] if args.imu_wait else []
     os.makedirs(args.work, exist_ok=True)
     run = os.path.join(args.work, "run")
@@ -442,6 +500,7 @@ def main():
         lambda: check_initialpose(args, reference),
         lambda: check_first_bad(args, reference),
         lambda: check_imu_drive(args, wait),
+        lambda: check_tf_static(args, reference),
     ]
     for k, check in enumerate(checks, 1):
         if k in only:

@@ -480,7 +480,8 @@ def scenario_idle(peer, args):
 def main():
     p = argparse.ArgumentParser()
     p.add_argument(
-        "scenario", choices=["scans", "hostile", "initialpose", "first_bad", "imu_drive", "idle"]
+        "scenario",
+        choices=["scans", "hostile", "initialpose", "first_bad", "imu_drive", "idle"],
     )
     p.add_argument("--kitti", required=True)
     p.add_argument("--out", required=True)

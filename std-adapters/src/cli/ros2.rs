@@ -272,7 +272,8 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     if !args.localize {
         choose_loop_closure(args.loop_closure, &mut opts)?;
     }
-    let sink = advertised.sink(&opts.config, &source, args.robot.options());
+    let lidar_in_base = advertised.lidar_in_base(&mut source);
+    let sink = advertised.sink(&opts.config, &source, args.robot.options(), lidar_in_base);
     let sink = Queued::new(sink, 8, WhenFull::Wait)
         .map_err(|e| node_error(format!("cannot start the publishing thread: {e}")))?;
     let bar = crate::cli::progress_open(quiet);

@@ -24,16 +24,17 @@
 
 use crate::io::error::FileError;
 use crate::ros2::clouds::{FrameCheck, RawAdapter, RawMessage};
+pub use crate::ros2::counts::Counts;
 use crate::ros2::messages::{
-    Clock, Imu, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse,
+    Clock, Imu, PoseWithCovarianceStamped, TfMessage, TriggerRequest, TriggerResponse,
 };
+use crate::ros2::transforms::StaticTransforms;
 use crate::sources::feed::{Feed, FeedSender, Offered};
 use crate::sources::imu_readings::frame_period;
 use crate::sources::{FrameSource, ImuReading, Request, Sample, Waited};
 use ros2_client::{RmwRequestId, Server, Subscription};
 use rustdds::mio1::{Events, Interest, Poll, Token};
 use rustdds::no_key::SimpleDataReader;
-use serde::Serialize;
 use slamesh_core::Point;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -41,56 +42,6 @@ use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
-
-/// What the node's inputs counted, for `diagnostics` and `report.json`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
-pub struct Counts {
-    /// Messages taken on `points`.
-    pub received: u64,
-    /// Scans handed to the run.
-    pub queued: u64,
-    /// Scans dropped whole because the run was behind.
-    pub dropped: u64,
-    /// Messages that were not scans.
-    pub refused: u64,
-    /// The last refusal: topic, stamp and reason.
-    pub last_refused: Option<String>,
-    /// Poses taken on `initialpose`.
-    pub initial_poses: u64,
-    /// Readings taken on `imu`.
-    pub imu_readings: u64,
-    /// Readings refused (a number not finite) or dropped (more than [`IMU_KEPT`] waiting).
-    pub imu_dropped: u64,
-    /// Scans handed to the run before the IMU's readings covered their sweep: the wait
-    /// (`imu_wait`) ran out.
-    pub imu_late: u64,
-    /// Map saves asked for on `~/save_map`.
-    pub save_requests: u64,
-    /// The latest `/clock` (seconds), when `use_sim_time` is set.
-    pub clock_s: Option<f64>,
-}
-
-impl Counts {
-    /// The closing line of a node's run: what came on `points` (the topic) and what became of
-    /// it, with the run's own counts of frames `used` and `skipped` (read but not used): every
-    /// message is received, then refused (not a scan), dropped whole (the run was behind) or
-    /// handed to the run; the IMU's part when readings came.
-    pub fn closing_line(&self, points: &str, used: usize, skipped: usize) -> String {
-        let mut line = format!(
-            "{points}: {} message(s) received: {used} scan(s) used, {skipped} skipped, {} \
-             dropped whole (the pipeline was behind), {} refused (not scans)",
-            self.received, self.dropped, self.refused
-        );
-        if self.imu_readings > 0 {
-            line += &format!(
-                "; IMU: {} reading(s), {} dropped, {} scan(s) ran before the readings covered \
-                 their sweep",
-                self.imu_readings, self.imu_dropped, self.imu_late
-            );
-        }
-        line
-    }
-}
 
 /// The DDS endpoints the listening thread reads.
 pub struct Endpoints {
@@ -102,6 +53,8 @@ pub struct Endpoints {
     pub imu: Subscription<Imu>,
     /// `/clock`, when `use_sim_time` is set.
     pub clock: Option<Subscription<Clock>>,
+    /// `/tf_static`.
+    pub tf_static: Subscription<TfMessage>,
     /// `~/save_map`.
     pub save_map: Server<TriggerRequest, TriggerResponse>,
 }
@@ -145,6 +98,8 @@ pub struct Ros2Source {
     counts: Arc<Mutex<Counts>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    /// What `/tf_static` said.
+    transforms: StaticTransforms,
     /// The stamp of the last frame the readings went with.
     last_stamp: Option<f64>,
     /// How long after it came a scan waits for the IMU's readings over its sweep (zero: never).
@@ -178,6 +133,7 @@ impl Ros2Source {
         let (request_tx, requests) = mpsc::channel();
         let counts = Arc::new(Mutex::new(Counts::default()));
         let imu = ImuQueue::default();
+        let transforms = StaticTransforms::default();
         let listener = Listener {
             imu: imu.clone(),
             endpoints,
@@ -189,6 +145,7 @@ impl Ros2Source {
             requests: request_tx,
             counts: counts.clone(),
             stop: stop.clone(),
+            transforms: transforms.clone(),
             pending: Vec::new(),
         };
         let thread = std::thread::Builder::new()
@@ -202,6 +159,7 @@ impl Ros2Source {
             counts,
             stop,
             thread: Some(thread),
+            transforms,
             last_stamp: None,
             imu_wait,
             late: None,
@@ -264,6 +222,16 @@ impl Ros2Source {
     /// What the inputs counted so far.
     pub fn counts(&self) -> Arc<Mutex<Counts>> {
         self.counts.clone()
+    }
+
+    /// The scans' frame, once a scan came (or `lidar_frame` named it).
+    pub fn scans_frame(&self) -> Option<String> {
+        self.counts.lock().ok()?.scans_frame.clone()
+    }
+
+    /// `child` in `parent` as `/tf_static` said so far.
+    pub fn static_transform(&self, parent: &str, child: &str) -> Option<slamesh_core::Pose> {
+        self.transforms.lookup(parent, child)
     }
 }
 
@@ -349,6 +317,7 @@ const INITIALPOSE: Token = Token(1);
 const CLOCK: Token = Token(2);
 const SAVE_MAP: Token = Token(3);
 const IMU: Token = Token(4);
+const TF_STATIC: Token = Token(5);
 
 /// A `~/save_map` call waiting for the run's answer: its id, the answer's way back, when it
 /// came.
@@ -364,6 +333,7 @@ struct Listener {
     requests: Sender<Request>,
     counts: Arc<Mutex<Counts>>,
     stop: Arc<AtomicBool>,
+    transforms: StaticTransforms,
     /// `~/save_map` calls the run has not answered yet.
     pending: Vec<PendingSave>,
 }
@@ -398,6 +368,9 @@ impl Listener {
             self.take_imu();
             self.take_clock();
             self.take_save_requests();
+            while let Ok(Some((m, _))) = self.endpoints.tf_static.take() {
+                self.transforms.keep(&m);
+            }
         }
         self.tx.end();
     }
@@ -413,6 +386,7 @@ impl Listener {
             r.register(c, CLOCK, Interest::READABLE)?;
         }
         r.register(&mut e.save_map, SAVE_MAP, Interest::READABLE)?;
+        r.register(&mut e.tf_static, TF_STATIC, Interest::READABLE)?;
         Ok(poll)
     }
 
@@ -444,6 +418,13 @@ impl Listener {
                 }
             };
             let stamp = scan.stamp;
+            if let Some(frame) = &self.check.expected {
+                self.count(|c| {
+                    if c.scans_frame.is_none() {
+                        c.scans_frame = Some(frame.clone());
+                    }
+                });
+            }
             match self.tx.offer(scan) {
                 Offered::Queued => self.count(|c| c.queued += 1),
                 Offered::Dropped => {
@@ -597,29 +578,3 @@ fn worth_saying(n: u64) -> bool {
 
 /// How long a `~/save_map` call waits for the run's answer.
 const SAVE_TIMEOUT: Duration = Duration::from_secs(60);
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_closing_line_counts_every_message() {
-        let mut c = Counts {
-            received: 120,
-            queued: 71,
-            dropped: 47,
-            refused: 2,
-            ..Counts::default()
-        };
-        assert_eq!(
-            c.closing_line("/points", 70, 1),
-            "/points: 120 message(s) received: 70 scan(s) used, 1 skipped, 47 dropped whole \
-             (the pipeline was behind), 2 refused (not scans)"
-        );
-        (c.imu_readings, c.imu_dropped, c.imu_late) = (2400, 3, 5);
-        assert!(c.closing_line("/points", 70, 1).ends_with(
-            "; IMU: 2400 reading(s), 3 dropped, 5 scan(s) ran before the readings covered their \
-             sweep"
-        ));
-    }
-}

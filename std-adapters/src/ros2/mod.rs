@@ -12,12 +12,15 @@
 //! | the messages it sends and takes (`formats::ros_messages`, as ros2-client takes them) | [`messages`] |
 //! | `points`: PointCloud2 bytes to scans, bad messages refused | [`clouds`] |
 //! | the way in: subscriptions and the service on a thread, scans through a bounded queue | [`listen`] |
+//! | what the way in counted, for `/diagnostics`, `report.json` and the closing line | [`counts`] |
 //! | the way out: odometry, transforms, path, diagnostics | [`publish`] |
 //! | the mesh as RViz markers, a tile at a time | [`mesh_tiles`] |
 //! | the occupancy grid for Nav2, kept current window by window | [`occupancy`] |
+//! | the robot's static transforms heard on `/tf_static` | [`transforms`] |
 //! | the DDS participant, the node and its endpoints | [`node`] |
 
 pub mod clouds;
+pub mod counts;
 pub mod listen;
 pub mod mesh_tiles;
 pub mod messages;
@@ -25,6 +28,7 @@ pub mod node;
 pub mod occupancy;
 pub mod publish;
 pub mod settings;
+pub mod transforms;
 
 pub use listen::Ros2Source;
 pub use node::{Advertised, RosNode};

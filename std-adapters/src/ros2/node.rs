@@ -20,12 +20,14 @@ use crate::ros2::clouds::{RawAdapter, RawMessage};
 use crate::ros2::listen::{Endpoints, Names, Ros2Source};
 use crate::ros2::mesh_tiles::MeshTiles;
 use crate::ros2::messages::{
-    Clock, DiagnosticArray, Imu, MarkerArray, OccupancyGrid, Odometry, PathMsg,
-    PoseWithCovarianceStamped, TfMessage, TriggerRequest, TriggerResponse, Typed,
+    Clock, DiagnosticArray, Header, Imu, MarkerArray, OccupancyGrid, Odometry, PathMsg, PoseMsg,
+    PoseWithCovarianceStamped, TfMessage, Time, TransformStamped, TriggerRequest, TriggerResponse,
+    Typed,
 };
 use crate::ros2::occupancy::LiveMap;
 use crate::ros2::publish::{Publishers, Ros2Sink};
 use crate::ros2::settings::NodeSettings;
+use crate::sources::FrameSource;
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{
     Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
@@ -36,7 +38,7 @@ use rustdds::{DomainParticipantBuilder, QosPolicies, QosPolicyBuilder, TopicKind
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use slamesh_core::layer::Shown;
-use slamesh_core::Config;
+use slamesh_core::{Config, Pose};
 use std::net::{IpAddr, Ipv4Addr};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -61,6 +63,15 @@ fn latched() -> QosProfile {
         .reliability_reliable(WhenFull::DEFAULT)
         .durability(Durability::TransientLocal)
         .history(History::KeepLast { depth: 1 })
+}
+
+/// As tf2's static listener reads `/tf_static`: reliable, transient local (a robot's static
+/// transforms are sent once, before the node may start), the last 100.
+fn latched_in() -> QosProfile {
+    QosProfile::subscription_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 100 })
 }
 
 fn reliable(depth: usize) -> QosProfile {
@@ -199,6 +210,7 @@ impl RosNode {
             )?,
             clock,
             save_map,
+            tf_static: self.subscription::<TfMessage>(&t.tf_static, latched_in())?,
         };
         let names = Names {
             points: t.points.clone(),
@@ -235,16 +247,27 @@ impl RosNode {
                 false => None,
             },
             diagnostics: self.publisher::<DiagnosticArray>(&t.diagnostics, reliable(10))?,
+            // The LiDAR's place, when the parameter gives it, for the robot's other nodes.
+            tf_static: match s.lidar_in_base {
+                Some(_) => Some(self.publisher::<TfMessage>(&t.tf_static, latched())?),
+                None => None,
+            },
         };
         let map = match s.map_every {
             Some(_) => Some(self.publisher::<OccupancyGrid>(&t.map, latched())?),
             None => None,
         };
-        Ok(Advertised {
+        let mut advertised = Advertised {
             publishers,
             map,
             settings: s,
-        })
+            static_sent: false,
+        };
+        // With the scans' frame named, the LiDAR's place goes out at once.
+        if let Some(frame) = advertised.settings.lidar_frame.clone() {
+            advertised.send_static(&frame);
+        }
+        Ok(advertised)
     }
 }
 
@@ -254,13 +277,89 @@ pub struct Advertised {
     publishers: Publishers,
     map: Option<Publisher<OccupancyGrid>>,
     settings: NodeSettings,
+    /// Whether the LiDAR's place went out on `/tf_static`.
+    static_sent: bool,
 }
 
 impl Advertised {
+    /// Sends the `lidar_in_base` parameter on `/tf_static` (the robot's frame to `frame`),
+    /// when it was given.
+    fn send_static(&mut self, frame: &str) {
+        let (Some(publisher), Some(pose)) =
+            (&self.publishers.tf_static, self.settings.lidar_in_base)
+        else {
+            return;
+        };
+        let transform = TransformStamped {
+            header: Header {
+                stamp: Time::default(),
+                frame_id: self.settings.frames.base.clone(),
+            },
+            child_frame_id: frame.to_string(),
+            transform: PoseMsg::from(&pose),
+        };
+        let message = TfMessage {
+            transforms: vec![transform],
+        };
+        match publisher.publish(message) {
+            Ok(()) => self.static_sent = true,
+            Err(e) => log::warn!("/tf_static: {e:?}"),
+        }
+    }
+
+    /// The LiDAR's pose on the robot: the parameter's, else `/tf_static`'s from the robot's
+    /// frame to the scans' (waiting for the first scan, which names it), else the identity;
+    /// said.
+    pub fn lidar_in_base(&self, source: &mut Ros2Source) -> Pose {
+        let s = &self.settings;
+        if let Some(p) = s.lidar_in_base {
+            return p;
+        }
+        // The first scan (or the stream's end): nothing is published before it anyway.
+        source.has(0);
+        let frame = s.lidar_frame.clone().or_else(|| source.scans_frame());
+        let heard = frame
+            .as_deref()
+            .and_then(|f| Some((f, source.static_transform(&s.frames.base, f)?)));
+        match heard {
+            Some((f, p)) => {
+                let t = p.translation.vector;
+                log::info!(
+                    "the LiDAR on the robot from /tf_static: {} -> {f} at ({:.3}, {:.3}, {:.3}) m",
+                    s.frames.base,
+                    t.x,
+                    t.y,
+                    t.z
+                );
+                p
+            }
+            None => {
+                log::info!(
+                    "the LiDAR on the robot: the identity (no lidar_in_base parameter, and \
+                     /tf_static has said nothing of {} -> {})",
+                    s.frames.base,
+                    frame.as_deref().unwrap_or("the scans' frame")
+                );
+                Pose::identity()
+            }
+        }
+    }
+
     /// The publishers as a sink of the run; `config` is the run's (the mesh's lattice and
     /// what it shows); `source` the way in (its counts go into `diagnostics`); `grid` the
-    /// `map` topic's.
-    pub fn sink(self, config: &Config, source: &Ros2Source, grid: NavMapOptions) -> Ros2Sink {
+    /// `map` topic's; the LiDAR on the robot at `lidar_in_base` ([`Self::lidar_in_base`]),
+    /// published on `/tf_static` when a parameter gave it.
+    pub fn sink(
+        mut self,
+        config: &Config,
+        source: &Ros2Source,
+        grid: NavMapOptions,
+        lidar_in_base: Pose,
+    ) -> Ros2Sink {
+        if !self.static_sent {
+            let frame = source.scans_frame().unwrap_or_else(|| "lidar".into());
+            self.send_static(&frame);
+        }
         let s = self.settings;
         // The grid is made from the mesh's tiles, kept also when the mesh is not published.
         let tiles = (s.publish_mesh || s.map_every.is_some())
@@ -274,14 +373,14 @@ impl Advertised {
                         false
                     }
                 });
-                Some(LiveMap::new(every, s.lidar_in_base, grid, out))
+                Some(LiveMap::new(every, lidar_in_base, grid, out))
             }
             _ => None,
         };
         Ros2Sink::new(
             self.publishers,
             s.frames.clone(),
-            s.lidar_in_base,
+            lidar_in_base,
             (tiles, map),
             source.counts(),
             s.fqn(),

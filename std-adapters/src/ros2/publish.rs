@@ -4,6 +4,7 @@
 //! |---|---|---|
 //! | `odom` | `nav_msgs/Odometry` | every registered scan: `base_link` in `odom`, stamped with the scan's stamp (to the nanosecond), its covariance from the registration, its velocity from the last two poses with theirs (the two registrations' covariances over the time between them squared, in `base_link`; zeros when either is unknown) |
 //! | `/tf` | `tf2_msgs/TFMessage` | `odom -> base_link` and `map -> odom` with every pose |
+//! | `/tf_static` | `tf2_msgs/TFMessage` | `base_link ->` the scans' frame, once, when the `lidar_in_base` parameter gives it (the node sends it: [`crate::ros2::node::Advertised`]) |
 //! | `path` | `nav_msgs/Path` | the trajectory in `map` (corrected after a loop closure) |
 //! | `mesh` | `visualization_msgs/MarkerArray` | the tiles a frame changed ([`crate::ros2::mesh_tiles`]) |
 //! | `map` | `nav_msgs/OccupancyGrid` | every `map_every` scans and at the end: the grid around the robot made again ([`crate::ros2::occupancy`]) |
@@ -47,6 +48,9 @@ pub struct Publishers {
     pub mesh: Option<Publisher<MarkerArray>>,
     /// `/diagnostics`.
     pub diagnostics: Publisher<DiagnosticArray>,
+    /// `/tf_static`: the LiDAR on the robot, when a parameter gave it (sent once; kept for
+    /// late subscribers).
+    pub tf_static: Option<Publisher<TfMessage>>,
 }
 
 /// How often `/diagnostics` is published, at most.

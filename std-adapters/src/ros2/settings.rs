@@ -5,7 +5,7 @@
 //! | parameter | type | default | what |
 //! |---|---|---|---|
 //! | `map_frame`, `odom_frame`, `base_frame` | text | `map`, `odom`, `base_link` | the frames of `/tf` and `odom` |
-//! | `lidar_in_base` | 6 or 7 doubles | identity | the LiDAR's pose on the robot: `[x, y, z, roll, pitch, yaw]` or `[x, y, z, qx, qy, qz, qw]` |
+//! | `lidar_in_base` | 6 or 7 doubles | `/tf_static`'s, else identity | the LiDAR's pose on the robot: `[x, y, z, roll, pitch, yaw]` or `[x, y, z, qx, qy, qz, qw]`; given, it is also published on `/tf_static` (`base_frame` to the scans' frame); not given, the transform from `base_frame` to the scans' frame heard on `/tf_static` by the first scan (a `robot_state_publisher`'s) |
 //! | `lidar_frame` | text | the first scan's | scans in another frame are refused |
 //! | `queue` | integer | 2 | scans waiting for the pipeline, at most; a scan that finds it full is dropped |
 //! | `publish_tf`, `publish_mesh`, `publish_map` | bool | true | whether `/tf`, `mesh` and `map` are published |
@@ -59,6 +59,8 @@ pub struct Topics {
     pub diagnostics: String,
     /// Transforms out (`/tf`).
     pub tf: String,
+    /// Static transforms in and out (`/tf_static`).
+    pub tf_static: String,
     /// The map-saving service (`~/save_map`).
     pub save_map: String,
 }
@@ -89,8 +91,8 @@ pub struct NodeSettings {
     pub topics: Topics,
     /// The frames.
     pub frames: Frames,
-    /// The LiDAR's pose in the robot's frame.
-    pub lidar_in_base: Pose,
+    /// The LiDAR's pose in the robot's frame, when the parameter gives it.
+    pub lidar_in_base: Option<Pose>,
     /// The scans' frame, if named.
     pub lidar_frame: Option<String>,
     /// Scans waiting for the pipeline, at most.
@@ -143,8 +145,8 @@ impl NodeSettings {
             base: text(take("base_frame"), "base_link"),
         };
         let lidar_in_base = match take("lidar_in_base") {
-            None => Pose::identity(),
-            Some(v) => pose_of(&v).map_err(|e| format!("parameter lidar_in_base: {e}"))?,
+            None => None,
+            Some(v) => Some(pose_of(&v).map_err(|e| format!("parameter lidar_in_base: {e}"))?),
         };
         let queue = count("queue", take("queue"), 2)?;
         let map_every = count("map_every", take("map_every"), 10)?;
@@ -160,6 +162,7 @@ impl NodeSettings {
             map: resolve("map"),
             diagnostics: resolve("/diagnostics"),
             tf: resolve("/tf"),
+            tf_static: resolve("/tf_static"),
             save_map: resolve("~/save_map"),
         };
         Ok(NodeSettings {
@@ -377,7 +380,7 @@ mod tests {
         assert_eq!(s.topics.save_map, "/robot1/mapper/save_map");
         assert_eq!(s.frames.odom, "odom1");
         assert_eq!(s.queue, 4);
-        assert_eq!(s.lidar_in_base.translation.vector.x, 0.5);
+        assert_eq!(s.lidar_in_base.unwrap().translation.vector.x, 0.5);
         assert_eq!((s.domain_id, s.localhost_only), (7, true));
         assert_eq!(s.params["preset"], ParamValue::Text("kitti".into()));
     }
@@ -391,7 +394,7 @@ mod tests {
             (2, true, false, true)
         );
         assert_eq!(s.map_every, Some(10));
-        assert_eq!(s.lidar_in_base, Pose::identity());
+        assert_eq!(s.lidar_in_base, None, "the robot's /tf_static unless given");
         assert_eq!(s.frames.map, "map");
         // What is left is the command's (cli/ros2.rs), as the module docs list.
         let left: Vec<&str> = s.params.keys().map(String::as_str).collect();
