@@ -25,6 +25,9 @@ Checks, each printed as it passes (the first failure stops it with its reason):
 7. `tf_static`: with no `lidar_in_base`, the node takes the LiDAR's place on the robot from a
    robot_state_publisher's `/tf_static` (its odometry is run's moved there); given, the
    parameter wins and the node publishes it on `/tf_static`.
+8. `params`: `ros2 param`'s services (rcl_interfaces, called by rclpy): the node's parameters
+   listed and described with the values it runs with; `publish_mesh` set false while it runs
+   (no mesh goes out after), `preset` refused with its reason.
 6. `imu_drive` (with --drive, a shaken rolling-sweep drive and its 200 Hz IMU that
    `write_drive` wrote): replayed as `ros2 bag play` would, each scan at its stamp (before the
    IMU's readings over its sweep), the IMU on time and then 50 ms late: the node waits for the
@@ -446,6 +449,29 @@ def check_tf_static(args, reference):
        "published on /tf_static; a node given none took it from there")
 
 
+def check_params(args):
+    node = Node(args, os.path.join(args.work, "params", "out"))
+    r = peer(args, "params", os.path.join(args.work, "params.json"), node=node)
+    node.stop()
+    want = {"preset", "out", "threads", "queue", "publish_mesh", "imu_wait", "map_every"}
+    if not want <= set(r["listed"]) or r["described"] != ["imu_wait"]:
+        fail(f"parameters listed {r['listed']}, described {r['described']}")
+    # (type, bool, integer, double, string): 4 string, 1 bool, 3 double.
+    preset, mesh, wait = r["before"]
+    if preset[0] != 4 or preset[4] != "kitti" or mesh[:2] != [1, True] or wait[3] != 0.2:
+        fail(f"the parameters' values: {r['before']}")
+    (ok_mesh, _), = r["set_mesh"]
+    (ok_preset, why), = r["set_preset"]
+    if not ok_mesh or ok_preset or "set at start only" not in why:
+        fail(f"set publish_mesh: {r['set_mesh']}; set preset: {r['set_preset']}")
+    if r["after"][0][4] != "kitti" or r["after"][1][1] or len(r["odom"]) != 3:
+        fail(f"after the sets: {r['after']}, {len(r['odom'])} Odometry")
+    if r["meshes_after_set"] != 0:
+        fail(f"{r['meshes_after_set']} mesh messages after publish_mesh was set false")
+    ok(f"ros2 param: {len(r['listed'])} parameters listed with their values, publish_mesh set "
+       f"false live (no mesh after), preset refused: {why}")
+
+
 def mesh_bounds(ply):
     """The bounding box of a binary or ASCII PLY's vertices (x, y, z first)."""
     import numpy as np
@@ -484,7 +510,7 @@ def main():
     p.add_argument("--only", help="these checks only, by number (1,2,...): for a developer")
     p.add_argument("--imu-wait", help="check 6 with this imu_wait (seconds): 0 shows the need")
     args = p.parse_args()
-    only = {int(k) for k in args.only.split(",")} if args.only else set(range(1, 8))
+    only = {int(k) for k in args.only.split(",")} if args.only else set(range(1, 9))
     wait = [f"imu_wait:={args.imu_wait}"] if args.imu_wait else []
     os.makedirs(args.work, exist_ok=True)
     run = os.path.join(args.work, "run")
@@ -501,6 +527,7 @@ def main():
         lambda: check_first_bad(args, reference),
         lambda: check_imu_drive(args, wait),
         lambda: check_tf_static(args, reference),
+        lambda: check_params(args),
     ]
     for k, check in enumerate(checks, 1):
         if k in only:

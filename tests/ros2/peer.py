@@ -24,6 +24,9 @@ Scenarios:
   published at its stamp (its sweep's start, so before the IMU's readings over its sweep),
   each reading at its stamp plus --imu-lag seconds, every stamp moved 10 s on (the IMU reads
   from a second before the first scan); records the Odometry.
+- `params`: `ros2 param`'s calls through rcl_interfaces' services: list, describe, get, set
+  `publish_mesh` false (live) and `preset` (refused), get again; then three scans; records
+  the answers, the Odometry and the mesh messages that came after the set.
 - `idle`: subscribes to everything and never reads, for --seconds.
 """
 
@@ -450,6 +453,51 @@ def scenario_imu_drive(peer, args):
     return {"scans": scans, "odom": peer.odom, "diagnostics": peer.diagnostics}
 
 
+def scenario_params(peer, args):
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
+
+    node = peer.node
+    peer.wait_for_node()
+
+    def call(kind, name, request):
+        client = node.create_client(kind, f"/slamesh/{name}")
+        if not client.wait_for_service(timeout_sec=10):
+            sys.exit(f"no service /slamesh/{name}")
+        future = client.call_async(request)
+        peer.spin_until(future.done, 10)
+        return future.result()
+
+    listed = call(ListParameters, "list_parameters", ListParameters.Request()).result.names
+    described = call(DescribeParameters, "describe_parameters",
+                     DescribeParameters.Request(names=["imu_wait"])).descriptors
+
+    def get(names):
+        values = call(GetParameters, "get_parameters", GetParameters.Request(names=names)).values
+        return [(v.type, v.bool_value, v.integer_value, v.double_value, v.string_value)
+                for v in values]
+
+    before = get(["preset", "publish_mesh", "imu_wait"])
+
+    def set_one(name, value):
+        p = Parameter(name=name, value=value)
+        r = call(SetParameters, "set_parameters", SetParameters.Request(parameters=[p]))
+        return [(x.successful, x.reason) for x in r.results]
+
+    off = set_one("publish_mesh", ParameterValue(type=ParameterType.PARAMETER_BOOL,
+                                                bool_value=False))
+    preset = set_one("preset", ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                              string_value="fast"))
+    after = get(["preset", "publish_mesh"])
+    peer.spin_for(0.5)
+    meshes_before = len(peer.mesh_bytes)
+    peer.publish_scans(list(kitti_scans(args.kitti))[:3], args.rate)
+    peer.spin_for(1.0)
+    return {"listed": list(listed), "described": [d.name for d in described],
+            "before": before, "set_mesh": off, "set_preset": preset, "after": after,
+            "odom": peer.odom, "meshes_after_set": len(peer.mesh_bytes) - meshes_before}
+
+
 def stamps_after(scans, k):
     return scans[k][0] - 0.05
 
@@ -481,7 +529,7 @@ def main():
     p = argparse.ArgumentParser()
     p.add_argument(
         "scenario",
-        choices=["scans", "hostile", "initialpose", "first_bad", "imu_drive", "idle"],
+        choices=["scans", "hostile", "initialpose", "first_bad", "imu_drive", "params", "idle"],
     )
     p.add_argument("--kitti", required=True)
     p.add_argument("--out", required=True)
@@ -505,6 +553,7 @@ def main():
         "initialpose": scenario_initialpose,
         "first_bad": scenario_first_bad,
         "imu_drive": scenario_imu_drive,
+        "params": scenario_params,
         "idle": scenario_idle,
     }[args.scenario]
     result = run(peer, args)

@@ -20,6 +20,7 @@ use crate::run::sink::{FnSink, Queued, WhenFull};
 use crate::run::{FrameEvent, RunOptions, Sinks};
 use crate::say;
 use clap::Args;
+use ros2_client::parameters::ParameterValue as RosParameterValue;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -248,7 +249,8 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
     if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {
         log::warn!("SIGINT and SIGTERM will not end the node cleanly: {e}");
     }
-    let mut node = RosNode::start(node_settings).map_err(node_error)?;
+    let values = declared(&args, &node_settings, &s);
+    let mut node = RosNode::start(node_settings, values).map_err(node_error)?;
     let mut source = node.listen(stop).map_err(node_error)?;
     let advertised = node.advertise().map_err(node_error)?;
     log::info!(
@@ -297,6 +299,47 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
         );
     }
     Ok(())
+}
+
+/// The node's parameters as `ros2 param` lists them, with the values the node runs with.
+fn declared(args: &Ros2Args, n: &NodeSettings, s: &Settings) -> Vec<(String, RosParameterValue)> {
+    use RosParameterValue as V;
+    let text = |v: &str| V::String(v.to_string());
+    let path = |p: &Option<PathBuf>| {
+        V::String(
+            p.as_ref()
+                .map_or(String::new(), |p| p.display().to_string()),
+        )
+    };
+    let mut values = vec![
+        ("preset", text(s.preset)),
+        ("out", text(&args.out_dir().display().to_string())),
+        ("threads", V::Integer(args.threads.unwrap_or(0) as i64)),
+        ("map", path(&args.map)),
+        ("save_map", path(&args.save_map)),
+        ("localize", V::Boolean(args.localize)),
+        ("navmap", V::Boolean(args.navmap)),
+        ("map_frame", text(&n.frames.map)),
+        ("odom_frame", text(&n.frames.odom)),
+        ("base_frame", text(&n.frames.base)),
+        ("queue", V::Integer(n.queue as i64)),
+        ("publish_tf", V::Boolean(n.publish_tf)),
+        ("publish_mesh", V::Boolean(n.publish_mesh)),
+        ("publish_map", V::Boolean(n.map_every.is_some())),
+        ("use_sim_time", V::Boolean(n.use_sim_time)),
+        ("use_imu", V::Boolean(n.use_imu)),
+        ("imu_wait", V::Double(n.imu_wait.as_secs_f64())),
+    ];
+    if let Some(every) = n.map_every {
+        values.push(("map_every", V::Integer(every as i64)));
+    }
+    if let Some(frame) = &n.lidar_frame {
+        values.push(("lidar_frame", text(frame)));
+    }
+    values
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
 }
 
 fn run_options(args: &Ros2Args, s: &Settings, use_imu: bool) -> RunOptions {

@@ -9,6 +9,7 @@
 //! | what | module |
 //! |---|---|
 //! | what the node is told: names, remaps, parameters, domain | [`settings`] |
+//! | its parameters served to `ros2 param` (list, get, set, describe), the live ones applied | [`parameters`] |
 //! | the messages it sends and takes (`formats::ros_messages`, as ros2-client takes them) | [`messages`] |
 //! | `points`: PointCloud2 bytes to scans, bad messages refused | [`clouds`] |
 //! | the way in: subscriptions and the service on a thread, scans through a bounded queue | [`listen`] |
@@ -26,6 +27,7 @@ pub mod mesh_tiles;
 pub mod messages;
 pub mod node;
 pub mod occupancy;
+pub mod parameters;
 pub mod publish;
 pub mod settings;
 pub mod transforms;

@@ -25,13 +25,15 @@ use crate::ros2::messages::{
     Typed,
 };
 use crate::ros2::occupancy::LiveMap;
+use crate::ros2::parameters::{self, Live};
 use crate::ros2::publish::{Publishers, Ros2Sink};
 use crate::ros2::settings::NodeSettings;
 use crate::sources::FrameSource;
+use ros2_client::parameters::ParameterValue;
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{
-    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
-    ServiceMapping, ServiceTypeName, Subscription,
+    Context, MessageTypeName, Name, Node, NodeName, Publisher, QosProfile, ServiceMapping,
+    ServiceTypeName, Subscription,
 };
 use rustdds::policy::ResourceLimits;
 use rustdds::{DomainParticipantBuilder, QosPolicies, QosPolicyBuilder, TopicKind};
@@ -47,6 +49,8 @@ use std::sync::Arc;
 pub struct RosNode {
     /// What it was told.
     pub settings: NodeSettings,
+    /// What can be set while it runs.
+    pub live: Live,
     /// Dropped before the context it lives in (fields drop in order).
     node: Node,
     context: Context,
@@ -89,8 +93,12 @@ fn name(full: &str) -> Result<Name, String> {
 }
 
 impl RosNode {
-    /// Joins the domain and starts the node.
-    pub fn start(settings: NodeSettings) -> Result<Self, String> {
+    /// Joins the domain and starts the node, its parameters declared with `values` and served
+    /// ([`crate::ros2::parameters`]).
+    pub fn start(
+        settings: NodeSettings,
+        values: Vec<(String, ParameterValue)>,
+    ) -> Result<Self, String> {
         let mut participant = DomainParticipantBuilder::new(settings.domain_id);
         if settings.localhost_only {
             participant = participant.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
@@ -102,11 +110,26 @@ impl RosNode {
             .map_err(|e| format!("cannot start ROS 2: {e:?}"))?;
         let node_name = NodeName::new(&settings.namespace, &settings.name)
             .map_err(|e| format!("{}: not a node name ({e:?})", settings.fqn()))?;
-        let node = context
-            .new_node(node_name, NodeOptions::new().enable_rosout(false))
+        let live = Live::new(settings.publish_mesh);
+        let mut node = context
+            .new_node(node_name, parameters::options(values, &live))
             .map_err(|e| format!("cannot start the node {}: {e:?}", settings.fqn()))?;
+        live.started();
+        // The parameter services: ros2-client's spinner, until the node is dropped.
+        let spinner = node
+            .spinner()
+            .map_err(|e| format!("cannot serve the parameters: {e:?}"))?;
+        std::thread::Builder::new()
+            .name("slamesh-params".into())
+            .spawn(move || {
+                if let Err(e) = futures::executor::block_on(spinner.spin()) {
+                    log::warn!("the parameter services stopped: {e:?}");
+                }
+            })
+            .map_err(|e| format!("cannot start the parameters' thread: {e}"))?;
         Ok(RosNode {
             settings,
+            live,
             node,
             context,
         })
@@ -261,6 +284,7 @@ impl RosNode {
             publishers,
             map,
             settings: s,
+            live: self.live.clone(),
             static_sent: false,
         };
         // With the scans' frame named, the LiDAR's place goes out at once.
@@ -277,6 +301,7 @@ pub struct Advertised {
     publishers: Publishers,
     map: Option<Publisher<OccupancyGrid>>,
     settings: NodeSettings,
+    live: Live,
     /// Whether the LiDAR's place went out on `/tf_static`.
     static_sent: bool,
 }
@@ -377,13 +402,15 @@ impl Advertised {
             }
             _ => None,
         };
-        Ros2Sink::new(
+        let mut sink = Ros2Sink::new(
             self.publishers,
             s.frames.clone(),
             lidar_in_base,
             (tiles, map),
             source.counts(),
             s.fqn(),
-        )
+        );
+        sink.publish_mesh = self.live.publish_mesh;
+        sink
     }
 }

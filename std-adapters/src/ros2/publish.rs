@@ -116,6 +116,9 @@ pub struct Ros2Sink {
     /// Mesh messages published, their markers and their triangles.
     markers: (u64, u64, u64),
     last_diagnostics: Option<Instant>,
+    /// Whether `mesh` is published now (the parameter `publish_mesh`, settable while
+    /// running).
+    pub publish_mesh: Arc<std::sync::atomic::AtomicBool>,
 }
 
 impl Ros2Sink {
@@ -155,6 +158,7 @@ impl Ros2Sink {
             published: 0,
             markers: (0, 0, 0),
             last_diagnostics: None,
+            publish_mesh: Arc::new(std::sync::atomic::AtomicBool::new(true)),
         }
     }
 
@@ -306,6 +310,11 @@ impl Ros2Sink {
         let Some(publisher) = &self.publishers.mesh else {
             return Ok(());
         };
+        // Off while running (`ros2 param set … publish_mesh false`): the tiles keep changing
+        // and go out once it is on again.
+        if !self.publish_mesh.load(std::sync::atomic::Ordering::Relaxed) {
+            return Ok(());
+        }
         // The mesh is in the engine's world; `map` is that world seen from the robot.
         let header = Header {
             stamp: update.map_or(self.path.header.stamp, |u| Time::from_seconds(u.stamp_s)),
