@@ -22,17 +22,19 @@ Checks, each printed as it passes (the first failure stops it with its reason):
 5. `first_bad`: a first cloud whose fields overlap is refused with its reason and decides
    nothing; the scans after it get `run`'s poses, each Odometry stamped with its scan's stamp
    to the nanosecond (epoch stamps, which f64 seconds cannot hold).
-7. `tf_static`: with no `lidar_in_base`, the node takes the LiDAR's place on the robot from a
-   robot_state_publisher's `/tf_static` (its odometry is run's moved there); given, the
-   parameter wins and the node publishes it on `/tf_static`.
-8. `params`: `ros2 param`'s services (rcl_interfaces, called by rclpy): the node's parameters
-   listed and described with the values it runs with; `publish_mesh` set false while it runs
-   (no mesh goes out after), `preset` refused with its reason.
 6. `imu_drive` (with --drive, a shaken rolling-sweep drive and its 200 Hz IMU that
    `write_drive` wrote): replayed as `ros2 bag play` would, each scan at its stamp (before the
    IMU's readings over its sweep), the IMU on time and then 50 ms late: the node waits for the
    readings, every scan gets its Odometry, and the trajectory is as accurate as `run`'s on the
    same folder (with `imu_wait:=0`, the node's old behaviour, ATE 11 cm against 0.4).
+7. `tf_static`: a node given `lidar_in_base` publishes it on `/tf_static` and its Odometry is
+   run's moved onto the robot; a second node given none takes it from there (rclpy has no
+   `tf2_msgs` wheel to play the robot_state_publisher).
+8. `params`: `ros2 param`'s services (rcl_interfaces, called by rclpy): the node's parameters
+   listed and described with the values it runs with; `publish_mesh` set false while it runs
+   (no mesh goes out after), `preset` refused with its reason.
+9. `sim_time`: with `use_sim_time`, `/diagnostics` is stamped with `/clock`'s time (a bag
+   played with `--clock`), and the scans' own stamps stay on Odometry.
 """
 
 import argparse
@@ -472,6 +474,19 @@ def check_params(args):
        f"false live (no mesh after), preset refused: {why}")
 
 
+def check_sim_time(args, reference):
+    node = Node(args, os.path.join(args.work, "sim-time", "out"), params=["use_sim_time:=true"])
+    r = peer(args, "sim_time", os.path.join(args.work, "sim-time.json"), node=node)
+    node.stop()
+    stamps = {d["stamp_ns"] for d in r["diagnostics"]}
+    if not r["diagnostics"] or stamps != {1_000_250_000_000}:
+        fail(f"use_sim_time: /diagnostics stamped {sorted(stamps)}, not /clock's 1000.25 s")
+    if [round(o["stamp"], 6) for o in r["odom"]] != sorted(reference)[:3]:
+        fail(f"use_sim_time: Odometry stamps {[o['stamp'] for o in r['odom']]}")
+    ok(f"use_sim_time: {len(r['diagnostics'])} /diagnostics stamped with /clock's 1000.25 s; "
+       "Odometry keeps its scans' stamps")
+
+
 def mesh_bounds(ply):
     """The bounding box of a binary or ASCII PLY's vertices (x, y, z first)."""
     import numpy as np
@@ -510,7 +525,7 @@ def main():
     p.add_argument("--only", help="these checks only, by number (1,2,...): for a developer")
     p.add_argument("--imu-wait", help="check 6 with this imu_wait (seconds): 0 shows the need")
     args = p.parse_args()
-    only = {int(k) for k in args.only.split(",")} if args.only else set(range(1, 9))
+    only = {int(k) for k in args.only.split(",")} if args.only else set(range(1, 10))
     wait = [f"imu_wait:={args.imu_wait}"] if args.imu_wait else []
     os.makedirs(args.work, exist_ok=True)
     run = os.path.join(args.work, "run")
@@ -528,6 +543,7 @@ def main():
         lambda: check_imu_drive(args, wait),
         lambda: check_tf_static(args, reference),
         lambda: check_params(args),
+        lambda: check_sim_time(args, reference),
     ]
     for k, check in enumerate(checks, 1):
         if k in only:

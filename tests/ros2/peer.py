@@ -27,6 +27,8 @@ Scenarios:
 - `params`: `ros2 param`'s calls through rcl_interfaces' services: list, describe, get, set
   `publish_mesh` false (live) and `preset` (refused), get again; then three scans; records
   the answers, the Odometry and the mesh messages that came after the set.
+- `sim_time`: `/clock` at 1000.25 s (a bag played with --clock), then three scans; records the
+  diagnostics with their stamps.
 - `idle`: subscribes to everything and never reads, for --seconds.
 """
 
@@ -267,8 +269,9 @@ class Peer:
                     self.marker_types.add(k.type)
 
     def on_diagnostics(self, m):
+        stamp = m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
         for s in m.status:
-            self.diagnostics.append({v.key: v.value for v in s.values} | {"level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level)})
+            self.diagnostics.append({v.key: v.value for v in s.values} | {"level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level), "stamp_ns": stamp})
 
     def publish_imu(self, t0, t1, n=10):
         """`n` readings stamped between two scans' stamps (after `t0`, up to `t1`)."""
@@ -498,6 +501,25 @@ def scenario_params(peer, args):
             "odom": peer.odom, "meshes_after_set": len(peer.mesh_bytes) - meshes_before}
 
 
+def scenario_sim_time(peer, args):
+    from rosgraph_msgs.msg import Clock
+
+    clock = peer.node.create_publisher(Clock, "/clock", 10)
+    tick = Clock()
+    tick.clock.sec, tick.clock.nanosec = 1000, 250_000_000
+    peer.wait_for_node()
+    for _ in range(5):
+        clock.publish(tick)
+        peer.spin_for(0.1)
+    for stamp, pts in list(kitti_scans(args.kitti))[:3]:
+        clock.publish(tick)
+        peer.points.publish(cloud(stamp, pts))
+        want = len(peer.odom) + 1
+        peer.spin_until(lambda: len(peer.odom) >= want, 5)
+    peer.spin_for(1.5)
+    return {"odom": peer.odom, "diagnostics": peer.diagnostics}
+
+
 def stamps_after(scans, k):
     return scans[k][0] - 0.05
 
@@ -529,7 +551,8 @@ def main():
     p = argparse.ArgumentParser()
     p.add_argument(
         "scenario",
-        choices=["scans", "hostile", "initialpose", "first_bad", "imu_drive", "params", "idle"],
+        choices=["scans", "hostile", "initialpose", "first_bad", "imu_drive", "params",
+                 "sim_time", "idle"],
     )
     p.add_argument("--kitti", required=True)
     p.add_argument("--out", required=True)
@@ -554,6 +577,7 @@ def main():
         "first_bad": scenario_first_bad,
         "imu_drive": scenario_imu_drive,
         "params": scenario_params,
+        "sim_time": scenario_sim_time,
         "idle": scenario_idle,
     }[args.scenario]
     result = run(peer, args)
