@@ -32,52 +32,18 @@ use slamesh::formats::{imu_csv, pcd};
 use slamesh_sim::{Drive, ImuModel, Vibration};
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+type Error = Box<dyn std::error::Error>;
+
+fn main() -> Result<(), Error> {
     let flags = Flags::from_env();
     let out = PathBuf::from(flags.value("--out").ok_or("--out DIR is required")?);
     let frames: usize = flags.parse_or("--frames", 1000)?;
     let seed: u64 = flags.parse_or("--seed", 1)?;
     let start: usize = flags.parse_or("--start", 0)?;
     let lateral: f64 = flags.parse_or("--lateral-m", 0.0)?;
-    // The carried rigs scan twice a second (docs/design.md §1.11); the car ten times.
-    let period_s = match flags.value("--path") {
-        Some("hand-held" | "drone") => 0.5,
-        _ => 0.1,
-    };
-    let town = |drive| (drive, "town");
-    let (mut drive, scene) = match flags.value("--path") {
-        Some("campus") => town(Drive::town_along(
-            slamesh_sim::town::campus_path(),
-            start + frames,
-            seed,
-        )),
-        Some("block") => town(Drive::town_along(
-            slamesh_sim::town::block_path(),
-            start + frames,
-            seed,
-        )),
-        Some("hand-held") => town(Drive::carried(
-            start + frames,
-            slamesh_sim::town::Carried::HANDHELD,
-            seed,
-        )),
-        Some("drone") => town(Drive::carried(
-            start + frames,
-            slamesh_sim::town::Carried::DRONE,
-            seed,
-        )),
-        Some("office") => (Drive::office(start + frames, seed), "office"),
-        Some("car") => town(Drive::car(start + frames, seed)),
-        Some(other) => {
-            return Err(
-                format!("--path {other}: campus, block, hand-held, drone, office or car").into(),
-            )
-        }
-        None if flags.has("--round") => town(Drive::town_round(start + frames, seed)),
-        None => town(Drive::town(start + frames, seed)),
-    };
+    let (mut drive, scene, period_s) = path_drive(&flags, start + frames, seed)?;
     drive.lidar.azimuth_steps = flags.parse_or("--azimuth-steps", drive.lidar.azimuth_steps)?;
     let first = drive.poses[0].inverse();
     drive.seed = flags.parse_or("--noise-seed", seed)?;
@@ -86,6 +52,69 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|p| p * left)
         .collect();
+    let drive = with_motion(&flags, drive, period_s, seed, &out)?;
+    fs::create_dir_all(out.join("velodyne"))?;
+    let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
+    let mut times = BufWriter::new(File::create(out.join("times.txt"))?);
+    for i in 0..drive.poses.len() {
+        write_scan(&drive, i, &out.join("velodyne"))?;
+        write_kitti_line(&mut poses, &(first * drive.poses[i]))?;
+        writeln!(times, "{:.6}", i as f64 * period_s)?;
+    }
+    poses.flush()?;
+    times.flush()?;
+    fs::write(out.join("calib.txt"), "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n")?;
+    println!(
+        "{} frames of the {scene} (seed {seed}) in {}",
+        drive.poses.len(),
+        out.display()
+    );
+    Ok(())
+}
+
+/// The drive `--path` names (`frames` frames), its scene's name and its period (s): the
+/// carried rigs scan twice a second (docs/design.md §1.11), the car ten times.
+fn path_drive(
+    flags: &Flags,
+    frames: usize,
+    seed: u64,
+) -> Result<(Drive, &'static str, f64), Error> {
+    let town = |drive| (drive, "town", 0.1);
+    let carried = |how| (Drive::carried(frames, how, seed), "town", 0.5);
+    Ok(match flags.value("--path") {
+        Some("campus") => town(Drive::town_along(
+            slamesh_sim::town::campus_path(),
+            frames,
+            seed,
+        )),
+        Some("block") => town(Drive::town_along(
+            slamesh_sim::town::block_path(),
+            frames,
+            seed,
+        )),
+        Some("hand-held") => carried(slamesh_sim::town::Carried::HANDHELD),
+        Some("drone") => carried(slamesh_sim::town::Carried::DRONE),
+        Some("office") => (Drive::office(frames, seed), "office", 0.1),
+        Some("car") => town(Drive::car(frames, seed)),
+        Some(other) => {
+            return Err(
+                format!("--path {other}: campus, block, hand-held, drone, office or car").into(),
+            )
+        }
+        None if flags.has("--round") => town(Drive::town_round(frames, seed)),
+        None => town(Drive::town(frames, seed)),
+    })
+}
+
+/// `drive` with a rolling sweep (`--rolling`), a rough road's shake (`--shaken`, a rolling
+/// sweep too) and an IMU (`--imu HZ`, whose readings it writes into `out/imu0/data.csv`).
+fn with_motion(
+    flags: &Flags,
+    mut drive: Drive,
+    period_s: f64,
+    seed: u64,
+    out: &Path,
+) -> Result<Drive, Error> {
     let shaken = flags.has("--shaken");
     if shaken || flags.has("--rolling") {
         drive.sweep_s = Some(period_s);
@@ -103,34 +132,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let csv = imu_csv::encode(&drive.imu_between(-1.0, end));
         fs::write(out.join("imu0").join("data.csv"), csv)?;
     }
-    fs::create_dir_all(out.join("velodyne"))?;
-    let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
-    let mut times = BufWriter::new(File::create(out.join("times.txt"))?);
-    for i in 0..drive.poses.len() {
-        let scans = out.join("velodyne");
-        if drive.sweep_s.is_some() {
-            let (points, times) = drive.scan_timed(i);
-            let file = pcd::encode_pcd_timed(&points, &times);
-            fs::write(scans.join(format!("{i:06}.pcd")), file)?;
-        } else {
-            let mut bin = Vec::new();
-            for p in drive.scan(i) {
-                for v in [p[0], p[1], p[2], 0.0] {
-                    bin.extend_from_slice(&v.to_le_bytes());
-                }
+    Ok(drive)
+}
+
+/// Frame `i` of `drive` into `dir`: a binary PCD with each point's time for a rolling sweep,
+/// else a KITTI `.bin`.
+fn write_scan(drive: &Drive, i: usize, dir: &Path) -> Result<(), Error> {
+    if drive.sweep_s.is_some() {
+        let (points, times) = drive.scan_timed(i);
+        let file = pcd::encode_pcd_timed(&points, &times);
+        fs::write(dir.join(format!("{i:06}.pcd")), file)?;
+    } else {
+        let mut bin = Vec::new();
+        for p in drive.scan(i) {
+            for v in [p[0], p[1], p[2], 0.0] {
+                bin.extend_from_slice(&v.to_le_bytes());
             }
-            fs::write(scans.join(format!("{i:06}.bin")), bin)?;
         }
-        write_kitti_line(&mut poses, &(first * drive.poses[i]))?;
-        writeln!(times, "{:.6}", i as f64 * period_s)?;
+        fs::write(dir.join(format!("{i:06}.bin")), bin)?;
     }
-    poses.flush()?;
-    times.flush()?;
-    fs::write(out.join("calib.txt"), "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n")?;
-    println!(
-        "{} frames of the {scene} (seed {seed}) in {}",
-        drive.poses.len(),
-        out.display()
-    );
     Ok(())
 }

@@ -307,7 +307,7 @@ impl<'a> Cloud<'a> {
             .find_map(|r| r.transpose())
             .transpose()?;
         let read = [Some(x), Some(y), Some(z), time, intensity, ring];
-        disjoint(read.iter().flatten().copied())?;
+        disjoint(read.iter().flatten().copied()).map_err(|e| e.to_string())?;
         if !self.has_points()? {
             return Ok(DecodedScan {
                 times: time.map(|_| Vec::new()),
@@ -443,26 +443,39 @@ impl<'a> Cloud<'a> {
     }
 }
 
-/// An error naming the first two of `fields` (each checked to fit its point) whose bytes
-/// overlap: no sensor lays out a point that way, and its values would be garbage (a float64
-/// x, y and z laid over float32 data read as points thousands of metres away).
-fn disjoint<'f>(fields: impl Iterator<Item = &'f Field> + Clone) -> Result<(), String> {
-    let span = |f: &Field| {
-        let start = f.offset as usize;
-        (start, start + f.size().unwrap_or(0))
-    };
+/// Two fields a point is read by whose bytes overlap (refused by [`Cloud::decode`]): no sensor lays out a point
+/// that way, and its values would be garbage (a float64 x, y and z laid over float32 data read
+/// as points thousands of metres away).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Overlap {
+    /// The first field: name, offset and size (bytes).
+    pub first: (String, usize, usize),
+    /// The second.
+    pub second: (String, usize, usize),
+}
+
+impl std::fmt::Display for Overlap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ((a, a0, an), (b, b0, bn)) = (&self.first, &self.second);
+        write!(
+            f,
+            "fields {a} (offset {a0}, {an} bytes) and {b} (offset {b0}, {bn} bytes) overlap: not \
+             a point layout (a mistyped field?)"
+        )
+    }
+}
+
+/// The first two of `fields` (each checked to fit its point) whose bytes overlap, if any.
+fn disjoint<'f>(fields: impl Iterator<Item = &'f Field> + Clone) -> Result<(), Overlap> {
+    let span = |f: &Field| (f.name.clone(), f.offset as usize, f.size().unwrap_or(0));
     for (i, a) in fields.clone().enumerate() {
         for b in fields.clone().skip(i + 1) {
-            let ((a0, a1), (b0, b1)) = (span(a), span(b));
-            if a0 < b1 && b0 < a1 {
-                return Err(format!(
-                    "fields {} (offset {a0}, {} bytes) and {} (offset {b0}, {} bytes) overlap: \
-                     not a point layout (a mistyped field?)",
-                    a.name,
-                    a1 - a0,
-                    b.name,
-                    b1 - b0
-                ));
+            let (a, b) = (span(a), span(b));
+            if a.1 < b.1 + b.2 && b.1 < a.1 + a.2 {
+                return Err(Overlap {
+                    first: a,
+                    second: b,
+                });
             }
         }
     }

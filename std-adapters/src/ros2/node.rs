@@ -69,6 +69,24 @@ fn latched() -> QosProfile {
         .history(History::KeepLast { depth: 1 })
 }
 
+/// `points`' QoS, for its topic and its reader (see the module's docs): best effort, the last
+/// `depth` clouds, and the topic's cache as deep as that.
+fn points_qos(depth: usize) -> QosPolicies {
+    let sensor = QosProfile::subscription_default()
+        .reliability_best_effort()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth });
+    let depth = i32::try_from(depth).unwrap_or(i32::MAX);
+    let limits = QosPolicyBuilder::new()
+        .resource_limits(ResourceLimits {
+            max_samples: depth,
+            max_instances: 1,
+            max_samples_per_instance: depth,
+        })
+        .build();
+    QosPolicies::from(&sensor).modify_by(&limits)
+}
+
 /// As tf2's static listener reads `/tf_static`: reliable, transient local (a robot's static
 /// transforms are sent once, before the node may start), the last 100.
 fn latched_in() -> QosProfile {
@@ -167,22 +185,9 @@ impl RosNode {
     /// The way in: subscriptions and the service, on a thread of their own, until `stop`.
     pub fn listen(&mut self, stop: Arc<AtomicBool>) -> Result<Ros2Source, String> {
         let t = self.settings.topics.clone();
-        let depth = self.settings.queue + 3;
-        let sensor = QosProfile::subscription_default()
-            .reliability_best_effort()
-            .durability(Durability::Volatile)
-            .history(History::KeepLast { depth });
-        // The topic's cache as deep as the reader's history (see the module's docs): made
-        // here as `Node::create_topic` makes it, with the limits its QoS cannot carry.
-        let depth = i32::try_from(depth).unwrap_or(i32::MAX);
-        let limits = QosPolicyBuilder::new()
-            .resource_limits(ResourceLimits {
-                max_samples: depth,
-                max_instances: 1,
-                max_samples_per_instance: depth,
-            })
-            .build();
-        let qos = QosPolicies::from(&sensor).modify_by(&limits);
+        // The topic is made here as `Node::create_topic` makes it, with the limits its QoS
+        // cannot carry.
+        let qos = points_qos(self.settings.queue + 3);
         let node_name = NodeName::new(&self.settings.namespace, &self.settings.name)
             .map_err(|e| format!("{}: not a node name ({e:?})", self.settings.fqn()))?;
         let participant = self.context.domain_participant();

@@ -13,6 +13,36 @@ use std::sync::Arc;
 /// The parameters that can be set while the node runs.
 pub const LIVE: [&str; 1] = ["publish_mesh"];
 
+/// Why a set was refused (the answer `ros2 param set` prints).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Refused {
+    /// The parameter is read at start only.
+    StartOnly(String),
+    /// `publish_mesh` turned on where its publisher was not made at start.
+    NotMadeAtStart,
+    /// A true-or-false parameter given something else.
+    NotABool(String),
+}
+
+impl std::fmt::Display for Refused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Refused::StartOnly(name) => write!(
+                f,
+                "{name} is set at start only: restart the node with -p {name}:=VALUE (set while \
+                 running: {})",
+                LIVE.join(", ")
+            ),
+            Refused::NotMadeAtStart => write!(
+                f,
+                "publish_mesh was false at start: the mesh's publisher was not made (restart \
+                 with -p publish_mesh:=true)"
+            ),
+            Refused::NotABool(name) => write!(f, "{name} is true or false"),
+        }
+    }
+}
+
 /// What can be set while the node runs, shared with the sink that reads it.
 #[derive(Debug, Clone)]
 pub struct Live {
@@ -39,24 +69,18 @@ impl Live {
         self.running.store(true, Ordering::Relaxed);
     }
 
-    /// Whether `name` may take `value` now; the reason when not.
-    pub fn check(&self, name: &str, value: &ParameterValue) -> Result<(), String> {
+    /// Whether `name` may take `value` now; why not when it may not.
+    pub fn check(&self, name: &str, value: &ParameterValue) -> Result<(), Refused> {
         if !self.running.load(Ordering::Relaxed) {
             return Ok(());
         }
         match (name, value) {
-            ("publish_mesh", ParameterValue::Boolean(on)) if *on && !self.mesh_made => Err(
-                "publish_mesh was false at start: the mesh's publisher was not made (restart \
-                 with -p publish_mesh:=true)"
-                    .into(),
-            ),
+            ("publish_mesh", ParameterValue::Boolean(on)) if *on && !self.mesh_made => {
+                Err(Refused::NotMadeAtStart)
+            }
             ("publish_mesh", ParameterValue::Boolean(_)) => Ok(()),
-            ("publish_mesh", _) => Err("publish_mesh is true or false".into()),
-            _ => Err(format!(
-                "{name} is set at start only: restart the node with -p {name}:=VALUE (set \
-                 while running: {})",
-                LIVE.join(", ")
-            )),
+            ("publish_mesh", _) => Err(Refused::NotABool(name.into())),
+            _ => Err(Refused::StartOnly(name.into())),
         }
     }
 
@@ -75,7 +99,9 @@ pub fn options(values: Vec<(String, ParameterValue)>, live: &Live) -> NodeOption
     let (check, apply) = (live.clone(), live.clone());
     let mut options = NodeOptions::new()
         .enable_rosout(false)
-        .parameter_validator(Box::new(move |n, v| check.check(n, v)))
+        .parameter_validator(Box::new(move |n, v| {
+            check.check(n, v).map_err(|e| e.to_string())
+        }))
         .parameter_set_action(Box::new(move |n, v| {
             apply.apply(n, v);
             Ok(())
@@ -105,7 +131,11 @@ mod tests {
         live.apply("publish_mesh", &ParameterValue::Boolean(false));
         assert!(!live.publish_mesh.load(Ordering::Relaxed));
         let e = live.check("preset", &ParameterValue::String("fast".into()));
-        assert!(e.unwrap_err().contains("preset is set at start only"));
+        assert_eq!(e, Err(Refused::StartOnly("preset".into())));
+        assert!(e
+            .unwrap_err()
+            .to_string()
+            .contains("preset is set at start only"));
         assert!(live
             .check("publish_mesh", &ParameterValue::Integer(1))
             .is_err());
@@ -114,6 +144,7 @@ mod tests {
         let e = off
             .check("publish_mesh", &ParameterValue::Boolean(true))
             .unwrap_err();
-        assert!(e.contains("was false at start"), "{e}");
+        assert_eq!(e, Refused::NotMadeAtStart);
+        assert!(e.to_string().contains("was false at start"), "{e}");
     }
 }

@@ -196,6 +196,32 @@ impl NodeSettings {
     }
 }
 
+/// A parameter whose value is out of its range or of the wrong type.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BadParameter {
+    /// The parameter.
+    pub name: String,
+    /// What was given, when it says something.
+    pub given: Option<String>,
+    /// What it must be (`1 to 1000`, `0 to 2 seconds`).
+    pub must_be: String,
+}
+
+impl std::fmt::Display for BadParameter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.given {
+            Some(v) => write!(f, "parameter {}: {v} is not {}", self.name, self.must_be),
+            None => write!(f, "parameter {}: not {}", self.name, self.must_be),
+        }
+    }
+}
+
+impl From<BadParameter> for String {
+    fn from(e: BadParameter) -> String {
+        e.to_string()
+    }
+}
+
 /// A duration parameter from 0 to `max` seconds (a double or an integer), `default` when not
 /// given.
 fn seconds(
@@ -203,7 +229,7 @@ fn seconds(
     v: Option<ParamValue>,
     default: f64,
     max: f64,
-) -> Result<std::time::Duration, String> {
+) -> Result<std::time::Duration, BadParameter> {
     let s = match v {
         None => default,
         Some(ParamValue::Double(d)) => d,
@@ -212,20 +238,25 @@ fn seconds(
         Some(_) => f64::NAN,
     };
     if !(0.0..=max).contains(&s) {
-        return Err(format!("parameter {name}: not 0 to {max} seconds"));
+        return Err(BadParameter {
+            name: name.into(),
+            given: None,
+            must_be: format!("0 to {max} seconds"),
+        });
     }
     Ok(std::time::Duration::from_secs_f64(s))
 }
 
 /// An integer parameter from 1 to 1000, `default` when not given.
-fn count(name: &str, v: Option<ParamValue>, default: usize) -> Result<usize, String> {
+fn count(name: &str, v: Option<ParamValue>, default: usize) -> Result<usize, BadParameter> {
     match v {
         None => Ok(default),
         Some(ParamValue::Int(n)) if (1..=1000).contains(&n) => Ok(n as usize),
-        Some(other) => Err(format!(
-            "parameter {name}: {} is not 1 to 1000",
-            other.as_text()
-        )),
+        Some(other) => Err(BadParameter {
+            name: name.into(),
+            given: Some(other.as_text()),
+            must_be: "1 to 1000".into(),
+        }),
     }
 }
 
