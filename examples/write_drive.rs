@@ -22,6 +22,9 @@
 //! files (`velodyne/NNNNNN.pcd`) with each point's time after the stamp in a field `t`.
 //! `--shaken`: a rough road's vibration over the drive (a rolling sweep too). `--imu HZ`: an
 //! IMU on the scanner (its axes the LiDAR's), its readings in EuRoC's `imu0/data.csv`.
+//! `--untimed`: a rolling sweep's scans written as `.bin` files all the same, without their
+//! points' times, as a KITTI-style folder of a real drive has them (the simulated head turns
+//! counter-clockwise from +x, stamped at the sweep's start: `slamesh run --sweep ccw:0:0`).
 
 #[path = "common/flags.rs"]
 mod flags;
@@ -53,11 +56,12 @@ fn main() -> Result<(), Error> {
         .map(|p| p * left)
         .collect();
     let drive = with_motion(&flags, drive, period_s, seed, &out)?;
+    let timed = drive.sweep_s.is_some() && !flags.has("--untimed");
     fs::create_dir_all(out.join("velodyne"))?;
     let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
     let mut times = BufWriter::new(File::create(out.join("times.txt"))?);
     for i in 0..drive.poses.len() {
-        write_scan(&drive, i, &out.join("velodyne"))?;
+        write_scan(&drive, i, timed, &out.join("velodyne"))?;
         write_kitti_line(&mut poses, &(first * drive.poses[i]))?;
         writeln!(times, "{:.6}", i as f64 * period_s)?;
     }
@@ -135,10 +139,10 @@ fn with_motion(
     Ok(drive)
 }
 
-/// Frame `i` of `drive` into `dir`: a binary PCD with each point's time for a rolling sweep,
-/// else a KITTI `.bin`.
-fn write_scan(drive: &Drive, i: usize, dir: &Path) -> Result<(), Error> {
-    if drive.sweep_s.is_some() {
+/// Frame `i` of `drive` into `dir`: a binary PCD with each point's time (`timed`: a rolling
+/// sweep's, unless `--untimed`), else a KITTI `.bin`.
+fn write_scan(drive: &Drive, i: usize, timed: bool, dir: &Path) -> Result<(), Error> {
+    if timed {
         let (points, times) = drive.scan_timed(i);
         let file = pcd::encode_pcd_timed(&points, &times);
         fs::write(dir.join(format!("{i:06}.pcd")), file)?;

@@ -11,6 +11,7 @@
 //! | range filter, voxel down-sampling | [`filter`] |
 //! | constant-velocity prediction | [`motion`] |
 //! | the IMU's rotation as a prior and for deskewing | [`imu`] |
+//! | deskewing a sweep (points' times from their azimuths where a scan has none) | [`deskew`] ([`spin`]) |
 //! | up from the accelerometer, to level the map | [`gravity`] |
 //! | bucketing points into world-fixed cells | [`bucket`] (keys in [`cell`], sorted by [`sort`]) |
 //! | layer choice by PCA | [`pca`] |
@@ -85,6 +86,7 @@ pub mod reconstruct;
 pub mod recovery;
 pub mod relocalize;
 pub mod sort;
+pub mod spin;
 pub mod stage;
 pub mod storage;
 

@@ -72,6 +72,17 @@ pub struct Solution {
     pub degenerate_directions: usize,
     /// The information of the pose found.
     pub information: PoseInformation,
+    /// Residuals solved over.
+    pub residuals: usize,
+}
+
+impl Solution {
+    /// The root mean square of the residuals at the pose found, from the final robust cost
+    /// (`sqrt(2 · cost / residuals)`): beyond the Huber threshold a residual counts for less
+    /// than its square.
+    pub fn residual_rms(&self) -> f64 {
+        libm::sqrt(2.0 * self.cost.1 / self.residuals.max(1) as f64)
+    }
 }
 
 /// Why no correction was computed.
@@ -313,6 +324,7 @@ fn iterate(
             matrix: core::array::from_fn(|i| core::array::from_fn(|j| h[(i, j)] / variance)),
             centre: [centre.x, centre.y, centre.z],
         },
+        residuals: residuals.len(),
     })
 }
 

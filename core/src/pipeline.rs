@@ -239,6 +239,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             stats.conditioning = best.conditioning;
             stats.degenerate_directions = best.degenerate_directions;
             stats.information = best.information;
+            stats.residual_rms_m = best.residual_rms_m;
             (pose, status, for_update) = (best.pose, best.status, best.for_update);
         }
         if let Some(base) = self.base_to_drop(status, &stats) {

@@ -190,6 +190,10 @@ pub struct ScanStats {
     pub degenerate_directions: usize,
     /// How well the last solved round pinned the pose down (zeros when none was solved).
     pub information: crate::lm::PoseInformation,
+    /// How far the scan lies from the map at the pose found: the root mean square of the last
+    /// solved round's residuals (metres, Huber-weighted; 0 when none was solved). Of two ways
+    /// to prepare the same scans, the one whose scans lie closer registers better.
+    pub residual_rms_m: f64,
     /// Guesses registered from after the prediction's registration did not converge
     /// (docs/design.md §1.11); 0 on a frame that converged.
     pub recovery_attempts: usize,

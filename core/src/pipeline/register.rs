@@ -28,6 +28,8 @@ pub(super) struct Attempt {
     pub(super) degenerate_directions: usize,
     /// The last solve's information ([`lm::PoseInformation`]).
     pub(super) information: lm::PoseInformation,
+    /// The last solve's residuals' root mean square ([`ScanStats::residual_rms_m`]).
+    pub(super) residual_rms_m: f64,
     /// Without `MapConfig::reconstruct_at_final_pose`: the last round's bucketing and the pose
     /// its reconstruction (left in the scan's buffer) was made at.
     pub(super) for_update: Option<(BucketStats, Pose)>,
@@ -44,6 +46,7 @@ impl Attempt {
             conditioning: 0.0,
             degenerate_directions: 0,
             information: lm::PoseInformation::default(),
+            residual_rms_m: 0.0,
             for_update: None,
         }
     }
@@ -149,6 +152,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
             conditioning: 0.0,
             degenerate_directions: 0,
             information: lm::PoseInformation::default(),
+            residual_rms_m: 0.0,
             for_update: None,
         };
         for round in 0..rounds {
@@ -225,6 +229,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
                 a.conditioning = sol.conditioning;
                 a.degenerate_directions = sol.degenerate_directions;
                 a.information = sol.information;
+                a.residual_rms_m = sol.residual_rms();
                 if sol.degenerate_directions > 0 {
                     a.status = RegistrationStatus::Degenerate;
                 }

@@ -83,6 +83,7 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
         stats.conditioning = attempt.conditioning;
         stats.degenerate_directions = attempt.degenerate_directions;
         stats.information = attempt.information;
+        stats.residual_rms_m = attempt.residual_rms_m;
         let found = settled
             && hit_share >= search.min_hit_share
             && wall_share >= search.min_wall_share

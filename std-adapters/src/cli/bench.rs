@@ -76,6 +76,12 @@ fn thread_counts() -> Vec<usize> {
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     let (input, threads, repeat, json) = (&args.source.input, args.threads, args.repeat, args.json);
     let mut s = args.profile.resolve("default")?;
+    if let Some(crate::cli::input::SweepArg::Auto) = args.source.sweep {
+        return Err(CliError::BadFlag {
+            flag: "--sweep",
+            reason: "auto is for run, mesh and localize: bench times the sweep it is given".into(),
+        });
+    }
     let mut source = args.source.open()?;
     crate::run::scale::fit_to_scene(&mut s, &mut source);
     let (config, preset) = (s.config, s.preset);

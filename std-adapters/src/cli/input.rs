@@ -5,6 +5,7 @@ use crate::formats::kitti::BinFields;
 use crate::io::FileError;
 use crate::run::Input;
 use crate::sources::packets::PacketOptions;
+use crate::sources::sweep_times::{BadSweep, SweepSpec};
 use clap::Args;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -55,6 +56,34 @@ pub struct InputArgs {
     /// A recording's `sensor_msgs/Imu` topic (default: its only one, when it has one).
     #[arg(long, value_name = "NAME")]
     pub imu_topic: Option<String>,
+    /// Time the points of scan files that carry no times (KITTI .bin, PCD or PLY without a
+    /// time field) from their azimuths, so that they are deskewed: `kitti` (clockwise from
+    /// behind, stamped mid-sweep), `velodyne` and `hesai` (clockwise from the front, stamped at
+    /// the start), `ouster` (clockwise from behind, stamped at the start), or
+    /// TURN:START_DEG:STAMP_SHARE (cw or ccw; the azimuth the sweep starts at, from x toward y;
+    /// where the stamp sits, 0 to 1); `auto` tries each turn and start on the first scans and
+    /// keeps the one that registers best, or none; `off` leaves them untimed (the default:
+    /// KITTI odometry's scans are deskewed already).
+    #[arg(long, value_name = "SWEEP", value_parser = parse_sweep)]
+    pub sweep: Option<SweepArg>,
+}
+
+/// `--sweep`'s value.
+#[derive(Debug, Clone)]
+pub enum SweepArg {
+    /// No times from the sweep.
+    Off,
+    /// Found from the first scans ([`crate::cli::sweep_trial`]).
+    Auto,
+    /// This sweep.
+    Given(SweepSpec),
+}
+
+fn parse_sweep(given: &str) -> Result<SweepArg, BadSweep> {
+    if given == "auto" {
+        return Ok(SweepArg::Auto);
+    }
+    Ok(SweepSpec::parse(given)?.map_or(SweepArg::Off, SweepArg::Given))
 }
 
 impl InputArgs {
@@ -89,6 +118,9 @@ impl InputArgs {
             },
         )?;
         self.attach_imu(&mut input)?;
+        if let Some(SweepArg::Given(sweep)) = &self.sweep {
+            input.time_from_sweep(&self.input, sweep)?;
+        }
         Ok(input)
     }
 

@@ -24,6 +24,7 @@ pub mod render;
 pub mod ros2;
 pub mod run;
 pub mod settings;
+pub mod sweep_trial;
 pub mod terminal;
 
 use clap::{ArgAction, Parser, Subcommand};

@@ -1,10 +1,11 @@
 //! `slamesh run` (estimate poses, build the mesh) and `slamesh mesh` (build it at given poses).
 
 use crate::cli::error::CliError;
-use crate::cli::input::InputArgs;
+use crate::cli::input::{InputArgs, SweepArg};
 use crate::cli::notices::FrameNotices;
 use crate::cli::progress;
 use crate::cli::settings::{Profile, WindowFlags};
+use crate::cli::sweep_trial;
 use crate::cli::terminal::{frame_messages, print_summary};
 use crate::formats::kitti;
 use crate::formats::trajectory;
@@ -337,6 +338,9 @@ fn run_with(
     if !localize_only {
         choose_loop_closure(args.loop_closure, &mut opts)?;
     }
+    if let Some(SweepArg::Auto) = args.source.sweep {
+        sweep_by_trial(args, &opts, &mut source)?;
+    }
     let bar = match source {
         Input::Live(_) => crate::cli::progress_open(quiet),
         _ => progress(source.frames(), quiet),
@@ -366,6 +370,32 @@ fn run_with(
     notices.finish();
     print_summary(&summary, &args.out);
     judge(&summary, args.strict)
+}
+
+/// `--sweep auto`: the sweep the first scans register best with ([`sweep_trial`]), said in the
+/// log and the report, and taken for the run.
+fn sweep_by_trial(args: &RunArgs, opts: &RunOptions, source: &mut Input) -> Result<(), CliError> {
+    let input = &args.source.input;
+    if !matches!(source, Input::Folder(_)) {
+        return Err(FileError::at(input, crate::sources::input::NOT_A_FOLDER).into());
+    }
+    // The candidates' runs say what the run will say again: only their errors are shown.
+    let level = log::max_level();
+    log::set_max_level(log::LevelFilter::Error);
+    let trial = sweep_trial::choose(
+        || args.source.open(),
+        input,
+        opts,
+        &args.out.join(".sweep-trial"),
+    );
+    log::set_max_level(level);
+    let trial = trial?;
+    log::info!("{}", trial.describe());
+    if let Some(spec) = &trial.chosen {
+        source.time_from_sweep(input, spec)?;
+    }
+    source.note_sweep_trial(trial.describe());
+    Ok(())
 }
 
 /// Loop closure for a run that estimates its poses: on unless `--loop-closure off`, or the

@@ -53,6 +53,10 @@ pub struct FrameRecord {
     /// Conditioning of the registration: the mean squared normal component along its
     /// weakest direction (0 to 1/3; small is weak).
     pub conditioning: f64,
+    /// How far the scan lay from the map at its pose: the root mean square of the last
+    /// solve's residuals (m; [`ScanStats::residual_rms_m`](slamesh_core::ScanStats)).
+    #[serde(default)]
+    pub residual_rms_m: f64,
     /// Directions registration left to the motion model (see the `Degenerate` status).
     pub degenerate_directions: usize,
     /// Registration rounds run (each a reconstruction, an association and a solve), recovery's
@@ -120,6 +124,7 @@ impl FrameRecord {
             triangles_updated: 0,
             evicted_cells: 0,
             conditioning: 0.0,
+            residual_rms_m: 0.0,
             degenerate_directions: 0,
             rounds: 0,
             recovery_attempts: 0,
@@ -141,6 +146,7 @@ impl FrameRecord {
         self.scan_cells = stats.bucket.cells;
         self.scan_layers = stats.scan_layers;
         self.conditioning = stats.conditioning;
+        self.residual_rms_m = stats.residual_rms_m;
         self.degenerate_directions = stats.degenerate_directions;
         self.rounds = stats.rounds;
         self.recovery_attempts = stats.recovery_attempts;

@@ -193,14 +193,19 @@ impl Input {
     pub fn describe(&self) -> String {
         match self {
             Input::Folder(f) => format!(
-                "{} scan files (times {})",
+                "{} scan files (times {}){}",
                 f.len(),
                 match f.stamps_from {
                     crate::sources::scans::Stamps::TimesTxt => "from times.txt",
                     crate::sources::scans::Stamps::FileNames => "from the file names",
                     crate::sources::scans::Stamps::Assumed10Hz =>
                         "assumed 10 Hz: no times.txt, and the file names are not times",
-                }
+                },
+                f.sweep.as_ref().map_or(String::new(), |s| format!(
+                    ", points without times timed from a {} sweep of {:.3} s",
+                    s.counts().sweep,
+                    s.counts().period_s
+                ))
             ),
             #[cfg(feature = "recordings")]
             Input::Recording(r) => format!("{} frames of topic {}", r.frames(), r.topic.name),
@@ -305,7 +310,9 @@ impl FrameSource for Input {
         match self {
             Input::Live(l) => serde_json::to_value(l.stats()).ok(),
             Input::Capture(c) => serde_json::to_value(c.stats()).ok(),
-            _ => None,
+            Input::Folder(f) => f.input_report(),
+            #[cfg(feature = "recordings")]
+            Input::Recording(_) => None,
         }
     }
 }
@@ -329,22 +336,66 @@ impl FrameSource for ScanFolder {
             .as_mut()
             .map_or_else(Vec::new, |imu| imu.for_frame(stamps, i))
     }
-    /// PCD and PLY files with a time field give their points' times; `.bin` files none.
+    /// PCD and PLY files with a time field give their points' times; `.bin` files none. Scans
+    /// without times get them from their sweep when the folder has one (`--sweep`).
     fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
         let path = &self.paths[i];
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        match ext.as_deref() {
-            Some("pcd") => crate::formats::pcd::read_pcd_timed(path, self.stamps[i]),
-            Some("ply") => crate::formats::ply::read_ply_timed(path, self.stamps[i]),
-            _ => Ok((self.read(i)?, None)),
+        let (points, times) = match ext.as_deref() {
+            Some("pcd") => crate::formats::pcd::read_pcd_timed(path, self.stamps[i])?,
+            Some("ply") => crate::formats::ply::read_ply_timed(path, self.stamps[i])?,
+            _ => (read_scan_as(path, &self.bin_fields)?, None),
+        };
+        let times = match (times, &mut self.sweep) {
+            (None, Some(sweep)) => sweep.times(&path.display().to_string(), &points),
+            (times, _) => times,
+        };
+        Ok((points, times))
+    }
+    fn input_report(&self) -> Option<serde_json::Value> {
+        if self.sweep.is_none() && self.sweep_trial.is_none() {
+            return None;
         }
+        Some(serde_json::json!({
+            "sweep_times": self.sweep.as_ref().map(|s| s.counts()),
+            "sweep_trial": self.sweep_trial,
+        }))
     }
 }
 
+/// Why `--sweep` is refused for an input that is not a folder of scan files.
+pub const NOT_A_FOLDER: &str =
+    "--sweep is for folders of scan files (.bin, .pcd, .ply), and this is not one";
+
 impl Input {
+    /// Times the scans of a folder that carry none from `sweep` (`--sweep`), its period the
+    /// scans' own; `sweep` for another input, whose scans come with their times or whose sensor
+    /// is known, is refused.
+    pub fn time_from_sweep(
+        &mut self,
+        input: &Path,
+        sweep: &crate::sources::sweep_times::SweepSpec,
+    ) -> Result<(), FileError> {
+        use crate::sources::sweep_times::{period_of, SweepTimer};
+        match self {
+            Input::Folder(f) => {
+                f.sweep = Some(Box::new(SweepTimer::new(sweep, period_of(&f.stamps))));
+                Ok(())
+            }
+            _ => Err(FileError::at(input, NOT_A_FOLDER)),
+        }
+    }
+
+    /// Keeps what `--sweep auto` found (`trial`, in words) for the report; a folder's only.
+    pub fn note_sweep_trial(&mut self, trial: String) {
+        if let Input::Folder(f) = self {
+            f.sweep_trial = Some(trial);
+        }
+    }
+
     /// Attaches the IMU's readings as the command's `--imu` (`imu`: `off`, a file, or `None`
     /// for what comes with the input) and `--imu-topic` say: a recording's `sensor_msgs/Imu`
     /// topic (the only one, or `imu_topic`); a folder of scans' CSV (`imu`, or one beside it,

@@ -7,6 +7,7 @@
 //! |---|---|
 //! | the source interface, and the input a path or address names | [`input`] |
 //! | folders of scans in natural order, or one file | [`scans`] |
+//! | points' times from their azimuths, for scans that carry none | [`sweep_times`] |
 //! | robot recordings: ROS 1 bags, MCAP, ROS 2 bag folders (feature `recordings`) | `recording` |
 //! | packet captures (pcap, pcapng) to UDP datagrams | [`capture`] |
 //! | Velodyne data packets | [`velodyne`] |
@@ -28,6 +29,7 @@ pub mod recording;
 pub mod replay;
 pub mod scans;
 pub mod sweep;
+pub mod sweep_times;
 pub mod velodyne;
 
 pub use input::{FrameSource, ImuReading, Input, Request, Sample, Waited};

@@ -42,6 +42,10 @@ pub struct ScanFolder {
     pub bin_fields: kitti::BinFields,
     /// An IMU's readings for the frames (`--imu FILE`, or a file beside the folder).
     pub imu: Option<crate::sources::imu_readings::ImuReadings>,
+    /// Times for scans that carry none, from their sweep (`--sweep`).
+    pub sweep: Option<Box<crate::sources::sweep_times::SweepTimer>>,
+    /// How the sweep was chosen, when the scans chose it (`--sweep auto`), in words.
+    pub sweep_trial: Option<String>,
 }
 
 impl ScanFolder {
@@ -57,6 +61,8 @@ impl ScanFolder {
                 stamps_from,
                 bin_fields: kitti::BinFields::default(),
                 imu: None,
+                sweep: None,
+                sweep_trial: None,
             });
         }
         if !input.exists() {
@@ -96,6 +102,8 @@ impl ScanFolder {
             stamps_from,
             bin_fields: kitti::BinFields::default(),
             imu: None,
+            sweep: None,
+            sweep_trial: None,
         })
     }
 
