@@ -453,3 +453,121 @@ fn a_moving_start_finds_up_over_its_first_seconds() {
     assert!(off < 1.0, "{off}");
     assert!(navmap.contains("of motion"), "{navmap}");
 }
+
+/// One reading a frame, the gyro still: a 10 Hz `/imu` topic that is no IMU.
+fn decoy(s: &mut Vec<Sample>) {
+    s.retain(|s| (s.stamp() * 10.0 - (s.stamp() * 10.0).round()).abs() < 1e-6);
+    for Sample::Imu(r) in s {
+        r.gyro = [0.0; 3];
+    }
+}
+
+/// The gyro still, at its rate.
+fn still(s: &mut Vec<Sample>) {
+    for Sample::Imu(r) in s {
+        r.gyro = [0.0; 3];
+    }
+}
+
+#[test]
+fn readings_too_slow_or_too_still_to_be_an_imu_are_ignored_and_named() {
+    let d = car_frames(20).with_imu(imu(200.0));
+    let truth = d.poses.clone();
+    let out = scratch("imu-decoy");
+    let s =
+        run::<KittiCapacity>(&mut Altered(d.clone(), decoy), &options(&out, true), |_| {}).unwrap();
+    let imu = s.imu.expect("readings came");
+    let why = imu.ignored.expect("ignored");
+    assert!(why.contains("10.0 Hz"), "{why}");
+    assert_eq!((imu.prior_frames, imu.deskewed_frames), (0, 0));
+    // The run is the run without it, to the bit.
+    let off = scratch("imu-decoy-off");
+    run::<KittiCapacity>(&mut d.clone(), &options(&off, false), |_| {}).unwrap();
+    for f in ["poses_kitti.txt", "poses_tum.txt"] {
+        let (a, b) = (out.join(f), off.join(f));
+        assert_eq!(std::fs::read(a).unwrap(), std::fs::read(b).unwrap(), "{f}");
+    }
+    // A gyro at 400 Hz that never turns while the rig does: ignored once the rig turned.
+    let h = hand_held(30);
+    let (s, _, _) = run_drive::<Lidar32Capacity>(&mut Altered(h, still), &truth, true, "still");
+    let why = s.imu.and_then(|i| i.ignored).expect("ignored");
+    assert!(why.contains("while the registrations turned"), "{why}");
+}
+
+/// A drive whose points come without their times: an untimed folder's scans.
+struct Untimed(Drive);
+
+impl FrameSource for Untimed {
+    fn frames(&self) -> usize {
+        self.0.frames()
+    }
+    fn label(&self, i: usize) -> String {
+        self.0.label(i)
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        self.0.stamp(i)
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<Point>, slamesh::io::FileError> {
+        self.0.read(i)
+    }
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        self.0.samples(i)
+    }
+}
+
+#[test]
+fn registrations_bent_by_an_untimed_shaken_sweep_do_not_talk_the_imu_out() {
+    let d = car_frames(60)
+        .shaken(Vibration::rough_road())
+        .with_imu(imu(200.0));
+    let truth = d.poses.clone();
+    let (s, statuses, step) =
+        run_drive::<KittiCapacity>(&mut Untimed(d), &truth, true, "untimed-shaken");
+    let imu = s.imu.expect("readings came");
+    println!(
+        "untimed shaken sweeps with the IMU: {:.2} cm a step, {} converged, {} runs of \
+         misses put down to the registrations",
+        step * 100.0,
+        count(&statuses, "Converged"),
+        imu.registrations_doubted
+    );
+    assert!(imu.set_aside.is_none(), "{:?}", imu.set_aside);
+    assert!(imu.registrations_doubted > 0);
+    assert_eq!(imu.prior_frames, 59);
+}
+
+#[test]
+fn an_imu_that_starts_with_the_first_scan_levels_the_map_with_the_readings_after_it() {
+    // The car stands still through the first frames; its IMU sits at the LiDAR, in its axes.
+    let mut d = car_frames(8);
+    d.poses = vec![d.poses[0]; 8];
+    let d = d.with_imu(ImuModel::mems(200.0, 7));
+    let dir = scratch("imu-starts-with-the-scan");
+    let scans = write_folder_with_imu(&d, &dir);
+    // Every reading before the first scan's stamp (0 s) dropped: the CSV starts with it.
+    let csv = dir.join("imu0").join("data.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let kept: Vec<&str> = text
+        .lines()
+        .filter(|l| {
+            let t = l
+                .split(',')
+                .next()
+                .and_then(|t| t.trim().parse::<f64>().ok());
+            t.is_none_or(|t| t >= 0.0)
+        })
+        .collect();
+    assert!(
+        kept.len() < text.lines().count(),
+        "readings before the scan were dropped"
+    );
+    std::fs::write(&csv, kept.join("\n") + "\n").unwrap();
+    let out = dir.join("out");
+    slamesh_run_ok(&scans, &out, &["--threads", "2"]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let gravity = &report["summary"]["imu"]["gravity"];
+    assert_eq!(gravity["levelled"], true, "{gravity}");
+    // Up from the readings through the first 0.4 s, after the stamp.
+    assert!(gravity["seconds"].as_f64().unwrap() >= 0.35, "{gravity}");
+}

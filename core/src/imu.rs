@@ -445,7 +445,15 @@ impl ImuTrack {
     /// bias, `α` its change between the neighbouring readings). An error when fewer than three
     /// readings come before `t_ref`, or a gap breaks them or parts them from it.
     pub fn mean_force(&self, after: f64, t_ref: f64) -> Result<ForceMean, ImuGap> {
-        let r = &self.readings[..self.readings.partition_point(|x| x.t <= t_ref)];
+        self.mean_force_over(after, t_ref, t_ref)
+    }
+
+    /// [`mean_force`](Self::mean_force) over the readings after `after` up to `until`, which
+    /// may come after `t_ref`: a body still at a scan's stamp says where up is with the
+    /// readings after it as well as with those before (a recording whose IMU starts with its
+    /// first scan has none before).
+    pub fn mean_force_over(&self, after: f64, until: f64, t_ref: f64) -> Result<ForceMean, ImuGap> {
+        let r = &self.readings[..self.readings.partition_point(|x| x.t <= until)];
         let r = &r[r.partition_point(|x| x.t <= after)..];
         let (Some(first), Some(last)) = (r.first(), r.last()) else {
             return Err(ImuGap::NoReadings);

@@ -20,6 +20,11 @@ pub const MIN_SCALE_TURN_DEG: f64 = 2.0;
 /// The least turn of the IMU's axes called a disagreement (degrees).
 pub const MIN_OFF_DEG: f64 = 3.0;
 
+/// The gyro's angles over a run of misses may be this many times the registered ones before
+/// the misses are the gyro's: a bent sweep's registration takes in part of the turn (1.28
+/// times on a shaken drive's untimed sweeps), a unit 57.3 times.
+pub const BLAME_SCALE: std::ops::RangeInclusive<f64> = 0.5..=2.0;
+
 /// What the check found: its words, and whether they say `[imu]` (or the gyro's units or
 /// clock) is wrong.
 #[derive(Debug, Clone, PartialEq)]
@@ -130,6 +135,20 @@ impl CalibrationCheck {
     fn verdict(&mut self) -> Verdict {
         self.done = true;
         self.judge()
+    }
+
+    /// Whether the pairs so far say the gyro's scale is wrong beyond what a registration's
+    /// error explains (outside [`BLAME_SCALE`]: a unit, a clock), in words: what a run of
+    /// frames whose rotations the gyro missed is judged by ([`crate::inertial::trust`]).
+    pub fn blames(&self) -> Option<String> {
+        let (g, r) = self.angles;
+        let ratio = g / r.max(1e-12);
+        (r.to_degrees() >= MIN_SCALE_TURN_DEG && !BLAME_SCALE.contains(&ratio)).then(|| {
+            format!(
+                "over the misses the gyro's angles are {ratio:.2} times the registered ones: \
+                 a unit or a clock, not a registration's error"
+            )
+        })
     }
 
     /// The verdict the pairs so far give.

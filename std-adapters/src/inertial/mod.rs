@@ -7,24 +7,27 @@
 //! are) and the counts for the report. It guarantees that a frame the readings do not cover
 //! (a gap, no readings yet) is run exactly as without an IMU, and named; that a reading it
 //! refuses is named (the first ten of each frame's, then counted); that an IMU whose
-//! rotations keep missing the registered ones is set aside, named ([`DISTRUST_AFTER`]); and
-//! that without readings nothing it does changes a run's bytes.
+//! rotations keep missing the registered ones is set aside, named, and comes back when they
+//! agree again, and readings that are no IMU's (too slow, too still) are ignored, named
+//! ([`trust`]); and that without readings nothing it does changes a run's bytes.
 
 pub mod calibration;
 pub mod moving_up;
 pub mod report;
 pub mod state;
+pub mod trust;
 
 use crate::sources::Sample;
 use calibration::{CalibrationCheck, Verdict};
 use moving_up::FirstSeconds;
-use nalgebra::Vector3;
+use nalgebra::{UnitQuaternion, Vector3};
 use report::{gap_words, not_level};
 pub use report::{GravityReport, ImuCountsReport, ImuFrame, ImuSummary};
 use slamesh_core::deskew::{self, DeskewError, Deskewed};
 use slamesh_core::gravity::Gravity;
 use slamesh_core::imu::{ForceMean, ImuCalibration, ImuGap, ImuTrack, GRAVITY_M_S2};
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
+use trust::{Trust, DISTRUST_AFTER};
 
 /// What the run does with an IMU's readings (`--imu`, `--deskew`, the configuration's `imu`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -107,10 +110,10 @@ pub struct Inertial {
     seen: bool,
     /// Frames deskewed with the gyro, registered from its prior, and not covered.
     frames: (usize, usize, usize),
-    /// Frames in a row whose rotation the gyro missed ([`Inertial::used`]).
-    disagreeing: usize,
-    /// Why the IMU was set aside, if it was.
-    set_aside: Option<String>,
+    /// Whether the readings are trusted now ([`trust`]).
+    trust: Trust,
+    /// The gyro's and the registered rotations of the current run of misses.
+    misses: CalibrationCheck,
     /// What the accelerometer said of up at the map's first scan.
     gravity: Option<GravityReport>,
     /// The gyro's rotations against the registered ones over the first seconds.
@@ -140,8 +143,8 @@ impl Inertial {
             refs: (None, None),
             seen: false,
             frames: (0, 0, 0),
-            disagreeing: 0,
-            set_aside: None,
+            trust: Trust::new(),
+            misses: CalibrationCheck::new(options.calibration.lidar_from_imu.rotation),
             gravity: None,
             check: CalibrationCheck::new(options.calibration.lidar_from_imu.rotation),
             moving: FirstSeconds::default(),
@@ -178,7 +181,10 @@ impl Inertial {
             prior_frames: self.frames.1,
             gap_frames: self.frames.2,
             gyro_bias: self.track.bias().into(),
-            set_aside: self.set_aside.clone(),
+            set_aside: self.trust.set_aside().map(String::from),
+            returned: self.trust.returned(),
+            registrations_doubted: self.trust.doubted(),
+            ignored: self.trust.ignored().map(String::from),
             gravity: self.gravity.clone(),
             calibration_check: (self.checked.clone())
                 .or_else(|| self.check.pending())
@@ -187,9 +193,10 @@ impl Inertial {
         })
     }
 
-    /// Whether the run uses readings now: enabled, some came, and not set aside.
+    /// Whether the run uses readings now: enabled, some came, at an IMU's rate, and trusted
+    /// ([`Trust::trusted`]).
     pub fn active(&self) -> bool {
-        self.options.enabled && self.seen && self.set_aside.is_none()
+        self.options.enabled && self.seen && self.trust.trusted()
     }
 
     /// Takes the readings that came with frame `frame` of `file`; names the refused (the first
@@ -225,6 +232,8 @@ impl Inertial {
                 );
             }
         }
+        let held = self.track.held().iter().map(|r| r.parts().0);
+        self.trust.check_rate(held);
     }
 
     /// Deskews `points` (times `times` after `stamp`) with the gyro's rotation at each point's
@@ -282,10 +291,10 @@ impl Inertial {
     /// up, when the readings held say which way is up ([`Gravity`]); `None` otherwise (the map's
     /// z is the first scan's). Named in the log either way, and in the summary.
     pub fn level(&mut self, t: f64, file: &str, frame: usize) -> Option<Pose> {
-        if let (None, Ok(f)) = (&self.unit, self.track.mean_force(f64::NEG_INFINITY, t)) {
+        if let (None, Ok(f)) = (&self.unit, self.force_at_start(t)) {
             self.tell_unit(&f, &format!("{file}: frame {frame}: "));
         }
-        let judged = match self.track.mean_force(f64::NEG_INFINITY, t) {
+        let judged = match self.force_at_start(t) {
             Ok(f) => Gravity::judge(&f).map_err(|e| (Some(f), not_level(e))),
             Err(gap) => Err((None, gap_words(gap))),
         };
@@ -307,6 +316,19 @@ impl Inertial {
         }
         self.gravity = Some(report);
         level.map(|q| Pose::from_parts(Vector3::zeros().into(), q))
+    }
+
+    /// The mean force at the map's first scan (stamp `t`): over the readings before it, or,
+    /// when they span less than gravity needs ([`slamesh_core::gravity::MIN_SECONDS`]: the
+    /// IMU started with the scan), over every reading held, those after the stamp too.
+    fn force_at_start(&self, t: f64) -> Result<ForceMean, ImuGap> {
+        let before = self.track.mean_force(f64::NEG_INFINITY, t);
+        match before {
+            Ok(f) if f.seconds >= slamesh_core::gravity::MIN_SECONDS => Ok(f),
+            _ => (self.track)
+                .mean_force_over(f64::NEG_INFINITY, f64::INFINITY, t)
+                .or(before),
+        }
     }
 
     /// Up for a navigation map and what gave it, when the IMU gave it
@@ -335,8 +357,8 @@ impl Inertial {
 
     /// A frame's pose was taken at time `t` (the motion model now ends with it; `from_prior`:
     /// registered from the gyro's prior): its registered rotation since the last corrects the
-    /// bias when it is close, a run of misses sets the IMU aside ([`DISTRUST_AFTER`]), and
-    /// readings no rotation needs are forgotten.
+    /// bias when it is close, and judges the gyro ([`trust`]); readings no rotation needs are
+    /// forgotten.
     pub fn used(
         &mut self,
         t: f64,
@@ -345,9 +367,10 @@ impl Inertial {
         from_prior: bool,
     ) {
         use RegistrationStatus::{Converged, NotConverged, Recovered};
+        let converged = matches!(status, Converged | Recovered);
+        let counts = self.trust.counts(converged);
         if let ((Some(before), Some(last)), Some(t_before)) = (history, self.refs.1) {
             let registered = (before.inverse() * last).rotation;
-            let converged = matches!(status, Converged | Recovered);
             self.read_up((&before, t_before), (&last, t), converged);
             // The gyro's rotation since the last frame, once, for the check (also once the IMU
             // is set aside: the motion model's frames tell why) and the bias (a frame the
@@ -359,18 +382,56 @@ impl Inertial {
                 let verdict = self.check.add(t, &gyro, &registered);
                 self.note_check(verdict);
             }
-            if let Some(gyro) = gyro.filter(|_| self.active()) {
-                let o = &self.options;
-                let (gain, max) = (o.bias_gain, o.bias_max_deg.to_radians());
-                let off = (self.track).correct_bias(&gyro, t - t_before, &registered, gain, max);
-                self.judge(off.to_degrees(), t - t_before);
-            } else if status == NotConverged && from_prior {
-                // Lost from the gyro's start: as telling as a miss.
-                self.judge(f64::INFINITY, t - t_before);
+            self.judge_gyro(gyro, &registered, (t_before, t), counts);
+            if status == NotConverged && from_prior {
+                self.lost_from_prior(t_before, t);
+            }
+            if converged {
+                self.trust.stepped(Some(registered));
             }
         }
         self.refs = (self.refs.1, Some(t));
         self.track.forget_before(t);
+    }
+
+    /// A converged frame's `gyro` rotation against its `registered` one over `(from, to)`:
+    /// the still check; then, trusted, the bias and (a counted frame) the judge; set aside,
+    /// whether it matches again.
+    fn judge_gyro(
+        &mut self,
+        gyro: Option<UnitQuaternion<f64>>,
+        registered: &UnitQuaternion<f64>,
+        (from, to): (f64, f64),
+        counts: bool,
+    ) {
+        let Some(gyro) = gyro else { return };
+        if self.options.enabled {
+            let deg = |q: &UnitQuaternion<f64>| q.angle().to_degrees();
+            self.trust.check_turning(deg(registered), deg(&gyro));
+        }
+        let limit = self.options.bias_max_deg;
+        if self.active() {
+            let o = &self.options;
+            let (gain, max) = (o.bias_gain, o.bias_max_deg.to_radians());
+            let off = (self.track).correct_bias(&gyro, to - from, registered, gain, max);
+            if counts {
+                self.judge(off.to_degrees(), to - from, Some((to, gyro, *registered)));
+            }
+        } else if counts && self.options.enabled {
+            let off = registered.angle_to(&gyro).to_degrees();
+            self.trust.watch(off, limit, "");
+        }
+    }
+
+    /// A registration lost from the gyro's prior over `(from, to)`: the gyro's fault, counted
+    /// as a miss, only when its rotation was far from the last registered step's.
+    fn lost_from_prior(&mut self, from: f64, to: f64) {
+        let limit = self.options.bias_max_deg;
+        let surprised =
+            (self.track.rotation(from, to).ok()).is_some_and(|g| self.trust.surprised(&g, limit));
+        if surprised && self.active() {
+            self.judge(f64::INFINITY, to - from, None);
+        }
     }
 
     /// Takes the interval between two registered frames into the moving body's up, when the
@@ -443,35 +504,50 @@ impl Inertial {
         self.checked = Some(v);
     }
 
-    /// Counts registered frames whose rotation the gyro's misses by more than the bias may
-    /// take (and frames lost from its prior); [`DISTRUST_AFTER`] in a row and the IMU is set
-    /// aside, named: its axes, clock or units are not the LiDAR's (a wrong `[imu]`, degrees
-    /// for radians).
-    fn judge(&mut self, off_deg: f64, dt: f64) {
-        if off_deg <= self.options.bias_max_deg {
-            self.disagreeing = 0;
+    /// A counted frame whose rotation the gyro missed by `off_deg` (over `dt` s; `pair`, its
+    /// end's time, the gyro's and the registered rotation), or a frame lost from its prior
+    /// (infinitely, no pair): [`DISTRUST_AFTER`] in a row, and the misses the gyro's
+    /// ([`trust`]), and the IMU is set aside, named: its axes, clock or units are not the
+    /// LiDAR's (a wrong `[imu]`, degrees for radians).
+    fn judge(
+        &mut self,
+        off_deg: f64,
+        dt: f64,
+        pair: Option<(f64, UnitQuaternion<f64>, UnitQuaternion<f64>)>,
+    ) {
+        let configured = self.options.calibration.lidar_from_imu.rotation;
+        if off_deg > self.options.bias_max_deg {
+            if let Some((t, gyro, registered)) = pair {
+                self.misses.add(t, &gyro, &registered);
+            }
+        } else {
+            self.misses = CalibrationCheck::new(configured);
+        }
+        if !self.trust.judge(off_deg, self.options.bias_max_deg) {
             return;
         }
-        self.disagreeing += 1;
-        if self.disagreeing == DISTRUST_AFTER {
-            let verdict = self.check.take();
-            self.note_check(verdict);
-            let why = format!(
-                "the gyro's rotation missed the registered one by more than {:.1} degrees on {} \
-                 frames in a row ({off_deg:.1} degrees over {dt:.3} s, the last): its place or \
-                 clock in [imu] (rotation_rpy_deg, time_offset_s) or its units (gyro_unit) are \
-                 not right; the IMU is set aside, the motion model carries on",
-                self.options.bias_max_deg, DISTRUST_AFTER
-            );
-            let why = match &self.checked {
-                Some(v) if v.wrong => format!("{why} ({})", v.text),
-                _ => why,
-            };
-            log::warn!("IMU: {why}");
-            self.set_aside = Some(why);
+        let blamed =
+            std::mem::replace(&mut self.misses, CalibrationCheck::new(configured)).blames();
+        if blamed.is_none() && !self.trust.lost_in_run() {
+            self.trust
+                .doubt("the misses' scale within 0.5 to 2 times the registered", "");
+            return;
         }
+        let verdict = self.check.take();
+        self.note_check(verdict);
+        let why = format!(
+            "the gyro's rotation missed the registered one by more than {:.1} degrees on {} \
+             frames in a row ({off_deg:.1} degrees over {dt:.3} s, the last): its place or \
+             clock in [imu] (rotation_rpy_deg, time_offset_s) or its units (gyro_unit) are \
+             not right; the IMU is set aside, the motion model carries on until the gyro \
+             matches the registrations again",
+            self.options.bias_max_deg, DISTRUST_AFTER
+        );
+        let why = match (blamed, &self.checked) {
+            (Some(b), _) => format!("{why} ({b})"),
+            (None, Some(v)) if v.wrong => format!("{why} ({})", v.text),
+            _ => why,
+        };
+        self.trust.set_aside_for(why);
     }
 }
-
-/// Frames in a row whose rotation the gyro misses before the IMU is set aside.
-pub const DISTRUST_AFTER: usize = 5;

@@ -53,6 +53,17 @@ pub struct ImuSummary {
     /// ones), if it was.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub set_aside: Option<String>,
+    /// Times the IMU came back after it was set aside (its rotations matched again).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub returned: usize,
+    /// Runs of frames whose rotation the gyro missed that were put down to the registrations
+    /// (the misses' scale and axes agree with the gyro's: [`crate::inertial::trust`]).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub registrations_doubted: usize,
+    /// Why the readings were ignored for the whole run (too slow or too still to be an IMU's),
+    /// if they were.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ignored: Option<String>,
     /// Which way was up at the map's first scan, and whether the map was levelled by it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gravity: Option<GravityReport>,
@@ -64,6 +75,10 @@ pub struct ImuSummary {
     /// absent while the readings have not told it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub accelerometer_unit: Option<String>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// What the accelerometer said of up at the map's first scan (`summary.imu.gravity`).

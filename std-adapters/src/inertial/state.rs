@@ -6,8 +6,11 @@
 
 use crate::inertial::calibration::{CalibrationCheck, Verdict};
 use crate::inertial::moving_up::{FirstSeconds, MovingUp};
+use crate::inertial::trust::Trust;
 use crate::inertial::{GravityReport, Inertial};
-use crate::io::le::{put_f64, put_opt_str, put_option, put_str, put_u64, put_vec3, Decoder};
+use crate::io::le::{
+    put_f64, put_opt_str, put_option, put_str, put_u64, put_vec3, Damaged, Decoder,
+};
 use nalgebra::Vector3;
 use slamesh_core::imu::{ImuCounts, Reading};
 
@@ -41,15 +44,16 @@ impl Inertial {
         put_option(e, self.refs.1, 0.0, put_f64);
         e.push(u8::from(self.seen));
         let (a, b, c) = self.frames;
-        for n in [a, b, c, self.disagreeing] {
+        for n in [a, b, c] {
             put_u64(e, n as u64);
         }
-        put_opt_str(e, self.set_aside.as_deref());
+        self.trust.put(e);
         e.push(u8::from(self.gravity.is_some()));
         if let Some(g) = &self.gravity {
             put_gravity(e, g);
         }
         self.check.put(e);
+        self.misses.put(e);
         self.moving.put(e);
         e.push(u8::from(self.checked.is_some()));
         if let Some(v) = &self.checked {
@@ -92,14 +96,14 @@ impl Inertial {
         self.refs = (d.option(Decoder::f64)?, d.option(Decoder::f64)?);
         self.seen = d.flag()?;
         self.frames = (d.usize()?, d.usize()?, d.usize()?);
-        self.disagreeing = d.usize()?;
-        self.set_aside = d.opt_string()?;
+        self.trust = Trust::read(d)?;
         self.gravity = match d.flag()? {
             true => Some(read_gravity(d)?),
             false => None,
         };
         let configured = self.options.calibration.lidar_from_imu.rotation;
         self.check = CalibrationCheck::read(d, configured)?;
+        self.misses = CalibrationCheck::read(d, configured)?;
         self.moving = FirstSeconds::read(d)?;
         self.checked = match d.flag()? {
             true => Some(Verdict {
@@ -118,7 +122,7 @@ fn put_up(e: &mut Vec<u8>, up: Option<[f64; 3]>) {
     put_option(e, up, [0.0; 3], |e, v| put_vec3(e, &Vector3::from(v)));
 }
 
-fn read_up(d: &mut Decoder) -> Result<Option<[f64; 3]>, String> {
+fn read_up(d: &mut Decoder) -> Result<Option<[f64; 3]>, Damaged> {
     d.option(|d| Ok(d.vec3()?.into()))
 }
 

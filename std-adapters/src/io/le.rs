@@ -63,6 +63,38 @@ pub fn put_pose(e: &mut Vec<u8>, p: &Pose) {
     }
 }
 
+/// Why [`Decoder`] could not read what was written: the file is truncated or damaged, in
+/// words (a caller names the file).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Damaged(pub String);
+
+impl std::fmt::Display for Damaged {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Damaged {}
+
+impl From<&str> for Damaged {
+    fn from(why: &str) -> Self {
+        Damaged(why.to_string())
+    }
+}
+
+impl From<String> for Damaged {
+    fn from(why: String) -> Self {
+        Damaged(why)
+    }
+}
+
+/// Where a caller's errors are words: a damaged record's words.
+impl From<Damaged> for String {
+    fn from(d: Damaged) -> Self {
+        d.0
+    }
+}
+
 /// Checked reads from the front of a byte slice.
 pub struct Decoder<'a> {
     /// What is left to read.
@@ -71,7 +103,7 @@ pub struct Decoder<'a> {
 
 impl<'a> Decoder<'a> {
     /// The next `n` bytes.
-    pub fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+    pub fn take(&mut self, n: usize) -> Result<&'a [u8], Damaged> {
         if self.bytes.len() < n {
             return Err("the file ends early (truncated)".into());
         }
@@ -88,54 +120,54 @@ impl<'a> Decoder<'a> {
     }
 
     /// A `u8`.
-    pub fn u8(&mut self) -> Result<u8, String> {
+    pub fn u8(&mut self) -> Result<u8, Damaged> {
         Ok(self.array::<1>()?[0])
     }
 
     /// A byte that must be 0 or 1.
-    pub fn flag(&mut self) -> Result<bool, String> {
+    pub fn flag(&mut self) -> Result<bool, Damaged> {
         match self.u8()? {
             0 => Ok(false),
             1 => Ok(true),
-            b => Err(format!("a flag of {b}")),
+            b => Err(format!("a flag of {b}").into()),
         }
     }
 
     /// A `u32`.
-    pub fn u32(&mut self) -> Result<u32, String> {
+    pub fn u32(&mut self) -> Result<u32, Damaged> {
         Ok(u32::from_le_bytes(self.array()?))
     }
 
     /// An `i32`.
-    pub fn i32(&mut self) -> Result<i32, String> {
+    pub fn i32(&mut self) -> Result<i32, Damaged> {
         Ok(i32::from_le_bytes(self.array()?))
     }
 
     /// A `u64`.
-    pub fn u64(&mut self) -> Result<u64, String> {
+    pub fn u64(&mut self) -> Result<u64, Damaged> {
         Ok(u64::from_le_bytes(self.array()?))
     }
 
     /// A `u64` as a `usize`.
-    pub fn usize(&mut self) -> Result<usize, String> {
+    pub fn usize(&mut self) -> Result<usize, Damaged> {
         usize::try_from(self.u64()?).map_err(|_| "a count too large for this machine".into())
     }
 
     /// An `f64`.
-    pub fn f64(&mut self) -> Result<f64, String> {
+    pub fn f64(&mut self) -> Result<f64, Damaged> {
         Ok(f64::from_le_bytes(self.array()?))
     }
 
     /// Three `f64`.
-    pub fn vec3(&mut self) -> Result<Vector3<f64>, String> {
+    pub fn vec3(&mut self) -> Result<Vector3<f64>, Damaged> {
         Ok(Vector3::new(self.f64()?, self.f64()?, self.f64()?))
     }
 
     /// What [`put_option`] wrote, read by `read`.
     pub fn option<T>(
         &mut self,
-        read: impl FnOnce(&mut Self) -> Result<T, String>,
-    ) -> Result<Option<T>, String> {
+        read: impl FnOnce(&mut Self) -> Result<T, Damaged>,
+    ) -> Result<Option<T>, Damaged> {
         let there = self.flag()?;
         let v = read(self)?;
         Ok(there.then_some(v))
@@ -143,22 +175,22 @@ impl<'a> Decoder<'a> {
 
     /// A count of items of at least `min_bytes` each: refused when the rest of the bytes
     /// cannot hold them (so a damaged count never sizes an allocation).
-    pub fn count(&mut self, min_bytes: usize) -> Result<usize, String> {
+    pub fn count(&mut self, min_bytes: usize) -> Result<usize, Damaged> {
         let n = self.u64()?;
         if n.saturating_mul(min_bytes as u64) > self.bytes.len() as u64 {
-            return Err(format!("a count of {n} runs past the end of the file"));
+            return Err(format!("a count of {n} runs past the end of the file").into());
         }
         Ok(n as usize)
     }
 
     /// What [`put_str`] wrote.
-    pub fn string(&mut self) -> Result<String, String> {
+    pub fn string(&mut self) -> Result<String, Damaged> {
         let n = self.u32()? as usize;
         String::from_utf8(self.take(n)?.to_vec()).map_err(|_| "a text is not UTF-8".into())
     }
 
     /// What [`put_opt_str`] wrote.
-    pub fn opt_string(&mut self) -> Result<Option<String>, String> {
+    pub fn opt_string(&mut self) -> Result<Option<String>, Damaged> {
         match self.flag()? {
             true => Ok(Some(self.string()?)),
             false => Ok(None),
@@ -166,7 +198,7 @@ impl<'a> Decoder<'a> {
     }
 
     /// What [`put_pose`] wrote; refused unless finite.
-    pub fn pose(&mut self) -> Result<Pose, String> {
+    pub fn pose(&mut self) -> Result<Pose, Damaged> {
         let mut v = [0.0; 7];
         for x in &mut v {
             *x = self.f64()?;
@@ -209,6 +241,6 @@ mod tests {
         let mut short = Decoder { bytes: &e[..3] };
         assert!(short.u64().is_err());
         let mut bad_flag = Decoder { bytes: &[2, 0] };
-        assert_eq!(bad_flag.flag(), Err("a flag of 2".to_string()));
+        assert_eq!(bad_flag.flag(), Err(Damaged("a flag of 2".into())));
     }
 }

@@ -31,8 +31,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 12] = b"SLAMESH-CKPT";
-/// 2: each layer's facing after its axis. 3: the IMU's state after the mesh's counts.
-const VERSION: u32 = 3;
+/// 2: each layer's facing after its axis. 3: the IMU's state after the mesh's counts. 4: the
+/// IMU's trust ([`crate::inertial::trust`]) in place of its misses and reason.
+const VERSION: u32 = 4;
 
 /// The checkpoint file of the output folder `out`.
 pub fn path(out: &Path) -> PathBuf {

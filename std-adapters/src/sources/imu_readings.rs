@@ -64,9 +64,24 @@ impl ImuReadings {
             return Vec::new();
         };
         let before = i.checked_sub(1).and_then(|j| stamps.get(j)).copied();
-        self.until(t + frame_period(t, before, stamps.get(i + 1).copied()))
+        let period = frame_period(t, before, stamps.get(i + 1).copied());
+        self.until(t + first_frame_reach(i == 0, period))
     }
 }
+
+/// How far past its stamp a frame takes the readings (`period`: its [`frame_period`]): the
+/// `first` frame at least [`FIRST_FRAME_S`], so that an IMU that starts with the first scan
+/// still says where up is when the map starts.
+pub fn first_frame_reach(first: bool, period: f64) -> f64 {
+    match first {
+        true => period.max(FIRST_FRAME_S),
+        false => period,
+    }
+}
+
+/// See [`first_frame_reach`]: twice the time gravity's mean needs
+/// ([`slamesh_core::gravity::MIN_SECONDS`]).
+pub const FIRST_FRAME_S: f64 = 2.0 * slamesh_core::gravity::MIN_SECONDS;
 
 /// The period of the frame stamped `stamp` (seconds): to the next frame's stamp when it is
 /// known, else from the one before, else 0.1 s (10 Hz). A frame takes the IMU's readings up to
@@ -93,9 +108,12 @@ mod tests {
         let mut imu = ImuReadings::new((0..50).map(|k| r(k as f64 * 0.01)).collect());
         let stamps = [0.0, 0.1, 0.2];
         let counts: Vec<usize> = (0..3).map(|i| imu.for_frame(&stamps, i).len()).collect();
-        // Up to 0.1, 0.2, 0.3 s: 0.00 to 0.10 is eleven readings.
-        assert_eq!(counts, [11, 10, 10]);
-        assert_eq!(imu.until(10.0).len(), 19);
+        // Up to 0.4 s (the first frame reaches FIRST_FRAME_S past its stamp: 0.00 to 0.40 is
+        // 41 readings), then 0.3 s: none left for the second, ten for the third.
+        assert_eq!(counts, [41, 0, 0]);
+        assert_eq!(imu.until(10.0).len(), 9);
+        assert_eq!(first_frame_reach(true, 0.1), FIRST_FRAME_S);
+        assert_eq!(first_frame_reach(false, 0.1), 0.1);
         assert_eq!(imu.span(), Some((0.0, 0.49)));
     }
 }

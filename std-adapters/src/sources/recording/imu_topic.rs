@@ -8,7 +8,7 @@
 //! named, all counted); the frames go on.
 
 use crate::formats::imu_message;
-use crate::sources::imu_readings::frame_period;
+use crate::sources::imu_readings::{first_frame_reach, frame_period};
 use crate::sources::recording::{Container, Encoding, Messages, Topic};
 use crate::sources::Sample;
 
@@ -79,7 +79,7 @@ impl ImuTopic {
     /// order); `label` names the recording in messages.
     pub fn for_frame(&mut self, stamp: f64, label: &str) -> Vec<Sample> {
         let before = self.last_stamp.replace(stamp);
-        let until = stamp + frame_period(stamp, before, None);
+        let until = stamp + first_frame_reach(before.is_none(), frame_period(stamp, before, None));
         let mut out = Vec::new();
         loop {
             let s = match self.held.take() {
