@@ -25,13 +25,18 @@
 //! `--untimed`: a rolling sweep's scans written as `.bin` files all the same, without their
 //! points' times, as a KITTI-style folder of a real drive has them (the simulated head turns
 //! counter-clockwise from +x, stamped at the sweep's start: `slamesh run --sweep ccw:0:0`).
+//! `--kitti-raw`: KITTI raw's drive layout instead, untimed: `velodyne_points/data/*.bin`
+//! with `timestamps.txt` (mid-sweep), `timestamps_start.txt` and `timestamps_end.txt`, and
+//! with `--imu HZ` the readings as OXTS packets in `oxts/` (`slamesh run --sweep ccw:0:0.5`);
+//! `poses.txt` (the true poses at those mid-sweep stamps) and `calib.txt` stay at the top for
+//! `slamesh eval`.
 
 #[path = "common/flags.rs"]
 mod flags;
 
 use flags::Flags;
 use slamesh::formats::trajectory::write_kitti_line;
-use slamesh::formats::{imu_csv, pcd};
+use slamesh::formats::{imu_csv, oxts, pcd};
 use slamesh_sim::{Drive, ImuModel, Vibration};
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
@@ -56,6 +61,9 @@ fn main() -> Result<(), Error> {
         .map(|p| p * left)
         .collect();
     let drive = with_motion(&flags, drive, period_s, seed, &out)?;
+    if flags.has("--kitti-raw") {
+        return write_kitti_raw(&drive, period_s, &out);
+    }
     let timed = drive.sweep_s.is_some() && !flags.has("--untimed");
     fs::create_dir_all(out.join("velodyne"))?;
     let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
@@ -108,6 +116,58 @@ fn path_drive(
         None if flags.has("--round") => town(Drive::town_round(frames, seed)),
         None => town(Drive::town(frames, seed)),
     })
+}
+
+/// Where the KITTI raw layout's clock starts: 2011-09-26 13:02:25, a day of KITTI's drives.
+const RAW_EPOCH_S: f64 = 1_317_042_145.0;
+
+/// `drive` in KITTI raw's layout (`--kitti-raw`), its IMU's readings, if any, as OXTS packets
+/// (moved there from `imu0/data.csv`, which `with_motion` wrote).
+fn write_kitti_raw(drive: &Drive, period_s: f64, out: &Path) -> Result<(), Error> {
+    let velodyne = out.join("velodyne_points");
+    fs::create_dir_all(velodyne.join("data"))?;
+    let stamps = |shift: f64| -> String {
+        (0..drive.poses.len())
+            .map(|i| oxts::format_time(RAW_EPOCH_S + i as f64 * period_s + shift) + "\n")
+            .collect()
+    };
+    fs::write(velodyne.join("timestamps_start.txt"), stamps(0.0))?;
+    fs::write(velodyne.join("timestamps.txt"), stamps(period_s / 2.0))?;
+    fs::write(velodyne.join("timestamps_end.txt"), stamps(period_s))?;
+    // The true poses at the scans' stamps, mid-sweep, relative to the first.
+    let mid = |i: usize| drive.pose_after(i, period_s / 2.0);
+    let first = mid(0).inverse();
+    let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
+    for i in 0..drive.poses.len() {
+        write_scan(drive, i, false, &velodyne.join("data"))?;
+        let name = velodyne.join("data").join(format!("{i:06}.bin"));
+        fs::rename(&name, velodyne.join("data").join(format!("{i:010}.bin")))?;
+        write_kitti_line(&mut poses, &(first * mid(i)))?;
+    }
+    fs::write(out.join("calib.txt"), "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n")?;
+    poses.flush()?;
+    if drive.imu.is_some() {
+        let end = drive.poses.len() as f64 * period_s;
+        let readings = drive.imu_between(-1.0, end);
+        let data = out.join("oxts").join("data");
+        fs::create_dir_all(&data)?;
+        let mut times = String::new();
+        for (k, r) in readings.iter().enumerate() {
+            fs::write(
+                data.join(format!("{k:010}.txt")),
+                oxts::encode_packet(r.gyro, r.accel),
+            )?;
+            times += &(oxts::format_time(RAW_EPOCH_S + r.stamp) + "\n");
+        }
+        fs::write(out.join("oxts").join("timestamps.txt"), times)?;
+        fs::remove_dir_all(out.join("imu0"))?;
+    }
+    println!(
+        "{} frames in KITTI raw's layout in {}",
+        drive.poses.len(),
+        out.display()
+    );
+    Ok(())
 }
 
 /// `drive` with a rolling sweep (`--rolling`), a rough road's shake (`--shaken`, a rolling

@@ -28,7 +28,7 @@ fn mount() -> Pose {
 }
 
 /// An IMU at `hz` in its [`mount`].
-fn imu(hz: f64) -> ImuModel {
+pub(crate) fn imu(hz: f64) -> ImuModel {
     let mut m = ImuModel::mems(hz, 7);
     m.lidar_from_imu = mount();
     m
@@ -36,7 +36,7 @@ fn imu(hz: f64) -> ImuModel {
 
 /// A run into `out` on two threads with the default preset, the IMU used or not, mounted as
 /// [`mount`] says.
-fn options(out: &std::path::Path, use_imu: bool) -> RunOptions {
+pub(crate) fn options(out: &std::path::Path, use_imu: bool) -> RunOptions {
     let mut imu = ImuOptions {
         enabled: use_imu,
         ..ImuOptions::default()
@@ -53,7 +53,7 @@ fn options(out: &std::path::Path, use_imu: bool) -> RunOptions {
 }
 
 /// A run's summary, its statuses and its mean frame-to-frame translation error (m).
-fn run_drive<C: Capacity>(
+pub(crate) fn run_drive<C: Capacity>(
     source: &mut impl FrameSource,
     truth: &[Pose],
     use_imu: bool,
@@ -69,12 +69,12 @@ fn run_drive<C: Capacity>(
     (summary, statuses, step)
 }
 
-fn count(statuses: &[String], status: &str) -> usize {
+pub(crate) fn count(statuses: &[String], status: &str) -> usize {
     statuses.iter().filter(|s| *s == status).count()
 }
 
 /// The car's first `frames` frames with a rolling sweep.
-fn car_frames(frames: usize) -> Drive {
+pub(crate) fn car_frames(frames: usize) -> Drive {
     let mut d = Drive::car(frames, 1);
     d.sweep_s = Some(0.1);
     d
@@ -122,7 +122,7 @@ fn a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one() {
 }
 
 /// A drive whose IMU's readings `alter` changes on their way to the run.
-struct Altered(Drive, fn(&mut Vec<Sample>));
+pub(crate) struct Altered(pub(crate) Drive, pub(crate) fn(&mut Vec<Sample>));
 
 impl FrameSource for Altered {
     fn frames(&self) -> usize {
@@ -238,7 +238,7 @@ fn an_imu_turned_from_its_configured_place_is_named_with_the_turn() {
 }
 
 /// The hand-held rig's first `frames` scans, with its IMU at 400 Hz.
-fn hand_held(frames: usize) -> Drive {
+pub(crate) fn hand_held(frames: usize) -> Drive {
     Drive::carried(frames, Carried::HANDHELD, 1).with_imu(imu(400.0))
 }
 
@@ -452,122 +452,4 @@ fn a_moving_start_finds_up_over_its_first_seconds() {
     println!("up from motion {off:.3} degrees from the truth's");
     assert!(off < 1.0, "{off}");
     assert!(navmap.contains("of motion"), "{navmap}");
-}
-
-/// One reading a frame, the gyro still: a 10 Hz `/imu` topic that is no IMU.
-fn decoy(s: &mut Vec<Sample>) {
-    s.retain(|s| (s.stamp() * 10.0 - (s.stamp() * 10.0).round()).abs() < 1e-6);
-    for Sample::Imu(r) in s {
-        r.gyro = [0.0; 3];
-    }
-}
-
-/// The gyro still, at its rate.
-fn still(s: &mut Vec<Sample>) {
-    for Sample::Imu(r) in s {
-        r.gyro = [0.0; 3];
-    }
-}
-
-#[test]
-fn readings_too_slow_or_too_still_to_be_an_imu_are_ignored_and_named() {
-    let d = car_frames(20).with_imu(imu(200.0));
-    let truth = d.poses.clone();
-    let out = scratch("imu-decoy");
-    let s =
-        run::<KittiCapacity>(&mut Altered(d.clone(), decoy), &options(&out, true), |_| {}).unwrap();
-    let imu = s.imu.expect("readings came");
-    let why = imu.ignored.expect("ignored");
-    assert!(why.contains("10.0 Hz"), "{why}");
-    assert_eq!((imu.prior_frames, imu.deskewed_frames), (0, 0));
-    // The run is the run without it, to the bit.
-    let off = scratch("imu-decoy-off");
-    run::<KittiCapacity>(&mut d.clone(), &options(&off, false), |_| {}).unwrap();
-    for f in ["poses_kitti.txt", "poses_tum.txt"] {
-        let (a, b) = (out.join(f), off.join(f));
-        assert_eq!(std::fs::read(a).unwrap(), std::fs::read(b).unwrap(), "{f}");
-    }
-    // A gyro at 400 Hz that never turns while the rig does: ignored once the rig turned.
-    let h = hand_held(30);
-    let (s, _, _) = run_drive::<Lidar32Capacity>(&mut Altered(h, still), &truth, true, "still");
-    let why = s.imu.and_then(|i| i.ignored).expect("ignored");
-    assert!(why.contains("while the registrations turned"), "{why}");
-}
-
-/// A drive whose points come without their times: an untimed folder's scans.
-struct Untimed(Drive);
-
-impl FrameSource for Untimed {
-    fn frames(&self) -> usize {
-        self.0.frames()
-    }
-    fn label(&self, i: usize) -> String {
-        self.0.label(i)
-    }
-    fn stamp(&self, i: usize) -> f64 {
-        self.0.stamp(i)
-    }
-    fn read(&mut self, i: usize) -> Result<Vec<Point>, slamesh::io::FileError> {
-        self.0.read(i)
-    }
-    fn samples(&mut self, i: usize) -> Vec<Sample> {
-        self.0.samples(i)
-    }
-}
-
-#[test]
-fn registrations_bent_by_an_untimed_shaken_sweep_do_not_talk_the_imu_out() {
-    let d = car_frames(60)
-        .shaken(Vibration::rough_road())
-        .with_imu(imu(200.0));
-    let truth = d.poses.clone();
-    let (s, statuses, step) =
-        run_drive::<KittiCapacity>(&mut Untimed(d), &truth, true, "untimed-shaken");
-    let imu = s.imu.expect("readings came");
-    println!(
-        "untimed shaken sweeps with the IMU: {:.2} cm a step, {} converged, {} runs of \
-         misses put down to the registrations",
-        step * 100.0,
-        count(&statuses, "Converged"),
-        imu.registrations_doubted
-    );
-    assert!(imu.set_aside.is_none(), "{:?}", imu.set_aside);
-    assert!(imu.registrations_doubted > 0);
-    assert_eq!(imu.prior_frames, 59);
-}
-
-#[test]
-fn an_imu_that_starts_with_the_first_scan_levels_the_map_with_the_readings_after_it() {
-    // The car stands still through the first frames; its IMU sits at the LiDAR, in its axes.
-    let mut d = car_frames(8);
-    d.poses = vec![d.poses[0]; 8];
-    let d = d.with_imu(ImuModel::mems(200.0, 7));
-    let dir = scratch("imu-starts-with-the-scan");
-    let scans = write_folder_with_imu(&d, &dir);
-    // Every reading before the first scan's stamp (0 s) dropped: the CSV starts with it.
-    let csv = dir.join("imu0").join("data.csv");
-    let text = std::fs::read_to_string(&csv).unwrap();
-    let kept: Vec<&str> = text
-        .lines()
-        .filter(|l| {
-            let t = l
-                .split(',')
-                .next()
-                .and_then(|t| t.trim().parse::<f64>().ok());
-            t.is_none_or(|t| t >= 0.0)
-        })
-        .collect();
-    assert!(
-        kept.len() < text.lines().count(),
-        "readings before the scan were dropped"
-    );
-    std::fs::write(&csv, kept.join("\n") + "\n").unwrap();
-    let out = dir.join("out");
-    slamesh_run_ok(&scans, &out, &["--threads", "2"]);
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    let gravity = &report["summary"]["imu"]["gravity"];
-    assert_eq!(gravity["levelled"], true, "{gravity}");
-    // Up from the readings through the first 0.4 s, after the stamp.
-    assert!(gravity["seconds"].as_f64().unwrap() >= 0.35, "{gravity}");
 }

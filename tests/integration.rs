@@ -21,6 +21,7 @@ mod first_scan;
 mod hard_motion;
 mod health;
 mod imu;
+mod imu_data;
 mod kitti_odometry;
 mod loop_closure;
 mod map_persistence;

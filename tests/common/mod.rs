@@ -323,3 +323,34 @@ pub fn write_folder_with_imu(d: &slamesh_sim::Drive, dir: &Path) -> PathBuf {
     std::fs::write(dir.join("imu0").join("data.csv"), csv).unwrap();
     scans
 }
+
+/// Writes `d` in KITTI raw's drive layout under `dir`: its scans untimed as
+/// `velodyne_points/data/*.bin` with mid-sweep stamps in `velodyne_points/timestamps.txt`, its
+/// IMU's readings as OXTS packets in `oxts/`, on KITTI's clock (2011-09-26); returns the true
+/// poses at those stamps, relative to the first.
+pub fn write_kitti_raw(d: &slamesh_sim::Drive, dir: &Path) -> Vec<Pose> {
+    use slamesh::formats::oxts;
+    use slamesh::run::FrameSource;
+    let epoch = 1_317_042_145.0;
+    let data = dir.join("velodyne_points").join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let mut stamps = String::new();
+    for i in 0..d.frames() {
+        write_bin(&data.join(format!("{i:010}.bin")), &d.scan(i));
+        let mid = epoch + d.stamp(i) + d.period_s / 2.0;
+        writeln!(stamps, "{}", oxts::format_time(mid)).unwrap();
+    }
+    std::fs::write(dir.join("velodyne_points").join("timestamps.txt"), stamps).unwrap();
+    let packets = dir.join("oxts").join("data");
+    std::fs::create_dir_all(&packets).unwrap();
+    let end = d.frames() as f64 * d.period_s;
+    let mut times = String::new();
+    for (k, r) in d.imu_between(-1.0, end).iter().enumerate() {
+        let packet = oxts::encode_packet(r.gyro, r.accel);
+        std::fs::write(packets.join(format!("{k:010}.txt")), packet).unwrap();
+        writeln!(times, "{}", oxts::format_time(epoch + r.stamp)).unwrap();
+    }
+    std::fs::write(dir.join("oxts").join("timestamps.txt"), times).unwrap();
+    let mid = |i: usize| d.pose_after(i, d.period_s / 2.0);
+    (0..d.frames()).map(|i| mid(0).inverse() * mid(i)).collect()
+}

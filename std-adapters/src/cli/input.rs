@@ -62,8 +62,8 @@ pub struct InputArgs {
     /// the start), `ouster` (clockwise from behind, stamped at the start), or
     /// TURN:START_DEG:STAMP_SHARE (cw or ccw; the azimuth the sweep starts at, from x toward y;
     /// where the stamp sits, 0 to 1); `auto` tries each turn and start on the first scans and
-    /// keeps the one that registers best, or none; `off` leaves them untimed (the default:
-    /// KITTI odometry's scans are deskewed already).
+    /// keeps the one that registers best, or none; `off` leaves them untimed (the default,
+    /// KITTI odometry's scans being deskewed already; a KITTI raw drive's are not: `kitti`).
     #[arg(long, value_name = "SWEEP", value_parser = parse_sweep)]
     pub sweep: Option<SweepArg>,
 }
@@ -118,8 +118,16 @@ impl InputArgs {
             },
         )?;
         self.attach_imu(&mut input)?;
-        if let Some(SweepArg::Given(sweep)) = &self.sweep {
-            input.time_from_sweep(&self.input, sweep)?;
+        match &self.sweep {
+            Some(SweepArg::Given(sweep)) => input.time_from_sweep(&self.input, sweep)?,
+            None if input.is_kitti_raw() => {
+                // Raw scans are not deskewed by the dataset: timed as KITTI's HDL-64E sweeps.
+                let kitti = SweepSpec::parse("kitti").ok().flatten();
+                if let Some(kitti) = kitti {
+                    input.time_from_sweep(&self.input, &kitti)?;
+                }
+            }
+            _ => {}
         }
         Ok(input)
     }

@@ -14,6 +14,7 @@
 //! | map files: the map saved for later runs, read whole or by tile (the std side) | [`map_file`] |
 //! | trajectories, KITTI and TUM | [`trajectory`] |
 //! | IMU readings as a CSV in EuRoC's layout | [`imu_csv`] |
+//! | KITTI raw's OXTS packets and timestamps | [`oxts`] |
 //! | `sensor_msgs/Imu` messages (ROS 1 and CDR) | [`imu_message`] |
 //! | the ROS 2 command line (`--ros-args`) and parameter files | [`ros_args`] |
 //! | ROS 2 messages as serde types laid out for CDR (odometry, transforms, markers, IMU, ...) | [`ros_messages`] |
@@ -25,6 +26,7 @@ pub mod lzf;
 pub mod map_file;
 pub mod mesh_records;
 pub mod obj;
+pub mod oxts;
 pub mod pcd;
 pub mod ply;
 pub mod pointcloud2;

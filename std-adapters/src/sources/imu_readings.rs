@@ -23,17 +23,16 @@ impl ImuReadings {
     /// The readings of `path`, its skipped lines named (the first ten).
     pub fn open(path: &Path) -> Result<Self, FileError> {
         let csv = imu_csv::read(path)?;
-        for s in csv.skipped.iter().take(10) {
-            log::warn!("{}: {s}: skipped", path.display());
-        }
-        if csv.skipped.len() > 10 {
-            log::warn!(
-                "{}: {} lines skipped in all",
-                path.display(),
-                csv.skipped.len()
-            );
-        }
+        name_skipped(path, &csv.skipped);
         Ok(Self::new(csv.readings))
+    }
+
+    /// The readings of KITTI raw's `oxts` folder ([`crate::formats::oxts`]), its skipped
+    /// packets named (the first ten).
+    pub fn from_oxts(dir: &Path) -> Result<Self, FileError> {
+        let oxts = crate::formats::oxts::read(dir)?;
+        name_skipped(dir, &oxts.skipped);
+        Ok(Self::new(oxts.readings))
     }
 
     /// Readings in time order.
@@ -66,6 +65,16 @@ impl ImuReadings {
         let before = i.checked_sub(1).and_then(|j| stamps.get(j)).copied();
         let period = frame_period(t, before, stamps.get(i + 1).copied());
         self.until(t + first_frame_reach(i == 0, period))
+    }
+}
+
+/// Names the first ten of the `skipped` lines or packets of `path`, then counts them.
+fn name_skipped(path: &Path, skipped: &[String]) {
+    for s in skipped.iter().take(10) {
+        log::warn!("{}: {s}: skipped", path.display());
+    }
+    if skipped.len() > 10 {
+        log::warn!("{}: {} skipped in all", path.display(), skipped.len());
     }
 }
 

@@ -200,6 +200,8 @@ impl Input {
                     crate::sources::scans::Stamps::FileNames => "from the file names",
                     crate::sources::scans::Stamps::Assumed10Hz =>
                         "assumed 10 Hz: no times.txt, and the file names are not times",
+                    crate::sources::scans::Stamps::KittiRaw =>
+                        "from KITTI raw's velodyne_points/timestamps.txt",
                 },
                 f.sweep.as_ref().map_or(String::new(), |s| format!(
                     ", points without times timed from a {} sweep of {:.3} s",
@@ -389,6 +391,12 @@ impl Input {
         }
     }
 
+    /// Whether this is a KITTI raw drive's folder ([`crate::sources::kitti_raw`]): its scans
+    /// were not deskewed by the dataset's makers.
+    pub fn is_kitti_raw(&self) -> bool {
+        matches!(self, Input::Folder(f) if f.raw.is_some())
+    }
+
     /// Keeps what `--sweep auto` found (`trial`, in words) for the report; a folder's only.
     pub fn note_sweep_trial(&mut self, trial: String) {
         if let Input::Folder(f) = self {
@@ -434,8 +442,16 @@ impl Input {
             Some(file) => Some(PathBuf::from(file)),
             None => imu_csv::beside(input),
         };
-        let Some(path) = path else { return Ok(()) };
-        let imu = ImuReadings::open(&path)?;
+        let oxts = folder
+            .raw
+            .as_ref()
+            .and_then(|r| r.oxts())
+            .filter(|_| path.is_none());
+        let (imu, path) = match (path, oxts) {
+            (Some(path), _) => (ImuReadings::open(&path)?, path),
+            (None, Some(oxts)) => (ImuReadings::from_oxts(&oxts)?, oxts),
+            (None, None) => return Ok(()),
+        };
         if let (Some((a, b)), Some(first), Some(last)) =
             (imu.span(), folder.stamps.first(), folder.stamps.last())
         {

@@ -7,6 +7,7 @@
 //! |---|---|
 //! | the source interface, and the input a path or address names | [`input`] |
 //! | folders of scans in natural order, or one file | [`scans`] |
+//! | KITTI raw's drive folders: scans, their stamps, the OXTS unit | [`kitti_raw`] |
 //! | points' times from their azimuths, for scans that carry none | [`sweep_times`] |
 //! | robot recordings: ROS 1 bags, MCAP, ROS 2 bag folders (feature `recordings`) | `recording` |
 //! | packet captures (pcap, pcapng) to UDP datagrams | [`capture`] |
@@ -21,6 +22,7 @@ pub mod capture;
 pub mod feed;
 pub mod imu_readings;
 pub mod input;
+pub mod kitti_raw;
 pub mod live;
 pub mod ouster;
 pub mod packets;

@@ -27,6 +27,8 @@ pub enum Stamps {
     FileNames,
     /// Neither: frames 0.1 s apart.
     Assumed10Hz,
+    /// A KITTI raw drive's `velodyne_points/timestamps.txt`.
+    KittiRaw,
 }
 
 /// The scan files of an input.
@@ -46,6 +48,8 @@ pub struct ScanFolder {
     pub sweep: Option<Box<crate::sources::sweep_times::SweepTimer>>,
     /// How the sweep was chosen, when the scans chose it (`--sweep auto`), in words.
     pub sweep_trial: Option<String>,
+    /// The KITTI raw drive the scans are from, if they are.
+    pub raw: Option<crate::sources::kitti_raw::RawDrive>,
 }
 
 impl ScanFolder {
@@ -63,16 +67,18 @@ impl ScanFolder {
                 imu: None,
                 sweep: None,
                 sweep_trial: None,
+                raw: None,
             });
         }
         if !input.exists() {
             return Err(FileError::at(input, "no such file or folder"));
         }
+        let raw = crate::sources::kitti_raw::RawDrive::detect(input);
         let velodyne = input.join("velodyne");
-        let dir = if velodyne.is_dir() {
-            velodyne
-        } else {
-            input.to_path_buf()
+        let dir = match &raw {
+            Some(raw) => raw.scans(),
+            None if velodyne.is_dir() => velodyne,
+            None => input.to_path_buf(),
         };
         let entries = std::fs::read_dir(&dir).map_err(|e| FileError::at(&dir, e.to_string()))?;
         let mut paths: Vec<PathBuf> = entries
@@ -86,7 +92,13 @@ impl ScanFolder {
                 "no scans in this folder (looked for .bin, .pcd and .ply files)",
             ));
         }
-        let (stamps, stamps_from) = if let Some(t) =
+        let raw_stamps = match &raw {
+            Some(raw) => raw.stamps(paths.len())?,
+            None => None,
+        };
+        let (stamps, stamps_from) = if let Some(t) = raw_stamps {
+            (t, Stamps::KittiRaw)
+        } else if let Some(t) =
             read_times(&kitti::sequence_folder(&dir).join("times.txt"), paths.len())
         {
             (t, Stamps::TimesTxt)
@@ -104,6 +116,7 @@ impl ScanFolder {
             imu: None,
             sweep: None,
             sweep_trial: None,
+            raw,
         })
     }
 
