@@ -134,11 +134,12 @@ pub fn choose(
             }
         };
         crate::with_capacity!(class, C => run::<C>(&mut first, &trial_opts, keep))?;
+        // Each candidate's pipeline freed before the next takes its own.
+        crate::run::memory::release_freed();
         let name = spec.as_ref().map_or("off".to_string(), |s| s.name.clone());
         scores.push((spec, name, median(&mut residuals)));
     }
     let _ = std::fs::remove_dir_all(scratch);
-    crate::run::memory::release_freed();
     Ok(pick(scores))
 }
 
