@@ -70,3 +70,38 @@ fn a_short_first_scan_does_not_turn_the_trajectory() {
         assert!(reason.contains(&started), "{seq}: {reason}");
     }
 }
+
+#[test]
+fn a_first_file_that_is_no_scan_is_refused_with_its_reason_and_decides_nothing() {
+    let Some(k) = kitti_mini() else { return };
+    let dir = scratch("first-scan-absurd");
+    let seq = k.join("00");
+    let scans = dir.join("in").join("velodyne");
+    std::fs::create_dir_all(&scans).unwrap();
+    // Text whose size fits three 16-byte points: as float32, coordinates of about 1e22 m.
+    let text_file = b"0123456789 abcdefghijklmnopqrstuvwxyz ABCDEFGHI\n";
+    assert_eq!(text_file.len(), 48);
+    std::fs::write(scans.join("000000.bin"), text_file).unwrap();
+    for i in 0..10 {
+        let from = seq.join("velodyne").join(format!("{i:06}.bin"));
+        std::fs::copy(from, scans.join(format!("{:06}.bin", i + 1))).unwrap();
+    }
+    let (out, plain) = (dir.join("out"), dir.join("plain"));
+    let o = slamesh_run(&dir.join("in"), &out, &["--threads", "2"]);
+    let stderr = text(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("000000.bin") && stderr.contains("beyond any LiDAR's"),
+        "refused, named, with its reason: {stderr}"
+    );
+    let o = slamesh_run(&seq, &plain, &["--threads", "2"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    // It decided nothing (scale, capacity, the map): the scans after it are the run without it
+    // (a skipped frame keeps a line of the pose before, here the start's).
+    let poses = |d: &Path| std::fs::read_to_string(d.join("poses_kitti.txt")).unwrap();
+    let with = poses(&out);
+    let with: Vec<&str> = with.lines().collect();
+    assert_eq!(with[1..], poses(&plain).lines().collect::<Vec<_>>()[..]);
+    let mesh = |d: &Path| std::fs::read(d.join("mesh.ply")).unwrap();
+    assert!(mesh(&out) == mesh(&plain), "the same mesh");
+}

@@ -170,14 +170,16 @@ def test_imu_readings_travel_with_their_frame_and_a_bad_array_is_refused():
 
 def test_read_hands_each_frames_imu_readings():
     # The bag's /imu topic (make.py): a reading a microsecond before each of its 3 clouds,
-    # both rates (0, 0, 9.81). A frame brings those up to a frame period past its stamp (the
-    # command's rule), each once; a folder of scans without a CSV brings none.
+    # both rates (0, 0, 9.81). A frame brings those up to a frame period past its stamp, the
+    # first up to 0.4 s past it (the command's rule: up from the readings after a first scan
+    # when none came before), each once; a folder of scans without a CSV brings none.
     frames = list(slamesh.read(FIXTURES / "recordings" / "bag" / "lz4.bag"))
     imu = np.concatenate([f.imu for f in frames if f.imu is not None])
     assert imu.shape == (3, 7) and imu.dtype == np.float64
     assert np.abs(imu[:, 0] - [f.stamp for f in frames]).max() < 1e-5
     assert (imu[:, 1:] == [0.0, 0.0, 9.81, 0.0, 0.0, 9.81]).all()
-    assert frames[0].imu.shape == (1, 7)
+    assert frames[0].imu.shape == (3, 7)
+    assert all(f.imu is None for f in frames[1:])
     assert all(f.imu is None for f in slamesh.read(SCANS))
     assert all(f.imu is None for f in slamesh.read(FIXTURES / "recordings" / "bag" / "lz4.bag", imu="off"))
 

@@ -19,9 +19,10 @@ Checks, each printed as it passes (the first failure stops it with its reason):
    report.json and /diagnostics agree on every message, and the node still ends cleanly with
    its outputs.
 4. `initialpose`: a pose 1.1 m off relocalizes the next scan to within 5 cm of `run`'s pose.
-5. `first_bad`: a first cloud whose fields overlap is refused with its reason and decides
-   nothing; the scans after it get `run`'s poses, each Odometry stamped with its scan's stamp
-   to the nanosecond (epoch stamps, which f64 seconds cannot hold).
+5. `first_bad`: a first cloud whose fields overlap is refused with its reason (on the
+   terminal and as a warning on `/rosout`) and decides nothing; the scans after it get
+   `run`'s poses, each Odometry stamped with its scan's stamp to the nanosecond (epoch
+   stamps, which f64 seconds cannot hold).
 6. `imu_drive` (with --drive, a shaken rolling-sweep drive and its 200 Hz IMU that
    `write_drive` wrote): replayed as `ros2 bag play` would, each scan at its stamp (before the
    IMU's readings over its sweep), the IMU on time and then 50 ms late: the node waits for the
@@ -335,6 +336,11 @@ def check_first_bad(args, reference):
     last = r["diagnostics"][-1] if r["diagnostics"] else {}
     if last.get("messages_refused") != "1" or "overlap: not a point layout" not in log:
         fail(f"the overlapping first cloud was not refused with its reason: {last}")
+    # The refusal on /rosout too, a warning (30) in the node's name.
+    said = [m for m in r["rosout"] if m["name"] == "slamesh" and m["level"] == 30
+            and "overlap: not a point layout" in m["msg"]]
+    if not said:
+        fail(f"the refusal is not on /rosout: {r['rosout'][:5]}")
     sent, odom = r["sent_ns"], r["odom"]
     got = [o["stamp_ns"] for o in odom]
     if got != sent:
@@ -346,8 +352,9 @@ def check_first_bad(args, reference):
     worst = max(max(abs(a - b) for a, b in zip(o["pose"], p)) for o, p in zip(odom, ref))
     if worst > 2e-9:
         fail(f"after a refused first cloud, the poses differ from run's by {worst}")
-    ok(f"an overlapping first cloud refused with its reason; the {len(odom)} scans after it "
-       "have run's poses, each Odometry stamped with its scan's stamp to the nanosecond")
+    ok(f"an overlapping first cloud refused with its reason, on the terminal and /rosout; the "
+       f"{len(odom)} scans after it have run's poses, each Odometry stamped with its scan's "
+       "stamp to the nanosecond")
 
 
 def kitti_positions(path):

@@ -42,6 +42,7 @@ import time
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import Log
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -196,6 +197,15 @@ class Peer:
             MarkerArray, "mesh", self.mesh_bytes.append, 1000, raw=True
         )
         n.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 100)
+        # The node's log lines, as `ros2 topic echo /rosout` or rqt_console takes them.
+        self.rosout = []
+        rosout_qos = QoSProfile(
+            depth=100,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            history=HistoryPolicy.KEEP_LAST,
+        )
+        n.create_subscription(Log, "/rosout", self.on_rosout, rosout_qos)
         # As Nav2's map subscribers ask: reliable, transient local, the last one.
         self.grids = 0
         self.last_grid = None
@@ -267,6 +277,9 @@ class Peer:
                         [max(a, b) for a, b in zip(self.marker_box[1], hi)],
                     ]
                     self.marker_types.add(k.type)
+
+    def on_rosout(self, m):
+        self.rosout.append({"name": m.name, "level": int(m.level), "msg": m.msg})
 
     def on_diagnostics(self, m):
         stamp = m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
@@ -427,7 +440,8 @@ def scenario_first_bad(peer, args):
     peer.publish_scans(scans, args.rate, messages=messages)
     peer.spin_until(lambda: len(peer.odom) >= len(scans), 10)
     peer.spin_for(1.5)
-    return {"sent_ns": stamps, "odom": peer.odom, "diagnostics": peer.diagnostics}
+    return {"sent_ns": stamps, "odom": peer.odom, "diagnostics": peer.diagnostics,
+            "rosout": peer.rosout}
 
 
 def scenario_imu_drive(peer, args):

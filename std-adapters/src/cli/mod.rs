@@ -152,6 +152,27 @@ enum Command {
     Ros2(ros2::Ros2Args),
 }
 
+/// The terminal's logger, each line it shows also handed to the log's tap
+/// ([`crate::io::log_tap`]: the ROS 2 node's `/rosout`).
+struct Tee(env_logger::Logger);
+
+impl log::Log for Tee {
+    fn enabled(&self, metadata: &log::Metadata) -> bool {
+        self.0.enabled(metadata)
+    }
+
+    fn log(&self, record: &log::Record) {
+        if self.0.matches(record) {
+            self.0.log(record);
+            crate::io::log_tap::forward(record);
+        }
+    }
+
+    fn flush(&self) {
+        self.0.flush();
+    }
+}
+
 impl Cli {
     /// Sets up the logger for `-v`, `-q` and `RUST_LOG`: messages go to standard error as
     /// `slamesh: warning: ...`; standard output holds only results.
@@ -170,7 +191,7 @@ impl Cli {
             1 => log::LevelFilter::Warn,
             _ => log::LevelFilter::Debug,
         };
-        let _ = env_logger::Builder::new()
+        let terminal = env_logger::Builder::new()
             .filter_level(level)
             .filter_module("rustdds", dds.min(level))
             .filter_module("ros2_client", dds.min(level))
@@ -185,7 +206,11 @@ impl Cli {
                 };
                 writeln!(buf, "slamesh: {level}{}", record.args())
             })
-            .try_init();
+            .build();
+        let max = terminal.filter();
+        if log::set_boxed_logger(Box::new(Tee(terminal))).is_ok() {
+            log::set_max_level(max);
+        }
     }
 
     /// Runs the subcommand.

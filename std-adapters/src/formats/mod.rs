@@ -13,6 +13,7 @@
 //! | `sensor_msgs/PointCloud2` messages (ROS 1 and CDR), any field layout | [`pointcloud2`] |
 //! | map files: the map saved for later runs, read whole or by tile (the std side) | [`map_file`] |
 //! | trajectories, KITTI and TUM | [`trajectory`] |
+//! | whether decoded points can be a LiDAR's scan (their median range) | [`sensor_ranges`] |
 //! | IMU readings as a CSV in EuRoC's layout | [`imu_csv`] |
 //! | KITTI raw's OXTS packets and timestamps | [`oxts`] |
 //! | `sensor_msgs/Imu` messages (ROS 1 and CDR) | [`imu_message`] |
@@ -32,4 +33,5 @@ pub mod ply;
 pub mod pointcloud2;
 pub mod ros_args;
 pub mod ros_messages;
+pub mod sensor_ranges;
 pub mod trajectory;

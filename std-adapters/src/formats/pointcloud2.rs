@@ -347,6 +347,7 @@ impl<'a> Cloud<'a> {
         if let Some(f) = time {
             out.times = Some(relative_times(&f.name, f.datatype, &raw_times, self.stamp)?);
         }
+        crate::formats::sensor_ranges::check(&out.points).map_err(|e| e.to_string())?;
         Ok(out)
     }
 

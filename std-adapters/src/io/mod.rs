@@ -8,9 +8,11 @@
 //! | errors naming the file, line and reason | [`error`] |
 //! | write-then-rename | [`atomic`] |
 //! | little-endian records of a run's state | [`le`] |
+//! | the log's lines to a second way out (the node's `/rosout`) | [`log_tap`] |
 
 pub mod atomic;
 pub mod error;
 pub mod le;
+pub mod log_tap;
 
 pub use error::FileError;

@@ -15,6 +15,7 @@
 //! | the way in: subscriptions and the service on a thread, scans through a bounded queue | [`listen`] |
 //! | what the way in counted, for `/diagnostics`, `report.json` and the closing line | [`counts`] |
 //! | the way out: odometry, transforms, path, diagnostics | [`publish`] |
+//! | the `path` message, bounded however long the run | [`path`] |
 //! | the mesh as RViz markers, a tile at a time | [`mesh_tiles`] |
 //! | the occupancy grid for Nav2, kept current window by window | [`occupancy`] |
 //! | the robot's static transforms heard on `/tf_static` | [`transforms`] |
@@ -28,6 +29,7 @@ pub mod messages;
 pub mod node;
 pub mod occupancy;
 pub mod parameters;
+pub mod path;
 pub mod publish;
 pub mod settings;
 pub mod transforms;

@@ -110,6 +110,33 @@ fn name(full: &str) -> Result<Name, String> {
     Name::new(ns, base).map_err(|e| format!("{full}: not a ROS 2 name ({e:?})"))
 }
 
+/// The log's lines at info level and above on `/rosout` too, as `name`'s
+/// (`rcl_interfaces/Log`, [`crate::io::log_tap`]), until the node is dropped.
+fn rosout(node: &ros2_client::Node, name: &str) {
+    use ros2_client::log::LogLevel;
+    use ros2_client::RosoutRaw;
+    let handle = std::sync::Mutex::new(node.logging_handle());
+    let name = name.to_string();
+    crate::io::log_tap::install(Box::new(move |level, text, file, line| {
+        let level = match level {
+            log::Level::Error => LogLevel::Error,
+            log::Level::Warn => LogLevel::Warn,
+            log::Level::Info => LogLevel::Info,
+            log::Level::Debug | log::Level::Trace => LogLevel::Debug,
+        };
+        let now = ros2_client::builtin_interfaces::Time::now();
+        if let Ok(h) = handle.lock() {
+            h.rosout_raw(now, level, &name, text, file, "", line);
+        }
+    }));
+}
+
+impl Drop for RosNode {
+    fn drop(&mut self) {
+        crate::io::log_tap::remove();
+    }
+}
+
 impl RosNode {
     /// Joins the domain and starts the node, its parameters declared with `values` and served
     /// ([`crate::ros2::parameters`]).
@@ -133,6 +160,7 @@ impl RosNode {
             .new_node(node_name, parameters::options(values, &live))
             .map_err(|e| format!("cannot start the node {}: {e:?}", settings.fqn()))?;
         live.started();
+        rosout(&node, &settings.name);
         // The parameter services: ros2-client's spinner, until the node is dropped.
         let spinner = node
             .spinner()

@@ -94,11 +94,11 @@ impl Live {
 }
 
 /// The node's options: its parameters declared with `values`, sets checked and applied by
-/// `live`; `/rosout` off (the node logs to its terminal).
+/// `live`; `/rosout` on (the node's log lines go there too: [`crate::ros2::node`]).
 pub fn options(values: Vec<(String, ParameterValue)>, live: &Live) -> NodeOptions {
     let (check, apply) = (live.clone(), live.clone());
     let mut options = NodeOptions::new()
-        .enable_rosout(false)
+        .enable_rosout(true)
         .parameter_validator(Box::new(move |n, v| {
             check.check(n, v).map_err(|e| e.to_string())
         }))

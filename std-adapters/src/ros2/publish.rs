@@ -27,6 +27,7 @@ use crate::ros2::messages::{
     TwistWithCovariance, Vector3,
 };
 use crate::ros2::occupancy::LiveMap;
+use crate::ros2::path::BoundedPath;
 use crate::ros2::settings::Frames;
 use crate::run::sink::{FrameEvent, MapUpdate, Sink};
 use crate::run::Summary;
@@ -105,7 +106,7 @@ pub struct Ros2Sink {
     last: Option<(f64, Pose)>,
     /// The last pose's covariance in the robot's frame, (ω, ρ) order, when it was registered.
     last_local: Option<Matrix6<f64>>,
-    path: PathMsg,
+    path: BoundedPath,
     tiles: Option<MeshTiles>,
     /// The grid on `map` (it holds `map`'s publisher).
     map: Option<LiveMap>,
@@ -133,13 +134,7 @@ impl Ros2Sink {
         counts: Arc<Mutex<Counts>>,
         node: String,
     ) -> Self {
-        let path = PathMsg {
-            header: Header {
-                stamp: Time::default(),
-                frame_id: frames.map.clone(),
-            },
-            poses: Vec::new(),
-        };
+        let path = BoundedPath::new(frames.map.clone());
         Ros2Sink {
             publishers,
             frames,
@@ -236,12 +231,11 @@ impl Ros2Sink {
             tf.publish(TfMessage { transforms })
                 .map_err(|e| format!("/tf: {e:?}"))?;
         }
-        self.path.header.stamp = stamp;
         let pose = PoseStamped {
             header: self.header(stamp, &self.frames.map),
             pose: PoseMsg::from(&map_base),
         };
-        self.path.poses.push(pose);
+        self.path.push(pose);
         if let Some(m) = &e.map {
             if let Some((corrected, _)) = &m.closed {
                 self.correct_path(corrected);
@@ -249,7 +243,7 @@ impl Ros2Sink {
         }
         self.publishers
             .path
-            .publish(self.path.clone())
+            .publish(self.path.msg().clone())
             .map_err(|e| format!("path: {e:?}"))
     }
 
@@ -287,12 +281,8 @@ impl Ros2Sink {
         if let Some(m) = &mut self.map {
             m.correct(corrected);
         }
-        if corrected.len() != self.path.poses.len() {
-            return;
-        }
-        for (p, c) in self.path.poses.iter_mut().zip(corrected) {
-            p.pose = PoseMsg::from(&(self.lidar_in_base * c * self.lidar_in_base.inverse()));
-        }
+        let lidar = self.lidar_in_base;
+        (self.path).correct(corrected, |c| PoseMsg::from(&(lidar * c * lidar.inverse())));
     }
 
     /// The tiles the frame changed wait their turn; the next ones within a frame's budget go
@@ -317,7 +307,9 @@ impl Ros2Sink {
         }
         // The mesh is in the engine's world; `map` is that world seen from the robot.
         let header = Header {
-            stamp: update.map_or(self.path.header.stamp, |u| Time::from_seconds(u.stamp_s)),
+            stamp: update.map_or(self.path.msg().header.stamp, |u| {
+                Time::from_seconds(u.stamp_s)
+            }),
             frame_id: self.frames.map.clone(),
         };
         let budget = if all { usize::MAX } else { FRAME_POINTS };
@@ -343,7 +335,7 @@ impl Ros2Sink {
             return;
         };
         let header = Header {
-            stamp: self.path.header.stamp,
+            stamp: self.path.msg().header.stamp,
             frame_id: self.frames.map.clone(),
         };
         if now {
@@ -469,7 +461,7 @@ impl Sink for Ros2Sink {
     }
 
     fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
-        let stamp = self.path.header.stamp.seconds();
+        let stamp = self.path.msg().header.stamp.seconds();
         self.publish_mesh(None, true)?;
         self.publish_map(None, true);
         self.publish_diagnostics(stamp, true)?;

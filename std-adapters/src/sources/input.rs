@@ -319,6 +319,15 @@ impl FrameSource for Input {
     }
 }
 
+/// `points` read from `path`, refused when they cannot be a LiDAR's scan
+/// ([`crate::formats::sensor_ranges`]).
+fn as_scan(path: &Path, points: Vec<Point>) -> Result<Vec<Point>, FileError> {
+    match crate::formats::sensor_ranges::check(&points) {
+        Ok(()) => Ok(points),
+        Err(e) => Err(FileError::at(path, e.to_string())),
+    }
+}
+
 impl FrameSource for ScanFolder {
     fn frames(&self) -> usize {
         self.paths.len()
@@ -330,7 +339,8 @@ impl FrameSource for ScanFolder {
         self.stamps[i]
     }
     fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
-        read_scan_as(&self.paths[i], &self.bin_fields)
+        let points = read_scan_as(&self.paths[i], &self.bin_fields)?;
+        as_scan(&self.paths[i], points)
     }
     fn samples(&mut self, i: usize) -> Vec<Sample> {
         let stamps = &self.stamps;
@@ -351,6 +361,7 @@ impl FrameSource for ScanFolder {
             Some("ply") => crate::formats::ply::read_ply_timed(path, self.stamps[i])?,
             _ => (read_scan_as(path, &self.bin_fields)?, None),
         };
+        let points = as_scan(path, points)?;
         let times = match (times, &mut self.sweep) {
             (None, Some(sweep)) => sweep.times(&path.display().to_string(), &points),
             (times, _) => times,
