@@ -192,15 +192,22 @@ struct Scores {
     passable: Vec<bool>,
 }
 
+/// Free cells on an obstacle, at most: today 0 in the town (30 frames) and the office (520)
+/// on their seeds, and at most 1 over seeds 1 to 5 of each (`SLAMESH_NAVMAP_SEED`); without
+/// the obstacle's edge band (the named mutation `edge-band`) 8 and 22.
+const MAX_FREE_ON_OBSTACLE: usize = 2;
+
 impl Scores {
-    /// At most 0.5 % of the free cells hold an obstacle (issue 56's target), and the occupied
-    /// cells' IoU is at least `iou` (issue 56 asks 0.9; a floor under what is measured, so
-    /// that the grid does not slip back) and within a cell at least `iou_within_a_cell`.
+    /// At most 0.5 % of the free cells hold an obstacle (issue 56's target) and at most
+    /// [`MAX_FREE_ON_OBSTACLE`] (today's level), and the occupied cells' IoU is at least `iou`
+    /// (issue 56 asks 0.9; a floor under what is measured, so that the grid does not slip
+    /// back) and within a cell at least `iou_within_a_cell`.
     fn assert_within(&self, iou: f64, iou_within_a_cell: f64) {
         let bad = self.free_with_obstacle as f64 / self.free as f64;
         assert!(
-            bad <= 0.005,
-            "{:.3} % of free cells hold an obstacle",
+            bad <= 0.005 && self.free_with_obstacle <= MAX_FREE_ON_OBSTACLE,
+            "{} free cells ({:.3} %) hold an obstacle",
+            self.free_with_obstacle,
             bad * 100.0
         );
         assert!(

@@ -8,6 +8,7 @@
 //! |---|---|
 //! | file errors and write-then-rename | [`io`] |
 //! | the core's loops on several threads | [`parallel`] |
+//! | named mutations the tests must catch (feature `mutants`) | [`mutants`] |
 //! | file formats, one module each, reader and writer together | [`formats`] |
 //! | one way in: where frames come from (folders, recordings, captures, live packets) | [`sources`] |
 //! | what a run writes beside its report: the mesh, the picture | [`outputs`] |
@@ -36,6 +37,7 @@ pub mod inertial;
 pub mod io;
 pub mod loop_closure;
 pub mod merge;
+pub mod mutants;
 pub mod navmap;
 pub mod outputs;
 pub mod parallel;

@@ -214,6 +214,16 @@ impl Inertial {
             self.resumed_at = None;
             self.seen = true;
             let saturated = self.track.counts().saturated;
+            let mutated;
+            let r = if crate::mutants::on("gyro-scale") {
+                mutated = crate::sources::ImuReading {
+                    gyro: r.gyro.map(|g| g * 1.1),
+                    ..*r
+                };
+                &mutated
+            } else {
+                r
+            };
             if let Err(e) = self.track.push(r) {
                 named += 1;
                 if named <= 10 {

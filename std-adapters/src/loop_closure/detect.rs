@@ -128,7 +128,8 @@ pub fn search<C: Capacity>(
     else {
         return None;
     };
-    if found.outcome.status != RegistrationStatus::Relocalized {
+    let unverified = crate::mutants::on("closure-unverified");
+    if found.outcome.status != RegistrationStatus::Relocalized && !unverified {
         return None;
     }
     let at = found.outcome.t_world_sensor;
@@ -140,5 +141,5 @@ pub fn search<C: Capacity>(
     let moved = (at.translation.vector - pose.translation.vector).norm();
     let turned = rotation_angle(&(pose.inverse() * at)).to_degrees();
     let within = moved <= reach_m(s, oldest) && turned <= s.turn_deg + s.turn_per_m * oldest;
-    within.then_some(Verified { pose: at, found })
+    (within || unverified).then_some(Verified { pose: at, found })
 }

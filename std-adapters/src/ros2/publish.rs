@@ -173,7 +173,10 @@ impl Ros2Sink {
         // The scan's own stamp, to the nanosecond, for exact-time synchronisers.
         let stamp = e.record.stamp_ns.map_or_else(
             || Time::from_seconds(e.record.stamp),
-            Time::from_nanoseconds,
+            |ns| match crate::mutants::on("stamp-f64") {
+                true => Time::from_seconds(ns as f64 * 1e-9),
+                false => Time::from_nanoseconds(ns),
+            },
         );
         let map_base = self.base_of(lidar);
         let jumped = e.record.relocalization.is_some() || !e.record.loop_closures.is_empty();
