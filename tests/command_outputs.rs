@@ -209,6 +209,13 @@ fn eval_reads_kitti_folders_and_calib_files_scores_meshes_and_builds_references(
         "{calibrated} vs {folder}"
     );
     assert!(t(&uncalibrated) > 5.0 * t(&folder), "{uncalibrated}");
+    // A folder that is no KITTI sequence is named with what it lacks.
+    let o = slamesh(&["eval", "--estimate", s(&estimate), "--reference", s(&run)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("it has no poses.txt"),
+        "{err}"
+    );
 
     // A reference cloud from the scans at the reference poses lies on the true surfaces.
     let reference = dir.join("ref.ply");

@@ -399,3 +399,20 @@ fn saves_during_a_session_from_a_map_keep_the_floor_that_map_kept() {
         "first session {first} floors; saves during the second {said:?}; at its end {last}"
     );
 }
+
+#[test]
+fn a_map_that_does_not_read_is_named_and_leaves_no_folder_behind() {
+    let dir = scratch("navmap-bad-map");
+    let bad = dir.join("bad.slamesh");
+    std::fs::write(&bad, "not a map").unwrap();
+    let out = dir.join("out");
+    let o = crate::common::slamesh(&[
+        "navmap",
+        bad.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("bad.slamesh"), "{err}");
+    assert!(!out.exists(), "the folder it made is gone");
+}

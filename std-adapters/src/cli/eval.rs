@@ -328,6 +328,20 @@ fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
 /// A KITTI sequence folder's LiDAR poses, with its `times.txt` as their times when it has
 /// one time a pose.
 fn kitti_reference(sequence: &Path) -> Result<trajectory::Trajectory, crate::io::FileError> {
+    for (file, what) in [
+        ("poses.txt", "the reference poses"),
+        ("calib.txt", "Tr, the LiDAR to the camera"),
+    ] {
+        if !sequence.join(file).is_file() {
+            return Err(crate::io::FileError::at(
+                sequence,
+                format!(
+                    "not a KITTI sequence folder: it has no {file} ({what}); give --reference a \
+                     trajectory file (KITTI or TUM) or a folder with poses.txt and calib.txt"
+                ),
+            ));
+        }
+    }
     let poses = kitti::reference_lidar_poses(sequence)?;
     let stamps = std::fs::read_to_string(sequence.join("times.txt"))
         .ok()

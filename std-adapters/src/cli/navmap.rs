@@ -82,10 +82,22 @@ pub struct NavMapArgs {
     pub robot: RobotArgs,
 }
 
-/// Writes the navigation map of `args.input` into `args.out`.
+/// Writes the navigation map of `args.input` into `args.out`; a folder it made for them and
+/// left empty (the input could not be read) is removed.
 pub fn navmap(args: &NavMapArgs) -> Result<(), CliError> {
+    let existed = args.out.exists();
     std::fs::create_dir_all(&args.out)
         .map_err(|e| FileError::at(&args.out, format!("cannot create: {e}")))?;
+    let written = write_navmap(args);
+    if written.is_err() && !existed {
+        // Removes the folder only if nothing is in it.
+        let _ = std::fs::remove_dir(&args.out);
+    }
+    written
+}
+
+/// [`navmap`] into a folder that exists.
+fn write_navmap(args: &NavMapArgs) -> Result<(), CliError> {
     let how = args.robot.options();
     let is_ply = args
         .input

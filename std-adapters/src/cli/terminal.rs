@@ -93,13 +93,21 @@ pub fn print_summary(s: &Summary, out: &Path) {
         );
         return;
     }
+    let navmap = match s.navmap {
+        Some(_) => crate::navmap::files::FILES.to_vec(),
+        None => Vec::new(),
+    };
+    let more: String = (out
+        .join("topview.png")
+        .is_file()
+        .then_some("topview.png")
+        .into_iter())
+    .chain(navmap)
+    .map(|f| format!(", {}/{f}", out.display()))
+    .collect();
     say!(
         "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json{1}",
         out.display(),
-        if out.join("topview.png").is_file() {
-            format!(", {}/topview.png", out.display())
-        } else {
-            String::new()
-        }
+        more
     );
 }

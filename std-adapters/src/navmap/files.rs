@@ -33,6 +33,16 @@ const MAX_CELLS: usize = 400_000_000;
 /// What the elevation grids hold where no ground was seen.
 const NO_DATA: &str = "-9999";
 
+/// The files a navigation map is written as, in the order above.
+pub const FILES: [&str; 6] = [
+    "map.yaml",
+    "map.pgm",
+    "elevation.asc",
+    "elevation_variance.asc",
+    "navmesh.ply",
+    "navmap.json",
+];
+
 /// What a navigation map holds (`navmap.json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NavMapSummary {

@@ -111,7 +111,7 @@ impl<C: Capacity> Run<'_, C> {
         };
         match floor_file::write(&beside, how.resolution_m, MapPath::of(path), &floors) {
             Ok(n) => format!(
-                "; the scans' floor beside it, {n} floors: {}",
+                "; the scans' floor beside it, {n} floor cells: {}",
                 beside.display()
             ),
             Err(e) => {

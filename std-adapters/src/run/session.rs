@@ -541,7 +541,10 @@ fn write_mesh(
             if let (Some(saved), Some(_)) = (&opts.save_map, &hits) {
                 let beside = floor_file::beside(saved);
                 let n = floor_file::write(&beside, how.resolution_m, saved_path, &floors)?;
-                log::info!("the scans' floor saved to {}: {n} floors", beside.display());
+                log::info!(
+                    "the scans' floor saved to {}: {n} floor cells",
+                    beside.display()
+                );
             }
             drop(hits);
             summary.map(|s| (s, grid, how.robot))
