@@ -27,9 +27,18 @@ fn mount() -> Pose {
     )
 }
 
+/// The drive's and the IMU's seed: `SLAMESH_IMU_SEED` if set (to measure a bound's spread over
+/// seeds), else `own`.
+fn seed_or(own: u64) -> u64 {
+    std::env::var("SLAMESH_IMU_SEED")
+        .ok()
+        .map(|s| s.parse().expect("SLAMESH_IMU_SEED: a whole number"))
+        .unwrap_or(own)
+}
+
 /// An IMU at `hz` in its [`mount`].
 pub(crate) fn imu(hz: f64) -> ImuModel {
-    let mut m = ImuModel::mems(hz, 7);
+    let mut m = ImuModel::mems(hz, seed_or(7));
     m.lidar_from_imu = mount();
     m
 }
@@ -75,7 +84,7 @@ pub(crate) fn count(statuses: &[String], status: &str) -> usize {
 
 /// The car's first `frames` frames with a rolling sweep.
 pub(crate) fn car_frames(frames: usize) -> Drive {
-    let mut d = Drive::car(frames, 1);
+    let mut d = Drive::car(frames, seed_or(1));
     d.sweep_s = Some(0.1);
     d
 }
@@ -105,7 +114,14 @@ fn a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one() {
         count(&lost, "NotConverged"),
         seeing * 100.0
     );
-    assert!(seeing <= 1.3 * still, "{seeing} against {still}");
+    // With the IMU the shaken drive tracks within 1.10 times the calm one on the test's seeds
+    // (0.307 against 0.279 cm); over seeds 2 to 4 (SLAMESH_IMU_SEED) 1.21, 1.01 and 1.00. The
+    // bound sits near today's on the test's seeds (1.15), the 1.3 on any other.
+    let ratio = match std::env::var("SLAMESH_IMU_SEED") {
+        Ok(_) => 1.3,
+        Err(_) => 1.15,
+    };
+    assert!(seeing <= ratio * still, "{seeing} against {still}");
     assert!(
         blind > 3.0 * still,
         "the shake is hard without the IMU: {blind}"
