@@ -137,31 +137,56 @@ fn a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one() {
     assert!(s.health.imu_gaps.is_empty());
 }
 
-/// A drive whose IMU's readings `alter` changes on their way to the run.
-pub(crate) struct Altered(pub(crate) Drive, pub(crate) fn(&mut Vec<Sample>));
+/// A drive whose IMU's readings `alter` changes on their way to the run, its points with
+/// their times or (`untimed`) without, as an untimed folder's scans come.
+pub(crate) struct Altered {
+    drive: Drive,
+    alter: fn(&mut Vec<Sample>),
+    timed: bool,
+}
+
+impl Altered {
+    /// `drive` with its readings changed by `alter`.
+    pub(crate) fn new(drive: Drive, alter: fn(&mut Vec<Sample>)) -> Self {
+        Altered {
+            drive,
+            alter,
+            timed: true,
+        }
+    }
+
+    /// `drive` as it is, but for its points' times.
+    pub(crate) fn untimed(drive: Drive) -> Self {
+        Altered {
+            timed: false,
+            ..Altered::new(drive, |_| {})
+        }
+    }
+}
 
 impl FrameSource for Altered {
     fn frames(&self) -> usize {
-        self.0.frames()
+        self.drive.frames()
     }
     fn label(&self, i: usize) -> String {
-        self.0.label(i)
+        self.drive.label(i)
     }
     fn stamp(&self, i: usize) -> f64 {
-        self.0.stamp(i)
+        self.drive.stamp(i)
     }
     fn read(&mut self, i: usize) -> Result<Vec<Point>, slamesh::io::FileError> {
-        self.0.read(i)
+        self.drive.read(i)
     }
     fn read_timed(
         &mut self,
         i: usize,
     ) -> Result<(Vec<Point>, Option<Vec<f32>>), slamesh::io::FileError> {
-        self.0.read_timed(i)
+        let (points, times) = self.drive.read_timed(i)?;
+        Ok((points, times.filter(|_| self.timed)))
     }
     fn samples(&mut self, i: usize) -> Vec<Sample> {
-        let mut s = self.0.samples(i);
-        (self.1)(&mut s);
+        let mut s = self.drive.samples(i);
+        (self.alter)(&mut s);
         s
     }
 }
@@ -183,7 +208,7 @@ fn frames_the_readings_miss_run_on_the_motion_model_and_are_named() {
     let calm = car_frames(30).with_imu(imu(200.0));
     let truth = calm.poses.clone();
     let (s, statuses, step) =
-        run_drive::<KittiCapacity>(&mut Altered(calm, holed), &truth, true, "holed");
+        run_drive::<KittiCapacity>(&mut Altered::new(calm, holed), &truth, true, "holed");
     let gaps: Vec<usize> = s.health.imu_gaps.iter().map(|g| g.frame).collect();
     // Frames 20 to 24 sweep through the hole; frame 25's prior reaches back into it.
     assert_eq!(gaps, [20, 21, 22, 23, 24, 25], "{:?}", s.health.imu_gaps);
@@ -202,8 +227,12 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
         .shaken(Vibration::rough_road())
         .with_imu(imu(200.0));
     let truth = d.poses.clone();
-    let (s, statuses, _) =
-        run_drive::<KittiCapacity>(&mut Altered(d.clone(), in_degrees), &truth, true, "degrees");
+    let (s, statuses, _) = run_drive::<KittiCapacity>(
+        &mut Altered::new(d.clone(), in_degrees),
+        &truth,
+        true,
+        "degrees",
+    );
     let imu = s.imu.expect("readings came");
     let why = imu.set_aside.expect("set aside");
     assert!(why.contains("units (gyro_unit)"), "{why}");
@@ -218,7 +247,7 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
     let out = scratch("imu-degrees-told");
     let mut opts = options(&out, true);
     opts.imu.calibration.gyro_unit_rad_s = 1f64.to_radians();
-    let s = run::<KittiCapacity>(&mut Altered(d, in_degrees), &opts, |_| {}).unwrap();
+    let s = run::<KittiCapacity>(&mut Altered::new(d, in_degrees), &opts, |_| {}).unwrap();
     let imu = s.imu.expect("readings came");
     assert!(imu.set_aside.is_none(), "{imu:?}");
     assert_eq!(imu.prior_frames, 19);
@@ -239,7 +268,8 @@ fn an_imu_turned_from_its_configured_place_is_named_with_the_turn() {
         .shaken(Vibration::rough_road())
         .with_imu(imu(200.0));
     let truth = d.poses.clone();
-    let (s, _, _) = run_drive::<KittiCapacity>(&mut Altered(d, turned), &truth, true, "turned");
+    let (s, _, _) =
+        run_drive::<KittiCapacity>(&mut Altered::new(d, turned), &truth, true, "turned");
     let check = s.imu.and_then(|i| i.calibration_check).expect("judged");
     println!("{check}");
     // Configured at 90 degrees of yaw, the IMU sits at 75.
@@ -406,8 +436,9 @@ fn an_accelerometer_in_g_is_told_and_levels_the_map_as_one_in_metres_per_second_
         )
     };
     let mut plain = |o: &RunOptions| run::<KittiCapacity>(&mut d.clone(), o, |_| {}).unwrap();
-    let mut altered =
-        |o: &RunOptions| run::<KittiCapacity>(&mut Altered(d.clone(), in_g), o, |_| {}).unwrap();
+    let mut altered = |o: &RunOptions| {
+        run::<KittiCapacity>(&mut Altered::new(d.clone(), in_g), o, |_| {}).unwrap()
+    };
     let (in_ms2, said_ms2) = level(&mut plain, AccelUnit::Auto);
     let (told, said_told) = level(&mut altered, AccelUnit::Auto);
     let (configured, said_configured) = level(&mut altered, AccelUnit::G);
@@ -441,8 +472,9 @@ fn an_accelerometer_in_g_is_told_and_levels_the_map_as_one_in_metres_per_second_
     // A start too unsteady to level: up over the first seconds of motion, as in m/s².
     let d = hand_held(12);
     let mut plain = |o: &RunOptions| run::<Lidar32Capacity>(&mut d.clone(), o, |_| {}).unwrap();
-    let mut altered =
-        |o: &RunOptions| run::<Lidar32Capacity>(&mut Altered(d.clone(), in_g), o, |_| {}).unwrap();
+    let mut altered = |o: &RunOptions| {
+        run::<Lidar32Capacity>(&mut Altered::new(d.clone(), in_g), o, |_| {}).unwrap()
+    };
     let up = |g: GravityReport| nalgebra::Vector3::from(g.moving.unwrap().up.unwrap());
     let (moving_ms2, _) = level(&mut plain, AccelUnit::Auto);
     let (moving_g, said) = level(&mut altered, AccelUnit::Auto);

@@ -7,9 +7,9 @@ use crate::common::{scratch, slamesh_run_ok, write_folder_with_imu};
 use crate::imu::{car_frames, count, hand_held, options, run_drive, Altered};
 use slamesh::eval::odometry::consecutive_errors;
 use slamesh::formats::trajectory;
-use slamesh::run::{run, FrameSource, Sample};
-use slamesh_core::{KittiCapacity, Lidar32Capacity, Point};
-use slamesh_sim::{Drive, ImuModel, Vibration};
+use slamesh::run::{run, Sample};
+use slamesh_core::{KittiCapacity, Lidar32Capacity};
+use slamesh_sim::{ImuModel, Vibration};
 
 /// An IMU at `hz` in its mount ([`crate::imu::imu`]).
 fn imu(hz: f64) -> ImuModel {
@@ -36,8 +36,12 @@ fn readings_too_slow_or_too_still_to_be_an_imu_are_ignored_and_named() {
     let d = car_frames(20).with_imu(imu(200.0));
     let truth = d.poses.clone();
     let out = scratch("imu-decoy");
-    let s =
-        run::<KittiCapacity>(&mut Altered(d.clone(), decoy), &options(&out, true), |_| {}).unwrap();
+    let s = run::<KittiCapacity>(
+        &mut Altered::new(d.clone(), decoy),
+        &options(&out, true),
+        |_| {},
+    )
+    .unwrap();
     let imu = s.imu.expect("readings came");
     let why = imu.ignored.expect("ignored");
     assert!(why.contains("10.0 Hz"), "{why}");
@@ -51,30 +55,10 @@ fn readings_too_slow_or_too_still_to_be_an_imu_are_ignored_and_named() {
     }
     // A gyro at 400 Hz that never turns while the rig does: ignored once the rig turned.
     let h = hand_held(30);
-    let (s, _, _) = run_drive::<Lidar32Capacity>(&mut Altered(h, still), &truth, true, "still");
+    let (s, _, _) =
+        run_drive::<Lidar32Capacity>(&mut Altered::new(h, still), &truth, true, "still");
     let why = s.imu.and_then(|i| i.ignored).expect("ignored");
     assert!(why.contains("while the registrations turned"), "{why}");
-}
-
-/// A drive whose points come without their times: an untimed folder's scans.
-struct Untimed(Drive);
-
-impl FrameSource for Untimed {
-    fn frames(&self) -> usize {
-        self.0.frames()
-    }
-    fn label(&self, i: usize) -> String {
-        self.0.label(i)
-    }
-    fn stamp(&self, i: usize) -> f64 {
-        self.0.stamp(i)
-    }
-    fn read(&mut self, i: usize) -> Result<Vec<Point>, slamesh::io::FileError> {
-        self.0.read(i)
-    }
-    fn samples(&mut self, i: usize) -> Vec<Sample> {
-        self.0.samples(i)
-    }
 }
 
 #[test]
@@ -84,7 +68,7 @@ fn registrations_bent_by_an_untimed_shaken_sweep_do_not_talk_the_imu_out() {
         .with_imu(imu(200.0));
     let truth = d.poses.clone();
     let (s, statuses, step) =
-        run_drive::<KittiCapacity>(&mut Untimed(d), &truth, true, "untimed-shaken");
+        run_drive::<KittiCapacity>(&mut Altered::untimed(d), &truth, true, "untimed-shaken");
     let imu = s.imu.expect("readings came");
     println!(
         "untimed shaken sweeps with the IMU: {:.2} cm a step, {} converged, {} runs of \

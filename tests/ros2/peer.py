@@ -58,6 +58,17 @@ FLOAT64 = PointField.FLOAT64
 EPOCH_NS = 1_733_560_000_000_000_007
 
 
+def latched(depth):
+    """A reader's QoS that also takes what a transient-local writer kept: reliable, transient
+    local, the last `depth` samples."""
+    return QoSProfile(
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        history=HistoryPolicy.KEEP_LAST,
+    )
+
+
 def kitti_scans(folder):
     """(stamp, points N x 4 float32) of every scan in a KITTI sequence folder."""
     names = sorted(os.listdir(os.path.join(folder, "velodyne")))
@@ -199,23 +210,11 @@ class Peer:
         n.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 100)
         # The node's log lines, as `ros2 topic echo /rosout` or rqt_console takes them.
         self.rosout = []
-        rosout_qos = QoSProfile(
-            depth=100,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-            history=HistoryPolicy.KEEP_LAST,
-        )
-        n.create_subscription(Log, "/rosout", self.on_rosout, rosout_qos)
+        n.create_subscription(Log, "/rosout", self.on_rosout, latched(100))
         # As Nav2's map subscribers ask: reliable, transient local, the last one.
         self.grids = 0
         self.last_grid = None
-        latched = QoSProfile(
-            depth=1,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-            history=HistoryPolicy.KEEP_LAST,
-        )
-        n.create_subscription(OccupancyGrid, "map", self.on_map, latched)
+        n.create_subscription(OccupancyGrid, "map", self.on_map, latched(1))
         self.save_map = n.create_client(Trigger, "/slamesh/save_map")
 
     def on_odom(self, m):

@@ -13,6 +13,7 @@
 use crate::cli::error::CliError;
 use crate::io::FileError;
 use crate::run::capacity;
+use crate::run::report::Spread;
 use crate::run::{run, FrameRecord, FrameSource, Input, RunOptions};
 use crate::sources::sweep_times::SweepSpec;
 use slamesh_core::Point;
@@ -137,7 +138,8 @@ pub fn choose(
         // Each candidate's pipeline freed before the next takes its own.
         crate::run::memory::release_freed();
         let name = spec.as_ref().map_or("off".to_string(), |s| s.name.clone());
-        scores.push((spec, name, median(&mut residuals)));
+        let median = (!residuals.is_empty()).then(|| Spread::of(residuals).median);
+        scores.push((spec, name, median));
     }
     let _ = std::fs::remove_dir_all(scratch);
     Ok(pick(scores))
@@ -157,14 +159,6 @@ fn pick(scores: Vec<(Option<SweepSpec>, String, Option<f64>)>) -> Trial {
         chosen,
         scores: scores.into_iter().map(|(_, n, s)| (n, s)).collect(),
     }
-}
-
-fn median(v: &mut [f64]) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    Some(v[v.len() / 2])
 }
 
 #[cfg(test)]
@@ -193,6 +187,5 @@ mod tests {
             .describe()
             .contains("off 30.0 mm, ccw:0:0 24.0 mm, cw:0:0 -"));
         assert_eq!(candidates().len(), 9);
-        assert_eq!(median(&mut []), None);
     }
 }

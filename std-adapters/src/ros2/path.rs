@@ -1,9 +1,9 @@
 //! The `path` message, bounded: the trajectory in `map` from the first pose to the last, at
 //! most [`MAX_POSES`] poses. Past that, every other pose is dropped and from then on only
 //! every second frame's is kept (the stride doubles each time), so the message spans the whole
-//! run ever more thinly and the newest pose is always its last: a few hundred kilobytes at
-//! most, sent each frame, where keeping every pose grew the message and the node's memory
-//! with the run (36 000 poses an hour at 10 Hz, about 3 MB a message).
+//! run ever more thinly and the newest pose is always its last: at most 147 KB in CDR, sent
+//! each frame, where keeping every pose grew the message and the node's memory with the run
+//! (36 000 poses an hour at 10 Hz: 2.6 MB a message; both serialised by rclpy, frame `map`).
 //!
 //! Each kept pose remembers its frame, so a loop closure's corrected trajectory (every used
 //! frame's pose) moves each kept pose to its own frame's correction.
