@@ -61,6 +61,21 @@ fn the_window_keeps_memory_flat_and_the_cap_holds() {
     };
     let (records, summary) = drive(&mut street, window, "cap");
     let budget = summary.max_layers.unwrap();
+    // The cap's shares, in report.json: they add up to the cap, the map's is for the layer
+    // budget, and the peak beside them is the kernel's count.
+    let shares = summary
+        .memory_budget
+        .as_ref()
+        .expect("a capped run's shares");
+    let sum: f64 = shares.shares.iter().map(|s| s.allowed_mb).sum();
+    assert!((sum - cap as f64 / 1e6).abs() < 1e-3, "{shares:?}");
+    assert_eq!(shares.layers, budget);
+    let names: Vec<&str> = shares.shares.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names[..2], ["process", "map"], "{shares:?}");
+    assert!(
+        shares.peak_mb.is_some_and(|p| p <= shares.cap_mb),
+        "{shares:?}"
+    );
     // The run measures its own resident memory at its start, and that differs from ours by
     // up to a few hundred KB (freed thread stacks, the allocator trimming): on one CI
     // machine its budget came out 4 288 layers, 1 700 over one scan's. The cap still binds

@@ -400,9 +400,10 @@ fn sweep_by_trial(args: &RunArgs, opts: &RunOptions, source: &mut Input) -> Resu
 
 /// Loop closure for a run that estimates its poses: on unless `--loop-closure off`, or the
 /// run cannot close loops ([`RunOptions::loop_closure_unavailable`]): then an error when
-/// `--loop-closure on` asked for it, otherwise off, saying why. When on, and when resuming a
-/// run that had it on, the configuration gets what loop closure needs of it
-/// ([`LoopSettings::configure`]).
+/// `--loop-closure on` asked for it, otherwise off, saying why. Under a memory cap or window it
+/// is on too: it takes a share of the cap, and gives way (saying what it would need) when the
+/// cap cannot hold it. When on, and when resuming a run that had it on, the configuration gets
+/// what loop closure needs of it ([`LoopSettings::configure`]).
 pub(crate) fn choose_loop_closure(
     flag: Option<OnOff>,
     opts: &mut RunOptions,
@@ -413,13 +414,6 @@ pub(crate) fn choose_loop_closure(
     let s = LoopSettings::default();
     if opts.loop_closure_unavailable_from_start().is_none() {
         s.configure(&mut opts.config);
-    }
-    if flag.is_none() && opts.window.is_windowed() {
-        log::info!(
-            "loop closure is off: under a memory cap or window it takes a share of the cap \
-             (--loop-closure on to close loops all the same)"
-        );
-        return Ok(());
     }
     if let Some(why) = opts.loop_closure_unavailable() {
         if flag == Some(OnOff::On) {

@@ -22,6 +22,10 @@ pub struct RawMessage {
     pub body: Vec<u8>,
 }
 
+impl crate::formats::ros_messages::Typed for RawMessage {
+    const TYPE: (&'static str, &'static str) = ("sensor_msgs", "PointCloud2");
+}
+
 /// Takes a DDS sample's bytes as they are ([`RawMessage`]).
 pub struct RawAdapter;
 

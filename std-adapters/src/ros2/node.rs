@@ -3,14 +3,16 @@
 //! use ([`crate::ros2::listen`], [`crate::ros2::publish`]).
 //!
 //! Quality of service, as ROS 2's own profiles are:
-//! - `points`: best effort, the last `queue` + 3 messages: it takes sensor drivers' best-effort
-//!   publishers and reliable ones alike (a reliable reader would not match a best-effort
-//!   writer). Its topic is made with resource limits of the same depth: RustDDS keeps each
-//!   topic's samples in a cache of its own, 64 deep when the topic's QoS sets no limits (and
-//!   it never shrinks): 64 clouds of 2 MB held for nothing;
-//! - `odom`, `path`, `/diagnostics`: reliable, volatile, the last 10; `mesh` the last 64
-//!   (a frame's tiles go out in several messages); `map`: reliable, transient local, the
-//!   last 1 (as Nav2's `map_server`: a planner that starts late gets the map);
+//! - `points`: best effort, the last [`POINTS_CACHE`] messages: it takes sensor drivers'
+//!   best-effort publishers and reliable ones alike (a reliable reader would not match a
+//!   best-effort writer). Its topic is made with resource limits of the same depth: RustDDS
+//!   keeps each topic's samples in a cache of its own whether taken or not, 64 deep when the
+//!   topic's QoS sets no limits (and it never shrinks): 64 clouds of 2 MB held for nothing. The
+//!   listening thread takes each cloud as it comes and decodes it into the node's own queue,
+//!   so the cache only has to cover the moments between two of its wake-ups;
+//! - `odom`, `path`, `/diagnostics`: reliable, volatile, the last 10; `mesh` the last
+//!   [`MESH_HISTORY`] (a frame's tiles go out in several messages); `map`: reliable, transient
+//!   local, the last 1 (as Nav2's `map_server`: a planner that starts late gets the map);
 //! - `/tf`: reliable, the last 100; `initialpose`, `/clock`: reliable and best effort, the
 //!   last 10 and 1; `imu`: best effort, the last 400 (a second at 400 Hz); `~/save_map`: the
 //!   services' default.
@@ -59,7 +61,11 @@ pub struct RosNode {
 /// Mesh messages a late or slow subscriber can still be sent again: a frame's tiles go out in
 /// several messages (a first frame's in dozens), and a reliable writer repairs only what its
 /// history still holds.
-const MESH_HISTORY: usize = 64;
+pub const MESH_HISTORY: usize = 64;
+
+/// Clouds RustDDS's cache of `points` keeps (taken or not; see the module's docs): two
+/// clouds that come between two of the listening thread's wake-ups are both kept.
+pub const POINTS_CACHE: usize = 2;
 
 /// As Nav2's `map_server` offers `map`: reliable, the last one kept for late subscribers.
 fn latched() -> QosProfile {
@@ -70,21 +76,28 @@ fn latched() -> QosProfile {
 }
 
 /// `points`' QoS, for its topic and its reader (see the module's docs): best effort, the last
-/// `depth` clouds, and the topic's cache as deep as that.
-fn points_qos(depth: usize) -> QosPolicies {
-    let sensor = QosProfile::subscription_default()
+/// `depth` clouds.
+fn points_qos(depth: usize) -> QosProfile {
+    QosProfile::subscription_default()
         .reliability_best_effort()
         .durability(Durability::Volatile)
-        .history(History::KeepLast { depth });
-    let depth = i32::try_from(depth).unwrap_or(i32::MAX);
+        .history(History::KeepLast { depth })
+}
+
+/// `qos` for a topic and its endpoints, with resource limits of `samples`: without limits
+/// RustDDS keeps 64 samples in a topic's cache, taken or not. (A reliable writer with limits
+/// refuses a sample when its history is full of samples some reader has not acknowledged, so
+/// the node's writers keep RustDDS's own bound, 8 192.)
+fn limited(qos: &QosProfile, samples: usize) -> QosPolicies {
+    let samples = i32::try_from(samples).unwrap_or(i32::MAX);
     let limits = QosPolicyBuilder::new()
         .resource_limits(ResourceLimits {
-            max_samples: depth,
+            max_samples: samples,
             max_instances: 1,
-            max_samples_per_instance: depth,
+            max_samples_per_instance: samples,
         })
         .build();
-    QosPolicies::from(&sensor).modify_by(&limits)
+    QosPolicies::from(qos).modify_by(&limits)
 }
 
 /// As tf2's static listener reads `/tf_static`: reliable, transient local (a robot's static
@@ -181,10 +194,29 @@ impl RosNode {
         })
     }
 
-    fn topic<M: Typed>(&mut self, full: &str, qos: &QosProfile) -> Result<rustdds::Topic, String> {
+    /// Topic `full` of `M`s, made as `Node::create_topic` makes it, with resource limits of
+    /// `samples` when given ([`limited`]; its writers and readers inherit them).
+    fn topic<M: Typed>(
+        &mut self,
+        full: &str,
+        qos: &QosProfile,
+        samples: Option<usize>,
+    ) -> Result<rustdds::Topic, String> {
         let (package, type_name) = M::TYPE;
-        self.node
-            .create_topic(&name(full)?, MessageTypeName::new(package, type_name), qos)
+        let qos = match samples {
+            Some(n) => limited(qos, n),
+            None => QosPolicies::from(qos),
+        };
+        let node_name = NodeName::new(&self.settings.namespace, &self.settings.name)
+            .map_err(|e| format!("{}: not a node name ({e:?})", self.settings.fqn()))?;
+        self.context
+            .domain_participant()
+            .create_topic(
+                name(full)?.to_dds_name("rt", &node_name, ""),
+                MessageTypeName::new(package, type_name).dds_msg_type(),
+                &qos,
+                TopicKind::NoKey,
+            )
             .map_err(|e| format!("{full}: cannot create the topic: {e:?}"))
     }
 
@@ -193,7 +225,7 @@ impl RosNode {
         full: &str,
         qos: QosProfile,
     ) -> Result<Publisher<M>, String> {
-        let topic = self.topic::<M>(full, &qos)?;
+        let topic = self.topic::<M>(full, &qos, None)?;
         self.node
             .create_publisher(&topic, Some(qos))
             .map_err(|e| format!("{full}: cannot publish: {e:?}"))
@@ -204,7 +236,7 @@ impl RosNode {
         full: &str,
         qos: QosProfile,
     ) -> Result<Subscription<M>, String> {
-        let topic = self.topic::<M>(full, &qos)?;
+        let topic = self.topic::<M>(full, &qos, None)?;
         self.node
             .create_subscription(&topic, Some(qos))
             .map_err(|e| format!("{full}: cannot subscribe: {e:?}"))
@@ -213,25 +245,17 @@ impl RosNode {
     /// The way in: subscriptions and the service, on a thread of their own, until `stop`.
     pub fn listen(&mut self, stop: Arc<AtomicBool>) -> Result<Ros2Source, String> {
         let t = self.settings.topics.clone();
-        // The topic is made here as `Node::create_topic` makes it, with the limits its QoS
-        // cannot carry.
-        let qos = points_qos(self.settings.queue + 3);
-        let node_name = NodeName::new(&self.settings.namespace, &self.settings.name)
-            .map_err(|e| format!("{}: not a node name ({e:?})", self.settings.fqn()))?;
+        let qos = points_qos(POINTS_CACHE);
+        let topic = self.topic::<RawMessage>(&t.points, &qos, Some(POINTS_CACHE))?;
         let participant = self.context.domain_participant();
-        let topic = participant
-            .create_topic(
-                name(&t.points)?.to_dds_name("rt", &node_name, ""),
-                MessageTypeName::new("sensor_msgs", "PointCloud2").dds_msg_type(),
-                &qos,
-                TopicKind::NoKey,
-            )
-            .map_err(|e| format!("{}: cannot create the topic: {e:?}", t.points))?;
         let subscriber = participant
-            .create_subscriber(&qos)
+            .create_subscriber(&limited(&qos, POINTS_CACHE))
             .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
         let points = subscriber
-            .create_simple_datareader_no_key::<RawMessage, RawAdapter>(&topic, Some(qos))
+            .create_simple_datareader_no_key::<RawMessage, RawAdapter>(
+                &topic,
+                Some(limited(&qos, POINTS_CACHE)),
+            )
             .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
         let clock = match self.settings.use_sim_time {
             true => Some(

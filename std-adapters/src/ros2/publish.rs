@@ -217,7 +217,7 @@ impl Ros2Sink {
         self.publishers
             .odom
             .publish(odometry)
-            .map_err(|e| format!("odom: {e:?}"))?;
+            .map_err(|e| format!("odom: {e}"))?;
         if let Some(tf) = &self.publishers.tf {
             let transforms = vec![
                 TransformStamped {
@@ -232,7 +232,7 @@ impl Ros2Sink {
                 },
             ];
             tf.publish(TfMessage { transforms })
-                .map_err(|e| format!("/tf: {e:?}"))?;
+                .map_err(|e| format!("/tf: {e}"))?;
         }
         let pose = PoseStamped {
             header: self.header(stamp, &self.frames.map),
@@ -247,7 +247,7 @@ impl Ros2Sink {
         self.publishers
             .path
             .publish(self.path.msg().clone())
-            .map_err(|e| format!("path: {e:?}"))
+            .map_err(|e| format!("path: {e}"))
     }
 
     /// The velocity in the robot's frame from its last two poses in `odom`, and the time
@@ -326,7 +326,7 @@ impl Ros2Sink {
             self.markers.0 += 1;
             publisher
                 .publish(message)
-                .map_err(|e| format!("mesh: {e:?}"))?;
+                .map_err(|e| format!("mesh: {e}"))?;
         }
         Ok(())
     }
@@ -402,7 +402,7 @@ impl Ros2Sink {
         self.publishers
             .diagnostics
             .publish(array)
-            .map_err(|e| format!("/diagnostics: {e:?}"))
+            .map_err(|e| format!("/diagnostics: {e}"))
     }
 }
 

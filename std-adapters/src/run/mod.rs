@@ -19,6 +19,7 @@
 //! | a saved map paged in by tile under a memory cap | [`map_pager`] |
 //! | what a start needs: folder, executor, window, pipeline, the saved map | `setup` |
 
+pub mod budget;
 pub mod capacity;
 pub mod checkpoint;
 pub mod config_file;

@@ -195,6 +195,8 @@ pub struct Summary {
     pub evicted_cells: usize,
     /// Layer budget under the memory cap, if one was set.
     pub max_layers: Option<usize>,
+    /// The memory cap's shares and the peak the kernel counted, if a cap was set.
+    pub memory_budget: Option<crate::run::budget::MemoryBudget>,
     /// Peak resident memory of the process (MB).
     pub peak_rss_mb: Option<f64>,
     /// Frames by status, and those not registered normally.

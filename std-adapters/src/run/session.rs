@@ -24,6 +24,7 @@ use crate::navmap::hits::Hits;
 use crate::navmap::layers::OnMesh;
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
+use crate::run::budget::MemoryBudget;
 use crate::run::checkpoint::{self, Progress};
 use crate::run::files::{ReportFile, Trajectories};
 use crate::run::lookahead::LookAhead;
@@ -105,8 +106,8 @@ pub struct Run<'a, C: Capacity> {
     pub(super) pipeline: Pipeline<C>,
     pub(super) workers: Workers,
     pub(super) window: Window,
-    /// The layer budget a memory cap allows.
-    pub(super) max_layers: Option<usize>,
+    /// The memory cap's shares, the layer budget it allows among them.
+    pub(super) budget: Option<MemoryBudget>,
     pub(super) spool: MeshSpool,
     /// `report.json`, its frame records spooled as they come.
     pub(super) report: ReportFile,
@@ -218,7 +219,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         report: ReportFile,
         progress: Progress,
     ) -> Result<Self, RunError> {
-        if setup.max_layers.is_some() {
+        if setup.budget.is_some() {
             spool.set_layers(memory::CAPPED_SET_LAYERS);
         }
         let map_path = setup
@@ -271,7 +272,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             pipeline: setup.pipeline,
             workers: setup.workers,
             window: setup.window,
-            max_layers: setup.max_layers,
+            budget: setup.budget,
             spool,
             report,
             checkpoint_path,
@@ -441,7 +442,11 @@ impl<'a, C: Capacity> Run<'a, C> {
             map_cells: map.cell_count(),
             map_layers: map.layer_count(),
             evicted_cells,
-            max_layers: self.max_layers,
+            max_layers: self.budget.as_ref().map(|b| b.layers),
+            memory_budget: self.budget.map(|b| MemoryBudget {
+                peak_mb: memory::peak_rss_bytes().map(memory::mb),
+                ..b
+            }),
             peak_rss_mb: memory::peak_rss_bytes().map(memory::mb),
             health,
             loop_closure,

@@ -8,6 +8,7 @@ use crate::loop_closure::streaming::{Evict, Streaming};
 use crate::loop_closure::LoopClosure;
 use crate::outputs::mesh_spool::SET_LAYERS;
 use crate::parallel::Workers;
+use crate::run::budget::MemoryBudget;
 use crate::run::lookahead::LookAhead;
 use crate::run::map_pager::MapPager;
 use crate::run::memory;
@@ -27,7 +28,8 @@ pub(crate) struct Setup<C: Capacity> {
     pub(crate) pager: Option<MapPager>,
     pub(crate) workers: Workers,
     pub(crate) window: Window,
-    pub(crate) max_layers: Option<usize>,
+    /// The memory cap's shares (its layer budget among them), when a cap is set.
+    pub(crate) budget: Option<MemoryBudget>,
     pub(crate) ahead: LookAhead,
     /// Loop closure's thread, when on.
     pub(crate) closer: Option<LoopClosure<C>>,
@@ -45,10 +47,11 @@ impl<C: Capacity> Setup<C> {
         let threads = workers.threads() > 1;
         let wanted = opts.loop_closure.is_some() && opts.loop_closure_unavailable().is_none();
         let Budget {
-            max_layers,
+            memory,
             filter_ahead,
             closing,
         } = layer_budget::<C>(opts, threads, wanted)?;
+        let max_layers = memory.as_ref().map(|m| m.layers);
         window.max_layers = max_layers;
         let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
         let mut pipeline =
@@ -86,7 +89,7 @@ impl<C: Capacity> Setup<C> {
             pager,
             workers,
             window,
-            max_layers,
+            budget: memory,
             ahead: match (threads, filter_ahead) {
                 (true, true) => LookAhead::new::<C>(),
                 (true, false) => LookAhead::reading_only(),
@@ -98,8 +101,8 @@ impl<C: Capacity> Setup<C> {
 
 /// What a memory cap allows a run.
 struct Budget {
-    /// The map's layer budget (none without a cap).
-    max_layers: Option<usize>,
+    /// The cap's shares, the map's layer budget among them (none without a cap).
+    memory: Option<MemoryBudget>,
     /// The next frame is filtered ahead.
     filter_ahead: bool,
     /// Loop closure runs.
@@ -117,7 +120,7 @@ fn layer_budget<C: Capacity>(
 ) -> Result<Budget, RunError> {
     let Some(cap) = opts.window.memory_cap_mb else {
         return Ok(Budget {
-            max_layers: None,
+            memory: None,
             filter_ahead: threads,
             closing,
         });
@@ -168,8 +171,10 @@ fn layer_budget<C: Capacity>(
             need((true, closing))
         );
     }
+    let memory = MemoryBudget::of::<C>(cap_bytes, other, max_layers, (filter_ahead, fits));
+    log::info!("{}", memory.describe());
     Ok(Budget {
-        max_layers: Some(max_layers),
+        memory: Some(memory),
         filter_ahead,
         closing: fits,
     })

@@ -95,18 +95,35 @@ impl Window {
     /// [`map_layers`](Self::map_layers), the look-ahead's filter when `filter_ahead`, and
     /// loop closure's thread when `loop_closure`.
     fn run_bytes<C: Capacity>(budget: usize, filter_ahead: bool, loop_closure: bool) -> usize {
-        let ahead = if filter_ahead {
-            LookAhead::bytes::<C>()
-        } else {
-            0
-        };
+        Self::shares::<C>(budget, filter_ahead, loop_closure)
+            .iter()
+            .map(|s| s.1)
+            .sum()
+    }
+
+    /// The run's own bytes for a layer budget of `budget`, share by share: the pipeline with
+    /// its map of [`map_layers`](Self::map_layers) (`"map"`), the look-ahead's filter
+    /// (`"filter ahead"`, when `filter_ahead`) and loop closure's thread (`"loop closure"`,
+    /// when `loop_closure`); a share that is off holds nothing.
+    pub fn shares<C: Capacity>(
+        budget: usize,
+        filter_ahead: bool,
+        loop_closure: bool,
+    ) -> [(&'static str, usize); 3] {
         let map_layers = Self::map_layers::<C>(budget);
-        let closing = if loop_closure {
-            loop_closure_bytes::<C>(map_layers)
-        } else {
-            0
+        let ahead = match filter_ahead {
+            true => LookAhead::bytes::<C>(),
+            false => 0,
         };
-        C::memory_bytes_with_map_layers(map_layers) + ahead + closing
+        let closing = match loop_closure {
+            true => loop_closure_bytes::<C>(map_layers),
+            false => 0,
+        };
+        [
+            ("map", C::memory_bytes_with_map_layers(map_layers)),
+            ("filter ahead", ahead),
+            ("loop closure", closing),
+        ]
     }
 
     /// The least layer budget: one scan's worth (a map that cannot hold what one scan sees
