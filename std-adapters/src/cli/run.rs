@@ -102,9 +102,9 @@ pub struct RunArgs {
     /// Close loops: when the sensor comes back to where it has been, correct the trajectory
     /// and rebuild the map so that the revisited place is one surface (a thread of its own;
     /// each scan is kept on disk in the output folder until the end, about 85 KB a frame).
-    /// On by default, where a run can close loops (from a saved map, against its path too):
-    /// not with a memory cap or a window, in a fixed map (localize without --update) or when
-    /// resuming (then off, and the log says why).
+    /// On by default, where a run can close loops (from a saved map, against its path too;
+    /// under a memory cap when the cap holds it beside the map): not in a fixed map (localize
+    /// without --update) or when resuming (then off, and the log says why).
     #[arg(long, value_enum)]
     pub loop_closure: Option<OnOff>,
     /// Serve a live view for the Foxglove app on ADDR (default 127.0.0.1:8765, this machine

@@ -86,11 +86,24 @@ impl MeshTiles {
         self.waiting.len()
     }
 
+    /// Tiles whose message was not sent wait again, behind the others (a tile already waiting
+    /// keeps its place).
+    pub fn again(&mut self, tiles: &[TileKey]) {
+        for &t in tiles {
+            self.queue(t);
+        }
+    }
+
     /// The next waiting tiles' markers, `points` points at most (at least one tile), at
     /// `header`'s stamp and frame, in messages of about [`MESSAGE_POINTS`] points: each tile's
-    /// triangles, or its deletion when it has none.
-    pub fn next_messages(&mut self, points: usize, header: &Header) -> Vec<MarkerArray> {
-        let mut out: Vec<MarkerArray> = Vec::new();
+    /// triangles, or its deletion when it has none; each message with its tiles, for
+    /// [`MeshTiles::again`] should it not go out.
+    pub fn next_messages(
+        &mut self,
+        points: usize,
+        header: &Header,
+    ) -> Vec<(MarkerArray, Vec<TileKey>)> {
+        let mut out: Vec<(MarkerArray, Vec<TileKey>)> = Vec::new();
         let (mut in_frame, mut in_message) = (0, 0);
         while let Some(&t) = self.waiting.front() {
             let n = self.points_of(t);
@@ -101,12 +114,14 @@ impl MeshTiles {
             self.queued.remove(&t);
             let marker = self.marker(t, header);
             if out.is_empty() || in_message > 0 && in_message + n > MESSAGE_POINTS {
-                out.push(MarkerArray::default());
+                out.push((MarkerArray::default(), Vec::new()));
                 in_message = 0;
             }
             in_frame += n;
             in_message += n;
-            out.last_mut().expect("a message").markers.push(marker);
+            let (message, tiles) = out.last_mut().expect("a message");
+            message.markers.push(marker);
+            tiles.push(t);
         }
         out
     }
@@ -185,13 +200,14 @@ mod tests {
         // A budget of one layer's points: one tile a frame (the first whole, even if larger).
         let first = t.next_messages(per_layer, &header());
         assert_eq!(first.len(), 1);
-        assert_eq!(first[0].markers.len(), 1);
-        assert_eq!(first[0].markers[0].points.len(), 2 * per_layer);
+        assert_eq!(first[0].0.markers.len(), 1);
+        assert_eq!(first[0].0.markers[0].points.len(), 2 * per_layer);
+        assert_eq!(first[0].1, [(0, 0, 0)]);
         // A tile changed again while it waits is still sent once, with its latest triangles.
         t.update(&layers[2..3]);
         let rest: Vec<Marker> = (0..4)
             .flat_map(|_| t.next_messages(per_layer, &header()))
-            .flat_map(|m| m.markers)
+            .flat_map(|m| m.0.markers)
             .collect();
         assert_eq!(rest.len(), 2);
         assert_eq!(t.waiting(), 0);
@@ -201,8 +217,29 @@ mod tests {
         // A layer that shows nothing empties its tile: the tile's marker is deleted.
         t.update(&[(CellKey { x: 8, y: 0, z: 0 }, Axis::Z, Layer::UNKNOWN)]);
         let gone = t.next_messages(usize::MAX, &header());
-        assert_eq!(gone[0].markers[0].action, Marker::DELETE);
-        assert_eq!(gone[0].markers[0].id, tile_id((1, 0, 0)));
+        assert_eq!(gone[0].0.markers[0].action, Marker::DELETE);
+        assert_eq!(gone[0].0.markers[0].id, tile_id((1, 0, 0)));
+    }
+
+    #[test]
+    fn a_tile_whose_message_was_not_sent_waits_again_behind_the_others() {
+        let mut t = tiles();
+        let layers: Vec<(CellKey, Axis, Layer)> = [(0, 0), (8, 0), (0, 16)]
+            .iter()
+            .map(|&(x, y)| (CellKey { x, y, z: 0 }, Axis::Z, flat_layer()))
+            .collect();
+        t.update(&layers);
+        let first = t.next_messages(1, &header());
+        assert_eq!(first[0].1, [(0, 0, 0)]);
+        t.again(&first[0].1);
+        // One already waiting keeps its place (sent once).
+        t.again(&[(1, 0, 0)]);
+        assert_eq!(t.waiting(), 3);
+        let order: Vec<TileKey> = (0..3)
+            .flat_map(|_| t.next_messages(1, &header()))
+            .flat_map(|m| m.1)
+            .collect();
+        assert_eq!(order, [(1, 0, 0), (0, 2, 0), (0, 0, 0)]);
     }
 
     #[test]

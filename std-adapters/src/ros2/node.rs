@@ -63,6 +63,18 @@ pub struct RosNode {
 /// history still holds.
 pub const MESH_HISTORY: usize = 64;
 
+/// Messages of `mesh` and `path` a reliable writer keeps for readers that have not
+/// acknowledged them, at most. RustDDS's own bound is 8 192, and a writer with no reader at all
+/// keeps that many (it counts none as acknowledged): the mesh's messages of a 150-scan drive,
+/// 142 MB, were all still held at its end (heaptrack). Past the bound the node holds a message
+/// back rather than wait ([`crate::ros2::publish`]). A frame sends about 12 mesh messages;
+/// readers acknowledge within a heartbeat or two.
+pub const UNACKED: usize = 128;
+
+/// Grids on `map` its writer keeps unacknowledged, at most (a grid is up to a few MB; one goes
+/// out every `map_every` scans, from the map's own thread, which waits its turn).
+pub const MAP_UNACKED: usize = 8;
+
 /// Clouds RustDDS's cache of `points` keeps (taken or not; see the module's docs): two
 /// clouds that come between two of the listening thread's wake-ups are both kept.
 pub const POINTS_CACHE: usize = 2;
@@ -85,9 +97,11 @@ fn points_qos(depth: usize) -> QosProfile {
 }
 
 /// `qos` for a topic and its endpoints, with resource limits of `samples`: without limits
-/// RustDDS keeps 64 samples in a topic's cache, taken or not. (A reliable writer with limits
-/// refuses a sample when its history is full of samples some reader has not acknowledged, so
-/// the node's writers keep RustDDS's own bound, 8 192.)
+/// RustDDS keeps 64 samples in a topic's cache, taken or not, and a reliable writer up to
+/// 8 192 that some reader has not acknowledged. With them a reliable writer whose window is
+/// full refuses the next sample (`WouldBlock`, at once or after its wait): the small messages
+/// (`odom`, `/tf`, `/diagnostics`) keep RustDDS's bound, so that a stuck subscriber never
+/// holds the odometry up.
 fn limited(qos: &QosProfile, samples: usize) -> QosPolicies {
     let samples = i32::try_from(samples).unwrap_or(i32::MAX);
     let limits = QosPolicyBuilder::new()
@@ -107,6 +121,13 @@ fn latched_in() -> QosProfile {
         .reliability_reliable(WhenFull::DEFAULT)
         .durability(Durability::TransientLocal)
         .history(History::KeepLast { depth: 100 })
+}
+
+/// [`reliable`], but a message the writer's window of [`UNACKED`] has no room for is refused
+/// at once (`WhenFull::Fail`), not waited for: for topics whose next message makes up for one
+/// held back (`mesh`'s tiles wait again, a `path` holds the whole path).
+fn reliable_or_held_back(depth: usize) -> QosProfile {
+    reliable(depth).reliability_reliable(WhenFull::Fail)
 }
 
 fn reliable(depth: usize) -> QosProfile {
@@ -220,12 +241,14 @@ impl RosNode {
             .map_err(|e| format!("{full}: cannot create the topic: {e:?}"))
     }
 
+    /// A publisher on `full`, its topic limited to `samples` when given ([`limited`]).
     fn publisher<M: Typed + Serialize>(
         &mut self,
         full: &str,
         qos: QosProfile,
+        samples: Option<usize>,
     ) -> Result<Publisher<M>, String> {
-        let topic = self.topic::<M>(full, &qos, None)?;
+        let topic = self.topic::<M>(full, &qos, samples)?;
         self.node
             .create_publisher(&topic, Some(qos))
             .map_err(|e| format!("{full}: cannot publish: {e:?}"))
@@ -316,25 +339,31 @@ impl RosNode {
         let s = self.settings.clone();
         let t = &s.topics;
         let publishers = Publishers {
-            odom: self.publisher::<Odometry>(&t.odom, reliable(10))?,
+            odom: self.publisher::<Odometry>(&t.odom, reliable(10), None)?,
             tf: match s.publish_tf {
-                true => Some(self.publisher::<TfMessage>(&t.tf, reliable(100))?),
+                true => Some(self.publisher::<TfMessage>(&t.tf, reliable(100), None)?),
                 false => None,
             },
-            path: self.publisher::<PathMsg>(&t.path, reliable(10))?,
+            path: self.publisher::<PathMsg>(&t.path, reliable_or_held_back(10), Some(UNACKED))?,
             mesh: match s.publish_mesh {
-                true => Some(self.publisher::<MarkerArray>(&t.mesh, reliable(MESH_HISTORY))?),
+                true => Some(self.publisher::<MarkerArray>(
+                    &t.mesh,
+                    reliable_or_held_back(MESH_HISTORY),
+                    Some(UNACKED),
+                )?),
                 false => None,
             },
-            diagnostics: self.publisher::<DiagnosticArray>(&t.diagnostics, reliable(10))?,
+            diagnostics: self.publisher::<DiagnosticArray>(&t.diagnostics, reliable(10), None)?,
             // The LiDAR's place, when the parameter gives it, for the robot's other nodes.
             tf_static: match s.lidar_in_base {
-                Some(_) => Some(self.publisher::<TfMessage>(&t.tf_static, latched())?),
+                Some(_) => Some(self.publisher::<TfMessage>(&t.tf_static, latched(), None)?),
                 None => None,
             },
         };
         let map = match s.map_every {
-            Some(_) => Some(self.publisher::<OccupancyGrid>(&t.map, latched())?),
+            Some(_) => {
+                Some(self.publisher::<OccupancyGrid>(&t.map, latched(), Some(MAP_UNACKED))?)
+            }
             None => None,
         };
         let mut advertised = Advertised {
@@ -451,7 +480,7 @@ impl Advertised {
                 let out = Box::new(move |grid| match publisher.publish(grid) {
                     Ok(()) => true,
                     Err(e) => {
-                        log::warn!("map: {e:?}");
+                        log::warn!("map: {e}");
                         false
                     }
                 });

@@ -33,6 +33,7 @@ use crate::run::sink::{FrameEvent, MapUpdate, Sink};
 use crate::run::Summary;
 use nalgebra::Matrix6;
 use ros2_client::Publisher;
+use ros2_client::WriteError;
 use slamesh_core::Pose;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -116,6 +117,10 @@ pub struct Ros2Sink {
     published: u64,
     /// Mesh messages published, their markers and their triangles.
     markers: (u64, u64, u64),
+    /// Messages not sent because a reader had not acknowledged the writer's window
+    /// ([`crate::ros2::node::UNACKED`]): the mesh's (their tiles wait again) and the path's
+    /// (the next one holds it all).
+    not_acknowledged: u64,
     last_diagnostics: Option<Instant>,
     /// Whether `mesh` is published now (the parameter `publish_mesh`, settable while
     /// running).
@@ -152,6 +157,7 @@ impl Ros2Sink {
             not_used: 0,
             published: 0,
             markers: (0, 0, 0),
+            not_acknowledged: 0,
             last_diagnostics: None,
             publish_mesh: Arc::new(std::sync::atomic::AtomicBool::new(true)),
         }
@@ -244,10 +250,27 @@ impl Ros2Sink {
                 self.correct_path(corrected);
             }
         }
-        self.publishers
-            .path
-            .publish(self.path.msg().clone())
-            .map_err(|e| format!("path: {e}"))
+        match self.publishers.path.publish(self.path.msg().clone()) {
+            Err(WriteError::WouldBlock { .. }) => {
+                self.behind("path");
+                Ok(())
+            }
+            r => r.map_err(|e| format!("path: {e}")),
+        }
+    }
+
+    /// A message on `topic` not sent: a reader has not acknowledged the writer's window of
+    /// messages (said once, counted).
+    fn behind(&mut self, topic: &str) {
+        if self.not_acknowledged == 0 {
+            log::warn!(
+                "ROS 2: {topic}: a reader has not acknowledged the last {} messages: what \
+                 would go beyond them is not sent while that lasts (the mesh's tiles wait again, \
+                 the next path holds it all; said once, counted)",
+                crate::ros2::node::UNACKED
+            );
+        }
+        self.not_acknowledged += 1;
     }
 
     /// The velocity in the robot's frame from its last two poses in `odom`, and the time
@@ -317,16 +340,31 @@ impl Ros2Sink {
         };
         let budget = if all { usize::MAX } else { FRAME_POINTS };
         let placed = PoseMsg::from(&self.lidar_in_base);
-        for mut message in tiles.next_messages(budget, &header) {
+        let mut messages = tiles.next_messages(budget, &header).into_iter();
+        while let Some((mut message, keys)) = messages.next() {
+            let markers = message.markers.len() as u64;
+            let mut triangles = 0;
             for m in &mut message.markers {
                 m.pose = placed;
-                self.markers.1 += 1;
-                self.markers.2 += m.points.len() as u64 / 3;
+                triangles += m.points.len() as u64 / 3;
             }
-            self.markers.0 += 1;
-            publisher
-                .publish(message)
-                .map_err(|e| format!("mesh: {e}"))?;
+            match publisher.publish(message) {
+                Ok(()) => {
+                    self.markers.0 += 1;
+                    self.markers.1 += markers;
+                    self.markers.2 += triangles;
+                }
+                Err(WriteError::WouldBlock { .. }) => {
+                    // This message's tiles and the frame's others wait again.
+                    tiles.again(&keys);
+                    for (_, rest) in messages {
+                        tiles.again(&rest);
+                    }
+                    self.behind("mesh");
+                    return Ok(());
+                }
+                Err(e) => return Err(format!("mesh: {e}")),
+            }
         }
         Ok(())
     }
@@ -390,6 +428,10 @@ impl Ros2Sink {
                 kv("imu_dropped", counts.imu_dropped.to_string()),
                 kv("imu_late", counts.imu_late.to_string()),
                 kv("save_requests", counts.save_requests.to_string()),
+                kv(
+                    "messages_not_acknowledged",
+                    self.not_acknowledged.to_string(),
+                ),
             ],
         };
         let array = DiagnosticArray {
@@ -478,9 +520,13 @@ impl Sink for Ros2Sink {
                 bytes as f64 / 1e6
             )
         });
+        let behind = match self.not_acknowledged {
+            0 => String::new(),
+            n => format!(", {n} messages held back (a reader did not acknowledge)"),
+        };
         Ok(Some(format!(
             "published {} poses ({} frames not used), the mesh in {} messages ({} markers, {} \
-             triangles){grids}",
+             triangles){behind}{grids}",
             self.published, self.not_used, self.markers.0, self.markers.1, self.markers.2
         )))
     }
