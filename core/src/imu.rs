@@ -707,6 +707,25 @@ mod tests {
     }
 
     #[test]
+    fn the_sampling_period_follows_regular_steps_and_not_a_gap() {
+        let mut t = ImuTrack::new(512, ImuCalibration::default());
+        assert_eq!(t.period_s(), 0.0, "none before two readings");
+        // 200 Hz, a jitter of 0.5 ms every other step.
+        let mut at = 0.0;
+        for k in 0..100 {
+            at += if k % 2 == 0 { 0.0045 } else { 0.0055 };
+            t.push(&sample(at, [0.0; 3])).unwrap();
+        }
+        assert!((t.period_s() - 0.005).abs() < 2e-4, "{}", t.period_s());
+        // A second without readings is a gap, not a period.
+        t.push(&sample(at + 1.0, [0.0; 3])).unwrap();
+        assert!((t.period_s() - 0.005).abs() < 2e-4, "{}", t.period_s());
+        // A reading as the track keeps it, given back whole.
+        let r = Reading::new(1.5, Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.0, 0.0, 9.8));
+        assert_eq!(r.parts(), (1.5, Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.0, 0.0, 9.8)));
+    }
+
+    #[test]
     fn gaps_and_uncovered_time_are_named() {
         let mut t = ImuTrack::new(64, ImuCalibration::default());
         assert_eq!(t.rotation(0.0, 1.0), Err(ImuGap::NoReadings));
