@@ -722,7 +722,10 @@ mod tests {
         assert!((t.period_s() - 0.005).abs() < 2e-4, "{}", t.period_s());
         // A reading as the track keeps it, given back whole.
         let r = Reading::new(1.5, Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.0, 0.0, 9.8));
-        assert_eq!(r.parts(), (1.5, Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.0, 0.0, 9.8)));
+        assert_eq!(
+            r.parts(),
+            (1.5, Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.0, 0.0, 9.8))
+        );
     }
 
     #[test]

@@ -36,6 +36,10 @@ Checks, each printed as it passes (the first failure stops it with its reason):
    (no mesh goes out after), `preset` refused with its reason.
 9. `sim_time`: with `use_sim_time`, `/diagnostics` is stamped with `/clock`'s time (a bag
    played with `--clock`), and the scans' own stamps stay on Odometry.
+10. `imu_tf_static` (with --drive): check 6's drive with its IMU mounted turned a quarter about
+   z, its readings in its own frame `imu`, and `base_link -> imu` on `/tf_static` (a second
+   node plays the robot_state_publisher): the node takes the IMU's place from there, and the
+   trajectory is as accurate as `run`'s.
 """
 
 import argparse
@@ -465,6 +469,43 @@ def check_tf_static(args, reference):
        "published on /tf_static; a node given none took it from there")
 
 
+def check_imu_tf_static(args):
+    if not args.drive:
+        fail("no --drive: the IMU drive's check needs write_drive's folder")
+    run = os.path.join(args.work, "imu-run")
+    subprocess.run([args.slamesh, "run", args.drive, "--out", run, "--threads", "2", "-q"],
+                   check=True, stdout=subprocess.DEVNULL)
+    truth = kitti_positions(os.path.join(args.drive, "poses.txt"))
+    run_ate = ate(kitti_positions(os.path.join(run, "poses_kitti.txt")), truth)
+    # The robot: base_link -> imu, a quarter turn about z, on /tf_static (its LiDAR frame is
+    # named imu; it reads no scans).
+    robot = Node(args, os.path.join(args.work, "imu-tf-robot", "out"),
+                 params=["lidar_in_base:=[0.0,0.0,0.0,0.0,0.0,1.5707963267948966]",
+                         "lidar_frame:=imu", "publish_mesh:=false", "publish_map:=false"],
+                 remaps=["points:=robot_points", "odom:=robot_odom", "path:=robot_path",
+                         "/diagnostics:=/robot_diagnostics", "/tf:=/robot_tf"])
+    time.sleep(1.0)
+    node = Node(args, os.path.join(args.work, "imu-tf", "out"), quiet=False,
+                params=["preset:=default", "use_imu:=true", "map_every:=10"])
+    r = peer(args, "imu_drive", os.path.join(args.work, "imu-tf.json"), "--drive", args.drive,
+             "--imu-turn", "90", node=node)
+    log = node.stop()
+    robot.stop()
+    said = "the IMU on the LiDAR from /tf_static: base_link -> imu"
+    if said not in log:
+        fail(f"the node did not take the IMU's place from /tf_static: {log[-1500:]}")
+    odom = r["odom"]
+    stamps = [float(l) + 10.0 for l in open(os.path.join(args.drive, "times.txt")) if l.strip()]
+    index = {round(s, 6): k for k, s in enumerate(stamps)}
+    ks = [index[round(o["stamp"], 6)] for o in odom]
+    node_ate = ate([o["pose"][:3] for o in odom], [truth[k] for k in ks])
+    if len(odom) < 0.97 * r["scans"] or node_ate > 1.2 * run_ate + 0.001:
+        fail(f"IMU turned: {len(odom)} of {r['scans']} scans, ATE {node_ate:.4f} m against "
+             f"run's {run_ate:.4f} m")
+    ok(f"the IMU turned a quarter on the robot, its place from /tf_static: {len(odom)} of "
+       f"{r['scans']} scans, ATE {node_ate * 100:.2f} cm (run {run_ate * 100:.2f} cm)")
+
+
 def check_params(args):
     node = Node(args, os.path.join(args.work, "params", "out"))
     r = peer(args, "params", os.path.join(args.work, "params.json"), node=node)
@@ -539,7 +580,7 @@ def main():
     p.add_argument("--only", help="these checks only, by number (1,2,...): for a developer")
     p.add_argument("--imu-wait", help="check 6 with this imu_wait (seconds): 0 shows the need")
     args = p.parse_args()
-    only = {int(k) for k in args.only.split(",")} if args.only else set(range(1, 10))
+    only = {int(k) for k in args.only.split(",")} if args.only else set(range(1, 11))
     wait = [f"imu_wait:={args.imu_wait}"] if args.imu_wait else []
     os.makedirs(args.work, exist_ok=True)
     run = os.path.join(args.work, "run")
@@ -558,6 +599,7 @@ def main():
         lambda: check_tf_static(args, reference),
         lambda: check_params(args),
         lambda: check_sim_time(args, reference),
+        lambda: check_imu_tf_static(args),
     ]
     for k, check in enumerate(checks, 1):
         if k in only:

@@ -443,6 +443,12 @@ def scenario_first_bad(peer, args):
             "rosout": peer.rosout}
 
 
+def turned_z(v, degrees):
+    """Vector `v` turned `degrees` about z."""
+    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    return [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]]
+
+
 def scenario_imu_drive(peer, args):
     shift = 10.0
     events = drive_events(args.drive, args.imu_lag)
@@ -460,7 +466,7 @@ def scenario_imu_drive(peer, args):
             m.header.stamp.sec = int(math.floor(t))
             m.header.stamp.nanosec = int(round((t - math.floor(t)) * 1e9)) % 1_000_000_000
             m.header.frame_id = "imu"
-            w, a = payload[:3], payload[3:]
+            w, a = turned_z(payload[:3], -args.imu_turn), turned_z(payload[3:], -args.imu_turn)
             m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = w
             m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = a
             peer.imu.publish(m)
@@ -580,6 +586,9 @@ def main():
     p.add_argument("--imu", action="store_true", help="scans: IMU readings between the scans")
     p.add_argument("--drive", help="imu_drive: the folder write_drive wrote")
     p.add_argument("--imu-lag", type=float, default=0.0, help="imu_drive: the IMU's lag (s)")
+    p.add_argument("--imu-turn", type=float, default=0.0,
+                   help="imu_drive: the IMU mounted turned this many degrees about z (its "
+                        "readings in its own axes)")
     args = p.parse_args()
     rclpy.init()
     peer = Peer(args)

@@ -275,6 +275,12 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
         choose_loop_closure(args.loop_closure, &mut opts)?;
     }
     let lidar_in_base = advertised.lidar_in_base(&mut source);
+    // The IMU's place from the robot's transforms, unless the configuration gives it.
+    if opts.imu.enabled && !opts.imu.placed {
+        if let Some(p) = advertised.lidar_from_imu(&mut source, &lidar_in_base) {
+            opts.imu.calibration.lidar_from_imu = p;
+        }
+    }
     let sink = advertised.sink(&opts.config, &source, args.robot.options(), lidar_in_base);
     let sink = Queued::new(sink, 8, WhenFull::Wait)
         .map_err(|e| node_error(format!("cannot start the publishing thread: {e}")))?;

@@ -36,6 +36,9 @@ pub struct ImuOptions {
     pub enabled: bool,
     /// Where the IMU sits on the LiDAR and its clock.
     pub calibration: ImuCalibration,
+    /// Whether the IMU's place on the LiDAR was given (`[imu] translation_m` or
+    /// `rotation_rpy_deg`); the ROS 2 node otherwise takes it from `/tf_static`.
+    pub placed: bool,
     /// Share of the registration's disagreement with the gyro taken into the bias each frame.
     pub bias_gain: f64,
     /// A disagreement above this (degrees over a frame) is not taken into the bias.
@@ -50,6 +53,7 @@ impl Default for ImuOptions {
         Self {
             enabled: true,
             calibration: ImuCalibration::default(),
+            placed: false,
             bias_gain: 0.2,
             bias_max_deg: 1.0,
             accel_unit: AccelUnit::Auto,

@@ -33,6 +33,8 @@ pub struct Counts {
     pub clock_s: Option<f64>,
     /// The scans' frame: the first scan's (or `lidar_frame`).
     pub scans_frame: Option<String>,
+    /// The first IMU reading's frame (`header.frame_id`), for its place on the robot.
+    pub imu_frame: Option<String>,
 }
 
 impl Counts {

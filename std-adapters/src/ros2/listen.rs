@@ -229,6 +229,16 @@ impl Ros2Source {
         self.counts.lock().ok()?.scans_frame.clone()
     }
 
+    /// The IMU readings' frame, once one came with a frame.
+    pub fn imu_frame(&self) -> Option<String> {
+        self.counts.lock().ok()?.imu_frame.clone()
+    }
+
+    /// The static transforms heard so far.
+    pub fn transforms(&self) -> &StaticTransforms {
+        &self.transforms
+    }
+
     /// `child` in `parent` as `/tf_static` said so far.
     pub fn static_transform(&self, parent: &str, child: &str) -> Option<slamesh_core::Pose> {
         self.transforms.lookup(parent, child)
@@ -486,7 +496,11 @@ impl Listener {
     /// Every IMU reading waiting; a reading with a number that is not finite is refused.
     fn take_imu(&mut self) {
         let (mut taken, mut dropped) = (0, 0);
+        let mut frame = None;
         while let Ok(Some((m, _))) = self.endpoints.imu.take() {
+            if frame.is_none() {
+                frame = Some(m.header.frame_id.clone());
+            }
             let (w, a) = (m.angular_velocity, m.linear_acceleration);
             let reading = ImuReading {
                 stamp: m.header.stamp.seconds(),
@@ -515,6 +529,9 @@ impl Listener {
             self.count(|c| {
                 c.imu_readings += taken;
                 c.imu_dropped += dropped;
+                if c.imu_frame.is_none() {
+                    c.imu_frame = frame.filter(|f| !f.is_empty());
+                }
             });
         }
     }

@@ -456,6 +456,30 @@ impl Advertised {
         }
     }
 
+    /// The IMU on the LiDAR from `/tf_static` ([`crate::ros2::transforms::imu_on_lidar`]),
+    /// once the first scan came (readings before it name their frame), the LiDAR at
+    /// `lidar_in_base` on the robot; `None` when the readings named no frame or the transform
+    /// was not heard (the configuration's `[imu]` place stands).
+    pub fn lidar_from_imu(&self, source: &mut Ros2Source, lidar_in_base: &Pose) -> Option<Pose> {
+        source.has(0);
+        let imu = source.imu_frame()?;
+        let scans = source.scans_frame();
+        let base = &self.settings.frames.base;
+        let frames = (imu.as_str(), scans.as_deref(), base.as_str());
+        let placed =
+            crate::ros2::transforms::imu_on_lidar(frames, lidar_in_base, source.transforms())?;
+        let t = placed.translation.vector;
+        log::info!(
+            "the IMU on the LiDAR from /tf_static: {base} -> {imu}, at ({:.3}, {:.3}, {:.3}) m \
+             from the LiDAR, turned {:.1} degrees",
+            t.x,
+            t.y,
+            t.z,
+            placed.rotation.angle().to_degrees()
+        );
+        Some(placed)
+    }
+
     /// The publishers as a sink of the run; `config` is the run's (the mesh's lattice and
     /// what it shows); `source` the way in (its counts go into `diagnostics`); `grid` the
     /// `map` topic's; the LiDAR on the robot at `lidar_in_base` ([`Self::lidar_in_base`]),

@@ -11,7 +11,7 @@
 //! | `publish_tf`, `publish_mesh`, `publish_map` | bool | true | whether `/tf`, `mesh` and `map` are published |
 //! | `map_every` | integer | 10 | scans between two updates of `map` (1 to 1000) |
 //! | `use_sim_time` | bool | false | stamp `diagnostics` with `/clock` |
-//! | `use_imu` | bool | true | use the readings on `imu` (docs/design.md §1.19; its place on the LiDAR is the configuration's `[imu]`) |
+//! | `use_imu` | bool | true | use the readings on `imu` (docs/design.md §1.19; its place on the LiDAR is the configuration's `[imu]`, or else `/tf_static`'s `base_link` -> the readings' frame) |
 //! | `imu_wait` | seconds | 0.2 | with `use_imu`, once an IMU has been heard: how long after a scan came it waits for the readings that cover its sweep (0 to 2; 0: never waits) |
 //! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize`, `loop_closure`, `navmap`, `robot`, `navmap_resolution` | | | as the command's flags of the same names (`loop_closure`: true or false, on by default where the run can close loops, under a memory cap or window only when true; `robot` and `navmap_resolution` are the `map` topic's too) |
 //!

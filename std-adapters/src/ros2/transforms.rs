@@ -1,6 +1,7 @@
 //! The robot's static transforms as the node reads them on `/tf_static` (a
 //! `robot_state_publisher`'s): the LiDAR's place on the robot when no `lidar_in_base`
-//! parameter gives it.
+//! parameter gives it, and the IMU's on the LiDAR when the configuration's `[imu]` does not
+//! ([`imu_on_lidar`]).
 //!
 //! What it guarantees: at most [`KEPT`] transforms are kept (the last one heard for each parent
 //! and child; a transform that is not finite, or past the limit, is passed over), so that a
@@ -46,6 +47,23 @@ impl StaticTransforms {
             .find(|(p, c, _)| p == parent && c == child)
             .map(|k| k.2)
     }
+}
+
+/// The IMU on the LiDAR, for readings in frame `imu` and scans in `scans` (when known), the
+/// robot's frame `base` and the LiDAR at `lidar_in_base` on it: `base -> imu` as `transforms`
+/// heard it, seen from the LiDAR. Readings in the scans' own frame are the LiDAR's axes, and in
+/// `base` the robot's; `None` when `/tf_static` said nothing of `base -> imu`.
+pub fn imu_on_lidar(
+    (imu, scans, base): (&str, Option<&str>, &str),
+    lidar_in_base: &Pose,
+    transforms: &StaticTransforms,
+) -> Option<Pose> {
+    let imu_in_base = match scans {
+        Some(s) if bare(s) == bare(imu) => *lidar_in_base,
+        _ if bare(imu) == bare(base) => Pose::identity(),
+        _ => transforms.lookup(base, imu)?,
+    };
+    Some(lidar_in_base.inverse() * imu_in_base)
 }
 
 /// A frame's name without its leading `/`.
@@ -108,5 +126,37 @@ mod tests {
         s.keep(&TfMessage { transforms: many });
         assert_eq!(s.lookup("base_link", "nan"), None);
         assert_eq!(s.0.lock().unwrap().len(), KEPT);
+    }
+
+    #[test]
+    fn the_imu_on_the_lidar_comes_from_the_robots_transforms() {
+        use nalgebra::{UnitQuaternion, Vector3};
+        let s = StaticTransforms::default();
+        // The IMU 0.2 m ahead of the robot's origin, turned a quarter about z; the LiDAR 1 m up.
+        let turned =
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
+        let imu_in_base = Pose::from_parts(nalgebra::Translation3::new(0.2, 0.0, 0.0), turned);
+        let mut t = transform("base_link", "imu_link", 0.0);
+        t.transform = PoseMsg::from(&imu_in_base);
+        s.keep(&TfMessage {
+            transforms: vec![t],
+        });
+        let lidar = Pose::translation(0.0, 0.0, 1.0);
+        let frames = ("imu_link", Some("velodyne"), "base_link");
+        let placed = imu_on_lidar(frames, &lidar, &s).unwrap();
+        assert!((placed.translation.vector - Vector3::new(0.2, 0.0, -1.0)).norm() < 1e-12);
+        // A reading of a turn about the IMU's x is one about the LiDAR's y.
+        let about = placed.rotation * Vector3::x();
+        assert!((about - Vector3::y()).norm() < 1e-12, "{about}");
+        // In the scans' own frame: the LiDAR's axes; in the robot's: seen from the LiDAR.
+        let own = imu_on_lidar(("/velodyne", Some("velodyne"), "base_link"), &lidar, &s);
+        assert_eq!(own, Some(Pose::identity()));
+        let robot = imu_on_lidar(("base_link", Some("velodyne"), "base_link"), &lidar, &s);
+        assert_eq!(robot, Some(lidar.inverse()));
+        // Nothing heard of it: the configuration's place stands.
+        assert_eq!(
+            imu_on_lidar(("imu", Some("velodyne"), "base_link"), &lidar, &s),
+            None
+        );
     }
 }

@@ -408,8 +408,14 @@ fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
     for (name, v) in t {
         let e = |m: String| format!("[imu] {name}: {m}");
         match name.as_str() {
-            "translation_m" => translation = triple(v).map_err(e)?,
-            "rotation_rpy_deg" => rpy = triple(v).map_err(e)?,
+            "translation_m" => {
+                translation = triple(v).map_err(e)?;
+                o.placed = true;
+            }
+            "rotation_rpy_deg" => {
+                rpy = triple(v).map_err(e)?;
+                o.placed = true;
+            }
             "time_offset_s" => c.time_offset_s = finite(v).map_err(e)?,
             "gyro_limit_deg_s" => c.gyro_limit_rad_s = positive(v).map_err(e)?.to_radians(),
             "accel_limit_m_s2" => c.accel_limit_m_s2 = positive(v).map_err(e)?,
