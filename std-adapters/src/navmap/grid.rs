@@ -368,14 +368,16 @@ impl Grid {
         Some((c.reference as f64 + mean, var))
     }
 
-    /// Every cell with an elevation ([`elevation`](Self::elevation)), row by row from the
-    /// lowest.
-    pub fn ground_cells(&self) -> Vec<CellIndex> {
+    /// Every cell with an elevation ([`elevation`](Self::elevation)) whose column and row
+    /// are multiples of `stride`, row by row from the lowest (only those are gathered: the
+    /// 1 000-frame town's ground cells alone took 67 MB).
+    pub fn ground_cells(&self, stride: i64) -> Vec<CellIndex> {
         let mut out = Vec::new();
         for (&(tx, ty), tile) in &self.tiles {
             for k in 0..TILE_CELLS {
                 let (ix, iy) = cell_at((tx, ty), k);
-                if tile[k].n > 0 && self.elevation(ix, iy).is_some() {
+                let on = ix.rem_euclid(stride) == 0 && iy.rem_euclid(stride) == 0;
+                if on && tile[k].n > 0 && self.elevation(ix, iy).is_some() {
                     out.push((ix, iy));
                 }
             }

@@ -56,10 +56,7 @@ impl NavMesh {
         let footprint = footprint((robot.radius_m / res).ceil().max(1.0) as i64);
         let mut mesh = NavMesh::default();
         let mut index: HashMap<CellIndex, u32> = HashMap::new();
-        for (ix, iy) in grid.ground_cells() {
-            if ix.rem_euclid(stride) != 0 || iy.rem_euclid(stride) != 0 {
-                continue;
-            }
+        for (ix, iy) in grid.ground_cells(stride) {
             let Some((h, _)) = grid.elevation(ix, iy) else {
                 continue;
             };
