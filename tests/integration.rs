@@ -11,6 +11,7 @@ mod common;
 
 mod architecture;
 mod checkpoint;
+mod closure_checks;
 mod command;
 mod command_outputs;
 mod degenerate;

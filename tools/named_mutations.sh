@@ -22,7 +22,7 @@ tests_of() {
     stamp-f64) echo "ros2:5" ;;
     # No drive of the suite proposes a revisit its checks refuse (docs/benchmarks.md, "Named
     # mutations"): the checks themselves are tested on a scan of another place.
-    closure-unverified) echo "loop_closure::a_revisit_is_a_closure_only_when_the_search_vouches_for_it" ;;
+    closure-unverified) echo "closure_checks::a_revisit_is_a_closure_only_when_the_search_vouches_for_it" ;;
     *) echo "unknown mutation $1" >&2; exit 2 ;;
   esac
 }

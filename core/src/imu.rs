@@ -729,6 +729,63 @@ mod tests {
     }
 
     #[test]
+    fn a_rising_rate_is_integrated_between_readings() {
+        // About z at 2t rad/s, read at 100 Hz: over [0.25, 0.75] s the turn is t² between
+        // them, 0.5 rad, whatever the readings' places (the rate is linear between them).
+        let mut t = ImuTrack::new(512, ImuCalibration::default());
+        for k in 0..=100 {
+            let at = k as f64 / 100.0;
+            t.push(&sample(at, [0.0, 0.0, 2.0 * at])).unwrap();
+        }
+        for (a, b) in [(0.25, 0.75), (0.253, 0.747), (0.0, 1.0)] {
+            let turn = t.rotation(a, b).unwrap().scaled_axis().z;
+            assert!((turn - (b * b - a * a)).abs() < 1e-9, "{a} to {b}: {turn}");
+        }
+        assert!(t.rotation(f64::NAN, 0.5).is_err());
+        assert!(t.rotation(0.5, f64::INFINITY).is_err());
+    }
+
+    #[test]
+    fn a_track_restored_takes_its_readings_whole_and_in_order_only() {
+        let src = steady(100.0, 0.07, [0.0, 0.0, 0.5], ImuCalibration::default());
+        let held = src.held().to_vec();
+        assert_eq!(held.len(), 8);
+        let c = src.counts();
+        let mut exact = ImuTrack::new(8, ImuCalibration::default());
+        assert!(
+            exact.restore(&held, Vec3::zeros(), 0.01, c, 1.0).is_ok(),
+            "as many as it holds"
+        );
+        assert_eq!(exact.held().len(), 8);
+        let mut small = ImuTrack::new(7, ImuCalibration::default());
+        assert!(small.restore(&held, Vec3::zeros(), 0.01, c, 1.0).is_err());
+        let mut twice = held.clone();
+        twice[4] = twice[3];
+        let mut t = ImuTrack::new(8, ImuCalibration::default());
+        assert!(
+            t.restore(&twice, Vec3::zeros(), 0.01, c, 1.0).is_err(),
+            "a stamp twice"
+        );
+    }
+
+    #[test]
+    fn readings_held_take_a_new_accelerometer_unit_and_a_bad_one_is_ignored() {
+        let mut t = steady(100.0, 0.05, [0.0; 3], ImuCalibration::default());
+        let g = t.held()[0].parts().2.z;
+        t.set_accel_unit(GRAVITY_M_S2);
+        assert!((t.held()[0].parts().2.z - g * GRAVITY_M_S2).abs() < 1e-9);
+        for bad in [0.0, -1.0, f64::NAN] {
+            t.set_accel_unit(bad);
+            assert_eq!(t.calibration().accel_unit_m_s2, GRAVITY_M_S2, "{bad}");
+        }
+        // Three readings are enough for a mean of the force; two are not.
+        let three = steady(100.0, 0.02, [0.0; 3], ImuCalibration::default());
+        let m = three.mean_force(-1.0, 0.02).unwrap();
+        assert_eq!(m.readings, 3);
+        assert!(three.mean_force(0.0, 0.02).is_err(), "two after 0.0");
+    }
+
+    #[test]
     fn gaps_and_uncovered_time_are_named() {
         let mut t = ImuTrack::new(64, ImuCalibration::default());
         assert_eq!(t.rotation(0.0, 1.0), Err(ImuGap::NoReadings));
