@@ -786,6 +786,77 @@ mod tests {
     }
 
     #[test]
+    fn a_tumbling_imu_off_the_lidar_reads_gravity_in_the_frame_asked_for() {
+        // The LiDAR turns about its x at 1 + 2t rad/s (turned t + t² by t); the IMU sits 0.2 m
+        // along its y, axes as the LiDAR's: it feels gravity turning, the tangential push
+        // α × r and the centripetal pull ω × (ω × r).
+        let arm = Vec3::new(0.0, 0.2, 0.0);
+        let c = ImuCalibration {
+            lidar_from_imu: Pose::from_parts(Translation3::from(arm), UnitQuaternion::identity()),
+            ..ImuCalibration::default()
+        };
+        let up = Vec3::new(0.0, 0.0, GRAVITY_M_S2);
+        let seen_at = |t: f64| UnitQuaternion::from_scaled_axis(Vec3::x() * (t + t * t));
+        let mut track = ImuTrack::new(512, c);
+        for k in 0..=100 {
+            let t = k as f64 / 200.0;
+            let w = Vec3::new(1.0 + 2.0 * t, 0.0, 0.0);
+            let alpha = Vec3::new(2.0, 0.0, 0.0);
+            let f = seen_at(t).inverse() * up + alpha.cross(&arm) + w.cross(&w.cross(&arm));
+            let s = ImuSample {
+                stamp: t,
+                gyro: [w.x, w.y, w.z],
+                accel: [f.x, f.y, f.z],
+            };
+            track.push(&s).unwrap();
+        }
+        for t_ref in [0.1, 0.25, 0.5] {
+            let m = track.mean_force(-1.0, t_ref).unwrap();
+            let expected = seen_at(t_ref).inverse() * up;
+            assert!(
+                (m.mean - expected).norm() < 1e-3,
+                "at {t_ref}: {} against {expected}",
+                m.mean
+            );
+            assert!(m.spread < 1e-3, "at {t_ref}: spread {}", m.spread);
+        }
+        // Readings that swing 1 m/s² either side of gravity: their spread is 1.
+        let mut swing = ImuTrack::new(64, ImuCalibration::default());
+        for k in 0..20 {
+            let z = GRAVITY_M_S2 + if k % 2 == 0 { 1.0 } else { -1.0 };
+            let s = ImuSample {
+                stamp: k as f64 * 0.01,
+                gyro: [0.0; 3],
+                accel: [0.0, 0.0, z],
+            };
+            swing.push(&s).unwrap();
+        }
+        let m = swing.mean_force(-1.0, 0.19).unwrap();
+        assert!((m.mean.z - GRAVITY_M_S2).abs() < 1e-9 && (m.spread - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn one_bias_correction_takes_its_gain_of_the_disagreement_over_its_time() {
+        let mut t = ImuTrack::new(8, ImuCalibration::default());
+        let gyro = UnitQuaternion::from_scaled_axis(Vec3::new(0.0, 0.0, 0.02));
+        let registered = UnitQuaternion::identity();
+        let off = t.correct_bias(&gyro, 0.1, &registered, 0.5, 1.0);
+        assert!((off - 0.02).abs() < 1e-12);
+        assert!(
+            (t.bias() - Vec3::new(0.0, 0.0, 0.1)).norm() < 1e-12,
+            "{}",
+            t.bias()
+        );
+        // No time between them: nothing learned.
+        t.correct_bias(&gyro, 0.0, &registered, 0.5, 1.0);
+        assert!(
+            (t.bias() - Vec3::new(0.0, 0.0, 0.1)).norm() < 1e-12,
+            "{}",
+            t.bias()
+        );
+    }
+
+    #[test]
     fn gaps_and_uncovered_time_are_named() {
         let mut t = ImuTrack::new(64, ImuCalibration::default());
         assert_eq!(t.rotation(0.0, 1.0), Err(ImuGap::NoReadings));
