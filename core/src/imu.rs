@@ -774,6 +774,10 @@ mod tests {
         let g = t.held()[0].parts().2.z;
         t.set_accel_unit(GRAVITY_M_S2);
         assert!((t.held()[0].parts().2.z - g * GRAVITY_M_S2).abs() < 1e-9);
+        // And back: the readings held as they came.
+        t.set_accel_unit(1.0);
+        assert!((t.held()[0].parts().2.z - g).abs() < 1e-9);
+        t.set_accel_unit(GRAVITY_M_S2);
         for bad in [0.0, -1.0, f64::NAN] {
             t.set_accel_unit(bad);
             assert_eq!(t.calibration().accel_unit_m_s2, GRAVITY_M_S2, "{bad}");
@@ -797,28 +801,35 @@ mod tests {
         };
         let up = Vec3::new(0.0, 0.0, GRAVITY_M_S2);
         let seen_at = |t: f64| UnitQuaternion::from_scaled_axis(Vec3::x() * (t + t * t));
-        let mut track = ImuTrack::new(512, c);
-        for k in 0..=100 {
-            let t = k as f64 / 200.0;
-            let w = Vec3::new(1.0 + 2.0 * t, 0.0, 0.0);
-            let alpha = Vec3::new(2.0, 0.0, 0.0);
-            let f = seen_at(t).inverse() * up + alpha.cross(&arm) + w.cross(&w.cross(&arm));
-            let s = ImuSample {
-                stamp: t,
-                gyro: [w.x, w.y, w.z],
-                accel: [f.x, f.y, f.z],
-            };
-            track.push(&s).unwrap();
-        }
-        for t_ref in [0.1, 0.25, 0.5] {
-            let m = track.mean_force(-1.0, t_ref).unwrap();
-            let expected = seen_at(t_ref).inverse() * up;
-            assert!(
-                (m.mean - expected).norm() < 1e-3,
-                "at {t_ref}: {} against {expected}",
-                m.mean
-            );
-            assert!(m.spread < 1e-3, "at {t_ref}: spread {}", m.spread);
+        // Without a gyro bias, and with one the track has learned (the readings carry it).
+        for bias in [Vec3::zeros(), Vec3::new(0.05, -0.02, 0.03)] {
+            let mut track = ImuTrack::new(512, c);
+            let learned = UnitQuaternion::from_scaled_axis(bias);
+            track.correct_bias(&learned, 1.0, &UnitQuaternion::identity(), 1.0, 1.0);
+            for k in 0..=100 {
+                let t = k as f64 / 200.0;
+                let w = Vec3::new(1.0 + 2.0 * t, 0.0, 0.0);
+                let alpha = Vec3::new(2.0, 0.0, 0.0);
+                let f = seen_at(t).inverse() * up + alpha.cross(&arm) + w.cross(&w.cross(&arm));
+                let g = w + bias;
+                let s = ImuSample {
+                    stamp: t,
+                    gyro: [g.x, g.y, g.z],
+                    accel: [f.x, f.y, f.z],
+                };
+                track.push(&s).unwrap();
+            }
+            for t_ref in [0.1, 0.25, 0.5] {
+                let m = track.mean_force(-1.0, t_ref).unwrap();
+                let expected = seen_at(t_ref).inverse() * up;
+                let off = (m.mean - expected).norm();
+                assert!(off < 1e-3, "bias {bias}, at {t_ref}: {}", m.mean);
+                assert!(
+                    m.spread < 1e-3,
+                    "bias {bias}, at {t_ref}: spread {}",
+                    m.spread
+                );
+            }
         }
         // Readings that swing 1 m/s² either side of gravity: their spread is 1.
         let mut swing = ImuTrack::new(64, ImuCalibration::default());
