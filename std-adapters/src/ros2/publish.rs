@@ -250,6 +250,12 @@ impl Ros2Sink {
                 self.correct_path(corrected);
             }
         }
+        self.publish_path()
+    }
+
+    /// The path as it stands; held back when a reader has not acknowledged the writer's
+    /// window (the next one holds it all).
+    fn publish_path(&mut self) -> Result<(), String> {
         match self.publishers.path.publish(self.path.msg().clone()) {
             Err(WriteError::WouldBlock { .. }) => {
                 self.behind("path");
