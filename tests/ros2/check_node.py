@@ -210,7 +210,12 @@ def check_scans(args, reference, run_mesh):
     d = r["diagnostics"]
     if not d or any(x["scans_dropped"] != "0" or x["messages_refused"] != "0" for x in d):
         fail(f"diagnostics: {d[-1:] if d else 'none'}")
-    ok(f"diagnostics: {len(d)} messages, no drops")
+    # The process's resident memory as the kernel counts it, now and at its peak.
+    resident, peak = float(d[-1]["resident_mb"]), float(d[-1]["peak_resident_mb"])
+    if not 0 < resident <= peak <= SCANS_PEAK_MB:
+        fail(f"diagnostics: resident memory {resident} MB, peak {peak} MB")
+    ok(f"diagnostics: {len(d)} messages, no drops; resident memory {resident:.0f} MB, "
+       f"peak {peak:.0f} MB")
     saved = r["save_map"]
     map_file = os.path.join(node.out, "map.slamesh")
     if not (saved and saved["success"] and os.path.isfile(map_file)):

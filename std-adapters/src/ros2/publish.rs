@@ -29,6 +29,7 @@ use crate::ros2::messages::{
 use crate::ros2::occupancy::LiveMap;
 use crate::ros2::path::BoundedPath;
 use crate::ros2::settings::Frames;
+use crate::run::memory;
 use crate::run::sink::{FrameEvent, MapUpdate, Sink};
 use crate::run::Summary;
 use nalgebra::Matrix6;
@@ -408,6 +409,8 @@ impl Ros2Sink {
         } else {
             0
         };
+        // The process's resident memory now and at its peak, as the kernel counts it.
+        let mb = |b: Option<u64>| b.map_or(String::new(), |b| format!("{:.1}", b as f64 / 1e6));
         let kv = |k: &str, v: String| KeyValue {
             key: k.into(),
             value: v,
@@ -438,6 +441,8 @@ impl Ros2Sink {
                     "messages_not_acknowledged",
                     self.not_acknowledged.to_string(),
                 ),
+                kv("resident_mb", mb(memory::rss_bytes())),
+                kv("peak_resident_mb", mb(memory::peak_rss_bytes())),
             ],
         };
         let array = DiagnosticArray {
