@@ -97,6 +97,44 @@ impl OdomFrame {
     }
 }
 
+/// A message the node could not publish: on which topic, and the transport's reason.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PublishError {
+    /// The topic, as the node names it in messages (`odom`, `/tf`, `path`, `mesh`,
+    /// `/diagnostics`).
+    pub topic: &'static str,
+    /// What RustDDS said.
+    pub reason: String,
+}
+
+impl PublishError {
+    /// The error of a publish on `topic` (the message itself is left out).
+    fn on<D>(topic: &'static str) -> impl Fn(WriteError<D>) -> PublishError {
+        move |e| PublishError {
+            topic,
+            reason: e.to_string(),
+        }
+    }
+}
+
+impl std::fmt::Display for PublishError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "ROS 2: cannot publish on {}: {}",
+            self.topic, self.reason
+        )
+    }
+}
+
+impl std::error::Error for PublishError {}
+
+impl From<PublishError> for String {
+    fn from(e: PublishError) -> String {
+        e.to_string()
+    }
+}
+
 /// The sink that publishes (see the module docs).
 pub struct Ros2Sink {
     publishers: Publishers,
@@ -176,7 +214,7 @@ impl Ros2Sink {
         self.lidar_in_base * lidar * self.lidar_in_base.inverse()
     }
 
-    fn publish_pose(&mut self, e: &FrameEvent, lidar: &Pose) -> Result<(), String> {
+    fn publish_pose(&mut self, e: &FrameEvent, lidar: &Pose) -> Result<(), PublishError> {
         // The scan's own stamp, to the nanosecond, for exact-time synchronisers.
         let stamp = e.record.stamp_ns.map_or_else(
             || Time::from_seconds(e.record.stamp),
@@ -224,7 +262,7 @@ impl Ros2Sink {
         self.publishers
             .odom
             .publish(odometry)
-            .map_err(|e| format!("odom: {e}"))?;
+            .map_err(PublishError::on("odom"))?;
         if let Some(tf) = &self.publishers.tf {
             let transforms = vec![
                 TransformStamped {
@@ -239,7 +277,7 @@ impl Ros2Sink {
                 },
             ];
             tf.publish(TfMessage { transforms })
-                .map_err(|e| format!("/tf: {e}"))?;
+                .map_err(PublishError::on("/tf"))?;
         }
         let pose = PoseStamped {
             header: self.header(stamp, &self.frames.map),
@@ -256,13 +294,13 @@ impl Ros2Sink {
 
     /// The path as it stands; held back when a reader has not acknowledged the writer's
     /// window (the next one holds it all).
-    fn publish_path(&mut self) -> Result<(), String> {
+    fn publish_path(&mut self) -> Result<(), PublishError> {
         match self.publishers.path.publish(self.path.msg().clone()) {
             Err(WriteError::WouldBlock { .. }) => {
                 self.behind("path");
                 Ok(())
             }
-            r => r.map_err(|e| format!("path: {e}")),
+            r => r.map_err(PublishError::on("path")),
         }
     }
 
@@ -320,7 +358,7 @@ impl Ros2Sink {
 
     /// The tiles the frame changed wait their turn; the next ones within a frame's budget go
     /// out (all of them when `all`, at the end).
-    fn publish_mesh(&mut self, update: Option<&MapUpdate>, all: bool) -> Result<(), String> {
+    fn publish_mesh(&mut self, update: Option<&MapUpdate>, all: bool) -> Result<(), PublishError> {
         let Some(tiles) = &mut self.tiles else {
             return Ok(());
         };
@@ -370,7 +408,7 @@ impl Ros2Sink {
                     self.behind("mesh");
                     return Ok(());
                 }
-                Err(e) => return Err(format!("mesh: {e}")),
+                Err(e) => return Err(PublishError::on("mesh")(e)),
             }
         }
         Ok(())
@@ -393,7 +431,7 @@ impl Ros2Sink {
         }
     }
 
-    fn publish_diagnostics(&mut self, stamp: f64, force: bool) -> Result<(), String> {
+    fn publish_diagnostics(&mut self, stamp: f64, force: bool) -> Result<(), PublishError> {
         let due = self
             .last_diagnostics
             .is_none_or(|t| t.elapsed() >= DIAGNOSTICS_EVERY);
@@ -455,7 +493,7 @@ impl Ros2Sink {
         self.publishers
             .diagnostics
             .publish(array)
-            .map_err(|e| format!("/diagnostics: {e}"))
+            .map_err(PublishError::on("/diagnostics"))
     }
 }
 
@@ -513,7 +551,7 @@ impl Sink for Ros2Sink {
             }
             self.latencies.push(ms);
         }
-        self.publish_diagnostics(e.record.stamp, false)
+        Ok(self.publish_diagnostics(e.record.stamp, false)?)
     }
 
     fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
@@ -546,6 +584,23 @@ impl Sink for Ros2Sink {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_failed_publish_names_its_topic_and_reason_not_its_message() {
+        let big = vec![0u8; 1 << 20];
+        let e = PublishError::on("mesh")(WriteError::WouldBlock { data: big });
+        assert_eq!(e.topic, "mesh");
+        let said = String::from(e);
+        assert!(
+            said.starts_with("ROS 2: cannot publish on mesh: "),
+            "{said}"
+        );
+        assert!(
+            said.len() < 200,
+            "the message is left out: {} bytes",
+            said.len()
+        );
+    }
 
     fn pose(x: f64, yaw: f64) -> Pose {
         Pose::from_parts(
