@@ -390,14 +390,31 @@ def ate(estimate, truth):
     return float(np.sqrt(((moved - b) ** 2).sum(1).mean()))
 
 
-def check_imu_drive(args, wait=()):
+def drive_reference(args):
+    """The IMU drive's true positions and `slamesh run`'s ATE on its folder (run once, kept)."""
     if not args.drive:
-        fail("no --drive: the IMU drive's check needs write_drive's folder")
-    run = os.path.join(args.work, "imu-run")
-    subprocess.run([args.slamesh, "run", args.drive, "--out", run, "--threads", "2", "-q"],
-                   check=True, stdout=subprocess.DEVNULL)
-    truth = kitti_positions(os.path.join(args.drive, "poses.txt"))
-    run_ate = ate(kitti_positions(os.path.join(run, "poses_kitti.txt")), truth)
+        fail("no --drive: the IMU drive's checks need write_drive's folder")
+    if getattr(args, "drive_reference", None) is None:
+        run = os.path.join(args.work, "imu-run")
+        subprocess.run([args.slamesh, "run", args.drive, "--out", run, "--threads", "2", "-q"],
+                       check=True, stdout=subprocess.DEVNULL)
+        truth = kitti_positions(os.path.join(args.drive, "poses.txt"))
+        args.drive_reference = (truth,
+                                ate(kitti_positions(os.path.join(run, "poses_kitti.txt")), truth))
+    return args.drive_reference
+
+
+def odom_ate(args, odom, truth):
+    """ATE (m) of the node's Odometry on the IMU drive, each matched to its scan by its stamp
+    (moved 10 s on by the peer)."""
+    stamps = [float(l) + 10.0 for l in open(os.path.join(args.drive, "times.txt")) if l.strip()]
+    index = {round(s, 6): k for k, s in enumerate(stamps)}
+    ks = [index[round(o["stamp"], 6)] for o in odom]
+    return ate([o["pose"][:3] for o in odom], [truth[k] for k in ks])
+
+
+def check_imu_drive(args, wait=()):
+    truth, run_ate = drive_reference(args)
     for lag in ["0", "0.05"]:
         node = Node(args, os.path.join(args.work, f"imu-drive-{lag}", "out"),
                     params=["preset:=default", "use_imu:=true", "map_every:=10", *wait])
@@ -407,12 +424,7 @@ def check_imu_drive(args, wait=()):
         odom, scans = r["odom"], r["scans"]
         if len(odom) < 0.97 * scans:
             fail(f"IMU {lag} s late: {len(odom)} Odometry for {scans} scans: {log[-1500:]}")
-        # Each Odometry's scan by its stamp (moved 10 s on by the peer).
-        stamps = [float(l) + 10.0 for l in open(os.path.join(args.drive, "times.txt"))
-                  if l.strip()]
-        index = {round(s, 6): k for k, s in enumerate(stamps)}
-        ks = [index[round(o["stamp"], 6)] for o in odom]
-        node_ate = ate([o["pose"][:3] for o in odom], [truth[k] for k in ks])
+        node_ate = odom_ate(args, odom, truth)
         if node_ate > 1.2 * run_ate + 0.001:
             fail(f"IMU {lag} s late: ATE {node_ate:.4f} m against run's {run_ate:.4f} m")
         late = r["diagnostics"][-1]["imu_late"] if r["diagnostics"] else "?"
@@ -475,13 +487,7 @@ def check_tf_static(args, reference):
 
 
 def check_imu_tf_static(args):
-    if not args.drive:
-        fail("no --drive: the IMU drive's check needs write_drive's folder")
-    run = os.path.join(args.work, "imu-run")
-    subprocess.run([args.slamesh, "run", args.drive, "--out", run, "--threads", "2", "-q"],
-                   check=True, stdout=subprocess.DEVNULL)
-    truth = kitti_positions(os.path.join(args.drive, "poses.txt"))
-    run_ate = ate(kitti_positions(os.path.join(run, "poses_kitti.txt")), truth)
+    truth, run_ate = drive_reference(args)
     # The robot: base_link -> imu, a quarter turn about z, on /tf_static (its LiDAR frame is
     # named imu; it reads no scans).
     robot = Node(args, os.path.join(args.work, "imu-tf-robot", "out"),
@@ -500,10 +506,7 @@ def check_imu_tf_static(args):
     if said not in log:
         fail(f"the node did not take the IMU's place from /tf_static: {log[-1500:]}")
     odom = r["odom"]
-    stamps = [float(l) + 10.0 for l in open(os.path.join(args.drive, "times.txt")) if l.strip()]
-    index = {round(s, 6): k for k, s in enumerate(stamps)}
-    ks = [index[round(o["stamp"], 6)] for o in odom]
-    node_ate = ate([o["pose"][:3] for o in odom], [truth[k] for k in ks])
+    node_ate = odom_ate(args, odom, truth)
     if len(odom) < 0.97 * r["scans"] or node_ate > 1.2 * run_ate + 0.001:
         fail(f"IMU turned: {len(odom)} of {r['scans']} scans, ATE {node_ate:.4f} m against "
              f"run's {run_ate:.4f} m")
