@@ -89,6 +89,14 @@ pub(crate) fn car_frames(frames: usize) -> Drive {
     d
 }
 
+/// The car's first `frames` frames with a rolling sweep, shaken by a rough road, with a
+/// 200 Hz IMU.
+pub(crate) fn shaken_car(frames: usize) -> Drive {
+    car_frames(frames)
+        .shaken(Vibration::rough_road())
+        .with_imu(imu(200.0))
+}
+
 /// The car's first 60 frames with a rolling sweep.
 fn car() -> Drive {
     car_frames(60)
@@ -223,9 +231,7 @@ fn frames_the_readings_miss_run_on_the_motion_model_and_are_named() {
 
 #[test]
 fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
-    let d = car_frames(20)
-        .shaken(Vibration::rough_road())
-        .with_imu(imu(200.0));
+    let d = shaken_car(20);
     let truth = d.poses.clone();
     let (s, statuses, _) = run_drive::<KittiCapacity>(
         &mut Altered::new(d.clone(), in_degrees),
@@ -264,9 +270,7 @@ fn turned(s: &mut Vec<Sample>) {
 
 #[test]
 fn an_imu_turned_from_its_configured_place_is_named_with_the_turn() {
-    let d = car_frames(30)
-        .shaken(Vibration::rough_road())
-        .with_imu(imu(200.0));
+    let d = shaken_car(30);
     let truth = d.poses.clone();
     let (s, _, _) =
         run_drive::<KittiCapacity>(&mut Altered::new(d, turned), &truth, true, "turned");

@@ -4,7 +4,7 @@
 //! drive read with its OXTS packets and timed from its sweep.
 
 use crate::common::{scratch, slamesh_run_ok, write_folder_with_imu};
-use crate::imu::{car_frames, count, hand_held, options, run_drive, Altered};
+use crate::imu::{car_frames, count, hand_held, options, run_drive, shaken_car, Altered};
 use slamesh::eval::odometry::consecutive_errors;
 use slamesh::formats::trajectory;
 use slamesh::run::{run, Sample};
@@ -63,9 +63,7 @@ fn readings_too_slow_or_too_still_to_be_an_imu_are_ignored_and_named() {
 
 #[test]
 fn registrations_bent_by_an_untimed_shaken_sweep_do_not_talk_the_imu_out() {
-    let d = car_frames(60)
-        .shaken(Vibration::rough_road())
-        .with_imu(imu(200.0));
+    let d = shaken_car(60);
     let truth = d.poses.clone();
     let (s, statuses, step) =
         run_drive::<KittiCapacity>(&mut Altered::untimed(d), &truth, true, "untimed-shaken");
