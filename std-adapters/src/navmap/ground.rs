@@ -323,22 +323,17 @@ impl Grid {
     /// was found from (its foot: [`stretch`](Self::stretch)'s `at_a_kerb`); `faces` as
     /// [`kerb_faces`](Self::kerb_faces) gives them.
     pub(super) fn grow_ground(&mut self, seeds: Vec<CellIndex>, faces: &CellSet) -> CellSet {
-        let (mut seen, mut reached) = (CellBits::default(), CellBits::default());
+        let mut seen = CellBits::default();
         let mut feet = CellSet::default();
-        self.stretch(
-            seeds,
-            faces,
-            |i| seen.insert(i),
-            |i| {
-                feet.insert(i);
-            },
-            |i| {
-                reached.insert(i);
-            },
-        );
-        drop(seen);
-        for (ix, iy) in reached.cells() {
-            self.cell_mut(ix, iy).ground = true;
+        let at_a_kerb = |i| {
+            feet.insert(i);
+        };
+        self.stretch(seeds, faces, |i| seen.insert(i), at_a_kerb, |_| {});
+        // What it reached is what it saw with a floor (only a seed may have none).
+        for (ix, iy) in seen.cells() {
+            if self.cell(ix, iy).is_some_and(|c| c.floor.is_finite()) {
+                self.cell_mut(ix, iy).ground = true;
+            }
         }
         feet
     }

@@ -270,15 +270,12 @@ impl RosNode {
         let t = self.settings.topics.clone();
         let qos = points_qos(POINTS_CACHE);
         let topic = self.topic::<RawMessage>(&t.points, &qos, Some(POINTS_CACHE))?;
-        let participant = self.context.domain_participant();
-        let subscriber = participant
-            .create_subscriber(&limited(&qos, POINTS_CACHE))
+        let reader_qos = limited(&qos, POINTS_CACHE);
+        let subscriber = (self.context.domain_participant())
+            .create_subscriber(&reader_qos)
             .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
         let points = subscriber
-            .create_simple_datareader_no_key::<RawMessage, RawAdapter>(
-                &topic,
-                Some(limited(&qos, POINTS_CACHE)),
-            )
+            .create_simple_datareader_no_key::<RawMessage, RawAdapter>(&topic, Some(reader_qos))
             .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
         let clock = match self.settings.use_sim_time {
             true => Some(
