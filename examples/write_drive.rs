@@ -29,7 +29,9 @@
 //! with `timestamps.txt` (mid-sweep), `timestamps_start.txt` and `timestamps_end.txt`, and
 //! with `--imu HZ` the readings as OXTS packets in `oxts/` (`slamesh run --sweep ccw:0:0.5`);
 //! `poses.txt` (the true poses at those mid-sweep stamps) and `calib.txt` stay at the top for
-//! `slamesh eval`.
+//! `slamesh eval`. `--movers`: cars in both lanes, people on the sidewalks and parked cars
+//! that pull out, along the drive's path (`slamesh_sim::traffic`), each point's truth in
+//! `labels/NNNNNN.label` (SemanticKITTI's: 252 a moving car, 254 a person, 0 static).
 
 #[path = "common/flags.rs"]
 mod flags;
@@ -37,7 +39,7 @@ mod flags;
 use flags::Flags;
 use slamesh::formats::trajectory::write_kitti_line;
 use slamesh::formats::{imu_csv, oxts, pcd};
-use slamesh_sim::{Drive, ImuModel, Vibration};
+use slamesh_sim::{Drive, ImuModel, Traffic, TrafficCounts, Vibration};
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -60,16 +62,21 @@ fn main() -> Result<(), Error> {
         .iter()
         .map(|p| p * left)
         .collect();
+    let drive = with_traffic(&flags, drive, seed);
     let drive = with_motion(&flags, drive, period_s, seed, &out)?;
     if flags.has("--kitti-raw") {
         return write_kitti_raw(&drive, period_s, &out);
     }
     let timed = drive.sweep_s.is_some() && !flags.has("--untimed");
     fs::create_dir_all(out.join("velodyne"))?;
+    if drive.traffic.is_some() {
+        fs::create_dir_all(out.join("labels"))?;
+    }
     let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
     let mut times = BufWriter::new(File::create(out.join("times.txt"))?);
     for i in 0..drive.poses.len() {
-        write_scan(&drive, i, timed, &out.join("velodyne"))?;
+        let labels = drive.traffic.is_some().then(|| out.join("labels"));
+        write_scan(&drive, i, timed, &out.join("velodyne"), labels.as_deref())?;
         write_kitti_line(&mut poses, &(first * drive.poses[i]))?;
         writeln!(times, "{:.6}", i as f64 * period_s)?;
     }
@@ -139,7 +146,7 @@ fn write_kitti_raw(drive: &Drive, period_s: f64, out: &Path) -> Result<(), Error
     let first = mid(0).inverse();
     let mut poses = BufWriter::new(File::create(out.join("poses.txt"))?);
     for i in 0..drive.poses.len() {
-        write_scan(drive, i, false, &velodyne.join("data"))?;
+        write_scan(drive, i, false, &velodyne.join("data"), None)?;
         let name = velodyne.join("data").join(format!("{i:06}.bin"));
         fs::rename(&name, velodyne.join("data").join(format!("{i:010}.bin")))?;
         write_kitti_line(&mut poses, &(first * mid(i)))?;
@@ -200,20 +207,50 @@ fn with_motion(
 }
 
 /// Frame `i` of `drive` into `dir`: a binary PCD with each point's time (`timed`: a rolling
-/// sweep's, unless `--untimed`), else a KITTI `.bin`.
-fn write_scan(drive: &Drive, i: usize, timed: bool, dir: &Path) -> Result<(), Error> {
+/// sweep's, unless `--untimed`), else a KITTI `.bin`; each point's truth into `labels` as
+/// SemanticKITTI's `.label` (a little-endian `u32` a point).
+fn write_scan(
+    drive: &Drive,
+    i: usize,
+    timed: bool,
+    dir: &Path,
+    labels_dir: Option<&Path>,
+) -> Result<(), Error> {
+    let (points, times, labels) = drive.scan_labelled(i);
     if timed {
-        let (points, times) = drive.scan_timed(i);
         let file = pcd::encode_pcd_timed(&points, &times);
         fs::write(dir.join(format!("{i:06}.pcd")), file)?;
     } else {
         let mut bin = Vec::new();
-        for p in drive.scan(i) {
+        for p in points {
             for v in [p[0], p[1], p[2], 0.0] {
                 bin.extend_from_slice(&v.to_le_bytes());
             }
         }
         fs::write(dir.join(format!("{i:06}.bin")), bin)?;
     }
+    if let Some(labels_dir) = labels_dir {
+        let bytes: Vec<u8> = labels
+            .iter()
+            .flat_map(|l| l.semantic_kitti().to_le_bytes())
+            .collect();
+        fs::write(labels_dir.join(format!("{i:06}.label")), bytes)?;
+    }
     Ok(())
+}
+
+/// `drive` with `--movers`: [`TrafficCounts::TOWN`]'s cars, people and parked cars that
+/// leave, along the drive's own path.
+fn with_traffic(flags: &Flags, drive: Drive, seed: u64) -> Drive {
+    if !flags.has("--movers") {
+        return drive;
+    }
+    let path: Vec<[f64; 2]> = drive
+        .poses
+        .iter()
+        .map(|p| [p.translation.x, p.translation.y])
+        .collect();
+    let length: f64 = path.windows(2).map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1])).sum();
+    let traffic = Traffic::street(path, false, length, TrafficCounts::TOWN, seed);
+    drive.with_traffic(traffic)
 }

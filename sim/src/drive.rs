@@ -3,6 +3,8 @@
 use crate::imu::{ImuModel, Vibration};
 use crate::lidar::Lidar;
 use crate::scene::Scene;
+use crate::traffic::{Label, Traffic};
+use std::borrow::Cow;
 use nalgebra::{Point3, Translation3, UnitQuaternion};
 use slamesh_core::math::{se3_exp, se3_log};
 use slamesh_core::random::SplitMix64;
@@ -42,6 +44,8 @@ pub struct Drive {
     pub imu: Option<ImuModel>,
     /// The body's shaking over the smooth poses it was laid on ([`Drive::shaken`]).
     pub shake: Option<(Vibration, Vec<Pose>)>,
+    /// Cars and people moving through the scene ([`Drive::with_traffic`]).
+    pub traffic: Option<Traffic>,
 }
 
 impl Drive {
@@ -69,6 +73,7 @@ impl Drive {
             period_s: 0.1,
             imu: None,
             shake: None,
+            traffic: None,
         }
     }
 
@@ -96,6 +101,7 @@ impl Drive {
             period_s: 0.1,
             imu: None,
             shake: None,
+            traffic: None,
         }
     }
 
@@ -169,6 +175,7 @@ impl Drive {
             sweep_s: None,
             imu: None,
             shake: None,
+            traffic: None,
         }
     }
 
@@ -187,6 +194,7 @@ impl Drive {
             period_s: 0.1,
             imu: None,
             shake: None,
+            traffic: None,
         }
     }
 
@@ -269,17 +277,62 @@ impl Drive {
     /// [`Drive::scan`] with each point's time after the frame's stamp (seconds): all 0 without
     /// a rolling sweep.
     pub fn scan_timed(&self, i: usize) -> (Vec<Point>, Vec<f32>) {
-        let mut rng = SplitMix64(self.seed.wrapping_add(i as u64));
-        let (mut points, mut times) = match self.sweep_s {
-            None => {
-                let p = self.lidar.scan(&self.scene, &self.poses[i]);
-                let n = p.len();
-                (p, vec![0.0; n])
-            }
-            Some(period) => self
-                .lidar
-                .scan_rolling(&self.scene, |t| self.pose_after(i, t), period),
+        let (points, times, _) = self.scan_labelled(i);
+        (points, times)
+    }
+
+    /// The drive with `traffic` moving through its scene: its scans see the movers where
+    /// they are at each frame's stamp.
+    pub fn with_traffic(mut self, traffic: Traffic) -> Self {
+        self.traffic = Some(traffic);
+        self
+    }
+
+    /// The scene at frame `i`'s stamp, movers included (their boxes after the scene's own),
+    /// and which mover each of those boxes is.
+    fn scene_at(&self, i: usize) -> (Cow<'_, Scene>, Vec<usize>) {
+        let Some(traffic) = &self.traffic else {
+            return (Cow::Borrowed(&self.scene), Vec::new());
         };
+        let mut scene = self.scene.clone();
+        let mut movers = Vec::new();
+        let boxes = traffic.boxes_at(&self.scene, i as f64 * self.period_s);
+        for (k, b) in boxes.into_iter().enumerate() {
+            if let Some(b) = b {
+                scene.boxes.push(b);
+                movers.push(k);
+            }
+        }
+        (Cow::Owned(scene), movers)
+    }
+
+    /// [`Drive::scan_timed`] with each point's truth: [`Label::Static`] throughout without
+    /// traffic.
+    pub fn scan_labelled(&self, i: usize) -> (Vec<Point>, Vec<f32>, Vec<Label>) {
+        let mut rng = SplitMix64(self.seed.wrapping_add(i as u64));
+        let (scene, movers) = self.scene_at(i);
+        let (mut points, mut times, hits) = match self.sweep_s {
+            None => {
+                let (p, hits) = self.lidar.scan_hits(&scene, &self.poses[i]);
+                let n = p.len();
+                (p, vec![0.0; n], hits)
+            }
+            Some(period) => {
+                self.lidar
+                    .scan_rolling_hits(&scene, |t| self.pose_after(i, t), period)
+            }
+        };
+        let first_mover = self.scene.boxes.len();
+        let mut labels: Vec<Label> = hits
+            .iter()
+            .map(|hit| match hit.and_then(|b| b.checked_sub(first_mover)) {
+                Some(k) => self
+                    .traffic
+                    .as_ref()
+                    .map_or(Label::Static, |t| t.label_of(movers[k])),
+                None => Label::Static,
+            })
+            .collect();
         if self.dropout > 0.0 {
             let dropout = self.dropout;
             let keep: Vec<bool> = points.iter().map(|_| rng.next_f64() >= dropout).collect();
@@ -287,6 +340,8 @@ impl Drive {
             points.retain(|_| *k.next().expect("one flag a point"));
             let mut k = keep.iter();
             times.retain(|_| *k.next().expect("one flag a point"));
+            let mut k = keep.iter();
+            labels.retain(|_| *k.next().expect("one flag a point"));
         }
         for p in &mut points {
             // Box-Muller: one Gaussian sample along the ray.
@@ -296,6 +351,6 @@ impl Drive {
             let k = ((r + n) / r) as f32;
             *p = p.map(|c| c * k);
         }
-        (points, times)
+        (points, times, labels)
     }
 }

@@ -13,6 +13,7 @@
 //! | a procedural town and its loop | [`town`] |
 //! | an office floor and a walk through it | [`office`] |
 //! | a yard with kerbs and ramps, for the navigation maps | [`yard`] |
+//! | cars, people and parked cars that leave, and each point's truth | [`traffic`] |
 //! | the exact distance to the true surfaces (mesh precision) | [`truth`] |
 #![deny(missing_docs)]
 
@@ -22,6 +23,7 @@ pub mod lidar;
 pub mod office;
 pub mod scene;
 pub mod town;
+pub mod traffic;
 pub mod truth;
 pub mod yard;
 
@@ -30,4 +32,5 @@ pub use imu::{ImuModel, Vibration};
 pub use lidar::Lidar;
 pub use scene::{OrientedBox, Scene, Sphere, Terrain};
 pub use slamesh_core::random::SplitMix64;
+pub use traffic::{Label, Traffic, TrafficCounts};
 pub use truth::SurfaceDistance;

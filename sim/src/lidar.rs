@@ -74,21 +74,29 @@ impl Lidar {
 
     /// One noise-free scan of `scene` from `t_world_sensor`, in the sensor frame.
     pub fn scan(&self, scene: &Scene, t_world_sensor: &Pose) -> Vec<Point> {
+        self.scan_hits(scene, t_world_sensor).0
+    }
+
+    /// [`scan`](Self::scan) with what each point lies on: the index of the scene's box, or
+    /// `None` for the ground or a sphere.
+    pub fn scan_hits(&self, scene: &Scene, t_world_sensor: &Pose) -> (Vec<Point>, Vec<Hit>) {
         let origin = t_world_sensor.translation.vector;
         let scene = Prepared::new(scene, &origin, self.max_range_m, 0.0);
         let rays = self.rays();
         let mut out = Vec::with_capacity(self.beams * self.azimuth_steps);
+        let mut hits = Vec::with_capacity(self.beams * self.azimuth_steps);
         for beam in 0..self.beams {
             for step in 0..self.azimuth_steps {
                 let dir_s = rays.direction(beam, step);
                 let dir_w = t_world_sensor.rotation * dir_s;
-                if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
+                if let Some((range, hit)) = scene.cast_to(&origin, &dir_w, self.max_range_m) {
                     let p = Point3::from(dir_s * range);
                     out.push([p.x as f32, p.y as f32, p.z as f32]);
+                    hits.push(hit);
                 }
             }
         }
-        out
+        (out, hits)
     }
 
     /// One noise-free rolling sweep: firing by firing round the turn, each cast from the pose
@@ -101,6 +109,18 @@ impl Lidar {
         pose_at: impl Fn(f64) -> Pose,
         period_s: f64,
     ) -> (Vec<Point>, Vec<f32>) {
+        let (points, times, _) = self.scan_rolling_hits(scene, pose_at, period_s);
+        (points, times)
+    }
+
+    /// [`scan_rolling`](Self::scan_rolling) with what each point lies on
+    /// ([`scan_hits`](Self::scan_hits)).
+    pub fn scan_rolling_hits(
+        &self,
+        scene: &Scene,
+        pose_at: impl Fn(f64) -> Pose,
+        period_s: f64,
+    ) -> (Vec<Point>, Vec<f32>, Vec<Hit>) {
         let (start, end) = (pose_at(0.0), pose_at(period_s));
         let travel = (end.translation.vector - start.translation.vector).norm();
         let time = |step: usize| period_s * step as f64 / self.azimuth_steps as f64;
@@ -119,22 +139,27 @@ impl Lidar {
         let rays = self.rays();
         let mut points = Vec::with_capacity(self.beams * self.azimuth_steps);
         let mut times = Vec::with_capacity(self.beams * self.azimuth_steps);
+        let mut hits = Vec::with_capacity(self.beams * self.azimuth_steps);
         for (step, pose) in poses.iter().enumerate() {
             let t = time(step);
             let origin = pose.translation.vector;
             for beam in 0..self.beams {
                 let dir_s = rays.direction(beam, step);
                 let dir_w = pose.rotation * dir_s;
-                if let Some(range) = scene.cast(&origin, &dir_w, self.max_range_m) {
+                if let Some((range, hit)) = scene.cast_to(&origin, &dir_w, self.max_range_m) {
                     let p = dir_s * range;
                     points.push([p.x as f32, p.y as f32, p.z as f32]);
                     times.push(t as f32);
+                    hits.push(hit);
                 }
             }
         }
-        (points, times)
+        (points, times, hits)
     }
 }
+
+/// What a ray met: the index of the scene's box, or `None` for the ground or a sphere.
+pub type Hit = Option<usize>;
 
 /// The sines and cosines of a [`Lidar`]'s beams' elevations and of its firings' azimuths.
 struct Rays {

@@ -224,6 +224,8 @@ pub(crate) struct Prepared {
     /// Centre, half extents, cos and sin of `-yaw`.
     boxes: Vec<([f64; 3], [f64; 3], f64, f64)>,
     spheres: Vec<Sphere>,
+    /// Per prepared box, its index in the scene's boxes.
+    box_index: Vec<u32>,
     /// Per object (boxes first, then spheres): a range along any ray from within `travel` of
     /// the origin short of which the ray cannot meet it.
     nearest: Vec<f64>,
@@ -233,6 +235,9 @@ pub(crate) struct Prepared {
     /// rolling sweep's firing's) share their origin, and so the tracing's first step.
     under_origin: Cell<([f64; 2], f64)>,
 }
+
+/// The object id [`Prepared::cast_object`] gives the ground.
+const GROUND: u32 = u32::MAX;
 
 /// The clearance over the terrain at which sphere tracing calls it met (m).
 const CONTACT_CLEARANCE_M: f64 = 1e-4;
@@ -266,10 +271,11 @@ impl Prepared {
             }
         };
         let mut boxes = Vec::new();
+        let mut box_index = Vec::new();
         // Every point of an object lies within its bounding radius `r` of its centre, `d` away.
         let mut nearest = Vec::new();
         let nearest_of = |d: f64, r: f64| d - r - travel - NEAREST_SLACK_M;
-        for b in &scene.boxes {
+        for (index, b) in scene.boxes.iter().enumerate() {
             let r = Vector3::from(b.half).norm();
             let d = (Vector3::from(b.centre) - origin).norm();
             if d > reach + r {
@@ -279,6 +285,7 @@ impl Prepared {
             list(boxes.len() as u32, b.centre, b.half[0].hypot(b.half[1]));
             let (s, c) = (-b.yaw).sin_cos();
             boxes.push((b.centre, b.half, c, s));
+            box_index.push(index as u32);
         }
         let mut spheres = Vec::new();
         for sp in &scene.spheres {
@@ -298,6 +305,7 @@ impl Prepared {
             terrain: scene.terrain,
             boxes,
             spheres,
+            box_index,
             nearest,
             sectors,
             under_origin: Cell::new(([f64::NAN; 2], 0.0)),
@@ -351,15 +359,39 @@ impl Prepared {
         dir: &Vector3<f64>,
         max_range: f64,
     ) -> Option<f64> {
+        self.cast_to(origin, dir, max_range).map(|(range, _)| range)
+    }
+
+    /// [`cast`](Self::cast) with what the ray met: the index of the scene's box, or `None`
+    /// for the ground or a sphere.
+    pub(crate) fn cast_to(
+        &self,
+        origin: &Vector3<f64>,
+        dir: &Vector3<f64>,
+        max_range: f64,
+    ) -> Option<(f64, Option<usize>)> {
+        self.cast_object(origin, dir, max_range).map(|(range, id)| {
+            let scene_box = self.box_index.get(id as usize).map(|&b| b as usize);
+            (range, scene_box)
+        })
+    }
+
+    /// The range and the object the ray met ([`GROUND`] for the ground).
+    fn cast_object(
+        &self,
+        origin: &Vector3<f64>,
+        dir: &Vector3<f64>,
+        max_range: f64,
+    ) -> Option<(f64, u32)> {
         let objects = &self.sectors[sector_of(dir)];
-        let (mut best, mut hit) = (max_range, false);
+        let (mut best, mut hit) = (max_range, None);
         let Some(t) = self.terrain else {
             // Flat ground: one division, so first, and the objects only nearer than it.
             if let Some(s) = self.ground(origin, dir, best) {
-                (best, hit) = (s, true);
+                (best, hit) = (s, Some(GROUND));
             }
             self.hit_objects(objects, origin, dir, f64::INFINITY, &mut best, &mut hit);
-            return hit.then_some(best);
+            return hit.map(|id| (best, id));
         };
         // Terrain costs a few dozen sines a ray to trace, so the objects first, those short of
         // where a falling ray has sunk below the terrain's lowest point (it has met the
@@ -372,7 +404,7 @@ impl Prepared {
         };
         let stopped = self.hit_objects(objects, origin, dir, sunk, &mut best, &mut hit);
         match self.ground(origin, dir, best) {
-            Some(s) => (best, hit) = (s, true),
+            Some(s) => (best, hit) = (s, Some(GROUND)),
             // The tracing gave up (it stops after 200 steps): the objects past the bound too.
             None => {
                 self.hit_objects(
@@ -385,7 +417,7 @@ impl Prepared {
                 );
             }
         }
-        hit.then_some(best)
+        hit.map(|id| (best, id))
     }
 
     /// Tests the objects `ids` (nearest first) in turn, keeping in `best` the nearest hit
@@ -397,7 +429,7 @@ impl Prepared {
         dir: &Vector3<f64>,
         bound: f64,
         best: &mut f64,
-        hit: &mut bool,
+        hit: &mut Option<u32>,
     ) -> usize {
         for (k, &id) in ids.iter().enumerate() {
             let id = id as usize;
@@ -413,7 +445,7 @@ impl Prepared {
                     .and_then(|sp| hit_sphere(sp, origin, dir)),
             };
             if let Some(s) = s.filter(|&s| s < *best) {
-                (*best, *hit) = (s, true);
+                (*best, *hit) = (s, Some(id as u32));
             }
         }
         ids.len()

@@ -344,21 +344,9 @@ fn poses_along(
     half: [f64; 2],
     round: bool,
 ) -> Vec<Pose> {
-    let mut cum = vec![0.0];
-    for w in path.windows(2) {
-        cum.push(cum[cum.len() - 1] + (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]));
-    }
-    let total = cum[cum.len() - 1];
-    let at = |s: f64| {
-        let s = if round { s.rem_euclid(total) } else { s };
-        let i = cum.partition_point(|&c| c <= s).clamp(1, path.len() - 1);
-        let f = ((s - cum[i - 1]) / (cum[i] - cum[i - 1]).max(1e-9)).clamp(0.0, 1.0);
-        let (a, b) = (path[i - 1], path[i]);
-        (
-            [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])],
-            (b[1] - a[1]).atan2(b[0] - a[0]),
-        )
-    };
+    let line = Polyline::new(path, round);
+    let total = line.total();
+    let at = |s: f64| line.at(s);
     // Curvature near s: heading change over the next 15 m.
     let cornering = |s: f64| {
         let (_, h0) = at(s);
@@ -395,6 +383,54 @@ fn poses_along(
         s += v * 0.1;
     }
     poses
+}
+
+/// A path as a curve by arc length: where along it, and which way it heads, `s` metres from
+/// its start (a closed path wraps round; an open one is held at its ends).
+#[derive(Debug, Clone)]
+pub struct Polyline {
+    path: Vec<[f64; 2]>,
+    /// Arc length at each point of `path`.
+    cum: Vec<f64>,
+    closed: bool,
+}
+
+impl Polyline {
+    /// `path` (at least two points) as a curve; `closed`: driven on past its end from its start.
+    pub fn new(path: Vec<[f64; 2]>, closed: bool) -> Self {
+        let mut cum = vec![0.0];
+        for w in path.windows(2) {
+            cum.push(cum[cum.len() - 1] + (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]));
+        }
+        Polyline { path, cum, closed }
+    }
+
+    /// Whether it wraps round.
+    pub fn closed(&self) -> bool {
+        self.closed
+    }
+
+    /// Its length (metres).
+    pub fn total(&self) -> f64 {
+        self.cum[self.cum.len() - 1]
+    }
+
+    /// The point `s` metres along and the heading there (radians).
+    pub fn at(&self, s: f64) -> ([f64; 2], f64) {
+        let (path, cum) = (&self.path, &self.cum);
+        let s = if self.closed {
+            s.rem_euclid(self.total())
+        } else {
+            s
+        };
+        let i = cum.partition_point(|&c| c <= s).clamp(1, path.len() - 1);
+        let f = ((s - cum[i - 1]) / (cum[i] - cum[i - 1]).max(1e-9)).clamp(0.0, 1.0);
+        let (a, b) = (path[i - 1], path[i]);
+        (
+            [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])],
+            (b[1] - a[1]).atan2(b[0] - a[0]),
+        )
+    }
 }
 
 /// How a hand-held rig or a drone moves along [`route`]: 2 scans a second, the walking or
@@ -491,21 +527,13 @@ pub const CARRIED_HZ: f64 = 2.0;
 /// `max_turn_deg` each scan (kept within `max_look_deg`), and pitch and roll swing
 /// sinusoidally; deterministic from `seed`.
 pub fn carried_poses(scene: &Scene, frames: usize, how: Carried, seed: u64) -> Vec<Pose> {
-    let path = route();
-    let mut cum = vec![0.0];
-    for w in path.windows(2) {
-        cum.push(cum[cum.len() - 1] + (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]));
-    }
+    let line = Polyline::new(route(), false);
     let mut rng = SplitMix64(seed);
     let mut look = 0.0f64;
     (0..frames)
         .map(|k| {
-            let s = (k as f64 * how.speed_m_s / CARRIED_HZ).min(cum[cum.len() - 1]);
-            let i = cum.partition_point(|&c| c <= s).clamp(1, path.len() - 1);
-            let f = ((s - cum[i - 1]) / (cum[i] - cum[i - 1]).max(1e-9)).clamp(0.0, 1.0);
-            let (a, b) = (path[i - 1], path[i]);
-            let (x, y) = (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]));
-            let along = (b[1] - a[1]).atan2(b[0] - a[0]);
+            let s = (k as f64 * how.speed_m_s / CARRIED_HZ).min(line.total());
+            let ([x, y], along) = line.at(s);
             if k > 0 {
                 look = (look + rng.range(-how.max_turn_deg, how.max_turn_deg))
                     .clamp(-how.max_look_deg, how.max_look_deg);
