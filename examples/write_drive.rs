@@ -250,7 +250,10 @@ fn with_traffic(flags: &Flags, drive: Drive, seed: u64) -> Drive {
         .iter()
         .map(|p| [p.translation.x, p.translation.y])
         .collect();
-    let length: f64 = path.windows(2).map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1])).sum();
+    let length: f64 = path
+        .windows(2)
+        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+        .sum();
     let traffic = Traffic::street(path, false, length, TrafficCounts::TOWN, seed);
     drive.with_traffic(traffic)
 }

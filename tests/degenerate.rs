@@ -32,6 +32,7 @@ fn drive(scene: Scene, frames: usize, step_m: f64, max_range_m: f64) -> Drive {
         period_s: 0.1,
         imu: None,
         shake: None,
+        traffic: None,
     }
 }
 

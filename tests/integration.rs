@@ -18,6 +18,7 @@ mod degenerate;
 mod demo;
 mod deskew;
 mod docs_examples;
+mod dynamic;
 mod first_scan;
 mod hard_motion;
 mod health;

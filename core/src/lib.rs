@@ -59,6 +59,7 @@ pub mod bucket;
 pub mod capacity;
 pub mod cell;
 pub mod cell_table;
+pub mod clearing;
 pub mod config;
 pub mod deskew;
 pub mod executor;

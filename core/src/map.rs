@@ -231,6 +231,22 @@ impl MeshMap {
         })
     }
 
+    /// Shows each layer in turn to `f`, to change, in the map's deterministic order; the
+    /// cells' last-seen frames are left as they are.
+    pub fn update_layers(&mut self, mut f: impl FnMut(&CellKey, Axis, &mut Layer)) {
+        let pool = &mut self.pool;
+        for (key, cell) in self.cells.iter() {
+            for axis in Axis::ALL {
+                let Some(&slot) = cell.layers.get(axis.index()) else {
+                    continue;
+                };
+                if let Some(layer) = pool.get_mut(slot as usize) {
+                    f(&key, axis, layer);
+                }
+            }
+        }
+    }
+
     /// Every cell with its key, in the map's deterministic order.
     pub fn cells(&self) -> impl Iterator<Item = (CellKey, MapCell)> + '_ {
         self.cells.iter()

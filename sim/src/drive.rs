@@ -4,11 +4,11 @@ use crate::imu::{ImuModel, Vibration};
 use crate::lidar::Lidar;
 use crate::scene::Scene;
 use crate::traffic::{Label, Traffic};
-use std::borrow::Cow;
 use nalgebra::{Point3, Translation3, UnitQuaternion};
 use slamesh_core::math::{se3_exp, se3_log};
 use slamesh_core::random::SplitMix64;
 use slamesh_core::{Point, Pose};
+use std::borrow::Cow;
 
 /// A level sensor pose: position (metres) and heading about z (degrees).
 pub fn sensor_pose(x: f64, y: f64, z: f64, yaw_deg: f64) -> Pose {
@@ -317,10 +317,9 @@ impl Drive {
                 let n = p.len();
                 (p, vec![0.0; n], hits)
             }
-            Some(period) => {
-                self.lidar
-                    .scan_rolling_hits(&scene, |t| self.pose_after(i, t), period)
-            }
+            Some(period) => self
+                .lidar
+                .scan_rolling_hits(&scene, |t| self.pose_after(i, t), period),
         };
         let first_mover = self.scene.boxes.len();
         let mut labels: Vec<Label> = hits

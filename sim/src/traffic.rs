@@ -62,11 +62,6 @@ impl Label {
             Label::MovingPerson => 254,
         }
     }
-
-    /// Whether a SemanticKITTI label (its lower 16 bits) is a moving class.
-    pub fn is_moving(label: u32) -> bool {
-        (label & 0xffff) >= 250
-    }
 }
 
 /// Movers along one path through a scene.
@@ -150,11 +145,15 @@ impl Traffic {
         };
         for _ in 0..counts.same_way {
             let (at, speed) = (rng.range(15.0, reach_m), rng.range(6.0, 12.0));
-            traffic.movers.push(car(SAME_WAY_LANE_M, at, speed, MoverKind::Car));
+            traffic
+                .movers
+                .push(car(SAME_WAY_LANE_M, at, speed, MoverKind::Car));
         }
         for _ in 0..counts.oncoming {
             let (at, speed) = (rng.range(30.0, 2.0 * reach_m), rng.range(7.0, 12.0));
-            traffic.movers.push(car(ONCOMING_LANE_M, at, -speed, MoverKind::Car));
+            traffic
+                .movers
+                .push(car(ONCOMING_LANE_M, at, -speed, MoverKind::Car));
         }
         for k in 0..counts.pedestrians {
             let side = if k % 2 == 0 { 1.0 } else { -1.0 };
@@ -240,7 +239,10 @@ mod tests {
             assert!((moved - expected).abs() < 1e-9, "{m:?}: {moved}");
         }
         // A parked car pulls out once its time has come.
-        let leaving = traffic.movers.iter().position(|m| m.kind == MoverKind::Leaving);
+        let leaving = traffic
+            .movers
+            .iter()
+            .position(|m| m.kind == MoverKind::Leaving);
         let k = leaving.expect("a parked car");
         let m = traffic.movers[k];
         let gone = traffic.boxes_at(&scene, m.start_s + 1.0)[k].expect("on the path");
@@ -249,11 +251,8 @@ mod tests {
 
     #[test]
     fn labels_are_semantic_kitti_s_moving_classes() {
-        assert!(!Label::is_moving(Label::Static.semantic_kitti()));
-        assert!(Label::is_moving(Label::MovingCar.semantic_kitti()));
-        assert!(Label::is_moving(Label::MovingPerson.semantic_kitti()));
-        // The upper 16 bits are an instance id.
-        assert!(Label::is_moving((7 << 16) | 252));
-        assert!(!Label::is_moving((7 << 16) | 10));
+        assert_eq!(Label::Static.semantic_kitti(), 0);
+        assert_eq!(Label::MovingCar.semantic_kitti(), 252);
+        assert_eq!(Label::MovingPerson.semantic_kitti(), 254);
     }
 }

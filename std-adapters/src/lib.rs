@@ -31,6 +31,7 @@
 pub mod cli;
 #[cfg(feature = "sim")]
 pub mod demo;
+pub mod dynamic;
 pub mod eval;
 pub mod formats;
 pub mod inertial;

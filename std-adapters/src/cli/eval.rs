@@ -3,6 +3,7 @@
 
 use crate::cli::error::CliError;
 use crate::cli::run::read_given_poses;
+use crate::eval::dynamic::{is_moving_label, score_dynamic, LabelledCloud};
 use crate::eval::mesh as mesh_eval;
 use crate::eval::odometry::{self as eval, consecutive_errors, ConsecutiveErrors, SegmentError};
 use crate::eval::topology::Topology;
@@ -31,6 +32,12 @@ pub struct EvalArgs {
     /// The reference point cloud for --mesh (PLY, PCD or KITTI .bin, world frame).
     #[arg(long, requires = "mesh")]
     pub cloud: Option<PathBuf>,
+    /// Score --mesh against a KITTI sequence's labelled scans (SemanticKITTI's
+    /// labels/NNNNNN.label beside velodyne/, moving classes from 252; `write_drive --movers`
+    /// writes them): the mesh's ghost area, SA, DA and AA (the KTH DynamicMap benchmark's
+    /// measures on the mesh's samples) and its static F1 at 0.1 m.
+    #[arg(long, value_name = "KITTI_SEQUENCE", requires = "mesh")]
+    pub dynamic: Option<PathBuf>,
     /// Build a reference cloud from a KITTI sequence (its scans at its reference poses,
     /// one point per 5 cm, ranges 1.2-100 m) and write it to FILE.ply.
     #[arg(long, value_names = ["KITTI_SEQUENCE", "FILE"], num_args = 2)]
@@ -65,6 +72,10 @@ enum Mode<'a> {
         mesh: &'a Path,
         cloud: Option<&'a Path>,
     },
+    Dynamic {
+        mesh: &'a Path,
+        sequence: &'a Path,
+    },
 }
 
 impl EvalArgs {
@@ -80,9 +91,13 @@ impl EvalArgs {
                 reference,
             });
         }
-        if let Some(mesh) = &self.mesh {
-            let cloud = self.cloud.as_deref();
-            modes.push(Mode::Mesh { mesh, cloud });
+        match (&self.mesh, &self.dynamic) {
+            (Some(mesh), Some(sequence)) => modes.push(Mode::Dynamic { mesh, sequence }),
+            (Some(mesh), None) => {
+                let cloud = self.cloud.as_deref();
+                modes.push(Mode::Mesh { mesh, cloud });
+            }
+            _ => {}
         }
         modes
     }
@@ -120,6 +135,7 @@ pub fn eval(args: &EvalArgs) -> Result<(), CliError> {
                 cloud: Some(cloud),
             } => mesh_scores(mesh, cloud, args.json)?,
             Mode::Mesh { mesh, cloud: None } => mesh_topology(mesh, args.json)?,
+            Mode::Dynamic { mesh, sequence } => dynamic_scores(mesh, sequence, args.json)?,
         }
     }
     Ok(())
@@ -323,6 +339,76 @@ fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
         out.display()
     );
     Ok(())
+}
+
+/// `--mesh` against the labelled scans of `sequence` ([`crate::eval::dynamic`]).
+fn dynamic_scores(mesh: &Path, sequence: &Path, json: bool) -> Result<(), CliError> {
+    let m = ply::read_ply_mesh(mesh)?;
+    let scans = ScanFolder::open(sequence)?;
+    let poses = kitti::reference_lidar_poses(&kitti::sequence_folder(sequence))?;
+    if poses.len() < scans.paths.len() {
+        return Err(CliError::TooFewPoses {
+            sequence: sequence.display().to_string(),
+            poses: poses.len(),
+            scans: scans.paths.len(),
+        });
+    }
+    let mut frames = Vec::new();
+    for (path, pose) in scans.paths.iter().zip(&poses) {
+        let points = read_scan(path)?;
+        let moving = read_labels(path, points.len())?;
+        frames.push((points, moving, *pose));
+    }
+    let truth = LabelledCloud::accumulate(frames, 1.2, 100.0);
+    let triangles: Vec<[slamesh_core::Point; 3]> = m.triangle_corners().collect();
+    let s = score_dynamic(&triangles, &truth);
+    if json {
+        say!("{}", serde_json::to_string(&s).unwrap_or_default());
+        return Ok(());
+    }
+    say!(
+        "truth: {} static and {} moving points (one per 10 cm cube)",
+        truth.static_points.len(),
+        truth.moving.len()
+    );
+    say!(
+        "SA {:.2} %, DA {:.2} %, AA {:.2} %; ghost area {:.1} m² of {:.1} m² (static {:.1} m², \
+         near no truth {:.1} m²); static F1 at 0.1 m {:.3}",
+        100.0 * s.sa,
+        100.0 * s.da,
+        100.0 * s.aa,
+        s.ghost_m2,
+        s.ghost_m2 + s.static_m2 + s.unmatched_m2,
+        s.static_m2,
+        s.unmatched_m2,
+        s.static_f1
+    );
+    Ok(())
+}
+
+/// Whether each of a scan's `n` points moved: its SemanticKITTI labels, `labels/STEM.label`
+/// beside the scan's folder (one little-endian `u32` a point).
+fn read_labels(scan: &Path, n: usize) -> Result<Vec<bool>, crate::io::FileError> {
+    let stem = scan.file_stem().unwrap_or_default().to_string_lossy();
+    let folder = scan
+        .parent()
+        .and_then(Path::parent)
+        .unwrap_or(Path::new("."));
+    let path = folder.join("labels").join(format!("{stem}.label"));
+    let bytes = std::fs::read(&path).map_err(|e| crate::io::FileError::at(&path, e.to_string()))?;
+    if bytes.len() != 4 * n {
+        return Err(crate::io::FileError::at(
+            &path,
+            format!(
+                "{} bytes: not one u32 label for each of the scan's {n} points",
+                bytes.len()
+            ),
+        ));
+    }
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|b| is_moving_label(u32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+        .collect())
 }
 
 /// A KITTI sequence folder's LiDAR poses, with its `times.txt` as their times when it has

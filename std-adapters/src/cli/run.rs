@@ -20,6 +20,7 @@ use crate::run::session::{Deskew, InitialPose};
 use crate::run::sink::FnSink;
 use crate::run::{run_to, FrameEvent, FrameSource, Input, RunOptions, Sinks, Summary};
 use clap::Args;
+use slamesh_core::clearing::ClearingConfig;
 use std::path::{Path, PathBuf};
 
 /// `slamesh run`'s arguments (and most of `slamesh mesh`'s).
@@ -107,6 +108,11 @@ pub struct RunArgs {
     /// without --update) or when resuming (then off, and the log says why).
     #[arg(long, value_enum)]
     pub loop_closure: Option<OnOff>,
+    /// Take what moves out of the map as the run goes (cars that drove past, people who
+    /// walked by, parked cars that left): map surfaces the scans' rays see through, frame
+    /// after frame, are hidden from the mesh and the navigation map.
+    #[arg(long, value_enum, value_name = "ON|OFF")]
+    pub dynamic: Option<OnOff>,
     /// Serve a live view for the Foxglove app on ADDR (default 127.0.0.1:8765, this machine
     /// only; reach it from a laptop through an SSH tunnel). It only publishes. Needs a build
     /// with the feature `view` (`cargo install --path std-adapters --features view`).
@@ -497,6 +503,7 @@ fn run_options(
         initial_pose: args.initial_pose,
         save_map: args.save_map.clone(),
         loop_closure: None,
+        dynamic: (args.dynamic == Some(OnOff::On)).then(ClearingConfig::default),
         navmap: args.navmap.then(|| args.robot.options()),
         deskew: match args.deskew {
             DeskewFlag::Auto => Deskew::Auto,

@@ -136,7 +136,7 @@ pub fn accumulate(
 }
 
 /// A voxel hash of points for radius queries.
-mod voxel_index {
+pub(crate) mod voxel_index {
     use slamesh_core::Point;
     use std::collections::HashMap;
 

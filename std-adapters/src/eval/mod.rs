@@ -5,11 +5,13 @@
 //! |---|---|
 //! | consecutive-frame errors, end-point drift, ATE, KITTI segment errors | [`odometry`] |
 //! | mesh precision, recall and F-score against a point cloud | [`mesh`] |
+//! | what of the movers a mesh kept, against labelled scans (ghost area, SA, DA) | [`dynamic`] |
 //! | a mesh's boundary and non-manifold edges, and its connected pieces | [`topology`] |
 //! | why a welded mesh has boundary edges, edge by edge | [`seams`] |
 //! | one surface mapped twice (a loop left open) | [`duplicates`] |
 
 pub mod duplicates;
+pub mod dynamic;
 pub mod mesh;
 pub mod odometry;
 pub mod seams;

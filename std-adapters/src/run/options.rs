@@ -64,6 +64,9 @@ pub struct RunOptions {
     /// Also write a navigation map (`--navmap`: Nav2's `map.yaml` + `map.pgm`, the elevation
     /// grids, [`crate::navmap`]) from the mesh at the end.
     pub navmap: Option<crate::navmap::NavMapOptions>,
+    /// Clear from the map what the scans see through (`--dynamic`, [`crate::dynamic`]):
+    /// cars and people that moved on; `None`: off.
+    pub dynamic: Option<slamesh_core::clearing::ClearingConfig>,
     /// What to do with an IMU's readings when the source gives them (`--imu`,
     /// [`crate::inertial`]): by default, use them.
     pub imu: crate::inertial::ImuOptions,

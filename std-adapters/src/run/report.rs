@@ -97,6 +97,10 @@ pub struct FrameRecord {
     /// What the IMU did for the frame (absent when no reading came yet).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub imu: Option<crate::inertial::ImuFrame>,
+    /// Map vertices this frame's rays saw through for the last time, forgotten
+    /// (`--dynamic` on only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cleared_vertices: Option<u32>,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -137,6 +141,7 @@ impl FrameRecord {
             latency_ms: None,
             samples: 0,
             imu: None,
+            cleared_vertices: None,
         }
     }
 
@@ -214,6 +219,9 @@ pub struct Summary {
     /// What the IMU did, when readings came ([`crate::inertial`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub imu: Option<crate::inertial::ImuSummary>,
+    /// What clearing what moves did (`--dynamic` on only, [`crate::dynamic`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dynamic: Option<crate::dynamic::DynamicSummary>,
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,

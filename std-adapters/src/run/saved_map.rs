@@ -150,6 +150,34 @@ pub fn info(config: &Config, preset: &str, frames: u32) -> MapInfo {
     }
 }
 
+/// Finishes the map file being written (`saved`, from `--save-map`, shown as `shown_as`):
+/// the cells still in `map`, the path of the map the run started from (`start`) followed by
+/// this run's (`stamped` poses).
+pub(super) fn finish(
+    saved: Option<crate::formats::map_file::MapWriter>,
+    mut start: Vec<(f64, Pose)>,
+    map: &slamesh_core::map::MeshMap,
+    stamped: impl Iterator<Item = (f64, Pose)>,
+    frames_seen: u32,
+    shown_as: &std::path::Path,
+) -> Result<(), crate::run::RunError> {
+    let Some(mut saved) = saved else {
+        return Ok(());
+    };
+    saved.add_map(map)?;
+    start.extend(stamped);
+    saved.set_frames(frames_seen);
+    let stats = saved.finish(&start)?;
+    log::info!(
+        "map saved to {}: {} cells, {} layers, {:.1} MB",
+        shown_as.display(),
+        stats.cells,
+        stats.layers,
+        stats.bytes as f64 / 1e6
+    );
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

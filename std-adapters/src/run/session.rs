@@ -12,6 +12,7 @@
 //! frames; with `resume`, a killed run continues from its last checkpoint and ends with the
 //! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
 
+use crate::dynamic::Clearing;
 use crate::formats::map_file::MapWriter;
 use crate::formats::mesh_records::VertexProperties;
 use crate::inertial::Inertial;
@@ -145,6 +146,8 @@ pub struct Run<'a, C: Capacity> {
     /// What the map the run started from kept beside it ([`floor_file`]; with `navmap`
     /// only), read at the start: a save during the run may replace that file.
     pub(super) carried_floor: Option<FloorFile>,
+    /// What moves, cleared from the map after each fused frame (`--dynamic`).
+    pub(super) clearing: Option<Clearing>,
     /// The last used frame's own points, for its event's map update
     /// ([`hand_own_points`](Self::hand_own_points)); `None`: not kept.
     pub(super) own_points: Option<Vec<Point>>,
@@ -260,6 +263,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             .and(opts.map.as_deref())
             .and_then(|m| floor_file::read_beside(m, &map_path));
         Ok(Run {
+            clearing: opts.dynamic.map(Clearing::new),
             hits,
             carried_floor,
             own_points: None,
@@ -417,7 +421,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         let start = std::mem::take(&mut self.map_path);
         let carried = self.carried_floor.take();
         let floors = scans_floor(&self.opts, &start, &stamps, self.hits.take(), carried);
-        save_map(
+        saved_map::finish(
             self.saved_map.take(),
             start,
             &map,
@@ -453,6 +457,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             input: source.input_report(),
             navmap,
             imu: self.inertial.summary(),
+            dynamic: self.clearing.as_ref().map(Clearing::totals),
             poses,
             stamps,
         };
@@ -568,32 +573,4 @@ fn write_mesh(
     let counts = spool.finish_with(&outputs, extra)?;
     drop(layers);
     Ok((counts, navmap.map(|(s, _, _)| s)))
-}
-
-/// Finishes the map file being written (`saved`, from `--save-map`, shown as `shown_as`):
-/// the cells still in `map`, the path of the map the run started from (`start`) followed by
-/// this run's (`stamped` poses).
-fn save_map(
-    saved: Option<MapWriter>,
-    mut start: Vec<(f64, Pose)>,
-    map: &slamesh_core::map::MeshMap,
-    stamped: impl Iterator<Item = (f64, Pose)>,
-    frames_seen: u32,
-    shown_as: &std::path::Path,
-) -> Result<(), RunError> {
-    let Some(mut saved) = saved else {
-        return Ok(());
-    };
-    saved.add_map(map)?;
-    start.extend(stamped);
-    saved.set_frames(frames_seen);
-    let stats = saved.finish(&start)?;
-    log::info!(
-        "map saved to {}: {} cells, {} layers, {:.1} MB",
-        shown_as.display(),
-        stats.cells,
-        stats.layers,
-        stats.bytes as f64 / 1e6
-    );
-    Ok(())
 }

@@ -370,6 +370,14 @@ impl<C: Capacity> Run<'_, C> {
         o: &slamesh_core::ScanOutcome,
         rec: &mut FrameRecord,
     ) -> Result<(), RunError> {
+        if let Some(c) = &mut self.clearing {
+            let t = Instant::now();
+            rec.cleared_vertices = Some(
+                c.after_fusion(&mut self.pipeline, &o.t_world_sensor)
+                    .forgotten,
+            );
+            rec.ms.update += t.elapsed().as_secs_f64() * 1e3;
+        }
         let t = Instant::now();
         rec.triangles_updated = updated_triangles(&self.pipeline, &self.workers);
         rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;

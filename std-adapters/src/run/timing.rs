@@ -20,7 +20,7 @@ pub struct StageMs {
     pub associate: f64,
     /// Levenberg-Marquardt (all rounds).
     pub solve: f64,
-    /// Map fusion.
+    /// Map fusion, and clearing what the scan sees through (`--dynamic`).
     pub update: f64,
     /// Mesh extraction of the cells this scan updated.
     pub mesh: f64,

@@ -1,0 +1,73 @@
+//! What moves, taken out of the map as the run goes, a room of its own below `run`
+//! (docs/design.md §1.20): after each fused frame, the frame's kept points fill a
+//! [`RangeImage`] and the map's vertices they see through lose their confidence, until what
+//! moved away (a car that drove on, a person who walked past, a parked car that left) is
+//! hidden and forgotten ([`slamesh_core::clearing`]). The mesh, the map file and the
+//! navigation map made from the map at the end hold what stayed.
+//!
+//! It owns the range image (a fixed 92 KB, taken when the run starts) and the run's totals.
+//! It guarantees that a run without it writes the same bytes as before it existed, and that
+//! with it the map is the same on any thread count (serial, in the map's order).
+
+use slamesh_core::clearing::{ClearingConfig, ClearingStats, RangeImage};
+use slamesh_core::{Capacity, Pipeline, Pose};
+
+/// The clearing of a run: its range image, settings and totals.
+#[derive(Debug)]
+pub struct Clearing {
+    image: RangeImage,
+    config: ClearingConfig,
+    totals: ClearingStats,
+}
+
+/// A run clears on every this many frames (the frame counter's multiples): half the cost of
+/// every frame, for 5 % more ghost area left on the simulated town with movers
+/// (docs/benchmarks.md).
+pub const CLEAR_EVERY_FRAMES: u32 = 2;
+
+/// What clearing did over a run, for `report.json`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct DynamicSummary {
+    /// Sightings through map vertices (each raised a vertex's variance).
+    pub seen_through: u32,
+    /// Vertices forgotten.
+    pub forgotten: u32,
+}
+
+/// The bytes a run's clearing holds: its range image.
+pub const CLEARING_BYTES: usize = RangeImage::BINS * std::mem::size_of::<f32>();
+
+impl Clearing {
+    /// A clearing with `config`, its range image allocated now.
+    pub fn new(config: ClearingConfig) -> Self {
+        Self {
+            image: RangeImage::new(),
+            config,
+            totals: ClearingStats::default(),
+        }
+    }
+
+    /// On every [`CLEAR_EVERY_FRAMES`]th frame, clears from `pipeline`'s map what its last
+    /// scan, fused at `t_world_sensor`, sees through.
+    pub fn after_fusion<C: Capacity>(
+        &mut self,
+        pipeline: &mut Pipeline<C>,
+        t_world_sensor: &Pose,
+    ) -> ClearingStats {
+        if !pipeline.frames().is_multiple_of(CLEAR_EVERY_FRAMES) {
+            return ClearingStats::default();
+        }
+        let s = pipeline.clear_seen_through(t_world_sensor, &mut self.image, &self.config);
+        self.totals.seen_through = self.totals.seen_through.saturating_add(s.seen_through);
+        self.totals.forgotten = self.totals.forgotten.saturating_add(s.forgotten);
+        s
+    }
+
+    /// What it did over the run so far.
+    pub fn totals(&self) -> DynamicSummary {
+        DynamicSummary {
+            seen_through: self.totals.seen_through,
+            forgotten: self.totals.forgotten,
+        }
+    }
+}
