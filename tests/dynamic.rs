@@ -1,4 +1,4 @@
-//! What moves, taken out of the map (`--dynamic`, docs/design.md §1.20): a simulated town
+//! What moves, taken out of the map (`--dynamic`, docs/design.md §1.21): a simulated town
 //! drive with cars in both lanes, people on the sidewalks and parked cars that pull out
 //! (`slamesh_sim::traffic`, 5 % of the points on movers), scored by the truth of every point
 //! (`slamesh::eval::dynamic`): the mesh's ghost area, SA and DA, with clearing and without.

@@ -1,4 +1,4 @@
-//! Free space seen through the map: what moved away is taken out of it (docs/design.md §1.19).
+//! Free space seen through the map: what moved away is taken out of it (docs/design.md §1.21).
 //!
 //! A scan's rays tell where space is empty: everything along a ray short of its return. A map
 //! vertex the current scan's rays pass well beyond, all around it, is a surface that is no

@@ -12,7 +12,6 @@ use crate::bounded::BoundedVec;
 use crate::bucket::{bucket, BucketStats, CellSpan, Placement};
 use crate::capacity::{Capacity, KittiCapacity};
 use crate::cell::CellKey;
-use crate::clearing::{self, ClearingConfig, ClearingStats, RangeImage};
 use crate::config::Config;
 #[cfg(any(feature = "alloc", test))]
 use crate::config::ConfigError;
@@ -31,6 +30,7 @@ use crate::sort::KeySorter;
 use crate::stage::{Probe, Stage};
 use core::marker::PhantomData;
 
+mod clear;
 mod outcome;
 mod register;
 mod relocalize;
@@ -152,23 +152,6 @@ impl<C: Capacity, R: Real> Pipeline<C, R> {
     /// registered and fused with).
     pub fn last_points(&self) -> &[Point] {
         &self.points
-    }
-
-    /// Clears from the map what the last scan's points, fused at `t_world_sensor` (its
-    /// outcome's pose), see through ([`crate::clearing`]), filling `image` with them first.
-    /// Nothing is cleared in a fixed map ([`set_map_updates`](Self::set_map_updates) off).
-    pub fn clear_seen_through(
-        &mut self,
-        t_world_sensor: &Pose,
-        image: &mut RangeImage,
-        cfg: &ClearingConfig,
-    ) -> ClearingStats {
-        if !self.map_updates {
-            return ClearingStats::default();
-        }
-        image.fill(&self.points);
-        let show = self.config.mesh.variance_show as f32;
-        clearing::clear_seen_through(&mut self.map, image, t_world_sensor, show, cfg)
     }
 
     /// The configuration.

@@ -1,5 +1,5 @@
 //! What moves, taken out of the map as the run goes, a room of its own below `run`
-//! (docs/design.md §1.20): after each fused frame, the frame's kept points fill a
+//! (docs/design.md §1.21): after each fused frame, the frame's kept points fill a
 //! [`RangeImage`] and the map's vertices they see through lose their confidence, until what
 //! moved away (a car that drove on, a person who walked past, a parked car that left) is
 //! hidden and forgotten ([`slamesh_core::clearing`]). The mesh, the map file and the
