@@ -21,7 +21,7 @@ pub struct Clearing {
 }
 
 /// A run clears on every this many frames (the frame counter's multiples): half the cost of
-/// every frame, for 5 % more ghost area left on the simulated town with movers
+/// every frame, for 6 % more ghost area left on the simulated town with movers
 /// (docs/benchmarks.md).
 pub const CLEAR_EVERY_FRAMES: u32 = 2;
 
