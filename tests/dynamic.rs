@@ -4,7 +4,7 @@
 //! (`slamesh::eval::dynamic`): the mesh's ghost area, SA and DA, with clearing and without.
 
 use crate::common::scratch;
-use crate::common::test_run_options;
+use crate::common::{slamesh, test_run_options, write_bin};
 use slamesh::eval::dynamic::{score_dynamic, DynamicScore, LabelledCloud};
 use slamesh::formats::ply::read_ply_mesh;
 use slamesh::io::error::FileError;
@@ -119,4 +119,56 @@ fn clearing_keeps_a_still_world() {
     assert!(on.static_f1 > off.static_f1 - 0.02, "{off:?}\n{on:?}");
     let area = |s: &DynamicScore| s.static_m2 + s.unmatched_m2;
     assert!(area(&on) > 0.98 * area(&off), "{off:?}\n{on:?}");
+}
+
+/// `eval --dynamic` names the labels file it lacks, and one that does not hold a label for
+/// each of its scan's points.
+#[test]
+fn eval_dynamic_names_missing_and_short_label_files() {
+    let dir = scratch("dynamic-eval");
+    let sequence = dir.join("seq");
+    std::fs::create_dir_all(sequence.join("velodyne")).unwrap();
+    write_bin(
+        &sequence.join("velodyne/000000.bin"),
+        &[[5.0, 0.0, 0.0]; 10],
+    );
+    std::fs::write(sequence.join("poses.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n").unwrap();
+    std::fs::write(sequence.join("calib.txt"), "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n").unwrap();
+    let mesh = dir.join("mesh.ply");
+    std::fs::write(
+        &mesh,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+         property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+         end_header\n5 0 0\n5 1 0\n5 0 1\n3 0 1 2\n",
+    )
+    .unwrap();
+    let args = ["eval", "--mesh", path(&mesh), "--dynamic", path(&sequence)];
+    let missing = slamesh(&args);
+    let said = String::from_utf8_lossy(&missing.stderr).to_string();
+    assert!(!missing.status.success());
+    assert!(
+        said.contains("labels/000000.label") && said.contains("the scan's labels"),
+        "{said}"
+    );
+    std::fs::create_dir_all(sequence.join("labels")).unwrap();
+    std::fs::write(sequence.join("labels/000000.label"), [0u8; 36]).unwrap();
+    let short = slamesh(&args);
+    let said = String::from_utf8_lossy(&short.stderr).to_string();
+    assert!(!short.status.success());
+    assert!(
+        said.contains("36 bytes") && said.contains("10 points"),
+        "{said}"
+    );
+    std::fs::write(sequence.join("labels/000000.label"), [0u8; 40]).unwrap();
+    let scored = slamesh(&args);
+    assert!(
+        scored.status.success(),
+        "{}",
+        String::from_utf8_lossy(&scored.stderr)
+    );
+    assert!(String::from_utf8_lossy(&scored.stdout).contains("truth: 1 static and 0 moving"));
+}
+
+fn path(p: &std::path::Path) -> &str {
+    p.to_str().expect("a UTF-8 path")
 }

@@ -314,7 +314,9 @@ fn mesh_topology(mesh: &Path, json: bool) -> Result<(), CliError> {
     Ok(())
 }
 
-fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
+/// A KITTI sequence's scan files, each with its reference LiDAR pose; fewer poses than scans
+/// is an error.
+fn scans_at_poses(sequence: &Path) -> Result<Vec<(PathBuf, slamesh_core::Pose)>, CliError> {
     let scans = ScanFolder::open(sequence)?;
     let poses = kitti::reference_lidar_poses(&kitti::sequence_folder(sequence))?;
     if poses.len() < scans.paths.len() {
@@ -324,10 +326,14 @@ fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
             scans: scans.paths.len(),
         });
     }
+    Ok(scans.paths.into_iter().zip(poses).collect())
+}
+
+fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
     let mut frames = Vec::new();
-    for (path, pose) in scans.paths.iter().zip(&poses) {
-        match read_scan(path) {
-            Ok(points) => frames.push((points, *pose)),
+    for (path, pose) in scans_at_poses(sequence)? {
+        match read_scan(&path) {
+            Ok(points) => frames.push((points, pose)),
             Err(e) => log::warn!("skipped: {e}"),
         }
     }
@@ -344,20 +350,11 @@ fn build_reference(sequence: &Path, out: &Path) -> Result<(), CliError> {
 /// `--mesh` against the labelled scans of `sequence` ([`crate::eval::dynamic`]).
 fn dynamic_scores(mesh: &Path, sequence: &Path, json: bool) -> Result<(), CliError> {
     let m = ply::read_ply_mesh(mesh)?;
-    let scans = ScanFolder::open(sequence)?;
-    let poses = kitti::reference_lidar_poses(&kitti::sequence_folder(sequence))?;
-    if poses.len() < scans.paths.len() {
-        return Err(CliError::TooFewPoses {
-            sequence: sequence.display().to_string(),
-            poses: poses.len(),
-            scans: scans.paths.len(),
-        });
-    }
     let mut frames = Vec::new();
-    for (path, pose) in scans.paths.iter().zip(&poses) {
-        let points = read_scan(path)?;
-        let moving = read_labels(path, points.len())?;
-        frames.push((points, moving, *pose));
+    for (path, pose) in scans_at_poses(sequence)? {
+        let points = read_scan(&path)?;
+        let moving = read_labels(&path, points.len())?;
+        frames.push((points, moving, pose));
     }
     let truth = LabelledCloud::accumulate(frames, 1.2, 100.0);
     let triangles: Vec<[slamesh_core::Point; 3]> = m.triangle_corners().collect();
@@ -395,7 +392,10 @@ fn read_labels(scan: &Path, n: usize) -> Result<Vec<bool>, crate::io::FileError>
         .and_then(Path::parent)
         .unwrap_or(Path::new("."));
     let path = folder.join("labels").join(format!("{stem}.label"));
-    let bytes = std::fs::read(&path).map_err(|e| crate::io::FileError::at(&path, e.to_string()))?;
+    let bytes = std::fs::read(&path).map_err(|e| {
+        let what = "the scan's labels (SemanticKITTI's .label: a u32 a point)";
+        crate::io::FileError::at(&path, format!("{what}: {e}"))
+    })?;
     if bytes.len() != 4 * n {
         return Err(crate::io::FileError::at(
             &path,
