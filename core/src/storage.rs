@@ -43,6 +43,9 @@ impl Empty for i32 {
 impl Empty for u8 {
     const EMPTY: Self = 0;
 }
+impl Empty for f32 {
+    const EMPTY: Self = 0.0;
+}
 impl Empty for Point {
     const EMPTY: Self = [0.0; 3];
 }
