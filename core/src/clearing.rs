@@ -325,7 +325,6 @@ mod tests {
     use super::*;
     use crate::facing::Facing;
     use crate::lattice::Lattice;
-    use crate::layer::Layer;
 
     /// A wall of returns `range` m ahead (+x), 20 m wide and 10 m high.
     fn wall_at(range: f32) -> [[f32; 3]; 2000] {
@@ -430,8 +429,140 @@ mod tests {
         assert_eq!(at(90.0), None);
     }
 
+    /// A map with one layer along x in cell `(x, -1, -1)` at `pred` into the cell, its
+    /// vertices of variance 0.05.
+    fn map_with(x: i32, pred: f32) -> (MeshMap, CellKey) {
+        let (mut map, key) = map_with_layer_at(x);
+        map.update_layers(|_, _, l| l.pred = [pred; VERTICES]);
+        (map, key)
+    }
+
+    /// The vertices of the layer seen through once (variance raised from 0.05).
+    fn raised(map: &MeshMap, key: &CellKey) -> usize {
+        let layer = map.layer(key, Axis::X).expect("kept");
+        layer.var.iter().filter(|&&v| v > 0.06).count()
+    }
+
+    #[test]
+    fn a_vertex_is_seen_through_only_past_the_margin() {
+        let cfg = ClearingConfig::default();
+        let mut image = RangeImage::new();
+        // The surface at 8.8 m: returns from 9.3 m lie 0.5 m past it (the margin is 0.3 m and
+        // 3 % of 8.8 to 9.1 m); from 10 m, 1.2 m past.
+        for (wall, seen) in [(9.3, 0), (10.0, VERTICES)] {
+            let (mut map, key) = map_with(5, 0.8);
+            image.fill(&wall_at(wall));
+            clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+            assert_eq!(raised(&map, &key), seen, "returns at {wall} m");
+        }
+        // Its prediction places it: at 0.2 m into the cell (8.2 m), 9.3 m is past the margin.
+        let (mut map, key) = map_with(5, 0.2);
+        image.fill(&wall_at(9.3));
+        clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+        assert_eq!(raised(&map, &key), VERTICES);
+    }
+
+    #[test]
+    fn only_the_vertices_the_rays_pass_are_seen_through() {
+        // Near returns (6 m) straight ahead, within 0.45 m either side; far ones (20 m) beyond.
+        let mut points = alloc::vec::Vec::from(wall_at(20.0));
+        points.extend((0..1000).map(|k| {
+            let (i, j) = ((k % 10) as f32, (k / 10) as f32);
+            [6.0, -0.45 + 0.1 * i, -5.0 + 0.1 * j]
+        }));
+        let mut image = RangeImage::new();
+        image.fill(&points);
+        let (mut map, key) = map_with(5, 0.8);
+        clear_seen_through(
+            &mut map,
+            &image,
+            &Pose::identity(),
+            1.0,
+            &ClearingConfig::default(),
+        );
+        // The layer's y (its first lattice index) runs from -1.6 to 0 m: the near returns
+        // hide its vertices from y = -0.64 m up, three rows of six.
+        let layer = map.layer(&key, Axis::X).expect("kept");
+        for j in 0..VERTICES {
+            assert_eq!(layer.var[j] > 0.06, j / N < 3, "vertex {j}");
+        }
+    }
+
+    #[test]
+    fn the_sensor_s_place_and_the_range_s_end_hold() {
+        let cfg = ClearingConfig::default();
+        let mut image = RangeImage::new();
+        image.fill(&wall_at(120.0));
+        // A cell whose centre lies past 80 m, its nearest vertex at 80 m exactly.
+        let (mut map, key) = map_with(50, 0.0);
+        clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+        assert_eq!(raised(&map, &key), 1, "only the vertex at 80 m");
+        // The sensor 100 m along x: the layer 8.8 m ahead of it.
+        let (mut map, key) = map_with(67, 0.8);
+        image.fill(&wall_at(20.0));
+        let there = Pose::translation(98.4, 0.0, 0.0);
+        clear_seen_through(&mut map, &image, &there, 1.0, &cfg);
+        assert_eq!(raised(&map, &key), VERTICES);
+    }
+
+    #[test]
+    fn directions_fall_in_the_bins_of_their_angle_and_elevation() {
+        let root2 = libm::sqrtf(2.0);
+        // 45 degrees round: a diamond angle of 0.5, bin 45 of 360; level: bin 32 of 64.
+        assert_eq!(RangeImage::bin([1.0, 1.0, 0.0]), Some((45, 32, root2)));
+        assert_eq!(RangeImage::bin([-1.0, -1.0, 0.0]), Some((225, 32, root2)));
+        // The elevation's tangent in steps of 1.25 / 64 from -0.625.
+        let up = |tan: f32| RangeImage::bin([1.0, 0.0, tan]).map(|(_, e, _)| e);
+        assert_eq!(
+            (up(-0.62), up(-0.6), up(0.6), up(0.62)),
+            (Some(0), Some(1), Some(62), Some(63))
+        );
+        assert_eq!((up(-0.63), up(0.63)), (None, None));
+        // A return is found where it is and not in the bin mirrored across the axis.
+        let mut image = RangeImage::new();
+        image.fill(&[[1.0, 1.0, 0.0]]);
+        assert_eq!(image.around([2.0, 2.0, 0.0]), Some((root2, 2.0 * root2)));
+        assert_eq!(image.around([2.0, -2.0, 0.0]), None);
+        // Straight up or down, at the origin, or not finite: no bin.
+        for p in [
+            [0.0, 0.0, 1.0],
+            [0.0; 3],
+            [f32::NAN, 0.0, 0.0],
+            [f32::INFINITY, 1.0, 0.0],
+        ] {
+            assert_eq!(RangeImage::bin(p), None, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn an_image_in_the_caller_s_memory_is_one_from_the_allocator() {
+        let short: &'static mut [f32] = alloc::vec![0.0; RangeImage::BINS - 1].leak();
+        assert!(RangeImage::in_slice(short).is_none());
+        let slots: &'static mut [f32] = alloc::vec![0.0; RangeImage::BINS].leak();
+        let mut lent = RangeImage::in_slice(slots).expect("long enough");
+        let mut own = RangeImage::new();
+        for image in [&mut lent, &mut own] {
+            image.fill(&wall_at(7.0));
+        }
+        assert_eq!(&lent.near[..], &own.near[..]);
+        assert!(own.near.iter().any(|r| r.is_finite()));
+    }
+
     #[test]
     fn the_diamond_angle_grows_with_the_angle_round_the_turn() {
+        // A quarter turn apart: the diagonals at 0.5, 1.5, 2.5 and 3.5, and 30 degrees at
+        // sin / (sin + cos).
+        for (x, y, d) in [
+            (1.0, 1.0, 0.5),
+            (-1.0, 1.0, 1.5),
+            (-1.0, -1.0, 2.5),
+            (1.0, -1.0, 3.5),
+        ] {
+            assert!((diamond_angle(x, y) - d).abs() < 1e-6, "{x} {y}");
+        }
+        let a = core::f32::consts::FRAC_PI_6;
+        let (c, s) = (libm::cosf(a), libm::sinf(a));
+        assert!((diamond_angle(c, s) - s / (s + c)).abs() < 1e-6);
         let mut last = -1.0;
         for k in 0..3600 {
             let a = (k as f32 / 10.0).to_radians();

@@ -1,11 +1,12 @@
 //! What moves, taken out of the map as the run goes, a room of its own below `run`
-//! (docs/design.md §1.21): after each fused frame, the frame's kept points fill a
+//! (docs/design.md §1.21): after every second fused frame, that frame's kept points fill a
 //! [`RangeImage`] and the map's vertices they see through lose their confidence, until what
 //! moved away (a car that drove on, a person who walked past, a parked car that left) is
 //! hidden and forgotten ([`slamesh_core::clearing`]). The mesh, the map file and the
 //! navigation map made from the map at the end hold what stayed.
 //!
-//! It owns the range image (a fixed 92 KB, taken when the run starts) and the run's totals.
+//! It owns the range image (a fixed 92 KB, taken when the run starts, and counted under a
+//! memory cap with the rest of the process) and the run's totals.
 //! It guarantees that a run without it writes the same bytes as before it existed, and that
 //! with it the map is the same on any thread count (serial, in the map's order).
 

@@ -125,7 +125,9 @@ fn layer_budget<C: Capacity>(
             closing,
         });
     };
-    let (cap_bytes, other) = ((cap * 1e6) as usize, memory::other_bytes());
+    // Clearing's range image (`--dynamic on`) counts with the rest of the process.
+    let clearing = opts.dynamic.map_or(0, |_| crate::dynamic::CLEARING_BYTES);
+    let (cap_bytes, other) = ((cap * 1e6) as usize, memory::other_bytes() + clearing);
     let too_small = |e: CapTooSmall| RunError::MemoryCapTooSmall {
         cap_mb: cap,
         class: C::NAME,
