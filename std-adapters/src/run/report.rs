@@ -98,7 +98,7 @@ pub struct FrameRecord {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub imu: Option<crate::inertial::ImuFrame>,
     /// Map vertices this frame's rays saw through for the last time, forgotten
-    /// (`--dynamic` on only).
+    /// (`--dynamic` on only; 0 on the frames between clearings).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cleared_vertices: Option<u32>,
 }
