@@ -23,15 +23,12 @@ pub const SENSOR_HEIGHT_M: f64 = 1.73;
 /// The town's scene.
 pub fn scene(seed: u64) -> Scene {
     let mut rng = SplitMix64(seed);
-    let mut boxes = Vec::new();
-    let mut spheres = Vec::new();
     let terrain = Terrain {
         hill_m: 1.5,
         hill_wavelength_m: 320.0,
         roughness_m: 0.03,
     };
-    let ground = |x: f64, y: f64| terrain.height(x, y);
-    let size = PITCH_M * (STREETS - 1) as f64;
+    let mut boxes = Vec::new();
     // Buildings along the four edges of every block.
     for bi in 0..STREETS - 1 {
         for bj in 0..STREETS - 1 {
@@ -47,56 +44,92 @@ pub fn scene(seed: u64) -> Scene {
                 ([x0 + side, y0 + side], [-1.0, 0.0], [0.0, -1.0]),
                 ([x0, y0 + side], [0.0, -1.0], [1.0, 0.0]),
             ];
-            for (start, along, inward) in edges {
-                let mut t = 0.0;
-                while t < side - 6.0 {
-                    let width = rng.range(8.0, 22.0).min(side - t);
-                    if rng.next_f64() > 0.12 {
-                        let depth = rng.range(8.0, 14.0);
-                        let setback = rng.range(0.0, 1.5);
-                        let height = rng.range(5.0, 20.0);
-                        let centre_edge = t + width / 2.0;
-                        let cx =
-                            start[0] + along[0] * centre_edge + inward[0] * (setback + depth / 2.0);
-                        let cy =
-                            start[1] + along[1] * centre_edge + inward[1] * (setback + depth / 2.0);
-                        let base = ground(cx, cy) - 0.5;
-                        let yaw = along[1].atan2(along[0]) + rng.range(-0.03, 0.03);
-                        boxes.push(OrientedBox {
-                            centre: [cx, cy, base + height / 2.0],
-                            half: [width / 2.0, depth / 2.0, height / 2.0],
-                            yaw,
-                        });
-                        // A plinth and balconies on the street face.
-                        let face = setback - 0.25;
-                        let fx = start[0] + along[0] * centre_edge + inward[0] * face;
-                        let fy = start[1] + along[1] * centre_edge + inward[1] * face;
-                        boxes.push(OrientedBox {
-                            centre: [fx, fy, base + 0.9],
-                            half: [width / 2.0, 0.3, 0.9],
-                            yaw,
-                        });
-                        let floors = (height / 3.0) as usize;
-                        for floor in 1..floors {
-                            if rng.next_f64() < 0.5 {
-                                let off = rng.range(-width / 3.0, width / 3.0);
-                                let depth_b = rng.range(0.4, 1.0);
-                                let bx = fx + along[0] * off - inward[0] * depth_b / 2.0;
-                                let by = fy + along[1] * off - inward[1] * depth_b / 2.0;
-                                boxes.push(OrientedBox {
-                                    centre: [bx, by, base + 0.5 + 3.0 * floor as f64],
-                                    half: [rng.range(1.0, 2.0), depth_b / 2.0, rng.range(0.1, 0.5)],
-                                    yaw,
-                                });
-                            }
-                        }
-                    }
-                    t += width + rng.range(0.0, 4.0);
-                }
+            for edge in edges {
+                buildings_along(&mut rng, &terrain, edge, side, &mut boxes);
             }
         }
     }
-    // Street furniture along both sides of every street.
+    let mut scene = Scene {
+        ground_z: 0.0,
+        terrain: Some(terrain),
+        boxes,
+        spheres: Vec::new(),
+    };
+    street_furniture(&mut rng, &terrain, &mut scene);
+    scene
+}
+
+/// A block's edge: where it starts, the direction along it and the block's inward normal.
+type Edge = ([f64; 2], [f64; 2], [f64; 2]);
+
+/// Buildings of random widths, with gaps, along `edge` (`side` metres long).
+fn buildings_along(
+    rng: &mut SplitMix64,
+    terrain: &Terrain,
+    edge: Edge,
+    side: f64,
+    boxes: &mut Vec<OrientedBox>,
+) {
+    let mut t = 0.0;
+    while t < side - 6.0 {
+        let width = rng.range(8.0, 22.0).min(side - t);
+        if rng.next_f64() > 0.12 {
+            building(rng, terrain, edge, t + width / 2.0, width, boxes);
+        }
+        t += width + rng.range(0.0, 4.0);
+    }
+}
+
+/// One building `width` wide centred `centre_edge` metres along `edge`: its block, a plinth
+/// and balconies on the street face.
+fn building(
+    rng: &mut SplitMix64,
+    terrain: &Terrain,
+    (start, along, inward): Edge,
+    centre_edge: f64,
+    width: f64,
+    boxes: &mut Vec<OrientedBox>,
+) {
+    let depth = rng.range(8.0, 14.0);
+    let setback = rng.range(0.0, 1.5);
+    let height = rng.range(5.0, 20.0);
+    let cx = start[0] + along[0] * centre_edge + inward[0] * (setback + depth / 2.0);
+    let cy = start[1] + along[1] * centre_edge + inward[1] * (setback + depth / 2.0);
+    let base = terrain.height(cx, cy) - 0.5;
+    let yaw = along[1].atan2(along[0]) + rng.range(-0.03, 0.03);
+    boxes.push(OrientedBox {
+        centre: [cx, cy, base + height / 2.0],
+        half: [width / 2.0, depth / 2.0, height / 2.0],
+        yaw,
+    });
+    // A plinth and balconies on the street face.
+    let face = setback - 0.25;
+    let fx = start[0] + along[0] * centre_edge + inward[0] * face;
+    let fy = start[1] + along[1] * centre_edge + inward[1] * face;
+    boxes.push(OrientedBox {
+        centre: [fx, fy, base + 0.9],
+        half: [width / 2.0, 0.3, 0.9],
+        yaw,
+    });
+    let floors = (height / 3.0) as usize;
+    for floor in 1..floors {
+        if rng.next_f64() < 0.5 {
+            let off = rng.range(-width / 3.0, width / 3.0);
+            let depth_b = rng.range(0.4, 1.0);
+            let bx = fx + along[0] * off - inward[0] * depth_b / 2.0;
+            let by = fy + along[1] * off - inward[1] * depth_b / 2.0;
+            boxes.push(OrientedBox {
+                centre: [bx, by, base + 0.5 + 3.0 * floor as f64],
+                half: [rng.range(1.0, 2.0), depth_b / 2.0, rng.range(0.1, 0.5)],
+                yaw,
+            });
+        }
+    }
+}
+
+/// Street furniture along both sides of every street, intersections kept clear.
+fn street_furniture(rng: &mut SplitMix64, terrain: &Terrain, scene: &mut Scene) {
+    let size = PITCH_M * (STREETS - 1) as f64;
     for k in 0..STREETS {
         let c = k as f64 * PITCH_M;
         for horizontal in [true, false] {
@@ -120,53 +153,53 @@ pub fn scene(seed: u64) -> Scene {
                     } else {
                         std::f64::consts::FRAC_PI_2
                     };
-                    let g = ground(x, y);
-                    match rng.next_f64() {
-                        f if f < 0.35 => boxes.push(OrientedBox {
-                            centre: [x, y, g + 0.75],
-                            half: [2.2, 0.9, 0.75],
-                            yaw: yaw + rng.range(-0.08, 0.08),
-                        }),
-                        f if f < 0.55 => {
-                            let h = rng.range(2.0, 3.5);
-                            boxes.push(OrientedBox {
-                                centre: [x, y, g + h / 2.0],
-                                half: [0.15, 0.15, h / 2.0],
-                                yaw: 0.0,
-                            });
-                            spheres.push(Sphere {
-                                centre: [x, y, g + h + 1.2],
-                                radius: rng.range(1.4, 2.4),
-                            });
-                        }
-                        f if f < 0.75 => {
-                            let h = rng.range(4.0, 8.0);
-                            boxes.push(OrientedBox {
-                                centre: [x, y, g + h / 2.0],
-                                half: [0.1, 0.1, h / 2.0],
-                                yaw: 0.0,
-                            });
-                        }
-                        f if f < 0.9 => boxes.push(OrientedBox {
-                            centre: [x, y, g + 0.6],
-                            half: [rng.range(2.5, 7.0), 0.03, 0.6],
-                            yaw,
-                        }),
-                        _ => boxes.push(OrientedBox {
-                            centre: [x, y, g + 1.3],
-                            half: [1.8, 0.8, 1.3],
-                            yaw,
-                        }),
-                    }
+                    furniture(rng, [x, y, terrain.height(x, y)], yaw, scene);
                 }
             }
         }
     }
-    Scene {
-        ground_z: 0.0,
-        terrain: Some(terrain),
-        boxes,
-        spheres,
+}
+
+/// One piece of street furniture standing at `[x, y, ground]`, facing along `yaw`: a parked
+/// car, a tree, a street light, a fence or a bus shelter.
+fn furniture(rng: &mut SplitMix64, [x, y, g]: [f64; 3], yaw: f64, scene: &mut Scene) {
+    let boxes = &mut scene.boxes;
+    match rng.next_f64() {
+        f if f < 0.35 => boxes.push(OrientedBox {
+            centre: [x, y, g + 0.75],
+            half: [2.2, 0.9, 0.75],
+            yaw: yaw + rng.range(-0.08, 0.08),
+        }),
+        f if f < 0.55 => {
+            let h = rng.range(2.0, 3.5);
+            boxes.push(OrientedBox {
+                centre: [x, y, g + h / 2.0],
+                half: [0.15, 0.15, h / 2.0],
+                yaw: 0.0,
+            });
+            scene.spheres.push(Sphere {
+                centre: [x, y, g + h + 1.2],
+                radius: rng.range(1.4, 2.4),
+            });
+        }
+        f if f < 0.75 => {
+            let h = rng.range(4.0, 8.0);
+            boxes.push(OrientedBox {
+                centre: [x, y, g + h / 2.0],
+                half: [0.1, 0.1, h / 2.0],
+                yaw: 0.0,
+            });
+        }
+        f if f < 0.9 => boxes.push(OrientedBox {
+            centre: [x, y, g + 0.6],
+            half: [rng.range(2.5, 7.0), 0.03, 0.6],
+            yaw,
+        }),
+        _ => boxes.push(OrientedBox {
+            centre: [x, y, g + 1.3],
+            half: [1.8, 0.8, 1.3],
+            yaw,
+        }),
     }
 }
 
