@@ -245,15 +245,6 @@ fn with_traffic(flags: &Flags, drive: Drive, seed: u64) -> Drive {
     if !flags.has("--movers") {
         return drive;
     }
-    let path: Vec<[f64; 2]> = drive
-        .poses
-        .iter()
-        .map(|p| [p.translation.x, p.translation.y])
-        .collect();
-    let length: f64 = path
-        .windows(2)
-        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-        .sum();
-    let traffic = Traffic::street(path, false, length, TrafficCounts::TOWN, seed);
+    let traffic = Traffic::along_poses(&drive.poses, TrafficCounts::TOWN, seed);
     drive.with_traffic(traffic)
 }

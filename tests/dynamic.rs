@@ -25,13 +25,6 @@ const FRAMES: usize = 100;
 /// The town drive with traffic along its path, as `write_drive --movers` has it.
 fn drive_with_traffic(frames: usize) -> Drive {
     let drive = Drive::town(frames, 1);
-    let path: Vec<[f64; 2]> = (drive.poses.iter())
-        .map(|p| [p.translation.x, p.translation.y])
-        .collect();
-    let length = path
-        .windows(2)
-        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-        .sum();
     // Half the traffic (its 300-frame drive's), for a drive of a third its length.
     let counts = TrafficCounts {
         same_way: 4,
@@ -39,7 +32,7 @@ fn drive_with_traffic(frames: usize) -> Drive {
         pedestrians: 2,
         leaving: 1,
     };
-    let traffic = Traffic::street(path, false, length, counts, 1);
+    let traffic = Traffic::along_poses(&drive.poses, counts, 1);
     drive.with_traffic(traffic)
 }
 
@@ -154,18 +147,20 @@ fn eval_dynamic_names_missing_and_short_label_files() {
     )
     .unwrap();
     let args = ["eval", "--mesh", path(&mesh), "--dynamic", path(&sequence)];
-    let missing = slamesh(&args);
-    let said = String::from_utf8_lossy(&missing.stderr).to_string();
-    assert!(!missing.status.success());
+    // The command's refusal: it fails, and what it says.
+    let refused = || {
+        let out = slamesh(&args);
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    let said = refused();
     assert!(
         said.contains("labels/000000.label") && said.contains("the scan's labels"),
         "{said}"
     );
     std::fs::create_dir_all(sequence.join("labels")).unwrap();
     std::fs::write(sequence.join("labels/000000.label"), [0u8; 36]).unwrap();
-    let short = slamesh(&args);
-    let said = String::from_utf8_lossy(&short.stderr).to_string();
-    assert!(!short.status.success());
+    let said = refused();
     assert!(
         said.contains("36 bytes") && said.contains("10 points"),
         "{said}"
@@ -187,10 +182,7 @@ fn eval_dynamic_names_missing_and_short_label_files() {
 fn a_parked_car_that_left_is_cleared_by_the_next_session() {
     let frames = 100;
     let monday = Drive::town(frames, 1);
-    let path: Vec<[f64; 2]> = (monday.poses.iter())
-        .map(|p| [p.translation.x, p.translation.y])
-        .collect();
-    let mut parked = Traffic::new(path, false);
+    let mut parked = Traffic::along_poses(&monday.poses, TrafficCounts::default(), 1);
     parked.movers.push(Mover {
         kind: MoverKind::Leaving,
         half: [2.2, 0.9, 0.75],

@@ -160,6 +160,15 @@ fn street_furniture(rng: &mut SplitMix64, terrain: &Terrain, scene: &mut Scene) 
     }
 }
 
+/// A square post `height` tall and `half_width` either side, standing at `[x, y, ground]`.
+fn post([x, y, g]: [f64; 3], height: f64, half_width: f64) -> OrientedBox {
+    OrientedBox {
+        centre: [x, y, g + height / 2.0],
+        half: [half_width, half_width, height / 2.0],
+        yaw: 0.0,
+    }
+}
+
 /// One piece of street furniture standing at `[x, y, ground]`, facing along `yaw`: a parked
 /// car, a tree, a street light, a fence or a bus shelter.
 fn furniture(rng: &mut SplitMix64, [x, y, g]: [f64; 3], yaw: f64, scene: &mut Scene) {
@@ -171,25 +180,15 @@ fn furniture(rng: &mut SplitMix64, [x, y, g]: [f64; 3], yaw: f64, scene: &mut Sc
             yaw: yaw + rng.range(-0.08, 0.08),
         }),
         f if f < 0.55 => {
+            // A tree: its trunk, then its crown.
             let h = rng.range(2.0, 3.5);
-            boxes.push(OrientedBox {
-                centre: [x, y, g + h / 2.0],
-                half: [0.15, 0.15, h / 2.0],
-                yaw: 0.0,
-            });
+            boxes.push(post([x, y, g], h, 0.15));
             scene.spheres.push(Sphere {
                 centre: [x, y, g + h + 1.2],
                 radius: rng.range(1.4, 2.4),
             });
         }
-        f if f < 0.75 => {
-            let h = rng.range(4.0, 8.0);
-            boxes.push(OrientedBox {
-                centre: [x, y, g + h / 2.0],
-                half: [0.1, 0.1, h / 2.0],
-                yaw: 0.0,
-            });
-        }
+        f if f < 0.75 => boxes.push(post([x, y, g], rng.range(4.0, 8.0), 0.1)),
         f if f < 0.9 => boxes.push(OrientedBox {
             centre: [x, y, g + 0.6],
             half: [rng.range(2.5, 7.0), 0.03, 0.6],

@@ -10,6 +10,7 @@
 use crate::scene::{OrientedBox, Scene};
 use crate::town::Polyline;
 use slamesh_core::random::SplitMix64;
+use slamesh_core::Pose;
 
 /// What a mover is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -72,8 +73,8 @@ pub struct Traffic {
     pub movers: Vec<Mover>,
 }
 
-/// How many of each kind [`Traffic::street`] places.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// How many of each kind [`Traffic::street`] places (the default: none).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TrafficCounts {
     /// Cars in the drive's own direction.
     pub same_way: usize,
@@ -176,6 +177,20 @@ impl Traffic {
             });
         }
         traffic
+    }
+
+    /// [`Traffic::street`] along the path a drive's `poses` trace (their positions, an open
+    /// path), reaching its whole length.
+    pub fn along_poses(poses: &[Pose], counts: TrafficCounts, seed: u64) -> Self {
+        let path: Vec<[f64; 2]> = poses
+            .iter()
+            .map(|p| [p.translation.x, p.translation.y])
+            .collect();
+        let length = path
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum();
+        Self::street(path, false, length, counts, seed)
     }
 
     /// Where each mover is at `t` seconds, on the ground of `scene`: one box a mover (an open

@@ -16,8 +16,7 @@
 //! F1 at 0.1 m (against the static truth alone).
 
 use super::mesh::voxel_index::VoxelIndex;
-use super::mesh::{sample_triangles, score};
-use nalgebra::{Point3, Vector3};
+use super::mesh::{accumulate, sample_triangles, score};
 use slamesh_core::{Point, Pose};
 
 /// Whether a SemanticKITTI label is of a moving class (its lower 16 bits 250 or more; the
@@ -44,32 +43,24 @@ pub struct LabelledCloud {
 
 impl LabelledCloud {
     /// The truth from scans (sensor frame), each point's `moving` flag, and their poses;
-    /// ranges outside `[range_min_m, range_max_m]` left out.
+    /// ranges outside `[range_min_m, range_max_m]` left out. Each kind is thinned as
+    /// [`accumulate`] thins a reference.
     pub fn accumulate(
         scans: impl IntoIterator<Item = (Vec<Point>, Vec<bool>, Pose)>,
         range_min_m: f64,
         range_max_m: f64,
     ) -> Self {
-        let mut seen = std::collections::HashSet::new();
-        let mut cloud = LabelledCloud::default();
+        let (mut still, mut moved) = (Vec::new(), Vec::new());
         for (points, moving, pose) in scans {
-            for (p, &m) in points.iter().zip(&moving) {
-                let v = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-                if !(range_min_m..=range_max_m).contains(&v.norm()) {
-                    continue;
-                }
-                let w = pose * Point3::from(v);
-                let key = [w.x, w.y, w.z].map(|c| (c / TRUTH_VOXEL_M).floor() as i64);
-                if seen.insert((key, m)) {
-                    let q = [w.x as f32, w.y as f32, w.z as f32];
-                    match m {
-                        true => cloud.moving.push(q),
-                        false => cloud.static_points.push(q),
-                    }
-                }
-            }
+            let (m, s): (Vec<_>, Vec<_>) = points.iter().zip(&moving).partition(|(_, m)| **m);
+            still.push((s.into_iter().map(|(p, _)| *p).collect(), pose));
+            moved.push((m.into_iter().map(|(p, _)| *p).collect(), pose));
         }
-        cloud
+        let thinned = |scans| accumulate(scans, TRUTH_VOXEL_M, range_min_m, range_max_m);
+        LabelledCloud {
+            static_points: thinned(still),
+            moving: thinned(moved),
+        }
     }
 }
 
