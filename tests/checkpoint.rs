@@ -160,3 +160,72 @@ fn a_killed_run_with_an_imu_resumes_to_the_same_outputs() {
     assert_eq!(a["prior_frames"], FRAMES - 1, "{a}");
     assert_eq!(a, b);
 }
+
+/// Ctrl-C (SIGINT) on a run over files: it stops after the frame in progress, writes what it
+/// has (trajectories, mesh, `report.json` saying where it stopped), leaves none of its spools
+/// behind and exits with status 130.
+#[test]
+fn a_run_stopped_by_ctrl_c_writes_what_it_has() {
+    let dir = scratch("ctrl-c");
+    let input = dir.join("scans");
+    std::fs::create_dir_all(&input).unwrap();
+    let frames = 60;
+    let mut drive = Drive::town(frames, 3);
+    for i in 0..frames {
+        write_bin(&input.join(format!("{i:06}.bin")), &drive.read(i).unwrap());
+    }
+    let out = dir.join("out");
+    let (input_s, out_s) = (input.to_str().unwrap(), out.to_str().unwrap());
+    let child = slamesh_command(&["run", input_s, "--out", out_s, "-q", "--threads", "1"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // After a few frames: the report's spool holds a line a frame.
+    let spool = out.join(".report.frames.spool");
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while Instant::now() < deadline {
+        let lines = std::fs::read_to_string(&spool).map_or(0, |s| s.lines().count());
+        if lines >= 3 {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let pid = child.id().to_string();
+    let sent = std::process::Command::new("kill")
+        .args(["-INT", &pid])
+        .status();
+    assert!(sent.unwrap().success());
+    let done = child.wait_with_output().unwrap();
+    let said = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(done.status.code(), Some(130), "{said}");
+    assert!(said.contains("interrupted before frame"), "{said}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let before = report["summary"]["interrupted"]
+        .as_u64()
+        .expect("where it stopped") as usize;
+    assert!(
+        (3..frames).contains(&before),
+        "stopped before frame {before}"
+    );
+    let poses = std::fs::read_to_string(out.join("poses_kitti.txt")).unwrap();
+    assert_eq!(
+        poses.lines().count(),
+        before,
+        "a pose for each frame it ran"
+    );
+    assert_eq!(report["frames"].as_array().unwrap().len(), before);
+    assert!(
+        read_ply_mesh(&out.join("mesh.ply"))
+            .unwrap()
+            .triangles
+            .len()
+            > 100
+    );
+    let left: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(left.is_empty(), "spools left behind: {left:?}");
+}

@@ -41,4 +41,5 @@ mod recordings;
 mod scale;
 mod single_precision;
 mod sinks;
+mod stages;
 mod synthetic_registration;

@@ -8,6 +8,8 @@
 #   calibration);
 # - each way the pose can be known: `mesh` at given poses, `run --save-map` then `localize` in
 #   that map (the search for the first pose), and a sliding window;
+# - the run's stages: the navigation map (with the floor file beside a saved map) and
+#   clearing what moves;
 # and compares the trajectories and meshes they write. Timings (report.json) are not compared.
 #
 #   tools/same_outputs.sh [BASE]        # SLAMESH_DATA defaults to ../shared/data
@@ -65,10 +67,16 @@ for side in base new; do
   "$b" localize "$k/00" --map "$o/save00/map.slamesh" --out "$o/loc00" --threads 2 -q --no-picture
   "$b" run "$k/01" --out "$o/window01" --preset kitti --threads 2 -q --no-picture \
     --evict-after 3
+  # The run's stages: the navigation map (its files, the scans' floor beside the saved map, its
+  # layers on the mesh's vertices) and clearing what moves.
+  "$b" run "$k/02" --out "$o/navmap02" --preset kitti --threads 2 -q --no-picture --navmap \
+    --save-map "$o/navmap02/map.slamesh"
+  "$b" run "$k/03" --out "$o/dynamic03" --preset kitti --threads 2 -q --no-picture --dynamic on
 done
 differ=0
 compared=0
-for f in $(cd "$work/runs/base" && find . -name 'poses_*.txt' -o -name 'mesh.ply' -o -name '*.slamesh' | sort); do
+for f in $(cd "$work/runs/base" && find . -name 'poses_*.txt' -o -name 'mesh.ply' -o -name '*.slamesh' \
+  -o -name '*.floor' -o -name 'map.pgm' -o -name 'map.yaml' -o -name '*.asc' -o -name 'navmesh.ply' | sort); do
   compared=$((compared + 1))
   cmp -s "$work/runs/base/$f" "$work/runs/new/$f" || { echo "differs: $f"; differ=$((differ + 1)); }
 done

@@ -1,5 +1,5 @@
-//! What moves, taken out of the map as the run goes, a room of its own below `run`
-//! (docs/design.md §1.21): after every second fused frame, that frame's kept points fill a
+//! What moves, taken out of the map as the run goes, a stage of the run in a room of its own
+//! ([`crate::stage::RunStage`]; docs/design.md §1.21): after every second fused frame, that frame's kept points fill a
 //! [`RangeImage`] and the map's vertices they see through lose their confidence, until what
 //! moved away (a car that drove on, a person who walked past, a parked car that left) is
 //! hidden and forgotten ([`slamesh_core::clearing`]). The mesh, the map file and the
@@ -10,6 +10,7 @@
 //! It guarantees that a run without it writes the same bytes as before it existed, and that
 //! with it the map is the same on any thread count (serial, in the map's order).
 
+use crate::stage::RunStage;
 use slamesh_core::clearing::{ClearingConfig, ClearingStats, RangeImage};
 use slamesh_core::{Capacity, Pipeline, Pose};
 
@@ -27,7 +28,7 @@ pub struct Clearing {
 pub const CLEAR_EVERY_FRAMES: u32 = 2;
 
 /// What clearing did over a run, for `report.json`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct DynamicSummary {
     /// Sightings through map vertices (each raised a vertex's variance).
     pub seen_through: u32,
@@ -70,5 +71,26 @@ impl Clearing {
             seen_through: self.totals.seen_through,
             forgotten: self.totals.forgotten,
         }
+    }
+}
+
+/// In a run: after each fused frame ([`Clearing::after_fusion`]), the vertices it forgot in
+/// the frame's record (`cleared_vertices`), its totals in the summary (`dynamic`).
+impl<C: Capacity> RunStage<C> for Clearing {
+    fn name(&self) -> &'static str {
+        "dynamic"
+    }
+
+    fn bytes(&self) -> usize {
+        CLEARING_BYTES
+    }
+
+    fn fused(&mut self, pipeline: &mut Pipeline<C>, pose: &Pose) -> Option<(&'static str, u64)> {
+        let forgotten = self.after_fusion(pipeline, pose).forgotten;
+        Some(("cleared_vertices", u64::from(forgotten)))
+    }
+
+    fn summary(&self) -> Option<serde_json::Value> {
+        serde_json::to_value(self.totals()).ok()
     }
 }

@@ -12,6 +12,7 @@
 //! | file formats, one module each, reader and writer together | [`formats`] |
 //! | one way in: where frames come from (folders, recordings, captures, live packets) | [`sources`] |
 //! | what a run writes beside its report: the mesh, the picture | [`outputs`] |
+//! | what works inside a run beside registration, plugged in: the stage interface | [`stage`] |
 //! | a run: its stages, sinks, configuration, report, window, checkpoint | [`run`] |
 //! | odometry and mesh accuracy | [`eval`] |
 //! | loop closure: revisits found, the pose graph, the map rebuilt | [`loop_closure`] |
@@ -46,6 +47,7 @@ pub mod parallel;
 pub mod ros2;
 pub mod run;
 pub mod sources;
+pub mod stage;
 #[cfg(feature = "view")]
 pub mod view;
 

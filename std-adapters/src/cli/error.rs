@@ -34,6 +34,13 @@ pub enum CliError {
     },
     /// The run ended without a single usable frame.
     NoFrameUsed,
+    /// Ctrl-C (or SIGTERM) ended the run before its input did: what it had is written.
+    Interrupted {
+        /// The first frame not run.
+        before: usize,
+        /// The input's frames.
+        of: usize,
+    },
     /// With `--strict`: frames were not registered normally.
     NotRegistered {
         /// How many.
@@ -58,6 +65,10 @@ impl fmt::Display for CliError {
                 scans,
             } => write!(f, "{sequence}: {poses} reference poses for {scans} scans"),
             CliError::NoFrameUsed => write!(f, "no frame could be used"),
+            CliError::Interrupted { before, of } => write!(
+                f,
+                "interrupted before frame {before} of {of}: the outputs hold the frames before it"
+            ),
             CliError::NotRegistered { frames } => write!(
                 f,
                 "--strict: {frames} frame(s) not registered normally (listed above)"

@@ -8,7 +8,7 @@ use crate::sources::packets::PacketOptions;
 use crate::sources::sweep_times::{BadSweep, SweepSpec};
 use clap::Args;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -87,20 +87,18 @@ fn parse_sweep(given: &str) -> Result<SweepArg, BadSweep> {
 }
 
 impl InputArgs {
+    /// Whether the input is live (`udp://HOST:PORT`): it ends on Ctrl-C.
+    pub fn is_live(&self) -> bool {
+        (self.input.to_str())
+            .and_then(crate::sources::live::address)
+            .is_some()
+    }
+
     /// Opens the input. A live one ends on Ctrl-C, and the run then writes its outputs.
     pub fn open(&self) -> Result<Input, FileError> {
-        let stop = Arc::new(AtomicBool::new(false));
-        let live = self
-            .input
-            .to_str()
-            .and_then(crate::sources::live::address)
-            .is_some();
-        if live {
-            let flag = stop.clone();
-            if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {
-                log::warn!("Ctrl-C will not end the run cleanly: {e}");
-            }
-        }
+        let live = self.is_live();
+        let stop = (live.then(crate::cli::interrupt::listen).flatten())
+            .unwrap_or_else(|| Arc::new(AtomicBool::new(false)));
         let mut input = Input::open_with(
             &self.input,
             self.topic.as_deref(),

@@ -16,6 +16,7 @@ pub mod demo;
 pub mod error;
 pub mod eval;
 pub mod input;
+pub mod interrupt;
 pub mod merge;
 pub mod navmap;
 pub mod notices;
@@ -47,8 +48,13 @@ macro_rules! say {
 pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     cli.init_logger();
+    interrupt::install();
     match cli.run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e @ CliError::Interrupted { .. }) => {
+            log::error!("{e}");
+            std::process::ExitCode::from(interrupt::INTERRUPTED_STATUS)
+        }
         Err(e) => {
             log::error!("{e}");
             std::process::ExitCode::FAILURE

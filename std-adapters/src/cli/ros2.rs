@@ -23,8 +23,6 @@ use clap::Args;
 use ros2_client::parameters::ParameterValue as RosParameterValue;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 /// `slamesh ros2`'s arguments.
 #[derive(Args, Debug)]
@@ -244,11 +242,7 @@ pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
         _ => args.profile.resolve("default")?,
     };
     args.window.apply(&mut s.window)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {
-        log::warn!("SIGINT and SIGTERM will not end the node cleanly: {e}");
-    }
+    let stop = crate::cli::interrupt::listen().unwrap_or_default();
     let values = declared(&args, &node_settings, &s);
     let mut node = RosNode::start(node_settings, values).map_err(node_error)?;
     let mut source = node.listen(stop).map_err(node_error)?;

@@ -341,6 +341,10 @@ fn run_with(
         say_given_poses(p, source.frames());
     }
     let mut opts = run_options(args, &s, given, localize_only);
+    // A live input ends on Ctrl-C (the end of its stream); a run over files stops early on it.
+    opts.stop = (!args.source.is_live())
+        .then(crate::cli::interrupt::listen)
+        .flatten();
     if !localize_only {
         choose_loop_closure(args.loop_closure, &mut opts)?;
     }
@@ -438,6 +442,12 @@ pub(crate) fn choose_loop_closure(
 /// The run's end as an exit status: an error when no frame was used, or (`--strict`) when a
 /// frame was not registered normally, each named.
 fn judge(summary: &Summary, strict: bool) -> Result<(), CliError> {
+    if let Some(before) = summary.interrupted {
+        return Err(CliError::Interrupted {
+            before,
+            of: summary.frames,
+        });
+    }
     if summary.used == 0 {
         return Err(CliError::NoFrameUsed);
     }
@@ -515,6 +525,7 @@ fn run_options(
             enabled: args.source.imu.as_deref() != Some("off"),
             ..s.imu
         },
+        stop: None,
     }
 }
 

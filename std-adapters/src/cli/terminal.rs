@@ -93,21 +93,8 @@ pub fn print_summary(s: &Summary, out: &Path) {
         );
         return;
     }
-    let navmap = match s.navmap {
-        Some(_) => crate::navmap::files::FILES.to_vec(),
-        None => Vec::new(),
-    };
-    let more: String = (out
-        .join("topview.png")
-        .is_file()
-        .then_some("topview.png")
-        .into_iter())
-    .chain(navmap)
-    .map(|f| format!(", {}/{f}", out.display()))
-    .collect();
-    say!(
-        "slamesh: wrote {0}/poses_kitti.txt, {0}/poses_tum.txt, {0}/mesh.ply, {0}/report.json{1}",
-        out.display(),
-        more
-    );
+    let wrote: Vec<String> = (s.files.iter())
+        .map(|f| out.join(f).display().to_string())
+        .collect();
+    say!("slamesh: wrote {}", wrote.join(", "));
 }

@@ -13,6 +13,7 @@
 //! | what stands where the mesh has no surface: the scans' floor raised over the ground | [`raised`] |
 //! | what the path saw: lines of sight over the grid | [`sight`] |
 //! | traversability on a mesh of the ground: slope, step, roughness, border, cost | [`layers`] |
+//! | the navigation map in a run: the scans' floor kept, the files made at its end | [`stage`] |
 //! | the files: Nav2's YAML and PGM, the elevation grids, `navmesh.ply`, `navmap.json` | [`files`] |
 //! | the grid kept current during a run, window by window | [`live`] |
 //! | the map's shown triangles by tile, kept current from each frame's layers | [`tiled_mesh`] |
@@ -33,6 +34,7 @@ pub mod live;
 pub mod raised;
 pub mod robot;
 pub mod sight;
+pub mod stage;
 pub mod tiled_mesh;
 pub mod unsure;
 

@@ -130,6 +130,44 @@ impl Sink for ReportFile {
     }
 }
 
+/// The files a run itself may write into its output folder (its stages' are theirs:
+/// [`crate::stage::RunStage::outputs`]).
+pub const OWN_FILES: [&str; 6] = [
+    "poses_kitti.txt",
+    "poses_tum.txt",
+    "mesh.ply",
+    "mesh.obj",
+    "topview.png",
+    "report.json",
+];
+
+/// Removes from `out` those of `names` a run before left there, so that what the folder holds
+/// after a new run is that run's; says which went. A file that cannot be removed is said and
+/// left (the run replaces it if it writes it).
+pub fn remove_stale<'a>(out: &Path, names: impl IntoIterator<Item = &'a str>) {
+    let mut gone = Vec::new();
+    for name in names {
+        let path = out.join(name);
+        if !path.is_file() {
+            continue;
+        }
+        match std::fs::remove_file(&path) {
+            Ok(()) => gone.push(name),
+            Err(e) => log::warn!(
+                "{}: a run before left it, and it cannot be removed: {e}",
+                path.display()
+            ),
+        }
+    }
+    if !gone.is_empty() {
+        log::info!(
+            "removed what a run before left in {}: {}",
+            out.display(),
+            gone.join(", ")
+        );
+    }
+}
+
 /// The spool of a run's frame records in `out`, until `report.json` is written.
 fn spool_path(out: &Path) -> PathBuf {
     out.join(".report.frames.spool")
@@ -199,13 +237,15 @@ impl Trajectories {
         if summary.poses.is_empty() {
             return Ok(());
         }
+        // An interrupted run's KITTI file ends where it stopped.
+        let frames = summary.interrupted.unwrap_or(summary.frames);
         let stamped: Vec<(usize, f64, Pose)> = summary
             .poses
             .iter()
             .zip(&summary.stamps)
             .map(|(&(i, p), &t)| (i, t, p))
             .collect();
-        write_trajectories(&self.out, summary.frames, &stamped)
+        write_trajectories(&self.out, frames, &stamped)
     }
 }
 

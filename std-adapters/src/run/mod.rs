@@ -18,6 +18,7 @@
 //! | starting from a saved map: loading it, where to search for the first pose | [`saved_map`] |
 //! | a saved map paged in by tile under a memory cap | [`map_pager`] |
 //! | what a start needs: folder, executor, window, pipeline, the saved map | `setup` |
+//! | the one list that wires the run's stages ([`crate::stage`]) from its options | `wiring` |
 
 pub mod budget;
 pub mod capacity;
@@ -39,9 +40,10 @@ pub mod sink;
 mod step;
 pub mod timing;
 pub mod window;
+mod wiring;
 
 pub use crate::sources::{FrameSource, Input, Sample};
 pub use frame_error::{FrameError, FrameFault};
 pub use report::{FrameRecord, Summary};
-pub use session::{run, run_to, Run, RunError, RunOptions};
+pub use session::{run, run_to, run_with, Run, RunError, RunOptions};
 pub use sink::{FrameEvent, Sink, Sinks};

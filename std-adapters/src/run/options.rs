@@ -70,6 +70,9 @@ pub struct RunOptions {
     /// What to do with an IMU's readings when the source gives them (`--imu`,
     /// [`crate::inertial`]): by default, use them.
     pub imu: crate::inertial::ImuOptions,
+    /// Set (by Ctrl-C, for the command) to end the run after the frame in progress: it writes
+    /// what it has, marked as interrupted ([`crate::run::Summary::interrupted`]).
+    pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 impl RunOptions {

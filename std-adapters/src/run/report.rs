@@ -11,6 +11,7 @@ use crate::run::timing::StageMs;
 use serde::{Deserialize, Serialize};
 use slamesh_core::layer::Shown;
 use slamesh_core::{Capacity, Config, Pipeline, Pose, RegistrationStatus, ScanStats};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// What happened to one frame (a line of `report.json`).
@@ -97,10 +98,11 @@ pub struct FrameRecord {
     /// What the IMU did for the frame (absent when no reading came yet).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub imu: Option<crate::inertial::ImuFrame>,
-    /// Map vertices this frame's rays saw through for the last time, forgotten
-    /// (`--dynamic` on only; 0 on the frames between clearings).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub cleared_vertices: Option<u32>,
+    /// What the run's stages counted for the frame, by name (clearing what moves:
+    /// `cleared_vertices`, the map vertices this frame's rays saw through for the last time;
+    /// [`crate::stage::RunStage::fused`]).
+    #[serde(flatten)]
+    pub counts: BTreeMap<String, u64>,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -141,7 +143,7 @@ impl FrameRecord {
             latency_ms: None,
             samples: 0,
             imu: None,
-            cleared_vertices: None,
+            counts: BTreeMap::new(),
         }
     }
 
@@ -213,15 +215,21 @@ pub struct Summary {
     /// sweeps).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub input: Option<serde_json::Value>,
-    /// The navigation map written (`--navmap`): its counts, size, robot and which way was up.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub navmap: Option<crate::navmap::files::NavMapSummary>,
     /// What the IMU did, when readings came ([`crate::inertial`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub imu: Option<crate::inertial::ImuSummary>,
-    /// What clearing what moves did (`--dynamic` on only, [`crate::dynamic`]).
+    /// The run's stages' parts, each under its name ([`crate::stage::RunStage::summary`]):
+    /// `navmap`, the navigation map written (its counts, size, robot and which way was up);
+    /// `dynamic`, what clearing what moves did.
+    #[serde(flatten)]
+    pub stages: BTreeMap<String, serde_json::Value>,
+    /// The first frame not run when the run was stopped before its input ended (Ctrl-C,
+    /// [`crate::run::RunOptions::stop`]): the outputs hold the frames before it.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub dynamic: Option<crate::dynamic::DynamicSummary>,
+    pub interrupted: Option<usize>,
+    /// The files this run wrote into the output folder (the stages' with the run's own);
+    /// `report.json` last.
+    pub files: Vec<String>,
     /// The estimated (or given) pose of each used frame, frame index first.
     #[serde(skip)]
     pub poses: Vec<(usize, Pose)>,

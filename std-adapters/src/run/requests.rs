@@ -13,13 +13,11 @@
 //!   saved map searches for its first pose.
 
 use crate::formats::map_file::MapWriter;
-use crate::navmap::floor_file::{self, MapPath};
-use crate::navmap::hits::ScanFloor;
 use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::sources::{FrameSource, Request};
 use slamesh_core::{Capacity, Pose};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 impl<C: Capacity> Run<'_, C> {
     /// Serves `request` (from `source`, whose stamps date the path).
@@ -77,48 +75,15 @@ impl<C: Capacity> Run<'_, C> {
             let _ = std::fs::remove_file(&staging);
             format!("{}: cannot rename the map file: {e}", target.display())
         })?;
-        let floor = self.write_floor_beside(&target, &path);
+        let beside = (self.stages).beside_map(&target, &path, &self.progress.poses);
         Ok(format!(
-            "map saved to {}: {} cells, {} layers, {} poses, {:.1} MB{floor}",
+            "map saved to {}: {} cells, {} layers, {} poses, {:.1} MB{beside}",
             target.display(),
             stats.cells,
             stats.layers,
             path.len(),
             stats.bytes as f64 / 1e6
         ))
-    }
-
-    /// Writes the scans' floor so far beside the map saved now at `target`, whose path is
-    /// `path` (with the navigation map on; what the map the run started from kept beside it
-    /// first, as read when the run started: this save may replace that file), or removes a
-    /// floor file there, which went with the map saved before. Returns what the answer adds:
-    /// the map is saved either way, and a floor file that could not be written is said (one
-    /// left from before does not go with the new map: passed over).
-    fn write_floor_beside(&self, target: &Path, path: &[(f64, Pose)]) -> String {
-        let beside = floor_file::beside(target);
-        let (Some(how), Some(hits)) = (&self.opts.navmap, &self.hits) else {
-            return match floor_file::remove_beside(target) {
-                Some(stale) => format!(
-                    "; removed {}, which went with the map saved before",
-                    stale.display()
-                ),
-                None => String::new(),
-            };
-        };
-        let (carried, poses) = (self.carried_floor.as_ref(), &self.progress.poses);
-        let floors = |each: &mut dyn FnMut(ScanFloor)| {
-            floor_file::each_kept(carried, Some(hits), poses, each)
-        };
-        match floor_file::write(&beside, how.resolution_m, MapPath::of(path), &floors) {
-            Ok(n) => format!(
-                "; the scans' floor beside it, {n} floor cells: {}",
-                beside.display()
-            ),
-            Err(e) => {
-                log::warn!("{e}");
-                format!("; the scans' floor not beside it: {e}")
-            }
-        }
     }
 
     fn relocalize_near(&mut self, pose: Pose) {

@@ -151,13 +151,12 @@ pub fn info(config: &Config, preset: &str, frames: u32) -> MapInfo {
 }
 
 /// Finishes the map file being written (`saved`, from `--save-map`, shown as `shown_as`):
-/// the cells still in `map`, the path of the map the run started from (`start`) followed by
-/// this run's (`stamped` poses).
+/// the cells still in `map`, and `path`: the path of the map the run started from followed by
+/// this run's stamped poses.
 pub(super) fn finish(
     saved: Option<crate::formats::map_file::MapWriter>,
-    mut start: Vec<(f64, Pose)>,
+    path: &[(f64, Pose)],
     map: &slamesh_core::map::MeshMap,
-    stamped: impl Iterator<Item = (f64, Pose)>,
     frames_seen: u32,
     shown_as: &std::path::Path,
 ) -> Result<(), crate::run::RunError> {
@@ -165,9 +164,8 @@ pub(super) fn finish(
         return Ok(());
     };
     saved.add_map(map)?;
-    start.extend(stamped);
     saved.set_frames(frames_seen);
-    let stats = saved.finish(&start)?;
+    let stats = saved.finish(path)?;
     log::info!(
         "map saved to {}: {} cells, {} layers, {:.1} MB",
         shown_as.display(),

@@ -12,22 +12,17 @@
 //! frames; with `resume`, a killed run continues from its last checkpoint and ends with the
 //! same poses and mesh as an uninterrupted run (frames after the checkpoint are redone).
 
-use crate::dynamic::Clearing;
 use crate::formats::map_file::MapWriter;
 use crate::formats::mesh_records::VertexProperties;
 use crate::inertial::Inertial;
 use crate::io::error::FileError;
 use crate::loop_closure::streaming::RunOutputs;
-use crate::loop_closure::LoopClosure;
-use crate::navmap::files::NavMapSummary;
-use crate::navmap::floor_file::{self, FloorFile};
-use crate::navmap::hits::Hits;
-use crate::navmap::layers::OnMesh;
+use crate::loop_closure::{LoopClosure, LoopReport};
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::budget::MemoryBudget;
 use crate::run::checkpoint::{self, Progress};
-use crate::run::files::{ReportFile, Trajectories};
+use crate::run::files::{self, ReportFile, Trajectories, OWN_FILES};
 use crate::run::lookahead::LookAhead;
 use crate::run::map_pager::MapPager;
 use crate::run::memory;
@@ -38,10 +33,12 @@ use crate::run::sink::{FnSink, FrameEvent, MapUpdate, Sinks};
 use crate::run::timing::StageTimer;
 use crate::run::window::Window;
 use crate::sources::{FrameSource, Sample, Waited};
+use crate::stage::{End, Stages, Start};
 use slamesh_core::lm::PoseInformation;
 use slamesh_core::{Capacity, Pipeline, Point, Pose};
 use std::borrow::Cow;
 use std::path::PathBuf;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 pub use crate::run::options::{Deskew, InitialPose, RunError, RunOptions};
@@ -53,12 +50,23 @@ pub use crate::run::options::{Deskew, InitialPose, RunError, RunOptions};
 pub fn run_to<C: Capacity>(
     source: &mut impl FrameSource,
     opts: &RunOptions,
+    sinks: Sinks<'_>,
+) -> Result<Summary, RunError> {
+    run_with::<C>(source, opts, sinks, Stages::new())
+}
+
+/// [`run_to`], with the caller's own `stages` after the run's (a capability of the caller's
+/// that works inside the run or writes from the whole map at its end: [`crate::stage`]).
+pub fn run_with<C: Capacity>(
+    source: &mut impl FrameSource,
+    opts: &RunOptions,
     mut sinks: Sinks<'_>,
+    stages: Stages<C>,
 ) -> Result<Summary, RunError> {
     let mut run = if opts.resume {
-        Run::<C>::resume(source, opts)?
+        Run::<C>::resume_with(source, opts, stages)?
     } else {
-        Run::<C>::start(source, opts)?
+        Run::<C>::start_with(source, opts, stages)?
     };
     let want_map = sinks.want_map();
     if want_map {
@@ -66,7 +74,13 @@ pub fn run_to<C: Capacity>(
     }
     // `wait` waits for a live source's next frame (a file's are all there), or a request.
     let mut i = run.next_frame();
+    let stopped = || (opts.stop.as_ref()).is_some_and(|s| s.load(Ordering::SeqCst));
     loop {
+        if stopped() {
+            let summary = run.finish_interrupted(source, i)?;
+            sinks.finish(&summary).map_err(RunError::Sink)?;
+            return Ok(summary);
+        }
         match source.wait(i) {
             Waited::Frame => {
                 let record = run.step(source, i)?;
@@ -141,13 +155,8 @@ pub struct Run<'a, C: Capacity> {
     pub(super) information: Option<PoseInformation>,
     /// The IMU's readings and what they give the frames.
     pub(super) inertial: Inertial,
-    /// The floor as the scans' points saw it, for the navigation map (with `navmap` only).
-    pub(super) hits: Option<Hits>,
-    /// What the map the run started from kept beside it ([`floor_file`]; with `navmap`
-    /// only), read at the start: a save during the run may replace that file.
-    pub(super) carried_floor: Option<FloorFile>,
-    /// What moves, cleared from the map after each fused frame (`--dynamic`).
-    pub(super) clearing: Option<Clearing>,
+    /// What works inside the run beside registration, plugged in ([`crate::stage`]).
+    pub(super) stages: Stages<C>,
     /// The last used frame's own points, for its event's map update
     /// ([`hand_own_points`](Self::hand_own_points)); `None`: not kept.
     pub(super) own_points: Option<Vec<Point>>,
@@ -160,8 +169,19 @@ impl<'a, C: Capacity> Run<'a, C> {
         source: &impl FrameSource,
         opts: impl Into<Cow<'a, RunOptions>>,
     ) -> Result<Self, RunError> {
+        Self::start_with(source, opts, Stages::new())
+    }
+
+    /// [`start`](Self::start), with the caller's own `stages` after the run's.
+    pub fn start_with(
+        source: &impl FrameSource,
+        opts: impl Into<Cow<'a, RunOptions>>,
+        stages: Stages<C>,
+    ) -> Result<Self, RunError> {
         let opts = opts.into();
-        let setup = Setup::<C>::new(&opts)?;
+        let setup = Setup::<C>::new(&opts, stages)?;
+        let stale = OWN_FILES.into_iter().chain(setup.stages.outputs());
+        files::remove_stale(&opts.out, stale);
         let spool = MeshSpool::new(
             &opts.out.join("mesh.ply"),
             opts.config.lattice(),
@@ -178,8 +198,17 @@ impl<'a, C: Capacity> Run<'a, C> {
         source: &impl FrameSource,
         opts: impl Into<Cow<'a, RunOptions>>,
     ) -> Result<Self, RunError> {
+        Self::resume_with(source, opts, Stages::new())
+    }
+
+    /// [`resume`](Self::resume), with the caller's own `stages` after the run's.
+    pub fn resume_with(
+        source: &impl FrameSource,
+        opts: impl Into<Cow<'a, RunOptions>>,
+        stages: Stages<C>,
+    ) -> Result<Self, RunError> {
         let opts = opts.into();
-        let mut setup = Setup::<C>::new(&opts)?;
+        let mut setup = Setup::<C>::new(&opts, stages)?;
         let path = checkpoint::path(&opts.out);
         if !path.exists() {
             return Err(FileError::at(
@@ -249,23 +278,17 @@ impl<'a, C: Capacity> Run<'a, C> {
             )?),
             None => None,
         };
-        // The scans' floor grows with the area driven: not in a run whose memory a window
-        // bounds (its grid is the mesh's alone, as from a saved map).
-        let hits = (opts.navmap.as_ref())
-            .filter(|_| setup.window.is_off())
-            .map(|n| Hits::new(n.resolution_m, &n.up().0));
+        let mut stages = setup.stages;
+        stages.start(&Start {
+            bounded: !setup.window.is_off(),
+            map: opts.map.as_deref().map(|m| (m, &map_path[..])),
+        });
         let mut ahead = setup.ahead;
-        if hits.is_some() {
-            // The floor counts the scan's own points.
+        if stages.need_points() {
             ahead.keep_points();
         }
-        let carried_floor = (opts.navmap.as_ref())
-            .and(opts.map.as_deref())
-            .and_then(|m| floor_file::read_beside(m, &map_path));
         Ok(Run {
-            clearing: opts.dynamic.map(Clearing::new),
-            hits,
-            carried_floor,
+            stages,
             own_points: None,
             closer: setup.closer,
             search,
@@ -387,14 +410,40 @@ impl<'a, C: Capacity> Run<'a, C> {
 
     /// Writes the trajectories, the mesh files and `report.json`, removes the spools and the
     /// checkpoint, and sums the run up.
-    pub fn finish(mut self, source: &impl FrameSource) -> Result<Summary, RunError> {
+    pub fn finish(self, source: &impl FrameSource) -> Result<Summary, RunError> {
+        self.finish_as(source, None)
+    }
+
+    /// [`finish`](Self::finish) for a run stopped before frame `before` (Ctrl-C): it writes
+    /// what it has, and says it was interrupted ([`Summary::interrupted`]).
+    pub fn finish_interrupted(
+        self,
+        source: &impl FrameSource,
+        before: usize,
+    ) -> Result<Summary, RunError> {
+        log::warn!(
+            "interrupted before frame {before} of {}: writing what the run has",
+            source.frames()
+        );
+        self.finish_as(source, Some(before))
+    }
+
+    /// Loop closure's last corrections, and what it did over the run (when on).
+    fn last_loops(&mut self, source: &impl FrameSource) -> Option<LoopReport> {
         let (pipeline, poses) = (&mut self.pipeline, &mut self.progress.poses);
         let outputs = RunOutputs {
             spool: &mut self.spool,
             saved_map: &mut self.saved_map,
         };
-        let loop_closure =
-            (self.closer.take()).map(|c| c.finish(pipeline, poses, source.frames(), outputs));
+        (self.closer.take()).map(|c| c.finish(pipeline, poses, source.frames(), outputs))
+    }
+
+    fn finish_as(
+        mut self,
+        source: &impl FrameSource,
+        interrupted: Option<usize>,
+    ) -> Result<Summary, RunError> {
+        let loop_closure = self.last_loops(source);
         self.progress.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
         let Progress {
             poses,
@@ -416,21 +465,18 @@ impl<'a, C: Capacity> Run<'a, C> {
             log::info!("map paged: {}", p.stats());
         }
         let stamps: Vec<f64> = poses.iter().map(|(i, _)| source.stamp(*i)).collect();
-        let stamped = poses.iter().zip(&stamps).map(|((_, p), t)| (*t, *p));
+        // The saved map's path: the start map's, then this run's.
+        let mut path = std::mem::take(&mut self.map_path);
+        path.extend(poses.iter().zip(&stamps).map(|((_, p), t)| (*t, *p)));
         let shown_as = self.opts.save_map.as_deref().unwrap_or(out);
-        let start = std::mem::take(&mut self.map_path);
-        let carried = self.carried_floor.take();
-        let floors = scans_floor(&self.opts, &start, &stamps, self.hits.take(), carried);
-        saved_map::finish(
-            self.saved_map.take(),
-            start,
-            &map,
-            stamped,
-            frames_seen,
-            shown_as,
-        )?;
-        let up = self.inertial.navmap_up();
-        let (counts, navmap) = write_mesh(self.spool, &map, &self.opts, &poses, up, floors)?;
+        saved_map::finish(self.saved_map.take(), &path, &map, frames_seen, shown_as)?;
+        let end = End {
+            poses: &poses,
+            out,
+            saved_map: self.opts.save_map.as_deref().map(|m| (m, &path[..])),
+            up: self.inertial.navmap_up(),
+        };
+        let counts = write_mesh(self.spool, &map, &end, &self.opts, &mut self.stages)?;
         let summary = Summary {
             frames: source.frames(),
             used: poses.len(),
@@ -455,9 +501,10 @@ impl<'a, C: Capacity> Run<'a, C> {
             health,
             loop_closure,
             input: source.input_report(),
-            navmap,
             imu: self.inertial.summary(),
-            dynamic: self.clearing.as_ref().map(Clearing::totals),
+            stages: self.stages.summaries(),
+            files: written(&self.opts, !poses.is_empty(), &self.stages),
+            interrupted,
             poses,
             stamps,
         };
@@ -469,108 +516,49 @@ impl<'a, C: Capacity> Run<'a, C> {
     }
 }
 
-/// The floor the scans saw: this run's `hits`, what the map the run started from kept beside
-/// it (`carried`), and the path the map saved now will have (`start`, the start map's, then
-/// this run's `stamps`), which its floor file goes with. A floor file beside the map to be
-/// saved goes with the map saved there before: where none is written (no scans' floor) it is
-/// removed.
-fn scans_floor(
-    opts: &RunOptions,
-    start: &[(f64, Pose)],
-    stamps: &[f64],
-    hits: Option<Hits>,
-    carried: Option<FloorFile>,
-) -> ScansFloor {
-    let saved_path = floor_file::MapPath {
-        poses: (start.len() + stamps.len()) as u64,
-        last_stamp: (stamps.last().or(start.last().map(|(t, _)| t))).map_or(0.0, |t| *t),
-    };
-    if let (Some(saved), None) = (&opts.save_map, &hits) {
-        if let Some(stale) = floor_file::remove_beside(saved) {
-            log::info!(
-                "removed {}: it went with the map saved before",
-                stale.display()
-            );
-        }
-    }
-    ScansFloor {
-        hits,
-        carried,
-        saved_path,
-    }
+/// The files a run with `opts` writes into its output folder (`used`: it used a frame): its
+/// trajectories, mesh files and picture, then those of the stages' outputs that are there, then
+/// `report.json`.
+fn written<C: Capacity>(opts: &RunOptions, used: bool, stages: &Stages<C>) -> Vec<String> {
+    let own = ["poses_kitti.txt", "poses_tum.txt"]
+        .into_iter()
+        .chain(opts.mesh_formats.iter().map(|f| f.file_name()))
+        .chain(opts.picture.then_some("topview.png"))
+        .filter(|_| used);
+    let theirs = stages.outputs().into_iter();
+    let theirs = theirs.filter(|f| opts.out.join(f).is_file());
+    (own.chain(theirs).chain(["report.json"]))
+        .map(str::to_string)
+        .collect()
 }
 
-/// The floor the scans saw, for the navigation map and beside the saved map.
-struct ScansFloor {
-    /// This run's, moved with the path as it ends.
-    hits: Option<Hits>,
-    /// What the map the run started from kept beside it.
-    carried: Option<FloorFile>,
-    /// The path of the map the run saves, which its floor file goes with.
-    saved_path: floor_file::MapPath,
-}
-
-/// Writes the mesh files, the picture and the navigation map from `spool` with `map`'s cells
-/// added; none when no frame was used (`poses` empty). `up` is the IMU's up for the
-/// navigation map and what gave it, when it gave one. With `--save-map` and the scans' floor,
-/// that floor goes beside the map file ([`floor_file`]).
-fn write_mesh(
+/// Writes the mesh files, the picture and the stages' end-of-run files from `spool` with
+/// `map`'s cells added; none when no frame was used (`end.poses` empty). A stage's vertex
+/// properties (the navigation map's layers) go on the mesh files' vertices.
+fn write_mesh<C: Capacity>(
     mut spool: MeshSpool,
     map: &slamesh_core::map::MeshMap,
+    end: &End<'_>,
     opts: &RunOptions,
-    poses: &[(usize, Pose)],
-    up: Option<(nalgebra::Vector3<f64>, String)>,
-    scans: ScansFloor,
-) -> Result<(MeshCounts, Option<NavMapSummary>), RunError> {
-    let ScansFloor {
-        hits,
-        carried,
-        saved_path,
-    } = scans;
-    let (out, used) = (&opts.out, !poses.is_empty());
+    stages: &mut Stages<C>,
+) -> Result<MeshCounts, RunError> {
+    let used = !end.poses.is_empty();
     spool.add_map(map)?;
     spool.colour_by(opts.mesh_colour);
     if opts.picture && used {
-        let path: Vec<Pose> = poses.iter().map(|(_, p)| *p).collect();
-        write_topview(&mut spool, &path, &out.join("topview.png"))?;
+        let path: Vec<Pose> = end.poses.iter().map(|(_, p)| *p).collect();
+        write_topview(&mut spool, &path, &end.out.join("topview.png"))?;
     }
-    let navmap = match (&opts.navmap, used) {
-        (Some(how), true) => {
-            let path: Vec<_> = poses.iter().map(|(_, p)| p.translation.vector).collect();
-            let mut how = how.clone();
-            if how.up.is_none() {
-                how.up = up;
-            }
-            if let Some(h) = &hits {
-                log::debug!("navigation map: the scans' floor took {} bytes", h.bytes());
-            }
-            let floors = |each: &mut dyn FnMut(crate::navmap::hits::ScanFloor)| {
-                floor_file::each_kept(carried.as_ref(), hits.as_ref(), poses, each)
-            };
-            let (summary, grid) = crate::navmap::make(&mut spool, &floors, &path, &how, out)?;
-            if let (Some(saved), Some(_)) = (&opts.save_map, &hits) {
-                let beside = floor_file::beside(saved);
-                let n = floor_file::write(&beside, how.resolution_m, saved_path, &floors)?;
-                log::info!(
-                    "the scans' floor saved to {}: {n} floor cells",
-                    beside.display()
-                );
-            }
-            drop(hits);
-            summary.map(|s| (s, grid, how.robot))
-        }
-        _ => None,
-    };
+    stages.finish(&mut spool, end)?;
     let outputs: Vec<(PathBuf, MeshFormat)> = opts
         .mesh_formats
         .iter()
         .filter(|_| used)
-        .map(|&f| (out.join(f.file_name()), f))
+        .map(|&f| (end.out.join(f.file_name()), f))
         .collect();
-    // With a navigation map, its layers on the mesh's vertices.
-    let mut layers = (navmap.as_ref()).map(|(_, g, robot)| OnMesh::new(g, *robot));
-    let extra = layers.as_mut().map(|l| l as &mut dyn VertexProperties);
-    let counts = spool.finish_with(&outputs, extra)?;
-    drop(layers);
-    Ok((counts, navmap.map(|(s, _, _)| s)))
+    let mut layers = stages.vertex_properties();
+    let extra = layers
+        .as_mut()
+        .map(|l| &mut **l as &mut dyn VertexProperties);
+    Ok(spool.finish_with(&outputs, extra)?)
 }

@@ -1,7 +1,8 @@
 //! What a run's start needs before its first frame, whether it starts anew or resumes: the
 //! output folder (made here), the executor, the sliding window and the memory cap's layer
 //! budget, the pipeline, and a saved map to start from: loaded whole, or, for localizing under
-//! a memory cap, opened for paging ([`crate::run::map_pager`]); and loop closure's thread.
+//! a memory cap, opened for paging ([`crate::run::map_pager`]); loop closure's thread; and the
+//! run's stages (`wiring`), whose memory counts under the cap.
 
 use crate::io::error::FileError;
 use crate::loop_closure::streaming::{Evict, Streaming};
@@ -15,6 +16,8 @@ use crate::run::memory;
 use crate::run::options::{InitialPose, RunError, RunOptions};
 use crate::run::saved_map::{self, MapStart};
 use crate::run::window::{CapTooSmall, Window};
+use crate::run::wiring;
+use crate::stage::Stages;
 use slamesh_core::motion::ConstantVelocity;
 use slamesh_core::{Capacity, Pipeline};
 use std::path::Path;
@@ -33,10 +36,13 @@ pub(crate) struct Setup<C: Capacity> {
     pub(crate) ahead: LookAhead,
     /// Loop closure's thread, when on.
     pub(crate) closer: Option<LoopClosure<C>>,
+    /// The run's stages, not yet told the run starts.
+    pub(crate) stages: Stages<C>,
 }
 
 impl<C: Capacity> Setup<C> {
-    pub(crate) fn new(opts: &RunOptions) -> Result<Self, RunError> {
+    /// The start of a run with `opts`, its stages those the options wire then `extra`.
+    pub(crate) fn new(opts: &RunOptions, extra: Stages<C>) -> Result<Self, RunError> {
         let out = &opts.out;
         std::fs::create_dir_all(out)
             .map_err(|e| FileError::at(out, format!("cannot create the output folder: {e}")))?;
@@ -46,11 +52,13 @@ impl<C: Capacity> Setup<C> {
         // under a cap too tight for the filter's buffers twice, read ahead only.
         let threads = workers.threads() > 1;
         let wanted = opts.loop_closure.is_some() && opts.loop_closure_unavailable().is_none();
+        let mut stages = wiring::stages::<C>(opts);
+        stages.extend(extra);
         let Budget {
             memory,
             filter_ahead,
             closing,
-        } = layer_budget::<C>(opts, threads, wanted)?;
+        } = layer_budget::<C>(opts, threads, wanted, stages.bytes())?;
         let max_layers = memory.as_ref().map(|m| m.layers);
         window.max_layers = max_layers;
         let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
@@ -83,6 +91,7 @@ impl<C: Capacity> Setup<C> {
             false => loop_closer(opts, streaming(opts, window, map_layers))?,
         };
         Ok(Setup {
+            stages,
             closer,
             pipeline,
             map_start,
@@ -111,12 +120,13 @@ struct Budget {
 
 /// The layer budget a memory cap allows (none without a cap), whether the next frame can
 /// still be filtered ahead (`threads`: there is a pool to filter on) within it, and whether
-/// loop closure (asked for: `closing`) fits too. What gives way first, as the cap tightens:
+/// loop closure (asked for: `closing`) fits too, beside the stages' `stage_bytes`. What gives way first, as the cap tightens:
 /// filtering ahead, then loop closure (the run goes on without it, saying what it needs).
 fn layer_budget<C: Capacity>(
     opts: &RunOptions,
     threads: bool,
     closing: bool,
+    stage_bytes: usize,
 ) -> Result<Budget, RunError> {
     let Some(cap) = opts.window.memory_cap_mb else {
         return Ok(Budget {
@@ -125,9 +135,8 @@ fn layer_budget<C: Capacity>(
             closing,
         });
     };
-    // Clearing's range image (`--dynamic on`) counts with the rest of the process.
-    let clearing = opts.dynamic.map_or(0, |_| crate::dynamic::CLEARING_BYTES);
-    let (cap_bytes, other) = ((cap * 1e6) as usize, memory::other_bytes() + clearing);
+    // The stages' memory (clearing's range image) counts with the rest of the process.
+    let (cap_bytes, other) = ((cap * 1e6) as usize, memory::other_bytes() + stage_bytes);
     let too_small = |e: CapTooSmall| RunError::MemoryCapTooSmall {
         cap_mb: cap,
         class: C::NAME,

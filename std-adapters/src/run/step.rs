@@ -18,6 +18,7 @@ use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::run::timing::StageMs;
 use crate::sources::FrameSource;
+use crate::stage::Used;
 use slamesh_core::deskew::{self, DeskewError};
 use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{Paging, Search};
@@ -363,21 +364,16 @@ impl<C: Capacity> Run<'_, C> {
         self.information = Some(o.stats.information);
     }
 
-    /// Counts the triangles the frame updated and applies the window (cells it evicts go to
+    /// Tells the stages the frame was fused (their time counts in the update's), counts the
+    /// triangles the frame updated and applies the window (cells it evicts go to
     /// the mesh spool and the map being saved).
     fn update_map(
         &mut self,
         o: &slamesh_core::ScanOutcome,
         rec: &mut FrameRecord,
     ) -> Result<(), RunError> {
-        if let Some(c) = &mut self.clearing {
-            let t = Instant::now();
-            rec.cleared_vertices = Some(
-                c.after_fusion(&mut self.pipeline, &o.t_world_sensor)
-                    .forgotten,
-            );
-            rec.ms.update += t.elapsed().as_secs_f64() * 1e3;
-        }
+        let (pose, counts) = (&o.t_world_sensor, &mut rec.counts);
+        rec.ms.update += self.stages.fused(&mut self.pipeline, pose, counts);
         let t = Instant::now();
         rec.triangles_updated = updated_triangles(&self.pipeline, &self.workers);
         rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
@@ -397,7 +393,8 @@ impl<C: Capacity> Run<'_, C> {
         Ok(())
     }
 
-    /// Keeps the frame's pose at its stamp (and shows the frame to loop closure).
+    /// Keeps the frame's pose at its stamp (and shows the frame to the stages and loop
+    /// closure).
     fn keep_pose(
         &mut self,
         source: &impl FrameSource,
@@ -424,15 +421,13 @@ impl<C: Capacity> Run<'_, C> {
             _ => o.t_world_sensor,
         };
         self.progress.poses.push((i, at_stamp));
-        if let Some(h) = &mut self.hits {
-            h.add(
-                i,
-                &at_stamp,
-                &o.t_world_sensor,
-                &frame.points,
-                &self.workers,
-            );
-        }
+        self.stages.used(&Used {
+            frame: i,
+            at_stamp: &at_stamp,
+            fused_at: &o.t_world_sensor,
+            points: &frame.points,
+            workers: &self.workers,
+        });
         (self.inertial).used(frame.reference, o.status, history, frame.imu.prior);
         if self.inertial.active() {
             self.inertial.count(&frame.imu);
