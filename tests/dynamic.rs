@@ -104,7 +104,7 @@ fn clearing_takes_ghosts_out_of_the_mesh_and_keeps_the_static_scene() {
     let (off, _) = scored("movers", &mut scans, &truth, false);
     let (on, summary) = scored("movers", &mut scans, &truth, true);
     let cleared: slamesh::dynamic::DynamicSummary =
-        serde_json::from_value(summary.stages["dynamic"].clone()).expect("clearing's totals");
+        summary.stage("dynamic").expect("clearing's totals");
     assert!(cleared.forgotten > 1_000, "{cleared:?}");
     assert!(on.ghost_m2 < 0.5 * off.ghost_m2, "{off:?}\n{on:?}");
     assert!(on.da > off.da + 0.25, "{off:?}\n{on:?}");

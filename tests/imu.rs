@@ -13,6 +13,7 @@ use crate::common::{scratch, slamesh_run_ok, write_folder_with_imu};
 use nalgebra::{Translation3, UnitQuaternion};
 use slamesh::eval::odometry::consecutive_errors;
 use slamesh::formats::trajectory;
+use slamesh::inertial::ImuSummary;
 use slamesh::inertial::{AccelUnit, GravityReport, ImuOptions};
 use slamesh::run::{run, FrameSource, RunOptions, Sample, Summary};
 use slamesh_core::{Capacity, KittiCapacity, Lidar32Capacity, Point, Pose};
@@ -135,14 +136,16 @@ fn a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one() {
         "the shake is hard without the IMU: {blind}"
     );
     assert_eq!(count(&statuses, "Converged"), 59, "{statuses:?}");
-    let imu = s.imu.expect("the summary says what the IMU did");
+    let imu = s
+        .stage::<ImuSummary>("imu")
+        .expect("the summary says what the IMU did");
     assert_eq!(
         (imu.deskewed_frames, imu.prior_frames, imu.gap_frames),
         (60, 59, 0)
     );
     // 200 Hz over the second before the first frame, the 6 s and the last sweep.
     assert_eq!(imu.readings.taken, 1400);
-    assert!(s.health.imu_gaps.is_empty());
+    assert!(s.health.doubted.is_empty());
 }
 
 /// A drive whose IMU's readings `alter` changes on their way to the run, its points with
@@ -217,12 +220,12 @@ fn frames_the_readings_miss_run_on_the_motion_model_and_are_named() {
     let truth = calm.poses.clone();
     let (s, statuses, step) =
         run_drive::<KittiCapacity>(&mut Altered::new(calm, holed), &truth, true, "holed");
-    let gaps: Vec<usize> = s.health.imu_gaps.iter().map(|g| g.frame).collect();
+    let gaps: Vec<usize> = s.health.doubted.iter().map(|g| g.frame).collect();
     // Frames 20 to 24 sweep through the hole; frame 25's prior reaches back into it.
-    assert_eq!(gaps, [20, 21, 22, 23, 24, 25], "{:?}", s.health.imu_gaps);
+    assert_eq!(gaps, [20, 21, 22, 23, 24, 25], "{:?}", s.health.doubted);
     assert!(s
         .health
-        .imu_gaps
+        .doubted
         .iter()
         .all(|g| g.status == "ImuGap" && g.reason.contains("no IMU reading from")));
     assert_eq!(count(&statuses, "Converged"), 29);
@@ -239,7 +242,7 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
         true,
         "degrees",
     );
-    let imu = s.imu.expect("readings came");
+    let imu = s.stage::<ImuSummary>("imu").expect("readings came");
     let why = imu.set_aside.expect("set aside");
     assert!(why.contains("units (gyro_unit)"), "{why}");
     // The check over the first frames says why: the gyro's angles are 57.3 times too large.
@@ -254,7 +257,7 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
     let mut opts = options(&out, true);
     opts.imu.calibration.gyro_unit_rad_s = 1f64.to_radians();
     let s = run::<KittiCapacity>(&mut Altered::new(d, in_degrees), &opts, |_| {}).unwrap();
-    let imu = s.imu.expect("readings came");
+    let imu = s.stage::<ImuSummary>("imu").expect("readings came");
     assert!(imu.set_aside.is_none(), "{imu:?}");
     assert_eq!(imu.prior_frames, 19);
 }
@@ -274,7 +277,10 @@ fn an_imu_turned_from_its_configured_place_is_named_with_the_turn() {
     let truth = d.poses.clone();
     let (s, _, _) =
         run_drive::<KittiCapacity>(&mut Altered::new(d, turned), &truth, true, "turned");
-    let check = s.imu.and_then(|i| i.calibration_check).expect("judged");
+    let check = s
+        .stage::<ImuSummary>("imu")
+        .and_then(|i| i.calibration_check)
+        .expect("judged");
     println!("{check}");
     // Configured at 90 degrees of yaw, the IMU sits at 75.
     let yaw: f64 = check
@@ -397,7 +403,11 @@ fn a_tilted_lidar_maps_level_with_its_imu() {
         let worst = (estimate.iter().zip(&d.poses))
             .map(|(e, t)| up_off_deg(e, t))
             .fold(0.0, f64::max);
-        ups.push((worst, s.imu.and_then(|i| i.gravity), navmap));
+        ups.push((
+            worst,
+            s.stage::<ImuSummary>("imu").and_then(|i| i.gravity),
+            navmap,
+        ));
     }
     let [(with, Some(g), navmap), (without, None, plain)] = &ups[..] else {
         panic!("{ups:?}");
@@ -433,7 +443,9 @@ fn an_accelerometer_in_g_is_told_and_levels_the_map_as_one_in_metres_per_second_
     let level = |source: &mut dyn FnMut(&RunOptions) -> Summary, unit: AccelUnit| {
         let mut opts = options(&out, true);
         opts.imu.accel_unit = unit;
-        let imu = source(&opts).imu.expect("readings came");
+        let imu = source(&opts)
+            .stage::<ImuSummary>("imu")
+            .expect("readings came");
         (
             imu.gravity.expect("up was looked for"),
             imu.accelerometer_unit,
@@ -493,7 +505,10 @@ fn a_moving_start_finds_up_over_its_first_seconds() {
     // frame, and handed to the navigation map.
     let d = hand_held(16);
     let (s, _, navmap) = navmap_run::<Lidar32Capacity>(&d, true, "moving-up");
-    let g = s.imu.and_then(|i| i.gravity).expect("up was looked for");
+    let g = s
+        .stage::<ImuSummary>("imu")
+        .and_then(|i| i.gravity)
+        .expect("up was looked for");
     println!("{g:?}");
     assert!(!g.levelled, "{g:?}");
     let moving = g.moving.expect("read over the first seconds");

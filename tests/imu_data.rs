@@ -7,6 +7,7 @@ use crate::common::{scratch, slamesh_run_ok, write_folder_with_imu};
 use crate::imu::{car_frames, count, hand_held, options, run_drive, shaken_car, Altered};
 use slamesh::eval::odometry::consecutive_errors;
 use slamesh::formats::trajectory;
+use slamesh::inertial::ImuSummary;
 use slamesh::run::{run, Sample};
 use slamesh_core::{KittiCapacity, Lidar32Capacity};
 use slamesh_sim::{ImuModel, Vibration};
@@ -42,7 +43,7 @@ fn readings_too_slow_or_too_still_to_be_an_imu_are_ignored_and_named() {
         |_| {},
     )
     .unwrap();
-    let imu = s.imu.expect("readings came");
+    let imu = s.stage::<ImuSummary>("imu").expect("readings came");
     let why = imu.ignored.expect("ignored");
     assert!(why.contains("10.0 Hz"), "{why}");
     assert_eq!((imu.prior_frames, imu.deskewed_frames), (0, 0));
@@ -57,7 +58,10 @@ fn readings_too_slow_or_too_still_to_be_an_imu_are_ignored_and_named() {
     let h = hand_held(30);
     let (s, _, _) =
         run_drive::<Lidar32Capacity>(&mut Altered::new(h, still), &truth, true, "still");
-    let why = s.imu.and_then(|i| i.ignored).expect("ignored");
+    let why = s
+        .stage::<ImuSummary>("imu")
+        .and_then(|i| i.ignored)
+        .expect("ignored");
     assert!(why.contains("while the registrations turned"), "{why}");
 }
 
@@ -67,7 +71,7 @@ fn registrations_bent_by_an_untimed_shaken_sweep_do_not_talk_the_imu_out() {
     let truth = d.poses.clone();
     let (s, statuses, step) =
         run_drive::<KittiCapacity>(&mut Altered::untimed(d), &truth, true, "untimed-shaken");
-    let imu = s.imu.expect("readings came");
+    let imu = s.stage::<ImuSummary>("imu").expect("readings came");
     println!(
         "untimed shaken sweeps with the IMU: {:.2} cm a step, {} converged, {} runs of \
          misses put down to the registrations",

@@ -6,7 +6,7 @@
 use crate::common::scratch;
 use slamesh::outputs::mesh_spool::{MeshFormat, MeshSpool};
 use slamesh::run::{run_with, RunOptions, Sinks};
-use slamesh::stage::{End, RunStage, Stages, Used};
+use slamesh::stage::{End, Note, RunStage, Stages, Used};
 use slamesh::FileError;
 use slamesh_core::{Config, KittiCapacity, Pipeline, Pose};
 use slamesh_sim::Drive;
@@ -25,18 +25,15 @@ impl RunStage<KittiCapacity> for Highest {
         "highest"
     }
 
-    fn fused(
-        &mut self,
-        pipeline: &mut Pipeline<KittiCapacity>,
-        _: &Pose,
-    ) -> Option<(&'static str, u64)> {
+    fn fused(&mut self, pipeline: &mut Pipeline<KittiCapacity>, _: &Pose) -> Option<Note> {
         let n = pipeline.map().layer_count() as u64;
         self.layers.push(n);
-        Some(("map_layers_fused", n))
+        Some(Note::of("map_layers_fused", n))
     }
 
-    fn used(&mut self, frame: &Used<'_>) {
+    fn used(&mut self, frame: &Used<'_>) -> Option<Note> {
         self.used.push(frame.frame);
+        None
     }
 
     fn finish(&mut self, mesh: &mut MeshSpool, end: &End<'_>) -> Result<(), FileError> {

@@ -8,8 +8,8 @@
 #   calibration);
 # - each way the pose can be known: `mesh` at given poses, `run --save-map` then `localize` in
 #   that map (the search for the first pose), and a sliding window;
-# - the run's stages: the navigation map (with the floor file beside a saved map) and
-#   clearing what moves;
+# - the run's stages: the IMU (a simulated shaken car with its readings), the navigation map
+#   (with the floor file beside a saved map) and clearing what moves;
 # and compares the trajectories and meshes they write. Timings (report.json) are not compared.
 #
 #   tools/same_outputs.sh [BASE]        # SLAMESH_DATA defaults to ../shared/data
@@ -37,6 +37,9 @@ else
   label=$BASE_BIN
 fi
 declare -A bin=([base]="$BASE_BIN" [new]="$NEW_BIN")
+# A shaken car with its IMU at 200 Hz (the IMU's deskew and prior), written once by this tree.
+cargo build --release --example write_drive -q
+target/release/examples/write_drive --out "$work/shaken" --shaken --imu 200 --frames 80 >/dev/null
 fx=tests/fixtures
 k=$data/kitti-mini
 for side in base new; do
@@ -72,6 +75,7 @@ for side in base new; do
   "$b" run "$k/02" --out "$o/navmap02" --preset kitti --threads 2 -q --no-picture --navmap \
     --save-map "$o/navmap02/map.slamesh"
   "$b" run "$k/03" --out "$o/dynamic03" --preset kitti --threads 2 -q --no-picture --dynamic on
+  "$b" run "$work/shaken" --out "$o/shaken-imu" --threads 2 -q --no-picture
 done
 differ=0
 compared=0

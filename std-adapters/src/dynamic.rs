@@ -10,7 +10,7 @@
 //! It guarantees that a run without it writes the same bytes as before it existed, and that
 //! with it the map is the same on any thread count (serial, in the map's order).
 
-use crate::stage::RunStage;
+use crate::stage::{Note, RunStage};
 use slamesh_core::clearing::{ClearingConfig, ClearingStats, RangeImage};
 use slamesh_core::{Capacity, Pipeline, Pose};
 
@@ -85,9 +85,9 @@ impl<C: Capacity> RunStage<C> for Clearing {
         CLEARING_BYTES
     }
 
-    fn fused(&mut self, pipeline: &mut Pipeline<C>, pose: &Pose) -> Option<(&'static str, u64)> {
+    fn fused(&mut self, pipeline: &mut Pipeline<C>, pose: &Pose) -> Option<Note> {
         let forgotten = self.after_fusion(pipeline, pose).forgotten;
-        Some(("cleared_vertices", u64::from(forgotten)))
+        Some(Note::of("cleared_vertices", forgotten))
     }
 
     fn summary(&self) -> Option<serde_json::Value> {

@@ -1,21 +1,28 @@
 //! What works inside a run beside registration, plugged in: a [`RunStage`] (not the core's
-//! `Stage`, which names the pipeline's own steps for timing) is told the run's
-//! start, sees each frame's scan fused and each pose kept, may change the map, counts into
-//! the frame's record and the run's summary, writes what goes beside a map saved during or at
-//! the end of the run, and has the whole map, read-only, at the end.
+//! `Stage`, which names the pipeline's own steps for timing) is told the run's start and each
+//! frame as read; may deskew its scan and give the pose it registers from; sees the scan
+//! fused (and may change the map) and the pose kept; notes what it did in the frame's record
+//! (and why it doubts the frame); keeps its state in a checkpoint; writes what goes beside a
+//! map saved during or at the end of the run; and has the whole map, read-only, at the end,
+//! for its files and its part of the run's summary.
 //!
 //! A run holds its stages as a list ([`Stages`]) and names none of them: each lives in its
-//! own room (clearing what moves in [`crate::dynamic`], the navigation map in
-//! [`crate::navmap::stage`]) and `run/wiring.rs` is the one list that wires them from the
-//! options. A run's stages are called in the list's order, on the run's thread, between the
-//! core's steps: what they do is the same on any thread count.
+//! own room (the IMU in [`crate::inertial::stage`], clearing what moves in [`crate::dynamic`],
+//! the navigation map in [`crate::navmap::stage`]) and `run/wiring.rs` is the one list that
+//! wires them from the options; a caller adds its own ([`crate::run::run_with`]). A run's
+//! stages are called in the list's order, on the run's thread, between the core's steps: what
+//! they do is the same on any thread count. Where one answer is wanted (a deskew, a prior, up)
+//! the first stage that gives one gives it.
 
 use crate::formats::mesh_records::VertexProperties;
 use crate::io::error::FileError;
+use crate::io::le::{put_str, put_u64, Damaged, Decoder};
 use crate::outputs::mesh_spool::MeshSpool;
 use crate::parallel::Workers;
+use crate::sources::Sample;
 use nalgebra::Vector3;
-use slamesh_core::{Capacity, Pipeline, Point, Pose};
+use slamesh_core::deskew::{DeskewError, Deskewed};
+use slamesh_core::{Capacity, Pipeline, Point, Pose, RegistrationStatus};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
@@ -39,14 +46,57 @@ pub trait RunStage<C: Capacity>: Send {
         false
     }
 
-    /// The frame's scan was fused into `pipeline`'s map at `pose`: it may change the map.
-    /// Returns a count for the frame's record, under its name (e.g. `cleared_vertices`).
-    fn fused(&mut self, _pipeline: &mut Pipeline<C>, _pose: &Pose) -> Option<(&'static str, u64)> {
+    /// A frame was read, with the samples that are not scans that came with it (an IMU's).
+    fn read(&mut self, _frame: &Read<'_>) {}
+
+    /// Deskews the frame's scan when it can (the first stage that does deskews it; without
+    /// one, the run deskews with the last motion): `None` when it does not.
+    fn deskew(&mut self, _sweep: &mut Sweep<'_>) -> Option<Result<Deskewed, DeskewError>> {
         None
     }
 
-    /// A used frame's pose was kept.
-    fn used(&mut self, _frame: &Used<'_>) {}
+    /// Where the frame's sensor is at its reference time, to register from (the first stage
+    /// that knows gives it; asked only when the pose is neither given nor searched for).
+    fn prior(&mut self, _at: &PriorAt<'_>) -> Option<Pose> {
+        None
+    }
+
+    /// The pose at the frame's stamp of a scan this stage deskewed, fused at `fused_at`
+    /// (its pose at `reference`); `None` to leave it to the run's motion model.
+    fn at_stamp(
+        &self,
+        _fused_at: &Pose,
+        _reference: f64,
+        _stamp: f64,
+        _history: History,
+    ) -> Option<Pose> {
+        None
+    }
+
+    /// The frame's scan was fused into `pipeline`'s map at `pose`: it may change the map.
+    /// Returns a note for the frame's record.
+    fn fused(&mut self, _pipeline: &mut Pipeline<C>, _pose: &Pose) -> Option<Note> {
+        None
+    }
+
+    /// A used frame's pose was kept. Returns a note for the frame's record.
+    fn used(&mut self, _frame: &Used<'_>) -> Option<Note> {
+        None
+    }
+
+    /// Appends what a checkpoint keeps of it, for [`restore`](Self::restore); nothing by
+    /// default (a resumed run starts it anew).
+    fn save(&self, _state: &mut Vec<u8>) {}
+
+    /// Takes back what [`save`](Self::save) wrote, in place of what it holds.
+    fn restore(&mut self, _state: &[u8]) -> Result<(), Damaged> {
+        Ok(())
+    }
+
+    /// Which way is up in the map frame, and what said so, when it knows.
+    fn up(&self) -> Option<(Vector3<f64>, String)> {
+        None
+    }
 
     /// A map file was saved at `map`, during the run or at its end, with `path` (the stamped
     /// poses it holds, the map it started from first); `poses` are this run's (frame, pose).
@@ -96,11 +146,103 @@ pub struct Start<'a> {
     pub map: Option<(&'a Path, &'a [(f64, Pose)])>,
 }
 
+/// The motion model's last two poses, older first (the core's
+/// [`slamesh_core::motion::ConstantVelocity::history`]).
+pub type History = (Option<Pose>, Option<Pose>);
+
+/// A frame as read ([`RunStage::read`]).
+#[derive(Clone, Copy)]
+pub struct Read<'a> {
+    /// Its index.
+    pub frame: usize,
+    /// What to call it in messages (its file).
+    pub file: &'a str,
+    /// The samples that are not scans that came with it, in time order.
+    pub samples: &'a [Sample],
+}
+
+/// A frame's scan to deskew ([`RunStage::deskew`]).
+pub struct Sweep<'a> {
+    /// Its points, in the sensor frame.
+    pub points: &'a mut [Point],
+    /// Each point's time after the stamp (s).
+    pub times: &'a [f32],
+    /// The frame's stamp (s).
+    pub stamp: f64,
+    /// The motion model's last two poses.
+    pub history: History,
+}
+
+/// Where a frame's prior is asked for ([`RunStage::prior`]).
+#[derive(Clone, Copy)]
+pub struct PriorAt<'a> {
+    /// Its index.
+    pub frame: usize,
+    /// What to call it in messages (its file).
+    pub file: &'a str,
+    /// The time its pose is at (the stamp, or a deskewed sweep's reference time).
+    pub reference: f64,
+    /// The motion model's last two poses.
+    pub history: History,
+    /// It is the map's first scan: the prior places the map (levels it, say).
+    pub first: bool,
+}
+
+/// What a stage notes in a frame's record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Note {
+    /// Its key in the record (e.g. `cleared_vertices`, `imu`).
+    pub key: &'static str,
+    /// Its value there.
+    pub value: serde_json::Value,
+    /// Why the frame is doubted, when it is: a status and its reason, which the run's health
+    /// lists beside the frames not registered normally (e.g. `ImuGap`).
+    pub doubt: Option<(&'static str, String)>,
+}
+
+impl Note {
+    /// `value` under `key`, the frame not doubted.
+    pub fn of(key: &'static str, value: impl serde::Serialize) -> Self {
+        Self {
+            key,
+            value: serde_json::to_value(value).unwrap_or_default(),
+            doubt: None,
+        }
+    }
+}
+
+/// What a frame's record keeps of the stages' notes.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Notes {
+    /// Each note's value under its key.
+    #[serde(flatten)]
+    pub values: BTreeMap<String, serde_json::Value>,
+    /// Why the frame is doubted: (status, reason), one a note that doubts it.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub doubts: Vec<(String, String)>,
+}
+
+impl Notes {
+    /// Keeps `note`.
+    pub fn add(&mut self, note: Note) {
+        if let Some((status, why)) = note.doubt {
+            self.doubts.push((status.to_string(), why));
+        }
+        self.values.insert(note.key.to_string(), note.value);
+    }
+}
+
 /// A used frame, as its pose was kept.
 #[derive(Clone, Copy)]
 pub struct Used<'a> {
     /// Its index.
     pub frame: usize,
+    /// How its registration ended.
+    pub status: RegistrationStatus,
+    /// The time its fused pose is at (the stamp, or a deskewed sweep's reference time).
+    pub reference: f64,
+    /// The motion model's last two poses, the frame's last.
+    pub history: History,
     /// Its pose at its stamp (the trajectory's).
     pub at_stamp: &'a Pose,
     /// The pose its scan was fused at (a deskewed scan's reference time).
@@ -163,26 +305,94 @@ impl<C: Capacity> Stages<C> {
         self.0.iter().any(|s| s.needs_points())
     }
 
-    /// Tells each the frame's scan was fused at `pose`; their counts go into `counts` and
-    /// the milliseconds they took together are returned.
-    pub fn fused(
-        &mut self,
-        pipeline: &mut Pipeline<C>,
-        pose: &Pose,
-        counts: &mut BTreeMap<String, u64>,
-    ) -> f64 {
+    /// Tells each the frame was read.
+    pub fn read(&mut self, frame: &Read<'_>) {
+        self.0.iter_mut().for_each(|s| s.read(frame));
+    }
+
+    /// The first stage's deskew that deskews the scan, if one does.
+    pub fn deskew(&mut self, sweep: &mut Sweep<'_>) -> Option<Result<Deskewed, DeskewError>> {
+        self.0.iter_mut().find_map(|s| s.deskew(sweep))
+    }
+
+    /// The first prior a stage gives, asking each in turn until one does.
+    pub fn prior(&mut self, at: &PriorAt<'_>) -> Option<Pose> {
+        self.0.iter_mut().find_map(|s| s.prior(at))
+    }
+
+    /// The first pose at the stamp a stage gives for a scan it deskewed.
+    pub fn at_stamp(
+        &self,
+        fused_at: &Pose,
+        reference: f64,
+        stamp: f64,
+        history: History,
+    ) -> Option<Pose> {
+        (self.0.iter()).find_map(|s| s.at_stamp(fused_at, reference, stamp, history))
+    }
+
+    /// Tells each the frame's scan was fused at `pose`; their notes go into `notes` and the
+    /// milliseconds they took together are returned.
+    pub fn fused(&mut self, pipeline: &mut Pipeline<C>, pose: &Pose, notes: &mut Notes) -> f64 {
         let t = Instant::now();
         for s in &mut self.0 {
-            if let Some((name, n)) = s.fused(pipeline, pose) {
-                counts.insert(name.to_string(), n);
+            if let Some(note) = s.fused(pipeline, pose) {
+                notes.add(note);
             }
         }
         t.elapsed().as_secs_f64() * 1e3
     }
 
-    /// Tells each a used frame's pose was kept.
-    pub fn used(&mut self, frame: &Used<'_>) {
-        self.0.iter_mut().for_each(|s| s.used(frame));
+    /// Tells each a used frame's pose was kept; their notes go into `notes`.
+    pub fn used(&mut self, frame: &Used<'_>, notes: &mut Notes) {
+        for s in &mut self.0 {
+            if let Some(note) = s.used(frame) {
+                notes.add(note);
+            }
+        }
+    }
+
+    /// What a checkpoint keeps of them: each stage's state that is not empty, after its name.
+    pub fn save(&self, state: &mut Vec<u8>) {
+        let mut part = Vec::new();
+        for s in &self.0 {
+            part.clear();
+            s.save(&mut part);
+            if !part.is_empty() {
+                put_str(state, s.name());
+                put_u64(state, part.len() as u64);
+                state.extend_from_slice(&part);
+            }
+        }
+    }
+
+    /// Takes back what [`save`](Self::save) wrote: each part to the stage of its name (to
+    /// stages of one name in their order).
+    pub fn restore(&mut self, state: &[u8]) -> Result<(), Damaged> {
+        let mut d = Decoder { bytes: state };
+        let mut restored = vec![false; self.0.len()];
+        while !d.bytes.is_empty() {
+            let name = d.string()?;
+            let n = d.count(1)?;
+            let part = d.take(n)?;
+            let k = (0..self.0.len())
+                .find(|&k| !restored[k] && self.0[k].name() == name)
+                .ok_or_else(|| {
+                    Damaged(format!(
+                        "the state of a stage this run does not have ({name})"
+                    ))
+                })?;
+            restored[k] = true;
+            (self.0[k])
+                .restore(part)
+                .map_err(|e| Damaged(format!("{name}'s state: {e}")))?;
+        }
+        Ok(())
+    }
+
+    /// Which way is up, from the first stage that knows.
+    pub fn up(&self) -> Option<(Vector3<f64>, String)> {
+        self.0.iter().find_map(|s| s.up())
     }
 
     /// What each writes beside the map saved at `map` ([`RunStage::beside_map`]), joined for the
@@ -252,12 +462,23 @@ mod tests {
         fn start(&mut self, start: &Start<'_>) {
             self.started = !start.bounded;
         }
-        fn fused(&mut self, _: &mut Pipeline<Small>, _: &Pose) -> Option<(&'static str, u64)> {
+        fn fused(&mut self, _: &mut Pipeline<Small>, _: &Pose) -> Option<Note> {
             self.fused += 1;
-            Some(("fused_so_far", self.fused))
+            Some(Note::of("fused_so_far", self.fused))
         }
-        fn used(&mut self, frame: &Used<'_>) {
+        fn used(&mut self, frame: &Used<'_>) -> Option<Note> {
             self.used.push(frame.frame);
+            (frame.frame == 7).then(|| Note {
+                doubt: Some(("Odd", "frame 7".into())),
+                ..Note::of("odd", true)
+            })
+        }
+        fn save(&self, state: &mut Vec<u8>) {
+            put_u64(state, self.fused);
+        }
+        fn restore(&mut self, state: &[u8]) -> Result<(), Damaged> {
+            self.fused = Decoder { bytes: state }.u64()?;
+            Ok(())
         }
         fn summary(&self) -> Option<serde_json::Value> {
             Some(serde_json::json!({ "used": self.used }))
@@ -278,21 +499,46 @@ mod tests {
             map: None,
         });
         let mut pipeline = Pipeline::<Small>::new(Default::default()).unwrap();
-        let mut counts = BTreeMap::new();
+        let mut notes = Notes::default();
         for _ in 0..3 {
-            stages.fused(&mut pipeline, &Pose::identity(), &mut counts);
+            stages.fused(&mut pipeline, &Pose::identity(), &mut notes);
         }
-        assert_eq!(counts.get("fused_so_far"), Some(&3));
+        assert_eq!(notes.values["fused_so_far"], 3);
         let workers = Workers::new(1).unwrap();
+        let mut doubts = Vec::new();
         for frame in [4, 7] {
-            stages.used(&Used {
+            let mut notes = Notes::default();
+            let used = Used {
                 frame,
+                status: RegistrationStatus::Converged,
+                reference: 0.0,
+                history: (None, None),
                 at_stamp: &Pose::identity(),
                 fused_at: &Pose::identity(),
                 points: &[],
                 workers: &workers,
-            });
+            };
+            stages.used(&used, &mut notes);
+            doubts.extend(notes.doubts);
         }
+        assert_eq!(doubts, vec![("Odd".to_string(), "frame 7".to_string()); 2]);
+        // A checkpoint's state, back into stages started anew.
+        let mut state = Vec::new();
+        stages.save(&mut state);
+        let mut again = Stages::<Small>::new();
+        again.push(Box::new(Counting::default()));
+        again.push(Box::new(Counting::default()));
+        again.restore(&state).unwrap();
+        let mut more = Notes::default();
+        again.fused(&mut pipeline, &Pose::identity(), &mut more);
+        assert_eq!(
+            more.values["fused_so_far"], 4,
+            "counting on from the checkpoint"
+        );
+        assert!(
+            Stages::<Small>::new().restore(&state).is_err(),
+            "no stage of that name"
+        );
         let summaries = stages.summaries();
         assert_eq!(summaries.len(), 1, "one key for the two stages of one name");
         assert_eq!(summaries["counting"], serde_json::json!({ "used": [4, 7] }));

@@ -14,6 +14,7 @@
 pub mod calibration;
 pub mod moving_up;
 pub mod report;
+pub mod stage;
 pub mod state;
 pub mod trust;
 

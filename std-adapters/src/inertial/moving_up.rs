@@ -10,7 +10,7 @@
 
 use crate::io::le::{put_f64, put_u64, put_vec3, Decoder};
 use nalgebra::Vector3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use slamesh_core::gravity::up_from_motion;
 use slamesh_core::imu::ForceMean;
 use slamesh_core::Pose;
@@ -19,7 +19,7 @@ use slamesh_core::Pose;
 pub const WINDOW_S: f64 = 5.0;
 
 /// What the first seconds of motion said of up (`summary.imu.gravity.moving`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MovingUp {
     /// Up in the map's frame (a unit vector), when found.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -37,7 +37,7 @@ pub(super) fn gap_words(gap: ImuGap) -> String {
 }
 
 /// What the IMU did over a run (`report.json`'s `summary.imu`; absent without readings).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ImuSummary {
     /// Readings taken and refused.
     pub readings: ImuCountsReport,
@@ -54,11 +54,11 @@ pub struct ImuSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub set_aside: Option<String>,
     /// Times the IMU came back after it was set aside (its rotations matched again).
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(default, skip_serializing_if = "is_zero")]
     pub returned: usize,
     /// Runs of frames whose rotation the gyro missed that were put down to the registrations
     /// (the misses' scale and axes agree with the gyro's: [`crate::inertial::trust`]).
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(default, skip_serializing_if = "is_zero")]
     pub registrations_doubted: usize,
     /// Why the readings were ignored for the whole run (too slow or too still to be an IMU's),
     /// if they were.
@@ -82,7 +82,7 @@ fn is_zero(n: &usize) -> bool {
 }
 
 /// What the accelerometer said of up at the map's first scan (`summary.imu.gravity`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GravityReport {
     /// The first scan was placed level (the map's z axis is up).
     pub levelled: bool,
@@ -191,7 +191,7 @@ pub(super) fn not_level(why: NotLevel) -> String {
 }
 
 /// [`ImuCounts`](slamesh_core::imu::ImuCounts) as the report writes them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ImuCountsReport {
     /// Taken.
     pub taken: usize,

@@ -64,16 +64,16 @@ impl Inertial {
     }
 
     /// Takes back what [`save`](Self::save) wrote, in place of what it holds.
-    pub fn restore(&mut self, record: &[u8]) -> Result<(), String> {
+    pub fn restore(&mut self, record: &[u8]) -> Result<(), Damaged> {
         let mut d = Decoder { bytes: record };
         self.read(&mut d)?;
         match d.bytes.len() {
             0 => Ok(()),
-            n => Err(format!("{n} bytes after the IMU's state")),
+            n => Err(Damaged(format!("{n} bytes after the IMU's state"))),
         }
     }
 
-    fn read(&mut self, d: &mut Decoder) -> Result<(), String> {
+    fn read(&mut self, d: &mut Decoder) -> Result<(), Damaged> {
         let n = d.count(56)?;
         let mut held = Vec::with_capacity(n);
         for _ in 0..n {
@@ -144,7 +144,7 @@ fn put_gravity(e: &mut Vec<u8>, g: &GravityReport) {
     }
 }
 
-fn read_gravity(d: &mut Decoder) -> Result<GravityReport, String> {
+fn read_gravity(d: &mut Decoder) -> Result<GravityReport, Damaged> {
     Ok(GravityReport {
         levelled: d.flag()?,
         up: read_up(d)?,
@@ -210,6 +210,6 @@ mod tests {
         let mut longer = record.clone();
         longer.push(0);
         let e = Inertial::new::<KittiCapacity>(ImuOptions::default()).restore(&longer);
-        assert_eq!(e, Err("1 bytes after the IMU's state".to_string()));
+        assert_eq!(e, Err(Damaged("1 bytes after the IMU's state".to_string())));
     }
 }

@@ -15,7 +15,7 @@ use crate::navmap::hits::{Hits, ScanFloor};
 use crate::navmap::layers::OnMesh;
 use crate::navmap::{Grid, NavMapOptions, Robot};
 use crate::outputs::mesh_spool::MeshSpool;
-use crate::stage::{End, RunStage, Start, Used};
+use crate::stage::{End, Note, RunStage, Start, Used};
 use slamesh_core::{Capacity, Pose};
 use std::path::Path;
 
@@ -96,11 +96,12 @@ impl<C: Capacity> RunStage<C> for NavMapStage {
         self.hits.is_some()
     }
 
-    fn used(&mut self, frame: &Used<'_>) {
+    fn used(&mut self, frame: &Used<'_>) -> Option<Note> {
         if let Some(h) = &mut self.hits {
             let (i, points, workers) = (frame.frame, frame.points, frame.workers);
             h.add(i, frame.at_stamp, frame.fused_at, points, workers);
         }
+        None
     }
 
     /// The map is saved either way: a floor file that could not be written is said (one left

@@ -33,7 +33,7 @@ use std::path::{Path, PathBuf};
 const MAGIC: &[u8; 12] = b"SLAMESH-CKPT";
 /// 2: each layer's facing after its axis. 3: the IMU's state after the mesh's counts. 4: the
 /// IMU's trust ([`crate::inertial::trust`]) in place of its misses and reason.
-const VERSION: u32 = 4;
+const VERSION: u32 = 5;
 
 /// The checkpoint file of the output folder `out`.
 pub fn path(out: &Path) -> PathBuf {
@@ -65,9 +65,9 @@ pub struct Progress {
     pub report_bytes: u64,
     /// Records of the mesh spool at the checkpoint.
     pub mesh: MeshCounts,
-    /// The IMU's state ([`Inertial::save`](crate::inertial::Inertial::save); empty before the
-    /// first checkpoint).
-    pub imu: Vec<u8>,
+    /// The run's stages' state ([`Stages::save`](crate::stage::Stages::save): the IMU's;
+    /// empty before the first checkpoint).
+    pub stages: Vec<u8>,
 }
 
 impl Progress {
@@ -85,7 +85,7 @@ impl Progress {
             seconds: 0.0,
             report_bytes: 0,
             mesh: MeshCounts::default(),
-            imu: Vec::new(),
+            stages: Vec::new(),
         }
     }
 
@@ -127,8 +127,8 @@ pub fn write(file: &Path, progress: &Progress, map: &MeshMap) -> Result<(), File
     put_u64(&mut e, progress.report_bytes);
     put_u64(&mut e, progress.mesh.vertices);
     put_u64(&mut e, progress.mesh.triangles);
-    put_u64(&mut e, progress.imu.len() as u64);
-    e.extend_from_slice(&progress.imu);
+    put_u64(&mut e, progress.stages.len() as u64);
+    e.extend_from_slice(&progress.stages);
     put_u64(&mut e, map.cell_count() as u64);
     for (key, cell) in map.cells() {
         for v in [key.x, key.y, key.z] {
@@ -222,7 +222,7 @@ fn read_progress(d: &mut Decoder) -> Result<Progress, String> {
             vertices: d.u64()?,
             triangles: d.u64()?,
         },
-        imu: {
+        stages: {
             let n = d.count(1)?;
             d.take(n)?.to_vec()
         },
@@ -319,7 +319,7 @@ mod tests {
                 vertices: 10,
                 triangles: 7,
             },
-            imu: vec![3, 1, 4, 1, 5],
+            stages: vec![3, 1, 4, 1, 5],
         };
         (progress, map)
     }

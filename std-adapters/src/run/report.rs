@@ -8,6 +8,7 @@ use crate::outputs::mesh_spool::MeshSpool;
 use crate::outputs::topview::map::{self, MapPicture};
 use crate::parallel::Workers;
 use crate::run::timing::StageMs;
+use crate::stage::Notes;
 use serde::{Deserialize, Serialize};
 use slamesh_core::layer::Shown;
 use slamesh_core::{Capacity, Config, Pipeline, Pose, RegistrationStatus, ScanStats};
@@ -95,14 +96,12 @@ pub struct FrameRecord {
     /// Samples that are not scans (an IMU's readings) the source gave with this frame.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub samples: usize,
-    /// What the IMU did for the frame (absent when no reading came yet).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub imu: Option<crate::inertial::ImuFrame>,
-    /// What the run's stages counted for the frame, by name (clearing what moves:
-    /// `cleared_vertices`, the map vertices this frame's rays saw through for the last time;
-    /// [`crate::stage::RunStage::fused`]).
+    /// What the run's stages noted for the frame, each under its key
+    /// ([`crate::stage::RunStage::used`], [`crate::stage::RunStage::fused`]): what the IMU did
+    /// for it (`imu`), the map vertices clearing forgot (`cleared_vertices`); and why a stage
+    /// doubts it (`doubts`: an IMU gap).
     #[serde(flatten)]
-    pub counts: BTreeMap<String, u64>,
+    pub notes: Notes,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -142,8 +141,7 @@ impl FrameRecord {
             loop_closures: Vec::new(),
             latency_ms: None,
             samples: 0,
-            imu: None,
-            counts: BTreeMap::new(),
+            notes: Notes::default(),
         }
     }
 
@@ -215,12 +213,9 @@ pub struct Summary {
     /// sweeps).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub input: Option<serde_json::Value>,
-    /// What the IMU did, when readings came ([`crate::inertial`]).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub imu: Option<crate::inertial::ImuSummary>,
     /// The run's stages' parts, each under its name ([`crate::stage::RunStage::summary`]):
-    /// `navmap`, the navigation map written (its counts, size, robot and which way was up);
-    /// `dynamic`, what clearing what moves did.
+    /// `imu`, what the IMU did, when readings came; `navmap`, the navigation map written (its
+    /// counts, size, robot and which way was up); `dynamic`, what clearing what moves did.
     #[serde(flatten)]
     pub stages: BTreeMap<String, serde_json::Value>,
     /// The first frame not run when the run was stopped before its input ended (Ctrl-C,
@@ -236,6 +231,14 @@ pub struct Summary {
     /// Each used frame's stamp (seconds), in the order of [`poses`](Self::poses).
     #[serde(skip)]
     pub stamps: Vec<f64>,
+}
+
+impl Summary {
+    /// The part of the summary the stage named `name` gave ([`Summary::stages`]), read as a
+    /// `T` (the IMU's [`crate::inertial::ImuSummary`], say); `None` when it gave none.
+    pub fn stage<T: serde::de::DeserializeOwned>(&self, name: &str) -> Option<T> {
+        serde_json::from_value(self.stages.get(name)?.clone()).ok()
+    }
 }
 
 /// The status of a frame that could not be read or used (beside the registration statuses,
@@ -256,10 +259,11 @@ pub struct Health {
     pub counts: Vec<(String, usize)>,
     /// Each frame not registered normally, in frame order.
     pub not_registered: Vec<NotRegistered>,
-    /// Each frame the IMU's readings did not cover (run on the motion model), in frame order;
-    /// its status `ImuGap`, its reason the uncovered time.
+    /// Each frame a stage doubts, in frame order, with the stage's status and reason: a frame
+    /// the IMU's readings did not cover, run on the motion model (`ImuGap`, the uncovered
+    /// time).
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub imu_gaps: Vec<NotRegistered>,
+    pub doubted: Vec<NotRegistered>,
 }
 
 /// A frame not registered normally.
@@ -293,16 +297,16 @@ impl Health {
         let mut counts = [0usize; ORDER.len()];
         let mut other: Vec<(String, usize)> = Vec::new();
         let mut not_registered = Vec::new();
-        let mut imu_gaps = Vec::new();
+        let mut doubted = Vec::new();
         for r in records {
             let r = r?;
             let r = r.borrow();
-            if let Some(gap) = r.imu.as_ref().and_then(|i| i.gap.as_ref()) {
-                imu_gaps.push(NotRegistered {
+            for (status, why) in &r.notes.doubts {
+                doubted.push(NotRegistered {
                     frame: r.frame,
                     file: r.file.clone(),
-                    status: "ImuGap".into(),
-                    reason: gap.clone(),
+                    status: status.clone(),
+                    reason: why.clone(),
                 });
             }
             match ORDER.iter().position(|s| *s == r.status) {
@@ -335,7 +339,7 @@ impl Health {
         Ok(Health {
             counts,
             not_registered,
-            imu_gaps,
+            doubted,
         })
     }
 

@@ -14,7 +14,6 @@
 
 use crate::formats::map_file::MapWriter;
 use crate::formats::mesh_records::VertexProperties;
-use crate::inertial::Inertial;
 use crate::io::error::FileError;
 use crate::loop_closure::streaming::RunOutputs;
 use crate::loop_closure::{LoopClosure, LoopReport};
@@ -153,8 +152,6 @@ pub struct Run<'a, C: Capacity> {
     /// How well the last used frame's registration pinned its pose down (for a sink's
     /// covariance).
     pub(super) information: Option<PoseInformation>,
-    /// The IMU's readings and what they give the frames.
-    pub(super) inertial: Inertial,
     /// What works inside the run beside registration, plugged in ([`crate::stage`]).
     pub(super) stages: Stages<C>,
     /// The last used frame's own points, for its event's map update
@@ -265,12 +262,6 @@ impl<'a, C: Capacity> Run<'a, C> {
             _ => None,
         };
         let checkpoint_path = checkpoint::path(&opts.out);
-        let mut inertial = Inertial::new::<C>(opts.imu);
-        if !progress.imu.is_empty() {
-            inertial.restore(&progress.imu).map_err(|why| {
-                FileError::at(&checkpoint_path, format!("not a usable checkpoint: {why}"))
-            })?;
-        }
         let saved_map = match &opts.save_map {
             Some(path) => Some(MapWriter::create(
                 path,
@@ -279,6 +270,9 @@ impl<'a, C: Capacity> Run<'a, C> {
             None => None,
         };
         let mut stages = setup.stages;
+        stages.restore(&progress.stages).map_err(|why| {
+            FileError::at(&checkpoint_path, format!("not a usable checkpoint: {why}"))
+        })?;
         stages.start(&Start {
             bounded: !setup.window.is_off(),
             map: opts.map.as_deref().map(|m| (m, &map_path[..])),
@@ -311,7 +305,6 @@ impl<'a, C: Capacity> Run<'a, C> {
             recent_points: Default::default(),
             samples: Vec::new(),
             information: None,
-            inertial,
         })
     }
 
@@ -402,8 +395,8 @@ impl<'a, C: Capacity> Run<'a, C> {
         p.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
         p.report_bytes = report_bytes;
         p.mesh = self.spool.counts();
-        p.imu.clear();
-        self.inertial.save(&mut p.imu);
+        p.stages.clear();
+        self.stages.save(&mut p.stages);
         checkpoint::write(&self.checkpoint_path, p, self.pipeline.map())?;
         Ok(())
     }
@@ -474,7 +467,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             poses: &poses,
             out,
             saved_map: self.opts.save_map.as_deref().map(|m| (m, &path[..])),
-            up: self.inertial.navmap_up(),
+            up: self.stages.up(),
         };
         let counts = write_mesh(self.spool, &map, &end, &self.opts, &mut self.stages)?;
         let summary = Summary {
@@ -501,7 +494,6 @@ impl<'a, C: Capacity> Run<'a, C> {
             health,
             loop_closure,
             input: source.input_report(),
-            imu: self.inertial.summary(),
             stages: self.stages.summaries(),
             files: written(&self.opts, !poses.is_empty(), &self.stages),
             interrupted,

@@ -4,7 +4,6 @@
 //! checkpoint). A frame that cannot be used is a [`FrameError`]: recorded as skipped, the run
 //! goes on; only an output that cannot be written stops it ([`RunError`]).
 
-use crate::inertial::ImuFrame;
 use crate::io::error::FileError;
 use crate::loop_closure::streaming::RunOutputs;
 use crate::run::capacity::{self, SMALL_SCAN_RATIO};
@@ -18,8 +17,8 @@ use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::run::timing::StageMs;
 use crate::sources::FrameSource;
-use crate::stage::Used;
-use slamesh_core::deskew::{self, DeskewError};
+use crate::stage::{PriorAt, Read, Sweep, Used};
+use slamesh_core::deskew;
 use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{Paging, Search};
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
@@ -45,10 +44,8 @@ pub(super) struct Frame {
     given: Option<Pose>,
     /// The time its pose is at (the LiDAR's clock): the stamp, or a deskewed sweep's middle.
     reference: f64,
-    /// Where the IMU puts it, to register from.
+    /// Where a stage puts it, to register from (the IMU's).
     prior: Option<Pose>,
-    /// What the IMU did for it.
-    imu: ImuFrame,
 }
 
 impl Frame {
@@ -101,7 +98,12 @@ impl<C: Capacity> Run<'_, C> {
         // After the read: a recording knows a frame's stamp once it has read the message.
         rec.stamp = source.stamp(i);
         rec.stamp_ns = source.stamp_ns(i);
-        self.inertial.take(&self.samples, &rec.file, i);
+        let file = &rec.file;
+        (self.stages).read(&Read {
+            frame: i,
+            file,
+            samples: &self.samples,
+        });
         rec.points_dropped_by_reader = read.dropped_by_reader;
         let motion = self.last_motion(source);
         self.page_around_prediction();
@@ -199,7 +201,7 @@ impl<C: Capacity> Run<'_, C> {
             .filter(|_| self.opts.deskew != Deskew::Off)
         {
             let t = Instant::now();
-            let d = self.deskew(&mut frame.points, times, rec.stamp, motion, &mut frame.imu)?;
+            let d = self.deskew(&mut frame.points, times, rec.stamp, motion)?;
             if let Some(d) = d.filter(|d| d.moved > 0) {
                 rec.deskewed_points = d.moved;
                 frame.reference = rec.stamp + d.reference_s;
@@ -210,41 +212,42 @@ impl<C: Capacity> Run<'_, C> {
         }
         fits_capacity::<C>(&frame.points, &self.opts.config.filter)?;
         frame.given = self.given_pose(i, rec.stamp, frame.to_stamp)?;
-        if frame.given.is_none() && self.search.is_none() && self.inertial.active() {
+        if frame.given.is_none() && self.search.is_none() {
             let history = self.pipeline.motion().history();
-            if history.1.is_none() && self.pipeline.map().is_empty() {
-                // The map's first scan: level when the accelerometer says which way is up.
-                frame.prior = self.inertial.level(frame.reference, &rec.file, i);
-                return Ok(());
-            }
-            match self.inertial.prior(history, frame.reference) {
-                Some(Ok(p)) => (frame.prior, frame.imu.prior) = (Some(p), true),
-                Some(Err(gap)) if frame.imu.gap.is_none() => frame.imu.missed(gap),
-                _ => {}
-            }
+            frame.prior = self.stages.prior(&PriorAt {
+                frame: i,
+                file: &rec.file,
+                reference: frame.reference,
+                history,
+                // The map's first scan: the prior places the map (levels it).
+                first: history.1.is_none() && self.pipeline.map().is_empty(),
+            });
         }
         Ok(())
     }
 
-    /// Deskews `points` (times after `stamp`) as `--deskew` says: with the IMU's rotations when
-    /// they cover the sweep, otherwise with the last `motion`; `None` when neither can.
+    /// Deskews `points` (times after `stamp`) as `--deskew` says: by a stage when one can (the
+    /// IMU's rotations, when they cover the sweep), otherwise with the last `motion`; `None`
+    /// when neither can.
     fn deskew(
-        &self,
+        &mut self,
         points: &mut [Point],
         times: &[f32],
         stamp: f64,
         motion: Option<(Pose, f64)>,
-        imu: &mut ImuFrame,
     ) -> Result<Option<deskew::Deskewed>, FrameFault> {
-        if self.opts.deskew != Deskew::Motion && self.inertial.active() {
+        if self.opts.deskew != Deskew::Motion {
             let history = self.pipeline.motion().history();
-            match self.inertial.deskew(points, times, stamp, history) {
-                Ok(d) => {
-                    imu.deskewed = true;
-                    return Ok(Some(d));
-                }
-                Err(DeskewError::Imu(gap)) => imu.missed(gap),
-                Err(e) => return Err(FrameFault::CannotDeskew(e)),
+            let mut sweep = Sweep {
+                points: &mut *points,
+                times,
+                stamp,
+                history,
+            };
+            match self.stages.deskew(&mut sweep) {
+                Some(Ok(d)) => return Ok(Some(d)),
+                Some(Err(e)) => return Err(FrameFault::CannotDeskew(e)),
+                None => {}
             }
         }
         motion
@@ -372,8 +375,8 @@ impl<C: Capacity> Run<'_, C> {
         o: &slamesh_core::ScanOutcome,
         rec: &mut FrameRecord,
     ) -> Result<(), RunError> {
-        let (pose, counts) = (&o.t_world_sensor, &mut rec.counts);
-        rec.ms.update += self.stages.fused(&mut self.pipeline, pose, counts);
+        let (pose, notes) = (&o.t_world_sensor, &mut rec.notes);
+        rec.ms.update += self.stages.fused(&mut self.pipeline, pose, notes);
         let t = Instant::now();
         rec.triangles_updated = updated_triangles(&self.pipeline, &self.workers);
         rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
@@ -407,10 +410,9 @@ impl<C: Capacity> Run<'_, C> {
         // stamp lies between it and the previous frame's, so the motion between the two
         // estimates interpolates it (the predicted motion would extrapolate).
         let history = self.pipeline.motion().history();
-        let by_imu = (frame.imu.deskewed)
-            .then(|| (self.inertial).moved(&o.t_world_sensor, frame.reference, rec.stamp, history))
-            .flatten();
-        let at_stamp = match (by_imu, frame.to_stamp, history) {
+        let fused_at = &o.t_world_sensor;
+        let by_stage = (self.stages).at_stamp(fused_at, frame.reference, rec.stamp, history);
+        let at_stamp = match (by_stage, frame.to_stamp, history) {
             (Some(p), _, _) => p,
             (None, Some((_, dt, reference)), (Some(before), Some(last))) => deskew::pose_at(
                 &o.t_world_sensor,
@@ -421,18 +423,17 @@ impl<C: Capacity> Run<'_, C> {
             _ => o.t_world_sensor,
         };
         self.progress.poses.push((i, at_stamp));
-        self.stages.used(&Used {
+        let used = Used {
             frame: i,
+            status: o.status,
+            reference: frame.reference,
+            history,
             at_stamp: &at_stamp,
-            fused_at: &o.t_world_sensor,
+            fused_at,
             points: &frame.points,
             workers: &self.workers,
-        });
-        (self.inertial).used(frame.reference, o.status, history, frame.imu.prior);
-        if self.inertial.active() {
-            self.inertial.count(&frame.imu);
-            rec.imu = Some(frame.imu.clone());
-        }
+        };
+        self.stages.used(&used, &mut rec.notes);
         rec.latency_ms = source.arrival(i).map(|a| a.elapsed().as_secs_f64() * 1e3);
         self.progress.used_ms.push(rec.ms);
         if let Some(c) = &mut self.closer {
