@@ -1,4 +1,4 @@
-//! How far the GP reconstruction is from this CPU's limit (docs/benchmarks.md, "The GP's
+//! How far the GP reconstruction is from this CPU's limit (docs/journal.md, "The GP's
 //! physical limit"). For each KITTI scan of a sequence: the map update's reconstruction (every
 //! layer, exact variances) of the scan at the sensor pose, with the `default` preset fitted to
 //! the scene as `slamesh run` fits it. Prints:

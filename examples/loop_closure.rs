@@ -1,4 +1,4 @@
-//! What loop closure changes (docs/design.md §1.14, docs/benchmarks.md "Loop closure"): for
+//! What loop closure changes (docs/design.md §1.14, docs/journal.md "Loop closure"): for
 //! runs over a simulated town drive written by `write_drive`, the trajectory's end-point
 //! error and ATE against the truth, the mesh's precision, recall and F1 against the true
 //! surfaces, and the duplicated surfaces (one surface mapped twice, `eval::duplicates`) in

@@ -2,7 +2,7 @@
 //! can run on the same scans: `velodyne/NNNNNN.bin` (x, y, z and a zero intensity, f32), the
 //! true poses in `poses.txt` (relative to the first), `times.txt` (10 Hz) and a `calib.txt`
 //! whose `Tr` is the identity (the poses are the sensor's). Used for KISS-ICP side by side
-//! (`tools/kiss_icp_compare.py DIR --sequence --no-kitti-correction`, docs/benchmarks.md).
+//! (`tools/kiss_icp_compare.py DIR --sequence --no-kitti-correction`, docs/journal.md).
 //!
 //! `cargo run --release --example write_drive -- --out DIR [--frames N] [--seed S]`
 //! (1 000 frames, seed 1 by default). A second drive through the same town, for localizing in

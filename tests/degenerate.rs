@@ -83,7 +83,7 @@ fn a_featureless_tunnel_is_degenerate_along_its_axis_and_the_motion_model_carrie
             // grows no faster than a speed 0.3 % off. The speed is the last registered
             // frames': here 0.23 % off (0.052 m over the 22.5 m to frame 64); 0.09 % before
             // layers kept their facing, when seeds 1 to 8 entered the tunnel 0.06 to 7.2 m
-            // off (five of them over 0.5 m), and now 0.05 to 0.41 m (docs/benchmarks.md,
+            // off (five of them over 0.5 m), and now 0.05 to 0.41 m (docs/journal.md,
             // "Faces").
             let x0 = *entered.get_or_insert(e[0]);
             assert!(

@@ -3,7 +3,7 @@
 //! scans. With recovery (the default) every step is tracked within 5 cm and 0.5 degree; without
 //! it the constant-velocity guess loses the track from the first fast turn. The turn the scans'
 //! azimuth profiles find (also the default) spares most frames recovery. The figures of
-//! longer drives are in docs/benchmarks.md ("Hard motion").
+//! longer drives are in docs/journal.md ("Hard motion").
 
 use slamesh::parallel::Workers;
 use slamesh::run::config_file::preset;

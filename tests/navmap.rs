@@ -484,7 +484,7 @@ fn the_town_s_navigation_map_against_the_truth() {
     println!("town, {frames} frames: {s:?}");
     assert!(s.free > 40_000 && s.occupied > 2_000, "{s:?}");
     // Issue 56's targets: at most 0.5 % (met: no free cell holds one) and an IoU of 0.9
-    // (not met: 0.87, 0.95 within a cell; docs/benchmarks.md, "Where voxel cells' seams cross").
+    // (not met: 0.87, 0.95 within a cell; docs/journal.md, "Where voxel cells' seams cross").
     s.assert_within(0.85, 0.93);
 }
 
@@ -511,15 +511,15 @@ fn the_office_s_navigation_map_against_the_truth() {
     println!("office, {frames} frames: {s:?}");
     // The truth has about 1 150 occupied cells where the walk saw.
     assert!(s.free > 4_000 && s.occupied > 1_000, "{s:?}");
-    // 0.66, 0.95 within a cell measured (docs/benchmarks.md, "Unsure level surfaces"); any
+    // 0.66, 0.95 within a cell measured (docs/journal.md, "Unsure level surfaces"); any
     // change to the map's layers moves the walk, and this IoU, by a few hundredths. Most of
     // the office's faces lie on the cells' edges, where the truth takes the cell behind and
-    // the map's millimetres decide (docs/benchmarks.md, "Where the office's false cells come
+    // the map's millimetres decide (docs/journal.md, "Where the office's false cells come
     // from").
     s.assert_within(0.62, 0.93);
     // A planner finds its way from room A through the doorway into the corridor the walk
     // went along. (The corridor's far end, seen from its start by 16 beams, is mostly
-    // unknown: docs/benchmarks.md, "Maps a planner reads".)
+    // unknown: docs/journal.md, "Maps a planner reads".)
     assert!(s.passable[3], "no free way through the doorway: {s:?}");
     println!(
         "free along the corridor's lines to x 19 and the walked one: {:?}",

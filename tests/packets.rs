@@ -143,7 +143,7 @@ fn a_replayed_capture_runs_end_to_end() {
     let out = common::scratch("packets-run");
     // Deskewing is off: the car is at speed from the first sweep, which cannot be deskewed
     // (no motion is known yet), and the third sweep, deskewed, then does not match the map of
-    // the first two (docs/benchmarks.md, "Packets").
+    // the first two (docs/journal.md, "Packets").
     common::slamesh_run_ok(
         &fixture("hdl32e-drive.pcap"),
         &out,

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Thread scaling of one or more builds on a many-core machine (issue 58; docs/benchmarks.md,
+# Thread scaling of one or more builds on a many-core machine (issue 58; docs/journal.md,
 # "All the cores"), run from a folder that holds what it needs:
 #   slamesh-NAME (or slamesh-NAME.gz): each build, stripped (`strip -o DIR/slamesh-A
 #     target/release/slamesh`), gzipped to travel light if need be;

@@ -22,7 +22,7 @@ instruction set", r0p1), with these choices where a count depends on what QEMU d
 a branch costs 1 + P with P = 2 when taken and conditional branches are taken half the time;
 a load costs 2 (1 when it follows another load, which is ignored here), a store 1 (the TRM's
 STR pairing rule); a divide 7 (2 to 12). Wait states of flash, bus contention and the FPU's
-pipelining of VMLA are not modelled: see docs/benchmarks.md for what a board must confirm.
+pipelining of VMLA are not modelled: see docs/journal.md for what a board must confirm.
 """
 import bisect
 import collections

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Whole-run wall time of `slamesh run` on the carried hard-motion drives (hand-held and
 drone, seeds 1-3, 120 frames) for two builds run alternately, with each run's ATE
-(docs/benchmarks.md, "The turn from the scans' azimuth profiles").
+(docs/journal.md, "The turn from the scans' azimuth profiles").
 
     tools/hard_motion_wall.py [--rounds N] [--drives DIR] OLD_BIN NEW_BIN
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Resident memory under memory caps (docs/benchmarks.md, "The memory cap" and "Memory with
+# Resident memory under memory caps (docs/journal.md, "The memory cap" and "Memory with
 # 64-beam scans"): for each cap in MB given ("none" for no cap), runs slamesh and prints the
 # class, the layer budget, the RSS at frames 1, 101, ..., 901 and the last, the peak, and the
 # accuracy. Without INPUT: `slamesh demo --frames 1000` (the town, its consecutive error).

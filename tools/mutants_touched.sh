@@ -10,7 +10,7 @@
 # run the slamesh crate's unit tests (`--lib`, about a minute a mutant, the crate's rebuild);
 # `--full` runs its integration tests too (SLAMESH_DATA set; several minutes a mutant), which
 # is what CI's tests are. A survivor is a line no test watches: kill it with a test, or say in
-# docs/benchmarks.md ("cargo-mutants") why it is harmless.
+# docs/journal.md ("cargo-mutants") why it is harmless.
 #
 # Needs cargo-mutants (`cargo install cargo-mutants --locked`, version 27 here).
 set -euo pipefail

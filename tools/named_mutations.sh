@@ -20,7 +20,7 @@ tests_of() {
     gyro-scale) echo "imu::a_shaken_sweep_with_its_imu_tracks_as_well_as_a_calm_one imu_data::a_kitti_raw_drive_is_read_with_its_oxts_packets_and_timed_from_its_sweep" ;;
     window-never-evicts) echo "map_persistence::a_windowed_run_saves_the_cells_it_evicted command_outputs::window_flags_and_the_memory_cap_from_the_command_line" ;;
     stamp-f64) echo "ros2:5" ;;
-    # No drive of the suite proposes a revisit its checks refuse (docs/benchmarks.md, "Named
+    # No drive of the suite proposes a revisit its checks refuse (docs/journal.md, "Named
     # mutations"): the checks themselves are tested on a scan of another place.
     closure-unverified) echo "closure_checks::a_revisit_is_a_closure_only_when_the_search_vouches_for_it" ;;
     *) echo "unknown mutation $1" >&2; exit 2 ;;

@@ -7,7 +7,7 @@ Reads a trinary `map.pgm` as `slamesh run --navmap` and `slamesh navmap` write i
 0 occupied, 205 unknown) and prints, for each file, the free, occupied and unknown cells and
 the islands: groups of one to four unknown cells, joined side to side, that touch only free
 cells and not the image's edge. A planner that keeps unknown space out of its paths sees each
-as a post in open floor; docs/benchmarks.md ("Where voxel cells' seams cross") counts them. With
+as a post in open floor; docs/journal.md ("Where voxel cells' seams cross") counts them. With
 the standard library alone, so the tool needs no package.
 """
 import re

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Per-stage time of `slamesh bench` on kitti-mini 00-04, with 1 and 2 threads, for one or
-more builds run alternately (docs/benchmarks.md, "Where the second core goes").
+more builds run alternately (docs/journal.md, "Where the second core goes").
 
     tools/stage_table.py [--rounds N] [--config FILE] [--ceiling] BIN[=CONFIG] [BIN[=CONFIG] ...]
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The pipeline's time on the simulated town for one or more builds run alternately
-(docs/benchmarks.md, "Issue 39's steady state against 5be1322").
+(docs/journal.md, "Issue 39's steady state against 5be1322").
 
     tools/town_frames.py [--rounds N] [--frames F] BIN[=CONFIG] [BIN[=CONFIG] ...]
 

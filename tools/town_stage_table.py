@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The table of docs/benchmarks.md's "All the cores" from tools/device_scaling.sh's reports:
+"""The table of docs/journal.md's "All the cores" from tools/device_scaling.sh's reports:
 for each build and thread count, each stage's median ms a frame (the median over the rounds of
 each run's `summary.stage_ms` median), the speed against one thread and the loop's seconds.
 

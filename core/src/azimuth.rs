@@ -23,7 +23,7 @@ const MIN_SHARED: usize = BINS / 4;
 
 /// A profile reads at most about this many points, evenly spread through the scan: 91 a
 /// sector, and a small fixed cost whatever the scan's size. With 4 096, a KITTI scan's
-/// profile was off by up to 3.7° (up to 1.5° with this many; docs/benchmarks.md).
+/// profile was off by up to 3.7° (up to 1.5° with this many; docs/journal.md).
 pub const MAX_POINTS: usize = 16384;
 
 /// The mean horizontal range in each sector, as its logarithm (so that a difference is a

@@ -163,7 +163,7 @@ pub const fn map_bytes(cells: usize, layers: usize) -> usize {
 /// KITTI HDL-64E scans (about 125 000 points, 100 m range) and runs of a few kilometres
 /// without eviction. [`Capacity::memory_bytes`]: 139.2 MB of address space, most of it the
 /// map's layer pool, touched (resident) only as the map fills. Its scan layers are three times
-/// the most a KITTI scan made (4 134, on the highway of sequence 01; docs/benchmarks.md,
+/// the most a KITTI scan made (4 134, on the highway of sequence 01; docs/journal.md,
 /// "Memory with 64-beam scans").
 #[derive(Debug, Clone, Copy)]
 pub struct KittiCapacity;
@@ -230,7 +230,7 @@ mod tests {
 
     #[test]
     fn footprints_stay_what_the_docs_say() {
-        // The footprint table (docs/benchmarks.md, "Sizing capacities"): bytes per unit.
+        // The footprint table (docs/journal.md, "Sizing capacities"): bytes per unit.
         assert_eq!(
             size_of::<Point>() + size_of::<(CellKey, Point)>(),
             36,

@@ -51,7 +51,7 @@ fn diamond_angle(x: f32, y: f32) -> f32 {
 pub struct ClearingConfig {
     /// Vertices farther than this from the sensor are left alone (metres): past it a bin is
     /// wide and the kept points sparse. 80 m left 420 m² of ghost area where 30 m left 488
-    /// on the simulated town with movers (every vertex, every frame: docs/benchmarks.md).
+    /// on the simulated town with movers (every vertex, every frame: docs/journal.md).
     pub max_range_m: f32,
     /// Vertices nearer than this are left alone (metres).
     pub min_range_m: f32,

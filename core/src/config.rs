@@ -61,7 +61,7 @@ pub struct LmConfig {
     /// A direction is degenerate (left to the motion model) when the mean squared normal
     /// component along it is below this (see [`crate::lm`]). Default 0.012: below what
     /// well-constrained outdoor scans carry in their weakest direction and above what a
-    /// tunnel or a plane does (the trade-off is measured in docs/benchmarks.md, Robustness).
+    /// tunnel or a plane does (the trade-off is measured in docs/journal.md, Robustness).
     pub degenerate_ratio: f64,
     /// Fewer combined residuals than this is [`TooFewResiduals`](crate::lm::LmError). Default 10.
     pub min_residuals: usize,
@@ -146,7 +146,7 @@ pub struct RecoveryConfig {
     pub profile_disagree_deg: f64,
     /// Registration rounds from the profiles' start (all but the last with the initial
     /// reach), which is then polished. Default 3: with 2, the drones took more rounds in all
-    /// (docs/benchmarks.md).
+    /// (docs/journal.md).
     pub profile_rounds: usize,
 }
 
@@ -163,7 +163,7 @@ pub struct MapConfig {
     /// `false` fuses the last registration round's reconstruction instead, moved to the final
     /// pose to first order ([`Layer::moved`](crate::layer::Layer::moved)): that saves a
     /// bucketing and the costliest of the scan's reconstructions at a small cost in accuracy
-    /// (both measured in docs/benchmarks.md, Speed). Default `true`.
+    /// (both measured in docs/journal.md, Speed). Default `true`.
     pub reconstruct_at_final_pose: bool,
     /// A cell not seen for more than this many frames is *stale*: registration leaves it out,
     /// and a scan that sees it again replaces its layers instead of fusing into them. A

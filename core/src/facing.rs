@@ -11,7 +11,7 @@
 //! [`MIN_THICKNESS_M`] of each other, as one surface facing [`Both`](Facing::Both) ways.
 //! Registration does not look at facings: the map holds the face last in view, which is the
 //! face the next scan sees (a filter that kept a scan's face from pairing with a map face
-//! facing the other way was tried and cost accuracy; docs/benchmarks.md, "Faces").
+//! facing the other way was tried and cost accuracy; docs/journal.md, "Faces").
 //!
 //! The facing is decided from the layer's own lattice: a least-squares plane through its
 //! confident vertices, and the viewpoint's signed distance to it. A viewpoint nearly in that

@@ -236,7 +236,7 @@ pub fn exp_f32(x: f32) -> f32 {
 ///
 /// `libm::sqrt` is one `sqrtsd` in inline assembly, and its legacy SSE encoding among the AVX
 /// instructions of such a build stalls Intel CPUs at every call: the GP's kernel took 5.6
-/// times as long (docs/benchmarks.md, "Built for the CPU at hand, again"). Elsewhere the one
+/// times as long (docs/journal.md, "Built for the CPU at hand, again"). Elsewhere the one
 /// instruction is the fastest root, so the default build's results are `libm`'s to the bit.
 #[inline]
 pub fn sqrt(q: f64) -> f64 {
@@ -308,7 +308,7 @@ pub fn sqrt_f32(q: f32) -> f32 {
 ///
 /// For the one 3 x 3 matrix a cell's layer choice decomposes, in place of nalgebra's iterative
 /// `SymmetricEigen` (4 % of a KITTI scan's time): reconstruction on kitti-mini 01, one thread,
-/// went from 28.0 to 26.5 ms a scan, with the same layers (docs/benchmarks.md).
+/// went from 28.0 to 26.5 ms a scan, with the same layers (docs/journal.md).
 pub fn symmetric_eigen3(a: &Mat3) -> Option<([f64; 3], Vec3)> {
     let (a00, a11, a22) = (a[(0, 0)], a[(1, 1)], a[(2, 2)]);
     let (a10, a20, a21) = (a[(1, 0)], a[(2, 0)], a[(2, 1)]);

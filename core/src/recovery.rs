@@ -2,7 +2,7 @@
 //! registration that did not converge, the score that ranks attempts, and the initial guesses
 //! tried when the constant-velocity one failed.
 //!
-//! The rule and its thresholds come from the hard-motion signal study (docs/benchmarks.md,
+//! The rule and its thresholds come from the hard-motion signal study (docs/journal.md,
 //! "Which signal tells a lost step"): every lost step ran its last round to LM's iteration
 //! limit and no tracked step did; the share of the scan's layers that found a match in the map
 //! confirms it (tracked steps 0.73 to 1.0, lost ones 0.04 to 0.82). Both are counts the

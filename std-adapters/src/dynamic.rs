@@ -24,7 +24,7 @@ pub struct Clearing {
 
 /// A run clears on every this many frames (the frame counter's multiples): half the cost of
 /// every frame, for 6 % more ghost area left on the simulated town with movers
-/// (docs/benchmarks.md).
+/// (docs/journal.md).
 pub const CLEAR_EVERY_FRAMES: u32 = 2;
 
 /// What clearing did over a run, for `report.json`.

@@ -35,7 +35,7 @@ const MIN_SORT_PART_ON_TWO: usize = 65_536;
 /// Threads from which the pool's loops are cut finely (`task_len`, `MIN_SORT_PART`) and
 /// the filter run ahead spreads its own loops over the pool (`run/lookahead.rs`). On two
 /// threads the second one filters the next frame most of the time: a task handed to it waits,
-/// and bucketing whose sort was split in two took a quarter longer (docs/benchmarks.md, "All
+/// and bucketing whose sort was split in two took a quarter longer (docs/journal.md, "All
 /// the cores"), so there the tasks stay long and the filter yields.
 pub const SPREAD_FROM: usize = 3;
 
@@ -49,7 +49,7 @@ pub struct Rayon {
 /// The buffers [`Rayon::map_in_order`] gathered results in, one per result type, kept empty
 /// for the next call: a scan's loops then allocate nothing once the largest scan has been
 /// seen, and the allocator's free memory does not grow with a megabyte of results a round
-/// (docs/benchmarks.md, "Memory with 64-beam scans").
+/// (docs/journal.md, "Memory with 64-beam scans").
 #[derive(Debug, Default)]
 struct Spare(std::sync::Mutex<Vec<Box<dyn std::any::Any + Send>>>);
 

@@ -1,4 +1,4 @@
-"""Measures `slamesh ros2` against `slamesh run` on the same scans (docs/benchmarks.md, "ROS 2
+"""Measures `slamesh ros2` against `slamesh run` on the same scans (docs/journal.md, "ROS 2
 node"): the latency from publishing a cloud to receiving its Odometry (median and 95th
 percentile) beside the pipeline's own time a frame, the CPU time and peak memory the node
 takes over `run`, and whether 2 MB clouds at 10 Hz arrive with none lost.

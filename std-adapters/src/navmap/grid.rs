@@ -192,7 +192,7 @@ impl Cell {
 
 /// The height (m) under which a rise is only a foot or a bump when taller obstacles stand
 /// beside it or no raised floor does (`Grid::settle_low_rises`). Measured on the simulated
-/// town and office (docs/benchmarks.md, "Low rises and unsure standing surfaces"): the fringe
+/// town and office (docs/journal.md, "Low rises and unsure standing surfaces"): the fringe
 /// along walls' feet and the ridges of the office's floor stand lower.
 pub const LOW_RISE_M: f64 = 0.3;
 

@@ -22,7 +22,7 @@ pub fn mean_variance(v: [f32; 3]) -> f32 {
 /// the grid takes; NaN (no variance known) passes. The mesh's own limit (`mesh.variance_show`,
 /// 0.3 by default) is the ground's: a stricter one for the ground too cost the office's floor
 /// its doorways, while one for what stands alone drops the unsure surfaces the reconstruction
-/// carries past a wall's or a car's edge (docs/benchmarks.md, "Low rises and unsure standing
+/// carries past a wall's or a car's edge (docs/journal.md, "Low rises and unsure standing
 /// surfaces").
 pub const STANDING_VARIANCE: f32 = 0.2;
 
@@ -34,7 +34,7 @@ pub const STANDING_VARIANCE: f32 = 0.2;
 /// crossed a cell and its points' plane came out level, are unsure (one in the town: 0.07 to
 /// 0.46 at its vertices, the street's and the wall's beside it 0.00 to 0.01): 0.1 lifted the town's IoU from 0.84 to 0.86 and the office's
 /// from 0.57 to 0.66 with no free cell more over an obstacle, on every seed tried
-/// (docs/benchmarks.md, "Unsure level surfaces").
+/// (docs/journal.md, "Unsure level surfaces").
 pub const LEVEL_VARIANCE: f32 = 0.1;
 
 /// Whether the grid takes a triangle of mean `variance` as something standing where it would

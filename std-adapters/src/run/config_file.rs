@@ -31,7 +31,7 @@ pub const TOWN_CELL_M: f64 = 1.4;
 
 /// The configuration of a named preset.
 ///
-/// - `default`: the most accurate general setting measured (docs/benchmarks.md, "Presets"):
+/// - `default`: the most accurate general setting measured (docs/journal.md, "Presets"):
 ///   `town`'s, fitted to the scene's scale by the run ([`scales_itself`],
 ///   [`crate::run::scale`]).
 /// - `quick`: `default` with one reconstruction a scan less: the map is updated with the last
@@ -39,14 +39,14 @@ pub const TOWN_CELL_M: f64 = 1.4;
 ///   (`map.reconstruct_at_final_pose = false`), fitted to the scene the same way. About a
 ///   quarter less time a scan than `default` on one thread and on two, about 1 % more step
 ///   error on KITTI
-///   (docs/benchmarks.md, "The `quick` preset").
+///   (docs/journal.md, "The `quick` preset").
 /// - `fast`: the original's KITTI parameters ([`Config::default`]): 1.6 m cells, the lattice
 ///   at interval centres; about a quarter less time a scan, less accurate.
 /// - `kitti`: `fast` with KITTI's vertical-angle correction ([`Config::kitti`]).
 /// - `meshing`: [`Config::meshing`].
 /// - `town`: `meshing` with [`TOWN_CELL_M`] cells (the original tunes the cell per dataset
 ///   too: 1.6 m for KITTI, 1.5 m for the simulated Mai City); the comparison with 1.6 m cells
-///   is in docs/benchmarks.md (The demo).
+///   is in docs/journal.md (The demo).
 pub fn preset(name: &str) -> Option<Config> {
     match name {
         "fast" => Some(Config::default()),

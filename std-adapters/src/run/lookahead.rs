@@ -7,7 +7,7 @@
 //! parallel tasks first, so its own work lands where the pipeline runs serially (bucketing,
 //! the solve, the update). On more ([`SPREAD_FROM`]) its own loops are spread over
 //! the pool too ([`OnThisPool`]): run serially it took longer than the whole of the rest of a
-//! frame on 8 and 16 threads, and the pipeline waited for it (docs/benchmarks.md, "All the
+//! frame on 8 and 16 threads, and the pipeline waited for it (docs/journal.md, "All the
 //! cores").
 //!
 //! What it guarantees:

@@ -15,7 +15,7 @@
 //! look-ahead's filter buffers when the next frame is filtered ahead ([`LookAhead::bytes`];
 //! a cap too tight for them has the next frame read ahead but filtered in line), and the rest
 //! of the process as the caller measures it. This is the formula of the least cap
-//! ([`Window::least_cap_bytes`]), written once here; docs/benchmarks.md measures its parts.
+//! ([`Window::least_cap_bytes`]), written once here; docs/journal.md measures its parts.
 
 use crate::formats::map_file::MapWriter;
 use crate::io::error::FileError;
