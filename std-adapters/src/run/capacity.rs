@@ -187,6 +187,47 @@ pub fn points_in_range(scan: &[Point], filter: &FilterConfig) -> usize {
 /// cut-off file or a partial sweep ([`choose`], and the run's step).
 pub const SMALL_SCAN_RATIO: usize = 4;
 
+/// Frames whose point counts a scan is compared with ([`RecentScans`]).
+pub const RECENT_SCANS: usize = 9;
+
+/// The point counts of the last [`RECENT_SCANS`] frames a run read: a scan far smaller than
+/// their median ([`SMALL_SCAN_RATIO`]) is named, a cut-off file or a partial sweep; it is
+/// used all the same.
+#[derive(Debug, Default)]
+pub struct RecentScans(std::collections::VecDeque<usize>);
+
+impl RecentScans {
+    /// Counts the frame `rec` describes, saying first when its scan is far smaller than the
+    /// frames read before it.
+    pub fn note(&mut self, rec: &crate::run::report::FrameRecord) {
+        let n = rec.points;
+        if n == 0 {
+            return;
+        }
+        // Their median, sorted in place of a copy: no allocation on the frame's path.
+        let mut recent = [0usize; RECENT_SCANS];
+        let k = self.0.len();
+        for (r, &n) in recent.iter_mut().zip(&self.0) {
+            *r = n;
+        }
+        recent[..k].sort_unstable();
+        if let Some(&typical) = recent[..k].get(k / 2) {
+            if n * SMALL_SCAN_RATIO < typical {
+                log::warn!(
+                    "{}: frame {}: {n} points, far fewer than the {typical} of the frames before \
+                     it: a cut-off file or a partial sweep?",
+                    rec.file,
+                    rec.frame
+                );
+            }
+        }
+        if self.0.len() == RECENT_SCANS {
+            self.0.pop_front();
+        }
+        self.0.push_back(n);
+    }
+}
+
 /// Readable scans among the first frames that `auto` looks at ([`choose`]).
 pub const CHOICE_SCANS: usize = 5;
 

@@ -130,6 +130,20 @@ impl Sink for ReportFile {
     }
 }
 
+/// What a run writes as it goes, beside the sinks' files: the mesh's spool (what the window
+/// evicts, then the whole map at the end), the report's spool, the map file being saved
+/// (`--save-map`: cells a window evicts go in as they leave), and where its checkpoints go.
+pub(crate) struct RunFiles {
+    /// The mesh's spool.
+    pub(crate) spool: crate::outputs::mesh_spool::MeshSpool,
+    /// `report.json`, its frame records spooled as they come.
+    pub(crate) report: ReportFile,
+    /// The map file being written (`--save-map`).
+    pub(crate) saved_map: Option<crate::formats::map_file::MapWriter>,
+    /// The checkpoint's file.
+    pub(crate) checkpoint: PathBuf,
+}
+
 /// The files a run itself may write into its output folder (its stages' are theirs:
 /// [`crate::stage::RunStage::outputs`]).
 pub const OWN_FILES: [&str; 6] = [

@@ -7,6 +7,7 @@
 //! | the capacity classes and how to choose one | [`capacity`] |
 //! | the run loop: start or resume, a step per frame, finish | [`session`] |
 //! | one frame as named stages: read, prepare, register, update the map, record | `step` |
+//! | what a frame's event carries beside its record, from its step to its event | `event` |
 //! | why a frame was skipped | [`frame_error`] |
 //! | a live source's requests between frames: save the map, relocalize | `requests` |
 //! | one way out: what a run produces, fanned out to its sinks (bounded queues for slow ones) | [`sink`] |
@@ -24,6 +25,7 @@ pub mod budget;
 pub mod capacity;
 pub mod checkpoint;
 pub mod config_file;
+mod event;
 pub mod files;
 pub mod frame_error;
 pub mod lookahead;

@@ -60,7 +60,8 @@ impl<C: Capacity> Run<'_, C> {
         w.add_map(self.pipeline.map()).map_err(|e| e.to_string())?;
         w.set_frames(self.pipeline.frames());
         let path: Vec<(f64, Pose)> = self
-            .map_path
+            .from_map
+            .path
             .iter()
             .copied()
             .chain(
@@ -87,7 +88,7 @@ impl<C: Capacity> Run<'_, C> {
     }
 
     fn relocalize_near(&mut self, pose: Pose) {
-        let along = saved_map::candidates(&self.map_path, self.opts.config.grid.cell_size_m);
-        self.search = Some(std::iter::once(pose).chain(along).collect());
+        let along = saved_map::candidates(&self.from_map.path, self.opts.config.grid.cell_size_m);
+        self.from_map.search = Some(std::iter::once(pose).chain(along).collect());
     }
 }

@@ -150,16 +150,31 @@ pub fn info(config: &Config, preset: &str, frames: u32) -> MapInfo {
     }
 }
 
-/// Finishes the map file being written (`saved`, from `--save-map`, shown as `shown_as`):
-/// the cells still in `map`, and `path`: the path of the map the run started from followed by
-/// this run's stamped poses.
+/// The saved map a run started from (`--map`), as the run goes: its path (a map the run saves
+/// keeps it first), the search for the run's pose in it until a frame finds it, and its pager
+/// under a memory cap (localizing only). Empty for a run that did not start from a map.
+#[derive(Default)]
+pub(crate) struct FromMap {
+    /// The map's path of stamped poses.
+    pub(crate) path: Vec<(f64, Pose)>,
+    /// Where to search for the pose, until a frame finds it ([`candidates`]); also after a
+    /// request to relocalize.
+    pub(crate) search: Option<Vec<Pose>>,
+    /// The map paged in by tile under the memory cap.
+    pub(crate) pager: Option<crate::run::map_pager::MapPager>,
+}
+
+/// Finishes the map file being written (`saved`, from `opts.save_map`): the cells still in
+/// `map`, and `path`: the path of the map the run started from followed by this run's stamped
+/// poses.
 pub(super) fn finish(
     saved: Option<crate::formats::map_file::MapWriter>,
     path: &[(f64, Pose)],
     map: &slamesh_core::map::MeshMap,
     frames_seen: u32,
-    shown_as: &std::path::Path,
+    opts: &crate::run::RunOptions,
 ) -> Result<(), crate::run::RunError> {
+    let shown_as = opts.save_map.as_deref().unwrap_or(&opts.out);
     let Some(mut saved) = saved else {
         return Ok(());
     };

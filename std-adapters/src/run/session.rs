@@ -20,25 +20,24 @@ use crate::loop_closure::{LoopClosure, LoopReport};
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::parallel::Workers;
 use crate::run::budget::MemoryBudget;
+use crate::run::capacity::RecentScans;
 use crate::run::checkpoint::{self, Progress};
-use crate::run::files::{self, ReportFile, Trajectories, OWN_FILES};
+use crate::run::event::EventParts;
+use crate::run::files::{self, ReportFile, RunFiles, Trajectories, OWN_FILES};
 use crate::run::lookahead::LookAhead;
-use crate::run::map_pager::MapPager;
 use crate::run::memory;
 use crate::run::report::{spreads, write_topview, FrameRecord, Summary};
-use crate::run::saved_map;
+use crate::run::saved_map::{self, FromMap};
 use crate::run::setup::Setup;
-use crate::run::sink::{FnSink, FrameEvent, MapUpdate, Sinks};
-use crate::run::timing::StageTimer;
+use crate::run::sink::{FnSink, FrameEvent, Sinks};
+use crate::run::timing::RunClock;
 use crate::run::window::Window;
-use crate::sources::{FrameSource, Sample, Waited};
+use crate::sources::{FrameSource, Waited};
 use crate::stage::{End, Stages, Start};
-use slamesh_core::lm::PoseInformation;
-use slamesh_core::{Capacity, Pipeline, Point, Pose};
+use slamesh_core::{Capacity, Pipeline, Pose};
 use std::borrow::Cow;
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
-use std::time::Instant;
 
 pub use crate::run::options::{Deskew, InitialPose, RunError, RunOptions};
 
@@ -122,41 +121,26 @@ pub struct Run<'a, C: Capacity> {
     pub(super) window: Window,
     /// The memory cap's shares, the layer budget it allows among them.
     pub(super) budget: Option<MemoryBudget>,
-    pub(super) spool: MeshSpool,
-    /// `report.json`, its frame records spooled as they come.
-    pub(super) report: ReportFile,
-    pub(super) checkpoint_path: PathBuf,
+    /// What the run writes as it goes: the mesh's and the report's spools, the map file being
+    /// saved, where its checkpoints go.
+    pub(super) files: RunFiles,
     /// What a checkpoint saves: poses, skipped frames, totals.
     pub(super) progress: Progress,
-    pub(super) timer: StageTimer,
+    /// The stages' times and the loop's wall time.
+    pub(super) clock: RunClock,
     /// The next frame, read and filtered ahead (with two threads or more).
     pub(super) ahead: LookAhead,
-    pub(super) started: Instant,
-    /// Loop seconds before this process (from the checkpoint when resuming).
-    pub(super) seconds_before: f64,
-    /// Started from a saved map with no pose given: where to search for the pose, until a
-    /// frame finds it ([`saved_map::candidates`]).
-    pub(super) search: Option<Vec<Pose>>,
-    /// The path of the saved map the run started from (a map it saves keeps it first).
-    pub(super) map_path: Vec<(f64, Pose)>,
-    /// The map file being written (`save_map`): cells a window evicts go in as they leave.
-    pub(super) saved_map: Option<MapWriter>,
-    /// The saved map paged in under the memory cap (localizing only).
-    pub(super) pager: Option<MapPager>,
+    /// The saved map the run started from: its path, the search for the pose in it, its
+    /// pager.
+    pub(super) from_map: FromMap,
     /// Loop closure's thread, when on.
     pub(super) closer: Option<LoopClosure<C>>,
-    /// The raw point counts of the last frames read (a scan far smaller is named).
-    pub(super) recent_points: std::collections::VecDeque<usize>,
-    /// The samples that are not scans that came with the last frame, for its event.
-    pub(super) samples: Vec<Sample>,
-    /// How well the last used frame's registration pinned its pose down (for a sink's
-    /// covariance).
-    pub(super) information: Option<PoseInformation>,
+    /// The point counts of the last frames read (a scan far smaller is named).
+    pub(super) recent: RecentScans,
+    /// What the frame's event carries beside its record.
+    pub(super) event: EventParts,
     /// What works inside the run beside registration, plugged in ([`crate::stage`]).
     pub(super) stages: Stages<C>,
-    /// The last used frame's own points, for its event's map update
-    /// ([`hand_own_points`](Self::hand_own_points)); `None`: not kept.
-    pub(super) own_points: Option<Vec<Point>>,
 }
 
 impl<'a, C: Capacity> Run<'a, C> {
@@ -283,28 +267,28 @@ impl<'a, C: Capacity> Run<'a, C> {
         }
         Ok(Run {
             stages,
-            own_points: None,
             closer: setup.closer,
-            search,
-            map_path,
-            saved_map,
-            pager: setup.pager,
+            from_map: FromMap {
+                path: map_path,
+                search,
+                pager: setup.pager,
+            },
+            files: RunFiles {
+                spool,
+                report,
+                saved_map,
+                checkpoint: checkpoint_path,
+            },
             opts,
             pipeline: setup.pipeline,
             workers: setup.workers,
             window: setup.window,
             budget: setup.budget,
-            spool,
-            report,
-            checkpoint_path,
-            seconds_before: progress.seconds,
+            clock: RunClock::new(progress.seconds),
             progress,
-            timer: StageTimer::new(),
             ahead,
-            started: Instant::now(),
-            recent_points: Default::default(),
-            samples: Vec::new(),
-            information: None,
+            recent: RecentScans::default(),
+            event: EventParts::default(),
         })
     }
 
@@ -316,56 +300,6 @@ impl<'a, C: Capacity> Run<'a, C> {
     /// The pipeline as it stands.
     pub fn pipeline(&self) -> &Pipeline<C> {
         &self.pipeline
-    }
-
-    /// From now on a used frame's own points go to its event's map update
-    /// ([`MapUpdate::own_points`]; moved, not copied), and a frame filtered ahead keeps them.
-    pub fn hand_own_points(&mut self) {
-        self.own_points = Some(Vec::new());
-        self.ahead.keep_points();
-    }
-
-    /// What the sinks are told of the frame `record` describes: its pose at its stamp when it
-    /// was used, the samples that came with it, and with `want_map` the map as it changed it
-    /// (the whole map and the corrected path when loops were closed with it).
-    pub fn event(&mut self, record: FrameRecord, want_map: bool) -> FrameEvent {
-        let samples = std::mem::take(&mut self.samples);
-        let information = self.information.take();
-        let poses = &self.progress.poses;
-        let pose = (record.error.is_none())
-            .then(|| {
-                poses
-                    .last()
-                    .filter(|(j, _)| *j == record.frame)
-                    .map(|(_, p)| *p)
-            })
-            .flatten();
-        let map = match (
-            want_map && record.error.is_none(),
-            record.loop_closures.is_empty(),
-        ) {
-            (false, _) => None,
-            (true, true) => MapUpdate::of(&self.pipeline, record.frame, record.stamp),
-            (true, false) => MapUpdate::after_closure(
-                &self.pipeline,
-                record.frame,
-                record.stamp,
-                poses.iter().map(|(_, p)| *p).collect(),
-                record.loop_closures.iter().map(|c| c.describe()).collect(),
-            ),
-        };
-        let own = self.own_points.as_mut().map(std::mem::take);
-        let map = map.map(|u| MapUpdate {
-            own_points: own.unwrap_or_default(),
-            ..u
-        });
-        FrameEvent {
-            record,
-            pose,
-            map,
-            samples,
-            information: pose.and(information),
-        }
     }
 
     /// The poses so far: each used frame's index and pose (at its stamp), in order.
@@ -386,18 +320,18 @@ impl<'a, C: Capacity> Run<'a, C> {
 
     /// Saves everything a killed run needs to continue at frame `next`.
     pub(super) fn checkpoint(&mut self, next: usize) -> Result<(), RunError> {
-        let report_bytes = self.report.mark()?;
-        self.spool.flush()?;
+        let report_bytes = self.files.report.mark()?;
+        self.files.spool.flush()?;
         let p = &mut self.progress;
         p.next_frame = next;
         p.pipeline_frames = self.pipeline.frames();
         p.motion = self.pipeline.motion().history();
-        p.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
+        p.seconds = self.clock.seconds();
         p.report_bytes = report_bytes;
-        p.mesh = self.spool.counts();
+        p.mesh = self.files.spool.counts();
         p.stages.clear();
         self.stages.save(&mut p.stages);
-        checkpoint::write(&self.checkpoint_path, p, self.pipeline.map())?;
+        checkpoint::write(&self.files.checkpoint, p, self.pipeline.map())?;
         Ok(())
     }
 
@@ -425,8 +359,8 @@ impl<'a, C: Capacity> Run<'a, C> {
     fn last_loops(&mut self, source: &impl FrameSource) -> Option<LoopReport> {
         let (pipeline, poses) = (&mut self.pipeline, &mut self.progress.poses);
         let outputs = RunOutputs {
-            spool: &mut self.spool,
-            saved_map: &mut self.saved_map,
+            spool: &mut self.files.spool,
+            saved_map: &mut self.files.saved_map,
         };
         (self.closer.take()).map(|c| c.finish(pipeline, poses, source.frames(), outputs))
     }
@@ -437,7 +371,7 @@ impl<'a, C: Capacity> Run<'a, C> {
         interrupted: Option<usize>,
     ) -> Result<Summary, RunError> {
         let loop_closure = self.last_loops(source);
-        self.progress.seconds = self.seconds_before + self.started.elapsed().as_secs_f64();
+        self.progress.seconds = self.clock.seconds();
         let Progress {
             poses,
             skipped,
@@ -446,7 +380,7 @@ impl<'a, C: Capacity> Run<'a, C> {
             seconds,
             ..
         } = self.progress;
-        let (health, cost_by_outcome) = self.report.health()?;
+        let (health, cost_by_outcome) = self.files.report.health()?;
         // The scan buffers go before the mesh is welded: writing needs no more than the run.
         drop(std::mem::take(&mut self.ahead));
         let frames_seen = self.pipeline.frames();
@@ -454,22 +388,22 @@ impl<'a, C: Capacity> Run<'a, C> {
         let out = &self.opts.out;
         // A run that used no frame writes its report (with every frame's reason) and no empty
         // trajectory, mesh or picture.
-        if let Some(p) = &self.pager {
+        if let Some(p) = &self.from_map.pager {
             log::info!("map paged: {}", p.stats());
         }
         let stamps: Vec<f64> = poses.iter().map(|(i, _)| source.stamp(*i)).collect();
         // The saved map's path: the start map's, then this run's.
-        let mut path = std::mem::take(&mut self.map_path);
+        let mut path = std::mem::take(&mut self.from_map.path);
         path.extend(poses.iter().zip(&stamps).map(|((_, p), t)| (*t, *p)));
-        let shown_as = self.opts.save_map.as_deref().unwrap_or(out);
-        saved_map::finish(self.saved_map.take(), &path, &map, frames_seen, shown_as)?;
+        let saving = self.files.saved_map.take();
+        saved_map::finish(saving, &path, &map, frames_seen, &self.opts)?;
         let end = End {
             poses: &poses,
             out,
             saved_map: self.opts.save_map.as_deref().map(|m| (m, &path[..])),
             up: self.stages.up(),
         };
-        let counts = write_mesh(self.spool, &map, &end, &self.opts, &mut self.stages)?;
+        let counts = write_mesh(self.files.spool, &map, &end, &self.opts, &mut self.stages)?;
         let summary = Summary {
             frames: source.frames(),
             used: poses.len(),
@@ -501,9 +435,9 @@ impl<'a, C: Capacity> Run<'a, C> {
             stamps,
         };
         Trajectories::new(out).write(&summary)?;
-        self.report.write(&summary)?;
+        self.files.report.write(&summary)?;
         // The run is complete: nothing is left to resume.
-        let _ = std::fs::remove_file(&self.checkpoint_path);
+        let _ = std::fs::remove_file(&self.files.checkpoint);
         Ok(summary)
     }
 }

@@ -6,14 +6,14 @@
 
 use crate::io::error::FileError;
 use crate::loop_closure::streaming::RunOutputs;
-use crate::run::capacity::{self, SMALL_SCAN_RATIO};
+use crate::run::capacity;
 use crate::run::frame_error::{FrameError, FrameFault};
 use crate::run::lookahead::{Ahead, Scan as ReadScan};
 use crate::run::map_pager::{self, MapPager};
 use crate::run::memory;
 use crate::run::options::{Deskew, RunError};
 use crate::run::report::{registration_reason, updated_triangles, FrameRecord};
-use crate::run::saved_map;
+use crate::run::saved_map::{self, FromMap};
 use crate::run::session::Run;
 use crate::run::timing::StageMs;
 use crate::sources::FrameSource;
@@ -23,9 +23,6 @@ use slamesh_core::pipeline::{Known, Scan, Stepped};
 use slamesh_core::relocalize::{Paging, Search};
 use slamesh_core::{Capacity, Point, Pose, RegistrationStatus};
 use std::time::Instant;
-
-/// Frames whose point counts a scan is compared with ([`Run::note_small_scan`]).
-pub(super) const RECENT_SCANS: usize = 9;
 
 /// A frame's scan on its way to the pipeline.
 #[derive(Debug, Default)]
@@ -93,8 +90,8 @@ impl<C: Capacity> Run<'_, C> {
         let mut rec = FrameRecord::skipped(i, source.label(i));
         self.close_loops(i, &mut rec);
         let read = self.ahead.take(source, i);
-        self.samples = source.samples(i);
-        rec.samples = self.samples.len();
+        self.event.samples = source.samples(i);
+        rec.samples = self.event.samples.len();
         // After the read: a recording knows a frame's stamp once it has read the message.
         rec.stamp = source.stamp(i);
         rec.stamp_ns = source.stamp_ns(i);
@@ -102,17 +99,17 @@ impl<C: Capacity> Run<'_, C> {
         (self.stages).read(&Read {
             frame: i,
             file,
-            samples: &self.samples,
+            samples: &self.event.samples,
         });
         rec.points_dropped_by_reader = read.dropped_by_reader;
         let motion = self.last_motion(source);
         self.page_around_prediction();
         let (mut frame, readable) = Frame::of(read.scan, &mut rec);
-        self.note_small_scan(&rec);
+        self.recent.note(&rec);
         let ready = readable.and_then(|()| self.prepare(&mut frame, motion, i, &mut rec));
         let stepped = self.register(source, i, &frame, ready);
         let not_waited = self.take_timings(read.ms, &frame, &mut rec);
-        if let Some(e) = self.pager.as_mut().and_then(MapPager::take_error) {
+        if let Some(e) = self.from_map.pager.as_mut().and_then(MapPager::take_error) {
             return Err(e.into());
         }
         match stepped.and_then(found_or_not) {
@@ -122,7 +119,7 @@ impl<C: Capacity> Run<'_, C> {
                 self.update_map(&o, &mut rec)?;
                 rec.ms.total = rec.ms.pipeline() + rec.ms.evict - not_waited;
                 self.keep_pose(source, i, &o, &frame, &mut rec);
-                if let Some(own) = &mut self.own_points {
+                if let Some(own) = &mut self.event.own_points {
                     *own = std::mem::take(&mut frame.points);
                 }
             }
@@ -136,8 +133,8 @@ impl<C: Capacity> Run<'_, C> {
     fn close_loops(&mut self, i: usize, rec: &mut FrameRecord) {
         if let Some(c) = &mut self.closer {
             let outputs = RunOutputs {
-                spool: &mut self.spool,
-                saved_map: &mut self.saved_map,
+                spool: &mut self.files.spool,
+                saved_map: &mut self.files.saved_map,
             };
             for closed in c.apply(&mut self.pipeline, &mut self.progress.poses, i, outputs) {
                 log::info!("frame {i}: {}", closed.describe());
@@ -146,40 +143,11 @@ impl<C: Capacity> Run<'_, C> {
         }
     }
 
-    /// Says when a scan is far smaller than the frames read before it ([`SMALL_SCAN_RATIO`]):
-    /// a cut-off file or a partial sweep. It is used all the same.
-    fn note_small_scan(&mut self, rec: &FrameRecord) {
-        let n = rec.points;
-        if n == 0 {
-            return;
-        }
-        // Their median, sorted in place of a copy: no allocation on the frame's path.
-        let mut recent = [0usize; RECENT_SCANS];
-        let k = self.recent_points.len();
-        for (r, &n) in recent.iter_mut().zip(&self.recent_points) {
-            *r = n;
-        }
-        recent[..k].sort_unstable();
-        if let Some(&typical) = recent[..k].get(k / 2) {
-            if n * SMALL_SCAN_RATIO < typical {
-                log::warn!(
-                    "{}: frame {}: {n} points, far fewer than the {typical} of the frames before \
-                     it: a cut-off file or a partial sweep?",
-                    rec.file,
-                    rec.frame
-                );
-            }
-        }
-        if self.recent_points.len() == RECENT_SCANS {
-            self.recent_points.pop_front();
-        }
-        self.recent_points.push_back(n);
-    }
-
     /// A paged map: the tiles around the predicted pose (while the pose is searched for, the
     /// search pages).
     fn page_around_prediction(&mut self) {
-        if let (Some(pager), None) = (&mut self.pager, &self.search) {
+        let FromMap { pager, search, .. } = &mut self.from_map;
+        if let (Some(pager), None) = (pager, search) {
             let predicted = self.pipeline.motion().predict();
             pager.around(self.pipeline.map_mut(), &predicted);
         }
@@ -212,7 +180,7 @@ impl<C: Capacity> Run<'_, C> {
         }
         fits_capacity::<C>(&frame.points, &self.opts.config.filter)?;
         frame.given = self.given_pose(i, rec.stamp, frame.to_stamp)?;
-        if frame.given.is_none() && self.search.is_none() {
+        if frame.given.is_none() && self.from_map.search.is_none() {
             let history = self.pipeline.motion().history();
             frame.prior = self.stages.prior(&PriorAt {
                 frame: i,
@@ -291,11 +259,10 @@ impl<C: Capacity> Run<'_, C> {
         let Run {
             pipeline,
             workers,
-            timer,
+            clock,
             ahead,
             opts,
-            pager,
-            search,
+            from_map,
             ..
         } = self;
         let (deskew, config, workers) = (opts.deskew, &opts.config, &*workers);
@@ -305,6 +272,7 @@ impl<C: Capacity> Run<'_, C> {
             })
         });
         let everywhere = Search::default();
+        let FromMap { pager, search, .. } = from_map;
         let stepped = ready.and_then(|()| {
             let scan = match &frame.ahead {
                 Some(a) => Scan::Filtered(a.filtered()),
@@ -323,7 +291,7 @@ impl<C: Capacity> Run<'_, C> {
             // On a worker of the pool: its serial stages leave the other thread to the filter.
             workers
                 .install_beside(
-                    || pipeline.step(scan, known, workers, timer),
+                    || pipeline.step(scan, known, workers, &mut clock.stages),
                     || read_next.take().map_or((), |mut next| next()),
                 )
                 .map_err(FrameFault::Refused)
@@ -340,7 +308,7 @@ impl<C: Capacity> Run<'_, C> {
         rec.ms = StageMs {
             read: read_ms,
             deskew: rec.ms.deskew,
-            ..self.timer.take()
+            ..self.clock.stages.take()
         };
         let Some(a) = &frame.ahead else {
             return 0.0;
@@ -360,11 +328,11 @@ impl<C: Capacity> Run<'_, C> {
                 let found = saved_map::found(r);
                 log::info!("frame {}: {found}", rec.frame);
                 rec.relocalization = Some(found);
-                self.search = None;
+                self.from_map.search = None;
             }
         }
         rec.take_stats(&o.stats);
-        self.information = Some(o.stats.information);
+        self.event.information = Some(o.stats.information);
     }
 
     /// Tells the stages the frame was fused (their time counts in the update's), counts the
@@ -382,13 +350,17 @@ impl<C: Capacity> Run<'_, C> {
         rec.ms.mesh = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
         if !self.window.is_off() {
-            let spool = self.opts.window.save_evicted.then_some(&mut self.spool);
+            let spool = self
+                .opts
+                .window
+                .save_evicted
+                .then_some(&mut self.files.spool);
             rec.evicted_cells = self.window.evict_to(
                 self.pipeline.map_mut(),
                 o.stats.frame,
                 &o.t_world_sensor,
                 spool,
-                self.saved_map.as_mut(),
+                self.files.saved_map.as_mut(),
             )?;
             self.progress.evicted_cells += rec.evicted_cells;
         }
@@ -464,7 +436,7 @@ impl<C: Capacity> Run<'_, C> {
         rec.map_cells = self.pipeline.map().cell_count();
         rec.map_layers = self.pipeline.map().layer_count();
         rec.rss_mb = memory::rss_bytes().map(memory::mb);
-        self.report.add(rec)?;
+        self.files.report.add(rec)?;
         if let Some(every) = self.opts.checkpoint_every.filter(|&n| n > 0) {
             if (i + 1).is_multiple_of(every) && i + 1 < source.frames() {
                 self.checkpoint(i + 1)?;

@@ -96,6 +96,33 @@ impl StageMs {
     }
 }
 
+/// A run's clock: the core stages' times ([`StageTimer`]) and the frame loop's wall time,
+/// counting what a resumed run's process before it took.
+#[derive(Debug)]
+pub(crate) struct RunClock {
+    /// The core stages' times of the frame in progress.
+    pub(crate) stages: StageTimer,
+    started: Instant,
+    /// Loop seconds before this process (from the checkpoint when resuming).
+    before: f64,
+}
+
+impl RunClock {
+    /// A clock started now, `before` seconds of the loop already run.
+    pub(crate) fn new(before: f64) -> Self {
+        Self {
+            stages: StageTimer::new(),
+            started: Instant::now(),
+            before,
+        }
+    }
+
+    /// The frame loop's seconds so far.
+    pub(crate) fn seconds(&self) -> f64 {
+        self.before + self.started.elapsed().as_secs_f64()
+    }
+}
+
 /// A [`Probe`] that adds up the time spent in each core stage.
 #[derive(Debug, Default)]
 pub struct StageTimer {
