@@ -5,8 +5,10 @@
 //! |---|---|
 //! | configuration files: presets, parameters, the window's settings | [`config_file`] |
 //! | the capacity classes and how to choose one | [`capacity`] |
-//! | the run loop: start or resume, a step per frame, finish | [`session`] |
+//! | the run loop: start or resume, a step per frame | [`session`] |
+//! | the run's end: the map file, the stages' files, the mesh, the summary, the report | `finish` |
 //! | one frame as named stages: read, prepare, register, update the map, record | `step` |
+//! | a frame's scan on its way to the pipeline: read, deskewed, checked, its given pose or prior | `prepare` |
 //! | what a frame's event carries beside its record, from its step to its event | `event` |
 //! | why a frame was skipped | [`frame_error`] |
 //! | a live source's requests between frames: save the map, relocalize | `requests` |
@@ -27,11 +29,13 @@ pub mod checkpoint;
 pub mod config_file;
 mod event;
 pub mod files;
+mod finish;
 pub mod frame_error;
 pub mod lookahead;
 pub mod map_pager;
 pub mod memory;
 pub mod options;
+mod prepare;
 pub mod report;
 mod requests;
 pub mod saved_map;
