@@ -246,3 +246,45 @@ fn a_parked_car_that_left_is_cleared_by_the_next_session() {
 fn path(p: &std::path::Path) -> &str {
     p.to_str().expect("a UTF-8 path")
 }
+
+/// A sink that keeps the map from the frames' updates (the live view, the ROS 2 node's mesh)
+/// is told what clearing changed too, wherever it lies: each layer it kept shows at the end
+/// what the run's shows, where the frames' own layers alone would leave the ghosts behind
+/// them standing.
+#[test]
+fn a_sink_that_keeps_the_map_is_told_what_clearing_changed() {
+    use slamesh::run::Run;
+    use slamesh_core::cell::{Axis, CellKey};
+    use slamesh_core::layer::Layer;
+    use std::collections::HashMap;
+    let (mut scans, _, _) = scans_and_truth(&drive_with_traffic(60));
+    let out = scratch("dynamic-sink");
+    let opts = slamesh::run::RunOptions {
+        dynamic: Some(ClearingConfig::default()),
+        ..test_run_options(&out, preset("default").expect("the default preset"))
+    };
+    let mut run = Run::<KittiCapacity>::start(&scans, &opts).unwrap();
+    let mut kept: HashMap<(CellKey, Axis), Layer> = HashMap::new();
+    let (mut beyond, mut cleared) = (0usize, 0u64);
+    for i in 0..scans.frames() {
+        let record = run.step(&mut scans, i).unwrap();
+        cleared += record.notes.values["cleared_vertices"].as_u64().unwrap();
+        let scan: Vec<(CellKey, Axis)> = (run.pipeline().last_scan().iter())
+            .map(|s| (s.key, s.axis))
+            .collect();
+        let update = run.event(record, true).map.expect("a used frame's map");
+        for (key, axis, layer) in update.layers {
+            beyond += usize::from(!scan.contains(&(key, axis)));
+            kept.insert((key, axis), layer);
+        }
+    }
+    assert!(cleared > 100, "clearing forgot {cleared} vertices");
+    assert!(beyond > 10, "{beyond} layers beyond the frames' own");
+    // What each kept layer shows (a vertex under the variance threshold) is what the run's shows.
+    let (map, show) = (run.pipeline().map(), opts.config.mesh.variance_show as f32);
+    let shown = |l: &Layer| l.var.map(|v| v < show);
+    let stale = (kept.iter())
+        .filter(|((k, a), l)| map.layer(k, *a).is_some_and(|m| shown(m) != shown(l)))
+        .count();
+    assert_eq!(stale, 0, "of {} layers kept", kept.len());
+}

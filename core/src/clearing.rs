@@ -294,13 +294,15 @@ impl<'a> Sight<'a> {
 /// Raises the variance of every map vertex that the scan in `image`, taken at
 /// `t_world_sensor`, sees through (see the module), by `variance_show / sightings`; a vertex
 /// whose variance reaches `variance_show` is forgotten (infinite). Vertices of an unknown or
-/// forgotten variance are left alone.
+/// forgotten variance are left alone. `forgot` is told each layer that forgot a vertex (its
+/// shown mesh changed), once, in the map's order.
 pub fn clear_seen_through(
     map: &mut MeshMap,
     image: &RangeImage,
     t_world_sensor: &Pose,
     variance_show: f32,
     cfg: &ClearingConfig,
+    mut forgot: impl FnMut(CellKey, Axis),
 ) -> ClearingStats {
     let mut stats = ClearingStats::default();
     let lattice = map.lattice().table();
@@ -310,7 +312,11 @@ pub fn clear_seen_through(
     let reach = f64::from(cfg.max_range_m) + lattice.cell_size * 0.87;
     map.update_layers(|key, axis, layer| {
         if (key.centre(lattice.cell_size) - origin).norm() <= reach {
+            let before = stats.forgotten;
             sight.clear_layer(key, axis, layer, &mut stats);
+            if stats.forgotten > before {
+                forgot(*key, axis);
+            }
         }
     });
     stats
@@ -361,14 +367,14 @@ mod tests {
         // Returns from the surface itself, and from a wall in front of it: never cleared.
         for range in [8.8, 6.0] {
             image.fill(&wall_at(range));
-            let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+            let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
             assert_eq!(s, ClearingStats::default(), "returns at {range} m");
         }
         // A wall 20 m away: the surface is seen through, three times over.
         image.fill(&wall_at(20.0));
         let mut forgotten = 0;
         for sight in 1..=3 {
-            let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+            let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
             assert_eq!(s.seen_through as usize, VERTICES, "sight {sight}");
             forgotten += s.forgotten;
             let var = map.layer(&key, Axis::X).expect("kept").var[0];
@@ -384,7 +390,7 @@ mod tests {
             .iter()
             .all(|v| v.is_infinite()));
         // Nothing left to see through.
-        let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+        let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
         assert_eq!(s, ClearingStats::default());
     }
 
@@ -395,16 +401,16 @@ mod tests {
         let mut image = RangeImage::new();
         image.fill(&wall_at(150.0));
         let cfg = ClearingConfig::default();
-        let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+        let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
         assert_eq!(s, ClearingStats::default());
         // Behind the sensor, where no ray went.
         let (mut map, _) = map_with_layer_at(-6);
-        let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+        let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
         assert_eq!(s, ClearingStats::default());
         // No points at all, or only non-finite ones.
         image.fill(&[[f32::NAN; 3]; 4]);
         let (mut map, _) = map_with_layer_at(5);
-        let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+        let s = clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
         assert_eq!(s, ClearingStats::default());
     }
 
@@ -452,13 +458,13 @@ mod tests {
         for (wall, seen) in [(9.3, 0), (10.0, VERTICES)] {
             let (mut map, key) = map_with(5, 0.8);
             image.fill(&wall_at(wall));
-            clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+            clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
             assert_eq!(raised(&map, &key), seen, "returns at {wall} m");
         }
         // Its prediction places it: at 0.2 m into the cell (8.2 m), 9.3 m is past the margin.
         let (mut map, key) = map_with(5, 0.2);
         image.fill(&wall_at(9.3));
-        clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+        clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
         assert_eq!(raised(&map, &key), VERTICES);
     }
 
@@ -479,6 +485,7 @@ mod tests {
             &Pose::identity(),
             1.0,
             &ClearingConfig::default(),
+            |_, _| {},
         );
         // The layer's y (its first lattice index) runs from -1.6 to 0 m: the near returns
         // hide its vertices from y = -0.64 m up, three rows of six.
@@ -495,13 +502,13 @@ mod tests {
         image.fill(&wall_at(120.0));
         // A cell whose centre lies past 80 m, its nearest vertex at 80 m exactly.
         let (mut map, key) = map_with(50, 0.0);
-        clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg);
+        clear_seen_through(&mut map, &image, &Pose::identity(), 1.0, &cfg, |_, _| {});
         assert_eq!(raised(&map, &key), 1, "only the vertex at 80 m");
         // The sensor 100 m along x: the layer 8.8 m ahead of it.
         let (mut map, key) = map_with(67, 0.8);
         image.fill(&wall_at(20.0));
         let there = Pose::translation(98.4, 0.0, 0.0);
-        clear_seen_through(&mut map, &image, &there, 1.0, &cfg);
+        clear_seen_through(&mut map, &image, &there, 1.0, &cfg, |_, _| {});
         assert_eq!(raised(&map, &key), VERTICES);
     }
 

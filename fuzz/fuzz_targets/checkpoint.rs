@@ -1,10 +1,13 @@
 //! The checkpoint reader on arbitrary bytes (`run --resume`): the progress, the map and the
-//! IMU's state are checked as they are read; whatever loads fits the map it went into.
+//! stages' state (the IMU's) are checked as they are read; whatever loads fits the map it
+//! went into.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use slamesh::inertial::{ImuOptions, Inertial};
+use slamesh::inertial::stage::ImuStage;
+use slamesh::inertial::ImuOptions;
 use slamesh::run::checkpoint;
+use slamesh::stage::Stages;
 use slamesh_core::lattice::Lattice;
 use slamesh_core::map::MeshMap;
 use slamesh_core::KittiCapacity;
@@ -19,17 +22,21 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     assert!(map.cell_count() <= 256);
-    let fresh = || Inertial::new::<KittiCapacity>(ImuOptions::default());
-    let mut imu = fresh();
-    if imu.restore(&progress.imu).is_ok() {
+    let fresh = || {
+        let mut stages = Stages::<KittiCapacity>::new();
+        stages.push(Box::new(ImuStage::new::<KittiCapacity>(ImuOptions::default())));
+        stages
+    };
+    let mut stages = fresh();
+    if stages.restore(&progress.stages).is_ok() {
         // What was restored saves, and that restores to the same state.
         let mut saved = Vec::new();
-        imu.save(&mut saved);
+        stages.save(&mut saved);
         let mut back = fresh();
         assert_eq!(back.restore(&saved), Ok(()));
         let mut again = Vec::new();
         back.save(&mut again);
         assert_eq!(again, saved);
-        let _ = back.summary();
+        let _ = back.summaries();
     }
 });

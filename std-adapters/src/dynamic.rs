@@ -11,6 +11,7 @@
 //! with it the map is the same on any thread count (serial, in the map's order).
 
 use crate::stage::{Note, RunStage};
+use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::clearing::{ClearingConfig, ClearingStats, RangeImage};
 use slamesh_core::{Capacity, Pipeline, Pose};
 
@@ -20,6 +21,8 @@ pub struct Clearing {
     image: RangeImage,
     config: ClearingConfig,
     totals: ClearingStats,
+    /// The layers the last clearing made forget a vertex.
+    changed: Vec<(CellKey, Axis)>,
 }
 
 /// A run clears on every this many frames (the frame counter's multiples): half the cost of
@@ -46,20 +49,27 @@ impl Clearing {
             image: RangeImage::new(),
             config,
             totals: ClearingStats::default(),
+            changed: Vec::new(),
         }
     }
 
     /// On every [`CLEAR_EVERY_FRAMES`]th frame, clears from `pipeline`'s map what its last
-    /// scan, fused at `t_world_sensor`, sees through.
+    /// scan, fused at `t_world_sensor`, sees through, keeping which layers forgot a vertex
+    /// ([`RunStage::changed`]).
     pub fn after_fusion<C: Capacity>(
         &mut self,
         pipeline: &mut Pipeline<C>,
         t_world_sensor: &Pose,
     ) -> ClearingStats {
+        self.changed.clear();
         if !pipeline.frames().is_multiple_of(CLEAR_EVERY_FRAMES) {
             return ClearingStats::default();
         }
-        let s = pipeline.clear_seen_through(t_world_sensor, &mut self.image, &self.config);
+        let changed = &mut self.changed;
+        let s =
+            pipeline.clear_seen_through(t_world_sensor, &mut self.image, &self.config, |k, a| {
+                changed.push((k, a))
+            });
         self.totals.seen_through = self.totals.seen_through.saturating_add(s.seen_through);
         self.totals.forgotten = self.totals.forgotten.saturating_add(s.forgotten);
         s
@@ -88,6 +98,12 @@ impl<C: Capacity> RunStage<C> for Clearing {
     fn fused(&mut self, pipeline: &mut Pipeline<C>, pose: &Pose) -> Option<Note> {
         let forgotten = self.after_fusion(pipeline, pose).forgotten;
         Some(Note::of("cleared_vertices", forgotten))
+    }
+
+    /// The layers whose shown mesh the last clearing changed, wherever they are: a sink that
+    /// keeps the map (the live view, the ROS 2 node's mesh) sends them again.
+    fn changed(&self) -> &[(CellKey, Axis)] {
+        &self.changed
     }
 
     fn summary(&self) -> Option<serde_json::Value> {

@@ -21,6 +21,7 @@ use crate::outputs::mesh_spool::MeshSpool;
 use crate::parallel::Workers;
 use crate::sources::Sample;
 use nalgebra::Vector3;
+use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::deskew::{DeskewError, Deskewed};
 use slamesh_core::{Capacity, Pipeline, Point, Pose, RegistrationStatus};
 use std::collections::BTreeMap;
@@ -77,6 +78,13 @@ pub trait RunStage<C: Capacity>: Send {
     /// Returns a note for the frame's record.
     fn fused(&mut self, _pipeline: &mut Pipeline<C>, _pose: &Pose) -> Option<Note> {
         None
+    }
+
+    /// The map's layers it changed in its last [`fused`](Self::fused), beyond the frame's own
+    /// (what clearing made forget a vertex): the frame's map update carries them too, so that
+    /// a sink that keeps the map sends them again.
+    fn changed(&self) -> &[(CellKey, Axis)] {
+        &[]
     }
 
     /// A used frame's pose was kept. Returns a note for the frame's record.
@@ -341,6 +349,11 @@ impl<C: Capacity> Stages<C> {
             }
         }
         t.elapsed().as_secs_f64() * 1e3
+    }
+
+    /// The layers they changed in their last [`fused`](Self::fused), beyond the frame's own.
+    pub fn changed(&self) -> impl Iterator<Item = (CellKey, Axis)> + '_ {
+        self.0.iter().flat_map(|s| s.changed().iter().copied())
     }
 
     /// Tells each a used frame's pose was kept; their notes go into `notes`.

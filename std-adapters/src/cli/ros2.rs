@@ -68,6 +68,11 @@ pub struct Ros2Args {
     /// which `slamesh navmap FILE` reads.
     #[arg(long)]
     pub navmap: bool,
+    /// Clear from the map what the scans see through, as `run --dynamic on` does (ROS
+    /// parameter `dynamic`, true or false): cars and people that moved on leave the map, and
+    /// the `mesh` topic sends the cells clearing changed again.
+    #[arg(long)]
+    pub dynamic: bool,
     /// The robot and cell size of the `map` topic's grid and of --navmap (ROS parameters
     /// `robot`: a profile or a TOML file; `navmap_resolution`, m).
     #[command(flatten)]
@@ -188,6 +193,7 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
     let loop_closure = flag(p, "loop_closure")?.map(|on| if on { OnOff::On } else { OnOff::Off });
     let loop_closure = either("loop_closure", args.loop_closure, loop_closure);
     let navmap = either("navmap", args.navmap.then_some(true), flag(p, "navmap")?);
+    let dynamic = either("dynamic", args.dynamic.then_some(true), flag(p, "dynamic")?);
     let (robot, resolution) = (&args.robot.robot, args.robot.navmap_resolution);
     let default = crate::cli::navmap::RobotArgs::default();
     let robot = crate::cli::navmap::RobotArgs {
@@ -225,6 +231,7 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
         loop_closure,
         no_picture: args.no_picture,
         navmap,
+        dynamic: dynamic.unwrap_or(false),
         robot,
         ros_args: Vec::new(),
     })
@@ -319,6 +326,7 @@ fn declared(args: &Ros2Args, n: &NodeSettings, s: &Settings) -> Vec<(String, Ros
         ("save_map", path(&args.save_map)),
         ("localize", V::Boolean(args.localize)),
         ("navmap", V::Boolean(args.navmap)),
+        ("dynamic", V::Boolean(args.dynamic)),
         ("map_frame", text(&n.frames.map)),
         ("odom_frame", text(&n.frames.odom)),
         ("base_frame", text(&n.frames.base)),
@@ -357,6 +365,9 @@ fn run_options(args: &Ros2Args, s: &Settings, use_imu: bool) -> RunOptions {
         localize_only: args.localize,
         save_map: args.save_map.clone(),
         navmap: args.navmap.then(|| args.robot.options()),
+        dynamic: args
+            .dynamic
+            .then(slamesh_core::clearing::ClearingConfig::default),
         imu: crate::inertial::ImuOptions {
             enabled: use_imu,
             ..s.imu
@@ -428,6 +439,13 @@ mod tests {
         .unwrap();
         assert!(both.navmap && both.robot.robot == Robot::LEGGED);
         assert_eq!(both.robot.options().resolution_m, 0.08);
+        // Clearing what moves: off, by the flag, by the parameter.
+        assert!(!plain.dynamic);
+        assert!(resolved(&["--dynamic"], "").unwrap().dynamic);
+        let by_param = resolved(&[], "--ros-args -p dynamic:=true").unwrap();
+        assert!(by_param.dynamic);
+        let s = crate::run::config_file::preset_settings("default").unwrap();
+        assert!(run_options(&by_param, &s, false).dynamic.is_some());
         for (bad, says) in [
             ("navmap:=3", "navmap: 3 is not true or false"),
             ("robot:=tracked", "parameter robot:"),

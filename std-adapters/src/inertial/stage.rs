@@ -127,3 +127,108 @@ impl<C: Capacity> RunStage<C> for ImuStage {
         serde_json::to_value(self.inertial.summary()?).ok()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::run::checkpoint::{self, Progress};
+    use crate::sources::{ImuReading, Sample};
+    use crate::stage::{Stages, Used};
+    use slamesh_core::cell::{Axis, CellKey};
+    use slamesh_core::layer::Layer;
+    use slamesh_core::map::MeshMap;
+    use slamesh_core::{KittiCapacity, RegistrationStatus};
+
+    /// An IMU stage that took half a second of still readings at 200 Hz, levelled the map's
+    /// first scan and learned from it: a run's stages with it, and their checkpoint state.
+    fn stages_after_a_frame() -> (Stages<KittiCapacity>, Vec<u8>) {
+        let mut stages = Stages::<KittiCapacity>::new();
+        stages.push(Box::new(ImuStage::new::<KittiCapacity>(
+            ImuOptions::default(),
+        )));
+        let samples: Vec<Sample> = (0..100)
+            .map(|k| {
+                Sample::Imu(ImuReading {
+                    stamp: k as f64 * 0.005,
+                    gyro: [0.001, 0.0, 0.002],
+                    accel: [0.1, 0.0, 9.8],
+                })
+            })
+            .collect();
+        let (file, reference) = ("seed", 0.5);
+        (stages).read(&crate::stage::Read {
+            frame: 0,
+            file,
+            samples: &samples,
+        });
+        let level = stages.prior(&crate::stage::PriorAt {
+            frame: 0,
+            file,
+            reference,
+            history: (None, None),
+            first: true,
+        });
+        assert!(level.is_some(), "levelled by the still readings");
+        let workers = crate::parallel::Workers::new(1).unwrap();
+        let mut notes = crate::stage::Notes::default();
+        let used = Used {
+            frame: 0,
+            status: RegistrationStatus::FirstScan,
+            reference,
+            history: (None, Some(Pose::identity())),
+            at_stamp: &Pose::identity(),
+            fused_at: &Pose::identity(),
+            points: &[],
+            workers: &workers,
+        };
+        stages.used(&used, &mut notes);
+        let mut state = Vec::new();
+        stages.save(&mut state);
+        (stages, state)
+    }
+
+    #[test]
+    fn the_imu_s_state_goes_through_a_checkpoint_and_back() {
+        let (stages, state) = stages_after_a_frame();
+        assert!(!state.is_empty());
+        let (mut back, _) = stages_after_a_frame();
+        back.restore(&state).unwrap();
+        let mut again = Vec::new();
+        back.save(&mut again);
+        assert_eq!(again, state);
+        assert_eq!(back.summaries(), stages.summaries());
+        assert!(stages.up().is_some(), "up from gravity");
+    }
+
+    /// Writes the fuzz target `checkpoint`'s seed (fuzz/corpus/checkpoint/imu): a checkpoint
+    /// of two frames, one cell and the stages' state above, in the format this build writes.
+    /// `cargo test -p slamesh --lib write_the_checkpoint_fuzz_seed -- --ignored`
+    #[test]
+    #[ignore = "writes the fuzz seed into fuzz/corpus"]
+    fn write_the_checkpoint_fuzz_seed() {
+        let (_, state) = stages_after_a_frame();
+        let lattice = slamesh_core::lattice::Lattice {
+            cell_size: 1.6,
+            full_cover: true,
+        };
+        let mut map = MeshMap::with_capacity(4, 4, lattice);
+        let ground = Layer {
+            pred: [0.4; slamesh_core::lattice::VERTICES],
+            var: [0.05; slamesh_core::lattice::VERTICES],
+            ..Layer::UNKNOWN
+        };
+        map.insert_layer(CellKey::new(0, 0, -1), Axis::Z, ground, 1)
+            .unwrap();
+        let progress = Progress {
+            fingerprint: "input \"seed\", 3 frames".into(),
+            next_frame: 2,
+            pipeline_frames: 2,
+            poses: vec![(0, Pose::identity()), (1, Pose::identity())],
+            seconds: 0.2,
+            stages: state,
+            ..Progress::new(String::new())
+        };
+        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/corpus/checkpoint/imu");
+        checkpoint::write(std::path::Path::new(file), &progress, &map).unwrap();
+    }
+}

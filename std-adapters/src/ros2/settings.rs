@@ -13,7 +13,7 @@
 //! | `use_sim_time` | bool | false | stamp `diagnostics` with `/clock` |
 //! | `use_imu` | bool | true | use the readings on `imu` (docs/design.md §1.19; its place on the LiDAR is the configuration's `[imu]`, or else `/tf_static`'s `base_link` -> the readings' frame) |
 //! | `imu_wait` | seconds | 0.2 | with `use_imu`, once an IMU has been heard: how long after a scan came it waits for the readings that cover its sweep (0 to 2; 0: never waits) |
-//! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize`, `loop_closure`, `navmap`, `robot`, `navmap_resolution` | | | as the command's flags of the same names (`loop_closure`: true or false, on by default where the run can close loops, under a memory cap or window only when true; `robot` and `navmap_resolution` are the `map` topic's too) |
+//! | `preset`, `config`, `threads`, `out`, `map`, `save_map`, `localize`, `loop_closure`, `navmap`, `dynamic`, `robot`, `navmap_resolution` | | | as the command's flags of the same names (`loop_closure` and `dynamic`: true or false; `loop_closure` on by default where the run can close loops, under a memory cap or window only when true; `robot` and `navmap_resolution` are the `map` topic's too) |
 //!
 //! Environment: `ROS_DOMAIN_ID` (0 to 232), `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` or
 //! `OFF`: this machine only) and the older `ROS_LOCALHOST_ONLY=1`.
@@ -432,6 +432,7 @@ mod tests {
         assert_eq!(
             left,
             [
+                "dynamic",
                 "navmap",
                 "navmap_resolution",
                 "out",

@@ -32,7 +32,8 @@ impl<C: Capacity> Run<'_, C> {
 
     /// What the sinks are told of the frame `record` describes: its pose at its stamp when it
     /// was used, the samples that came with it, and with `want_map` the map as it changed it
-    /// (the whole map and the corrected path when loops were closed with it).
+    /// (with the layers the stages changed elsewhere; the whole map and the corrected path
+    /// when loops were closed with it).
     pub fn event(&mut self, record: FrameRecord, want_map: bool) -> FrameEvent {
         let samples = std::mem::take(&mut self.event.samples);
         let information = self.event.information.take();
@@ -50,7 +51,8 @@ impl<C: Capacity> Run<'_, C> {
             record.loop_closures.is_empty(),
         ) {
             (false, _) => None,
-            (true, true) => MapUpdate::of(&self.pipeline, record.frame, record.stamp),
+            (true, true) => MapUpdate::of(&self.pipeline, record.frame, record.stamp)
+                .map(|u| u.with_changed(self.pipeline.map(), self.stages.changed())),
             (true, false) => MapUpdate::after_closure(
                 &self.pipeline,
                 record.frame,

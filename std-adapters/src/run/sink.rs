@@ -88,6 +88,28 @@ impl MapUpdate {
         })
     }
 
+    /// With `changed`'s layers of `map` too (the layers a stage changed beyond the frame's
+    /// own: what clearing made forget a vertex), each once; a layer no longer in the map is
+    /// passed over.
+    pub fn with_changed(
+        mut self,
+        map: &slamesh_core::map::MeshMap,
+        changed: impl Iterator<Item = (CellKey, Axis)>,
+    ) -> Self {
+        let mut changed = changed.peekable();
+        if changed.peek().is_none() {
+            return self;
+        }
+        let mut have: std::collections::HashSet<(CellKey, Axis)> =
+            self.layers.iter().map(|(k, a, _)| (*k, *a)).collect();
+        for (key, axis) in changed {
+            if let Some(l) = map.layer(&key, axis).filter(|_| have.insert((key, axis))) {
+                self.layers.push((key, axis, *l));
+            }
+        }
+        self
+    }
+
     /// [`of`](Self::of) after a loop closure: every layer of the map, the corrected `path`
     /// and what was closed.
     pub fn after_closure<C: Capacity>(
