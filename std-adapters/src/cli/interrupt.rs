@@ -33,13 +33,21 @@ pub fn install() {
     }
 }
 
+/// The process's flag, which a command reads from now on, when [`install`] set the handler
+/// (the `slamesh` program); `None` in a program that embeds the command, whose own Ctrl-C
+/// handling (Python's `KeyboardInterrupt`) is left as it is.
+pub fn listen_if_installed() -> Option<Arc<AtomicBool>> {
+    let flag = STOP.get()?;
+    LISTENING.store(true, Ordering::SeqCst);
+    Some(flag.clone())
+}
+
 /// The flag a command reads from now on: the process's when [`install`] set the handler
 /// (the first signal then sets it), otherwise one set on the first signal by a handler set
-/// now (`None` when none can be).
+/// now (`None` when none can be): for what only a signal ends (a live input, the node).
 pub fn listen() -> Option<Arc<AtomicBool>> {
-    if let Some(flag) = STOP.get() {
-        LISTENING.store(true, Ordering::SeqCst);
-        return Some(flag.clone());
+    if let Some(flag) = listen_if_installed() {
+        return Some(flag);
     }
     let flag = Arc::new(AtomicBool::new(false));
     let set = flag.clone();

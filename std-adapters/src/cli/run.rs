@@ -341,9 +341,10 @@ fn run_with(
         say_given_poses(p, source.frames());
     }
     let mut opts = run_options(args, &s, given, localize_only);
-    // A live input ends on Ctrl-C (the end of its stream); a run over files stops early on it.
+    // A live input ends on Ctrl-C (the end of its stream); a run over files stops early on it
+    // (in the `slamesh` program: Python keeps its own Ctrl-C).
     opts.stop = (!args.source.is_live())
-        .then(crate::cli::interrupt::listen)
+        .then(crate::cli::interrupt::listen_if_installed)
         .flatten();
     if !localize_only {
         choose_loop_closure(args.loop_closure, &mut opts)?;
