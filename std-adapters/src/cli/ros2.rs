@@ -152,6 +152,42 @@ fn either<T: PartialEq + std::fmt::Debug>(
     }
 }
 
+/// The `threads` parameter, when given: 0 to 1024.
+fn threads_parameter(p: &mut BTreeMap<String, ParamValue>) -> Result<Option<usize>, CliError> {
+    match p.remove("threads") {
+        None => Ok(None),
+        Some(ParamValue::Int(n)) if (0..=1024).contains(&n) => Ok(Some(n as usize)),
+        Some(v) => Err(node_error(format!(
+            "parameter threads: {} is not 0 to 1024",
+            v.as_text()
+        ))),
+    }
+}
+
+/// The robot and the navigation map's cell size: the flags', or the parameters `robot` and
+/// `navmap_resolution` where a flag is at its default.
+fn robot_with_parameters(
+    given: &crate::cli::navmap::RobotArgs,
+    p: &mut BTreeMap<String, ParamValue>,
+) -> Result<crate::cli::navmap::RobotArgs, CliError> {
+    let (robot, resolution) = (&given.robot, given.navmap_resolution);
+    let default = crate::cli::navmap::RobotArgs::default();
+    Ok(crate::cli::navmap::RobotArgs {
+        robot: either(
+            "robot",
+            (*robot != default.robot).then_some(*robot),
+            parsed(p, "robot", crate::cli::navmap::robot)?,
+        )
+        .unwrap_or(default.robot),
+        navmap_resolution: either(
+            "navmap_resolution",
+            (resolution != default.navmap_resolution).then_some(resolution),
+            parsed(p, "navmap_resolution", crate::cli::navmap::resolution)?,
+        )
+        .unwrap_or(default.navmap_resolution),
+    })
+}
+
 /// The flags, with the ROS parameters of the same names where a flag was not given
 /// ([`either`]).
 fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args, CliError> {
@@ -174,16 +210,7 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
     let map = either("map", args.map.clone(), take_text("map").map(PathBuf::from));
     let save_map = take_text("save_map").map(PathBuf::from);
     let save_map = either("save_map", args.save_map.clone(), save_map);
-    let threads = match p.remove("threads") {
-        None => None,
-        Some(ParamValue::Int(n)) if (0..=1024).contains(&n) => Some(n as usize),
-        Some(v) => {
-            return Err(node_error(format!(
-                "parameter threads: {} is not 0 to 1024",
-                v.as_text()
-            )))
-        }
-    };
+    let threads = threads_parameter(p)?;
     let threads = either("threads", args.threads, threads);
     let localize = either(
         "localize",
@@ -194,22 +221,7 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
     let loop_closure = either("loop_closure", args.loop_closure, loop_closure);
     let navmap = either("navmap", args.navmap.then_some(true), flag(p, "navmap")?);
     let dynamic = either("dynamic", args.dynamic.then_some(true), flag(p, "dynamic")?);
-    let (robot, resolution) = (&args.robot.robot, args.robot.navmap_resolution);
-    let default = crate::cli::navmap::RobotArgs::default();
-    let robot = crate::cli::navmap::RobotArgs {
-        robot: either(
-            "robot",
-            (*robot != default.robot).then_some(*robot),
-            parsed(p, "robot", crate::cli::navmap::robot)?,
-        )
-        .unwrap_or(default.robot),
-        navmap_resolution: either(
-            "navmap_resolution",
-            (resolution != default.navmap_resolution).then_some(resolution),
-            parsed(p, "navmap_resolution", crate::cli::navmap::resolution)?,
-        )
-        .unwrap_or(default.navmap_resolution),
-    };
+    let robot = robot_with_parameters(&args.robot, p)?;
     let (localize, navmap) = (localize.unwrap_or(false), navmap.unwrap_or(false));
     if localize && map.is_none() {
         return Err(node_error(
