@@ -208,8 +208,8 @@ fn holed(s: &mut Vec<Sample>) {
 }
 
 /// Degrees a second where radians are due.
-fn in_degrees(s: &mut Vec<Sample>) {
-    for Sample::Imu(r) in s {
+fn in_degrees(s: &mut [Sample]) {
+    for r in s.iter_mut().filter_map(Sample::imu_mut) {
         r.gyro = r.gyro.map(f64::to_degrees);
     }
 }
@@ -237,7 +237,7 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
     let d = shaken_car(20);
     let truth = d.poses.clone();
     let (s, statuses, _) = run_drive::<KittiCapacity>(
-        &mut Altered::new(d.clone(), in_degrees),
+        &mut Altered::new(d.clone(), |s| in_degrees(s)),
         &truth,
         true,
         "degrees",
@@ -256,16 +256,16 @@ fn an_imu_whose_rotations_keep_missing_is_set_aside_and_named() {
     let out = scratch("imu-degrees-told");
     let mut opts = options(&out, true);
     opts.imu.calibration.gyro_unit_rad_s = 1f64.to_radians();
-    let s = run::<KittiCapacity>(&mut Altered::new(d, in_degrees), &opts, |_| {}).unwrap();
+    let s = run::<KittiCapacity>(&mut Altered::new(d, |s| in_degrees(s)), &opts, |_| {}).unwrap();
     let imu = s.stage::<ImuSummary>("imu").expect("readings came");
     assert!(imu.set_aside.is_none(), "{imu:?}");
     assert_eq!(imu.prior_frames, 19);
 }
 
 /// The readings of an IMU turned 15 degrees further about its z than `[imu]` says.
-fn turned(s: &mut Vec<Sample>) {
+fn turned(s: &mut [Sample]) {
     let q = UnitQuaternion::from_euler_angles(0.0, 0.0, 15f64.to_radians());
-    for Sample::Imu(r) in s {
+    for r in s.iter_mut().filter_map(Sample::imu_mut) {
         r.gyro = (q * nalgebra::Vector3::from(r.gyro)).into();
         r.accel = (q * nalgebra::Vector3::from(r.accel)).into();
     }
@@ -276,7 +276,7 @@ fn an_imu_turned_from_its_configured_place_is_named_with_the_turn() {
     let d = shaken_car(30);
     let truth = d.poses.clone();
     let (s, _, _) =
-        run_drive::<KittiCapacity>(&mut Altered::new(d, turned), &truth, true, "turned");
+        run_drive::<KittiCapacity>(&mut Altered::new(d, |s| turned(s)), &truth, true, "turned");
     let check = s
         .stage::<ImuSummary>("imu")
         .and_then(|i| i.calibration_check)
@@ -428,8 +428,8 @@ fn a_tilted_lidar_maps_level_with_its_imu() {
 }
 
 /// The accelerometer in g, as some sensors' drivers give it (Livox's built-in IMU does).
-fn in_g(s: &mut Vec<Sample>) {
-    for Sample::Imu(r) in s {
+fn in_g(s: &mut [Sample]) {
+    for r in s.iter_mut().filter_map(Sample::imu_mut) {
         r.accel = r.accel.map(|a| a / slamesh_core::imu::GRAVITY_M_S2);
     }
 }
@@ -453,7 +453,7 @@ fn an_accelerometer_in_g_is_told_and_levels_the_map_as_one_in_metres_per_second_
     };
     let mut plain = |o: &RunOptions| run::<KittiCapacity>(&mut d.clone(), o, |_| {}).unwrap();
     let mut altered = |o: &RunOptions| {
-        run::<KittiCapacity>(&mut Altered::new(d.clone(), in_g), o, |_| {}).unwrap()
+        run::<KittiCapacity>(&mut Altered::new(d.clone(), |s| in_g(s)), o, |_| {}).unwrap()
     };
     let (in_ms2, said_ms2) = level(&mut plain, AccelUnit::Auto);
     let (told, said_told) = level(&mut altered, AccelUnit::Auto);
@@ -489,7 +489,7 @@ fn an_accelerometer_in_g_is_told_and_levels_the_map_as_one_in_metres_per_second_
     let d = hand_held(12);
     let mut plain = |o: &RunOptions| run::<Lidar32Capacity>(&mut d.clone(), o, |_| {}).unwrap();
     let mut altered = |o: &RunOptions| {
-        run::<Lidar32Capacity>(&mut Altered::new(d.clone(), in_g), o, |_| {}).unwrap()
+        run::<Lidar32Capacity>(&mut Altered::new(d.clone(), |s| in_g(s)), o, |_| {}).unwrap()
     };
     let up = |g: GravityReport| nalgebra::Vector3::from(g.moving.unwrap().up.unwrap());
     let (moving_ms2, _) = level(&mut plain, AccelUnit::Auto);

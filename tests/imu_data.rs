@@ -20,14 +20,12 @@ fn imu(hz: f64) -> ImuModel {
 /// One reading a frame, the gyro still: a 10 Hz `/imu` topic that is no IMU.
 fn decoy(s: &mut Vec<Sample>) {
     s.retain(|s| (s.stamp() * 10.0 - (s.stamp() * 10.0).round()).abs() < 1e-6);
-    for Sample::Imu(r) in s {
-        r.gyro = [0.0; 3];
-    }
+    still(s);
 }
 
 /// The gyro still, at its rate.
-fn still(s: &mut Vec<Sample>) {
-    for Sample::Imu(r) in s {
+fn still(s: &mut [Sample]) {
+    for r in s.iter_mut().filter_map(Sample::imu_mut) {
         r.gyro = [0.0; 3];
     }
 }
@@ -57,7 +55,7 @@ fn readings_too_slow_or_too_still_to_be_an_imu_are_ignored_and_named() {
     // A gyro at 400 Hz that never turns while the rig does: ignored once the rig turned.
     let h = hand_held(30);
     let (s, _, _) =
-        run_drive::<Lidar32Capacity>(&mut Altered::new(h, still), &truth, true, "still");
+        run_drive::<Lidar32Capacity>(&mut Altered::new(h, |s| still(s)), &truth, true, "still");
     let why = s
         .stage::<ImuSummary>("imu")
         .and_then(|i| i.ignored)

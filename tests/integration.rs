@@ -24,6 +24,7 @@ mod hard_motion;
 mod health;
 mod imu;
 mod imu_data;
+mod input_kinds;
 mod kitti_odometry;
 mod loop_closure;
 mod map_persistence;

@@ -5,6 +5,7 @@
 use crate::common;
 
 use slamesh::sources::capture::Capture;
+use slamesh::sources::live::Live;
 use slamesh::sources::packets::PacketOptions;
 use slamesh::sources::replay::Replay;
 use slamesh::sources::velodyne::{self, Decoder};
@@ -241,9 +242,7 @@ fn a_live_stream_runs_at_its_rate_and_three_times_faster() {
             &options,
         )
         .unwrap();
-        let Input::Live(live) = &input else {
-            panic!("a live input")
-        };
+        let live = input.downcast_ref::<Live>().expect("a live input");
         let sender = replay_to(live.local_addr(), speed);
         let out = common::scratch(name);
         let opts = RunOptions {

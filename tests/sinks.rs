@@ -9,7 +9,7 @@ use crate::common::scratch;
 use slamesh::run::files::{ReportFile, Trajectories};
 use slamesh::run::sink::{FnSink, Queued, Sink, WhenFull};
 use slamesh::run::{run_to, FrameEvent, FrameSource, RunOptions, Sinks, Summary};
-use slamesh::sources::{ImuReading, Sample};
+use slamesh::sources::{ImuReading, OtherSample, Sample};
 use slamesh_core::{Config, KittiCapacity};
 use slamesh_sim::Drive;
 use std::sync::{Arc, Mutex};
@@ -137,8 +137,8 @@ fn the_runs_own_files_are_sinks_that_write_the_same_files_elsewhere() {
     assert!(!copy.join(".report.frames.spool").exists());
 }
 
-/// A drive whose frames each come with four IMU readings (the one way in for what is not a
-/// scan).
+/// A drive whose frames each come with a camera's image and four IMU readings (the one way
+/// in for what is not a scan).
 struct WithImu(Drive);
 
 impl FrameSource for WithImu {
@@ -155,30 +155,35 @@ impl FrameSource for WithImu {
         self.0.read(i)
     }
     fn samples(&mut self, i: usize) -> Vec<Sample> {
-        (1..=4)
-            .map(|k| {
-                Sample::Imu(ImuReading {
-                    stamp: self.0.stamp(i) - 0.1 + 0.025 * k as f64,
-                    gyro: [0.0, 0.0, i as f64],
-                    accel: [0.0, 0.0, 9.81],
-                })
+        let image = Sample::Other(OtherSample {
+            stamp: self.0.stamp(i) - 0.09,
+            kind: "image",
+            value: Arc::new(vec![i as u8; 16]),
+        });
+        let imu = (1..=4).map(|k| {
+            Sample::Imu(ImuReading {
+                stamp: self.0.stamp(i) - 0.1 + 0.025 * k as f64,
+                gyro: [0.0, 0.0, i as f64],
+                accel: [0.0, 0.0, 9.81],
             })
-            .collect()
+        });
+        std::iter::once(image).chain(imu).collect()
     }
 }
 
 #[test]
 fn samples_between_scans_reach_the_sinks_with_their_frame() {
     let dir = scratch("sinks-imu");
-    let mut got: Vec<(usize, usize, f64)> = Vec::new();
+    let mut got: Vec<(usize, usize, Option<f64>, Option<u8>)> = Vec::new();
     let summary = {
         let mut sinks = Sinks::new();
         sinks.add(FnSink::new("imu", |e: &FrameEvent| {
-            let gyro_z = match e.samples.first() {
-                Some(Sample::Imu(r)) => r.gyro[2],
-                None => f64::NAN,
-            };
-            got.push((e.record.frame, e.record.samples, gyro_z));
+            let gyro_z = e.samples.iter().find_map(Sample::imu).map(|r| r.gyro[2]);
+            let image = e.samples.iter().find_map(|s| match s {
+                Sample::Other(o) if o.kind == "image" => o.data::<Vec<u8>>().map(|v| v[0]),
+                _ => None,
+            });
+            got.push((e.record.frame, e.record.samples, gyro_z, image));
             assert_eq!(e.samples.len(), e.record.samples);
             assert!(e.samples.windows(2).all(|w| w[0].stamp() < w[1].stamp()));
         }));
@@ -188,7 +193,9 @@ fn samples_between_scans_reach_the_sinks_with_their_frame() {
     assert_eq!(summary.used, 4);
     assert_eq!(
         got,
-        (0..4).map(|i| (i, 4, i as f64)).collect::<Vec<_>>(),
-        "each frame's own readings"
+        (0..4)
+            .map(|i| (i, 5, Some(i as f64), Some(i as u8)))
+            .collect::<Vec<_>>(),
+        "each frame's own readings and image"
     );
 }

@@ -50,7 +50,8 @@ pub(crate) fn imu_array<'py>(
 ) -> Option<Bound<'py, PyArray2<f64>>> {
     let rows: Vec<[f64; 7]> = samples
         .iter()
-        .map(|Sample::Imu(r)| {
+        .filter_map(Sample::imu)
+        .map(|r| {
             let ([gx, gy, gz], [ax, ay, az]) = (r.gyro, r.accel);
             [r.stamp, gx, gy, gz, ax, ay, az]
         })

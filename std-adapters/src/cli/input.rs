@@ -118,11 +118,11 @@ impl InputArgs {
         self.attach_imu(&mut input)?;
         match &self.sweep {
             Some(SweepArg::Given(sweep)) => input.time_from_sweep(&self.input, sweep)?,
-            None if input.is_kitti_raw() => {
-                // Raw scans are not deskewed by the dataset: timed as KITTI's HDL-64E sweeps.
-                let kitti = SweepSpec::parse("kitti").ok().flatten();
-                if let Some(kitti) = kitti {
-                    input.time_from_sweep(&self.input, &kitti)?;
+            None => {
+                // Scans a dataset left skewed (KITTI raw's): timed as its sensor's sweeps.
+                let sweep = input.default_sweep();
+                if let Some(spec) = sweep.and_then(|name| SweepSpec::parse(name).ok().flatten()) {
+                    input.time_from_sweep(&self.input, &spec)?;
                 }
             }
             _ => {}
@@ -130,7 +130,8 @@ impl InputArgs {
         Ok(input)
     }
 
-    /// The IMU's readings as `--imu` and `--imu-topic` say ([`Input::attach_imu`]).
+    /// The IMU's readings as `--imu` and `--imu-topic` say
+    /// ([`OpenedInput::attach_imu`](crate::sources::kinds::OpenedInput::attach_imu)).
     fn attach_imu(&self, input: &mut Input) -> Result<(), FileError> {
         input.attach_imu(&self.input, self.imu.as_deref(), self.imu_topic.as_deref())
     }

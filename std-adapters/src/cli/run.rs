@@ -19,6 +19,7 @@ use crate::run::config_file::Settings;
 use crate::run::session::{Deskew, InitialPose};
 use crate::run::sink::FnSink;
 use crate::run::{run_to, FrameEvent, FrameSource, Input, RunOptions, Sinks, Summary};
+use crate::sources::scans::ScanFolder;
 use clap::Args;
 use slamesh_core::clearing::ClearingConfig;
 use std::path::{Path, PathBuf};
@@ -352,9 +353,9 @@ fn run_with(
     if let Some(SweepArg::Auto) = args.source.sweep {
         sweep_by_trial(args, &opts, &mut source)?;
     }
-    let bar = match source {
-        Input::Live(_) => crate::cli::progress_open(quiet),
-        _ => progress(source.frames(), quiet),
+    let bar = match source.is_live() {
+        true => crate::cli::progress_open(quiet),
+        false => progress(source.frames(), quiet),
     };
     log::info!(
         "{} from {} (preset {}), output in {}",
@@ -387,8 +388,8 @@ fn run_with(
 /// log and the report, and taken for the run.
 fn sweep_by_trial(args: &RunArgs, opts: &RunOptions, source: &mut Input) -> Result<(), CliError> {
     let input = &args.source.input;
-    if !matches!(source, Input::Folder(_)) {
-        return Err(FileError::at(input, crate::sources::input::NOT_A_FOLDER).into());
+    if source.downcast_ref::<ScanFolder>().is_none() {
+        return Err(FileError::at(input, crate::sources::kinds::NOT_A_FOLDER).into());
     }
     // The candidates' runs say what the run will say again: only their errors are shown.
     let level = log::max_level();

@@ -212,7 +212,7 @@ impl Inertial {
         }
         let mut named = 0;
         let offset = self.track.calibration().time_offset_s;
-        for Sample::Imu(r) in samples {
+        for r in samples.iter().filter_map(Sample::imu) {
             if self.resumed_at.is_some_and(|t| r.stamp + offset <= t) {
                 continue;
             }

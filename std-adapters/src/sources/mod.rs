@@ -1,11 +1,14 @@
 //! One way in: where frames come from. A [`FrameSource`] yields scans in order (each with its
 //! stamp, and its points' times when the sensor gives them) and, between them, the other
 //! timed samples it carries ([`Sample`]: an IMU's readings); [`Input`] opens whichever a path
-//! or address names. Sources read their files through [`crate::formats`].
+//! or address names, asking each kind of input ([`kinds::Kinds`]) in turn. Sources read
+//! their files through [`crate::formats`].
 //!
 //! | what | module |
 //! |---|---|
 //! | the source interface, and the input a path or address names | [`input`] |
+//! | the kinds of input, each told apart and opened by its own; the list asked in order | [`kinds`] |
+//! | scan files as an input: their frames, their IMU file, their sweep's times | [`folder`] |
 //! | folders of scans in natural order, or one file | [`scans`] |
 //! | KITTI raw's drive folders: scans, their stamps, the OXTS unit | [`kitti_raw`] |
 //! | points' times from their azimuths, for scans that carry none | [`sweep_times`] |
@@ -20,8 +23,10 @@
 
 pub mod capture;
 pub mod feed;
+pub mod folder;
 pub mod imu_readings;
 pub mod input;
+pub mod kinds;
 pub mod kitti_raw;
 pub mod live;
 pub mod ouster;
@@ -34,4 +39,4 @@ pub mod sweep;
 pub mod sweep_times;
 pub mod velodyne;
 
-pub use input::{FrameSource, ImuReading, Input, Request, Sample, Waited};
+pub use input::{FrameSource, ImuReading, Input, OtherSample, Request, Sample, Waited};

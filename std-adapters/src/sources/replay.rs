@@ -251,3 +251,62 @@ fn find_sensor(path: &Path, hint: &SensorHint) -> Result<(Sensor, u16), FileErro
         format!("{wanted} in the capture; {seen}"),
     ))
 }
+
+/// A sensor's packets in a `.pcap` or `.pcapng` file (told by its first bytes), a sweep a
+/// frame.
+pub struct CaptureKind;
+
+impl crate::sources::kinds::InputKind for CaptureKind {
+    fn name(&self) -> &'static str {
+        "a packet capture"
+    }
+
+    fn open(
+        &self,
+        path: &Path,
+        how: &crate::sources::kinds::OpenOptions,
+    ) -> Option<Result<crate::sources::kinds::Opened, FileError>> {
+        if !crate::sources::capture::is_capture(path) {
+            return None;
+        }
+        Some(Replay::open(path, &how.packets).map(|r| Box::new(r) as _))
+    }
+}
+
+impl crate::sources::FrameSource for Replay {
+    fn frames(&self) -> usize {
+        self.len()
+    }
+    fn label(&self, i: usize) -> String {
+        Replay::label(self, i)
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        Replay::stamp(self, i)
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
+        Replay::read_timed(self, i).map(|(p, _)| p)
+    }
+    fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        Replay::read_timed(self, i)
+    }
+    fn samples(&mut self, i: usize) -> Vec<crate::sources::Sample> {
+        Replay::samples(self, i)
+    }
+    fn input_report(&self) -> Option<serde_json::Value> {
+        serde_json::to_value(self.stats()).ok()
+    }
+}
+
+impl crate::sources::kinds::OpenedInput for Replay {
+    fn describe(&self) -> String {
+        let s = self.stats();
+        format!(
+            "{} sweeps of a {} ({} packets, {} missing, {} damaged)",
+            self.len(),
+            self.sensor(),
+            s.stream.packets,
+            s.stream.gaps,
+            s.stream.bad_packets
+        )
+    }
+}

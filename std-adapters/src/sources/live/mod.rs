@@ -204,6 +204,70 @@ impl Live {
     }
 }
 
+/// A sensor's packets taken live from a UDP socket: an address `udp://HOST:PORT`.
+pub struct LiveKind;
+
+impl crate::sources::kinds::InputKind for LiveKind {
+    fn name(&self) -> &'static str {
+        "a live sensor (udp://)"
+    }
+
+    fn open(
+        &self,
+        path: &Path,
+        how: &crate::sources::kinds::OpenOptions,
+    ) -> Option<Result<crate::sources::kinds::Opened, FileError>> {
+        let addr = path.to_str().and_then(address)?;
+        let live = LiveOptions {
+            packets: how.packets.clone(),
+            ..LiveOptions::default()
+        };
+        Some(Live::open(addr, &live).map(|l| Box::new(l) as _))
+    }
+}
+
+impl crate::sources::FrameSource for Live {
+    fn frames(&self) -> usize {
+        Live::frames(self)
+    }
+    fn label(&self, i: usize) -> String {
+        Live::label(self, i)
+    }
+    fn stamp(&self, i: usize) -> f64 {
+        Live::stamp(self, i)
+    }
+    fn read(&mut self, i: usize) -> Result<Vec<Point>, FileError> {
+        Live::read_timed(self, i).map(|(p, _)| p)
+    }
+    fn read_timed(&mut self, i: usize) -> Result<(Vec<Point>, Option<Vec<f32>>), FileError> {
+        Live::read_timed(self, i)
+    }
+    fn has(&mut self, i: usize) -> bool {
+        Live::has(self, i)
+    }
+    fn would_wait(&mut self, i: usize) -> bool {
+        Live::would_wait(self, i)
+    }
+    fn arrival(&self, i: usize) -> Option<Instant> {
+        Live::arrival(self, i)
+    }
+    fn samples(&mut self, i: usize) -> Vec<Sample> {
+        Live::samples(self, i)
+    }
+    fn input_report(&self) -> Option<serde_json::Value> {
+        serde_json::to_value(self.stats()).ok()
+    }
+}
+
+impl crate::sources::kinds::OpenedInput for Live {
+    fn describe(&self) -> String {
+        format!("packets on {}", self.local_addr())
+    }
+    fn is_live(&self) -> bool {
+        true
+    }
+}
+
 impl Drop for Live {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);

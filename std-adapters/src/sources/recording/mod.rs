@@ -396,6 +396,51 @@ impl Recording {
     }
 }
 
+/// A ROS 1 bag, an MCAP file or a ROS 2 bag folder, told by its content
+/// ([`Container::detect`]).
+pub struct RecordingKind;
+
+impl crate::sources::kinds::InputKind for RecordingKind {
+    fn name(&self) -> &'static str {
+        "a recording (ROS 1 bag, MCAP, ROS 2 bag folder)"
+    }
+
+    fn open(
+        &self,
+        path: &Path,
+        how: &crate::sources::kinds::OpenOptions,
+    ) -> Option<Result<crate::sources::kinds::Opened, FileError>> {
+        let container = Container::detect(path)?;
+        let open = || {
+            how.refuse_packet_options(path)?;
+            let rec = Recording::open(container?, how.topic.as_deref())?;
+            Ok(Box::new(rec) as _)
+        };
+        Some(open())
+    }
+}
+
+impl crate::sources::kinds::OpenedInput for Recording {
+    fn describe(&self) -> String {
+        let frames = crate::sources::FrameSource::frames(self);
+        format!("{frames} frames of topic {}", self.topic.name)
+    }
+
+    /// A `sensor_msgs/Imu` topic of the recording: the only one, or `imu_topic`.
+    fn attach_imu(
+        &mut self,
+        at: &Path,
+        imu: Option<&str>,
+        imu_topic: Option<&str>,
+    ) -> Result<(), FileError> {
+        match imu {
+            Some("off") => Ok(()),
+            None => self.read_imu(imu_topic).map(|_| ()),
+            Some(_) => crate::sources::kinds::readings_come_with_it(at, imu, imu_topic),
+        }
+    }
+}
+
 impl crate::sources::FrameSource for Recording {
     fn frames(&self) -> usize {
         self.stamps.len()
