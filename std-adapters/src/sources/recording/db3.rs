@@ -2,6 +2,7 @@
 //! `messages` of one topic read a few at a time by (timestamp, id), so that memory holds a
 //! page of messages, not the file. Feature `db3`.
 
+use super::error::RecordingError::{self, Database, NotThisFormat, Unsupported};
 use super::{Encoding, RawMessage, Topic};
 use rusqlite::{Connection, OpenFlags};
 use std::path::Path;
@@ -16,7 +17,7 @@ const PAGE: i64 = 8;
 /// being recorded, or one whose recorder stopped before folding the log into the file), the
 /// file is opened as a reader of the log too, or the messages only the log holds would be
 /// missed.
-fn connect(path: &Path) -> Result<Connection, String> {
+fn connect(path: &Path) -> Result<Connection, RecordingError> {
     let has_log = std::fs::metadata(beside(path, "-wal")).is_ok_and(|m| m.len() > 0);
     let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
     let opened = if has_log {
@@ -24,7 +25,7 @@ fn connect(path: &Path) -> Result<Connection, String> {
     } else {
         Connection::open_with_flags(immutable_uri(path), flags | OpenFlags::SQLITE_OPEN_URI)
     };
-    opened.map_err(|e| format!("{}: {e}", path.display()))
+    opened.map_err(|e| Database(format!("{}: {e}", path.display())))
 }
 
 /// The file SQLite keeps beside `path` with `suffix` added to its name (`-wal`, `-shm`).
@@ -51,14 +52,14 @@ fn immutable_uri(path: &Path) -> String {
 }
 
 /// The topics of one `.db3` file, with their types and message counts.
-pub fn topics(path: &Path) -> Result<Vec<Topic>, String> {
+pub fn topics(path: &Path) -> Result<Vec<Topic>, RecordingError> {
     let db = connect(path)?;
     let mut q = db
         .prepare(
             "SELECT t.name, t.type, (SELECT COUNT(*) FROM messages m WHERE m.topic_id = t.id) \
              FROM topics t ORDER BY t.id",
         )
-        .map_err(|e| format!("{}: not a ROS 2 bag file: {e}", path.display()))?;
+        .map_err(|e| NotThisFormat(format!("{}: not a ROS 2 bag file: {e}", path.display())))?;
     let rows = q
         .query_map([], |r| {
             Ok(Topic {
@@ -68,7 +69,7 @@ pub fn topics(path: &Path) -> Result<Vec<Topic>, String> {
             })
         })
         .and_then(|rows| rows.collect::<Result<Vec<_>, _>>());
-    rows.map_err(|e| format!("{}: {e}", path.display()))
+    rows.map_err(|e| Database(format!("{}: {e}", path.display())))
 }
 
 /// The messages of `topic` in one `.db3` file, by time.
@@ -84,7 +85,7 @@ pub struct Db3Messages {
 
 impl Db3Messages {
     /// Opens `path` for `topic`'s messages (none if the file lacks the topic).
-    pub fn new(path: &Path, topic: &str) -> Result<Self, String> {
+    pub fn new(path: &Path, topic: &str) -> Result<Self, RecordingError> {
         let db = connect(path)?;
         let found = db.query_row(
             "SELECT id, serialization_format FROM topics WHERE name = ?1",
@@ -94,15 +95,15 @@ impl Db3Messages {
         let (topic_id, format) = match found {
             Ok((id, f)) => (Some(id), f),
             Err(rusqlite::Error::QueryReturnedNoRows) => (None, "cdr".into()),
-            Err(e) => return Err(format!("{}: {e}", path.display())),
+            Err(e) => return Err(Database(format!("{}: {e}", path.display()))),
         };
         let encoding = match format.as_str() {
             "cdr" => Encoding::Cdr,
             "ros1" => Encoding::Ros1,
             other => {
-                return Err(format!(
+                return Err(Unsupported(format!(
                     "serialization format {other:?} is neither cdr nor ros1"
-                ))
+                )))
             }
         };
         Ok(Db3Messages {
@@ -115,21 +116,17 @@ impl Db3Messages {
         })
     }
 
-    fn fetch(&mut self) -> Result<(), String> {
-        let mut q = self
-            .db
-            .prepare_cached(
-                "SELECT timestamp, id, data FROM messages WHERE topic_id = ?1 \
+    fn fetch(&mut self) -> Result<(), RecordingError> {
+        let mut q = self.db.prepare_cached(
+            "SELECT timestamp, id, data FROM messages WHERE topic_id = ?1 \
                  AND (timestamp > ?2 OR (timestamp = ?2 AND id > ?3)) \
                  ORDER BY timestamp, id LIMIT ?4",
-            )
-            .map_err(|e| e.to_string())?;
+        )?;
         let rows = q
             .query_map((self.topic_id, self.after.0, self.after.1, PAGE), |r| {
                 Ok((r.get(0)?, r.get(1)?, r.get(2)?))
             })
-            .and_then(|rows| rows.collect::<Result<Vec<_>, _>>())
-            .map_err(|e| e.to_string())?;
+            .and_then(|rows| rows.collect::<Result<Vec<_>, _>>())?;
         self.done = (rows.len() as i64) < PAGE;
         self.page = rows.into_iter();
         Ok(())
@@ -137,7 +134,7 @@ impl Db3Messages {
 }
 
 impl Iterator for Db3Messages {
-    type Item = Result<RawMessage, String>;
+    type Item = Result<RawMessage, RecordingError>;
 
     fn next(&mut self) -> Option<Self::Item> {
         loop {

@@ -9,6 +9,7 @@
 
 use crate::formats::imu_message;
 use crate::sources::imu_readings::{first_frame_reach, frame_period};
+use crate::sources::recording::RecordingError::{self, TopicChoice};
 use crate::sources::recording::{Container, Encoding, Messages, Topic};
 use crate::sources::Sample;
 
@@ -22,28 +23,31 @@ pub fn is_imu(t: &Topic) -> bool {
 
 /// The IMU topic to read: `wanted` if given (it must hold `sensor_msgs/Imu`), otherwise the
 /// only one; `Ok(None)` when there is none, an error naming them when there are several.
-pub fn choose_imu_topic(topics: &[Topic], wanted: Option<&str>) -> Result<Option<Topic>, String> {
+pub fn choose_imu_topic(
+    topics: &[Topic],
+    wanted: Option<&str>,
+) -> Result<Option<Topic>, RecordingError> {
     let imus: Vec<&Topic> = topics.iter().filter(|t| is_imu(t)).collect();
     if let Some(w) = wanted {
         return match topics.iter().find(|t| t.name == w) {
             Some(t) if is_imu(t) => Ok(Some(t.clone())),
-            Some(t) => Err(format!(
+            Some(t) => Err(TopicChoice(format!(
                 "--imu-topic {w} holds {}, not sensor_msgs/Imu",
                 t.type_name
-            )),
-            None => Err(format!("no topic {w} for --imu-topic")),
+            ))),
+            None => Err(TopicChoice(format!("no topic {w} for --imu-topic"))),
         };
     }
     match imus[..] {
         [] => Ok(None),
         [one] => Ok(Some(one.clone())),
-        _ => Err(format!(
+        _ => Err(TopicChoice(format!(
             "several sensor_msgs/Imu topics, choose one with --imu-topic (or --imu off): {}",
             imus.iter()
                 .map(|t| t.name.as_str())
                 .collect::<Vec<_>>()
                 .join(", ")
-        )),
+        ))),
     }
 }
 
@@ -103,7 +107,7 @@ impl ImuTopic {
             let m = self.stream.next()?;
             let index = self.read;
             self.read += 1;
-            let decoded = m.and_then(|m| match m.encoding {
+            let decoded = m.map_err(|e| e.to_string()).and_then(|m| match m.encoding {
                 Encoding::Ros1 => imu_message::parse_ros1(m.bytes()),
                 Encoding::Cdr => imu_message::parse_cdr(m.bytes()),
             });

@@ -9,6 +9,7 @@
 //! fuzzer asked it for 2.5 and 3.5 GB), which aborts a process on a small computer.
 //! CRCs are not checked; a corrupt chunk gives a decompression or parse error.
 
+use super::error::RecordingError::{self, Damaged, NotThisFormat, Truncated, Unsupported};
 use super::{decompress, Compression, Encoding, RawMessage, Topic};
 use std::collections::HashMap;
 use std::fs::File;
@@ -35,35 +36,35 @@ struct Fields<'a> {
 }
 
 impl<'a> Fields<'a> {
-    fn bytes(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
+    fn bytes(&mut self, n: usize, what: &str) -> Result<&'a [u8], RecordingError> {
         if n > self.b.len() {
-            return Err(format!("{what} runs past its record"));
+            return Err(Damaged(format!("{what} runs past its record")));
         }
         let (head, rest) = self.b.split_at(n);
         self.b = rest;
         Ok(head)
     }
-    fn u16(&mut self, what: &str) -> Result<u16, String> {
+    fn u16(&mut self, what: &str) -> Result<u16, RecordingError> {
         Ok(u16::from_le_bytes(
             self.bytes(2, what)?.try_into().expect("2"),
         ))
     }
-    fn u32(&mut self, what: &str) -> Result<u32, String> {
+    fn u32(&mut self, what: &str) -> Result<u32, RecordingError> {
         Ok(u32::from_le_bytes(
             self.bytes(4, what)?.try_into().expect("4"),
         ))
     }
-    fn u64(&mut self, what: &str) -> Result<u64, String> {
+    fn u64(&mut self, what: &str) -> Result<u64, RecordingError> {
         Ok(u64::from_le_bytes(
             self.bytes(8, what)?.try_into().expect("8"),
         ))
     }
     /// A string or byte array with a u32 length.
-    fn prefixed(&mut self, what: &str) -> Result<&'a [u8], String> {
+    fn prefixed(&mut self, what: &str) -> Result<&'a [u8], RecordingError> {
         let n = self.u32(what)? as usize;
         self.bytes(n, what)
     }
-    fn string(&mut self, what: &str) -> Result<String, String> {
+    fn string(&mut self, what: &str) -> Result<String, RecordingError> {
         Ok(String::from_utf8_lossy(self.prefixed(what)?).into_owned())
     }
 }
@@ -84,7 +85,7 @@ struct Registry {
 }
 
 impl Registry {
-    fn schema(&mut self, body: &[u8]) -> Result<(), String> {
+    fn schema(&mut self, body: &[u8]) -> Result<(), RecordingError> {
         let mut f = Fields { b: body };
         let id = f.u16("a schema id")?;
         let name = f.string("a schema name")?;
@@ -92,7 +93,7 @@ impl Registry {
         Ok(())
     }
 
-    fn channel(&mut self, body: &[u8]) -> Result<(), String> {
+    fn channel(&mut self, body: &[u8]) -> Result<(), RecordingError> {
         let mut f = Fields { b: body };
         let id = f.u16("a channel id")?;
         let schema_id = f.u16("a channel's schema id")?;
@@ -118,7 +119,7 @@ fn record(
     op: u8,
     body: &[u8],
     owned: Option<Vec<u8>>,
-) -> Result<Option<Message>, String> {
+) -> Result<Option<Message>, RecordingError> {
     match op {
         OP_SCHEMA => registry.schema(body)?,
         OP_CHANNEL => registry.channel(body)?,
@@ -145,34 +146,32 @@ fn record(
 }
 
 /// Reads the next record (opcode and body) of `r`; `None` at a clean end of file.
-fn next_record(r: &mut impl Read) -> Result<Option<(u8, Vec<u8>)>, String> {
+fn next_record(r: &mut impl Read) -> Result<Option<(u8, Vec<u8>)>, RecordingError> {
     let mut head = [0u8; 9];
     match r.read(&mut head[..1]) {
         Ok(0) => return Ok(None),
         Ok(_) => {}
-        Err(e) => return Err(e.to_string()),
+        Err(e) => return Err(e.into()),
     }
     r.read_exact(&mut head[1..])
-        .map_err(|_| "the file ends inside a record's length")?;
+        .map_err(|_| Truncated("the file ends inside a record's length".into()))?;
     let len = u64::from_le_bytes(head[1..].try_into().expect("8"));
     if len > MAX_RECORD_BYTES as u64 {
-        return Err(format!(
+        return Err(Damaged(format!(
             "a record of {len} bytes, over the {MAX_RECORD_BYTES}-byte limit"
-        ));
+        )));
     }
     let mut body = Vec::with_capacity((len as usize).min(16 << 20));
-    r.take(len)
-        .read_to_end(&mut body)
-        .map_err(|e| e.to_string())?;
+    r.take(len).read_to_end(&mut body)?;
     if body.len() as u64 != len {
-        return Err("the file ends inside a record".into());
+        return Err(Truncated("the file ends inside a record".into()));
     }
     Ok(Some((head[0], body)))
 }
 
 /// A chunk's records, decompressed, in the returned range (an uncompressed chunk's body is
 /// kept as it is, its records in place).
-fn chunk_records(body: Vec<u8>) -> Result<(Vec<u8>, std::ops::Range<usize>), String> {
+fn chunk_records(body: Vec<u8>) -> Result<(Vec<u8>, std::ops::Range<usize>), RecordingError> {
     let mut f = Fields { b: &body };
     let _start = f.u64("a chunk's start time")?;
     let _end = f.u64("a chunk's end time")?;
@@ -189,10 +188,10 @@ fn chunk_records(body: Vec<u8>) -> Result<(Vec<u8>, std::ops::Range<usize>), Str
     let kind = match compression.as_str() {
         "" => {
             if data.len() != size {
-                return Err(format!(
+                return Err(Damaged(format!(
                     "an uncompressed chunk holds {} bytes, not the {size} its header says",
                     data.len()
-                ));
+                )));
             }
             let start = body.len() - f.b.len() - data.len();
             return Ok((body, start..start + size));
@@ -200,9 +199,9 @@ fn chunk_records(body: Vec<u8>) -> Result<(Vec<u8>, std::ops::Range<usize>), Str
         "zstd" => Compression::Zstd,
         "lz4" => Compression::Lz4,
         other => {
-            return Err(format!(
+            return Err(Unsupported(format!(
                 "chunk compression {other:?} is not none, zstd or lz4"
-            ))
+            )))
         }
     };
     let out = decompress(kind, data, size)?;
@@ -234,13 +233,13 @@ const MESSAGE_HEAD: usize = 2 + 4 + 8 + 8;
 
 impl<R: Read> Messages<R> {
     /// Reads `reader` from its start (the magic).
-    fn new(mut reader: R) -> Result<Self, String> {
+    fn new(mut reader: R) -> Result<Self, RecordingError> {
         let mut magic = [0u8; 8];
         reader
             .read_exact(&mut magic)
-            .map_err(|_| "too short for an MCAP file")?;
+            .map_err(|_| NotThisFormat("too short for an MCAP file".into()))?;
         if magic != MAGIC {
-            return Err("not an MCAP file".into());
+            return Err(NotThisFormat("not an MCAP file".into()));
         }
         Ok(Messages {
             reader,
@@ -252,7 +251,7 @@ impl<R: Read> Messages<R> {
         })
     }
 
-    fn next_message(&mut self) -> Result<Option<Message>, String> {
+    fn next_message(&mut self) -> Result<Option<Message>, RecordingError> {
         loop {
             while self.at < self.chunk_end {
                 let mut f = Fields {
@@ -330,13 +329,16 @@ pub struct Named {
 }
 
 impl<R: Read> Iterator for Messages<R> {
-    type Item = Result<Named, String>;
+    type Item = Result<Named, RecordingError>;
 
     fn next(&mut self) -> Option<Self::Item> {
         match self.next_message() {
             Ok(Some(m)) => {
                 let Some(c) = self.registry.channels.get(&m.channel) else {
-                    return Some(Err(format!("a message on unknown channel {}", m.channel)));
+                    return Some(Err(Damaged(format!(
+                        "a message on unknown channel {}",
+                        m.channel
+                    ))));
                 };
                 Some(Ok(Named {
                     topic: c.topic.clone(),
@@ -359,13 +361,13 @@ impl<R: Read> Iterator for Messages<R> {
 }
 
 /// Every message of `bytes` (a whole MCAP file), for tests and the fuzz target.
-pub fn messages_of(bytes: &[u8]) -> Result<Messages<&[u8]>, String> {
+pub fn messages_of(bytes: &[u8]) -> Result<Messages<&[u8]>, RecordingError> {
     Messages::new(bytes)
 }
 
 /// The topics, their schema names and message counts: from the summary section's statistics
 /// when the file has them, otherwise by reading it through.
-pub fn topics(path: &Path) -> Result<Vec<Topic>, String> {
+pub fn topics(path: &Path) -> Result<Vec<Topic>, RecordingError> {
     let mut out: Vec<Topic> = Vec::new();
     let mut add = |topic: &str, ty: &str, n: u64| match out.iter_mut().find(|t| t.name == topic) {
         Some(t) => t.messages += n,
@@ -384,7 +386,7 @@ pub fn topics(path: &Path) -> Result<Vec<Topic>, String> {
         }
         return Ok(out);
     }
-    let file = File::open(path).map_err(|e| e.to_string())?;
+    let file = File::open(path)?;
     for m in Messages::new(BufReader::new(file))? {
         let m = m?;
         add(&m.topic, &m.schema, 1);
@@ -397,18 +399,17 @@ type ChannelCounts = HashMap<u16, u64>;
 
 /// The summary section's schemas, channels and per-channel message counts, if the footer
 /// points at a summary with statistics.
-fn summary(path: &Path) -> Result<Option<(Registry, ChannelCounts)>, String> {
-    let mut file = File::open(path).map_err(|e| e.to_string())?;
-    let size = file.metadata().map_err(|e| e.to_string())?.len();
+fn summary(path: &Path) -> Result<Option<(Registry, ChannelCounts)>, RecordingError> {
+    let mut file = File::open(path)?;
+    let size = file.metadata()?.len();
     // The footer (opcode, length 20, summary start, summary offset start, CRC) and the magic.
     let footer_at = match size.checked_sub(8 + 9 + 20) {
         Some(at) if at >= 8 => at,
         _ => return Ok(None),
     };
-    file.seek(SeekFrom::Start(footer_at))
-        .map_err(|e| e.to_string())?;
+    file.seek(SeekFrom::Start(footer_at))?;
     let mut tail = [0u8; 37];
-    file.read_exact(&mut tail).map_err(|e| e.to_string())?;
+    file.read_exact(&mut tail)?;
     if tail[0] != OP_FOOTER || tail[29..] != *MAGIC {
         return Ok(None);
     }
@@ -416,8 +417,7 @@ fn summary(path: &Path) -> Result<Option<(Registry, ChannelCounts)>, String> {
     if start == 0 || start >= footer_at || footer_at - start > MAX_RECORD_BYTES as u64 {
         return Ok(None);
     }
-    file.seek(SeekFrom::Start(start))
-        .map_err(|e| e.to_string())?;
+    file.seek(SeekFrom::Start(start))?;
     let mut section = (&mut file).take(footer_at - start);
     let mut registry = Registry::default();
     let mut counts = None;
@@ -448,8 +448,8 @@ fn summary(path: &Path) -> Result<Option<(Registry, ChannelCounts)>, String> {
 pub fn messages(
     path: &Path,
     topic: &str,
-) -> Result<impl Iterator<Item = Result<RawMessage, String>>, String> {
-    let file = BufReader::new(File::open(path).map_err(|e| e.to_string())?);
+) -> Result<impl Iterator<Item = Result<RawMessage, RecordingError>>, RecordingError> {
+    let file = BufReader::new(File::open(path)?);
     let topic = topic.to_owned();
     Ok(Messages::new(file)?.filter_map(move |m| {
         let m = match m {
@@ -463,9 +463,9 @@ pub fn messages(
             "cdr" => Encoding::Cdr,
             "ros1" => Encoding::Ros1,
             other => {
-                return Some(Err(format!(
+                return Some(Err(Unsupported(format!(
                     "message encoding {other:?} is neither cdr nor ros1"
-                )))
+                ))))
             }
         };
         Some(Ok(RawMessage {
@@ -508,7 +508,10 @@ mod tests {
             .expect("an error");
         assert_eq!(
             e,
-            "a chunk decompressing to 1099511627776 bytes, over the 268435456-byte limit"
+            Damaged(
+                "a chunk decompressing to 1099511627776 bytes, over the 268435456-byte limit"
+                    .into()
+            )
         );
     }
 
@@ -525,7 +528,7 @@ mod tests {
             .unwrap()
             .find_map(|m| m.err())
             .expect("an error");
-        assert_eq!(e, "a schema name runs past its record");
+        assert_eq!(e, Damaged("a schema name runs past its record".into()));
     }
 
     #[test]

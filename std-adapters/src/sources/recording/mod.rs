@@ -18,6 +18,7 @@
 
 #[cfg(feature = "db3")]
 pub mod db3;
+pub mod error;
 pub mod imu_topic;
 pub mod mcap;
 pub mod ros2;
@@ -25,6 +26,8 @@ pub mod rosbag1;
 
 use crate::formats::pointcloud2::{Cloud, DecodedScan};
 use crate::io::error::FileError;
+pub use error::RecordingError;
+use error::RecordingError::{Damaged, TopicChoice};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -105,12 +108,12 @@ pub enum Compression {
 /// Decompresses a chunk that its header says holds `size` bytes (at most
 /// [`mcap::MAX_RECORD_BYTES`]): the output is reserved as it arrives beyond 16 MB, so a corrupt
 /// size costs no memory, and decompression stops at `size`.
-pub fn decompress(kind: Compression, data: &[u8], size: usize) -> Result<Vec<u8>, String> {
+pub fn decompress(kind: Compression, data: &[u8], size: usize) -> Result<Vec<u8>, RecordingError> {
     if size > mcap::MAX_RECORD_BYTES {
-        return Err(format!(
+        return Err(Damaged(format!(
             "a chunk decompressing to {size} bytes, over the {}-byte limit",
             mcap::MAX_RECORD_BYTES
-        ));
+        )));
     }
     let mut out = Vec::with_capacity(size.min(16 << 20));
     let limit = size as u64;
@@ -125,12 +128,12 @@ pub fn decompress(kind: Compression, data: &[u8], size: usize) -> Result<Vec<u8>
             zstd::stream::read::Decoder::new(data).and_then(|d| d.take(limit).read_to_end(&mut out))
         }
     };
-    read.map_err(|e| format!("a {kind:?} chunk does not decompress: {e}"))?;
+    read.map_err(|e| Damaged(format!("a {kind:?} chunk does not decompress: {e}")))?;
     if out.len() != size {
-        return Err(format!(
+        return Err(Damaged(format!(
             "a chunk decompresses to {} bytes, not the {size} its header says",
             out.len()
-        ));
+        )));
     }
     Ok(out)
 }
@@ -154,7 +157,7 @@ impl Container {
             return Some(
                 ros2::files(path)
                     .map(Container::Ros2)
-                    .map_err(|e| FileError::at(path, e)),
+                    .map_err(|e| FileError::at(path, e.to_string())),
             );
         }
         if has_magic(path, mcap::MAGIC) {
@@ -171,12 +174,14 @@ impl Container {
     /// Every topic with its type and message count.
     pub fn topics(&self) -> Result<Vec<Topic>, FileError> {
         match self {
-            Container::Ros1Bag(p) => rosbag1::topics(p).map_err(|e| FileError::at(p, e)),
-            Container::Mcap(p) => mcap::topics(p).map_err(|e| FileError::at(p, e)),
+            Container::Ros1Bag(p) => {
+                rosbag1::topics(p).map_err(|e| FileError::at(p, e.to_string()))
+            }
+            Container::Mcap(p) => mcap::topics(p).map_err(|e| FileError::at(p, e.to_string())),
             Container::Ros2(files) => {
                 let mut all: Vec<Topic> = Vec::new();
                 for f in files {
-                    for t in ros2::topics(f).map_err(|e| FileError::at(f, e))? {
+                    for t in ros2::topics(f).map_err(|e| FileError::at(f, e.to_string()))? {
                         match all.iter_mut().find(|a| a.name == t.name) {
                             Some(a) => a.messages += t.messages,
                             None => all.push(t),
@@ -193,11 +198,11 @@ impl Container {
         Ok(match self {
             Container::Ros1Bag(p) => Box::new(
                 rosbag1::Messages::new(p, Some(topic))
-                    .map_err(|e| FileError::at(p, e))?
+                    .map_err(|e| FileError::at(p, e.to_string()))?
                     .map(|m| m.map(|(_, m)| m)),
             ),
             Container::Mcap(p) => {
-                Box::new(mcap::messages(p, topic).map_err(|e| FileError::at(p, e))?)
+                Box::new(mcap::messages(p, topic).map_err(|e| FileError::at(p, e.to_string()))?)
             }
             Container::Ros2(files) => {
                 let topic = topic.to_owned();
@@ -209,7 +214,9 @@ impl Container {
                             Err(e) => Box::new(std::iter::once(Err(e))),
                         }
                         #[cfg(not(feature = "db3"))]
-                        Box::new(std::iter::once(Err("built without the db3 feature".into())))
+                        Box::new(std::iter::once(Err(RecordingError::Unsupported(
+                            "built without the db3 feature".into(),
+                        ))))
                     } else {
                         match mcap::messages(&f, &topic) {
                             Ok(m) => Box::new(m),
@@ -235,11 +242,11 @@ impl Container {
 }
 
 /// A stream of messages.
-pub type Messages = Box<dyn Iterator<Item = Result<RawMessage, String>> + Send>;
+pub type Messages = Box<dyn Iterator<Item = Result<RawMessage, RecordingError>> + Send>;
 
 /// The topic to read: `wanted` if given (it must be a PointCloud2 topic), otherwise the only
 /// PointCloud2 topic. The errors list the topics a user can choose from.
-pub fn choose_topic(topics: &[Topic], wanted: Option<&str>) -> Result<Topic, String> {
+pub fn choose_topic(topics: &[Topic], wanted: Option<&str>) -> Result<Topic, RecordingError> {
     let list = |ts: &mut dyn Iterator<Item = &Topic>| {
         ts.map(|t| format!("{} ({}, {} messages)", t.name, t.type_name, t.messages))
             .collect::<Vec<_>>()
@@ -247,34 +254,34 @@ pub fn choose_topic(topics: &[Topic], wanted: Option<&str>) -> Result<Topic, Str
     };
     if let Some(w) = wanted {
         let t = topics.iter().find(|t| t.name == w).ok_or_else(|| {
-            format!(
+            TopicChoice(format!(
                 "no topic {w}; the recording has {}",
                 list(&mut topics.iter())
-            )
+            ))
         })?;
         if !t.is_point_cloud() {
-            return Err(format!(
+            return Err(TopicChoice(format!(
                 "topic {w} holds {}, not sensor_msgs/PointCloud2",
                 t.type_name
-            ));
+            )));
         }
         return Ok(t.clone());
     }
     let clouds: Vec<&Topic> = topics.iter().filter(|t| t.is_point_cloud()).collect();
     match clouds[..] {
         [one] => Ok(one.clone()),
-        [] => Err(format!(
+        [] => Err(TopicChoice(format!(
             "no sensor_msgs/PointCloud2 topic; the recording has {}",
             if topics.is_empty() {
                 "no topics".into()
             } else {
                 list(&mut topics.iter())
             }
-        )),
-        _ => Err(format!(
+        ))),
+        _ => Err(TopicChoice(format!(
             "several PointCloud2 topics, choose one with --topic: {}",
             list(&mut clouds.into_iter())
-        )),
+        ))),
     }
 }
 
@@ -299,7 +306,8 @@ impl Recording {
     pub fn open(container: Container, topic: Option<&str>) -> Result<Self, FileError> {
         let topics = container.topics()?;
         let path = container.path();
-        let topic = choose_topic(&topics, topic).map_err(|e| FileError::at(&path, e))?;
+        let topic =
+            choose_topic(&topics, topic).map_err(|e| FileError::at(&path, e.to_string()))?;
         if topic.messages == 0 {
             return Err(FileError::at(
                 &path,
@@ -322,8 +330,8 @@ impl Recording {
     pub fn read_imu(&mut self, wanted: Option<&str>) -> Result<bool, FileError> {
         let topics = self.container.topics()?;
         let path = self.container.path();
-        let chosen =
-            imu_topic::choose_imu_topic(&topics, wanted).map_err(|e| FileError::at(&path, e))?;
+        let chosen = imu_topic::choose_imu_topic(&topics, wanted)
+            .map_err(|e| FileError::at(&path, e.to_string()))?;
         let Some(topic) = chosen else {
             return Ok(false);
         };

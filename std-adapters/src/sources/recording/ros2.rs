@@ -2,6 +2,7 @@
 //! Humble writes, or `.mcap` files, from Iron on), read in the listed order as one recording.
 //! A `.db3` file is read a few messages at a time, ordered by time (feature `db3`).
 
+use super::error::RecordingError::{self, Damaged, Unsupported};
 use super::{mcap, Topic};
 use std::path::{Path, PathBuf};
 
@@ -9,9 +10,10 @@ use std::path::{Path, PathBuf};
 pub const SQLITE_MAGIC: &[u8] = b"SQLite format 3\0";
 
 /// The storage files of a bag folder, in order: `relative_file_paths` from `metadata.yaml`.
-pub fn files(folder: &Path) -> Result<Vec<PathBuf>, String> {
+pub fn files(folder: &Path) -> Result<Vec<PathBuf>, RecordingError> {
     let meta = folder.join("metadata.yaml");
-    let text = std::fs::read_to_string(&meta).map_err(|e| format!("metadata.yaml: {e}"))?;
+    let text = std::fs::read_to_string(&meta)
+        .map_err(|e| RecordingError::Io(format!("metadata.yaml: {e}")))?;
     if let Some(line) = text
         .lines()
         .find(|l| l.trim_start().starts_with("compression_format:"))
@@ -20,9 +22,9 @@ pub fn files(folder: &Path) -> Result<Vec<PathBuf>, String> {
             .split_once(':')
             .map_or("", |(_, v)| v.trim().trim_matches(['"', '\'']));
         if !v.is_empty() {
-            return Err(format!(
+            return Err(Unsupported(format!(
                 "metadata.yaml: compressed bags ({v}) are not read; `ros2 bag decompress` first"
-            ));
+            )));
         }
     }
     let mut paths = Vec::new();
@@ -47,18 +49,20 @@ pub fn files(folder: &Path) -> Result<Vec<PathBuf>, String> {
     }
     paths.retain(|p| !p.is_empty());
     if paths.is_empty() {
-        return Err("metadata.yaml lists no relative_file_paths".into());
+        return Err(Damaged("metadata.yaml lists no relative_file_paths".into()));
     }
     Ok(paths.into_iter().map(|p| folder.join(p)).collect())
 }
 
 /// The topics of one storage file, with their types and message counts.
-pub fn topics(path: &Path) -> Result<Vec<Topic>, String> {
+pub fn topics(path: &Path) -> Result<Vec<Topic>, RecordingError> {
     if !super::has_magic(path, SQLITE_MAGIC) {
         return mcap::topics(path);
     }
     #[cfg(feature = "db3")]
     return super::db3::topics(path);
     #[cfg(not(feature = "db3"))]
-    Err("a .db3 file: this slamesh was built without the db3 feature".into())
+    Err(Unsupported(
+        "a .db3 file: this slamesh was built without the db3 feature".into(),
+    ))
 }

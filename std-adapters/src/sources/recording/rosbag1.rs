@@ -5,6 +5,7 @@
 //! the opcode `op`) and data. Chunks hold connection and message records; after them the index
 //! section holds every connection and, per chunk, how many messages each connection has there.
 
+use super::error::RecordingError::{self, Damaged, NotThisFormat, Truncated, Unsupported};
 use super::{decompress, Compression, Encoding, RawMessage, Topic};
 use std::collections::HashMap;
 use std::fs::File;
@@ -34,45 +35,49 @@ impl Record {
     fn op(&self) -> Option<u8> {
         self.fields.get("op").and_then(|v| v.first().copied())
     }
-    fn u32(&self, name: &str) -> Result<u32, String> {
+    fn u32(&self, name: &str) -> Result<u32, RecordingError> {
         let v = self
             .fields
             .get(name)
-            .ok_or(format!("a record has no {name}"))?;
+            .ok_or_else(|| Damaged(format!("a record has no {name}")))?;
         let b: [u8; 4] = v[..]
             .try_into()
-            .map_err(|_| format!("{name} is not 4 bytes"))?;
+            .map_err(|_| Damaged(format!("{name} is not 4 bytes")))?;
         Ok(u32::from_le_bytes(b))
     }
-    fn u64(&self, name: &str) -> Result<u64, String> {
+    fn u64(&self, name: &str) -> Result<u64, RecordingError> {
         let v = self
             .fields
             .get(name)
-            .ok_or(format!("a record has no {name}"))?;
+            .ok_or_else(|| Damaged(format!("a record has no {name}")))?;
         let b: [u8; 8] = v[..]
             .try_into()
-            .map_err(|_| format!("{name} is not 8 bytes"))?;
+            .map_err(|_| Damaged(format!("{name} is not 8 bytes")))?;
         Ok(u64::from_le_bytes(b))
     }
-    fn text(&self, name: &str) -> Result<String, String> {
+    fn text(&self, name: &str) -> Result<String, RecordingError> {
         let v = self
             .fields
             .get(name)
-            .ok_or(format!("a record has no {name}"))?;
+            .ok_or_else(|| Damaged(format!("a record has no {name}")))?;
         Ok(String::from_utf8_lossy(v).into_owned())
     }
 }
 
 /// Parses `name=value` fields, each preceded by its u32 length.
-fn parse_fields(mut b: &[u8]) -> Result<HashMap<String, Vec<u8>>, String> {
+fn parse_fields(mut b: &[u8]) -> Result<HashMap<String, Vec<u8>>, RecordingError> {
     let mut out = HashMap::new();
     while !b.is_empty() {
-        let n = read_u32(&mut b).ok_or("a header field's length is cut off")? as usize;
-        let f = b.get(..n).ok_or("a header field runs past its header")?;
+        let n = read_u32(&mut b)
+            .ok_or_else(|| Truncated("a header field's length is cut off".into()))?
+            as usize;
+        let f = b
+            .get(..n)
+            .ok_or_else(|| Damaged("a header field runs past its header".into()))?;
         let eq = f
             .iter()
             .position(|&c| c == b'=')
-            .ok_or("a header field has no '='")?;
+            .ok_or_else(|| Damaged("a header field has no '='".into()))?;
         out.insert(
             String::from_utf8_lossy(&f[..eq]).into_owned(),
             f[eq + 1..].to_vec(),
@@ -89,54 +94,52 @@ fn read_u32(b: &mut &[u8]) -> Option<u32> {
 }
 
 /// Reads the next record from `r`, or `None` at a clean end of file.
-fn next_record(r: &mut impl Read) -> Result<Option<Record>, String> {
+fn next_record(r: &mut impl Read) -> Result<Option<Record>, RecordingError> {
     let mut len = [0u8; 4];
     match r.read(&mut len[..1]) {
         Ok(0) => return Ok(None),
         Ok(_) => r
             .read_exact(&mut len[1..])
-            .map_err(|_| "the file ends inside a record's length")?,
-        Err(e) => return Err(e.to_string()),
+            .map_err(|_| Truncated("the file ends inside a record's length".into()))?,
+        Err(e) => return Err(e.into()),
     }
     let header = read_block(r, u32::from_le_bytes(len) as usize, "header")?;
     let fields = parse_fields(&header)?;
     r.read_exact(&mut len)
-        .map_err(|_| "the file ends before a record's data")?;
+        .map_err(|_| Truncated("the file ends before a record's data".into()))?;
     let data = read_block(r, u32::from_le_bytes(len) as usize, "data")?;
     Ok(Some(Record { fields, data }))
 }
 
-fn read_block(r: &mut impl Read, n: usize, what: &str) -> Result<Vec<u8>, String> {
+fn read_block(r: &mut impl Read, n: usize, what: &str) -> Result<Vec<u8>, RecordingError> {
     if n > MAX_RECORD {
-        return Err(format!("a record's {what} claims {n} bytes"));
+        return Err(Damaged(format!("a record's {what} claims {n} bytes")));
     }
     let mut v = Vec::new();
-    r.take(n as u64)
-        .read_to_end(&mut v)
-        .map_err(|e| e.to_string())?;
+    r.take(n as u64).read_to_end(&mut v)?;
     if v.len() != n {
-        return Err(format!("the file ends inside a record's {what}"));
+        return Err(Truncated(format!("the file ends inside a record's {what}")));
     }
     Ok(v)
 }
 
-fn open(path: &Path) -> Result<(BufReader<File>, u64), String> {
-    let mut r = BufReader::new(File::open(path).map_err(|e| e.to_string())?);
+fn open(path: &Path) -> Result<(BufReader<File>, u64), RecordingError> {
+    let mut r = BufReader::new(File::open(path)?);
     let mut magic = [0u8; 13];
     r.read_exact(&mut magic)
-        .map_err(|_| "too short for a bag")?;
+        .map_err(|_| NotThisFormat("too short for a bag".into()))?;
     if magic != MAGIC {
-        return Err("not a ROS 1 bag (format 2.0)".into());
+        return Err(NotThisFormat("not a ROS 1 bag (format 2.0)".into()));
     }
-    let header = next_record(&mut r)?.ok_or("no bag header")?;
+    let header = next_record(&mut r)?.ok_or_else(|| Damaged("no bag header".into()))?;
     if header.op() != Some(OP_BAG_HEADER) {
-        return Err("the first record is not the bag header".into());
+        return Err(Damaged("the first record is not the bag header".into()));
     }
     Ok((r, header.u64("index_pos")?))
 }
 
 /// A connection record's topic and message type.
-fn connection(rec: &Record) -> Result<(u32, String, String), String> {
+fn connection(rec: &Record) -> Result<(u32, String, String), RecordingError> {
     let conn = rec.u32("conn")?;
     let topic = rec.text("topic")?;
     let fields = parse_fields(&rec.data)?;
@@ -149,13 +152,12 @@ fn connection(rec: &Record) -> Result<(u32, String, String), String> {
 
 /// The bag's topics with their types and message counts, from its index (or, for a bag whose
 /// recording was cut off before the index was written, by reading it through).
-pub fn topics(path: &Path) -> Result<Vec<Topic>, String> {
+pub fn topics(path: &Path) -> Result<Vec<Topic>, RecordingError> {
     let (mut r, index_pos) = open(path)?;
     let mut conns: Vec<(u32, String, String)> = Vec::new();
     let mut counts: HashMap<u32, u64> = HashMap::new();
     if index_pos > 0 {
-        r.seek(SeekFrom::Start(index_pos))
-            .map_err(|e| e.to_string())?;
+        r.seek(SeekFrom::Start(index_pos))?;
         while let Some(rec) = next_record(&mut r)? {
             match rec.op() {
                 Some(OP_CONNECTION) => conns.push(connection(&rec)?),
@@ -205,7 +207,7 @@ pub struct Messages {
 
 impl Messages {
     /// Opens `path` for the messages of `topic`.
-    pub fn new(path: &Path, topic: Option<&str>) -> Result<Self, String> {
+    pub fn new(path: &Path, topic: Option<&str>) -> Result<Self, RecordingError> {
         let (reader, index_pos) = open(path)?;
         Ok(Messages {
             reader,
@@ -218,13 +220,14 @@ impl Messages {
     }
 
     /// Every connection in the bag, reading it through (for a bag without an index).
-    fn connections_all(mut self) -> Result<Vec<(u32, String, String)>, String> {
+    fn connections_all(mut self) -> Result<Vec<(u32, String, String)>, RecordingError> {
         let mut out = Vec::new();
         loop {
             while self.at < self.chunk.len() {
                 let mut r = &self.chunk[self.at..];
                 let before = r.len();
-                let rec = next_record(&mut r)?.ok_or("a chunk ends inside a record")?;
+                let rec = next_record(&mut r)?
+                    .ok_or_else(|| Truncated("a chunk ends inside a record".into()))?;
                 self.at += before - r.len();
                 if rec.op() == Some(OP_CONNECTION) {
                     out.push(connection(&rec)?);
@@ -237,10 +240,10 @@ impl Messages {
     }
 
     /// Loads the next chunk; false at the end of the chunk section.
-    fn next_chunk(&mut self) -> Result<bool, String> {
+    fn next_chunk(&mut self) -> Result<bool, RecordingError> {
         loop {
             if self.index_pos > 0 {
-                let pos = self.reader.stream_position().map_err(|e| e.to_string())?;
+                let pos = self.reader.stream_position()?;
                 if pos >= self.index_pos {
                     return Ok(false);
                 }
@@ -265,15 +268,15 @@ impl Messages {
 }
 
 /// A chunk's records: `data` as it is, or decompressed to `size` bytes.
-fn chunk_records(kind: &str, data: &[u8], size: usize) -> Result<Vec<u8>, String> {
+fn chunk_records(kind: &str, data: &[u8], size: usize) -> Result<Vec<u8>, RecordingError> {
     let kind = match kind {
         "none" => return Ok(data.to_vec()),
         "bz2" => Compression::Bz2,
         "lz4" => Compression::Lz4,
         other => {
-            return Err(format!(
+            return Err(Unsupported(format!(
                 "chunk compression {other:?} is not none, bz2 or lz4"
-            ))
+            )))
         }
     };
     decompress(kind, data, size)
@@ -281,7 +284,7 @@ fn chunk_records(kind: &str, data: &[u8], size: usize) -> Result<Vec<u8>, String
 
 impl Iterator for Messages {
     /// The connection id and the message.
-    type Item = Result<(u32, RawMessage), String>;
+    type Item = Result<(u32, RawMessage), RecordingError>;
 
     fn next(&mut self) -> Option<Self::Item> {
         loop {
