@@ -23,6 +23,40 @@ const DOUBLES: usize = 4 + 9 + 3 + 9 + 3 + 9;
 const GYRO_AT: usize = 13;
 const ACCEL_AT: usize = 25;
 
+/// Why an IMU message could not be read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ImuMessageError {
+    /// The message (`len` bytes) ends inside `what`, which starts at byte `at`.
+    Short {
+        /// The message's length.
+        len: usize,
+        /// The field.
+        what: &'static str,
+        /// Where it starts.
+        at: usize,
+    },
+    /// A CDR encapsulation (its first two bytes) that is neither big- nor little-endian CDR.
+    Encapsulation([u8; 2]),
+    /// Too short (this many bytes) for a CDR header.
+    NoHeader(usize),
+}
+
+impl std::fmt::Display for ImuMessageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ImuMessageError::Short { len, what, at } => {
+                write!(f, "{len} bytes, too short for its {what} at byte {at}")
+            }
+            ImuMessageError::Encapsulation(h) => {
+                write!(f, "CDR encapsulation {h:?} is neither CDR_BE nor CDR_LE")
+            }
+            ImuMessageError::NoHeader(len) => write!(f, "{len} bytes, too short for a CDR header"),
+        }
+    }
+}
+
+impl std::error::Error for ImuMessageError {}
+
 /// A little reader over a message's bytes.
 struct Bytes<'a> {
     data: &'a [u8],
@@ -31,25 +65,22 @@ struct Bytes<'a> {
 }
 
 impl<'a> Bytes<'a> {
-    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
+    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], ImuMessageError> {
         let end = self.at.checked_add(n).filter(|&e| e <= self.data.len());
         let Some(end) = end else {
-            return Err(format!(
-                "{} bytes, too short for its {what} at byte {}",
-                self.data.len(),
-                self.at
-            ));
+            return Err(ImuMessageError::Short {
+                len: self.data.len(),
+                what,
+                at: self.at,
+            });
         };
         let s = &self.data[self.at..end];
         self.at = end;
         Ok(s)
     }
 
-    fn u32(&mut self, what: &str) -> Result<u32, String> {
-        let b: [u8; 4] = self
-            .take(4, what)?
-            .try_into()
-            .map_err(|_| what.to_string())?;
+    fn u32(&mut self, what: &'static str) -> Result<u32, ImuMessageError> {
+        let b: [u8; 4] = self.take(4, what)?.try_into().unwrap_or_default();
         Ok(if self.big {
             u32::from_be_bytes(b)
         } else {
@@ -57,11 +88,8 @@ impl<'a> Bytes<'a> {
         })
     }
 
-    fn f64(&mut self, what: &str) -> Result<f64, String> {
-        let b: [u8; 8] = self
-            .take(8, what)?
-            .try_into()
-            .map_err(|_| what.to_string())?;
+    fn f64(&mut self, what: &'static str) -> Result<f64, ImuMessageError> {
+        let b: [u8; 8] = self.take(8, what)?.try_into().unwrap_or_default();
         Ok(if self.big {
             f64::from_be_bytes(b)
         } else {
@@ -75,7 +103,7 @@ impl<'a> Bytes<'a> {
         self.at += (n - rel % n) % n;
     }
 
-    fn text(&mut self) -> Result<String, String> {
+    fn text(&mut self) -> Result<String, ImuMessageError> {
         let n = self.u32("frame_id's length")? as usize;
         let s = self.take(n, "frame_id")?;
         Ok(String::from_utf8_lossy(s)
@@ -85,7 +113,12 @@ impl<'a> Bytes<'a> {
 }
 
 /// The stamp, rates and frame after the header's frame name.
-fn rest(b: &mut Bytes<'_>, sec: f64, nsec: u32, frame_id: String) -> Result<ImuMessage, String> {
+fn rest(
+    b: &mut Bytes<'_>,
+    sec: f64,
+    nsec: u32,
+    frame_id: String,
+) -> Result<ImuMessage, ImuMessageError> {
     let mut v = [0.0; DOUBLES];
     for slot in &mut v {
         *slot = b.f64("rates")?;
@@ -102,7 +135,7 @@ fn rest(b: &mut Bytes<'_>, sec: f64, nsec: u32, frame_id: String) -> Result<ImuM
 }
 
 /// A ROS 1 message.
-pub fn parse_ros1(data: &[u8]) -> Result<ImuMessage, String> {
+pub fn parse_ros1(data: &[u8]) -> Result<ImuMessage, ImuMessageError> {
     let mut b = Bytes {
         data,
         at: 0,
@@ -116,16 +149,12 @@ pub fn parse_ros1(data: &[u8]) -> Result<ImuMessage, String> {
 }
 
 /// A ROS 2 message: the CDR encapsulation header, then the body.
-pub fn parse_cdr(data: &[u8]) -> Result<ImuMessage, String> {
+pub fn parse_cdr(data: &[u8]) -> Result<ImuMessage, ImuMessageError> {
     let big = match data.get(..2) {
         Some([0, 0]) => true,
         Some([0, 1]) => false,
-        Some(h) => {
-            return Err(format!(
-                "CDR encapsulation {h:?} is neither CDR_BE nor CDR_LE"
-            ))
-        }
-        None => return Err(format!("{} bytes, too short for a CDR header", data.len())),
+        Some(&[a, b]) => return Err(ImuMessageError::Encapsulation([a, b])),
+        _ => return Err(ImuMessageError::NoHeader(data.len())),
     };
     let mut b = Bytes { data, at: 4, big };
     let sec = b.u32("stamp")? as i32;
@@ -194,19 +223,29 @@ mod tests {
 
     #[test]
     fn malformed_messages_are_errors_with_their_reason() {
-        assert!(parse_ros1(&[0; 10])
-            .unwrap_err()
-            .contains("too short for its stamp"));
+        let e = parse_ros1(&[0; 10]).unwrap_err();
+        let short = ImuMessageError::Short {
+            len: 10,
+            what: "stamp",
+            at: 8,
+        };
+        assert_eq!(e, short);
+        assert_eq!(e.to_string(), "10 bytes, too short for its stamp at byte 8");
         let mut long_name = vec![0u8; 12];
         long_name.extend_from_slice(&1000u32.to_le_bytes());
-        assert!(parse_ros1(&long_name).unwrap_err().contains("frame_id"));
-        assert!(parse_cdr(&[1, 2, 0, 0])
+        assert!(parse_ros1(&long_name)
             .unwrap_err()
-            .contains("neither CDR_BE nor CDR_LE"));
+            .to_string()
+            .contains("frame_id"));
+        let e = parse_cdr(&[1, 2, 0, 0]).unwrap_err();
+        assert_eq!(e, ImuMessageError::Encapsulation([1, 2]));
+        assert!(e.to_string().contains("neither CDR_BE nor CDR_LE"), "{e}");
+        assert_eq!(parse_cdr(&[0]).unwrap_err(), ImuMessageError::NoHeader(1));
         let mut short = vec![0, 1, 0, 0];
         short.extend_from_slice(&[0; 12]);
         assert!(parse_cdr(&short)
             .unwrap_err()
+            .to_string()
             .contains("too short for its rates"));
     }
 }

@@ -266,7 +266,7 @@ pub fn parse_pcd_timed(
         Some((f.name.as_str(), datatype, stamp))
     });
     let rows = values(path, &h, &wanted, &bytes[h.start..])?;
-    pointcloud2::file_points_and_times(&rows, time).map_err(|e| FileError::at(path, e))
+    pointcloud2::file_points_and_times(&rows, time).map_err(|e| FileError::at(path, e.to_string()))
 }
 
 /// The values of fields `wanted` (first elements), point by point: `wanted.len()` a point.

@@ -231,7 +231,7 @@ pub fn parse_ply_timed(
         Some((name.as_str(), datatype, stamp))
     });
     let rows = vertex_values(path, &header, vi, &wanted, bytes)?;
-    pointcloud2::file_points_and_times(&rows, time).map_err(|e| FileError::at(path, e))
+    pointcloud2::file_points_and_times(&rows, time).map_err(|e| FileError::at(path, e.to_string()))
 }
 
 /// The values of vertex properties `wanted`, vertex by vertex (`wanted.len()` a vertex); the

@@ -132,7 +132,7 @@ struct Bytes<'a> {
 }
 
 impl<'a> Bytes<'a> {
-    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], CloudError> {
         if let Some(origin) = self.align_from {
             let a = n.min(8);
             if a > 1 {
@@ -141,15 +141,15 @@ impl<'a> Bytes<'a> {
             }
         }
         let end = self.pos.checked_add(n).filter(|&e| e <= self.buf.len());
-        let end = end.ok_or_else(|| format!("message ends inside {what}"))?;
+        let end = end.ok_or_else(|| CloudError::Truncated(what.to_string()))?;
         let s = &self.buf[self.pos..end];
         self.pos = end;
         Ok(s)
     }
-    fn u8(&mut self, what: &str) -> Result<u8, String> {
+    fn u8(&mut self, what: &str) -> Result<u8, CloudError> {
         Ok(self.take(1, what)?[0])
     }
-    fn u32(&mut self, what: &str) -> Result<u32, String> {
+    fn u32(&mut self, what: &str) -> Result<u32, CloudError> {
         let b: [u8; 4] = self.take(4, what)?.try_into().expect("4 bytes");
         Ok(if self.big {
             u32::from_be_bytes(b)
@@ -158,13 +158,13 @@ impl<'a> Bytes<'a> {
         })
     }
     /// A string: a u32 length, then bytes (CDR counts and drops a trailing NUL).
-    fn string(&mut self, what: &str) -> Result<String, String> {
+    fn string(&mut self, what: &str) -> Result<String, CloudError> {
         let n = self.u32(what)? as usize;
         let b = self.bytes_of(n, what)?;
         let b = b.strip_suffix(&[0]).unwrap_or(b);
         Ok(String::from_utf8_lossy(b).into_owned())
     }
-    fn bytes_of(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
+    fn bytes_of(&mut self, n: usize, what: &str) -> Result<&'a [u8], CloudError> {
         let save = self.align_from.take();
         let r = self.take(n, what);
         self.align_from = save;
@@ -174,7 +174,7 @@ impl<'a> Bytes<'a> {
 
 impl<'a> Cloud<'a> {
     /// Parses a ROS 1 serialised message (little-endian, packed).
-    pub fn parse_ros1(buf: &'a [u8]) -> Result<Self, String> {
+    pub fn parse_ros1(buf: &'a [u8]) -> Result<Self, CloudError> {
         let mut b = Bytes {
             buf,
             pos: 0,
@@ -188,26 +188,32 @@ impl<'a> Cloud<'a> {
     }
 
     /// Parses a ROS 2 message in CDR (either byte order, as its 4-byte header says).
-    pub fn parse_cdr(buf: &'a [u8]) -> Result<Self, String> {
+    pub fn parse_cdr(buf: &'a [u8]) -> Result<Self, CloudError> {
         if buf.len() < 4 {
-            return Err("message shorter than its CDR header".into());
+            return Err(CloudError::Encoding(
+                "message shorter than its CDR header".into(),
+            ));
         }
         let big = match buf[1] {
             0 | 2 => true,
             1 | 3 => false,
-            k => return Err(format!("unknown CDR representation {k}")),
+            k => {
+                return Err(CloudError::Encoding(format!(
+                    "unknown CDR representation {k}"
+                )))
+            }
         };
         Self::parse_cdr_from(buf, 4, big)
     }
 
     /// Parses a ROS 2 message's CDR body, the bytes after the 4-byte header, in the byte order
     /// the header said (what a DDS reader hands over).
-    pub fn parse_cdr_body(body: &'a [u8], big_endian: bool) -> Result<Self, String> {
+    pub fn parse_cdr_body(body: &'a [u8], big_endian: bool) -> Result<Self, CloudError> {
         Self::parse_cdr_from(body, 0, big_endian)
     }
 
     /// The CDR body starting at `start` in `buf` (alignment counted from there).
-    fn parse_cdr_from(buf: &'a [u8], start: usize, big: bool) -> Result<Self, String> {
+    fn parse_cdr_from(buf: &'a [u8], start: usize, big: bool) -> Result<Self, CloudError> {
         let mut b = Bytes {
             buf,
             pos: start,
@@ -220,7 +226,7 @@ impl<'a> Cloud<'a> {
     }
 
     /// The message after its header's stamp, `sec` seconds and `nsec` nanoseconds.
-    fn parse_rest(b: &mut Bytes<'a>, sec: i64, nsec: u32) -> Result<Self, String> {
+    fn parse_rest(b: &mut Bytes<'a>, sec: i64, nsec: u32) -> Result<Self, CloudError> {
         let stamp = sec as f64 + nsec as f64 * 1e-9;
         let stamp_ns = sec * 1_000_000_000 + i64::from(nsec);
         let frame_id = b.string("header.frame_id")?;
@@ -229,7 +235,9 @@ impl<'a> Cloud<'a> {
         let n = b.u32("fields")? as usize;
         // Each field takes at least 13 bytes: a bad count must not reserve memory.
         if n > (b.buf.len() - b.pos) / 13 {
-            return Err(format!("{n} fields do not fit in the message"));
+            return Err(CloudError::Layout(format!(
+                "{n} fields do not fit in the message"
+            )));
         }
         let mut fields = Vec::with_capacity(n);
         for _ in 0..n {
@@ -264,31 +272,31 @@ impl<'a> Cloud<'a> {
     }
 
     /// The field called `name`, checked to fit in `point_step`.
-    fn field(&self, name: &str) -> Result<Option<&Field>, String> {
+    fn field(&self, name: &str) -> Result<Option<&Field>, CloudError> {
         let Some(f) = self.fields.iter().find(|f| f.name == name) else {
             return Ok(None);
         };
-        let size = f
-            .size()
-            .ok_or_else(|| format!("field {name} has unknown datatype {}", f.datatype))?;
+        let size = f.size().ok_or_else(|| {
+            CloudError::Layout(format!("field {name} has unknown datatype {}", f.datatype))
+        })?;
         if f.offset as usize + size > self.point_step as usize {
-            return Err(format!(
+            return Err(CloudError::Layout(format!(
                 "field {name} (offset {}, {size} bytes) lies past point_step {}",
                 f.offset, self.point_step
-            ));
+            )));
         }
         Ok(Some(f))
     }
 
     /// Decodes the points and everything they carry (times, intensity, ring). Errors say what
     /// is malformed.
-    pub fn decode(&self) -> Result<DecodedScan, String> {
+    pub fn decode(&self) -> Result<DecodedScan, CloudError> {
         self.decode_with(true)
     }
 
     /// Decodes the points and their times, and with `extras` their intensity and ring (a run
     /// does not use them yet, and leaving them out saves a third of the decoding).
-    pub fn decode_with(&self, extras: bool) -> Result<DecodedScan, String> {
+    pub fn decode_with(&self, extras: bool) -> Result<DecodedScan, CloudError> {
         let xyz = ["x", "y", "z"].map(|n| self.field(n));
         let [x, y, z] = match xyz {
             [Ok(Some(x)), Ok(Some(y)), Ok(Some(z))] => [x, y, z],
@@ -296,7 +304,7 @@ impl<'a> Cloud<'a> {
                 a?;
                 b?;
                 c?;
-                return Err("no x, y and z fields".into());
+                return Err(CloudError::NoXyz);
             }
         };
         let intensity = self.field("intensity")?.filter(|_| extras);
@@ -307,7 +315,7 @@ impl<'a> Cloud<'a> {
             .find_map(|r| r.transpose())
             .transpose()?;
         let read = [Some(x), Some(y), Some(z), time, intensity, ring];
-        disjoint(read.iter().flatten().copied()).map_err(|e| e.to_string())?;
+        disjoint(read.iter().flatten().copied()).map_err(CloudError::Overlap)?;
         if !self.has_points()? {
             return Ok(DecodedScan {
                 times: time.map(|_| Vec::new()),
@@ -347,7 +355,7 @@ impl<'a> Cloud<'a> {
         if let Some(f) = time {
             out.times = Some(relative_times(&f.name, f.datatype, &raw_times, self.stamp)?);
         }
-        crate::formats::sensor_ranges::check(&out.points).map_err(|e| e.to_string())?;
+        crate::formats::sensor_ranges::check(&out.points).map_err(CloudError::NotAScan)?;
         Ok(out)
     }
 
@@ -355,7 +363,7 @@ impl<'a> Cloud<'a> {
     /// none whatever the other sizes say (rows of nothing are not walked: a height of 4
     /// billion empty rows would take seconds); a `point_step` of 0, a `row_step` shorter than
     /// a row's points, or `data` shorter than the rows is an error.
-    fn has_points(&self) -> Result<bool, String> {
+    fn has_points(&self) -> Result<bool, CloudError> {
         let (w, h, step) = (
             self.width as usize,
             self.height as usize,
@@ -366,22 +374,22 @@ impl<'a> Cloud<'a> {
             return Ok(false);
         }
         if step == 0 {
-            return Err("point_step is 0".into());
+            return Err(CloudError::Layout("point_step is 0".into()));
         }
         if row < w.saturating_mul(step) {
-            return Err(format!(
+            return Err(CloudError::Layout(format!(
                 "row_step {row} is shorter than width {w} x point_step {step}"
-            ));
+            )));
         }
         let need = h
             .checked_sub(1)
             .map_or(Some(0), |r| r.checked_mul(row)?.checked_add(w * step));
         match need {
             Some(n) if n <= self.data.len() => Ok(true),
-            _ => Err(format!(
+            _ => Err(CloudError::Layout(format!(
                 "data holds {} bytes, fewer than {h} rows of {w} points of {step} bytes",
                 self.data.len()
-            )),
+            ))),
         }
     }
 
@@ -465,6 +473,41 @@ impl std::fmt::Display for Overlap {
         )
     }
 }
+
+/// Why a PointCloud2 message could not be decoded.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CloudError {
+    /// The message ends inside what it was read for (a field's name).
+    Truncated(String),
+    /// A CDR header or representation this decoder does not read.
+    Encoding(String),
+    /// Fields, steps and data whose sizes do not fit together: how.
+    Layout(String),
+    /// No x, y and z fields.
+    NoXyz,
+    /// Two of the fields read overlap ([`Overlap`]).
+    Overlap(Overlap),
+    /// The time field fits no reading of the table ([`times::relative_times`]): why.
+    Times(String),
+    /// The points cannot be a LiDAR's scan ([`crate::formats::sensor_ranges`]).
+    NotAScan(crate::formats::sensor_ranges::AbsurdRanges),
+}
+
+impl std::fmt::Display for CloudError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CloudError::Truncated(what) => write!(f, "message ends inside {what}"),
+            CloudError::Encoding(why) | CloudError::Layout(why) | CloudError::Times(why) => {
+                f.write_str(why)
+            }
+            CloudError::NoXyz => f.write_str("no x, y and z fields"),
+            CloudError::Overlap(o) => o.fmt(f),
+            CloudError::NotAScan(a) => a.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for CloudError {}
 
 /// The first two of `fields` (each checked to fit its point) whose bytes overlap, if any.
 fn disjoint<'f>(fields: impl Iterator<Item = &'f Field> + Clone) -> Result<(), Overlap> {
@@ -604,7 +647,11 @@ mod tests {
     fn malformed_clouds_say_what_is_wrong() {
         let data = vec![0u8; 24];
         let short = encode::ros1((0, 0), "", 1, 4, &xyz_f32(), false, 12, 48, &data);
-        let e = Cloud::parse_ros1(&short).unwrap().decode().unwrap_err();
+        let e = Cloud::parse_ros1(&short)
+            .unwrap()
+            .decode()
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("data holds 24 bytes"), "{e}");
         let past = vec![
             field("x", 0, FLOAT32),
@@ -612,7 +659,11 @@ mod tests {
             field("z", 10, FLOAT32),
         ];
         let m = encode::ros1((0, 0), "", 1, 2, &past, false, 12, 24, &data);
-        let e = Cloud::parse_ros1(&m).unwrap().decode().unwrap_err();
+        let e = Cloud::parse_ros1(&m)
+            .unwrap()
+            .decode()
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("field z") && e.contains("past point_step 12"),
             "{e}"
@@ -624,10 +675,12 @@ mod tests {
         ];
         let m = encode::ros1((0, 0), "", 1, 2, &no_x, false, 12, 24, &data);
         let e = Cloud::parse_ros1(&m).unwrap().decode().unwrap_err();
-        assert_eq!(e, "no x, y and z fields");
+        assert_eq!(e, CloudError::NoXyz);
+        assert_eq!(e.to_string(), "no x, y and z fields");
         let e = Cloud::parse_ros1(&m[..73]).unwrap_err();
-        assert_eq!(e, "message ends inside point_step");
-        let e = Cloud::parse_ros1(&m[..30]).unwrap_err();
+        assert_eq!(e, CloudError::Truncated("point_step".into()));
+        assert_eq!(e.to_string(), "message ends inside point_step");
+        let e = Cloud::parse_ros1(&m[..30]).unwrap_err().to_string();
         assert_eq!(e, "3 fields do not fit in the message");
         // float64 x, y and z laid over float32 data (a sensor's x, y, z, intensity) overlap.
         let over = vec![
@@ -636,7 +689,11 @@ mod tests {
             field("z", 8, FLOAT64),
         ];
         let m = encode::cdr((0, 0), "", 1, 1, &over, false, 16, 16, &[0u8; 16]);
-        let e = Cloud::parse_cdr(&m).unwrap().decode().unwrap_err();
+        let e = Cloud::parse_cdr(&m)
+            .unwrap()
+            .decode()
+            .unwrap_err()
+            .to_string();
         assert_eq!(
             e,
             "fields x (offset 0, 8 bytes) and y (offset 4, 8 bytes) overlap: not a point \
@@ -648,7 +705,11 @@ mod tests {
             fields.push(field(name, offset, UINT8));
             fields.push(field("label", 0, FLOAT32));
             let m = encode::cdr((0, 0), "", 1, 1, &fields, false, 16, 16, &[0u8; 16]);
-            let e = Cloud::parse_cdr(&m).unwrap().decode().unwrap_err();
+            let e = Cloud::parse_cdr(&m)
+                .unwrap()
+                .decode()
+                .unwrap_err()
+                .to_string();
             assert!(
                 e.contains(&format!("and {name} (offset {offset}, 1 bytes)")),
                 "{e}"
@@ -724,9 +785,11 @@ mod tests {
         assert!((abs[1] - 0.05).abs() < 1e-6, "{abs:?}");
         let ns = case(FLOAT64, "timestamp", &[1.7e18, 1.7e18 + 2e7], 1_700_000_000).unwrap();
         assert!((ns[1] - 0.02).abs() < 1e-6, "{ns:?}");
-        let e = case(FLOAT64, "timestamp", &[1.6e9], 1_700_000_000).unwrap_err();
+        let e = case(FLOAT64, "timestamp", &[1.6e9], 1_700_000_000)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("timestamp") && e.contains("no reading"), "{e}");
-        let e = case(FLOAT32, "t", &[2e7], 0).unwrap_err();
+        let e = case(FLOAT32, "t", &[2e7], 0).unwrap_err().to_string();
         assert!(e.contains("FLOAT32"), "{e}");
     }
 

@@ -102,7 +102,7 @@ impl FrameCheck {
     pub fn scan(&mut self, message: &RawMessage, arrived: Instant) -> Result<TimedScan, Refused> {
         let refuse = |stamp, reason: String| Refused { stamp, reason };
         let cloud = Cloud::parse_cdr_body(&message.body, message.big_endian)
-            .map_err(|e| refuse(None, e))?;
+            .map_err(|e| refuse(None, e.to_string()))?;
         let stamp = Some(cloud.stamp);
         match &self.expected {
             Some(f) if *f != cloud.frame_id => {
@@ -113,7 +113,9 @@ impl FrameCheck {
             }
             _ => {}
         }
-        let decoded = cloud.decode_with(false).map_err(|e| refuse(stamp, e))?;
+        let decoded = cloud
+            .decode_with(false)
+            .map_err(|e| refuse(stamp, e.to_string()))?;
         if decoded.points.is_empty() {
             return Err(refuse(
                 stamp,

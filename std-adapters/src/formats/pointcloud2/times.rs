@@ -2,7 +2,7 @@
 //! [`pointcloud2`](super)'s docs: a cloud's time field, and a point-cloud file's (PCD, PLY),
 //! whose stamp comes from its folder.
 
-use super::{datatype, Field, MAX_SWEEP_S, TIME_FIELDS};
+use super::{datatype, CloudError, Field, MAX_SWEEP_S, TIME_FIELDS};
 use slamesh_core::Point;
 
 /// The values `raw` of the time field `name` (a [`datatype`]) as times relative to `stamp` in
@@ -12,7 +12,7 @@ pub fn relative_times(
     datatype: u8,
     raw: &[f64],
     stamp: f64,
-) -> Result<Vec<f32>, String> {
+) -> Result<Vec<f32>, CloudError> {
     let f = Field {
         name: name.to_owned(),
         offset: 0,
@@ -36,20 +36,20 @@ pub fn relative_times(
     } else if f.datatype == datatype::FLOAT64 {
         (1.0, -stamp, "absolute seconds")
     } else {
-        return Err(format!(
+        return Err(CloudError::Times(format!(
             "time field {} (FLOAT32) runs from {lo} to {hi}: too large for relative seconds, \
              too coarse for absolute ones",
             f.name
-        ));
+        )));
     };
     let rel = |v: f64| v * scale + offset;
     let (a, b) = (rel(lo), rel(hi));
     if !(a.is_finite() && b.is_finite()) || a < -MAX_SWEEP_S || b > MAX_SWEEP_S {
-        return Err(format!(
+        return Err(CloudError::Times(format!(
             "time field {} (datatype {}) read as {unit} gives {a:.3} to {b:.3} s from the stamp, \
              outside +-{MAX_SWEEP_S} s; no reading in the table fits",
             f.name, f.datatype
-        ));
+        )));
     }
     Ok(raw.iter().map(|&v| rel(v) as f32).collect())
 }
@@ -66,7 +66,7 @@ pub fn file_time_field(position: impl Fn(&str) -> Option<usize>) -> Option<usize
 pub fn file_points_and_times(
     rows: &[f64],
     time: Option<(&str, u8, f64)>,
-) -> Result<(Vec<Point>, Option<Vec<f32>>), String> {
+) -> Result<(Vec<Point>, Option<Vec<f32>>), CloudError> {
     let n = if time.is_some() { 4 } else { 3 };
     let points = rows
         .chunks_exact(n)
@@ -90,7 +90,7 @@ pub fn file_relative_times(
     datatype: u8,
     raw: &[f64],
     stamp: f64,
-) -> Result<Vec<f32>, String> {
+) -> Result<Vec<f32>, CloudError> {
     let first = raw.iter().copied().fold(f64::INFINITY, f64::min);
     relative_times(name, datatype, raw, stamp).or_else(|e| match first {
         t if t > 1e15 => relative_times(name, datatype, raw, t * 1e-9),

@@ -107,9 +107,12 @@ impl ImuTopic {
             let m = self.stream.next()?;
             let index = self.read;
             self.read += 1;
-            let decoded = m.map_err(|e| e.to_string()).and_then(|m| match m.encoding {
-                Encoding::Ros1 => imu_message::parse_ros1(m.bytes()),
-                Encoding::Cdr => imu_message::parse_cdr(m.bytes()),
+            let decoded = m.map_err(|e| e.to_string()).and_then(|m| {
+                match m.encoding {
+                    Encoding::Ros1 => imu_message::parse_ros1(m.bytes()),
+                    Encoding::Cdr => imu_message::parse_cdr(m.bytes()),
+                }
+                .map_err(|e| e.to_string())
             });
             match decoded {
                 Ok(m) => return Some(Sample::Imu(m.reading)),
