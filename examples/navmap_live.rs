@@ -18,6 +18,7 @@ use slamesh::navmap::NavMapOptions;
 use slamesh::ros2::mesh_tiles::MeshTiles;
 use slamesh::ros2::messages::{Header, OccupancyGrid};
 use slamesh::ros2::occupancy::LiveMap;
+use slamesh::run::sink::SinkFault;
 use slamesh::run::{config_file, run_to, FrameEvent, RunOptions, Sink, Sinks, Summary};
 use slamesh_core::layer::Shown;
 use slamesh_core::{KittiCapacity, Pose};
@@ -44,7 +45,7 @@ impl Sink for Grid {
     fn wants_map(&self) -> bool {
         true
     }
-    fn frame(&mut self, e: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, e: Arc<FrameEvent>) -> Result<(), SinkFault> {
         if let Some(u) = &e.map {
             self.tiles.update(&u.layers);
         }
@@ -57,7 +58,7 @@ impl Sink for Grid {
         self.map.scan(&self.tiles, seen, Header::default());
         Ok(())
     }
-    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         self.map.finish(&self.tiles, Header::default());
         let grid = (self.grid.lock().map_err(|e| e.to_string())?)
             .take()

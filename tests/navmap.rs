@@ -24,6 +24,7 @@ use slamesh::navmap::background::{Background, Seen};
 use slamesh::navmap::live::{Cells, LiveGrid};
 use slamesh::navmap::tiled_mesh::TiledMesh;
 use slamesh::navmap::{NavMapOptions, Robot};
+use slamesh::run::sink::SinkFault;
 use slamesh::run::{run_to, FrameEvent, RunOptions, Sink, Sinks, Summary};
 use slamesh_core::layer::Shown;
 use slamesh_core::{Config, KittiCapacity, Pose};
@@ -80,7 +81,7 @@ impl Sink for LiveSink {
         true
     }
 
-    fn frame(&mut self, e: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, e: Arc<FrameEvent>) -> Result<(), SinkFault> {
         if let Some(u) = &e.map {
             if let Some((path, _)) = &u.closed {
                 self.tiles.clear();
@@ -97,7 +98,7 @@ impl Sink for LiveSink {
         Ok(())
     }
 
-    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         self.grid.finish(&self.tiles, ());
         Ok(None)
     }

@@ -7,7 +7,7 @@
 
 use crate::common::scratch;
 use slamesh::run::files::{ReportFile, Trajectories};
-use slamesh::run::sink::{FnSink, Queued, Sink, WhenFull};
+use slamesh::run::sink::{FnSink, Queued, Sink, SinkFault, WhenFull};
 use slamesh::run::{run_to, FrameEvent, FrameSource, RunOptions, Sinks, Summary};
 use slamesh::sources::{ImuReading, OtherSample, Sample};
 use slamesh_core::{Config, KittiCapacity};
@@ -34,7 +34,7 @@ impl Sink for MapWatcher {
     fn wants_map(&self) -> bool {
         true
     }
-    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault> {
         if let Some(m) = &event.map {
             let seen = (m.frame, m.points.len(), m.layers.len());
             self.0.lock().unwrap().push(seen);
@@ -50,10 +50,10 @@ impl Sink for End {
     fn name(&self) -> String {
         "end".into()
     }
-    fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), SinkFault> {
         Ok(())
     }
-    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         *self.0.lock().unwrap() = summary.map(|s| s.used);
         Ok(None)
     }
@@ -66,7 +66,7 @@ impl Sink for Slow {
     fn name(&self) -> String {
         "slow".into()
     }
-    fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), SinkFault> {
         std::thread::sleep(std::time::Duration::from_millis(100));
         Ok(())
     }

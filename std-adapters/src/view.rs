@@ -26,7 +26,7 @@ use crate::navmap::background::{Background, Seen};
 use crate::navmap::live::{LiveGrid, FREE, OCCUPIED};
 use crate::navmap::tiled_mesh::TiledMesh;
 use crate::navmap::NavMapOptions;
-use crate::run::sink::{FrameEvent, MapUpdate, Queued, Sink, WhenFull};
+use crate::run::sink::{FrameEvent, MapUpdate, Queued, Sink, SinkFault, WhenFull};
 use crate::run::Summary;
 use foxglove::messages::packed_element_field::NumericType;
 use foxglove::messages::{
@@ -188,13 +188,17 @@ impl View {
     }
 
     /// Sends what is queued, closes the recording (renamed to `slam.mcap`) and the server.
-    pub fn finish(mut self) -> Result<ViewStats, FileError> {
+    /// A publisher that failed says why: the recording's file named when there is one.
+    pub fn finish(mut self) -> Result<ViewStats, SinkFault> {
         let Some(queue) = self.queue.take() else {
             return Ok(ViewStats::default());
         };
         let (stats, result) = queue.end();
         if let Err(e) = result {
-            return Err(self.file_error(e));
+            return Err(match &self.record {
+                Some((_, path)) => SinkFault::File(FileError::at(path, e.to_string())),
+                None => e,
+            });
         }
         if let Some((tmp, path)) = &self.record {
             std::fs::rename(tmp, path)
@@ -204,13 +208,6 @@ impl View {
             sent: stats.delivered,
             dropped: stats.dropped,
         })
-    }
-
-    fn file_error(&self, reason: String) -> FileError {
-        match &self.record {
-            Some((_, path)) => FileError::at(path, reason),
-            None => FileError::at(Path::new("--view"), reason),
-        }
     }
 }
 
@@ -223,7 +220,7 @@ impl Sink for View {
     fn wants_map(&self) -> bool {
         true
     }
-    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault> {
         if event.map.is_some() {
             if let Some(q) = &mut self.queue {
                 return q.frame(event);
@@ -231,13 +228,13 @@ impl Sink for View {
         }
         Ok(())
     }
-    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         let view = View {
             queue: self.queue.take(),
             address: self.address.take(),
             record: self.record.take(),
         };
-        let stats = view.finish().map_err(|e| e.to_string())?;
+        let stats = view.finish()?;
         Ok(Some(format!(
             "{} frames shown or recorded, {} dropped (the view was behind)",
             stats.sent, stats.dropped
@@ -387,13 +384,13 @@ impl Sink for Publisher {
     fn wants_map(&self) -> bool {
         true
     }
-    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault> {
         if let Some(u) = &event.map {
             self.publish(u, event.pose.as_ref());
         }
         Ok(())
     }
-    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         if let Some((time, nanos)) = self.last {
             let poses = poses_in_frame(&self.poses, time);
             self.trajectory.log_with_time(&poses, nanos);

@@ -30,7 +30,7 @@ use crate::ros2::occupancy::LiveMap;
 use crate::ros2::path::BoundedPath;
 use crate::ros2::settings::Frames;
 use crate::run::memory;
-use crate::run::sink::{FrameEvent, MapUpdate, Sink};
+use crate::run::sink::{FrameEvent, MapUpdate, Sink, SinkFault};
 use crate::run::Summary;
 use nalgebra::Matrix6;
 use ros2_client::Publisher;
@@ -128,6 +128,13 @@ impl std::fmt::Display for PublishError {
 }
 
 impl std::error::Error for PublishError {}
+
+/// A topic the node could not publish on stops its sink (the run goes on).
+impl From<PublishError> for SinkFault {
+    fn from(e: PublishError) -> Self {
+        SinkFault::Failed(e.to_string())
+    }
+}
 
 impl From<PublishError> for String {
     fn from(e: PublishError) -> String {
@@ -528,7 +535,7 @@ impl Sink for Ros2Sink {
         self.tiles.is_some()
     }
 
-    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault> {
         let e = &*event;
         if let Some(lidar) = e.pose {
             self.used += 1;
@@ -554,7 +561,7 @@ impl Sink for Ros2Sink {
         Ok(self.publish_diagnostics(e.record.stamp, false)?)
     }
 
-    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         let stamp = self.path.msg().header.stamp.seconds();
         self.publish_mesh(None, true)?;
         self.publish_map(None, true);

@@ -21,7 +21,7 @@ use crate::io::atomic::{open_cut, write_atomic};
 use crate::io::error::FileError;
 use crate::run::options::RunOptions;
 use crate::run::report::{FrameRecord, Health, OutcomeCost, Summary};
-use crate::run::sink::{FrameEvent, Sink};
+use crate::run::sink::{FrameEvent, Sink, SinkFault};
 use serde::Serialize;
 use slamesh_core::Pose;
 use std::fs::File;
@@ -114,19 +114,19 @@ impl Sink for ReportFile {
         "report".into()
     }
 
-    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
-        self.add(&event.record).map_err(|e| e.to_string())
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault> {
+        self.add(&event.record).map_err(SinkFault::from)
     }
 
     /// With the summary, writes `report.json`; without one, keeps the spool for a resumed run.
-    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         let done = match summary {
             Some(s) => self
                 .write(s)
                 .map(|()| Some(format!("{}", self.report.display()))),
             None => self.mark().map(|_| None),
         };
-        done.map_err(|e| e.to_string())
+        done.map_err(SinkFault::from)
     }
 }
 
@@ -268,13 +268,13 @@ impl Sink for Trajectories {
         "trajectories".into()
     }
 
-    fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), SinkFault> {
         Ok(())
     }
 
-    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         let Some(s) = summary else { return Ok(None) };
-        self.write(s).map_err(|e| e.to_string())?;
+        self.write(s)?;
         Ok((!s.poses.is_empty()).then(|| format!("{}", self.out.join("poses_tum.txt").display())))
     }
 }

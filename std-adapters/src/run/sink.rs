@@ -14,6 +14,7 @@
 //! Guarantees: events reach a sink in frame order; [`Sink::finish`] is called once, after the
 //! last event, and a queued sink has been given every event it did not drop by then.
 
+use crate::io::FileError;
 use crate::run::report::{FrameRecord, Summary};
 use crate::sources::Sample;
 use slamesh_core::cell::{Axis, CellKey};
@@ -137,7 +138,47 @@ pub struct SinkError {
     /// The sink's name.
     pub sink: String,
     /// What went wrong.
-    pub reason: String,
+    pub reason: SinkFault,
+}
+
+/// What went wrong in a sink.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SinkFault {
+    /// A file it writes could not be written.
+    File(FileError),
+    /// Its thread stopped before the run's end (it ended early or panicked): why.
+    Stopped(String),
+    /// Its own reason (a viewer's server, a topic's writer): in words.
+    Failed(String),
+}
+
+impl fmt::Display for SinkFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SinkFault::File(e) => e.fmt(f),
+            SinkFault::Stopped(why) | SinkFault::Failed(why) => f.write_str(why),
+        }
+    }
+}
+
+impl std::error::Error for SinkFault {}
+
+impl From<FileError> for SinkFault {
+    fn from(e: FileError) -> Self {
+        SinkFault::File(e)
+    }
+}
+
+impl From<String> for SinkFault {
+    fn from(why: String) -> Self {
+        SinkFault::Failed(why)
+    }
+}
+
+impl From<&str> for SinkFault {
+    fn from(why: &str) -> Self {
+        SinkFault::Failed(why.to_string())
+    }
 }
 
 impl fmt::Display for SinkError {
@@ -160,11 +201,11 @@ pub trait Sink {
     }
 
     /// One frame, in frame order.
-    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String>;
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault>;
 
     /// The run is over (with its summary when it finished; `None` when the sink is closed
     /// without one): write what is left. Returns a line saying what it did, if any.
-    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         let _ = summary;
         Ok(None)
     }
@@ -187,7 +228,7 @@ impl<F: FnMut(&FrameEvent)> Sink for FnSink<F> {
     fn name(&self) -> String {
         self.name.to_string()
     }
-    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault> {
         (self.f)(&event);
         Ok(())
     }
@@ -212,7 +253,7 @@ pub struct QueueStats {
     pub dropped: usize,
 }
 
-type Finished = (usize, Result<Option<String>, String>);
+type Finished = (usize, Result<Option<String>, SinkFault>);
 
 /// What goes through a [`Queued`] sink's queue.
 enum Message {
@@ -231,7 +272,7 @@ pub struct Queued {
     thread: Option<JoinHandle<Finished>>,
     dropped: usize,
     /// The first error the sink returned: it gets no more events after it.
-    failed: Option<String>,
+    failed: Option<SinkFault>,
 }
 
 impl Queued {
@@ -273,18 +314,18 @@ impl Queued {
 
     /// Closes the queue, waits for the sink to take what is in it and finish, and says what
     /// it did.
-    pub fn end(mut self) -> (QueueStats, Result<Option<String>, String>) {
+    pub fn end(mut self) -> (QueueStats, Result<Option<String>, SinkFault>) {
         let failed = self.failed.take();
         let (stats, result) = self.close();
         (stats, failed.map_or(result, Err))
     }
 
     /// Closes the queue and waits for the sink to take what is in it and finish.
-    fn close(&mut self) -> (QueueStats, Result<Option<String>, String>) {
+    fn close(&mut self) -> (QueueStats, Result<Option<String>, SinkFault>) {
         self.tx = None;
         let (delivered, result) = match self.thread.take().map(JoinHandle::join) {
             Some(Ok(done)) => done,
-            Some(Err(_)) => (0, Err("its thread panicked".to_string())),
+            Some(Err(_)) => (0, Err(SinkFault::Stopped("its thread panicked".into()))),
             None => (0, Ok(None)),
         };
         let stats = QueueStats {
@@ -302,7 +343,7 @@ impl Sink for Queued {
     fn wants_map(&self) -> bool {
         self.wants_map
     }
-    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+    fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault> {
         let Some(tx) = &self.tx else {
             return Ok(());
         };
@@ -321,13 +362,13 @@ impl Sink for Queued {
         if sent.is_err() {
             // The sink's thread ended early: its error comes with `finish`.
             let (_, result) = self.close();
-            let reason = result.err().unwrap_or_else(|| "it stopped".to_string());
+            let reason = (result.err()).unwrap_or_else(|| SinkFault::Stopped("it stopped".into()));
             self.failed = Some(reason.clone());
             return Err(reason);
         }
         Ok(())
     }
-    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, String> {
+    fn finish(&mut self, summary: Option<&Summary>) -> Result<Option<String>, SinkFault> {
         if let Some(e) = self.failed.take() {
             return Err(e);
         }
@@ -446,12 +487,12 @@ mod tests {
         fn name(&self) -> String {
             "sleepy".into()
         }
-        fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), String> {
+        fn frame(&mut self, event: Arc<FrameEvent>) -> Result<(), SinkFault> {
             std::thread::sleep(Duration::from_millis(self.ms));
             self.seen.lock().unwrap().push(event.record.frame);
             Ok(())
         }
-        fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, String> {
+        fn finish(&mut self, _: Option<&Summary>) -> Result<Option<String>, SinkFault> {
             Ok(Some(format!("saw {}", self.seen.lock().unwrap().len())))
         }
     }
@@ -512,7 +553,7 @@ mod tests {
         fn name(&self) -> String {
             "failing".into()
         }
-        fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), String> {
+        fn frame(&mut self, _: Arc<FrameEvent>) -> Result<(), SinkFault> {
             self.0 += 1;
             if self.0 == 3 {
                 return Err("disk full".into());
