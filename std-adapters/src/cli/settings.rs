@@ -28,7 +28,7 @@ impl Profile {
         let name = self.preset.as_deref().unwrap_or(default_preset);
         config_file::preset_settings(name).map_err(|reason| CliError::BadFlag {
             flag: "--preset",
-            reason,
+            reason: reason.to_string(),
         })
     }
 }

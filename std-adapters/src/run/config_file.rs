@@ -17,6 +17,7 @@
 
 use crate::inertial::{AccelUnit, ImuOptions};
 use crate::io::error::FileError;
+use crate::run::config_error::{BadValue, ConfigError};
 use crate::run::window::Window;
 use slamesh_core::Config;
 use std::fmt::Write as _;
@@ -68,8 +69,11 @@ pub fn preset(name: &str) -> Option<Config> {
 
 /// The settings of preset `name` (its configuration, no window); a name not in [`PRESETS`]
 /// is refused with the list.
-pub fn preset_settings(name: &str) -> Result<Settings, String> {
-    let unknown = || format!("{name:?} is not one of {}", PRESETS.join(", "));
+pub fn preset_settings(name: &str) -> Result<Settings, ConfigError> {
+    let unknown = || ConfigError::UnknownPreset {
+        name: name.to_string(),
+        known: &PRESETS,
+    };
     let preset = PRESETS
         .into_iter()
         .find(|p| *p == name)
@@ -99,27 +103,34 @@ pub struct Parameter {
     /// What it does.
     pub doc: &'static str,
     get: fn(&Config) -> Value,
-    set: fn(&mut Config, &Value) -> Result<(), String>,
+    set: fn(&mut Config, &Value) -> Result<(), BadValue>,
 }
 
-fn float(v: &Value) -> Result<f64, String> {
+/// `v` is not `what`: the type it is instead.
+fn expected(what: &'static str, v: &Value) -> BadValue {
+    BadValue::Expected {
+        what,
+        found: v.type_str().to_string(),
+    }
+}
+
+fn float(v: &Value) -> Result<f64, BadValue> {
     match v {
         Value::Float(f) => Ok(*f),
         Value::Integer(i) => Ok(*i as f64),
-        _ => Err(format!("expected a number, found {}", v.type_str())),
+        _ => Err(expected("a number", v)),
     }
 }
 
-fn count<T: TryFrom<i64>>(v: &Value) -> Result<T, String> {
+fn count<T: TryFrom<i64>>(v: &Value) -> Result<T, BadValue> {
     match v {
-        Value::Integer(i) => T::try_from(*i).map_err(|_| format!("{i} is out of range")),
-        _ => Err(format!("expected a whole number, found {}", v.type_str())),
+        Value::Integer(i) => T::try_from(*i).map_err(|_| BadValue::OutOfRange(*i)),
+        _ => Err(expected("a whole number", v)),
     }
 }
 
-fn boolean(v: &Value) -> Result<bool, String> {
-    v.as_bool()
-        .ok_or_else(|| format!("expected true or false, found {}", v.type_str()))
+fn boolean(v: &Value) -> Result<bool, BadValue> {
+    v.as_bool().ok_or_else(|| expected("true or false", v))
 }
 
 macro_rules! parameters {
@@ -261,19 +272,32 @@ const WINDOW_DOCS: [(&str, &str); 4] = [
 /// Reads a configuration file.
 pub fn read(path: &Path) -> Result<Settings, FileError> {
     let text = std::fs::read_to_string(path).map_err(|e| FileError::at(path, e.to_string()))?;
-    parse(&text).map_err(|reason| FileError::at(path, reason))
+    parse(&text).map_err(|e| FileError::at(path, e.to_string()))
 }
 
 /// Parses configuration text (see the module docs).
-pub fn parse(text: &str) -> Result<Settings, String> {
-    let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
+pub fn parse(text: &str) -> Result<Settings, ConfigError> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| ConfigError::Toml(e.to_string()))?;
     let preset_name = match table.get("preset") {
         None => "default",
-        Some(Value::String(s)) => PRESETS
-            .into_iter()
-            .find(|p| p == s)
-            .ok_or_else(|| format!("preset {s:?} is not one of {}", PRESETS.join(", ")))?,
-        Some(v) => return Err(format!("preset: expected a name, found {}", v.type_str())),
+        Some(Value::String(s)) => {
+            PRESETS
+                .into_iter()
+                .find(|p| p == s)
+                .ok_or_else(|| ConfigError::Value {
+                    at: "preset".into(),
+                    why: BadValue::OneOf {
+                        choices: PRESETS.join(", "),
+                        found: format!("{s:?}"),
+                    },
+                })?
+        }
+        Some(v) => {
+            return Err(ConfigError::Value {
+                at: "preset".into(),
+                why: expected("a name", v),
+            })
+        }
     };
     let mut config = preset(preset_name).unwrap_or_default();
     let mut window = WindowSettings::default();
@@ -284,12 +308,13 @@ pub fn parse(text: &str) -> Result<Settings, String> {
             ("window", Value::Table(t)) => window = read_window(t)?,
             ("imu", Value::Table(t)) => imu = read_imu(t)?,
             (section, Value::Table(t)) => set_section(&mut config, section, t)?,
-            _ => return Err(format!("{key}: unknown top-level key")),
+            _ => return Err(unknown(key.clone(), "top-level key", Vec::new())),
         }
     }
-    config
-        .validate()
-        .map_err(|e| format!("{}: {}", e.field, e.reason))?;
+    config.validate().map_err(|e| ConfigError::Invalid {
+        field: e.field.to_string(),
+        reason: e.reason.to_string(),
+    })?;
     let given = |section: &str, name: &str| {
         table
             .get(section)
@@ -308,7 +333,12 @@ pub fn parse(text: &str) -> Result<Settings, String> {
     })
 }
 
-fn set_section(config: &mut Config, section: &str, t: &toml::Table) -> Result<(), String> {
+/// A key not known at `at`, taken for a `kind`, beside the `known` ones.
+fn unknown(at: String, kind: &'static str, known: Vec<&'static str>) -> ConfigError {
+    ConfigError::Unknown { at, kind, known }
+}
+
+fn set_section(config: &mut Config, section: &str, t: &toml::Table) -> Result<(), ConfigError> {
     for (name, v) in t {
         if let Value::Table(inner) = v {
             set_section(config, &format!("{section}.{name}"), inner)?;
@@ -323,35 +353,34 @@ fn set_section(config: &mut Config, section: &str, t: &toml::Table) -> Result<()
                     .filter(|p| p.section == section)
                     .map(|p| p.name)
                     .collect();
-                if known.is_empty() {
-                    format!("[{section}]: unknown section")
-                } else {
-                    format!(
-                        "[{section}] {name}: unknown parameter (known: {})",
-                        known.join(", ")
-                    )
+                match known.is_empty() {
+                    true => unknown(format!("[{section}]"), "section", known),
+                    false => unknown(format!("[{section}] {name}"), "parameter", known),
                 }
             })?;
-        (p.set)(config, v).map_err(|e| format!("[{section}] {name}: {e}"))?;
+        (p.set)(config, v).map_err(|why| ConfigError::Value {
+            at: format!("[{section}] {name}"),
+            why,
+        })?;
     }
     Ok(())
 }
 
-fn read_window(t: &toml::Table) -> Result<WindowSettings, String> {
+fn read_window(t: &toml::Table) -> Result<WindowSettings, ConfigError> {
     let mut w = WindowSettings::default();
     for (name, v) in t {
-        let e = |m: String| format!("[window] {name}: {m}");
+        let e = |why| ConfigError::Value {
+            at: format!("[window] {name}"),
+            why,
+        };
         match name.as_str() {
             "max_age_frames" => w.max_age_frames = Some(count(v).map_err(e)?),
             "radius_m" => w.radius_m = Some(positive(v).map_err(e)?),
             "memory_cap_mb" => w.memory_cap_mb = Some(positive(v).map_err(e)?),
             "save_evicted" => w.save_evicted = boolean(v).map_err(e)?,
             _ => {
-                let known: Vec<&str> = WINDOW_DOCS.iter().map(|d| d.0).collect();
-                return Err(format!(
-                    "[window] {name}: unknown parameter (known: {})",
-                    known.join(", ")
-                ));
+                let known = WINDOW_DOCS.iter().map(|d| d.0).collect();
+                return Err(unknown(format!("[window] {name}"), "parameter", known));
             }
         }
     }
@@ -401,12 +430,15 @@ const IMU_DOCS: [(&str, &str, &str); 8] = [
     ),
 ];
 
-fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
+fn read_imu(t: &toml::Table) -> Result<ImuOptions, ConfigError> {
     let mut o = ImuOptions::default();
     let c = &mut o.calibration;
     let (mut translation, mut rpy) = ([0.0; 3], [0.0; 3]);
     for (name, v) in t {
-        let e = |m: String| format!("[imu] {name}: {m}");
+        let e = |why| ConfigError::Value {
+            at: format!("[imu] {name}"),
+            why,
+        };
         match name.as_str() {
             "translation_m" => {
                 translation = triple(v).map_err(e)?;
@@ -424,7 +456,12 @@ fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
                 c.gyro_unit_rad_s = match v.as_str() {
                     Some("rad/s") => 1.0,
                     Some("deg/s") => 1f64.to_radians(),
-                    _ => return Err(e(format!("\"rad/s\" or \"deg/s\", found {v}"))),
+                    _ => {
+                        return Err(e(BadValue::OneOf {
+                            choices: "\"rad/s\", \"deg/s\"".into(),
+                            found: v.to_string(),
+                        }))
+                    }
                 }
             }
             "accel_unit" => {
@@ -432,15 +469,17 @@ fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
                     Some("auto") => AccelUnit::Auto,
                     Some("m/s2") => AccelUnit::MetresPerSecondSquared,
                     Some("g") => AccelUnit::G,
-                    _ => return Err(e(format!("\"m/s2\", \"g\" or \"auto\", found {v}"))),
+                    _ => {
+                        return Err(e(BadValue::OneOf {
+                            choices: "\"m/s2\", \"g\", \"auto\"".into(),
+                            found: v.to_string(),
+                        }))
+                    }
                 }
             }
             _ => {
-                let known: Vec<&str> = IMU_DOCS.iter().map(|d| d.0).collect();
-                return Err(format!(
-                    "[imu] {name}: unknown parameter (known: {})",
-                    known.join(", ")
-                ));
+                let known = IMU_DOCS.iter().map(|d| d.0).collect();
+                return Err(unknown(format!("[imu] {name}"), "parameter", known));
             }
         }
     }
@@ -452,26 +491,27 @@ fn read_imu(t: &toml::Table) -> Result<ImuOptions, String> {
     Ok(o)
 }
 
-fn finite(v: &Value) -> Result<f64, String> {
+fn finite(v: &Value) -> Result<f64, BadValue> {
     let x = float(v)?;
-    x.is_finite()
-        .then_some(x)
-        .ok_or_else(|| format!("must be a finite number, found {x}"))
+    x.is_finite().then_some(x).ok_or(BadValue::NotFinite(x))
 }
 
-fn triple(v: &Value) -> Result<[f64; 3], String> {
+fn triple(v: &Value) -> Result<[f64; 3], BadValue> {
     let Some([a, b, c]) = v.as_array().map(Vec::as_slice) else {
-        return Err(format!("expected three numbers, found {v}"));
+        return Err(BadValue::Expected {
+            what: "three numbers",
+            found: v.to_string(),
+        });
     };
     Ok([finite(a)?, finite(b)?, finite(c)?])
 }
 
-fn positive(v: &Value) -> Result<f64, String> {
+fn positive(v: &Value) -> Result<f64, BadValue> {
     let x = float(v)?;
     if x > 0.0 && x.is_finite() {
         Ok(x)
     } else {
-        Err(format!("must be a positive number, found {x}"))
+        Err(BadValue::NotPositive(x))
     }
 }
 
@@ -628,10 +668,10 @@ mod tests {
             ),
             (
                 "[imu]\naccel_unit = \"ft/s2\"\n",
-                "[imu] accel_unit: \"m/s2\", \"g\" or \"auto\", found \"ft/s2\"",
+                "[imu] accel_unit: \"ft/s2\" is not one of \"m/s2\", \"g\", \"auto\"",
             ),
         ] {
-            let e = parse(text).unwrap_err();
+            let e = parse(text).unwrap_err().to_string();
             assert!(e.starts_with(want), "{text}: {e}");
         }
         // `slamesh config`'s section reads back as the defaults.
@@ -652,7 +692,7 @@ mod tests {
             ),
             ("[grid]\nfull_cover = 1\n", "expected true or false"),
             ("[gird]\nx = 1\n", "[gird]: unknown section"),
-            ("preset = \"rapid\"\n", "preset \"rapid\" is not one of"),
+            ("preset = \"rapid\"\n", "preset: \"rapid\" is not one of"),
             ("[grid]\ncell_size_m = -1.6\n", "cell_size_m"),
             (
                 "[window]\nradius_m = 0\n",
@@ -661,8 +701,26 @@ mod tests {
             ("[grid\n", "line 1"),
         ];
         for (text, want) in cases {
-            let e = parse(text).unwrap_err();
+            let e = parse(text).unwrap_err().to_string();
             assert!(e.contains(want), "{text:?}: {e}");
         }
+        // Told apart by kind, not by words.
+        let section = parse("[gird]\nx = 1\n").unwrap_err();
+        assert!(matches!(
+            section,
+            ConfigError::Unknown {
+                kind: "section",
+                ..
+            }
+        ));
+        let range = parse("[grid]\nmin_points = -3\n").unwrap_err();
+        assert!(matches!(
+            range,
+            ConfigError::Value {
+                why: BadValue::OutOfRange(-3),
+                ..
+            }
+        ));
+        assert!(matches!(parse("[grid\n"), Err(ConfigError::Toml(_))));
     }
 }

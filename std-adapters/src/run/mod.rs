@@ -4,6 +4,7 @@
 //! | what | module |
 //! |---|---|
 //! | configuration files: presets, parameters, the window's settings | [`config_file`] |
+//! | why a configuration or one of its values was refused | [`config_error`] |
 //! | the capacity classes and how to choose one | [`capacity`] |
 //! | the run loop: start or resume, a step per frame | [`session`] |
 //! | the run's end: the map file, the stages' files, the mesh, the summary, the report | `finish` |
@@ -26,6 +27,7 @@
 pub mod budget;
 pub mod capacity;
 pub mod checkpoint;
+pub mod config_error;
 pub mod config_file;
 mod event;
 pub mod files;
