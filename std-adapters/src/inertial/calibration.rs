@@ -7,7 +7,7 @@
 //! verdict a run: given when the window has passed, or earlier when asked (the IMU is being set
 //! aside, the run ends), and not repeated.
 
-use crate::io::le::{put_f64, put_option, put_u64, Decoder};
+use crate::io::le::{put_f64, put_option, put_u64, Damaged, Decoder};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use slamesh_core::math::{best_rotation, svd3};
 
@@ -111,7 +111,7 @@ impl CalibrationCheck {
     }
 
     /// What [`put`](Self::put) wrote, for the IMU turned `configured` on the LiDAR.
-    pub(super) fn read(d: &mut Decoder, configured: UnitQuaternion<f64>) -> Result<Self, String> {
+    pub(super) fn read(d: &mut Decoder, configured: UnitQuaternion<f64>) -> Result<Self, Damaged> {
         let mut h = Matrix3::zeros();
         for v in h.iter_mut() {
             *v = d.f64()?;

@@ -8,7 +8,7 @@
 //! the window not registered, readings that did not cover an interval, a result not
 //! gravity's size). The map keeps its frame; the navigation map takes up from here.
 
-use crate::io::le::{put_f64, put_u64, put_vec3, Decoder};
+use crate::io::le::{put_f64, put_u64, put_vec3, Damaged, Decoder};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use slamesh_core::gravity::up_from_motion;
@@ -59,7 +59,7 @@ impl FirstSeconds {
     }
 
     /// What [`put`](Self::put) wrote.
-    pub(super) fn read(d: &mut Decoder) -> Result<Self, String> {
+    pub(super) fn read(d: &mut Decoder) -> Result<Self, Damaged> {
         Ok(Self {
             force: d.vec3()?,
             readings: d.usize()?,

@@ -17,7 +17,7 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::error::FileError;
-use crate::io::le::{put_f64, put_pose, put_str, put_u32, put_u64, Decoder};
+use crate::io::le::{put_f64, put_pose, put_str, put_u32, put_u64, Damaged, Decoder};
 use crate::outputs::mesh_spool::MeshCounts;
 use crate::run::timing::StageMs;
 use slamesh_core::cell::{Axis, CellKey};
@@ -157,26 +157,24 @@ pub fn read(file: &Path, map: &mut MeshMap) -> Result<Progress, FileError> {
 }
 
 /// [`read`]'s work on the file's bytes: the progress, the map into `map`, or why not.
-pub fn parse(bytes: &[u8], map: &mut MeshMap) -> Result<Progress, String> {
+pub fn parse(bytes: &[u8], map: &mut MeshMap) -> Result<Progress, Damaged> {
     let mut d = Decoder { bytes };
     let progress = read_progress(&mut d)?;
     read_map(&mut d, map)?;
     if !d.bytes.is_empty() {
-        return Err(format!("{} bytes after the map", d.bytes.len()));
+        return Err(format!("{} bytes after the map", d.bytes.len()).into());
     }
     Ok(progress)
 }
 
 /// The run's progress: the signature and version, then everything before the map.
-fn read_progress(d: &mut Decoder) -> Result<Progress, String> {
+fn read_progress(d: &mut Decoder) -> Result<Progress, Damaged> {
     if d.take(MAGIC.len())? != MAGIC {
         return Err("it does not start with the checkpoint signature".into());
     }
     let version = d.u32()?;
     if version != VERSION {
-        return Err(format!(
-            "format version {version}, this program reads {VERSION}"
-        ));
+        return Err(format!("format version {version}, this program reads {VERSION}").into());
     }
     let fingerprint = d.string()?;
     let next_frame = d.u64()? as usize;
@@ -230,7 +228,7 @@ fn read_progress(d: &mut Decoder) -> Result<Progress, String> {
 }
 
 /// The map's cells and layers, into `map`.
-fn read_map(d: &mut Decoder, map: &mut MeshMap) -> Result<(), String> {
+fn read_map(d: &mut Decoder, map: &mut MeshMap) -> Result<(), Damaged> {
     let cells = d.count(17)?;
     for _ in 0..cells {
         let key = CellKey::new(d.i32()?, d.i32()?, d.i32()?);
@@ -241,12 +239,12 @@ fn read_map(d: &mut Decoder, map: &mut MeshMap) -> Result<(), String> {
                 0 => Axis::X,
                 1 => Axis::Y,
                 2 => Axis::Z,
-                a => return Err(format!("axis {a}")),
+                a => return Err(format!("axis {a}").into()),
             };
             let mut layer = Layer::UNKNOWN;
             layer.facing = match d.u8()? {
                 f @ 0..=3 => Facing::from_bits(f),
-                f => return Err(format!("facing {f}")),
+                f => return Err(format!("facing {f}").into()),
             };
             for v in layer.pred.iter_mut().chain(layer.var.iter_mut()) {
                 *v = f32::from_le_bytes(d.array()?);
