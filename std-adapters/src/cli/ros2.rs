@@ -251,8 +251,9 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
 
 /// Runs the node until it is stopped.
 pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
-    let ros = RosArgs::parse(&args.ros_args).map_err(node_error)?;
-    let mut node_settings = NodeSettings::from_process(&ros).map_err(node_error)?;
+    let ros = RosArgs::parse(&args.ros_args).map_err(|e| node_error(e.to_string()))?;
+    let mut node_settings =
+        NodeSettings::from_process(&ros).map_err(|e| node_error(e.to_string()))?;
     let args = with_parameters(args, &mut node_settings)?;
     let mut s = match &args.map {
         Some(map) if args.profile.preset.is_none() && args.profile.config.is_none() => {

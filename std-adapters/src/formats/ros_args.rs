@@ -16,9 +16,10 @@
 //!
 //! Errors are sentences naming the argument or file and the reason.
 
+use crate::io::error::FileError;
 use std::collections::BTreeMap;
-use std::path::Path;
 use yaml_rust2::{Yaml, YamlLoader};
+use RosArgsError::{Argument, ParamsFile};
 
 /// A parameter's value.
 #[derive(Debug, Clone, PartialEq)]
@@ -102,6 +103,28 @@ pub struct RosArgs {
     pub params_files: Vec<std::path::PathBuf>,
 }
 
+/// Why ROS arguments, or a parameter file they name, could not be read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum RosArgsError {
+    /// An argument after `--ros-args`: what is wrong with it.
+    Argument(String),
+    /// A parameter file (`--params-file`) that could not be read, or whose text is wrong.
+    File(FileError),
+    /// A parameter file's text: what is wrong with it.
+    ParamsFile(String),
+}
+
+impl std::fmt::Display for RosArgsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RosArgsError::Argument(why) | RosArgsError::ParamsFile(why) => f.write_str(why),
+            RosArgsError::File(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for RosArgsError {}
+
 /// Most arguments a command line may hold: a longer one is refused, not parsed.
 const MAX_ARGS: usize = 4096;
 /// Nesting depth of a parameter file's maps, at most.
@@ -110,9 +133,12 @@ const MAX_DEPTH: usize = 16;
 impl RosArgs {
     /// Reads `args`, the command line after the program's own arguments. Arguments outside a
     /// `--ros-args` section are an error (they belong to the program).
-    pub fn parse(args: &[String]) -> Result<Self, String> {
+    pub fn parse(args: &[String]) -> Result<Self, RosArgsError> {
         if args.len() > MAX_ARGS {
-            return Err(format!("{} arguments, more than {MAX_ARGS}", args.len()));
+            return Err(Argument(format!(
+                "{} arguments, more than {MAX_ARGS}",
+                args.len()
+            )));
         }
         let mut out = RosArgs::default();
         let mut inside = false;
@@ -121,13 +147,15 @@ impl RosArgs {
             let mut value = |flag: &str| {
                 it.next()
                     .cloned()
-                    .ok_or_else(|| format!("{flag} needs a value"))
+                    .ok_or_else(|| Argument(format!("{flag} needs a value")))
             };
             match a.as_str() {
                 "--ros-args" => inside = true,
                 "--" => inside = false,
                 _ if !inside => {
-                    return Err(format!("{a:?} is not a ROS argument (after --ros-args)"))
+                    return Err(Argument(format!(
+                        "{a:?} is not a ROS argument (after --ros-args)"
+                    )))
                 }
                 "-r" | "--remap" => out.remap(&value(a)?)?,
                 "-p" | "--param" => {
@@ -143,13 +171,13 @@ impl RosArgs {
                 }
                 s if s.starts_with("--enable-") || s.starts_with("--disable-") => {}
                 s if s.starts_with("__") => out.remap(s)?,
-                other => return Err(format!("unknown ROS argument {other:?}")),
+                other => return Err(Argument(format!("unknown ROS argument {other:?}"))),
             }
         }
         Ok(out)
     }
 
-    fn remap(&mut self, rule: &str) -> Result<(), String> {
+    fn remap(&mut self, rule: &str) -> Result<(), RosArgsError> {
         let (from, to) = split_rule(rule)?;
         match from.as_str() {
             "__ns" => self.namespace = Some(to),
@@ -170,13 +198,17 @@ impl RosArgs {
 
     /// Every parameter for the node `fqn` (`/ns/name`): the files' in order, then `-p`. Reads
     /// the files.
-    pub fn parameters(&self, fqn: &str) -> Result<BTreeMap<String, ParamValue>, String> {
+    pub fn parameters(&self, fqn: &str) -> Result<BTreeMap<String, ParamValue>, RosArgsError> {
         let mut all = BTreeMap::new();
         for f in &self.params_files {
-            let text = std::fs::read_to_string(f)
-                .map_err(|e| format!("{}: cannot read the parameter file: {e}", f.display()))?;
+            let text = std::fs::read_to_string(f).map_err(|e| {
+                RosArgsError::File(FileError::at(
+                    f,
+                    format!("cannot read the parameter file: {e}"),
+                ))
+            })?;
             let found = parse_params_file(&text, fqn)
-                .map_err(|e| format!("{}: {e}", Path::new(f).display()))?;
+                .map_err(|e| RosArgsError::File(FileError::at(f, e.to_string())))?;
             all.extend(found);
         }
         all.extend(self.params.iter().cloned());
@@ -185,10 +217,10 @@ impl RosArgs {
 }
 
 /// `FROM:=TO`, each side non-empty.
-fn split_rule(rule: &str) -> Result<(String, String), String> {
+fn split_rule(rule: &str) -> Result<(String, String), RosArgsError> {
     match rule.split_once(":=") {
         Some((a, b)) if !a.is_empty() && !b.is_empty() => Ok((a.to_string(), b.to_string())),
-        _ => Err(format!("{rule:?} is not NAME:=VALUE")),
+        _ => Err(Argument(format!("{rule:?} is not NAME:=VALUE"))),
     }
 }
 
@@ -202,23 +234,29 @@ fn parse_value(text: &str) -> ParamValue {
 
 /// The parameters a parameter file's `text` gives the node `fqn` (`/ns/name`), in the order
 /// of its node entries.
-pub fn parse_params_file(text: &str, fqn: &str) -> Result<BTreeMap<String, ParamValue>, String> {
-    let docs = YamlLoader::load_from_str(text).map_err(|e| format!("not YAML ({e})"))?;
+pub fn parse_params_file(
+    text: &str,
+    fqn: &str,
+) -> Result<BTreeMap<String, ParamValue>, RosArgsError> {
+    let docs =
+        YamlLoader::load_from_str(text).map_err(|e| ParamsFile(format!("not YAML ({e})")))?;
     let mut out = BTreeMap::new();
     let Some(doc) = docs.first() else {
         return Ok(out);
     };
-    let nodes = doc.as_hash().ok_or("not a map of node names")?;
+    let nodes = doc
+        .as_hash()
+        .ok_or_else(|| ParamsFile("not a map of node names".into()))?;
     for (name, body) in nodes {
-        let name = name.as_str().ok_or("a node name is not text")?;
+        let name = (name.as_str()).ok_or_else(|| ParamsFile("a node name is not text".into()))?;
         if !name_matches(name, fqn) {
             continue;
         }
         let params = &body["ros__parameters"];
         if params.is_badvalue() {
-            return Err(format!("{name}: no ros__parameters"));
+            return Err(ParamsFile(format!("{name}: no ros__parameters")));
         }
-        flatten(params, "", 0, &mut out).map_err(|e| format!("{name}: {e}"))?;
+        flatten(params, "", 0, &mut out).map_err(|e| ParamsFile(format!("{name}: {e}")))?;
     }
     Ok(out)
 }
@@ -228,17 +266,17 @@ fn flatten(
     prefix: &str,
     depth: usize,
     out: &mut BTreeMap<String, ParamValue>,
-) -> Result<(), String> {
+) -> Result<(), RosArgsError> {
     if depth > MAX_DEPTH {
-        return Err(format!("maps nested deeper than {MAX_DEPTH}"));
+        return Err(ParamsFile(format!("maps nested deeper than {MAX_DEPTH}")));
     }
-    let map = y.as_hash().ok_or("ros__parameters is not a map")?;
+    let map = (y.as_hash()).ok_or_else(|| ParamsFile("ros__parameters is not a map".into()))?;
     for (k, v) in map {
         let key = match k {
             Yaml::String(s) => s.clone(),
             other => ParamValue::from_yaml(other)
                 .map(|p| p.as_text())
-                .ok_or("a parameter name is not text")?,
+                .ok_or_else(|| ParamsFile("a parameter name is not text".into()))?,
         };
         let name = if prefix.is_empty() {
             key
@@ -250,7 +288,9 @@ fn flatten(
         } else if let Some(value) = ParamValue::from_yaml(v) {
             out.insert(name, value);
         } else {
-            return Err(format!("{name}: not a value a parameter can hold"));
+            return Err(ParamsFile(format!(
+                "{name}: not a value a parameter can hold"
+            )));
         }
     }
     Ok(())

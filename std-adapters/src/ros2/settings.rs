@@ -18,7 +18,7 @@
 //! Environment: `ROS_DOMAIN_ID` (0 to 232), `ROS_AUTOMATIC_DISCOVERY_RANGE` (`LOCALHOST` or
 //! `OFF`: this machine only) and the older `ROS_LOCALHOST_ONLY=1`.
 
-use crate::formats::ros_args::{ParamValue, RosArgs};
+use crate::formats::ros_args::{ParamValue, RosArgs, RosArgsError};
 use slamesh_core::Pose;
 use std::collections::BTreeMap;
 
@@ -119,13 +119,13 @@ pub type Env<'a> = &'a dyn Fn(&str) -> Option<String>;
 impl NodeSettings {
     /// From the command line's ROS arguments and the environment (`env`, the process's by
     /// [`NodeSettings::from_process`]). Errors name the argument, parameter or variable.
-    pub fn new(args: &RosArgs, env: Env) -> Result<Self, String> {
+    pub fn new(args: &RosArgs, env: Env) -> Result<Self, SettingsError> {
         let namespace = match args.namespace.as_deref() {
             None | Some("/") => "/".to_string(),
             Some(ns) => format!("/{}", ns.trim_matches('/')),
         };
         let name = args.node.clone().unwrap_or_else(|| NODE_NAME.into());
-        check_name(&name).map_err(|e| format!("__node: {e}"))?;
+        check_name(&name)?;
         let fqn = join(&namespace, &name);
         let mut params = args.parameters(&fqn)?;
         let mut take = |k: &str| params.remove(k);
@@ -134,10 +134,11 @@ impl NodeSettings {
         let flag = |k: &str, v: Option<ParamValue>, default: bool| match v {
             None => Ok(default),
             Some(ParamValue::Bool(b)) => Ok(b),
-            Some(other) => Err(format!(
-                "parameter {k}: {} is not true or false",
-                other.as_text()
-            )),
+            Some(other) => Err(BadParameter {
+                name: k.into(),
+                given: Some(other.as_text()),
+                must_be: "true or false".into(),
+            }),
         };
         let frames = Frames {
             map: text(take("map_frame"), "map"),
@@ -146,7 +147,7 @@ impl NodeSettings {
         };
         let lidar_in_base = match take("lidar_in_base") {
             None => None,
-            Some(v) => Some(pose_of(&v).map_err(|e| format!("parameter lidar_in_base: {e}"))?),
+            Some(v) => Some(pose_of(&v)?),
         };
         let queue = count("queue", take("queue"), 2)?;
         let map_every = count("map_every", take("map_every"), 10)?;
@@ -186,13 +187,54 @@ impl NodeSettings {
     }
 
     /// [`new`](Self::new) with this process's environment.
-    pub fn from_process(args: &RosArgs) -> Result<Self, String> {
+    pub fn from_process(args: &RosArgs) -> Result<Self, SettingsError> {
         Self::new(args, &|k| std::env::var(k).ok())
     }
 
     /// The node's fully qualified name (`/ns/name`).
     pub fn fqn(&self) -> String {
         join(&self.namespace, &self.name)
+    }
+}
+
+/// Why the node's settings could not be made from its arguments and environment.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SettingsError {
+    /// The ROS arguments, or a parameter file they name.
+    Args(RosArgsError),
+    /// The node's name (`__node`): why it is not one.
+    NodeName(String),
+    /// A parameter out of its range or of the wrong type.
+    Parameter(BadParameter),
+    /// The `lidar_in_base` parameter: why it is not a pose.
+    LidarInBase(String),
+    /// An environment variable (`ROS_DOMAIN_ID`): why it is not read.
+    Environment(String),
+}
+
+impl std::fmt::Display for SettingsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SettingsError::Args(e) => e.fmt(f),
+            SettingsError::NodeName(why) => write!(f, "__node: {why}"),
+            SettingsError::Parameter(p) => p.fmt(f),
+            SettingsError::LidarInBase(why) => write!(f, "parameter lidar_in_base: {why}"),
+            SettingsError::Environment(why) => f.write_str(why),
+        }
+    }
+}
+
+impl std::error::Error for SettingsError {}
+
+impl From<RosArgsError> for SettingsError {
+    fn from(e: RosArgsError) -> Self {
+        SettingsError::Args(e)
+    }
+}
+
+impl From<BadParameter> for SettingsError {
+    fn from(p: BadParameter) -> Self {
+        SettingsError::Parameter(p)
     }
 }
 
@@ -213,12 +255,6 @@ impl std::fmt::Display for BadParameter {
             Some(v) => write!(f, "parameter {}: {v} is not {}", self.name, self.must_be),
             None => write!(f, "parameter {}: not {}", self.name, self.must_be),
         }
-    }
-}
-
-impl From<BadParameter> for String {
-    fn from(e: BadParameter) -> String {
-        e.to_string()
     }
 }
 
@@ -268,16 +304,16 @@ fn join(namespace: &str, name: &str) -> String {
     }
 }
 
-fn check_name(name: &str) -> Result<(), String> {
+fn check_name(name: &str) -> Result<(), SettingsError> {
     let ok = !name.is_empty()
         && !name.starts_with(|c: char| c.is_ascii_digit())
         && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
     if ok {
         Ok(())
     } else {
-        Err(format!(
+        Err(SettingsError::NodeName(format!(
             "{name:?} is not a node name (letters, digits and _)"
-        ))
+        )))
     }
 }
 
@@ -305,12 +341,13 @@ pub fn resolve(args: &RosArgs, namespace: &str, node: &str, name: &str) -> Strin
 }
 
 /// `[x, y, z, roll, pitch, yaw]` (radians) or `[x, y, z, qx, qy, qz, qw]`.
-fn pose_of(v: &ParamValue) -> Result<Pose, String> {
+fn pose_of(v: &ParamValue) -> Result<Pose, SettingsError> {
+    let bad = |why: String| SettingsError::LidarInBase(why);
     let ParamValue::Doubles(d) = v else {
-        return Err(format!("{} is not a list of numbers", v.as_text()));
+        return Err(bad(format!("{} is not a list of numbers", v.as_text())));
     };
     if !d.iter().all(|x| x.is_finite()) {
-        return Err("a number is not finite".into());
+        return Err(bad("a number is not finite".into()));
     }
     let t = nalgebra::Translation3::new;
     match d[..] {
@@ -321,18 +358,18 @@ fn pose_of(v: &ParamValue) -> Result<Pose, String> {
         [x, y, z, qx, qy, qz, qw] => {
             let q = nalgebra::Quaternion::new(qw, qx, qy, qz);
             if q.norm() < 1e-9 {
-                return Err("the quaternion is zero".into());
+                return Err(bad("the quaternion is zero".into()));
             }
             Ok(Pose::from_parts(
                 t(x, y, z),
                 nalgebra::UnitQuaternion::from_quaternion(q),
             ))
         }
-        _ => Err(format!("{} numbers, not 6 or 7", d.len())),
+        _ => Err(bad(format!("{} numbers, not 6 or 7", d.len()))),
     }
 }
 
-fn domain_id(env: Env) -> Result<u16, String> {
+fn domain_id(env: Env) -> Result<u16, SettingsError> {
     match env("ROS_DOMAIN_ID").filter(|s| !s.trim().is_empty()) {
         None => Ok(0),
         Some(s) => s
@@ -341,7 +378,9 @@ fn domain_id(env: Env) -> Result<u16, String> {
             .ok()
             .filter(|d| *d <= MAX_DOMAIN_ID)
             .ok_or_else(|| {
-                format!("ROS_DOMAIN_ID={s:?} is not a domain id (0 to {MAX_DOMAIN_ID})")
+                SettingsError::Environment(format!(
+                    "ROS_DOMAIN_ID={s:?} is not a domain id (0 to {MAX_DOMAIN_ID})"
+                ))
             }),
     }
 }
@@ -358,7 +397,7 @@ fn localhost_only(env: Env) -> bool {
 mod tests {
     use super::*;
 
-    fn settings(line: &str, env: &[(&str, &str)]) -> Result<NodeSettings, String> {
+    fn settings(line: &str, env: &[(&str, &str)]) -> Result<NodeSettings, SettingsError> {
         let args: Vec<String> = line.split_whitespace().map(String::from).collect();
         let env: Vec<(String, String)> = env
             .iter()
@@ -391,7 +430,8 @@ mod tests {
         }
         for bad in ["-0.1", "2.5", "soon", "true"] {
             let e = settings(&format!("--ros-args -p imu_wait:={bad}"), &[]).unwrap_err();
-            assert_eq!(e, "parameter imu_wait: not 0 to 2 seconds");
+            assert!(matches!(&e, SettingsError::Parameter(p) if p.name == "imu_wait"));
+            assert_eq!(e.to_string(), "parameter imu_wait: not 0 to 2 seconds");
         }
     }
 
@@ -457,7 +497,7 @@ mod tests {
             ),
             ("--ros-args -r __node:=9x", [("X", "")], "__node"),
         ] {
-            let e = settings(line, &env).unwrap_err();
+            let e = settings(line, &env).unwrap_err().to_string();
             assert!(e.contains(what), "{line}: {e}");
         }
         let s = settings("", &[("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")]).unwrap();
