@@ -99,10 +99,10 @@ impl Ros2Args {
     }
 }
 
-fn node_error(reason: String) -> CliError {
+fn node_error(reason: impl std::fmt::Display) -> CliError {
     CliError::BadFlag {
         flag: "ros2",
-        reason,
+        reason: reason.to_string(),
     }
 }
 
@@ -224,9 +224,7 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
     let robot = robot_with_parameters(&args.robot, p)?;
     let (localize, navmap) = (localize.unwrap_or(false), navmap.unwrap_or(false));
     if localize && map.is_none() {
-        return Err(node_error(
-            "localize needs a map (--map or -p map:=FILE)".into(),
-        ));
+        return Err(node_error("localize needs a map (--map or -p map:=FILE)"));
     }
     for k in p.keys() {
         log::warn!("ROS parameter {k} is not one of slamesh's: ignored");
@@ -251,9 +249,8 @@ fn with_parameters(args: &Ros2Args, node: &mut NodeSettings) -> Result<Ros2Args,
 
 /// Runs the node until it is stopped.
 pub fn ros2(args: &Ros2Args, quiet: bool) -> Result<(), CliError> {
-    let ros = RosArgs::parse(&args.ros_args).map_err(|e| node_error(e.to_string()))?;
-    let mut node_settings =
-        NodeSettings::from_process(&ros).map_err(|e| node_error(e.to_string()))?;
+    let ros = RosArgs::parse(&args.ros_args).map_err(node_error)?;
+    let mut node_settings = NodeSettings::from_process(&ros).map_err(node_error)?;
     let args = with_parameters(args, &mut node_settings)?;
     let mut s = match &args.map {
         Some(map) if args.profile.preset.is_none() && args.profile.config.is_none() => {

@@ -127,7 +127,7 @@ impl Ros2Source {
         (queue, imu_wait): (usize, Duration),
         lidar_frame: Option<String>,
         stop: Arc<AtomicBool>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, crate::ros2::node_error::NodeError> {
         let depth = queue + imu_wait.as_micros().div_ceil(WAIT_PER_SCAN.as_micros()) as usize;
         let (tx, feed) = crate::sources::feed::channel(names.points.clone(), "scan", depth);
         let (request_tx, requests) = mpsc::channel();
@@ -151,7 +151,10 @@ impl Ros2Source {
         let thread = std::thread::Builder::new()
             .name("slamesh-ros2".into())
             .spawn(move || listener.run())
-            .map_err(|e| format!("cannot start the listening thread: {e}"))?;
+            .map_err(|e| crate::ros2::node_error::NodeError::Start {
+                doing: "start the listening thread".into(),
+                why: e.to_string(),
+            })?;
         Ok(Ros2Source {
             feed,
             imu,

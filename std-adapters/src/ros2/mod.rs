@@ -20,6 +20,7 @@
 //! | the occupancy grid for Nav2, kept current window by window | [`occupancy`] |
 //! | the robot's static transforms heard on `/tf_static` | [`transforms`] |
 //! | the DDS participant, the node and its endpoints | [`node`] |
+//! | why the node or one of its endpoints could not be made | [`node_error`] |
 
 pub mod clouds;
 pub mod counts;
@@ -27,6 +28,7 @@ pub mod listen;
 pub mod mesh_tiles;
 pub mod messages;
 pub mod node;
+pub mod node_error;
 pub mod occupancy;
 pub mod parameters;
 pub mod path;

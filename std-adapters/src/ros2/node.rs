@@ -26,6 +26,7 @@ use crate::ros2::messages::{
     PoseWithCovarianceStamped, TfMessage, Time, TransformStamped, TriggerRequest, TriggerResponse,
     Typed,
 };
+use crate::ros2::node_error::NodeError;
 use crate::ros2::occupancy::LiveMap;
 use crate::ros2::parameters::{self, Live};
 use crate::ros2::publish::{Publishers, Ros2Sink};
@@ -137,11 +138,41 @@ fn reliable(depth: usize) -> QosProfile {
         .history(History::KeepLast { depth })
 }
 
+/// [`NodeError::Start`]: `doing` failed with `e`.
+fn start(doing: String, e: impl std::fmt::Debug) -> NodeError {
+    NodeError::Start {
+        doing,
+        why: format!("{e:?}"),
+    }
+}
+
+/// [`NodeError::Topic`]: `doing` on topic `name` failed with `e`.
+fn on_topic(name: &str, doing: &'static str, e: impl std::fmt::Debug) -> NodeError {
+    NodeError::Topic {
+        name: name.to_string(),
+        doing,
+        why: format!("{e:?}"),
+    }
+}
+
+/// The node's name as ros2-client takes it.
+fn node_name(settings: &NodeSettings) -> Result<NodeName, NodeError> {
+    NodeName::new(&settings.namespace, &settings.name).map_err(|e| NodeError::Name {
+        name: settings.fqn(),
+        kind: "a node name",
+        why: format!("{e:?}"),
+    })
+}
+
 /// `/a/b/c` as ros2-client names it: namespace `/a/b`, base name `c`.
-fn name(full: &str) -> Result<Name, String> {
+fn name(full: &str) -> Result<Name, NodeError> {
     let (ns, base) = full.rsplit_once('/').unwrap_or(("", full));
     let ns = if ns.is_empty() { "/" } else { ns };
-    Name::new(ns, base).map_err(|e| format!("{full}: not a ROS 2 name ({e:?})"))
+    Name::new(ns, base).map_err(|e| NodeError::Name {
+        name: full.to_string(),
+        kind: "a ROS 2 name",
+        why: format!("{e:?}"),
+    })
 }
 
 /// The log's lines at info level and above on `/rosout` too, as `name`'s
@@ -177,28 +208,27 @@ impl RosNode {
     pub fn start(
         settings: NodeSettings,
         values: Vec<(String, ParameterValue)>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, NodeError> {
         let mut participant = DomainParticipantBuilder::new(settings.domain_id);
         if settings.localhost_only {
             participant = participant.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
         }
         let participant = participant
             .build()
-            .map_err(|e| format!("cannot join DDS domain {}: {e:?}", settings.domain_id))?;
+            .map_err(|e| start(format!("join DDS domain {}", settings.domain_id), e))?;
         let context = Context::from_domain_participant(participant)
-            .map_err(|e| format!("cannot start ROS 2: {e:?}"))?;
-        let node_name = NodeName::new(&settings.namespace, &settings.name)
-            .map_err(|e| format!("{}: not a node name ({e:?})", settings.fqn()))?;
+            .map_err(|e| start("start ROS 2".into(), e))?;
+        let node_name = node_name(&settings)?;
         let live = Live::new(settings.publish_mesh);
         let mut node = context
             .new_node(node_name, parameters::options(values, &live))
-            .map_err(|e| format!("cannot start the node {}: {e:?}", settings.fqn()))?;
+            .map_err(|e| start(format!("start the node {}", settings.fqn()), e))?;
         live.started();
         rosout(&node, &settings.name);
         // The parameter services: ros2-client's spinner, until the node is dropped.
         let spinner = node
             .spinner()
-            .map_err(|e| format!("cannot serve the parameters: {e:?}"))?;
+            .map_err(|e| start("serve the parameters".into(), e))?;
         std::thread::Builder::new()
             .name("slamesh-params".into())
             .spawn(move || {
@@ -206,7 +236,7 @@ impl RosNode {
                     log::warn!("the parameter services stopped: {e:?}");
                 }
             })
-            .map_err(|e| format!("cannot start the parameters' thread: {e}"))?;
+            .map_err(|e| start("start the parameters' thread".into(), e))?;
         Ok(RosNode {
             settings,
             live,
@@ -222,14 +252,13 @@ impl RosNode {
         full: &str,
         qos: &QosProfile,
         samples: Option<usize>,
-    ) -> Result<rustdds::Topic, String> {
+    ) -> Result<rustdds::Topic, NodeError> {
         let (package, type_name) = M::TYPE;
         let qos = match samples {
             Some(n) => limited(qos, n),
             None => QosPolicies::from(qos),
         };
-        let node_name = NodeName::new(&self.settings.namespace, &self.settings.name)
-            .map_err(|e| format!("{}: not a node name ({e:?})", self.settings.fqn()))?;
+        let node_name = node_name(&self.settings)?;
         self.context
             .domain_participant()
             .create_topic(
@@ -238,7 +267,7 @@ impl RosNode {
                 &qos,
                 TopicKind::NoKey,
             )
-            .map_err(|e| format!("{full}: cannot create the topic: {e:?}"))
+            .map_err(|e| on_topic(full, "create the topic", e))
     }
 
     /// A publisher on `full`, its topic limited to `samples` when given ([`limited`]).
@@ -247,36 +276,36 @@ impl RosNode {
         full: &str,
         qos: QosProfile,
         samples: Option<usize>,
-    ) -> Result<Publisher<M>, String> {
+    ) -> Result<Publisher<M>, NodeError> {
         let topic = self.topic::<M>(full, &qos, samples)?;
         self.node
             .create_publisher(&topic, Some(qos))
-            .map_err(|e| format!("{full}: cannot publish: {e:?}"))
+            .map_err(|e| on_topic(full, "publish", e))
     }
 
     fn subscription<M: Typed + DeserializeOwned + 'static>(
         &mut self,
         full: &str,
         qos: QosProfile,
-    ) -> Result<Subscription<M>, String> {
+    ) -> Result<Subscription<M>, NodeError> {
         let topic = self.topic::<M>(full, &qos, None)?;
         self.node
             .create_subscription(&topic, Some(qos))
-            .map_err(|e| format!("{full}: cannot subscribe: {e:?}"))
+            .map_err(|e| on_topic(full, "subscribe", e))
     }
 
     /// The way in: subscriptions and the service, on a thread of their own, until `stop`.
-    pub fn listen(&mut self, stop: Arc<AtomicBool>) -> Result<Ros2Source, String> {
+    pub fn listen(&mut self, stop: Arc<AtomicBool>) -> Result<Ros2Source, NodeError> {
         let t = self.settings.topics.clone();
         let qos = points_qos(POINTS_CACHE);
         let topic = self.topic::<RawMessage>(&t.points, &qos, Some(POINTS_CACHE))?;
         let reader_qos = limited(&qos, POINTS_CACHE);
         let subscriber = (self.context.domain_participant())
             .create_subscriber(&reader_qos)
-            .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
+            .map_err(|e| on_topic(&t.points, "subscribe", e))?;
         let points = subscriber
             .create_simple_datareader_no_key::<RawMessage, RawAdapter>(&topic, Some(reader_qos))
-            .map_err(|e| format!("{}: cannot subscribe: {e:?}", t.points))?;
+            .map_err(|e| on_topic(&t.points, "subscribe", e))?;
         let clock = match self.settings.use_sim_time {
             true => Some(
                 self.subscription::<Clock>(
@@ -297,7 +326,7 @@ impl RosNode {
                 reliable(10),
                 reliable(10),
             )
-            .map_err(|e| format!("{}: cannot offer the service: {e:?}", t.save_map))?;
+            .map_err(|e| on_topic(&t.save_map, "offer the service", e))?;
         let endpoints = Endpoints {
             points,
             initialpose: self
@@ -332,7 +361,7 @@ impl RosNode {
 
     /// The way out, advertised: every output topic, at start (before the first scan decides
     /// the run's scale), so that a subscriber or `ros2 topic list` finds them at once.
-    pub fn advertise(&mut self) -> Result<Advertised, String> {
+    pub fn advertise(&mut self) -> Result<Advertised, NodeError> {
         let s = self.settings.clone();
         let t = &s.topics;
         let publishers = Publishers {
