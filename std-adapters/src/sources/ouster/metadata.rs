@@ -62,38 +62,67 @@ fn field<'a>(doc: &'a Value, path: &[&str], flat: &str) -> Option<&'a Value> {
         .or_else(|| doc.get(flat).filter(|v| !v.is_null()))
 }
 
-fn numbers(v: &Value, name: &str) -> Result<Vec<f64>, String> {
+/// Why an Ouster sensor's metadata JSON could not be read, by kind, in words.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum MetadataError {
+    /// The text is not a JSON object.
+    NotJson(String),
+    /// A field every sensor's metadata has is not there.
+    Missing(String),
+    /// A field whose value this reader cannot take: which, and why.
+    Bad(String),
+}
+
+impl std::fmt::Display for MetadataError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MetadataError::NotJson(why) | MetadataError::Missing(why) | MetadataError::Bad(why) => {
+                f.write_str(why)
+            }
+        }
+    }
+}
+
+impl std::error::Error for MetadataError {}
+
+use MetadataError::{Bad, Missing, NotJson};
+
+fn numbers(v: &Value, name: &str) -> Result<Vec<f64>, MetadataError> {
     let list = v
         .as_array()
-        .ok_or_else(|| format!("{name} is not a list of numbers"))?;
+        .ok_or_else(|| Bad(format!("{name} is not a list of numbers")))?;
     list.iter()
         .map(|x| {
             x.as_f64()
                 .filter(|f| f.is_finite())
-                .ok_or_else(|| format!("{name} holds {x}, not a finite number"))
+                .ok_or_else(|| Bad(format!("{name} holds {x}, not a finite number")))
         })
         .collect()
 }
 
-fn small(v: &Value, name: &str, max: u64) -> Result<u16, String> {
+fn small(v: &Value, name: &str, max: u64) -> Result<u16, MetadataError> {
     v.as_u64()
         .filter(|n| *n <= max)
         .map(|n| n as u16)
-        .ok_or_else(|| format!("{name} is {v}, not a whole number up to {max}"))
+        .ok_or_else(|| Bad(format!("{name} is {v}, not a whole number up to {max}")))
 }
 
-fn matrix(v: &Value, name: &str) -> Result<[f64; 16], String> {
+fn matrix(v: &Value, name: &str) -> Result<[f64; 16], MetadataError> {
     let m = numbers(v, name)?;
-    <[f64; 16]>::try_from(m.as_slice())
-        .map_err(|_| format!("{name} has {} numbers, not a 4x4 matrix's 16", m.len()))
+    <[f64; 16]>::try_from(m.as_slice()).map_err(|_| {
+        Bad(format!(
+            "{name} has {} numbers, not a 4x4 matrix's 16",
+            m.len()
+        ))
+    })
 }
 
 /// `1024x10` to (1024, 10).
-fn lidar_mode(mode: &str) -> Result<(u16, u16), String> {
+fn lidar_mode(mode: &str) -> Result<(u16, u16), MetadataError> {
     let bad = || {
-        format!(
+        Bad(format!(
             "lidar_mode {mode:?} is not one of 512x10, 512x20, 1024x10, 1024x20, 2048x10, 4096x5"
-        )
+        ))
     };
     let (w, f) = mode.split_once('x').ok_or_else(bad)?;
     let (w, f) = (
@@ -107,30 +136,30 @@ fn lidar_mode(mode: &str) -> Result<(u16, u16), String> {
 }
 
 /// The beams' angles `name` (degrees); `missing` when absent.
-fn beam_angles(doc: &Value, name: &str, missing: &str) -> Result<Vec<f64>, String> {
+fn beam_angles(doc: &Value, name: &str, missing: &str) -> Result<Vec<f64>, MetadataError> {
     numbers(
-        field(doc, &["beam_intrinsics", name], name).ok_or(missing)?,
+        field(doc, &["beam_intrinsics", name], name).ok_or_else(|| Missing(missing.into()))?,
         name,
     )
 }
 
 /// Columns a packet (`v`, 16 when absent), a divisor of the turn's.
-fn columns_per_packet(v: Option<&Value>, columns_per_frame: u16) -> Result<u16, String> {
+fn columns_per_packet(v: Option<&Value>, columns_per_frame: u16) -> Result<u16, MetadataError> {
     let n = match v {
         Some(v) => small(v, "columns_per_packet", 64)?,
         None => 16,
     };
     if n == 0 || !columns_per_frame.is_multiple_of(n) {
-        return Err(format!(
+        return Err(Bad(format!(
             "columns_per_packet is {n}, not a divisor of the {columns_per_frame} columns a turn"
-        ));
+        )));
     }
     Ok(n)
 }
 
 /// The lidar packets' profile: the data format's (`in_format`), the configuration's, or the
 /// legacy one.
-fn lidar_profile(doc: &Value, in_format: Option<&Value>) -> Result<Profile, String> {
+fn lidar_profile(doc: &Value, in_format: Option<&Value>) -> Result<Profile, MetadataError> {
     let name = in_format
         .or_else(|| {
             field(
@@ -142,10 +171,10 @@ fn lidar_profile(doc: &Value, in_format: Option<&Value>) -> Result<Profile, Stri
         .and_then(Value::as_str)
         .unwrap_or("LEGACY");
     Profile::named(name).ok_or_else(|| {
-        format!(
+        Bad(format!(
             "udp_profile_lidar {name:?} is not one this reader decodes ({})",
             Profile::ALL.map(|p| p.name()).join(", ")
-        )
+        ))
     })
 }
 
@@ -158,7 +187,7 @@ fn port(doc: &Value, name: &str) -> Option<u16> {
 }
 
 /// The beams' origin to the lidar frame: the transform, or the older offset along x.
-fn beam_to_lidar(doc: &Value) -> Result<[f64; 16], String> {
+fn beam_to_lidar(doc: &Value) -> Result<[f64; 16], MetadataError> {
     if let Some(v) = field(
         doc,
         &["beam_intrinsics", "beam_to_lidar_transform"],
@@ -172,9 +201,11 @@ fn beam_to_lidar(doc: &Value) -> Result<[f64; 16], String> {
         "lidar_origin_to_beam_origin_mm",
     )
     .map(|v| {
-        v.as_f64().filter(|f| f.is_finite()).ok_or(format!(
-            "lidar_origin_to_beam_origin_mm is {v}, not a number"
-        ))
+        v.as_f64().filter(|f| f.is_finite()).ok_or_else(|| {
+            Bad(format!(
+                "lidar_origin_to_beam_origin_mm is {v}, not a number"
+            ))
+        })
     })
     .transpose()?
     .unwrap_or(0.0);
@@ -184,7 +215,7 @@ fn beam_to_lidar(doc: &Value) -> Result<[f64; 16], String> {
 }
 
 /// The 4x4 transform `name` (under `group` in the nested layout); the identity when absent.
-fn transform(doc: &Value, group: &str, name: &str) -> Result<[f64; 16], String> {
+fn transform(doc: &Value, group: &str, name: &str) -> Result<[f64; 16], MetadataError> {
     match field(doc, &[group, name], name) {
         Some(v) => matrix(v, name),
         None => Ok(IDENTITY),
@@ -192,7 +223,7 @@ fn transform(doc: &Value, group: &str, name: &str) -> Result<[f64; 16], String> 
 }
 
 /// The first and last column sent (`column_window`), all of them when absent.
-fn column_window(v: Option<&Value>, columns_per_frame: u16) -> Result<(u16, u16), String> {
+fn column_window(v: Option<&Value>, columns_per_frame: u16) -> Result<(u16, u16), MetadataError> {
     let Some(v) = v else {
         return Ok((0, columns_per_frame - 1));
     };
@@ -200,18 +231,19 @@ fn column_window(v: Option<&Value>, columns_per_frame: u16) -> Result<(u16, u16)
     let ok = |x: f64| x >= 0.0 && x < f64::from(columns_per_frame) && x.fract() == 0.0;
     match w.as_slice() {
         [a, b] if ok(*a) && ok(*b) => Ok((*a as u16, *b as u16)),
-        _ => Err(format!(
+        _ => Err(Bad(format!(
             "column_window is {v}, not two columns below {columns_per_frame}"
-        )),
+        ))),
     }
 }
 
 impl Metadata {
     /// Reads the metadata JSON's text.
-    pub fn parse(text: &str) -> Result<Self, String> {
-        let doc: Value = serde_json::from_str(text).map_err(|e| format!("not JSON ({e})"))?;
+    pub fn parse(text: &str) -> Result<Self, MetadataError> {
+        let doc: Value =
+            serde_json::from_str(text).map_err(|e| NotJson(format!("not JSON ({e})")))?;
         if !doc.is_object() {
-            return Err("not a JSON object".to_string());
+            return Err(NotJson("not a JSON object".into()));
         }
         let altitude_deg = beam_angles(
             &doc,
@@ -221,7 +253,7 @@ impl Metadata {
         let azimuth_deg = beam_angles(&doc, "beam_azimuth_angles", "no beam_azimuth_angles")?;
         let mode = field(&doc, &["config_params", "lidar_mode"], "lidar_mode")
             .and_then(Value::as_str)
-            .ok_or("no lidar_mode")?;
+            .ok_or_else(|| Missing("no lidar_mode".into()))?;
         let (columns_per_frame, fps) = lidar_mode(mode)?;
         let format = field(&doc, &["lidar_data_format"], "data_format");
         let in_format = |k: &str| format.and_then(|f| f.get(k)).filter(|v| !v.is_null());
@@ -230,20 +262,20 @@ impl Metadata {
             None => u16::try_from(altitude_deg.len()).unwrap_or(u16::MAX),
         };
         if !matches!(beams, 8 | 16 | 32 | 64 | 128) {
-            return Err(format!(
+            return Err(Bad(format!(
                 "pixels_per_column is {beams}, not 8, 16, 32, 64 or 128"
-            ));
+            )));
         }
         for (name, list) in [
             ("beam_altitude_angles", &altitude_deg),
             ("beam_azimuth_angles", &azimuth_deg),
         ] {
             if list.len() != usize::from(beams) {
-                return Err(format!(
+                return Err(Bad(format!(
                     "{name} has {} angles for {beams} beams (per-pixel angles, as a \
                      solid-state sensor's, are not read)",
                     list.len()
-                ));
+                )));
             }
         }
         let columns_per_packet =
@@ -251,9 +283,9 @@ impl Metadata {
         if let Some(v) = in_format("columns_per_frame") {
             let w = small(v, "columns_per_frame", 4096)?;
             if w != columns_per_frame {
-                return Err(format!(
+                return Err(Bad(format!(
                     "columns_per_frame is {w}, but lidar_mode {mode:?} says {columns_per_frame}"
-                ));
+                )));
             }
         }
         let column_window = column_window(in_format("column_window"), columns_per_frame)?;
@@ -343,18 +375,21 @@ mod tests {
 
     #[test]
     fn wrong_metadata_is_refused_with_the_field_named() {
-        let e = Metadata::parse(&flat(16).replace("1024x10", "1000x10")).unwrap_err();
+        let e = Metadata::parse(&flat(16).replace("1024x10", "1000x10"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("lidar_mode \"1000x10\""), "{e}");
-        let e = Metadata::parse(&flat(12)).unwrap_err();
+        let e = Metadata::parse(&flat(12)).unwrap_err().to_string();
         assert!(e.contains("pixels_per_column is 12"), "{e}");
         let e = Metadata::parse(&flat(16).replace(
             "\"lidar_mode\"",
             "\"udp_profile_lidar\": \"X\", \"lidar_mode\"",
         ))
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("udp_profile_lidar \"X\""), "{e}");
         let e = Metadata::parse("{\"a\": 1}").unwrap_err();
-        assert!(e.contains("not an Ouster sensor's metadata"), "{e}");
-        assert!(Metadata::parse("[1").unwrap_err().contains("not JSON"));
+        assert!(matches!(&e, Missing(why) if why.contains("not an Ouster sensor's metadata")));
+        assert!(matches!(Metadata::parse("[1"), Err(NotJson(_))));
     }
 }
