@@ -113,7 +113,7 @@ impl<'a> Decoder<'a> {
     }
 
     /// The next `K` bytes.
-    pub fn array<const K: usize>(&mut self) -> Result<[u8; K], String> {
+    pub fn array<const K: usize>(&mut self) -> Result<[u8; K], Damaged> {
         let mut a = [0u8; K];
         a.copy_from_slice(self.take(K)?);
         Ok(a)
