@@ -49,7 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let mut statuses = std::collections::BTreeMap::<String, usize>::new();
     let summary = run::<KittiCapacity>(&mut drive, &opts, |rec| {
-        *statuses.entry(rec.status.clone()).or_default() += 1;
+        *statuses.entry(rec.status.to_string()).or_default() += 1;
         if (rec.frame + 1) % every == 0 {
             println!(
                 "{:>7} {:>9} {:>9} {:>8.0} {:>9.0}",

@@ -72,7 +72,7 @@ pub(crate) fn run_drive<C: Capacity>(
     let out = scratch(&format!("imu-{name}"));
     let opts = options(&out, use_imu);
     let mut statuses = Vec::new();
-    let summary = run::<C>(source, &opts, |r| statuses.push(r.status.clone())).unwrap();
+    let summary = run::<C>(source, &opts, |r| statuses.push(r.status.to_string())).unwrap();
     let estimate = trajectory::read_kitti(&out.join("poses_kitti.txt")).unwrap();
     let truth: Vec<Pose> = truth.iter().map(|p| truth[0].inverse() * p).collect();
     let step = consecutive_errors(&estimate, &truth).mean_translation_m;

@@ -15,6 +15,7 @@
 //! | a live source's requests between frames: save the map, relocalize | `requests` |
 //! | one way out: what a run produces, fanned out to its sinks (bounded queues for slow ones) | [`sink`] |
 //! | the per-frame records, the summary, the frames' health | [`report`] |
+//! | what became of a frame: its registration status, or skipped | [`status`] |
 //! | the run's own files as sinks: `report.json`, the trajectories | [`files`] |
 //! | time per stage | [`timing`] |
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
@@ -45,6 +46,7 @@ pub mod scale;
 pub mod session;
 mod setup;
 pub mod sink;
+pub mod status;
 mod step;
 pub mod timing;
 pub mod window;
@@ -55,3 +57,4 @@ pub use frame_error::{FrameError, FrameFault};
 pub use report::{FrameRecord, Summary};
 pub use session::{run, run_to, run_with, Run, RunError, RunOptions};
 pub use sink::{FrameEvent, Sink, Sinks};
+pub use status::FrameStatus;

@@ -7,6 +7,7 @@ use crate::loop_closure::{Closure, LoopReport};
 use crate::outputs::mesh_spool::MeshSpool;
 use crate::outputs::topview::map::{self, MapPicture};
 use crate::parallel::Workers;
+use crate::run::status::FrameStatus;
 use crate::run::timing::StageMs;
 use crate::stage::Notes;
 use serde::{Deserialize, Serialize};
@@ -23,7 +24,7 @@ pub struct FrameRecord {
     /// Its file.
     pub file: String,
     /// The registration status (`FirstScan`, `Converged`, `Degenerate`, ...), or `Skipped`.
-    pub status: String,
+    pub status: FrameStatus,
     /// Why it was skipped.
     pub error: Option<String>,
     /// Why it was not registered normally (statuses `Degenerate`, `TooFewResiduals`,
@@ -115,7 +116,7 @@ impl FrameRecord {
         FrameRecord {
             frame,
             file,
-            status: SKIPPED.into(),
+            status: FrameStatus::Skipped,
             error: None,
             reason: None,
             ms: StageMs::default(),
@@ -248,7 +249,7 @@ pub const SKIPPED: &str = "Skipped";
 /// Whether a record's status is one of a frame registered, normally or not
 /// ([`RegistrationStatus::is_registered`]); a skipped frame is not.
 pub fn is_registered(status: &str) -> bool {
-    RegistrationStatus::from_name(status).is_some_and(RegistrationStatus::is_registered)
+    FrameStatus::from_name(status).is_some_and(FrameStatus::is_registered)
 }
 
 /// How the run's frames went.
@@ -309,18 +310,18 @@ impl Health {
                     reason: why.clone(),
                 });
             }
-            match ORDER.iter().position(|s| *s == r.status) {
+            match ORDER.iter().position(|s| r.status == *s) {
                 Some(k) => counts[k] += 1,
-                None => match other.iter_mut().find(|(s, _)| *s == r.status) {
+                None => match other.iter_mut().find(|(s, _)| r.status == s.as_str()) {
                     Some((_, n)) => *n += 1,
-                    None => other.push((r.status.clone(), 1)),
+                    None => other.push((r.status.to_string(), 1)),
                 },
             }
-            if !is_registered(&r.status) {
+            if !r.status.is_registered() {
                 not_registered.push(NotRegistered {
                     frame: r.frame,
                     file: r.file.clone(),
-                    status: r.status.clone(),
+                    status: r.status.to_string(),
                     reason: r
                         .error
                         .clone()
@@ -486,7 +487,7 @@ pub struct OutcomeCost {
 /// What one frame cost: its status, whole time (ms), registration rounds and recovery's
 /// guesses.
 struct Cost {
-    status: String,
+    status: FrameStatus,
     ms: f64,
     rounds: usize,
     guesses: usize,
@@ -495,7 +496,7 @@ struct Cost {
 impl Cost {
     fn of(r: &FrameRecord) -> Self {
         Cost {
-            status: r.status.clone(),
+            status: r.status,
             ms: r.ms.total,
             rounds: r.rounds,
             guesses: r.recovery_attempts,
@@ -512,12 +513,12 @@ pub fn cost_by_outcome<'a>(frames: impl IntoIterator<Item = &'a FrameRecord>) ->
 fn group_costs(costs: impl IntoIterator<Item = Cost>) -> Vec<OutcomeCost> {
     let mut by: Vec<(String, Vec<Cost>)> = Vec::new();
     for c in costs {
-        if c.status == SKIPPED {
+        if c.status == FrameStatus::Skipped {
             continue;
         }
-        match by.iter_mut().find(|(s, _)| *s == c.status) {
+        match by.iter_mut().find(|(s, _)| c.status == s.as_str()) {
             Some((_, v)) => v.push(c),
-            None => by.push((c.status.clone(), vec![c])),
+            None => by.push((c.status.to_string(), vec![c])),
         }
     }
     let mut out: Vec<OutcomeCost> = by
@@ -596,7 +597,7 @@ mod tests {
             ("Recovered", 60.0, 14, 3),
         ]
         .map(|(s, ms, rounds, attempts)| FrameRecord {
-            status: s.to_string(),
+            status: FrameStatus::from_name(s).unwrap(),
             ms: StageMs {
                 total: ms,
                 ..StageMs::default()

@@ -173,7 +173,7 @@ impl<C: Capacity> Run<'_, C> {
     /// the search.
     fn take_outcome(&mut self, stepped: &Stepped, rec: &mut FrameRecord) {
         let o = stepped.outcome();
-        rec.status = o.status.name().to_string();
+        rec.status = o.status.into();
         rec.reason = registration_reason(o.status, &o.stats, &self.opts.config);
         if let Stepped::Searched(r) = stepped {
             if o.status == RegistrationStatus::Relocalized {
@@ -270,7 +270,7 @@ impl<C: Capacity> Run<'_, C> {
     fn skip(&mut self, e: FrameError, rec: &mut FrameRecord) {
         if let FrameFault::NotLocalized(_) = e.fault {
             // The search ran and found no convincing pose.
-            rec.status = RegistrationStatus::NotLocalized.name().to_string();
+            rec.status = RegistrationStatus::NotLocalized.into();
         }
         let e = e.to_string();
         rec.error = Some(e.clone());
