@@ -242,16 +242,6 @@ impl Summary {
     }
 }
 
-/// The status of a frame that could not be read or used (beside the registration statuses,
-/// [`RegistrationStatus::name`]).
-pub const SKIPPED: &str = "Skipped";
-
-/// Whether a record's status is one of a frame registered, normally or not
-/// ([`RegistrationStatus::is_registered`]); a skipped frame is not.
-pub fn is_registered(status: &str) -> bool {
-    FrameStatus::from_name(status).is_some_and(FrameStatus::is_registered)
-}
-
 /// How the run's frames went.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Health {
@@ -286,17 +276,7 @@ impl Health {
     pub fn of<R: std::borrow::Borrow<FrameRecord>>(
         records: impl IntoIterator<Item = Result<R, FileError>>,
     ) -> Result<Self, FileError> {
-        const ORDER: [&str; 11] = {
-            let mut order = [SKIPPED; 11];
-            let mut k = 0;
-            while k < RegistrationStatus::ALL.len() {
-                order[k] = RegistrationStatus::ALL[k].name();
-                k += 1;
-            }
-            order
-        };
-        let mut counts = [0usize; ORDER.len()];
-        let mut other: Vec<(String, usize)> = Vec::new();
+        let mut counts = [0usize; FrameStatus::ALL.len()];
         let mut not_registered = Vec::new();
         let mut doubted = Vec::new();
         for r in records {
@@ -310,12 +290,8 @@ impl Health {
                     reason: why.clone(),
                 });
             }
-            match ORDER.iter().position(|s| r.status == *s) {
-                Some(k) => counts[k] += 1,
-                None => match other.iter_mut().find(|(s, _)| r.status == s.as_str()) {
-                    Some((_, n)) => *n += 1,
-                    None => other.push((r.status.to_string(), 1)),
-                },
+            if let Some(k) = FrameStatus::ALL.iter().position(|s| *s == r.status) {
+                counts[k] += 1;
             }
             if !r.status.is_registered() {
                 not_registered.push(NotRegistered {
@@ -330,13 +306,11 @@ impl Health {
                 });
             }
         }
-        let mut counts: Vec<(String, usize)> = ORDER
-            .iter()
+        let counts = (FrameStatus::ALL.iter())
             .zip(counts)
             .filter(|(_, n)| *n > 0)
             .map(|(s, n)| (s.to_string(), n))
             .collect();
-        counts.extend(other);
         Ok(Health {
             counts,
             not_registered,
@@ -511,14 +485,14 @@ pub fn cost_by_outcome<'a>(frames: impl IntoIterator<Item = &'a FrameRecord>) ->
 }
 
 fn group_costs(costs: impl IntoIterator<Item = Cost>) -> Vec<OutcomeCost> {
-    let mut by: Vec<(String, Vec<Cost>)> = Vec::new();
+    let mut by: Vec<(FrameStatus, Vec<Cost>)> = Vec::new();
     for c in costs {
         if c.status == FrameStatus::Skipped {
             continue;
         }
-        match by.iter_mut().find(|(s, _)| c.status == s.as_str()) {
+        match by.iter_mut().find(|(s, _)| *s == c.status) {
             Some((_, v)) => v.push(c),
-            None => by.push((c.status.to_string(), vec![c])),
+            None => by.push((c.status, vec![c])),
         }
     }
     let mut out: Vec<OutcomeCost> = by
@@ -529,7 +503,7 @@ fn group_costs(costs: impl IntoIterator<Item = Cost>) -> Vec<OutcomeCost> {
                 |f: fn(&Cost) -> usize| v.iter().map(|c| f(c) as f64).sum::<f64>() / frames as f64;
             let s = Spread::of(v.iter().map(|c| c.ms).collect());
             OutcomeCost {
-                status,
+                status: status.to_string(),
                 frames,
                 median_ms: s.median,
                 p95_ms: s.p95,

@@ -9,7 +9,7 @@
 use crate::formats::imu_csv;
 use crate::io::error::FileError;
 use crate::sources::imu_readings::ImuReadings;
-use crate::sources::kinds::{InputKind, OpenOptions, Opened, OpenedInput};
+use crate::sources::kinds::{InputKind, OpenOptions, Opened, OpenedInput, NOT_A_RECORDING};
 use crate::sources::scans::{read_scan_as, ScanFolder, Stamps};
 use crate::sources::sweep_times::{period_of, SweepSpec, SweepTimer};
 use crate::sources::{FrameSource, Sample};
@@ -129,7 +129,7 @@ impl OpenedInput for ScanFolder {
         imu_topic: Option<&str>,
     ) -> Result<(), FileError> {
         if imu_topic.is_some() {
-            return Err(FileError::at(at, "--imu-topic is for recordings"));
+            return Err(FileError::at(at, NOT_A_RECORDING));
         }
         let path = match imu {
             Some("off") => return Ok(()),

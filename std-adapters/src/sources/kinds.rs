@@ -96,7 +96,7 @@ pub fn readings_come_with_it(
     imu_topic: Option<&str>,
 ) -> Result<(), FileError> {
     if imu_topic.is_some() {
-        return Err(FileError::at(at, "--imu-topic is for recordings"));
+        return Err(FileError::at(at, NOT_A_RECORDING));
     }
     match imu.filter(|v| *v != "off") {
         Some(_) => Err(FileError::at(
@@ -107,6 +107,9 @@ pub fn readings_come_with_it(
         None => Ok(()),
     }
 }
+
+/// Why `--imu-topic` is refused for an input that is not a recording.
+pub const NOT_A_RECORDING: &str = "--imu-topic is for recordings";
 
 /// Why `--sweep` is refused for an input that is not a folder of scan files.
 pub const NOT_A_FOLDER: &str =
