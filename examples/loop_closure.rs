@@ -43,6 +43,7 @@ use slamesh::formats::ply::read_ply_mesh;
 use slamesh::formats::trajectory::read_kitti;
 use slamesh::loop_closure::graph::{Edge, PoseGraph};
 use slamesh::loop_closure::settings::LoopSettings;
+use slamesh::loop_closure::{stage, LoopReport};
 use slamesh::run::{FrameSource, Input, Run, RunOptions};
 use slamesh_core::KittiCapacity;
 use slamesh_core::Pose;
@@ -227,7 +228,7 @@ fn paced(flags: &Flags, input: &str) -> Result<(), Box<dyn std::error::Error>> {
         run.step(&mut source, i)?;
     }
     let summary = run.finish(&source)?;
-    let report = summary.loop_closure.unwrap_or_default();
+    let report: LoopReport = summary.stage(stage::NAME).unwrap_or_default();
     println!(
         "{} frames at {hz} Hz in {:.1} s; {} closures, {} corrections, {} rebuilds",
         summary.used,

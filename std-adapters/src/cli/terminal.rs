@@ -2,6 +2,7 @@
 //! frame's messages (warnings rate-limited by [`FrameNotices`]) and the closing summary.
 
 use crate::cli::notices::FrameNotices;
+use crate::loop_closure::{stage, LoopReport};
 use crate::run::{FrameRecord, Summary};
 use crate::say;
 use indicatif::ProgressBar;
@@ -65,7 +66,7 @@ pub fn print_summary(s: &Summary, out: &Path) {
             .map_or("unknown".into(), |m| format!("{m:.0} MB"))
     );
     say!("slamesh: frames by status: {}", s.health.counts_line());
-    if let Some(l) = &s.loop_closure {
+    if let Some(l) = &s.stage::<LoopReport>(stage::NAME) {
         if !l.closures.is_empty() {
             say!(
                 "slamesh: loop closure: {} closure(s), {} correction(s), {} map rebuild(s)",

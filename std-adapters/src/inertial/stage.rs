@@ -178,6 +178,9 @@ mod tests {
             history: (None, Some(Pose::identity())),
             at_stamp: &Pose::identity(),
             fused_at: &Pose::identity(),
+            information: &Default::default(),
+            counter: 1,
+            fused_points: &[],
             points: &[],
             workers: &workers,
         };

@@ -10,6 +10,7 @@
 //! | the saved map a run started from: its path, its cells near a revisit | [`saved`] |
 //! | the pose graph and its solver | [`graph`] |
 //! | a windowed run's rebuild: its window and outputs | [`streaming`] |
+//! | loop closure as one of a run's stages | [`stage`] |
 //! | the thread that does all of it | `worker` |
 //!
 //! A run hands each frame it used to a [`LoopClosure`] ([`LoopClosure::observe`]: the pose and
@@ -31,22 +32,24 @@ pub mod graph;
 pub mod saved;
 pub mod settings;
 pub mod spool;
+pub mod stage;
 pub mod streaming;
 mod worker;
 
 use crate::io::error::FileError;
+use crate::stage::lent::{RunOutputs, Windowed};
 use saved::SavedMap;
 use serde::{Deserialize, Serialize};
 use settings::LoopSettings;
 use slamesh_core::lm::PoseInformation;
 use slamesh_core::map::MeshMap;
 use slamesh_core::motion::ConstantVelocity;
-use slamesh_core::{Capacity, Config, Pipeline, Point, Pose, ScanOutcome};
+use slamesh_core::{Capacity, Config, Pipeline, Point, Pose};
 use spool::ScanSpool;
 use std::path::Path;
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::thread::JoinHandle;
-use streaming::{RebuiltOutputs, RunOutputs, Streaming};
+use streaming::RebuiltOutputs;
 
 /// One loop closed: which frames, how sure, how large the correction.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -149,8 +152,9 @@ impl Corrected {
     }
 }
 
-/// What the run learns from [`LoopClosure::finish`].
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+/// What the run learns from [`LoopClosure::finish`]: its part of the run's summary
+/// (`loop_closure`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct LoopReport {
     /// Every closure accepted, in order.
     pub closures: Vec<Closure>,
@@ -161,7 +165,7 @@ pub struct LoopReport {
     /// Bytes of scans the spool held at the end.
     pub spool_bytes: u64,
     /// Why loop closure stopped before the run ended, if it did (the run went on without it).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stopped: Option<String>,
 }
 
@@ -186,7 +190,7 @@ impl<C: Capacity> LoopClosure<C> {
         s: LoopSettings,
         spool_path: &Path,
         saved_map: Option<&Path>,
-        streaming: Option<Streaming>,
+        streaming: Option<Windowed>,
         threads: usize,
     ) -> Result<Self, FileError> {
         let spool = ScanSpool::create(spool_path, (s.spool_budget_mb * 1e6) as u64)?;
@@ -210,12 +214,18 @@ impl<C: Capacity> LoopClosure<C> {
     /// Hands the thread a frame the run used: its pose, how well its registration pinned
     /// that down, and the filtered scan it fused. `counter` is the pipeline's frame count
     /// after it ([`Pipeline::frames`]).
-    pub fn observe(&mut self, frame: usize, counter: u32, outcome: &ScanOutcome, points: &[Point]) {
+    pub fn observe(
+        &mut self,
+        frame: usize,
+        counter: u32,
+        (pose, information): (&Pose, &PoseInformation),
+        points: &[Point],
+    ) {
         let _ = self.to_worker.send(ToWorker::Frame {
             frame,
             counter,
-            pose: outcome.t_world_sensor,
-            information: Box::new(outcome.stats.information),
+            pose: *pose,
+            information: Box::new(*information),
             points: points.to_vec(),
         });
     }
@@ -266,7 +276,7 @@ impl<C: Capacity> LoopClosure<C> {
             self.report.rebuilds += 1;
         }
         if let Some(o) = c.outputs {
-            if let Err(e) = outputs.replace(o) {
+            if let Err(e) = streaming::replace(&mut outputs, o) {
                 log::warn!("loop closure: the rebuilt outputs: {e}");
             }
         }

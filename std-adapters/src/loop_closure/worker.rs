@@ -11,9 +11,10 @@ use crate::loop_closure::graph::{local_covariance, Edge, PoseGraph};
 use crate::loop_closure::saved::SavedMap;
 use crate::loop_closure::settings::LoopSettings;
 use crate::loop_closure::spool::ScanSpool;
-use crate::loop_closure::streaming::{self, RebuiltOutputs, Streaming};
+use crate::loop_closure::streaming::{self, RebuiltOutputs};
 use crate::loop_closure::{Closure, Corrected, ToWorker};
 use crate::parallel::Workers;
+use crate::stage::lent::Windowed;
 use nalgebra::Matrix6;
 use slamesh_core::map::MeshMap;
 use slamesh_core::math::{rotation_angle, se3_exp, se3_log};
@@ -83,7 +84,7 @@ pub(crate) struct Worker<C: Capacity> {
     /// The pipeline whose rebuilt map is with the run, until the run hands back its old one.
     awaiting: Option<Box<Pipeline<C>>>,
     /// A windowed run's rules and outputs ([`streaming`]); `None`: the run keeps its map whole.
-    streaming: Option<Streaming>,
+    streaming: Option<Windowed>,
     /// Rebuilds started (each windowed one has outputs of its own).
     rebuilds: usize,
     /// The run's thread count (0: one per core), and a pool of as many for a rebuild after
@@ -103,7 +104,7 @@ impl<C: Capacity> Worker<C> {
         spool: ScanSpool,
         to_run: Sender<Corrected>,
         saved: Option<SavedMap>,
-        streaming: Option<Streaming>,
+        streaming: Option<Windowed>,
         threads: usize,
     ) -> Result<Self, FileError> {
         let submap = match &streaming {

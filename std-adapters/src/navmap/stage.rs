@@ -79,9 +79,9 @@ impl<C: Capacity> RunStage<C> for NavMapStage {
 
     /// The scans' floor grows with the area driven: not in a run whose memory a window
     /// bounds (its grid is the mesh's alone, as from a saved map).
-    fn start(&mut self, start: &Start<'_>) {
+    fn start(&mut self, start: &Start<'_>) -> Result<(), FileError> {
         let Some(how) = &self.how else {
-            return;
+            return Ok(());
         };
         if !start.bounded {
             self.hits = Some(Hits::new(how.resolution_m, &how.up().0));
@@ -89,6 +89,7 @@ impl<C: Capacity> RunStage<C> for NavMapStage {
         self.carried = start
             .map
             .and_then(|(map, path)| floor_file::read_beside(map, path));
+        Ok(())
     }
 
     /// The floor counts the scan's own points.

@@ -48,7 +48,7 @@ impl<C: Capacity> Run<'_, C> {
             .flatten();
         let map = match (
             want_map && record.error.is_none(),
-            record.loop_closures.is_empty(),
+            record.notes.moved.is_empty(),
         ) {
             (false, _) => None,
             (true, true) => MapUpdate::of(&self.pipeline, record.frame, record.stamp)
@@ -58,7 +58,7 @@ impl<C: Capacity> Run<'_, C> {
                 record.frame,
                 record.stamp,
                 poses.iter().map(|(_, p)| *p).collect(),
-                record.loop_closures.iter().map(|c| c.describe()).collect(),
+                record.notes.moved.clone(),
             ),
         };
         let own = self.event.own_points.as_mut().map(std::mem::take);

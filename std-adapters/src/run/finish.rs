@@ -1,12 +1,10 @@
-//! The end of a run ([`Run::finish`]): loop closure's last corrections, the map file, the
+//! The end of a run ([`Run::finish`]): the stages' last corrections (loop closure's), the map file, the
 //! stages' end-of-run files from the whole map (the navigation files), the mesh files and the
 //! picture, the summary with the report's health and the files written, then the trajectories
 //! and `report.json`; the spools and the checkpoint removed. A run stopped early (Ctrl-C)
 //! ends the same way, saying where it stopped.
 
 use crate::formats::mesh_records::VertexProperties;
-use crate::loop_closure::streaming::RunOutputs;
-use crate::loop_closure::LoopReport;
 use crate::outputs::mesh_spool::{MeshCounts, MeshFormat, MeshSpool};
 use crate::run::budget::MemoryBudget;
 use crate::run::checkpoint::Progress;
@@ -18,6 +16,7 @@ use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::run::RunOptions;
 use crate::sources::FrameSource;
+use crate::stage::lent::{Correcting, RunOutputs};
 use crate::stage::{End, Stages};
 use slamesh_core::{Capacity, Pose};
 use std::path::PathBuf;
@@ -43,14 +42,18 @@ impl<C: Capacity> Run<'_, C> {
         self.finish_as(source, Some(before))
     }
 
-    /// Loop closure's last corrections, and what it did over the run (when on).
-    fn last_loops(&mut self, source: &impl FrameSource) -> Option<LoopReport> {
-        let (pipeline, poses) = (&mut self.pipeline, &mut self.progress.poses);
-        let outputs = RunOutputs {
-            spool: &mut self.files.spool,
-            saved_map: &mut self.files.saved_map,
+    /// The stages' last corrections (loop closure's), waited for.
+    fn wind_up(&mut self, source: &impl FrameSource) {
+        let mut run = Correcting {
+            pipeline: &mut self.pipeline,
+            poses: &mut self.progress.poses,
+            next_frame: source.frames(),
+            outputs: RunOutputs {
+                spool: &mut self.files.spool,
+                saved_map: &mut self.files.saved_map,
+            },
         };
-        (self.closer.take()).map(|c| c.finish(pipeline, poses, source.frames(), outputs))
+        self.stages.wind_up(&mut run);
     }
 
     fn finish_as(
@@ -58,7 +61,7 @@ impl<C: Capacity> Run<'_, C> {
         source: &impl FrameSource,
         interrupted: Option<usize>,
     ) -> Result<Summary, RunError> {
-        let loop_closure = self.last_loops(source);
+        self.wind_up(source);
         self.progress.seconds = self.clock.seconds();
         let Progress {
             poses,
@@ -114,7 +117,6 @@ impl<C: Capacity> Run<'_, C> {
             }),
             peak_rss_mb: memory::peak_rss_bytes().map(memory::mb),
             health,
-            loop_closure,
             input: source.input_report(),
             stages: self.stages.summaries(),
             files: written(&self.opts, !poses.is_empty(), &self.stages),

@@ -3,7 +3,6 @@
 //! [`crate::run::files`].
 
 use crate::io::error::FileError;
-use crate::loop_closure::{Closure, LoopReport};
 use crate::outputs::mesh_spool::MeshSpool;
 use crate::outputs::topview::map::{self, MapPicture};
 use crate::parallel::Workers;
@@ -88,9 +87,6 @@ pub struct FrameRecord {
     /// (position, the share of the scan on the map, the best elsewhere, hypotheses tried).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub relocalization: Option<String>,
-    /// Loop closures applied before this frame ([`crate::loop_closure`]).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub loop_closures: Vec<Closure>,
     /// A live input: milliseconds from the frame's last packet to its pose.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub latency_ms: Option<f64>,
@@ -98,9 +94,9 @@ pub struct FrameRecord {
     #[serde(default, skip_serializing_if = "is_zero")]
     pub samples: usize,
     /// What the run's stages noted for the frame, each under its key
-    /// ([`crate::stage::RunStage::used`], [`crate::stage::RunStage::fused`]): what the IMU did
-    /// for it (`imu`), the map vertices clearing forgot (`cleared_vertices`); and why a stage
-    /// doubts it (`doubts`: an IMU gap).
+    /// ([`crate::stage::RunStage::used`], [`fused`](crate::stage::RunStage::fused),
+    /// [`correct`](crate::stage::RunStage::correct); each stage's module says what it notes),
+    /// and why a stage doubts it (`doubts`).
     #[serde(flatten)]
     pub notes: Notes,
 }
@@ -139,7 +135,6 @@ impl FrameRecord {
             stamp: 0.0,
             stamp_ns: None,
             relocalization: None,
-            loop_closures: Vec::new(),
             latency_ms: None,
             samples: 0,
             notes: Notes::default(),
@@ -207,16 +202,12 @@ pub struct Summary {
     pub peak_rss_mb: Option<f64>,
     /// Frames by status, and those not registered normally.
     pub health: Health,
-    /// What loop closure did, when it was on.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub loop_closure: Option<LoopReport>,
     /// What the input's reader counted (a capture's or a live stream's packets, gaps, dropped
     /// sweeps).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub input: Option<serde_json::Value>,
-    /// The run's stages' parts, each under its name ([`crate::stage::RunStage::summary`]):
-    /// `imu`, what the IMU did, when readings came; `navmap`, the navigation map written (its
-    /// counts, size, robot and which way was up); `dynamic`, what clearing what moves did.
+    /// The run's stages' parts, each under its name ([`crate::stage::RunStage::summary`];
+    /// each stage's module says what its part holds).
     #[serde(flatten)]
     pub stages: BTreeMap<String, serde_json::Value>,
     /// The first frame not run when the run was stopped before its input ended (Ctrl-C,

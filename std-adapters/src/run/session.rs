@@ -14,7 +14,6 @@
 
 use crate::formats::map_file::MapWriter;
 use crate::io::error::FileError;
-use crate::loop_closure::LoopClosure;
 use crate::outputs::mesh_spool::MeshSpool;
 use crate::parallel::Workers;
 use crate::run::budget::MemoryBudget;
@@ -26,7 +25,7 @@ use crate::run::lookahead::LookAhead;
 use crate::run::memory;
 use crate::run::report::{FrameRecord, Summary};
 use crate::run::saved_map::{self, FromMap};
-use crate::run::setup::Setup;
+use crate::run::setup::{self, Setup};
 use crate::run::sink::{FnSink, FrameEvent, Sinks};
 use crate::run::timing::RunClock;
 use crate::run::window::Window;
@@ -130,8 +129,6 @@ pub struct Run<'a, C: Capacity> {
     /// The saved map the run started from: its path, the search for the pose in it, its
     /// pager.
     pub(super) from_map: FromMap,
-    /// Loop closure's thread, when on.
-    pub(super) closer: Option<LoopClosure<C>>,
     /// The point counts of the last frames read (a scan far smaller is named).
     pub(super) recent: RecentScans,
     /// What the frame's event carries beside its record.
@@ -254,17 +251,25 @@ impl<'a, C: Capacity> Run<'a, C> {
         stages.restore(&progress.stages).map_err(|why| {
             FileError::at(&checkpoint_path, format!("not a usable checkpoint: {why}"))
         })?;
+        let (window, map_layers) = (setup.window, setup.map_layers);
+        let windowed = || setup::windowed(&opts, window, map_layers);
         stages.start(&Start {
-            bounded: !setup.window.is_off(),
+            bounded: !window.is_off(),
             map: opts.map.as_deref().map(|m| (m, &map_path[..])),
-        });
+            config: &opts.config,
+            out: &opts.out,
+            threads: opts.threads,
+            windowed: match window.is_off() {
+                true => None,
+                false => Some(&windowed),
+            },
+        })?;
         let mut ahead = setup.ahead;
         if stages.need_points() {
             ahead.keep_points();
         }
         Ok(Run {
             stages,
-            closer: setup.closer,
             from_map: FromMap {
                 path: map_path,
                 search,

@@ -1,12 +1,10 @@
 //! What a run's start needs before its first frame, whether it starts anew or resumes: the
 //! output folder (made here), the executor, the sliding window and the memory cap's layer
 //! budget, the pipeline, and a saved map to start from: loaded whole, or, for localizing under
-//! a memory cap, opened for paging ([`crate::run::map_pager`]); loop closure's thread; and the
-//! run's stages (`wiring`), whose memory counts under the cap.
+//! a memory cap, opened for paging ([`crate::run::map_pager`]); and the run's stages
+//! (`wiring`), whose memory counts under the cap.
 
 use crate::io::error::FileError;
-use crate::loop_closure::streaming::{Evict, Streaming};
-use crate::loop_closure::LoopClosure;
 use crate::outputs::mesh_spool::SET_LAYERS;
 use crate::parallel::Workers;
 use crate::run::budget::MemoryBudget;
@@ -17,6 +15,7 @@ use crate::run::options::{InitialPose, RunError, RunOptions};
 use crate::run::saved_map::{self, MapStart};
 use crate::run::window::{CapTooSmall, Window};
 use crate::run::wiring;
+use crate::stage::lent::{Evict, Windowed};
 use crate::stage::Stages;
 use slamesh_core::motion::ConstantVelocity;
 use slamesh_core::{Capacity, Pipeline};
@@ -34,8 +33,8 @@ pub(crate) struct Setup<C: Capacity> {
     /// The memory cap's shares (its layer budget among them), when a cap is set.
     pub(crate) budget: Option<MemoryBudget>,
     pub(crate) ahead: LookAhead,
-    /// Loop closure's thread, when on.
-    pub(crate) closer: Option<LoopClosure<C>>,
+    /// Layers of the pipeline's map (its budget and a scan's worth).
+    pub(crate) map_layers: usize,
     /// The run's stages, not yet told the run starts.
     pub(crate) stages: Stages<C>,
 }
@@ -53,12 +52,11 @@ impl<C: Capacity> Setup<C> {
         let threads = workers.threads() > 1;
         let wanted = opts.loop_closure.is_some() && opts.loop_closure_unavailable().is_none();
         let mut stages = wiring::stages::<C>(opts);
-        stages.extend(extra);
         let Budget {
             memory,
             filter_ahead,
             closing,
-        } = layer_budget::<C>(opts, threads, wanted, stages.bytes())?;
+        } = layer_budget::<C>(opts, threads, wanted, stages.bytes() + extra.bytes())?;
         let max_layers = memory.as_ref().map(|m| m.layers);
         window.max_layers = max_layers;
         let map_layers = max_layers.map_or(C::MAP_LAYERS, Window::map_layers::<C>);
@@ -85,14 +83,14 @@ impl<C: Capacity> Setup<C> {
             pipeline.restore_progress(start.frames, motion);
             map_start = Some(start);
         }
-        // Asked for where the run cannot close loops: refused, naming why (`loop_closer`).
-        let closer = match wanted && !closing {
-            true => None,
-            false => loop_closer(opts, streaming(opts, window, map_layers))?,
-        };
+        // Asked for where the run cannot close loops: refused, naming why.
+        if let Some(closing) = wiring::loop_closure::<C>(opts, wanted && !closing)? {
+            stages.push(closing);
+        }
+        stages.extend(extra);
         Ok(Setup {
             stages,
-            closer,
+            map_layers,
             pipeline,
             map_start,
             pager,
@@ -249,13 +247,10 @@ fn start_motion(
     Ok(ConstantVelocity::from_history(Some(before.1), Some(last.1)))
 }
 
-/// What loop closure's thread needs of a run whose map is a window ([`streaming`]'s module):
-/// the window (`window`, over a map of `map_layers` layers), and the outputs it writes
-/// what leaves the window to. `None` for a run that keeps its whole map.
-fn streaming(opts: &RunOptions, window: Window, map_layers: usize) -> Option<Streaming> {
-    if window.is_off() {
-        return None;
-    }
+/// A run with `opts` whose map is a window (`window`, over a map of `map_layers` layers), as
+/// a stage that rebuilds the map keeps it ([`Windowed`]): the window's rules, and the outputs
+/// what leaves the window goes to.
+pub(super) fn windowed(opts: &RunOptions, window: Window, map_layers: usize) -> Windowed {
     let set_layers = match window.max_layers {
         Some(_) => memory::CLOSING_SET_LAYERS,
         None => SET_LAYERS,
@@ -263,7 +258,7 @@ fn streaming(opts: &RunOptions, window: Window, map_layers: usize) -> Option<Str
     let evict: Evict = Box::new(move |map, frame, sensor, spool, saved| {
         window.evict_to(map, frame, sensor, spool, saved)
     });
-    Some(Streaming {
+    Windowed {
         evict,
         map_layers,
         mesh: (opts.window.save_evicted).then(|| {
@@ -273,28 +268,5 @@ fn streaming(opts: &RunOptions, window: Window, map_layers: usize) -> Option<Str
         save_map: (opts.save_map.as_ref())
             .map(|p| (p.clone(), saved_map::info(&opts.config, &opts.preset, 0))),
         dir: opts.out.clone(),
-    })
-}
-
-/// Loop closure's thread when asked for; refused, naming why, where the run cannot close
-/// loops ([`RunOptions::loop_closure_unavailable`]).
-fn loop_closer<C: Capacity>(
-    opts: &RunOptions,
-    streaming: Option<Streaming>,
-) -> Result<Option<LoopClosure<C>>, RunError> {
-    match (opts.loop_closure, opts.loop_closure_unavailable()) {
-        (Some(_), Some(reason)) => Err(RunError::Config(slamesh_core::ConfigError {
-            field: "loop closure",
-            reason,
-        })),
-        (Some(s), None) => Ok(Some(LoopClosure::start(
-            opts.config,
-            s,
-            &opts.out.join(".loop-closure.scans"),
-            opts.map.as_deref(),
-            streaming,
-            opts.threads,
-        )?)),
-        (None, _) => Ok(None),
     }
 }

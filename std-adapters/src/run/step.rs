@@ -1,10 +1,10 @@
-//! One frame of a run, as named stages ([`Run::step`]): close loops, read, prepare (deskew,
+//! One frame of a run, as named stages ([`Run::step`]): the run moved as a whole if a stage
+//! moves it (a loop closed), read, prepare (deskew,
 //! capacity, the given pose), register (the core's one entry point, with the next frame read
 //! beside it), update the map (mesh counts, the window), record (the frame's line, the
 //! checkpoint). A frame that cannot be used is a [`FrameError`]: recorded as skipped, the run
 //! goes on; only an output that cannot be written stops it ([`RunError`]).
 
-use crate::loop_closure::streaming::RunOutputs;
 use crate::run::frame_error::{FrameError, FrameFault};
 use crate::run::map_pager::{self, MapPager};
 use crate::run::memory;
@@ -15,6 +15,7 @@ use crate::run::saved_map::{self, FromMap};
 use crate::run::session::Run;
 use crate::run::timing::StageMs;
 use crate::sources::FrameSource;
+use crate::stage::lent::{Correcting, RunOutputs};
 use crate::stage::{Read, Used};
 use slamesh_core::deskew;
 use slamesh_core::pipeline::{Known, Scan, Stepped};
@@ -32,7 +33,7 @@ impl<C: Capacity> Run<'_, C> {
         i: usize,
     ) -> Result<FrameRecord, RunError> {
         let mut rec = FrameRecord::skipped(i, source.label(i));
-        self.close_loops(i, &mut rec);
+        self.correct(i, &mut rec);
         let read = self.ahead.take(source, i);
         self.event.samples = source.samples(i);
         rec.samples = self.event.samples.len();
@@ -73,18 +74,18 @@ impl<C: Capacity> Run<'_, C> {
         Ok(rec)
     }
 
-    /// Applies the loops the closer found since the last frame.
-    fn close_loops(&mut self, i: usize, rec: &mut FrameRecord) {
-        if let Some(c) = &mut self.closer {
-            let outputs = RunOutputs {
+    /// Lets the stages move the run as a whole before frame `i` (a loop closed).
+    fn correct(&mut self, i: usize, rec: &mut FrameRecord) {
+        let mut run = Correcting {
+            pipeline: &mut self.pipeline,
+            poses: &mut self.progress.poses,
+            next_frame: i,
+            outputs: RunOutputs {
                 spool: &mut self.files.spool,
                 saved_map: &mut self.files.saved_map,
-            };
-            for closed in c.apply(&mut self.pipeline, &mut self.progress.poses, i, outputs) {
-                log::info!("frame {i}: {}", closed.describe());
-                rec.loop_closures.push(closed);
-            }
-        }
+            },
+        };
+        self.stages.correct(&mut run, &mut rec.notes);
     }
 
     /// A paged map: the tiles around the predicted pose (while the pose is searched for, the
@@ -254,16 +255,15 @@ impl<C: Capacity> Run<'_, C> {
             history,
             at_stamp: &at_stamp,
             fused_at,
+            information: &o.stats.information,
+            counter: self.pipeline.frames(),
+            fused_points: self.pipeline.last_points(),
             points: &frame.points,
             workers: &self.workers,
         };
         self.stages.used(&used, &mut rec.notes);
         rec.latency_ms = source.arrival(i).map(|a| a.elapsed().as_secs_f64() * 1e3);
         self.progress.used_ms.push(rec.ms);
-        if let Some(c) = &mut self.closer {
-            let counter = self.pipeline.frames();
-            c.observe(i, counter, o, self.pipeline.last_points());
-        }
     }
 
     /// A frame not used: its status and error into `rec`, its error among the skipped.

@@ -4,15 +4,20 @@
 //! fused (and may change the map) and the pose kept; notes what it did in the frame's record
 //! (and why it doubts the frame); keeps its state in a checkpoint; writes what goes beside a
 //! map saved during or at the end of the run; and has the whole map, read-only, at the end,
-//! for its files and its part of the run's summary.
+//! for its files and its part of the run's summary. Between frames a stage may move the run
+//! as a whole (a loop closed: the trajectory, the motion model, a rebuilt map), with what the
+//! run lends it for that ([`lent`]).
 //!
 //! A run holds its stages as a list ([`Stages`]) and names none of them: each lives in its
 //! own room (the IMU in [`crate::inertial::stage`], clearing what moves in [`crate::dynamic`],
-//! the navigation map in [`crate::navmap::stage`]) and `run/wiring.rs` is the one list that
+//! the navigation map in [`crate::navmap::stage`], loop closure in
+//! [`crate::loop_closure::stage`]) and `run/wiring.rs` is the one list that
 //! wires them from the options; a caller adds its own ([`crate::run::run_with`]). A run's
 //! stages are called in the list's order, on the run's thread, between the core's steps: what
 //! they do is the same on any thread count. Where one answer is wanted (a deskew, a prior, up)
 //! the first stage that gives one gives it.
+
+pub mod lent;
 
 use crate::formats::mesh_records::VertexProperties;
 use crate::io::error::FileError;
@@ -20,10 +25,12 @@ use crate::io::le::{put_str, put_u64, Damaged, Decoder};
 use crate::outputs::mesh_spool::MeshSpool;
 use crate::parallel::Workers;
 use crate::sources::Sample;
+use lent::{Correcting, Windowed};
 use nalgebra::Vector3;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::deskew::{DeskewError, Deskewed};
-use slamesh_core::{Capacity, Pipeline, Point, Pose, RegistrationStatus};
+use slamesh_core::lm::PoseInformation;
+use slamesh_core::{Capacity, Config, Pipeline, Point, Pose, RegistrationStatus};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
@@ -38,14 +45,28 @@ pub trait RunStage<C: Capacity>: Send {
         0
     }
 
-    /// The run starts (anew or resumed), before its first frame.
-    fn start(&mut self, _start: &Start<'_>) {}
+    /// The run starts (anew or resumed), before its first frame: an error stops the run
+    /// before it begins.
+    fn start(&mut self, _start: &Start<'_>) -> Result<(), FileError> {
+        Ok(())
+    }
 
     /// Whether it needs each used frame's own points ([`Used::points`]; asked after
     /// [`start`](Self::start)).
     fn needs_points(&self) -> bool {
         false
     }
+
+    /// Between frames, before frame `run.next_frame` registers: may move the run as a whole
+    /// (every pose of the trajectory, the motion model, the map: a loop closed). Returns a note
+    /// for that frame's record, which says what moved ([`Note::moved`]).
+    fn correct(&mut self, _run: &mut Correcting<'_, C>) -> Option<Note> {
+        None
+    }
+
+    /// The run's last frame has run: the last of what [`correct`](Self::correct) does, waited
+    /// for, before the map is written.
+    fn wind_up(&mut self, _run: &mut Correcting<'_, C>) {}
 
     /// A frame was read, with the samples that are not scans that came with it (an IMU's).
     fn read(&mut self, _frame: &Read<'_>) {}
@@ -145,13 +166,22 @@ pub trait RunStage<C: Capacity>: Send {
 }
 
 /// What a stage knows when the run starts.
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone, Copy)]
 pub struct Start<'a> {
     /// A window or a memory cap bounds the run's memory: what grows with the area driven is
     /// not kept.
     pub bounded: bool,
     /// The saved map the run starts from, with its path (stamped poses).
     pub map: Option<(&'a Path, &'a [(f64, Pose)])>,
+    /// The run's configuration.
+    pub config: &'a Config,
+    /// The output folder (a stage's scratch files go there, dot-named).
+    pub out: &'a Path,
+    /// The run's thread count (0: one a core).
+    pub threads: usize,
+    /// A run whose map is a window: the window, for a stage that rebuilds the map as the run
+    /// keeps it (made anew at each call). `None` for a run that keeps its whole map.
+    pub windowed: Option<&'a dyn Fn() -> Windowed>,
 }
 
 /// The motion model's last two poses, older first (the core's
@@ -206,6 +236,9 @@ pub struct Note {
     /// Why the frame is doubted, when it is: a status and its reason, which the run's health
     /// lists beside the frames not registered normally (e.g. `ImuGap`).
     pub doubt: Option<(&'static str, String)>,
+    /// What moved the run as a whole before the frame, each said in a line (a loop closed):
+    /// the sinks that keep the map and the path are sent the whole of both again.
+    pub moved: Vec<String>,
 }
 
 impl Note {
@@ -215,6 +248,7 @@ impl Note {
             key,
             value: serde_json::to_value(value).unwrap_or_default(),
             doubt: None,
+            moved: Vec::new(),
         }
     }
 }
@@ -228,6 +262,10 @@ pub struct Notes {
     /// Why the frame is doubted: (status, reason), one a note that doubts it.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub doubts: Vec<(String, String)>,
+    /// What moved the run as a whole before the frame ([`Note::moved`]; in its note's value
+    /// in `report.json`).
+    #[serde(skip)]
+    pub moved: Vec<String>,
 }
 
 impl Notes {
@@ -236,6 +274,7 @@ impl Notes {
         if let Some((status, why)) = note.doubt {
             self.doubts.push((status.to_string(), why));
         }
+        self.moved.extend(note.moved);
         self.values.insert(note.key.to_string(), note.value);
     }
 }
@@ -255,6 +294,12 @@ pub struct Used<'a> {
     pub at_stamp: &'a Pose,
     /// The pose its scan was fused at (a deskewed scan's reference time).
     pub fused_at: &'a Pose,
+    /// How well registration pinned that pose down.
+    pub information: &'a PoseInformation,
+    /// The pipeline's frame count after it ([`Pipeline::frames`]).
+    pub counter: u32,
+    /// The filtered scan it fused, in the sensor frame.
+    pub fused_points: &'a [Point],
     /// Its own points in the sensor frame, when a stage [needs them](RunStage::needs_points).
     pub points: &'a [Point],
     /// The run's pool.
@@ -304,8 +349,22 @@ impl<C: Capacity> Stages<C> {
     }
 
     /// Tells each the run starts.
-    pub fn start(&mut self, start: &Start<'_>) {
-        self.0.iter_mut().for_each(|s| s.start(start));
+    pub fn start(&mut self, start: &Start<'_>) -> Result<(), FileError> {
+        self.0.iter_mut().try_for_each(|s| s.start(start))
+    }
+
+    /// [`RunStage::correct`] in turn, each note into `notes`.
+    pub fn correct(&mut self, run: &mut Correcting<'_, C>, notes: &mut Notes) {
+        for s in &mut self.0 {
+            if let Some(note) = s.correct(run) {
+                notes.add(note);
+            }
+        }
+    }
+
+    /// [`RunStage::wind_up`] in turn.
+    pub fn wind_up(&mut self, run: &mut Correcting<'_, C>) {
+        self.0.iter_mut().for_each(|s| s.wind_up(run));
     }
 
     /// Whether any needs each used frame's own points.
@@ -472,8 +531,9 @@ mod tests {
         fn bytes(&self) -> usize {
             100
         }
-        fn start(&mut self, start: &Start<'_>) {
+        fn start(&mut self, start: &Start<'_>) -> Result<(), FileError> {
             self.started = !start.bounded;
+            Ok(())
         }
         fn fused(&mut self, _: &mut Pipeline<Small>, _: &Pose) -> Option<Note> {
             self.fused += 1;
@@ -507,10 +567,16 @@ mod tests {
         stages.push(Box::new(Counting::default()));
         stages.push(Box::new(Counting::default()));
         assert_eq!(stages.bytes(), 200);
-        stages.start(&Start {
+        let config = Default::default();
+        let start = Start {
             bounded: false,
             map: None,
-        });
+            config: &config,
+            out: Path::new("."),
+            threads: 1,
+            windowed: None,
+        };
+        stages.start(&start).unwrap();
         let mut pipeline = Pipeline::<Small>::new(Default::default()).unwrap();
         let mut notes = Notes::default();
         for _ in 0..3 {
@@ -528,6 +594,9 @@ mod tests {
                 history: (None, None),
                 at_stamp: &Pose::identity(),
                 fused_at: &Pose::identity(),
+                information: &Default::default(),
+                counter: 1,
+                fused_points: &[],
                 points: &[],
                 workers: &workers,
             };
