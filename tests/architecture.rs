@@ -297,6 +297,50 @@ fn no_import_runs_up_from_a_lower_room_to_a_higher_one() {
     );
 }
 
+/// The rooms of the capabilities a run holds as stages (`crate::stage`), which `run/` reaches
+/// only through the one list that wires them (`run/wiring.rs`).
+const CAPABILITIES: [&str; 4] = ["inertial", "navmap", "dynamic", "loop_closure"];
+
+/// What `run/` still names of them outside the wiring, file by file (issue 81): their options
+/// (`RunOptions`'s fields and the `[imu]` block of the configuration file) and loop closure's
+/// share of a memory cap. The list only shrinks: a file that names no capability any more is
+/// taken off it, and a new file or name fails the test.
+const STILL_NAMED_IN_RUN: [(&str, &[&str]); 3] = [
+    ("config_file.rs", &["inertial"]),
+    ("options.rs", &["inertial", "navmap", "loop_closure"]),
+    ("window.rs", &["loop_closure"]),
+];
+
+#[test]
+fn run_names_its_capabilities_only_in_the_list_that_wires_them() {
+    let run = root().join("std-adapters/src/run");
+    let mut named = Vec::new();
+    for (p, own, uses) in std_imports() {
+        let file = p.strip_prefix(&run).map(|f| f.display().to_string());
+        let Ok(file) = file else { continue };
+        if own != "run" || file == "wiring.rs" {
+            continue;
+        }
+        let theirs: Vec<&str> = CAPABILITIES
+            .into_iter()
+            .filter(|c| uses.contains(*c))
+            .collect();
+        if !theirs.is_empty() {
+            named.push((file, theirs));
+        }
+    }
+    named.sort();
+    let still: Vec<(String, Vec<&str>)> = STILL_NAMED_IN_RUN
+        .iter()
+        .map(|(f, c)| (f.to_string(), c.to_vec()))
+        .collect();
+    assert_eq!(
+        named, still,
+        "run/ files that import a capability's room other than run/wiring.rs (update \
+         STILL_NAMED_IN_RUN only to take names off it)"
+    );
+}
+
 #[test]
 fn the_room_check_catches_a_planted_upward_import() {
     let lines = ["use crate::run::Run;", "use crate::formats::ply;"];

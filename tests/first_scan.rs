@@ -105,3 +105,50 @@ fn a_first_file_that_is_no_scan_is_refused_with_its_reason_and_decides_nothing()
     let mesh = |d: &Path| std::fs::read(d.join("mesh.ply")).unwrap();
     assert!(mesh(&out) == mesh(&plain), "the same mesh");
 }
+
+#[test]
+fn a_partial_first_sweep_does_not_decide_the_scale() {
+    let Some(k) = kitti_mini() else { return };
+    let dir = scratch("first-scan-partial");
+    let seq = k.join("00");
+    let scans = dir.join("in").join("velodyne");
+    std::fs::create_dir_all(&scans).unwrap();
+    // The first scan's points within 6 m (the road around the car, some 3 % of them): alone
+    // its median range would shrink the default preset's cells to under a metre.
+    let first = std::fs::read(seq.join("velodyne").join("000000.bin")).unwrap();
+    let near: Vec<u8> = first
+        .chunks_exact(16)
+        .filter(|p| {
+            let c = |k: usize| f32::from_le_bytes(p[4 * k..4 * k + 4].try_into().unwrap());
+            (c(0) * c(0) + c(1) * c(1) + c(2) * c(2)).sqrt() < 6.0
+        })
+        .flatten()
+        .copied()
+        .collect();
+    assert!(near.len() / 16 > 1000, "{} points", near.len() / 16);
+    std::fs::write(scans.join("000000.bin"), &near).unwrap();
+    for i in 0..10 {
+        let from = seq.join("velodyne").join(format!("{i:06}.bin"));
+        std::fs::copy(from, scans.join(format!("{:06}.bin", i + 1))).unwrap();
+    }
+    let (out, plain) = (dir.join("out"), dir.join("plain"));
+    let o = slamesh_run(&dir.join("in"), &out, &["--threads", "2"]);
+    let stderr = text(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("000000.bin: frame 0:")
+            && stderr.contains("(it does not choose the scale)"),
+        "the partial sweep named and passed over: {stderr}"
+    );
+    let o = slamesh_run(&seq, &plain, &["--threads", "2"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    // The map restarts at frame 1 (as for a short scan), at the scale of the whole scans: the
+    // scans after it are the run without it to the last digit written. At the partial sweep's
+    // scale every pose and the mesh would differ.
+    let poses = |d: &Path| std::fs::read_to_string(d.join("poses_kitti.txt")).unwrap();
+    let with = poses(&out);
+    let with: Vec<&str> = with.lines().collect();
+    assert_eq!(with[1..], poses(&plain).lines().collect::<Vec<_>>()[..]);
+    let mesh = |d: &Path| std::fs::read(d.join("mesh.ply")).unwrap();
+    assert!(mesh(&out) == mesh(&plain), "the same mesh");
+}

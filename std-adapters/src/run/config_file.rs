@@ -87,7 +87,7 @@ pub fn preset_settings(name: &str) -> Result<Settings, ConfigError> {
     })
 }
 
-/// True for a preset that a run fits to the scale of its first usable scan
+/// True for a preset that a run fits to the scale of its first whole scan
 /// ([`crate::run::scale`]) unless the cell, the kernel or the nearest range is set: `default`
 /// and `quick`.
 pub fn scales_itself(name: &str) -> bool {
@@ -214,7 +214,7 @@ pub struct Settings {
     pub preset: &'static str,
     /// Sliding-window rules (the memory cap as megabytes in `memory_cap_mb`).
     pub window: WindowSettings,
-    /// Fit the configuration to the scale of the first usable scan ([`crate::run::scale`]):
+    /// Fit the configuration to the scale of the first whole scan ([`crate::run::scale`]):
     /// the preset [`scales_itself`] and none of the fields the fit sets is given.
     pub scale_to_scene: bool,
     /// The `[imu]` section: the IMU's place on the LiDAR, its clock and limits.

@@ -1,7 +1,8 @@
-//! The scene's scale, taken from the first usable scan, and the configuration fitted to it
+//! The scene's scale, taken from the first whole scan, and the configuration fitted to it
 //! (docs/design.md §1.7): the cell, the GP kernel's reach and the nearest range kept shrink in
 //! small spaces, so that a 16-beam scan of an office at 1 to 15 m and a KITTI street both
-//! work with no options. Decided once, at the start of a run, and kept.
+//! work with no options. Decided once, at the start of a run, from a whole scan ([`scale_scan`]),
+//! and kept.
 //!
 //! The rule, from the ranges of the scan's finite, non-zero points:
 //! - cell edge: the median range / [`RANGES_PER_CELL`], at most the configuration's own and at
@@ -12,6 +13,7 @@
 //!   configuration's own and at least [`MIN_RANGE_M`] (KITTI's 10th percentiles are 5 m: it
 //!   keeps 1.2 m).
 
+use crate::run::capacity::{CHOICE_SCANS, SMALL_SCAN_RATIO};
 use crate::run::config_file::Settings;
 use crate::sources::FrameSource;
 use slamesh_core::{Config, Point};
@@ -79,17 +81,18 @@ pub fn fit(config: &Config, scan: &[Point]) -> Option<Fitted> {
     })
 }
 
-/// Fits `s`'s configuration to the scale of the first readable of `source`'s first ten frames
-/// when `s.scale_to_scene`, and says what it chose (the command's and the Python module's
-/// start).
+/// Fits `s`'s configuration to the scale of `source`'s first scan when `s.scale_to_scene`,
+/// and says what it chose (the command's, the node's and the Python module's start). The scan
+/// is the first of the readable scans that the capacity's choice looks at
+/// ([`scale_scan`]) that is not far smaller than the largest of them: a cut-off file or a
+/// partial sweep first decides nothing.
 pub fn fit_to_scene(s: &mut Settings, source: &mut impl FrameSource) {
     if !s.scale_to_scene {
         return;
     }
-    let Some((i, fitted)) = (0..source.frames().min(10)).find_map(|i| {
-        let scan = source.read(i).ok()?;
-        Some((i, fit(&s.config, &scan)?))
-    }) else {
+    let Some((i, fitted)) =
+        scale_scan(source).and_then(|(i, scan)| Some((i, fit(&s.config, &scan)?)))
+    else {
         return;
     };
     let c = &fitted.config;
@@ -104,6 +107,38 @@ pub fn fit_to_scene(s: &mut Settings, source: &mut impl FrameSource) {
         s.preset
     );
     s.config = fitted.config;
+}
+
+/// The scan the scene's scale is taken from, with its frame: among the first
+/// [`CHOICE_SCANS`] readable scans of the first ten frames (a live source's that have come,
+/// once one has), the first that holds at least a [`SMALL_SCAN_RATIO`]th of the points of the
+/// largest; those before it are named. `None` when none is readable.
+pub fn scale_scan(source: &mut impl FrameSource) -> Option<(usize, Vec<Point>)> {
+    let mut seen: Vec<(usize, usize)> = Vec::new();
+    for i in 0..source.frames().min(10) {
+        if seen.len() == CHOICE_SCANS || (!seen.is_empty() && source.would_wait(i)) {
+            break;
+        }
+        if let Ok(scan) = source.read(i) {
+            seen.push((i, usable(&scan)));
+        }
+    }
+    let largest = seen.iter().map(|s| s.1).max()?;
+    let &(i, n) = seen.iter().find(|s| s.1 * SMALL_SCAN_RATIO >= largest)?;
+    for &(j, m) in seen.iter().take_while(|s| s.0 < i) {
+        log::warn!(
+            "{}: frame {j}: {m} usable points, far fewer than frame {i}'s {n} or the largest's \
+             {largest}: a cut-off file or a partial sweep? (it does not choose the scale)",
+            source.label(j)
+        );
+    }
+    Some((i, source.read(i).ok()?))
+}
+
+/// The points of `scan` a fit reads: finite and not at the sensor.
+fn usable(scan: &[Point]) -> usize {
+    let fine = |p: &&Point| p.iter().all(|c| c.is_finite()) && p.iter().any(|&c| c != 0.0);
+    scan.iter().filter(fine).count()
 }
 
 #[cfg(test)]
@@ -139,6 +174,50 @@ mod tests {
         let desk = fit(&base, &shell(0.6, 1000)).unwrap();
         assert_eq!(desk.config.grid.cell_size_m, MIN_CELL_M);
         assert_eq!(desk.config.filter.range_min_m, MIN_RANGE_M);
+    }
+
+    /// Frames of `sizes[i]` points on a sphere of radius `radii[i]`; frame 1 unreadable.
+    struct Shells(Vec<(f32, usize)>);
+
+    impl FrameSource for Shells {
+        fn frames(&self) -> usize {
+            self.0.len()
+        }
+        fn label(&self, i: usize) -> String {
+            format!("shell {i}")
+        }
+        fn stamp(&self, i: usize) -> f64 {
+            i as f64
+        }
+        fn read(&mut self, i: usize) -> Result<Vec<Point>, crate::io::error::FileError> {
+            match i {
+                1 => Err(crate::io::error::FileError::at(
+                    std::path::Path::new("shell 1"),
+                    "unreadable",
+                )),
+                _ => Ok(shell(self.0[i].0, self.0[i].1)),
+            }
+        }
+    }
+
+    #[test]
+    fn a_far_smaller_first_scan_does_not_decide_the_scale() {
+        let street = (10.0, 1000);
+        let mut s = crate::run::config_file::preset_settings("default").unwrap();
+        let base = s.config;
+        // A cut-off first scan of 200 points 3 m away would shrink the cells to 0.6 m.
+        let mut source = Shells(vec![(3.0, 200), street, street, street, street]);
+        assert_eq!(
+            scale_scan(&mut source).unwrap().0,
+            2,
+            "the first whole scan"
+        );
+        fit_to_scene(&mut s, &mut source);
+        assert_eq!(s.config, base, "the street's scale");
+        // A first scan a third of the largest still decides, as before.
+        let mut source = Shells(vec![(3.0, 400), street, street]);
+        assert_eq!(scale_scan(&mut source).unwrap().0, 0);
+        assert!(scale_scan(&mut Shells(vec![])).is_none());
     }
 
     #[test]
