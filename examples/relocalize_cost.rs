@@ -33,7 +33,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .windows(2)
         .map(|w| (w[1].1.translation.vector - w[0].1.translation.vector).norm())
         .sum();
-    let candidates = saved_map::candidates(&start.path, settings.config.grid.cell_size_m);
+    let candidates =
+        slamesh::localize::search::candidates(&start.path, settings.config.grid.cell_size_m);
     let points = read_bin(&scan)?;
     let workers = Workers::new(threads)?;
     println!(

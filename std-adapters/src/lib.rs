@@ -16,6 +16,7 @@
 //! | a run: its stages, sinks, configuration, report, window, checkpoint | [`run`] |
 //! | odometry and mesh accuracy | [`eval`] |
 //! | loop closure: revisits found, the pose graph, the map rebuilt | [`loop_closure`] |
+//! | a pose found in a saved map, the map paged under a memory cap | [`localize`] |
 //! | two saved maps made one (`slamesh merge`) | [`merge`] |
 //! | the IMU in a run: its readings, the prior and the deskew they give | [`inertial`] |
 //! | the simulated demo (feature `sim`) | `demo` |
@@ -37,6 +38,7 @@ pub mod eval;
 pub mod formats;
 pub mod inertial;
 pub mod io;
+pub mod localize;
 pub mod loop_closure;
 pub mod merge;
 pub mod mutants;

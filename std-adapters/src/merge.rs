@@ -30,7 +30,7 @@
 
 use crate::formats::map_file::{MapFile, MapWriter};
 use crate::io::error::FileError;
-use crate::run::map_pager::MapPager;
+use crate::localize::pager::MapPager;
 use crate::run::saved_map;
 use serde::Serialize;
 use slamesh_core::math::rotation_angle;
@@ -160,7 +160,7 @@ pub fn merge(a: &Path, b: &Path, out: &Path, s: &MergeSettings) -> Result<MergeR
     let a_path = std::mem::take(&mut file_a.poses);
     let mut pager = MapPager::open(a, s.resident_layers / 2, s.probe_radius_m)?;
     let mut tiled_b = TiledB::new(file_b, settings.config.mesh.variance_show as f32);
-    let candidates = saved_map::candidates(&a_path, settings.config.grid.cell_size_m);
+    let candidates = crate::localize::search::candidates(&a_path, settings.config.grid.cell_size_m);
     let found = find(
         &mut pipeline,
         &mut pager,

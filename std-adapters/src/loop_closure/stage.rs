@@ -11,7 +11,7 @@
 use crate::io::error::FileError;
 use crate::loop_closure::settings::LoopSettings;
 use crate::loop_closure::{LoopClosure, LoopReport};
-use crate::stage::lent::Correcting;
+use crate::stage::lent::Between;
 use crate::stage::{Note, RunStage, Start, Used};
 use slamesh_core::Capacity;
 
@@ -60,7 +60,7 @@ impl<C: Capacity> RunStage<C> for LoopClosureStage<C> {
         Ok(())
     }
 
-    fn correct(&mut self, run: &mut Correcting<'_, C>) -> Option<Note> {
+    fn between(&mut self, run: &mut Between<'_, C>) -> Option<Note> {
         let closer = self.closer.as_mut()?;
         let i = run.next_frame;
         let outputs = crate::stage::lent::RunOutputs {
@@ -89,7 +89,7 @@ impl<C: Capacity> RunStage<C> for LoopClosureStage<C> {
         None
     }
 
-    fn wind_up(&mut self, run: &mut Correcting<'_, C>) {
+    fn wind_up(&mut self, run: &mut Between<'_, C>) {
         if let Some(c) = self.closer.take() {
             let outputs = crate::stage::lent::RunOutputs {
                 spool: run.outputs.spool,

@@ -231,7 +231,7 @@ impl Ros2Sink {
             },
         );
         let map_base = self.base_of(lidar);
-        let jumped = e.record.relocalization.is_some() || !e.record.notes.moved.is_empty();
+        let jumped = e.record.notes.jumped;
         let odom = OdomFrame::next(self.odom, map_base, jumped);
         self.odom = Some(odom);
         // The registration's information is about the LiDAR's pose in the world; the robot's

@@ -142,6 +142,9 @@ pub(crate) struct RunFiles {
     pub(crate) saved_map: Option<crate::formats::map_file::MapWriter>,
     /// The checkpoint's file.
     pub(crate) checkpoint: PathBuf,
+    /// The path of the saved map the run started from (stamped poses): a map the run saves
+    /// keeps it before its own.
+    pub(crate) start_path: Vec<(f64, slamesh_core::Pose)>,
 }
 
 /// The files a run itself may write into its output folder (its stages' are theirs:

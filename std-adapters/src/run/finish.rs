@@ -16,7 +16,7 @@ use crate::run::saved_map;
 use crate::run::session::Run;
 use crate::run::RunOptions;
 use crate::sources::FrameSource;
-use crate::stage::lent::{Correcting, RunOutputs};
+use crate::stage::lent::{Between, RunOutputs};
 use crate::stage::{End, Stages};
 use slamesh_core::{Capacity, Pose};
 use std::path::PathBuf;
@@ -44,7 +44,7 @@ impl<C: Capacity> Run<'_, C> {
 
     /// The stages' last corrections (loop closure's), waited for.
     fn wind_up(&mut self, source: &impl FrameSource) {
-        let mut run = Correcting {
+        let mut run = Between {
             pipeline: &mut self.pipeline,
             poses: &mut self.progress.poses,
             next_frame: source.frames(),
@@ -79,12 +79,9 @@ impl<C: Capacity> Run<'_, C> {
         let out = &self.opts.out;
         // A run that used no frame writes its report (with every frame's reason) and no empty
         // trajectory, mesh or picture.
-        if let Some(p) = &self.from_map.pager {
-            log::info!("map paged: {}", p.stats());
-        }
         let stamps: Vec<f64> = poses.iter().map(|(i, _)| source.stamp(*i)).collect();
         // The saved map's path: the start map's, then this run's.
-        let mut path = std::mem::take(&mut self.from_map.path);
+        let mut path = std::mem::take(&mut self.files.start_path);
         path.extend(poses.iter().zip(&stamps).map(|((_, p), t)| (*t, *p)));
         let saving = self.files.saved_map.take();
         saved_map::finish(saving, &path, &map, frames_seen, &self.opts)?;

@@ -3,9 +3,9 @@
 
 use crate::io::error::FileError;
 use crate::run::capacity::Class;
-use crate::run::saved_map;
 use slamesh_core::deskew::DeskewError;
 use slamesh_core::pipeline::Relocalized;
+use slamesh_core::relocalize::Search;
 use slamesh_core::ScanError;
 use std::fmt;
 
@@ -109,9 +109,30 @@ impl fmt::Display for FrameFault {
                 line,
             } => write!(f, "no given pose (line {line})"),
             FrameFault::Refused(e) => write!(f, "{e}"),
-            FrameFault::NotLocalized(r) => write!(f, "{}", saved_map::not_found(r)),
+            FrameFault::NotLocalized(r) => write!(f, "{}", not_found(r)),
         }
     }
 }
 
 impl std::error::Error for FrameError {}
+
+/// Why a frame whose search found no convincing pose has none.
+pub fn not_found(r: &Relocalized) -> String {
+    format!(
+        "not localized in the map: its best pose puts {:.0} % of the scan on the map's surfaces \
+         (at least {:.0} % needed) and {:.0} % on its walls (at least {:.0} %){}, the best elsewhere {:.0} % ({} hypotheses, {} registered); \
+         the next frame searches again",
+        100.0 * r.hit_share,
+        100.0 * Search::default().min_hit_share,
+        100.0 * r.wall_share,
+        100.0 * Search::default().min_wall_share,
+        if r.settled {
+            ""
+        } else {
+            " and its registration did not settle"
+        },
+        100.0 * r.runner_up_share,
+        r.hypotheses,
+        r.registered
+    )
+}

@@ -21,7 +21,6 @@
 //! | sliding-window eviction and the memory cap | [`window`] ([`memory`]) |
 //! | saving and resuming a killed run | [`checkpoint`] |
 //! | starting from a saved map: loading it, where to search for the first pose | [`saved_map`] |
-//! | a saved map paged in by tile under a memory cap | [`map_pager`] |
 //! | what a start needs: folder, executor, window, pipeline, the saved map | `setup` |
 //! | the one list that wires the run's stages ([`crate::stage`]) from its options | `wiring` |
 
@@ -35,7 +34,6 @@ pub mod files;
 mod finish;
 pub mod frame_error;
 pub mod lookahead;
-pub mod map_pager;
 pub mod memory;
 pub mod options;
 mod prepare;

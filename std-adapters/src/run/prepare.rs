@@ -96,7 +96,7 @@ impl<C: Capacity> Run<'_, C> {
         }
         fits_capacity::<C>(&frame.points, &self.opts.config.filter)?;
         frame.given = self.given_pose(i, rec.stamp, frame.to_stamp)?;
-        if frame.given.is_none() && self.from_map.search.is_none() {
+        if frame.given.is_none() && self.stages.search().is_none() {
             let history = self.pipeline.motion().history();
             frame.prior = self.stages.prior(&PriorAt {
                 frame: i,

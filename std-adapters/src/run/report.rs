@@ -83,10 +83,6 @@ pub struct FrameRecord {
     /// node's replies carry. Not in `report.json` (`stamp` is).
     #[serde(skip)]
     pub stamp_ns: Option<i64>,
-    /// A run from a saved map with no pose given: how the frame that found the pose found it
-    /// (position, the share of the scan on the map, the best elsewhere, hypotheses tried).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub relocalization: Option<String>,
     /// A live input: milliseconds from the frame's last packet to its pose.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub latency_ms: Option<f64>,
@@ -95,7 +91,7 @@ pub struct FrameRecord {
     pub samples: usize,
     /// What the run's stages noted for the frame, each under its key
     /// ([`crate::stage::RunStage::used`], [`fused`](crate::stage::RunStage::fused),
-    /// [`correct`](crate::stage::RunStage::correct); each stage's module says what it notes),
+    /// [`correct`](crate::stage::RunStage::between); each stage's module says what it notes),
     /// and why a stage doubts it (`doubts`).
     #[serde(flatten)]
     pub notes: Notes,
@@ -134,7 +130,6 @@ impl FrameRecord {
             deskewed_points: 0,
             stamp: 0.0,
             stamp_ns: None,
-            relocalization: None,
             latency_ms: None,
             samples: 0,
             notes: Notes::default(),

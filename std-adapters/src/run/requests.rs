@@ -10,7 +10,8 @@
 //!   floor file there from an earlier save is removed otherwise.
 //! - **Relocalize**: the next frames search for their pose near the one given (then along the
 //!   saved map's path) instead of following the motion, until one is found, as a run from a
-//!   saved map searches for its first pose.
+//!   saved map searches for its first pose (the stage that searches:
+//!   [`crate::stage::RunStage::relocalize`]).
 
 use crate::formats::map_file::MapWriter;
 use crate::run::saved_map;
@@ -59,9 +60,7 @@ impl<C: Capacity> Run<'_, C> {
         let mut w = MapWriter::create(&staging, &info).map_err(|e| e.to_string())?;
         w.add_map(self.pipeline.map()).map_err(|e| e.to_string())?;
         w.set_frames(self.pipeline.frames());
-        let path: Vec<(f64, Pose)> = self
-            .from_map
-            .path
+        let path: Vec<(f64, Pose)> = (self.files.start_path)
             .iter()
             .copied()
             .chain(
@@ -88,7 +87,8 @@ impl<C: Capacity> Run<'_, C> {
     }
 
     fn relocalize_near(&mut self, pose: Pose) {
-        let along = saved_map::candidates(&self.from_map.path, self.opts.config.grid.cell_size_m);
-        self.from_map.search = Some(std::iter::once(pose).chain(along).collect());
+        if !self.stages.relocalize(pose) {
+            log::warn!("cannot relocalize: no stage of this run searches for the pose");
+        }
     }
 }

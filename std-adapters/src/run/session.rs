@@ -24,11 +24,12 @@ use crate::run::files::{self, ReportFile, RunFiles, OWN_FILES};
 use crate::run::lookahead::LookAhead;
 use crate::run::memory;
 use crate::run::report::{FrameRecord, Summary};
-use crate::run::saved_map::{self, FromMap};
+use crate::run::saved_map;
 use crate::run::setup::{self, Setup};
 use crate::run::sink::{FnSink, FrameEvent, Sinks};
 use crate::run::timing::RunClock;
 use crate::run::window::Window;
+use crate::run::wiring;
 use crate::sources::{FrameSource, Waited};
 use crate::stage::{Stages, Start};
 use slamesh_core::{Capacity, Pipeline, Pose};
@@ -126,9 +127,6 @@ pub struct Run<'a, C: Capacity> {
     pub(super) clock: RunClock,
     /// The next frame, read and filtered ahead (with two threads or more).
     pub(super) ahead: LookAhead,
-    /// The saved map the run started from: its path, the search for the pose in it, its
-    /// pager.
-    pub(super) from_map: FromMap,
     /// The point counts of the last frames read (a scan far smaller is named).
     pub(super) recent: RecentScans,
     /// What the frame's event carries beside its record.
@@ -233,12 +231,6 @@ impl<'a, C: Capacity> Run<'a, C> {
             .map_start
             .as_ref()
             .map_or_else(Vec::new, |m| m.path.clone());
-        let search = match &setup.map_start {
-            Some(_) if progress.poses.is_empty() => {
-                saved_map::search_from(&map_path, opts.initial_pose, &opts.config)
-            }
-            _ => None,
-        };
         let checkpoint_path = checkpoint::path(&opts.out);
         let saved_map = match &opts.save_map {
             Some(path) => Some(MapWriter::create(
@@ -248,6 +240,13 @@ impl<'a, C: Capacity> Run<'a, C> {
             None => None,
         };
         let mut stages = setup.stages;
+        stages.push_first(wiring::map_search(
+            setup.map_start.as_ref().map(|_| &map_path[..]),
+            opts.initial_pose,
+            !progress.poses.is_empty(),
+            setup.pager,
+            opts.config.grid.cell_size_m,
+        ));
         stages.restore(&progress.stages).map_err(|why| {
             FileError::at(&checkpoint_path, format!("not a usable checkpoint: {why}"))
         })?;
@@ -270,16 +269,12 @@ impl<'a, C: Capacity> Run<'a, C> {
         }
         Ok(Run {
             stages,
-            from_map: FromMap {
-                path: map_path,
-                search,
-                pager: setup.pager,
-            },
             files: RunFiles {
                 spool,
                 report,
                 saved_map,
                 checkpoint: checkpoint_path,
+                start_path: map_path,
             },
             opts,
             pipeline: setup.pipeline,

@@ -1,15 +1,15 @@
 //! What a run's start needs before its first frame, whether it starts anew or resumes: the
 //! output folder (made here), the executor, the sliding window and the memory cap's layer
 //! budget, the pipeline, and a saved map to start from: loaded whole, or, for localizing under
-//! a memory cap, opened for paging ([`crate::run::map_pager`]); and the run's stages
+//! a memory cap, opened for paging ([`crate::localize::pager`]); and the run's stages
 //! (`wiring`), whose memory counts under the cap.
 
 use crate::io::error::FileError;
+use crate::localize::pager::MapPager;
 use crate::outputs::mesh_spool::SET_LAYERS;
 use crate::parallel::Workers;
 use crate::run::budget::MemoryBudget;
 use crate::run::lookahead::LookAhead;
-use crate::run::map_pager::MapPager;
 use crate::run::memory;
 use crate::run::options::{InitialPose, RunError, RunOptions};
 use crate::run::saved_map::{self, MapStart};

@@ -6,20 +6,18 @@
 //! goes on; only an output that cannot be written stops it ([`RunError`]).
 
 use crate::run::frame_error::{FrameError, FrameFault};
-use crate::run::map_pager::{self, MapPager};
 use crate::run::memory;
 use crate::run::options::{Deskew, RunError};
 use crate::run::prepare::Frame;
 use crate::run::report::{registration_reason, updated_triangles, FrameRecord};
-use crate::run::saved_map::{self, FromMap};
 use crate::run::session::Run;
 use crate::run::timing::StageMs;
 use crate::sources::FrameSource;
-use crate::stage::lent::{Correcting, RunOutputs};
+use crate::stage::lent::{Between, RunOutputs};
 use crate::stage::{Read, Used};
 use slamesh_core::deskew;
 use slamesh_core::pipeline::{Known, Scan, Stepped};
-use slamesh_core::relocalize::{Paging, Search};
+use slamesh_core::relocalize::Search;
 use slamesh_core::{Capacity, RegistrationStatus};
 use std::time::Instant;
 
@@ -33,7 +31,7 @@ impl<C: Capacity> Run<'_, C> {
         i: usize,
     ) -> Result<FrameRecord, RunError> {
         let mut rec = FrameRecord::skipped(i, source.label(i));
-        self.correct(i, &mut rec);
+        self.between(i, &mut rec);
         let read = self.ahead.take(source, i);
         self.event.samples = source.samples(i);
         rec.samples = self.event.samples.len();
@@ -48,13 +46,12 @@ impl<C: Capacity> Run<'_, C> {
         });
         rec.points_dropped_by_reader = read.dropped_by_reader;
         let motion = self.last_motion(source);
-        self.page_around_prediction();
         let (mut frame, readable) = Frame::of(read.scan, &mut rec);
         self.recent.note(&rec);
         let ready = readable.and_then(|()| self.prepare(&mut frame, motion, i, &mut rec));
         let stepped = self.register(source, i, &frame, ready);
         let not_waited = self.take_timings(read.ms, &frame, &mut rec);
-        if let Some(e) = self.from_map.pager.as_mut().and_then(MapPager::take_error) {
+        if let Some(e) = self.stages.failed() {
             return Err(e.into());
         }
         match stepped.and_then(found_or_not) {
@@ -75,8 +72,8 @@ impl<C: Capacity> Run<'_, C> {
     }
 
     /// Lets the stages move the run as a whole before frame `i` (a loop closed).
-    fn correct(&mut self, i: usize, rec: &mut FrameRecord) {
-        let mut run = Correcting {
+    fn between(&mut self, i: usize, rec: &mut FrameRecord) {
+        let mut run = Between {
             pipeline: &mut self.pipeline,
             poses: &mut self.progress.poses,
             next_frame: i,
@@ -85,21 +82,11 @@ impl<C: Capacity> Run<'_, C> {
                 saved_map: &mut self.files.saved_map,
             },
         };
-        self.stages.correct(&mut run, &mut rec.notes);
-    }
-
-    /// A paged map: the tiles around the predicted pose (while the pose is searched for, the
-    /// search pages).
-    fn page_around_prediction(&mut self) {
-        let FromMap { pager, search, .. } = &mut self.from_map;
-        if let (Some(pager), None) = (pager, search) {
-            let predicted = self.pipeline.motion().predict();
-            pager.around(self.pipeline.map_mut(), &predicted);
-        }
+        self.stages.between(&mut run, &mut rec.notes);
     }
 
     /// The core's step on a worker of the pool, with what is known of the pose (the given
-    /// one, nothing, or a search of the saved map), while this thread reads the next frame
+    /// one, nothing, or a stage's search: [`crate::stage::RunStage::search`]), while this thread reads the next frame
     /// (and starts filtering it unless it is to be deskewed or outgrows the capacity). A
     /// frame that is not ready still has the next one read.
     fn register(
@@ -115,7 +102,7 @@ impl<C: Capacity> Run<'_, C> {
             clock,
             ahead,
             opts,
-            from_map,
+            stages,
             ..
         } = self;
         let (deskew, config, workers) = (opts.deskew, &opts.config, &*workers);
@@ -125,20 +112,19 @@ impl<C: Capacity> Run<'_, C> {
             })
         });
         let everywhere = Search::default();
-        let FromMap { pager, search, .. } = from_map;
+        let searching = stages.search();
         let stepped = ready.and_then(|()| {
             let scan = match &frame.ahead {
                 Some(a) => Scan::Filtered(a.filtered()),
                 None => Scan::Raw(&frame.points),
             };
-            let mut paging = map_pager::Paged(pager.as_mut());
-            let known = match (frame.given, search.as_deref()) {
+            let known = match (frame.given, searching) {
                 (Some(pose), _) => Known::Pose(pose),
                 (None, None) => frame.prior.map_or(Known::Nothing, Known::Near),
-                (None, Some(candidates)) => Known::Somewhere {
-                    candidates,
+                (None, Some(s)) => Known::Somewhere {
+                    candidates: s.candidates,
                     search: &everywhere,
-                    paging: &mut paging,
+                    paging: s.paging,
                 },
             };
             // On a worker of the pool: its serial stages leave the other thread to the filter.
@@ -170,19 +156,13 @@ impl<C: Capacity> Run<'_, C> {
         a.filter_ms - a.wait_ms
     }
 
-    /// The outcome's status, reason and counts into `rec`; a pose found in the saved map ends
-    /// the search.
+    /// The outcome's status, reason and counts into `rec`; a search's result to the stages.
     fn take_outcome(&mut self, stepped: &Stepped, rec: &mut FrameRecord) {
         let o = stepped.outcome();
         rec.status = o.status.into();
         rec.reason = registration_reason(o.status, &o.stats, &self.opts.config);
         if let Stepped::Searched(r) = stepped {
-            if o.status == RegistrationStatus::Relocalized {
-                let found = saved_map::found(r);
-                log::info!("frame {}: {found}", rec.frame);
-                rec.relocalization = Some(found);
-                self.from_map.search = None;
-            }
+            (self.stages).searched(rec.frame, r, &mut rec.notes);
         }
         rec.take_stats(&o.stats);
         self.event.information = Some(o.stats.information);

@@ -1,6 +1,6 @@
 //! What a run lends its stages beyond a frame: its window, for a stage that rebuilds the map
 //! as the run keeps it ([`Windowed`]), and, between frames, its pipeline, trajectory and
-//! outputs, for a stage that moves them all ([`Correcting`]: a loop closed).
+//! outputs, for a stage that moves them all ([`Between`]: a loop closed).
 //!
 //! Owns nothing: each is a view of the run's own state, made by the run for one call.
 
@@ -53,8 +53,8 @@ pub struct RunOutputs<'a> {
 }
 
 /// The run between frames, lent to a stage that may move it as a whole
-/// ([`RunStage::correct`](super::RunStage::correct)).
-pub struct Correcting<'a, C: Capacity> {
+/// ([`RunStage::between`](super::RunStage::between)).
+pub struct Between<'a, C: Capacity> {
     /// The pipeline: its map and motion model.
     pub pipeline: &'a mut Pipeline<C>,
     /// The trajectory so far, by frame, in order.

@@ -25,11 +25,13 @@ use crate::io::le::{put_str, put_u64, Damaged, Decoder};
 use crate::outputs::mesh_spool::MeshSpool;
 use crate::parallel::Workers;
 use crate::sources::Sample;
-use lent::{Correcting, Windowed};
+use lent::{Between, Windowed};
 use nalgebra::Vector3;
 use slamesh_core::cell::{Axis, CellKey};
 use slamesh_core::deskew::{DeskewError, Deskewed};
 use slamesh_core::lm::PoseInformation;
+use slamesh_core::pipeline::Relocalized;
+use slamesh_core::relocalize::Paging;
 use slamesh_core::{Capacity, Config, Pipeline, Point, Pose, RegistrationStatus};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -57,16 +59,41 @@ pub trait RunStage<C: Capacity>: Send {
         false
     }
 
-    /// Between frames, before frame `run.next_frame` registers: may move the run as a whole
-    /// (every pose of the trajectory, the motion model, the map: a loop closed). Returns a note
-    /// for that frame's record, which says what moved ([`Note::moved`]).
-    fn correct(&mut self, _run: &mut Correcting<'_, C>) -> Option<Note> {
+    /// Between frames, before frame `run.next_frame` is read: may change the map (a paged
+    /// map's tiles around the predicted pose) or move the run as a whole (every pose of the
+    /// trajectory, the motion model, the map: a loop closed). Returns a note for that frame's
+    /// record, which says what moved ([`Note::moved`]).
+    fn between(&mut self, _run: &mut Between<'_, C>) -> Option<Note> {
         None
     }
 
-    /// The run's last frame has run: the last of what [`correct`](Self::correct) does, waited
+    /// The run's last frame has run: the last of what [`between`](Self::between) does, waited
     /// for, before the map is written.
-    fn wind_up(&mut self, _run: &mut Correcting<'_, C>) {}
+    fn wind_up(&mut self, _run: &mut Between<'_, C>) {}
+
+    /// Where the frame's pose is searched for, when this stage has it searched (the first
+    /// that does): the pose is then neither predicted nor given a prior.
+    fn search(&mut self) -> Option<Searching<'_>> {
+        None
+    }
+
+    /// A search ran ([`search`](Self::search)), with what it found. Returns a note for the
+    /// frame's record ([`Note::jumped`] when the pose was found).
+    fn searched(&mut self, _frame: usize, _found: &Relocalized) -> Option<Note> {
+        None
+    }
+
+    /// The next frames are to search for their pose near `near` (a user's request): true when
+    /// this stage will.
+    fn relocalize(&mut self, _near: Pose) -> bool {
+        false
+    }
+
+    /// What failed in what it reads or writes beside the frames (a paged map's file), once: the
+    /// run stops with it after the frame.
+    fn failed(&mut self) -> Option<FileError> {
+        None
+    }
 
     /// A frame was read, with the samples that are not scans that came with it (an IMU's).
     fn read(&mut self, _frame: &Read<'_>) {}
@@ -165,6 +192,14 @@ pub trait RunStage<C: Capacity>: Send {
     }
 }
 
+/// Where a frame's pose is searched for ([`RunStage::search`]).
+pub struct Searching<'a> {
+    /// Where to look first.
+    pub candidates: &'a [Pose],
+    /// What makes the map hold what lies around each place searched.
+    pub paging: &'a mut (dyn Paging + Send),
+}
+
 /// What a stage knows when the run starts.
 #[derive(Clone, Copy)]
 pub struct Start<'a> {
@@ -239,6 +274,9 @@ pub struct Note {
     /// What moved the run as a whole before the frame, each said in a line (a loop closed):
     /// the sinks that keep the map and the path are sent the whole of both again.
     pub moved: Vec<String>,
+    /// The frame's pose does not follow from the last one's (found by a search, or the run
+    /// moved): what follows the motion (the ROS 2 node's `odom`) is told.
+    pub jumped: bool,
 }
 
 impl Note {
@@ -249,6 +287,7 @@ impl Note {
             value: serde_json::to_value(value).unwrap_or_default(),
             doubt: None,
             moved: Vec::new(),
+            jumped: false,
         }
     }
 }
@@ -266,6 +305,9 @@ pub struct Notes {
     /// in `report.json`).
     #[serde(skip)]
     pub moved: Vec<String>,
+    /// Some note said the pose jumped ([`Note::jumped`]).
+    #[serde(skip)]
+    pub jumped: bool,
 }
 
 impl Notes {
@@ -274,6 +316,7 @@ impl Notes {
         if let Some((status, why)) = note.doubt {
             self.doubts.push((status.to_string(), why));
         }
+        self.jumped |= note.jumped || !note.moved.is_empty();
         self.moved.extend(note.moved);
         self.values.insert(note.key.to_string(), note.value);
     }
@@ -338,6 +381,11 @@ impl<C: Capacity> Stages<C> {
         self.0.push(stage);
     }
 
+    /// Puts `stage` before the others.
+    pub fn push_first(&mut self, stage: Box<dyn RunStage<C>>) {
+        self.0.insert(0, stage);
+    }
+
     /// Adds `more`'s stages at the end of the list.
     pub fn extend(&mut self, more: Stages<C>) {
         self.0.extend(more.0);
@@ -353,17 +401,45 @@ impl<C: Capacity> Stages<C> {
         self.0.iter_mut().try_for_each(|s| s.start(start))
     }
 
-    /// [`RunStage::correct`] in turn, each note into `notes`.
-    pub fn correct(&mut self, run: &mut Correcting<'_, C>, notes: &mut Notes) {
+    /// [`RunStage::between`] in turn, each note into `notes`.
+    pub fn between(&mut self, run: &mut Between<'_, C>, notes: &mut Notes) {
         for s in &mut self.0 {
-            if let Some(note) = s.correct(run) {
+            if let Some(note) = s.between(run) {
                 notes.add(note);
             }
         }
     }
 
+    /// The first stage's search ([`RunStage::search`]).
+    pub fn search(&mut self) -> Option<Searching<'_>> {
+        self.0.iter_mut().find_map(|s| s.search())
+    }
+
+    /// Tells each a search ran; their notes go into `notes`.
+    pub fn searched(&mut self, frame: usize, found: &Relocalized, notes: &mut Notes) {
+        for s in &mut self.0 {
+            if let Some(note) = s.searched(frame, found) {
+                notes.add(note);
+            }
+        }
+    }
+
+    /// Asks each to search near `near` from the next frame; true when one will.
+    pub fn relocalize(&mut self, near: Pose) -> bool {
+        let mut any = false;
+        for s in &mut self.0 {
+            any |= s.relocalize(near);
+        }
+        any
+    }
+
+    /// The first failure a stage reports ([`RunStage::failed`]).
+    pub fn failed(&mut self) -> Option<FileError> {
+        self.0.iter_mut().find_map(|s| s.failed())
+    }
+
     /// [`RunStage::wind_up`] in turn.
-    pub fn wind_up(&mut self, run: &mut Correcting<'_, C>) {
+    pub fn wind_up(&mut self, run: &mut Between<'_, C>) {
         self.0.iter_mut().for_each(|s| s.wind_up(run));
     }
 

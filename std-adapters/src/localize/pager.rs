@@ -137,17 +137,6 @@ impl std::fmt::Display for PagingStats {
     }
 }
 
-/// The pager, when the map is paged, for the search (which pages as it goes).
-pub struct Paged<'a>(pub Option<&'a mut MapPager>);
-
-impl Paging for Paged<'_> {
-    fn around(&mut self, map: &mut MeshMap, at: &Pose) {
-        if let Some(p) = &mut self.0 {
-            p.around(map, at);
-        }
-    }
-}
-
 impl Paging for MapPager {
     fn around(&mut self, map: &mut MeshMap, at: &Pose) {
         if self.error.is_some() {
