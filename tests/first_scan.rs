@@ -26,6 +26,17 @@ fn with_short_first_scan(seq: &Path, dir: &Path) -> std::path::PathBuf {
     dir.to_path_buf()
 }
 
+/// The run in `out` is the run in `plain` after its first frame: every later pose to the last
+/// digit written, and the same mesh.
+fn same_after_the_first(out: &Path, plain: &Path) {
+    let poses = |d: &Path| std::fs::read_to_string(d.join("poses_kitti.txt")).unwrap();
+    let with = poses(out);
+    let with: Vec<&str> = with.lines().collect();
+    assert_eq!(with[1..], poses(plain).lines().collect::<Vec<_>>()[..]);
+    let mesh = |d: &Path| std::fs::read(d.join("mesh.ply")).unwrap();
+    assert!(mesh(out) == mesh(plain), "the same mesh");
+}
+
 fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()
 }
@@ -98,12 +109,7 @@ fn a_first_file_that_is_no_scan_is_refused_with_its_reason_and_decides_nothing()
     assert!(o.status.success(), "{}", text(&o.stderr));
     // It decided nothing (scale, capacity, the map): the scans after it are the run without it
     // (a skipped frame keeps a line of the pose before, here the start's).
-    let poses = |d: &Path| std::fs::read_to_string(d.join("poses_kitti.txt")).unwrap();
-    let with = poses(&out);
-    let with: Vec<&str> = with.lines().collect();
-    assert_eq!(with[1..], poses(&plain).lines().collect::<Vec<_>>()[..]);
-    let mesh = |d: &Path| std::fs::read(d.join("mesh.ply")).unwrap();
-    assert!(mesh(&out) == mesh(&plain), "the same mesh");
+    same_after_the_first(&out, &plain);
 }
 
 #[test]
@@ -145,10 +151,5 @@ fn a_partial_first_sweep_does_not_decide_the_scale() {
     // The map restarts at frame 1 (as for a short scan), at the scale of the whole scans: the
     // scans after it are the run without it to the last digit written. At the partial sweep's
     // scale every pose and the mesh would differ.
-    let poses = |d: &Path| std::fs::read_to_string(d.join("poses_kitti.txt")).unwrap();
-    let with = poses(&out);
-    let with: Vec<&str> = with.lines().collect();
-    assert_eq!(with[1..], poses(&plain).lines().collect::<Vec<_>>()[..]);
-    let mesh = |d: &Path| std::fs::read(d.join("mesh.ply")).unwrap();
-    assert!(mesh(&out) == mesh(&plain), "the same mesh");
+    same_after_the_first(&out, &plain);
 }

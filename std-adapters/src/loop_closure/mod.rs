@@ -239,7 +239,7 @@ impl<C: Capacity> LoopClosure<C> {
         pipeline: &mut Pipeline<C>,
         poses: &mut [(usize, Pose)],
         next_frame: usize,
-        outputs: RunOutputs<'_>,
+        outputs: &mut RunOutputs<'_>,
     ) -> Vec<Closure> {
         match self.from_worker.try_recv() {
             Ok(c) if !c.done => self.take(c, pipeline, poses, next_frame, outputs),
@@ -253,7 +253,7 @@ impl<C: Capacity> LoopClosure<C> {
         pipeline: &mut Pipeline<C>,
         poses: &mut [(usize, Pose)],
         next_frame: usize,
-        mut outputs: RunOutputs<'_>,
+        outputs: &mut RunOutputs<'_>,
     ) -> Vec<Closure> {
         let mut known = c.per_frame.iter().peekable();
         for (frame, pose) in poses.iter_mut() {
@@ -276,7 +276,7 @@ impl<C: Capacity> LoopClosure<C> {
             self.report.rebuilds += 1;
         }
         if let Some(o) = c.outputs {
-            if let Err(e) = streaming::replace(&mut outputs, o) {
+            if let Err(e) = streaming::replace(outputs, o) {
                 log::warn!("loop closure: the rebuilt outputs: {e}");
             }
         }
@@ -302,7 +302,7 @@ impl<C: Capacity> LoopClosure<C> {
         pipeline: &mut Pipeline<C>,
         poses: &mut [(usize, Pose)],
         next_frame: usize,
-        outputs: RunOutputs<'_>,
+        outputs: &mut RunOutputs<'_>,
     ) -> LoopReport {
         let _ = self.to_worker.send(ToWorker::Finish);
         while let Ok(c) = self.from_worker.recv() {
@@ -310,10 +310,6 @@ impl<C: Capacity> LoopClosure<C> {
                 self.report.spool_bytes = c.spool_bytes;
                 break;
             }
-            let outputs = RunOutputs {
-                spool: outputs.spool,
-                saved_map: outputs.saved_map,
-            };
             self.take(c, pipeline, poses, next_frame, outputs);
         }
         // A thread that stopped (its spool could not be written, say) costs the closures it

@@ -63,11 +63,7 @@ impl<C: Capacity> RunStage<C> for LoopClosureStage<C> {
     fn between(&mut self, run: &mut Between<'_, C>) -> Option<Note> {
         let closer = self.closer.as_mut()?;
         let i = run.next_frame;
-        let outputs = crate::stage::lent::RunOutputs {
-            spool: run.outputs.spool,
-            saved_map: run.outputs.saved_map,
-        };
-        let closed = closer.apply(run.pipeline, run.poses, i, outputs);
+        let closed = closer.apply(run.pipeline, run.poses, i, &mut run.outputs);
         if closed.is_empty() {
             return None;
         }
@@ -91,10 +87,7 @@ impl<C: Capacity> RunStage<C> for LoopClosureStage<C> {
 
     fn wind_up(&mut self, run: &mut Between<'_, C>) {
         if let Some(c) = self.closer.take() {
-            let outputs = crate::stage::lent::RunOutputs {
-                spool: run.outputs.spool,
-                saved_map: run.outputs.saved_map,
-            };
+            let outputs = &mut run.outputs;
             self.report = Some(c.finish(run.pipeline, run.poses, run.next_frame, outputs));
         }
     }
